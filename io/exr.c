@@ -1,0 +1,387 @@
+/* io/exr.c: multi-channel EXR writer and single-channel reader over the OpenEXR 3.1 C API
+ * (OpenEXRCore). Plain C17.
+ *
+ * Writer: one scanline part, FLOAT channels, ZIP compression, channels in the alphabetical
+ * order EXR requires, written to "PATH.tmp-PID" and renamed.
+ * Reader: any scanline file; the requested channel (HALF, FLOAT or UINT) is returned as float. */
+#include "io.h"
+
+#include <openexr.h>
+
+#include <errno.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+/* The OpenEXR error callback has no user pointer usable with the default file streams, so the
+ * most recent library message is kept per thread. */
+static _Thread_local char exr_last_msg[256];
+
+static void exr_capture_error(exr_const_context_t ctxt, exr_result_t code, const char *msg) {
+    (void)ctxt;
+    snprintf(exr_last_msg, sizeof exr_last_msg, "%s",
+             msg ? msg : exr_get_default_error_message(code));
+}
+
+static void exr_set_err(char err[IO_ERR_LEN], const char *path, const char *fmt, ...) {
+    if (!err) return;
+    int k = snprintf(err, IO_ERR_LEN, "%s: ", path ? path : "(null)");
+    if (k < 0) k = 0;
+    if (k > IO_ERR_LEN - 1) k = IO_ERR_LEN - 1;
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(err + k, (size_t)(IO_ERR_LEN - k), fmt, ap);
+    va_end(ap);
+    for (char *p = err; *p; ++p)
+        if (*p == '\n' || *p == '\r') *p = ' ';
+}
+
+/* Library message for rv: the captured one if any, else the default text. */
+static const char *exr_msg(exr_result_t rv) {
+    if (exr_last_msg[0]) return exr_last_msg;
+    return exr_get_default_error_message(rv);
+}
+
+static exr_context_initializer_t exr_init(void) {
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = exr_capture_error;
+    return init;
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* Writer */
+
+typedef struct SortedChannel {
+    const char *name;
+    const float *data;
+} SortedChannel;
+
+static int cmp_channel(const void *a, const void *b) {
+    return strcmp(((const SortedChannel *)a)->name, ((const SortedChannel *)b)->name);
+}
+
+int io_write_exr(const char *path, int width, int height, const IoExrChannel *channels,
+                 int num_channels, char err[IO_ERR_LEN]) {
+    if (err) err[0] = 0;
+    if (!path || !*path) {
+        exr_set_err(err, "(null)", "no path given");
+        return 1;
+    }
+    if (width <= 0 || height <= 0 || (int64_t)width * height > ((int64_t)1 << 31)) {
+        exr_set_err(err, path, "invalid image size %dx%d", width, height);
+        return 1;
+    }
+    if (!channels || num_channels <= 0 || num_channels > 1024) {
+        exr_set_err(err, path, "invalid channel list (%d channels)", num_channels);
+        return 1;
+    }
+
+    SortedChannel *sorted = malloc(sizeof *sorted * (size_t)num_channels);
+    if (!sorted) {
+        exr_set_err(err, path, "out of memory");
+        return 1;
+    }
+    int need_longnames = 0;
+    for (int i = 0; i < num_channels; ++i) {
+        if (!channels[i].name || !channels[i].name[0] || !channels[i].data) {
+            exr_set_err(err, path, "channel %d has no name or no data", i);
+            free(sorted);
+            return 1;
+        }
+        size_t len = strlen(channels[i].name);
+        if (len > 255) {
+            exr_set_err(err, path, "channel name too long (%zu chars)", len);
+            free(sorted);
+            return 1;
+        }
+        if (len > 31) need_longnames = 1;
+        sorted[i].name = channels[i].name;
+        sorted[i].data = channels[i].data;
+    }
+    qsort(sorted, (size_t)num_channels, sizeof *sorted, cmp_channel);
+    for (int i = 1; i < num_channels; ++i) {
+        if (strcmp(sorted[i - 1].name, sorted[i].name) == 0) {
+            exr_set_err(err, path, "duplicate channel name '%s'", sorted[i].name);
+            free(sorted);
+            return 1;
+        }
+    }
+
+    size_t tmplen = strlen(path) + 32;
+    char *tmp = malloc(tmplen);
+    if (!tmp) {
+        free(sorted);
+        exr_set_err(err, path, "out of memory");
+        return 1;
+    }
+    snprintf(tmp, tmplen, "%s.tmp-%ld", path, (long)getpid());
+
+    exr_last_msg[0] = 0;
+    exr_context_initializer_t init = exr_init();
+    exr_context_t ctxt = NULL;
+    exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
+    int have_enc = 0;
+    int part = 0;
+    const char *stage = "cannot open";
+    exr_result_t rv = exr_start_write(&ctxt, tmp, EXR_WRITE_FILE_DIRECTLY, &init);
+    if (rv != EXR_ERR_SUCCESS) goto fail;
+    stage = "cannot write header";
+    if (need_longnames && (rv = exr_set_longname_support(ctxt, 1)) != EXR_ERR_SUCCESS) goto fail;
+    if ((rv = exr_add_part(ctxt, "main", EXR_STORAGE_SCANLINE, &part)) != EXR_ERR_SUCCESS)
+        goto fail;
+    rv = exr_initialize_required_attr_simple(ctxt, part, width, height, EXR_COMPRESSION_ZIP);
+    if (rv != EXR_ERR_SUCCESS) goto fail;
+    for (int i = 0; i < num_channels; ++i) {
+        rv = exr_add_channel(ctxt, part, sorted[i].name, EXR_PIXEL_FLOAT,
+                             EXR_PERCEPTUALLY_LINEAR, 1, 1);
+        if (rv != EXR_ERR_SUCCESS) goto fail;
+    }
+    if ((rv = exr_write_header(ctxt)) != EXR_ERR_SUCCESS) goto fail;
+
+    stage = "cannot write pixels";
+    int32_t lines_per_chunk = 0;
+    if ((rv = exr_get_scanlines_per_chunk(ctxt, part, &lines_per_chunk)) != EXR_ERR_SUCCESS)
+        goto fail;
+    if (lines_per_chunk <= 0) {
+        rv = EXR_ERR_UNKNOWN;
+        goto fail;
+    }
+    for (int y = 0; y < height; y += lines_per_chunk) {
+        exr_chunk_info_t cinfo;
+        if ((rv = exr_write_scanline_chunk_info(ctxt, part, y, &cinfo)) != EXR_ERR_SUCCESS)
+            goto fail;
+        if (!have_enc) {
+            rv = exr_encoding_initialize(ctxt, part, &cinfo, &enc);
+            if (rv != EXR_ERR_SUCCESS) goto fail;
+            have_enc = 1;
+        } else if ((rv = exr_encoding_update(ctxt, part, &cinfo, &enc)) != EXR_ERR_SUCCESS) {
+            goto fail;
+        }
+        for (int c = 0; c < enc.channel_count; ++c) {
+            exr_coding_channel_info_t *ch = &enc.channels[c];
+            const SortedChannel *src = NULL;
+            for (int i = 0; i < num_channels && !src; ++i)
+                if (strcmp(sorted[i].name, ch->channel_name) == 0) src = &sorted[i];
+            if (!src) {
+                rv = EXR_ERR_UNKNOWN;
+                goto fail;
+            }
+            ch->user_bytes_per_element = 4;
+            ch->user_data_type = EXR_PIXEL_FLOAT;
+            ch->user_pixel_stride = 4;
+            ch->user_line_stride = 4 * width;
+            ch->encode_from_ptr = (const uint8_t *)(src->data + (size_t)cinfo.start_y * (size_t)width);
+        }
+        if (y == 0 && (rv = exr_encoding_choose_default_routines(ctxt, part, &enc)) != EXR_ERR_SUCCESS)
+            goto fail;
+        if ((rv = exr_encoding_run(ctxt, part, &enc)) != EXR_ERR_SUCCESS) goto fail;
+    }
+    if (have_enc) {
+        exr_encoding_destroy(ctxt, &enc);
+        have_enc = 0;
+    }
+    stage = "cannot finish";
+    rv = exr_finish(&ctxt);
+    ctxt = NULL;
+    if (rv != EXR_ERR_SUCCESS) goto fail;
+    free(sorted);
+    sorted = NULL;
+    if (rename(tmp, path) != 0) {
+        exr_set_err(err, path, "cannot rename %s: %s", tmp, strerror(errno));
+        remove(tmp);
+        free(tmp);
+        return 1;
+    }
+    free(tmp);
+    return 0;
+
+fail:
+    exr_set_err(err, path, "%s: %s", stage, exr_msg(rv));
+    if (have_enc) exr_encoding_destroy(ctxt, &enc);
+    if (ctxt) exr_finish(&ctxt);
+    remove(tmp);
+    free(tmp);
+    free(sorted);
+    return 1;
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* Reader */
+
+static float half_to_float(uint16_t h) {
+    uint32_t sign = (uint32_t)(h & 0x8000u) << 16;
+    uint32_t e = (h >> 10) & 0x1fu;
+    uint32_t m = h & 0x3ffu;
+    uint32_t bits;
+    if (e == 0) {
+        if (m == 0) {
+            bits = sign;
+        } else { /* subnormal: normalise */
+            uint32_t fe = 113; /* 127 - 14 */
+            while (!(m & 0x400u)) {
+                m <<= 1;
+                --fe;
+            }
+            m &= 0x3ffu;
+            bits = sign | (fe << 23) | (m << 13);
+        }
+    } else if (e == 31) {
+        bits = sign | 0x7f800000u | (m << 13);
+    } else {
+        bits = sign | ((e + 112u) << 23) | (m << 13);
+    }
+    float f;
+    memcpy(&f, &bits, sizeof f);
+    return f;
+}
+
+int io_read_exr_channel(const char *path, const char *channel, int *width, int *height,
+                        float **data, char err[IO_ERR_LEN]) {
+    if (err) err[0] = 0;
+    if (data) *data = NULL;
+    if (width) *width = 0;
+    if (height) *height = 0;
+    if (!path || !*path) {
+        exr_set_err(err, "(null)", "no path given");
+        return 1;
+    }
+    if (!channel || !data || !width || !height) {
+        exr_set_err(err, path, "invalid arguments");
+        return 1;
+    }
+
+    exr_last_msg[0] = 0;
+    exr_context_initializer_t init = exr_init();
+    exr_context_t ctxt = NULL;
+    exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
+    int have_dec = 0;
+    uint8_t *raw = NULL;
+    float *out = NULL;
+    const char *stage = "cannot open";
+    char problem[IO_ERR_LEN];
+    problem[0] = 0;
+
+    exr_result_t rv = exr_start_read(&ctxt, path, &init);
+    if (rv != EXR_ERR_SUCCESS) goto fail;
+
+    stage = "cannot read header";
+    int nparts = 0;
+    if ((rv = exr_get_count(ctxt, &nparts)) != EXR_ERR_SUCCESS) goto fail;
+    if (nparts < 1) {
+        snprintf(problem, sizeof problem, "no image parts");
+        goto fail;
+    }
+    exr_storage_t storage;
+    if ((rv = exr_get_storage(ctxt, 0, &storage)) != EXR_ERR_SUCCESS) goto fail;
+    if (storage != EXR_STORAGE_SCANLINE) {
+        snprintf(problem, sizeof problem, "only flat scanline EXR files are supported");
+        goto fail;
+    }
+    exr_attr_box2i_t dw;
+    if ((rv = exr_get_data_window(ctxt, 0, &dw)) != EXR_ERR_SUCCESS) goto fail;
+    int64_t w = (int64_t)dw.max.x - dw.min.x + 1, h = (int64_t)dw.max.y - dw.min.y + 1;
+    if (w <= 0 || h <= 0 || w * h > ((int64_t)1 << 30)) {
+        snprintf(problem, sizeof problem, "invalid data window %lldx%lld", (long long)w,
+                 (long long)h);
+        goto fail;
+    }
+    const exr_attr_chlist_t *chl = NULL;
+    if ((rv = exr_get_channels(ctxt, 0, &chl)) != EXR_ERR_SUCCESS) goto fail;
+    const exr_attr_chlist_entry_t *want = NULL;
+    for (int i = 0; chl && i < chl->num_channels; ++i)
+        if (chl->entries[i].name.str && strcmp(chl->entries[i].name.str, channel) == 0)
+            want = &chl->entries[i];
+    if (!want) {
+        snprintf(problem, sizeof problem, "no channel '%s'", channel);
+        goto fail;
+    }
+    if (want->x_sampling != 1 || want->y_sampling != 1) {
+        snprintf(problem, sizeof problem, "channel '%s' is subsampled (unsupported)", channel);
+        goto fail;
+    }
+    const exr_pixel_type_t ptype = want->pixel_type;
+    const int bpe = ptype == EXR_PIXEL_HALF ? 2 : 4;
+    if (ptype != EXR_PIXEL_HALF && ptype != EXR_PIXEL_FLOAT && ptype != EXR_PIXEL_UINT) {
+        snprintf(problem, sizeof problem, "channel '%s' has unknown pixel type", channel);
+        goto fail;
+    }
+    const size_t npix = (size_t)w * (size_t)h;
+    out = malloc(npix * sizeof(float));
+    raw = ptype == EXR_PIXEL_FLOAT ? (uint8_t *)out : malloc(npix * (size_t)bpe);
+    if (!out || !raw) {
+        snprintf(problem, sizeof problem, "out of memory");
+        goto fail;
+    }
+
+    stage = "cannot read pixels";
+    int32_t lines_per_chunk = 0;
+    if ((rv = exr_get_scanlines_per_chunk(ctxt, 0, &lines_per_chunk)) != EXR_ERR_SUCCESS)
+        goto fail;
+    if (lines_per_chunk <= 0) {
+        snprintf(problem, sizeof problem, "invalid scanlines per chunk");
+        goto fail;
+    }
+    for (int64_t y = dw.min.y; y <= dw.max.y; y += lines_per_chunk) {
+        exr_chunk_info_t cinfo;
+        if ((rv = exr_read_scanline_chunk_info(ctxt, 0, (int)y, &cinfo)) != EXR_ERR_SUCCESS)
+            goto fail;
+        if (!have_dec) {
+            if ((rv = exr_decoding_initialize(ctxt, 0, &cinfo, &dec)) != EXR_ERR_SUCCESS)
+                goto fail;
+            have_dec = 1;
+        } else if ((rv = exr_decoding_update(ctxt, 0, &cinfo, &dec)) != EXR_ERR_SUCCESS) {
+            goto fail;
+        }
+        int64_t row0 = (int64_t)cinfo.start_y - dw.min.y;
+        if (row0 < 0 || row0 + cinfo.height > h || cinfo.width != w) {
+            snprintf(problem, sizeof problem, "corrupt chunk at scanline %lld", (long long)y);
+            goto fail;
+        }
+        for (int c = 0; c < dec.channel_count; ++c) {
+            exr_coding_channel_info_t *ch = &dec.channels[c];
+            if (strcmp(ch->channel_name, channel) == 0) {
+                ch->user_bytes_per_element = (int16_t)bpe;
+                ch->user_data_type = (uint16_t)ptype;
+                ch->user_pixel_stride = bpe;
+                ch->user_line_stride = (int32_t)(bpe * w);
+                ch->decode_to_ptr = raw + (size_t)row0 * (size_t)w * (size_t)bpe;
+            } else {
+                ch->decode_to_ptr = NULL;
+            }
+        }
+        if ((rv = exr_decoding_choose_default_routines(ctxt, 0, &dec)) != EXR_ERR_SUCCESS)
+            goto fail;
+        if ((rv = exr_decoding_run(ctxt, 0, &dec)) != EXR_ERR_SUCCESS) goto fail;
+    }
+    exr_decoding_destroy(ctxt, &dec);
+    have_dec = 0;
+    exr_finish(&ctxt);
+
+    if (ptype == EXR_PIXEL_HALF) {
+        const uint16_t *src = (const uint16_t *)raw;
+        for (size_t i = 0; i < npix; ++i) out[i] = half_to_float(src[i]);
+        free(raw);
+    } else if (ptype == EXR_PIXEL_UINT) {
+        const uint32_t *src = (const uint32_t *)raw;
+        for (size_t i = 0; i < npix; ++i) out[i] = (float)src[i];
+        free(raw);
+    }
+    *data = out;
+    *width = (int)w;
+    *height = (int)h;
+    return 0;
+
+fail:
+    if (problem[0])
+        exr_set_err(err, path, "%s", problem);
+    else
+        exr_set_err(err, path, "%s: %s", stage, exr_msg(rv));
+    if (have_dec) exr_decoding_destroy(ctxt, &dec);
+    if (ctxt) exr_finish(&ctxt);
+    if (raw && raw != (uint8_t *)out) free(raw);
+    free(out);
+    return 1;
+}

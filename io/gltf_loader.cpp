@@ -1,0 +1,1034 @@
+// io/gltf_loader.cpp: thin extern "C" adapter over tinygltf (C++17).
+//
+// tinygltf parses the JSON / GLB container and loads buffers; images are NOT decoded by it
+// (a no-op image loader keeps uri / bufferView, and stashes the bytes of data: URIs, which
+// tinygltf does not keep otherwise). Everything the renderer relies on is validated here
+// (accessor and buffer bounds, index ranges, finite positions, node graph shape) and
+// converted to the plain C arrays of io.h. Images are decoded with OpenImageIO
+// (image_oiio.cpp) once per (image, colour space).
+#include "io.h"
+#include "io_internal.hpp"
+
+#include <tiny_gltf.h>
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstdarg>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <exception>
+#include <map>
+#include <new>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace {
+
+using candela_io::set_err;
+
+// Thrown (only inside this file) to abandon a load; caught in io_load_gltf.
+struct LoadError {
+    std::string problem;
+};
+
+#if defined(__GNUC__)
+__attribute__((format(printf, 1, 2)))
+#endif
+std::string strf(const char *fmt, ...) {
+    char buf[1024];
+    va_list ap;
+    va_start(ap, fmt);
+    std::vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
+    return buf;
+}
+
+[[noreturn]] void fail(const std::string &problem) { throw LoadError{problem}; }
+
+// Largest accessor element count accepted (also bounds accessors that have no bufferView).
+constexpr size_t kMaxCount = size_t(1) << 28;
+
+void copy_name(char dst[64], const std::string &src) { std::snprintf(dst, 64, "%s", src.c_str()); }
+
+std::string join_path(const std::string &dir, const std::string &rel) {
+    if (!rel.empty() && rel[0] == '/') return rel;
+    if (dir.empty()) return rel;
+    if (dir.back() == '/') return dir + rel;
+    return dir + "/" + rel;
+}
+
+std::string dir_of(const std::string &path) {
+    size_t p = path.find_last_of('/');
+    if (p == std::string::npos) return "";
+    if (p == 0) return "/";
+    return path.substr(0, p);
+}
+
+std::string url_decode(const std::string &s) {
+    std::string out;
+    out.reserve(s.size());
+    for (size_t i = 0; i < s.size(); ++i) {
+        if (s[i] == '%' && i + 2 < s.size() && std::isxdigit((unsigned char)s[i + 1]) &&
+            std::isxdigit((unsigned char)s[i + 2])) {
+            out += char(std::stoi(s.substr(i + 1, 2), nullptr, 16));
+            i += 2;
+        } else {
+            out += s[i];
+        }
+    }
+    return out;
+}
+
+bool is_regular_file(const std::string &p) {
+    struct stat st;
+    return ::stat(p.c_str(), &st) == 0 && S_ISREG(st.st_mode);
+}
+
+bool read_whole_file(const std::string &path, std::vector<unsigned char> *out, std::string *problem) {
+    FILE *f = std::fopen(path.c_str(), "rb");
+    if (!f) {
+        *problem = std::string("cannot open: ") + std::strerror(errno);
+        return false;
+    }
+    struct stat st;
+    if (::fstat(fileno(f), &st) == 0 && S_ISDIR(st.st_mode)) {
+        std::fclose(f);
+        *problem = "cannot open: is a directory";
+        return false;
+    }
+    unsigned char buf[1 << 16];
+    size_t n;
+    while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) {
+        out->insert(out->end(), buf, buf + n);
+        if (out->size() > 0xFFFFFFF0u) {
+            std::fclose(f);
+            *problem = "file too large (4 GiB limit)";
+            return false;
+        }
+    }
+    bool bad = std::ferror(f) != 0;
+    std::fclose(f);
+    if (bad) {
+        *problem = "read error";
+        return false;
+    }
+    return true;
+}
+
+// tinygltf FileExists callback: only files under the glTF's own directory (tinygltf would
+// otherwise also look in the current working directory).
+bool fs_file_exists(const std::string &abs_filename, void *user) {
+    const std::string &dir = *static_cast<const std::string *>(user);
+    if (!dir.empty()) {
+        std::string prefix = dir.back() == '/' ? dir : dir + "/";
+        if (abs_filename.compare(0, prefix.size(), prefix) != 0) return false;
+    }
+    return is_regular_file(abs_filename);
+}
+
+// tinygltf image callback: decode nothing. Keep the bytes of data: URI images (tinygltf
+// keeps neither the URI nor the bytes for those); file and bufferView images are read later.
+bool keep_image_bytes(tinygltf::Image *image, const int, std::string *, std::string *, int, int,
+                      const unsigned char *bytes, int size, void *) {
+    if (image->uri.empty() && image->bufferView < 0 && bytes && size > 0)
+        image->image.assign(bytes, bytes + size);
+    return true;
+}
+
+// ---- small JSON-value helpers (tinygltf::Value asserts on wrong types, so check first) ----
+
+const tinygltf::Value *member(const tinygltf::Value &o, const char *key) {
+    if (!o.IsObject() || !o.Has(key)) return nullptr;
+    return &o.Get(key);
+}
+
+double number_or(const tinygltf::Value &o, const char *key, double def) {
+    const tinygltf::Value *v = member(o, key);
+    return (v && v->IsNumber()) ? v->GetNumberAsDouble() : def;
+}
+
+// Fill n numbers from array member key, if present and well-formed.
+void numbers(const tinygltf::Value &o, const char *key, float *dst, size_t n) {
+    const tinygltf::Value *v = member(o, key);
+    if (!v || !v->IsArray() || v->ArrayLen() != n) return;
+    for (size_t i = 0; i < n; ++i) {
+        const tinygltf::Value &e = v->Get(int(i));
+        if (!e.IsNumber()) return;
+    }
+    for (size_t i = 0; i < n; ++i) dst[i] = float(v->Get(int(i)).GetNumberAsDouble());
+}
+
+const tinygltf::Value *extension(const tinygltf::ExtensionMap &ext, const char *name) {
+    auto it = ext.find(name);
+    return it == ext.end() ? nullptr : &it->second;
+}
+
+// ---- 4x4 column-major double matrices (m[col*4 + row]) ----
+
+struct Mat4 {
+    double m[16];
+};
+
+Mat4 identity() {
+    Mat4 r{};
+    r.m[0] = r.m[5] = r.m[10] = r.m[15] = 1.0;
+    return r;
+}
+
+Mat4 mul(const Mat4 &a, const Mat4 &b) {
+    Mat4 r{};
+    for (int c = 0; c < 4; ++c)
+        for (int row = 0; row < 4; ++row) {
+            double s = 0.0;
+            for (int k = 0; k < 4; ++k) s += a.m[k * 4 + row] * b.m[c * 4 + k];
+            r.m[c * 4 + row] = s;
+        }
+    return r;
+}
+
+// ---- accessor views ----
+
+const unsigned char kZeros[64] = {};
+
+struct AccView {
+    const unsigned char *base = nullptr;  // nullptr: all zeros (no bufferView)
+    size_t stride = 0, count = 0, elem = 0;
+    int ct = 0, ncomp = 0;
+    bool normalized = false;
+    const unsigned char *sp_vals = nullptr;  // sparse substitution values (tightly packed)
+    std::vector<int32_t> sp_map;             // element -> sparse slot, or -1
+
+    const unsigned char *at(size_t i) const {
+        if (!sp_map.empty() && sp_map[i] >= 0) return sp_vals + size_t(sp_map[i]) * elem;
+        return base ? base + i * stride : kZeros;
+    }
+};
+
+float comp_to_float(const unsigned char *p, int ct, bool normalized) {
+    switch (ct) {
+    case TINYGLTF_COMPONENT_TYPE_FLOAT: {
+        float v;
+        std::memcpy(&v, p, 4);
+        return v;
+    }
+    case TINYGLTF_COMPONENT_TYPE_BYTE: {
+        int8_t v;
+        std::memcpy(&v, p, 1);
+        return normalized ? std::max(float(v) / 127.0f, -1.0f) : float(v);
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+        return normalized ? float(p[0]) / 255.0f : float(p[0]);
+    case TINYGLTF_COMPONENT_TYPE_SHORT: {
+        int16_t v;
+        std::memcpy(&v, p, 2);
+        return normalized ? std::max(float(v) / 32767.0f, -1.0f) : float(v);
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
+        uint16_t v;
+        std::memcpy(&v, p, 2);
+        return normalized ? float(v) / 65535.0f : float(v);
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: {
+        uint32_t v;
+        std::memcpy(&v, p, 4);
+        return normalized ? float(double(v) / 4294967295.0) : float(v);
+    }
+    default:
+        return 0.0f;
+    }
+}
+
+uint32_t comp_to_uint(const unsigned char *p, int ct) {
+    switch (ct) {
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+        return p[0];
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
+        uint16_t v;
+        std::memcpy(&v, p, 2);
+        return v;
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: {
+        uint32_t v;
+        std::memcpy(&v, p, 4);
+        return v;
+    }
+    default:
+        return UINT32_MAX;
+    }
+}
+
+bool is_index_type(int ct) {
+    return ct == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ||
+           ct == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT ||
+           ct == TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+}
+
+const char *type_name(int t) {
+    switch (t) {
+    case TINYGLTF_TYPE_SCALAR: return "SCALAR";
+    case TINYGLTF_TYPE_VEC2: return "VEC2";
+    case TINYGLTF_TYPE_VEC3: return "VEC3";
+    case TINYGLTF_TYPE_VEC4: return "VEC4";
+    case TINYGLTF_TYPE_MAT2: return "MAT2";
+    case TINYGLTF_TYPE_MAT3: return "MAT3";
+    case TINYGLTF_TYPE_MAT4: return "MAT4";
+    default: return "invalid";
+    }
+}
+
+// ---- the loader ----
+
+class Loader {
+  public:
+    explicit Loader(const std::string &path) : path_(path), dir_(dir_of(path)) {}
+    ~Loader() { release_all(); }
+    Loader(const Loader &) = delete;
+    Loader &operator=(const Loader &) = delete;
+
+    void run(IoScene *out);
+
+  private:
+    std::string path_, dir_;
+    tinygltf::Model m_;
+    uint32_t warnings_ = 0;
+    bool warned_morph_ = false;
+    bool warned_texcoord_ = false;
+    int scene_ = -1;
+
+    std::vector<IoPrimitive> prims_;
+    std::vector<IoMesh> meshes_;
+    std::vector<IoInstance> instances_;
+    std::vector<IoMaterial> materials_;
+    std::vector<IoImage> images_;
+    std::vector<IoLight> lights_;
+    std::vector<IoCamera> cameras_;
+    std::map<std::pair<std::string, int>, int32_t> image_cache_;
+
+    void warn(const std::string &msg) {
+        std::fprintf(stderr, "%s: warning: %s\n", path_.c_str(), msg.c_str());
+        ++warnings_;
+    }
+    void release_all() {
+        for (IoPrimitive &p : prims_) free_prim(&p);
+        prims_.clear();
+        for (IoImage &im : images_) io_image_free(&im);
+        images_.clear();
+    }
+    static void free_prim(IoPrimitive *p) {
+        std::free(p->positions);
+        std::free(p->normals);
+        std::free(p->uvs);
+        std::free(p->tangents);
+        std::free(p->indices);
+        std::memset(p, 0, sizeof *p);
+    }
+
+    void parse();
+    void check_required_extensions();
+    const unsigned char *view_span(int bvi, long long offset, size_t need, const std::string &what,
+                                   size_t *stride);
+    AccView accessor(int ai, const std::string &what, int want_type);
+    float *read_floats(const AccView &v, const std::string &what, bool check_finite);
+    void convert_meshes();
+    void convert_primitive(const tinygltf::Mesh &mesh, size_t pi);
+    int32_t image_for(int gltf_image, bool srgb, const std::string &what);
+    template <class Info>
+    IoTextureRef texture_ref(const Info &info, bool srgb, const std::string &what);
+    void convert_materials();
+    void flatten_nodes();
+    void environment(IoScene *out);
+    void transfer(IoScene *out);
+};
+
+void Loader::parse() {
+    std::vector<unsigned char> bytes;
+    std::string problem;
+    if (!read_whole_file(path_, &bytes, &problem)) fail(problem);
+    if (bytes.empty()) fail("file is empty");
+
+    tinygltf::TinyGLTF tg;
+    tg.SetImageLoader(&keep_image_bytes, nullptr);
+    tinygltf::FsCallbacks fs = {&fs_file_exists, &tinygltf::ExpandFilePath,
+                                &tinygltf::ReadWholeFile, &tinygltf::WriteWholeFile, &dir_};
+    tg.SetFsCallbacks(fs);
+
+    std::string err, warn_s;
+    bool ok = false;
+    try {
+        if (bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0) {
+            // Validate the GLB container ourselves first: tinygltf 2.7.0's BIN-chunk bound
+            // check omits the 8-byte chunk header and can read past the end of the file.
+            const size_t n = bytes.size();
+            auto u32 = [&](size_t off) {
+                uint32_t v;
+                std::memcpy(&v, bytes.data() + off, 4);
+                return v;  // GLB is little-endian; so is every platform we build for
+            };
+            if (n < 20) fail(strf("truncated GLB (%zu bytes, header needs 20)", n));
+            const uint32_t version = u32(4), length = u32(8), json_len = u32(12);
+            if (version != 2) fail(strf("unsupported GLB version %u", version));
+            if (length > n) fail(strf("truncated GLB: header says %u bytes, file has %zu", length, n));
+            if (length < 20 || uint64_t(json_len) + 20 > length || u32(16) != 0x4E4F534Au)
+                fail("invalid GLB: bad JSON chunk");
+            const uint64_t bin_at = 20ull + json_len;
+            if (bin_at < length) {
+                if (bin_at + 8 > length) fail("invalid GLB: truncated BIN chunk header");
+                if (bin_at + 8 + uint64_t(u32(size_t(bin_at))) > length)
+                    fail("invalid GLB: BIN chunk exceeds the file");
+            }
+            ok = tg.LoadBinaryFromMemory(&m_, &err, &warn_s, bytes.data(), length, dir_);
+        } else {
+            ok = tg.LoadASCIIFromString(&m_, &err, &warn_s, reinterpret_cast<const char *>(bytes.data()),
+                                        static_cast<unsigned int>(bytes.size()), dir_);
+        }
+    } catch (const LoadError &) {
+        throw;
+    } catch (const std::bad_alloc &) {
+        throw;
+    } catch (const std::exception &e) {
+        fail(std::string("malformed glTF: ") + e.what());
+    }
+    // tinygltf's warnings, one per line
+    size_t start = 0;
+    while (start < warn_s.size()) {
+        size_t end = warn_s.find('\n', start);
+        if (end == std::string::npos) end = warn_s.size();
+        std::string line = warn_s.substr(start, end - start);
+        if (!line.empty() && ok) warn(line);
+        start = end + 1;
+    }
+    if (!ok) {
+        std::string msg = candela_io::one_line(err);
+        if (msg.empty()) msg = candela_io::one_line(warn_s);
+        if (msg.empty()) msg = "tinygltf could not parse the file";
+        fail(msg);
+    }
+}
+
+void Loader::check_required_extensions() {
+    static const char *supported[] = {
+        "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_specular",
+        "KHR_materials_transmission", "KHR_materials_ior", "KHR_texture_transform"};
+    for (const std::string &e : m_.extensionsRequired) {
+        bool ok = false;
+        for (const char *s : supported) ok = ok || e == s;
+        if (!ok) fail("requires unsupported extension '" + e + "'");
+    }
+}
+
+// Pointer to [offset, offset+need) inside bufferView bvi, after checking the view lies inside
+// its buffer. *stride receives the view's byteStride (0 = tightly packed).
+const unsigned char *Loader::view_span(int bvi, long long offset, size_t need,
+                                       const std::string &what, size_t *stride) {
+    if (bvi < 0 || size_t(bvi) >= m_.bufferViews.size())
+        fail(strf("%s: bufferView %d out of range", what.c_str(), bvi));
+    const tinygltf::BufferView &bv = m_.bufferViews[size_t(bvi)];
+    if (bv.buffer < 0 || size_t(bv.buffer) >= m_.buffers.size())
+        fail(strf("%s: bufferView %d references missing buffer %d", what.c_str(), bvi, bv.buffer));
+    const tinygltf::Buffer &buf = m_.buffers[size_t(bv.buffer)];
+    const size_t bsize = buf.data.size();
+    if (bv.byteOffset > bsize || bv.byteLength > bsize - bv.byteOffset)
+        fail(strf("%s: bufferView %d (offset %zu, length %zu) exceeds buffer %d (%zu bytes)",
+                  what.c_str(), bvi, bv.byteOffset, bv.byteLength, bv.buffer, bsize));
+    if (offset < 0 || uint64_t(offset) > bv.byteLength || need > bv.byteLength - uint64_t(offset))
+        fail(strf("%s: data (offset %lld, %zu bytes) exceeds bufferView %d (%zu bytes)", what.c_str(),
+                  offset, need, bvi, bv.byteLength));
+    if (stride) *stride = bv.byteStride;
+    return buf.data.data() + bv.byteOffset + size_t(offset);
+}
+
+AccView Loader::accessor(int ai, const std::string &what, int want_type) {
+    if (ai < 0 || size_t(ai) >= m_.accessors.size())
+        fail(strf("%s: accessor %d out of range", what.c_str(), ai));
+    const tinygltf::Accessor &a = m_.accessors[size_t(ai)];
+    const std::string w = what + strf(" (accessor %d)", ai);
+    const int nc = tinygltf::GetNumComponentsInType(uint32_t(a.type));
+    const int cs = tinygltf::GetComponentSizeInBytes(uint32_t(a.componentType));
+    if (nc <= 0 || cs <= 0 || a.componentType == TINYGLTF_COMPONENT_TYPE_INT ||
+        a.componentType == TINYGLTF_COMPONENT_TYPE_DOUBLE)
+        fail(w + ": invalid type or componentType");
+    if (a.type != want_type)
+        fail(strf("%s: type %s, expected %s", w.c_str(), type_name(a.type), type_name(want_type)));
+    if (a.count == 0) fail(w + ": count is 0");
+    if (a.count > kMaxCount) fail(strf("%s: count %zu too large", w.c_str(), a.count));
+
+    AccView v;
+    v.count = a.count;
+    v.ct = a.componentType;
+    v.ncomp = nc;
+    v.normalized = a.normalized;
+    v.elem = size_t(nc) * size_t(cs);
+    if (a.bufferView >= 0) {
+        size_t bstride = 0;
+        view_span(a.bufferView, 0, 0, w, &bstride);  // validates the view itself
+        v.stride = bstride ? bstride : v.elem;
+        if (v.stride < v.elem || v.stride > 4096)
+            fail(strf("%s: byteStride %zu invalid for %zu-byte elements", w.c_str(), v.stride, v.elem));
+        if (a.byteOffset > (size_t(1) << 40)) fail(w + ": byteOffset too large");
+        // byteOffset + stride*(count-1) + elemsize <= bufferView length (no overflow: count
+        // <= 2^28, stride <= 4096, offset <= 2^40)
+        const size_t need = v.stride * (v.count - 1) + v.elem;
+        v.base = view_span(a.bufferView, (long long)a.byteOffset, need, w, nullptr);
+    }
+    if (a.sparse.isSparse) {
+        const int sc = a.sparse.count;
+        if (sc <= 0 || size_t(sc) > a.count)
+            fail(strf("%s: sparse count %d invalid (accessor count %zu)", w.c_str(), sc, a.count));
+        const int ict = a.sparse.indices.componentType;
+        if (!is_index_type(ict)) fail(w + ": sparse indices have an invalid componentType");
+        const size_t ics = size_t(tinygltf::GetComponentSizeInBytes(uint32_t(ict)));
+        const unsigned char *ip = view_span(a.sparse.indices.bufferView, a.sparse.indices.byteOffset,
+                                            ics * size_t(sc), w + " sparse indices", nullptr);
+        v.sp_vals = view_span(a.sparse.values.bufferView, a.sparse.values.byteOffset,
+                              v.elem * size_t(sc), w + " sparse values", nullptr);
+        v.sp_map.assign(v.count, -1);
+        for (int k = 0; k < sc; ++k) {
+            uint32_t idx = comp_to_uint(ip + size_t(k) * ics, ict);
+            if (idx >= v.count)
+                fail(strf("%s: sparse index %u out of range (count %zu)", w.c_str(), idx, v.count));
+            v.sp_map[idx] = k;
+        }
+    }
+    return v;
+}
+
+float *Loader::read_floats(const AccView &v, const std::string &what, bool check_finite) {
+    const size_t n = v.count * size_t(v.ncomp);
+    float *out = static_cast<float *>(std::malloc(n * sizeof(float)));
+    if (!out) throw std::bad_alloc();
+    const size_t cs = v.elem / size_t(v.ncomp);
+    for (size_t i = 0; i < v.count; ++i) {
+        const unsigned char *p = v.at(i);
+        for (int c = 0; c < v.ncomp; ++c) {
+            float f = comp_to_float(p + size_t(c) * cs, v.ct, v.normalized);
+            if (check_finite && !std::isfinite(f)) {
+                std::free(out);
+                fail(what);
+            }
+            out[i * size_t(v.ncomp) + size_t(c)] = f;
+        }
+    }
+    return out;
+}
+
+void Loader::convert_primitive(const tinygltf::Mesh &mesh, size_t pi) {
+    const tinygltf::Primitive &p = mesh.primitives[pi];
+    const std::string where = strf("mesh '%s' primitive %zu", mesh.name.c_str(), pi);
+    const int mode = p.mode < 0 ? TINYGLTF_MODE_TRIANGLES : p.mode;
+    if (mode >= TINYGLTF_MODE_POINTS && mode <= TINYGLTF_MODE_LINE_STRIP) {
+        warn(where + strf(": mode %d (points/lines) skipped", mode));
+        return;
+    }
+    if (mode > TINYGLTF_MODE_TRIANGLE_FAN) fail(strf("%s: invalid mode %d", where.c_str(), mode));
+    if (!p.targets.empty() && !warned_morph_) {
+        warned_morph_ = true;
+        warn("morph targets ignored");
+    }
+    if (p.material < -1 || (p.material >= 0 && size_t(p.material) >= m_.materials.size()))
+        fail(strf("%s: material %d out of range", where.c_str(), p.material));
+
+    auto attr = [&](const char *name) {
+        auto it = p.attributes.find(name);
+        return it == p.attributes.end() ? -1 : it->second;
+    };
+    const int pos_ai = attr("POSITION");
+    if (pos_ai < 0) fail(where + ": no POSITION attribute");
+
+    prims_.push_back(IoPrimitive{});
+    IoPrimitive &out = prims_.back();
+    out.material = p.material;
+
+    // POSITION: VEC3 float, finite
+    AccView pv = accessor(pos_ai, where + " POSITION", TINYGLTF_TYPE_VEC3);
+    if (pv.ct != TINYGLTF_COMPONENT_TYPE_FLOAT) fail(where + " POSITION: componentType must be FLOAT");
+    const size_t nv = pv.count;
+    out.num_vertices = uint32_t(nv);
+    out.positions = read_floats(pv, strf("mesh '%s' has non-finite vertex positions", mesh.name.c_str()), true);
+
+    auto same_count = [&](const AccView &v, const char *name) {
+        if (v.count != nv)
+            fail(strf("%s: %s count %zu differs from POSITION count %zu", where.c_str(), name, v.count, nv));
+    };
+    if (int ai = attr("NORMAL"); ai >= 0) {
+        AccView v = accessor(ai, where + " NORMAL", TINYGLTF_TYPE_VEC3);
+        if (v.ct != TINYGLTF_COMPONENT_TYPE_FLOAT) fail(where + " NORMAL: componentType must be FLOAT");
+        same_count(v, "NORMAL");
+        out.normals = read_floats(v, "", false);
+    }
+    if (int ai = attr("TEXCOORD_0"); ai >= 0) {
+        AccView v = accessor(ai, where + " TEXCOORD_0", TINYGLTF_TYPE_VEC2);
+        const bool ok = v.ct == TINYGLTF_COMPONENT_TYPE_FLOAT ||
+                        (v.normalized && (v.ct == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ||
+                                          v.ct == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT));
+        if (!ok) fail(where + " TEXCOORD_0: must be FLOAT or normalized UNSIGNED_BYTE/SHORT");
+        same_count(v, "TEXCOORD_0");
+        out.uvs = read_floats(v, "", false);
+    }
+    if (int ai = attr("TANGENT"); ai >= 0) {
+        AccView v = accessor(ai, where + " TANGENT", TINYGLTF_TYPE_VEC4);
+        if (v.ct != TINYGLTF_COMPONENT_TYPE_FLOAT) fail(where + " TANGENT: componentType must be FLOAT");
+        same_count(v, "TANGENT");
+        out.tangents = read_floats(v, "", false);
+    }
+
+    // indices (validated against the vertex count)
+    std::vector<uint32_t> idx;
+    if (p.indices >= 0) {
+        AccView iv = accessor(p.indices, where + " indices", TINYGLTF_TYPE_SCALAR);
+        if (!is_index_type(iv.ct) || iv.normalized)
+            fail(where + " indices: componentType must be UNSIGNED_BYTE/SHORT/INT");
+        idx.resize(iv.count);
+        for (size_t i = 0; i < iv.count; ++i) {
+            uint32_t k = comp_to_uint(iv.at(i), iv.ct);
+            if (k >= nv)
+                fail(strf("%s: index %u out of range (%zu vertices)", where.c_str(), k, nv));
+            idx[i] = k;
+        }
+    } else {
+        idx.resize(nv);
+        for (size_t i = 0; i < nv; ++i) idx[i] = uint32_t(i);
+    }
+
+    const size_t ni = idx.size();
+    size_t nt = 0;
+    if (mode == TINYGLTF_MODE_TRIANGLES)
+        nt = ni / 3;
+    else
+        nt = ni >= 3 ? ni - 2 : 0;
+    if (nt == 0) {
+        warn(where + ": no triangles; skipped");
+        free_prim(&out);
+        prims_.pop_back();
+        return;
+    }
+    out.indices = static_cast<uint32_t *>(std::malloc(nt * 3 * sizeof(uint32_t)));
+    if (!out.indices) throw std::bad_alloc();
+    for (size_t t = 0; t < nt; ++t) {
+        uint32_t *d = out.indices + t * 3;
+        if (mode == TINYGLTF_MODE_TRIANGLES) {
+            d[0] = idx[3 * t]; d[1] = idx[3 * t + 1]; d[2] = idx[3 * t + 2];
+        } else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
+            // glTF: {i, i + (1 + i%2), i + (2 - i%2)} keeps a consistent winding
+            d[0] = idx[t]; d[1] = idx[t + 1 + (t & 1)]; d[2] = idx[t + 2 - (t & 1)];
+        } else {  // fan: {i+1, i+2, 0}
+            d[0] = idx[t + 1]; d[1] = idx[t + 2]; d[2] = idx[0];
+        }
+    }
+    out.num_triangles = uint32_t(nt);
+}
+
+void Loader::convert_meshes() {
+    meshes_.reserve(m_.meshes.size());
+    for (const tinygltf::Mesh &mesh : m_.meshes) {
+        IoMesh om{};
+        copy_name(om.name, mesh.name);
+        om.first_primitive = uint32_t(prims_.size());
+        for (size_t pi = 0; pi < mesh.primitives.size(); ++pi) convert_primitive(mesh, pi);
+        om.num_primitives = uint32_t(prims_.size()) - om.first_primitive;
+        meshes_.push_back(om);
+    }
+}
+
+int32_t Loader::image_for(int gi, bool srgb, const std::string &what) {
+    if (gi < 0 || size_t(gi) >= m_.images.size())
+        fail(strf("%s: image %d out of range", what.c_str(), gi));
+    const tinygltf::Image &im = m_.images[size_t(gi)];
+    const bool from_file = im.bufferView < 0 && !im.uri.empty();
+    const std::string file = from_file ? join_path(dir_, url_decode(im.uri)) : std::string();
+    const std::string key = from_file ? file : strf("#%d", gi);
+    auto it = image_cache_.find({key, srgb ? 1 : 0});
+    if (it != image_cache_.end()) return it->second;
+
+    const std::string label = from_file ? "image '" + im.uri + "'" : strf("embedded image %d", gi);
+    IoImage img{};
+    std::string problem;
+    bool ok;
+    if (from_file) {
+        if (!is_regular_file(file)) fail(label + " not found (" + file + ")");
+        ok = candela_io::decode_image(file, nullptr, 0, srgb, &img, &problem);
+        if (!ok) problem = file + ": " + problem;
+    } else if (im.bufferView >= 0) {
+        size_t len = m_.bufferViews.size() > size_t(im.bufferView)
+                         ? m_.bufferViews[size_t(im.bufferView)].byteLength : 0;
+        const unsigned char *p = view_span(im.bufferView, 0, len, label, nullptr);
+        ok = candela_io::decode_image(label, p, len, srgb, &img, &problem);
+    } else {
+        if (im.image.empty()) fail(label + " has no data");
+        ok = candela_io::decode_image(label, im.image.data(), im.image.size(), srgb, &img, &problem);
+    }
+    if (!ok) fail(label + ": " + problem);
+    images_.push_back(img);
+    const int32_t index = int32_t(images_.size() - 1);
+    image_cache_[{key, srgb ? 1 : 0}] = index;
+    return index;
+}
+
+template <class Info>
+IoTextureRef Loader::texture_ref(const Info &info, bool srgb, const std::string &what) {
+    IoTextureRef r{};
+    r.image = -1;
+    r.scale[0] = r.scale[1] = 1.0f;
+    if (info.index < 0) return r;
+    if (size_t(info.index) >= m_.textures.size())
+        fail(strf("%s: texture %d out of range", what.c_str(), info.index));
+    const tinygltf::Texture &tex = m_.textures[size_t(info.index)];
+    r.texcoord = info.texCoord;
+    if (const tinygltf::Value *tt = extension(info.extensions, "KHR_texture_transform")) {
+        numbers(*tt, "offset", r.offset, 2);
+        numbers(*tt, "scale", r.scale, 2);
+        r.rotation = float(number_or(*tt, "rotation", 0.0));
+        if (const tinygltf::Value *tc = member(*tt, "texCoord"); tc && tc->IsNumber())
+            r.texcoord = tc->GetNumberAsInt();
+    }
+    if (r.texcoord != 0 && !warned_texcoord_) {
+        warned_texcoord_ = true;
+        warn(what + strf(": uses TEXCOORD_%d; only TEXCOORD_0 is loaded", r.texcoord));
+    }
+    if (tex.sampler >= 0) {
+        if (size_t(tex.sampler) >= m_.samplers.size())
+            fail(strf("%s: sampler %d out of range", what.c_str(), tex.sampler));
+        auto wrap = [](int w) {
+            switch (w) {
+            case TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE: return 1;
+            case TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT: return 2;
+            default: return 0;
+            }
+        };
+        r.wrap_s = wrap(m_.samplers[size_t(tex.sampler)].wrapS);
+        r.wrap_t = wrap(m_.samplers[size_t(tex.sampler)].wrapT);
+    }
+    int source = tex.source;
+    if (source < 0) {
+        if (const tinygltf::Value *webp = extension(tex.extensions, "EXT_texture_webp")) {
+            if (const tinygltf::Value *s = member(*webp, "source"); s && s->IsNumber())
+                source = s->GetNumberAsInt();
+        }
+    }
+    if (source < 0) {
+        warn(what + strf(": texture %d has no image source; ignored", info.index));
+        return r;
+    }
+    r.image = image_for(source, srgb, what);
+    return r;
+}
+
+void Loader::convert_materials() {
+    materials_.reserve(m_.materials.size());
+    for (size_t i = 0; i < m_.materials.size(); ++i) {
+        const tinygltf::Material &src = m_.materials[i];
+        const std::string what = strf("material '%s'", src.name.c_str());
+        IoMaterial d{};
+        copy_name(d.name, src.name);
+        const auto &pbr = src.pbrMetallicRoughness;
+        for (int c = 0; c < 4; ++c)
+            d.base_color[c] = pbr.baseColorFactor.size() == 4 ? float(pbr.baseColorFactor[size_t(c)]) : 1.0f;
+        d.metallic = float(pbr.metallicFactor);
+        d.roughness = float(pbr.roughnessFactor);
+        for (int c = 0; c < 3; ++c)
+            d.emissive[c] = src.emissiveFactor.size() == 3 ? float(src.emissiveFactor[size_t(c)]) : 0.0f;
+        d.emissive_strength = 1.0f;
+        d.normal_scale = float(src.normalTexture.scale);
+        d.specular = 1.0f;
+        d.specular_color[0] = d.specular_color[1] = d.specular_color[2] = 1.0f;
+        d.transmission = 0.0f;
+        d.ior = 1.5f;
+        d.double_sided = src.doubleSided ? 1 : 0;
+        if (src.alphaMode == "MASK")
+            d.alpha_mode = IO_ALPHA_MASK;
+        else if (src.alphaMode == "BLEND")
+            d.alpha_mode = IO_ALPHA_BLEND;
+        else
+            d.alpha_mode = IO_ALPHA_OPAQUE;
+        d.alpha_cutoff = float(src.alphaCutoff);
+
+        if (const tinygltf::Value *e = extension(src.extensions, "KHR_materials_emissive_strength"))
+            d.emissive_strength = float(number_or(*e, "emissiveStrength", 1.0));
+        if (const tinygltf::Value *e = extension(src.extensions, "KHR_materials_specular")) {
+            d.specular = float(number_or(*e, "specularFactor", 1.0));
+            numbers(*e, "specularColorFactor", d.specular_color, 3);
+        }
+        if (const tinygltf::Value *e = extension(src.extensions, "KHR_materials_transmission"))
+            d.transmission = float(number_or(*e, "transmissionFactor", 0.0));
+        if (const tinygltf::Value *e = extension(src.extensions, "KHR_materials_ior"))
+            d.ior = float(number_or(*e, "ior", 1.5));
+
+        d.base_color_tex = texture_ref(pbr.baseColorTexture, true, what + " baseColorTexture");
+        d.metallic_roughness_tex =
+            texture_ref(pbr.metallicRoughnessTexture, false, what + " metallicRoughnessTexture");
+        d.normal_tex = texture_ref(src.normalTexture, false, what + " normalTexture");
+        d.emissive_tex = texture_ref(src.emissiveTexture, true, what + " emissiveTexture");
+        materials_.push_back(d);
+    }
+}
+
+void Loader::flatten_nodes() {
+    const size_t n = m_.nodes.size();
+    // A valid glTF node graph is a forest: every node has at most one parent. Checking that
+    // up front makes the traversal below finite (no cycles, no shared subtrees).
+    std::vector<int> parent(n, -1);
+    for (size_t i = 0; i < n; ++i)
+        for (int c : m_.nodes[i].children) {
+            if (c < 0 || size_t(c) >= n) fail(strf("node %zu: child %d out of range", i, c));
+            if (parent[size_t(c)] != -1 || size_t(c) == i)
+                fail(strf("node %d has more than one parent (node graph is not a tree)", c));
+            parent[size_t(c)] = int(i);
+        }
+
+    std::vector<int> roots;
+    if (!m_.scenes.empty()) {
+        scene_ = m_.defaultScene >= 0 ? m_.defaultScene : 0;
+        if (size_t(scene_) >= m_.scenes.size())
+            fail(strf("default scene %d out of range", m_.defaultScene));
+        std::vector<char> seen(n, 0);
+        for (int r : m_.scenes[size_t(scene_)].nodes) {
+            if (r < 0 || size_t(r) >= n) fail(strf("scene %d: node %d out of range", scene_, r));
+            if (parent[size_t(r)] != -1) fail(strf("scene %d: node %d is not a root node", scene_, r));
+            if (seen[size_t(r)]) continue;
+            seen[size_t(r)] = 1;
+            roots.push_back(r);
+        }
+    } else {
+        for (size_t i = 0; i < n; ++i)
+            if (parent[i] == -1) roots.push_back(int(i));
+    }
+
+    struct Item {
+        int node;
+        Mat4 parent;
+    };
+    std::vector<Item> stack;
+    for (size_t k = roots.size(); k-- > 0;) stack.push_back({roots[k], identity()});
+    while (!stack.empty()) {
+        Item it = stack.back();
+        stack.pop_back();
+        const tinygltf::Node &node = m_.nodes[size_t(it.node)];
+        const std::string what = strf("node %d ('%s')", it.node, node.name.c_str());
+        Mat4 local = identity();
+        if (!node.matrix.empty()) {
+            if (node.matrix.size() != 16) fail(what + ": matrix must have 16 numbers");
+            for (int k = 0; k < 16; ++k) local.m[k] = node.matrix[size_t(k)];
+        } else {
+            if (!node.translation.empty() && node.translation.size() != 3)
+                fail(what + ": translation must have 3 numbers");
+            if (!node.rotation.empty() && node.rotation.size() != 4)
+                fail(what + ": rotation must have 4 numbers");
+            if (!node.scale.empty() && node.scale.size() != 3) fail(what + ": scale must have 3 numbers");
+            double t[3] = {0, 0, 0}, q[4] = {0, 0, 0, 1}, s[3] = {1, 1, 1};
+            for (size_t k = 0; k < node.translation.size(); ++k) t[k] = node.translation[k];
+            for (size_t k = 0; k < node.rotation.size(); ++k) q[k] = node.rotation[k];
+            for (size_t k = 0; k < node.scale.size(); ++k) s[k] = node.scale[k];
+            double qn = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+            if (qn > 0.0 && std::isfinite(qn))
+                for (double &c : q) c /= qn;
+            const double x = q[0], y = q[1], z = q[2], w = q[3];
+            // R (column-major) scaled per column: M = T * R * S
+            const double r[9] = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w), 2 * (x * z - y * w),
+                                 2 * (x * y - z * w), 1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
+                                 2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y)};
+            for (int c = 0; c < 3; ++c)
+                for (int row = 0; row < 3; ++row) local.m[c * 4 + row] = r[c * 3 + row] * s[c];
+            local.m[12] = t[0];
+            local.m[13] = t[1];
+            local.m[14] = t[2];
+        }
+        const Mat4 world = mul(it.parent, local);
+
+        if (node.mesh >= 0) {
+            if (size_t(node.mesh) >= m_.meshes.size())
+                fail(strf("%s: mesh %d out of range", what.c_str(), node.mesh));
+            IoInstance inst{};
+            inst.mesh = uint32_t(node.mesh);
+            for (int k = 0; k < 16; ++k) inst.xform[k] = float(world.m[k]);
+            instances_.push_back(inst);
+        } else if (node.mesh < -1) {
+            fail(strf("%s: mesh %d out of range", what.c_str(), node.mesh));
+        }
+        if (node.camera >= 0) {
+            if (size_t(node.camera) >= m_.cameras.size())
+                fail(strf("%s: camera %d out of range", what.c_str(), node.camera));
+            const tinygltf::Camera &cam = m_.cameras[size_t(node.camera)];
+            IoCamera c{};
+            copy_name(c.name, cam.name.empty() ? node.name : cam.name);
+            if (cam.type == "orthographic") {
+                c.type = IO_CAMERA_ORTHOGRAPHIC;
+                c.xmag = float(cam.orthographic.xmag);
+                c.ymag = float(cam.orthographic.ymag);
+                c.znear = float(cam.orthographic.znear);
+                c.zfar = float(cam.orthographic.zfar);
+            } else {
+                c.type = IO_CAMERA_PERSPECTIVE;
+                c.yfov = float(cam.perspective.yfov);
+                c.aspect = float(cam.perspective.aspectRatio);
+                c.znear = float(cam.perspective.znear);
+                c.zfar = float(cam.perspective.zfar);
+            }
+            for (int k = 0; k < 16; ++k) c.xform[k] = float(world.m[k]);
+            cameras_.push_back(c);
+        }
+        if (const tinygltf::Value *lp = extension(node.extensions, "KHR_lights_punctual")) {
+            const tinygltf::Value *li = member(*lp, "light");
+            if (!li || !li->IsNumber()) fail(what + ": KHR_lights_punctual without a light index");
+            const int l = li->GetNumberAsInt();
+            if (l < 0 || size_t(l) >= m_.lights.size())
+                fail(strf("%s: light %d out of range", what.c_str(), l));
+            const tinygltf::Light &src = m_.lights[size_t(l)];
+            IoLight d{};
+            copy_name(d.name, src.name.empty() ? node.name : src.name);
+            if (src.type == "point")
+                d.type = IO_LIGHT_POINT;
+            else if (src.type == "spot")
+                d.type = IO_LIGHT_SPOT;
+            else if (src.type == "directional")
+                d.type = IO_LIGHT_DIRECTIONAL;
+            else
+                fail(strf("%s: light %d has unknown type '%s'", what.c_str(), l, src.type.c_str()));
+            for (int c = 0; c < 3; ++c) d.color[c] = src.color.size() == 3 ? float(src.color[size_t(c)]) : 1.0f;
+            d.intensity = float(src.intensity);
+            d.range = float(src.range);
+            d.inner_cone_angle = float(src.spot.innerConeAngle);
+            d.outer_cone_angle = float(src.spot.outerConeAngle);
+            d.position[0] = float(world.m[12]);
+            d.position[1] = float(world.m[13]);
+            d.position[2] = float(world.m[14]);
+            double dir[3] = {-world.m[8], -world.m[9], -world.m[10]};
+            double len = std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+            if (len > 0.0 && std::isfinite(len)) {
+                for (int c = 0; c < 3; ++c) d.direction[c] = float(dir[c] / len);
+            } else {
+                d.direction[2] = -1.0f;
+            }
+            lights_.push_back(d);
+        }
+        for (size_t k = node.children.size(); k-- > 0;) stack.push_back({node.children[k], world});
+    }
+}
+
+void Loader::environment(IoScene *out) {
+    out->env_path[0] = 0;
+    out->env_strength = 1.0f;
+    const tinygltf::Value *env = nullptr;
+    if (scene_ >= 0) env = member(m_.scenes[size_t(scene_)].extras, "candela_environment");
+    if (!env) env = member(m_.asset.extras, "candela_environment");
+    if (!env) env = member(m_.extras, "candela_environment");
+    if (!env) return;
+    const tinygltf::Value *uri = member(*env, "uri");
+    if (!uri || !uri->IsString() || uri->Get<std::string>().empty())
+        fail("extras.candela_environment needs a string \"uri\"");
+    const tinygltf::Value *strength = member(*env, "strength");
+    if (strength && !strength->IsNumber()) fail("extras.candela_environment.strength must be a number");
+    const std::string p = join_path(dir_, uri->Get<std::string>());
+    if (p.size() >= sizeof out->env_path) fail("extras.candela_environment.uri is too long");
+    std::memcpy(out->env_path, p.c_str(), p.size() + 1);
+    out->env_strength = strength ? float(strength->GetNumberAsDouble()) : 1.0f;
+}
+
+template <class T>
+T *c_array(const std::vector<T> &v) {
+    if (v.empty()) return nullptr;
+    T *p = static_cast<T *>(std::malloc(sizeof(T) * v.size()));
+    if (!p) throw std::bad_alloc();
+    std::memcpy(static_cast<void *>(p), v.data(), sizeof(T) * v.size());
+    return p;
+}
+
+void Loader::transfer(IoScene *out) {
+    // Allocate every array first, then hand over ownership in one step that cannot fail.
+    IoScene s{};
+    try {
+        s.primitives = c_array(prims_);
+        s.meshes = c_array(meshes_);
+        s.instances = c_array(instances_);
+        s.materials = c_array(materials_);
+        s.images = c_array(images_);
+        s.lights = c_array(lights_);
+        s.cameras = c_array(cameras_);
+    } catch (...) {
+        std::free(s.primitives); std::free(s.meshes); std::free(s.instances);
+        std::free(s.materials); std::free(s.images); std::free(s.lights); std::free(s.cameras);
+        throw;
+    }
+    out->primitives = s.primitives; out->num_primitives = uint32_t(prims_.size());
+    out->meshes = s.meshes;         out->num_meshes = uint32_t(meshes_.size());
+    out->instances = s.instances;   out->num_instances = uint32_t(instances_.size());
+    out->materials = s.materials;   out->num_materials = uint32_t(materials_.size());
+    out->images = s.images;         out->num_images = uint32_t(images_.size());
+    out->lights = s.lights;         out->num_lights = uint32_t(lights_.size());
+    out->cameras = s.cameras;       out->num_cameras = uint32_t(cameras_.size());
+    out->num_warnings = warnings_;
+    prims_.clear();  // ownership of their arrays moved to *out
+    images_.clear();
+}
+
+void Loader::run(IoScene *out) {
+    parse();
+    check_required_extensions();
+    convert_meshes();
+    convert_materials();
+    flatten_nodes();
+    if (prims_.size() > UINT32_MAX || instances_.size() > UINT32_MAX) fail("scene too large");
+    IoScene tmp{};
+    environment(&tmp);
+    transfer(out);
+    std::memcpy(out->env_path, tmp.env_path, sizeof out->env_path);
+    out->env_strength = tmp.env_strength;
+}
+
+}  // namespace
+
+extern "C" int io_load_gltf(const char *path, IoScene *scene, char err[IO_ERR_LEN]) {
+    if (err) err[0] = 0;
+    if (!scene) {
+        set_err(err, path ? path : "(null)", "no output scene");
+        return 1;
+    }
+    std::memset(scene, 0, sizeof *scene);
+    if (!path || !*path) {
+        set_err(err, "(null)", "no path given");
+        return 1;
+    }
+    std::string problem;
+    try {
+        Loader loader(path);
+        loader.run(scene);
+        return 0;
+    } catch (const LoadError &e) {
+        problem = e.problem;
+    } catch (const std::bad_alloc &) {
+        problem = "out of memory";
+    } catch (const std::exception &e) {
+        problem = std::string("malformed glTF: ") + e.what();
+    } catch (...) {
+        problem = "malformed glTF: unknown exception";
+    }
+    io_scene_free(scene);
+    set_err(err, path, problem);
+    return 1;
+}
+
+extern "C" void io_scene_free(IoScene *scene) {
+    if (!scene) return;
+    for (uint32_t i = 0; scene->primitives && i < scene->num_primitives; ++i) {
+        IoPrimitive *p = &scene->primitives[i];
+        std::free(p->positions);
+        std::free(p->normals);
+        std::free(p->uvs);
+        std::free(p->tangents);
+        std::free(p->indices);
+    }
+    for (uint32_t i = 0; scene->images && i < scene->num_images; ++i) std::free(scene->images[i].rgba);
+    std::free(scene->primitives);
+    std::free(scene->meshes);
+    std::free(scene->instances);
+    std::free(scene->materials);
+    std::free(scene->images);
+    std::free(scene->lights);
+    std::free(scene->cameras);
+    std::memset(scene, 0, sizeof *scene);
+}

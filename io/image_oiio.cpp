@@ -1,0 +1,278 @@
+// io/image_oiio.cpp: thin extern "C" adapter over OpenImageIO (C++17).
+// Decodes any image OIIO reads into linear float RGBA and writes 8-bit PNGs atomically
+// (temp name + rename). Also hosts the small helpers shared with gltf_loader.cpp.
+#include "io.h"
+#include "io_internal.hpp"
+
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imageio.h>
+
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <exception>
+#include <memory>
+#include <new>
+#include <string>
+#include <vector>
+
+namespace candela_io {
+
+std::string one_line(const std::string &s) {
+    std::string out;
+    out.reserve(s.size());
+    bool pending_sep = false;
+    for (char c : s) {
+        if (c == '\n' || c == '\r') {
+            pending_sep = true;
+            continue;
+        }
+        if (pending_sep && !out.empty()) out += "; ";
+        pending_sep = false;
+        out += (c == '\t') ? ' ' : c;
+    }
+    while (!out.empty() && (out.back() == ' ' || out.back() == ';')) out.pop_back();
+    return out;
+}
+
+void set_err(char err[IO_ERR_LEN], const std::string &prefix, const std::string &problem) {
+    if (!err) return;
+    std::string msg = one_line(prefix + ": " + problem);
+    std::snprintf(err, IO_ERR_LEN, "%s", msg.c_str());
+}
+
+// Exact sRGB EOTF (IEC 61966-2-1), encoded [0,1] -> linear.
+static double srgb_to_linear(double c) {
+    if (c <= 0.04045) return c / 12.92;
+    return std::pow((c + 0.055) / 1.055, 2.4);
+}
+
+static bool is_integer_format(OIIO::TypeDesc t) {
+    switch (t.basetype) {
+    case OIIO::TypeDesc::UINT8: case OIIO::TypeDesc::INT8:
+    case OIIO::TypeDesc::UINT16: case OIIO::TypeDesc::INT16:
+    case OIIO::TypeDesc::UINT32: case OIIO::TypeDesc::INT32:
+    case OIIO::TypeDesc::UINT64: case OIIO::TypeDesc::INT64:
+        return true;
+    default:
+        return false;
+    }
+}
+
+// A file-name extension OIIO can use to pick a reader for in-memory bytes.
+static const char *sniff_extension(const unsigned char *p, size_t n) {
+    if (n >= 8 && p[0] == 0x89 && p[1] == 'P' && p[2] == 'N' && p[3] == 'G') return "png";
+    if (n >= 3 && p[0] == 0xFF && p[1] == 0xD8 && p[2] == 0xFF) return "jpg";
+    if (n >= 4 && p[0] == 0x76 && p[1] == 0x2F && p[2] == 0x31 && p[3] == 0x01) return "exr";
+    if (n >= 2 && p[0] == '#' && p[1] == '?') return "hdr";
+    if (n >= 12 && std::memcmp(p, "RIFF", 4) == 0 && std::memcmp(p + 8, "WEBP", 4) == 0)
+        return "webp";
+    return "bin";
+}
+
+bool decode_image(const std::string &path, const void *mem, size_t mem_size, bool srgb,
+                  IoImage *out, std::string *problem) {
+    OIIO::ImageSpec config;
+    // glTF (and PNG) alpha is straight; keep it so (OIIO premultiplies by default).
+    config.attribute("oiio:UnassociatedAlpha", 1);
+
+    std::unique_ptr<OIIO::Filesystem::IOMemReader> proxy;
+    std::string name = path;
+    if (mem) {
+        if (mem_size == 0) {
+            *problem = "image data is empty";
+            return false;
+        }
+        proxy.reset(new OIIO::Filesystem::IOMemReader(mem, mem_size));
+        name = std::string("embedded.") +
+               sniff_extension(static_cast<const unsigned char *>(mem), mem_size);
+        // OIIO 2.4's PNG reader ignores the ioproxy argument of ImageInput::open() and tries
+        // the file name; the "oiio:ioproxy" configuration hint works for every reader.
+        void *pp = proxy.get();
+        config.attribute("oiio:ioproxy", OIIO::TypeDesc::PTR, &pp);
+    }
+    auto in = OIIO::ImageInput::open(name, &config);
+    if (!in) {
+        std::string e = OIIO::geterror();
+        *problem = "cannot open: " + (e.empty() ? std::string("unknown format") : e);
+        return false;
+    }
+    const OIIO::ImageSpec spec = in->spec();
+    const long long w = spec.width, h = spec.height;
+    if (w <= 0 || h <= 0 || spec.depth > 1) {
+        *problem = "invalid image size " + std::to_string(w) + "x" + std::to_string(h);
+        return false;
+    }
+    if (w > kMaxImageSide || h > kMaxImageSide || w * h > kMaxImagePixels) {
+        *problem = "image too large (" + std::to_string(w) + "x" + std::to_string(h) +
+                   "; limit " + std::to_string(kMaxImageSide) + " per side, 2^28 pixels)";
+        return false;
+    }
+    const int nc_file = spec.nchannels;
+    if (nc_file <= 0) {
+        *problem = "image has no channels";
+        return false;
+    }
+    const int nc = nc_file < 4 ? nc_file : 4;
+    const size_t npix = size_t(w) * size_t(h);
+    std::vector<float> tmp(npix * size_t(nc));
+    if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, tmp.data())) {
+        std::string e = in->geterror();
+        *problem = "cannot decode: " + (e.empty() ? std::string("read failed") : e);
+        return false;
+    }
+    in->close();
+
+    float *rgba = static_cast<float *>(std::malloc(npix * 4 * sizeof(float)));
+    if (!rgba) {
+        *problem = "out of memory";
+        return false;
+    }
+    for (size_t i = 0; i < npix; ++i) {
+        const float *s = &tmp[i * size_t(nc)];
+        float *d = &rgba[i * 4];
+        switch (nc) {
+        case 1: d[0] = d[1] = d[2] = s[0]; d[3] = 1.0f; break;
+        case 2: d[0] = d[1] = d[2] = s[0]; d[3] = s[1]; break;
+        case 3: d[0] = s[0]; d[1] = s[1]; d[2] = s[2]; d[3] = 1.0f; break;
+        default: d[0] = s[0]; d[1] = s[1]; d[2] = s[2]; d[3] = s[3]; break;
+        }
+    }
+
+    if (srgb && is_integer_format(spec.format)) {
+        // 8/16-bit sources decode to k/(2^n-1) exactly; a table per code value is exact.
+        int bits = 0;
+        if (spec.format.basetype == OIIO::TypeDesc::UINT8) bits = 8;
+        if (spec.format.basetype == OIIO::TypeDesc::UINT16) bits = 16;
+        if (bits) {
+            const int maxv = (1 << bits) - 1;
+            std::vector<float> lut(size_t(maxv) + 1);
+            for (int k = 0; k <= maxv; ++k) lut[size_t(k)] = float(srgb_to_linear(double(k) / maxv));
+            for (size_t i = 0; i < npix; ++i)
+                for (int c = 0; c < 3; ++c) {
+                    float v = rgba[i * 4 + size_t(c)];
+                    long k = std::lround(double(v) * maxv);
+                    if (k < 0) k = 0;
+                    if (k > maxv) k = maxv;
+                    rgba[i * 4 + size_t(c)] = lut[size_t(k)];
+                }
+        } else {
+            for (size_t i = 0; i < npix; ++i)
+                for (int c = 0; c < 3; ++c) {
+                    float &v = rgba[i * 4 + size_t(c)];
+                    v = float(v <= 0.0f ? 0.0 : srgb_to_linear(double(v)));
+                }
+        }
+    }
+
+    out->width = int(w);
+    out->height = int(h);
+    out->rgba = rgba;
+    return true;
+}
+
+}  // namespace candela_io
+
+using candela_io::set_err;
+
+extern "C" int io_load_image(const char *path, int srgb, IoImage *image, char err[IO_ERR_LEN]) {
+    if (err) err[0] = 0;
+    if (!image) {
+        set_err(err, path ? path : "(null)", "no output image");
+        return 1;
+    }
+    std::memset(image, 0, sizeof *image);
+    if (!path || !*path) {
+        set_err(err, "(null)", "no path given");
+        return 1;
+    }
+    try {
+        std::string problem;
+        if (!candela_io::decode_image(path, nullptr, 0, srgb != 0, image, &problem)) {
+            set_err(err, path, problem);
+            return 1;
+        }
+        return 0;
+    } catch (const std::exception &e) {
+        io_image_free(image);
+        set_err(err, path, std::string("cannot load: ") + e.what());
+        return 1;
+    } catch (...) {
+        io_image_free(image);
+        set_err(err, path, "cannot load: unknown exception");
+        return 1;
+    }
+}
+
+extern "C" void io_image_free(IoImage *image) {
+    if (!image) return;
+    std::free(image->rgba);
+    std::memset(image, 0, sizeof *image);
+}
+
+extern "C" int io_write_png(const char *path, int width, int height, const float *rgb,
+                            char err[IO_ERR_LEN]) {
+    if (err) err[0] = 0;
+    if (!path || !*path) {
+        set_err(err, "(null)", "no path given");
+        return 1;
+    }
+    if (width <= 0 || height <= 0 || !rgb || (long long)width * height > (1LL << 31) / 3) {
+        set_err(err, path, "invalid image size or no pixels");
+        return 1;
+    }
+    std::string tmp = std::string(path) + ".tmp-" + std::to_string((long)getpid());
+    try {
+        const size_t n = size_t(width) * size_t(height) * 3;
+        std::vector<unsigned char> px(n);
+        for (size_t i = 0; i < n; ++i) {
+            float v = rgb[i];
+            if (!(v > 0.0f)) v = 0.0f;  // also maps NaN to 0
+            if (v > 1.0f) v = 1.0f;
+            px[i] = (unsigned char)(v * 255.0f + 0.5f);
+        }
+        auto out = OIIO::ImageOutput::create("png");
+        if (!out) {
+            set_err(err, path, "cannot open: " + OIIO::geterror());
+            return 1;
+        }
+        OIIO::ImageSpec spec(width, height, 3, OIIO::TypeDesc::UINT8);
+        if (!out->open(tmp, spec)) {
+            std::string e = out->geterror();
+            std::remove(tmp.c_str());
+            set_err(err, path, "cannot open: " + e);
+            return 1;
+        }
+        bool ok = out->write_image(OIIO::TypeDesc::UINT8, px.data());
+        std::string e = ok ? std::string() : out->geterror();
+        if (!out->close() && ok) {
+            ok = false;
+            e = out->geterror();
+        }
+        out.reset();
+        if (!ok) {
+            std::remove(tmp.c_str());
+            set_err(err, path, "cannot write: " + e);
+            return 1;
+        }
+        if (std::rename(tmp.c_str(), path) != 0) {
+            std::string e2 = std::strerror(errno);
+            std::remove(tmp.c_str());
+            set_err(err, path, "cannot rename " + tmp + ": " + e2);
+            return 1;
+        }
+        return 0;
+    } catch (const std::exception &ex) {
+        std::remove(tmp.c_str());
+        set_err(err, path, std::string("cannot write: ") + ex.what());
+        return 1;
+    } catch (...) {
+        std::remove(tmp.c_str());
+        set_err(err, path, "cannot write: unknown exception");
+        return 1;
+    }
+}

@@ -1,0 +1,167 @@
+/* io/io.h: Candela's only door to files.
+ *
+ * Plain C17 view of what the C++17 adapters (tinygltf, OpenImageIO) and the OpenEXR C API
+ * read and write. No C++ type crosses this header. Every function that can fail returns 0 on
+ * success and non-zero on failure, with a one-line message "FILE: problem" in err.
+ * Ownership: a loaded IoScene / IoImage owns all its arrays; free with io_scene_free /
+ * io_image_free. Writers write to "PATH.tmp-PID" and rename, so a crash never leaves a
+ * half-written file under the final name. */
+#ifndef CANDELA_IO_H
+#define CANDELA_IO_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define IO_ERR_LEN 512
+
+/* One image in linear float RGBA, rows top to bottom (row 0 is the top of the picture). */
+typedef struct IoImage {
+    int width, height;
+    float *rgba; /* width*height*4 */
+} IoImage;
+
+/* A texture reference as a material uses it. image < 0: no texture.
+ * KHR_texture_transform is already folded into offset/rotation/scale:
+ * uv' = T(offset) * R(rotation) * S(scale) * uv, as the extension defines. */
+typedef struct IoTextureRef {
+    int32_t image;      /* index into IoScene.images, or -1 */
+    int32_t texcoord;   /* which UV set (only 0 is loaded; others fall back to 0) */
+    float offset[2];
+    float scale[2];
+    float rotation;     /* radians */
+    int32_t wrap_s, wrap_t; /* 0 repeat, 1 clamp-to-edge, 2 mirrored-repeat */
+} IoTextureRef;
+
+enum { IO_ALPHA_OPAQUE = 0, IO_ALPHA_MASK = 1, IO_ALPHA_BLEND = 2 };
+
+/* glTF metallic-roughness material plus the extensions Candela honours. Images referenced
+ * as base colour or emissive are sRGB-decoded to linear at load; metallic-roughness and
+ * normal maps stay linear. (An image used both ways is loaded twice, once per colour space.) */
+typedef struct IoMaterial {
+    char name[64];
+    float base_color[4];            /* baseColorFactor, linear RGBA */
+    IoTextureRef base_color_tex;
+    float metallic, roughness;      /* factors */
+    IoTextureRef metallic_roughness_tex; /* B = metallic, G = roughness */
+    IoTextureRef normal_tex;
+    float normal_scale;
+    float emissive[3];              /* emissiveFactor */
+    float emissive_strength;        /* KHR_materials_emissive_strength, default 1 */
+    IoTextureRef emissive_tex;
+    float specular;                 /* KHR_materials_specular specularFactor, default 1 */
+    float specular_color[3];        /* specularColorFactor, default 1,1,1 */
+    float transmission;             /* KHR_materials_transmission transmissionFactor, default 0 */
+    float ior;                      /* KHR_materials_ior, default 1.5 */
+    int32_t double_sided;
+    int32_t alpha_mode;             /* IO_ALPHA_* (BLEND is treated as MASK by the renderer) */
+    float alpha_cutoff;             /* default 0.5 */
+} IoMaterial;
+
+/* One glTF mesh primitive, triangulated (TRIANGLES, TRIANGLE_STRIP, TRIANGLE_FAN), in the
+ * mesh's object space. Non-indexed primitives get indices 0..n-1. Optional arrays are NULL
+ * when absent. */
+typedef struct IoPrimitive {
+    uint32_t num_vertices, num_triangles;
+    float *positions;   /* 3 * num_vertices */
+    float *normals;     /* 3 * num_vertices or NULL */
+    float *uvs;         /* 2 * num_vertices (TEXCOORD_0) or NULL */
+    float *tangents;    /* 4 * num_vertices or NULL (xyz + handedness w) */
+    uint32_t *indices;  /* 3 * num_triangles, each < num_vertices (validated) */
+    int32_t material;   /* index into IoScene.materials, or -1 for the glTF default material */
+} IoPrimitive;
+
+/* A glTF mesh: a run of primitives [first_primitive, first_primitive + num_primitives). */
+typedef struct IoMesh {
+    char name[64];
+    uint32_t first_primitive, num_primitives;
+} IoMesh;
+
+/* A node that references a mesh, flattened: object-to-world matrix, column-major 4x4
+ * (glTF's layout: m[col*4 + row]). A mesh referenced by several nodes appears in several
+ * instances. */
+typedef struct IoInstance {
+    uint32_t mesh;
+    float xform[16];
+} IoInstance;
+
+enum { IO_LIGHT_POINT = 0, IO_LIGHT_SPOT = 1, IO_LIGHT_DIRECTIONAL = 2 };
+
+/* KHR_lights_punctual light placed by its node, in world space. Intensity is as written in
+ * the file (candela for point/spot, lux for directional); unit conversion is the renderer's. */
+typedef struct IoLight {
+    char name[64];
+    int32_t type;
+    float color[3];
+    float intensity;
+    float range;            /* 0 = infinite */
+    float inner_cone_angle; /* spot only, radians */
+    float outer_cone_angle;
+    float position[3];      /* world */
+    float direction[3];     /* world, unit: the direction light travels (node's -Z) */
+} IoLight;
+
+enum { IO_CAMERA_PERSPECTIVE = 0, IO_CAMERA_ORTHOGRAPHIC = 1 };
+
+typedef struct IoCamera {
+    char name[64];
+    int32_t type;
+    float yfov;         /* perspective, radians */
+    float aspect;       /* perspective aspectRatio, 0 when absent */
+    float xmag, ymag;   /* orthographic half extents */
+    float znear, zfar;
+    float xform[16];    /* camera-to-world, column-major; camera looks down its local -Z, +Y up */
+} IoCamera;
+
+typedef struct IoScene {
+    IoPrimitive *primitives; uint32_t num_primitives;
+    IoMesh *meshes;          uint32_t num_meshes;
+    IoInstance *instances;   uint32_t num_instances;
+    IoMaterial *materials;   uint32_t num_materials;
+    IoImage *images;         uint32_t num_images;
+    IoLight *lights;         uint32_t num_lights;
+    IoCamera *cameras;       uint32_t num_cameras;
+    /* scene.extras.candela_environment {"uri": "...", "strength": S}: path resolved relative
+     * to the glTF file; env_path[0] == 0 when absent. */
+    char env_path[1024];
+    float env_strength;
+    uint32_t num_warnings;   /* warnings printed to stderr while loading (e.g. morph targets ignored) */
+} IoScene;
+
+/* Load a .gltf or .glb (decided by content, not extension). Validates everything the renderer
+ * relies on: accessor bounds and types, index ranges, finite positions, image sizes. */
+int io_load_gltf(const char *path, IoScene *scene, char err[IO_ERR_LEN]);
+void io_scene_free(IoScene *scene);
+
+/* Read any image OpenImageIO reads (EXR, HDR, PNG, ...) as linear float RGBA. 8/16-bit
+ * integer files are treated as sRGB-encoded and decoded when srgb != 0. */
+int io_load_image(const char *path, int srgb, IoImage *image, char err[IO_ERR_LEN]);
+void io_image_free(IoImage *image);
+
+/* Write an 8-bit sRGB PNG through OpenImageIO. rgb: width*height*3 display values in [0,1]
+ * (already tone-mapped and sRGB-encoded by the caller), top row first. */
+int io_write_png(const char *path, int width, int height, const float *rgb, char err[IO_ERR_LEN]);
+
+/* One named channel of a multi-channel EXR, e.g. "R", "albedo.G", "variance.B", "Z". */
+typedef struct IoExrChannel {
+    const char *name;
+    const float *data; /* width*height floats, top row first */
+} IoExrChannel;
+
+/* Write a single-part scanline EXR (FLOAT channels, ZIP compression) with the OpenEXR C API. */
+int io_write_exr(const char *path, int width, int height, const IoExrChannel *channels,
+                 int num_channels, char err[IO_ERR_LEN]);
+
+/* Read one channel by name from an EXR (any pixel type, converted to float). The caller
+ * frees *data with free(). Used by tests and comparison tools. */
+int io_read_exr_channel(const char *path, const char *channel, int *width, int *height,
+                        float **data, char err[IO_ERR_LEN]);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

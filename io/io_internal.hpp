@@ -1,0 +1,33 @@
+// io/io_internal.hpp: private C++ glue shared by gltf_loader.cpp and image_oiio.cpp.
+// Not part of the public API (io.h); never included from C.
+#ifndef CANDELA_IO_INTERNAL_HPP
+#define CANDELA_IO_INTERNAL_HPP
+
+#include "io.h"
+
+#include <cstddef>
+#include <string>
+
+namespace candela_io {
+
+// Largest texture / environment map accepted: per side and in total pixels.
+constexpr int kMaxImageSide = 16384;
+constexpr long long kMaxImagePixels = 1LL << 28;
+
+// Decode an image with OpenImageIO into linear float RGBA (see io.h). Either from the file
+// `path` (mem == nullptr) or from the encoded bytes mem[0..mem_size) (path is then only a
+// name whose extension hints at the format). srgb != 0: decode the sRGB EOTF on RGB for
+// integer sources. On failure returns false with a one-line description in `problem`
+// (without any file-name prefix; the caller adds it). `out` is untouched on failure.
+bool decode_image(const std::string &path, const void *mem, size_t mem_size, bool srgb,
+                  IoImage *out, std::string *problem);
+
+// Replace every run of CR/LF in s by "; " and trim trailing separators and spaces.
+std::string one_line(const std::string &s);
+
+// Write "prefix: problem" (one line, truncated) into err.
+void set_err(char err[IO_ERR_LEN], const std::string &prefix, const std::string &problem);
+
+}  // namespace candela_io
+
+#endif

@@ -1,0 +1,383 @@
+/* renderer/bsdf.c: the glTF metallic-roughness BSDF (see bsdf.h for the model).
+ *
+ * Lobes, with their mixture weights in f:
+ *   METAL  m            GGX conductor, F = Schlick(base_color, F90 = 1)
+ *   SPEC   (1-m)(1-t)   GGX dielectric reflection layer, F = Schlick(F0, F90 = specular),
+ *                       F0 = min(((ior-1)/(ior+1))^2 specular_color, 1) * specular
+ *   DIFF   (1-m)(1-t)   (1 - max F(|wo.z|)) (1 - max F(|wi.z|)) base_color / pi
+ *   GLASS  (1-m) t      rough (Walter 2007) or smooth dielectric, exact Fresnel scaled by
+ *                       specular; refraction tinted by base_color and scaled by 1/eta^2
+ *
+ * The diffuse layer's "1 - specular * max(F)" (glTF) is evaluated at both |wo.z| and |wi.z|
+ * rather than at the half vector: glTF's per-half-vector form is reciprocal but reflects far
+ * more than 1 at grazing wo (F(wo) -> 1 goes to the mirror lobe while the diffuse keeps
+ * nearly all its energy), whereas the product form is reciprocal and keeps the layered albedo
+ * <= 1 (tests/test_bsdf.c checks this). At normal incidence the diffuse albedo is
+ * (1 - F0)(1 - F_avg) instead of ~(1 - F0).
+ *
+ * Sampling picks one lobe with probabilities that depend only on (params, wo); inside the
+ * glass lobe the choice between reflection and refraction uses the Fresnel term of the sampled
+ * microfacet (pbrt's DielectricBxDF), reusing the remapped lobe random number. Non-delta
+ * samples report f = bsdf_eval and pdf = bsdf_pdf (the full mixture), so they match exactly. */
+#include "bsdf.h"
+
+#include <stddef.h>
+
+#include "sampling.h"
+
+/* |ior - 1| below this makes glass an exact pass-through (refraction with eta = 1 maps every
+ * microfacet to wi = -wo, i.e. a delta even when rough). */
+#define GLASS_IOR_EPS 1e-3f
+/* Directions closer than this to the horizon produce no sample (f / |cos| would blow up). */
+#define MIN_COS 1e-7f
+
+enum { LOBE_METAL, LOBE_SPEC, LOBE_DIFFUSE, LOBE_GLASS, LOBE_COUNT };
+
+typedef struct {
+    vec3 base;       /* clamped to [0,1] */
+    vec3 f0_spec;    /* dielectric layer F0 (includes specular factor) */
+    float f90_spec;  /* = specular */
+    int spec_on;     /* dielectric specular layer active (ior != 1 and specular > 0) */
+    float m, t, specular, ior;
+    float alpha;     /* opaque lobes, >= BSDF_MIN_ALPHA */
+    float alpha_glass;
+    int glass_delta;
+} Prep;
+
+static float sane01(float x, float fallback) {
+    if (isnan(x)) return fallback;
+    return clampf(x, 0.0f, 1.0f);
+}
+
+static void prepare(const BsdfParams *p, Prep *q) {
+    q->base = v3(sane01(p->base_color.x, 0.0f), sane01(p->base_color.y, 0.0f), sane01(p->base_color.z, 0.0f));
+    q->m = sane01(p->metallic, 0.0f);
+    q->t = sane01(p->transmission, 0.0f);
+    q->specular = sane01(p->specular, 0.0f);
+    float r = sane01(p->roughness, 1.0f);
+    float ior = p->ior;
+    if (!(ior >= 1.0f) || !isfinite(ior)) ior = isinf(ior) && ior > 0.0f ? 1e4f : 1.0f;
+    q->ior = fminf(ior, 1e4f);
+    float a = r * r;
+    q->alpha = fmaxf(a, BSDF_MIN_ALPHA);
+    q->alpha_glass = fmaxf(a, BSDF_DELTA_ALPHA);
+    q->glass_delta = a < BSDF_DELTA_ALPHA || q->ior - 1.0f < GLASS_IOR_EPS;
+    float r0 = sqr((q->ior - 1.0f) / (q->ior + 1.0f));
+    vec3 sc = p->specular_color;
+    sc = v3(isfinite(sc.x) ? fmaxf(sc.x, 0.0f) : 0.0f, isfinite(sc.y) ? fmaxf(sc.y, 0.0f) : 0.0f,
+            isfinite(sc.z) ? fmaxf(sc.z, 0.0f) : 0.0f);
+    q->f0_spec = v3_scale(v3_min(v3_scale(sc, r0), v3s(1.0f)), q->specular);
+    q->f90_spec = q->specular;
+    q->spec_on = q->ior != 1.0f && q->specular > 0.0f;
+}
+
+static float pow5(float x) { float x2 = x * x; return x2 * x2 * x; }
+
+static vec3 schlick(vec3 f0, float f90, float c) {
+    float w = pow5(1.0f - clampf(c, 0.0f, 1.0f));
+    return v3(f0.x + (f90 - f0.x) * w, f0.y + (f90 - f0.y) * w, f0.z + (f90 - f0.z) * w);
+}
+
+/* max over channels of the dielectric layer's Schlick Fresnel (0 when the layer is off). */
+static float spec_fmax(const Prep *q, float c) {
+    if (!q->spec_on) return 0.0f;
+    float f0 = v3_max_component(q->f0_spec);
+    return f0 + (q->f90_spec - f0) * pow5(1.0f - clampf(c, 0.0f, 1.0f));
+}
+
+/* Exact unpolarised dielectric Fresnel; cos_i < 0 means arriving from the eta side. Double
+ * precision: the glass lobe is evaluated in double so that the reciprocity of the rough
+ * dielectric survives rounding (the two argument orders build the half vector differently). */
+static double fr_dielectric(double cos_i, double eta) {
+    cos_i = cos_i < -1.0 ? -1.0 : (cos_i > 1.0 ? 1.0 : cos_i);
+    if (cos_i < 0.0) { eta = 1.0 / eta; cos_i = -cos_i; }
+    double sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if (sin2_t >= 1.0) return 1.0;
+    double cos_t = sqrt(1.0 - sin2_t);
+    double r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    double r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    double f = 0.5 * (r_parl * r_parl + r_perp * r_perp);
+    return f < 0.0 ? 0.0 : (f > 1.0 ? 1.0 : f);
+}
+
+/* Double-precision GGX pieces for the glass lobe (same formulas as sampling.c). */
+static double ggx_d_dbl(double x, double y, double z, double alpha) {
+    double a2 = alpha * alpha;
+    double t = z * z + (x * x + y * y) / a2;
+    double den = 3.14159265358979323846 * a2 * t * t;
+    return den > 0.0 ? 1.0 / den : 0.0;
+}
+
+static double ggx_lambda_dbl(double x, double y, double z, double alpha) {
+    double sin2 = x * x + y * y, cos2 = z * z;
+    if (sin2 == 0.0) return 0.0;
+    if (cos2 == 0.0) return INFINITY;
+    return 0.5 * (sqrt(1.0 + alpha * alpha * sin2 / cos2) - 1.0);
+}
+
+/* Lobe selection probabilities; they depend only on (q, wo). Opaque lobes vanish unless
+ * wo.z > 0; the small floors keep a lobe selectable wherever its f can be nonzero. */
+static float lobe_probs(const Prep *q, vec3 wo, float prob[LOBE_COUNT]) {
+    float w[LOBE_COUNT] = {0.0f, 0.0f, 0.0f, 0.0f};
+    if (wo.z > 0.0f) {
+        float c = wo.z;
+        if (q->m > 0.0f) {
+            vec3 fm = schlick(q->base, 1.0f, c);
+            w[LOBE_METAL] = q->m * fmaxf(v3_max_component(fm), 0.05f);
+        }
+        float opaque = (1.0f - q->m) * (1.0f - q->t);
+        if (opaque > 0.0f) {
+            float fs = spec_fmax(q, c);
+            if (q->spec_on) w[LOBE_SPEC] = opaque * fmaxf(fs, 0.02f * q->specular);
+            w[LOBE_DIFFUSE] = opaque * v3_max_component(q->base) * (1.0f - fs);
+        }
+    }
+    if (wo.z != 0.0f) w[LOBE_GLASS] = (1.0f - q->m) * q->t;
+    float sum = w[0] + w[1] + w[2] + w[3];
+    for (int k = 0; k < LOBE_COUNT; ++k) prob[k] = sum > 0.0f ? w[k] / sum : 0.0f;
+    return sum;
+}
+
+/* ---------------------------------------------------------------- lobe evaluation */
+
+/* GGX reflection, wo.z, wi.z > 0: returns D G / (4 co ci), the half vector and the VNDF
+ * reflection pdf (which does not depend on whether the lobe's value vanishes). */
+static float ggx_reflect_common(vec3 wo, vec3 wi, float alpha, vec3 *wm_out, float *pdf) {
+    *pdf = 0.0f;
+    vec3 h = v3_add(wo, wi);
+    float l2 = v3_dot(h, h);
+    if (!(l2 > 0.0f)) return 0.0f;
+    vec3 wm = v3_scale(h, 1.0f / sqrtf(l2));
+    *wm_out = wm;
+    float c = v3_dot(wo, wm);
+    float den = 4.0f * wo.z * wi.z;
+    if (!(den > 0.0f) || !(c > 0.0f)) return 0.0f;
+    float pr = ggx_pdf_visible_normal(wo, wm, alpha) / (4.0f * c);
+    *pdf = isfinite(pr) ? pr : 0.0f;
+    float v = ggx_d(wm, alpha) * ggx_g(wo, wi, alpha) / den;
+    return isfinite(v) ? v : 0.0f;
+}
+
+/* Glass in the canonical frame: wo.z > 0, eta = ior below / ior above. Returns f (scalar part,
+ * without tint: *refracted tells the caller to tint) and the lobe-internal pdf. */
+static float glass_eval_pdf(const Prep *q, vec3 wo_f, vec3 wi_f, double eta, float *pdf, int *refracted) {
+    *pdf = 0.0f;
+    *refracted = 0;
+    double alpha = q->alpha_glass;
+    double ox = wo_f.x, oy = wo_f.y, oz = wo_f.z, ix = wi_f.x, iy = wi_f.y, iz = wi_f.z;
+    if (!(oz > 0.0) || iz == 0.0) return 0.0f;
+    int reflect = iz > 0.0;
+    double k = reflect ? 1.0 : eta;
+    double mx = ox + k * ix, my = oy + k * iy, mz = oz + k * iz;
+    double l2 = mx * mx + my * my + mz * mz;
+    if (!(l2 > 1e-24)) return 0.0f;
+    double inv = (mz < 0.0 ? -1.0 : 1.0) / sqrt(l2);
+    mx *= inv; my *= inv; mz *= inv;
+    double dot_o = ox * mx + oy * my + oz * mz, dot_i = ix * mx + iy * my + iz * mz;
+    /* Discard back-facing microfacets. */
+    if (!(dot_o > 0.0) || dot_i * iz <= 0.0) return 0.0f;
+    double fr = q->specular * fr_dielectric(dot_o, eta);
+    double d = ggx_d_dbl(mx, my, mz, alpha);
+    double lo = ggx_lambda_dbl(ox, oy, oz, alpha), li = ggx_lambda_dbl(ix, iy, iz, alpha);
+    double g = 1.0 / (1.0 + lo + li);
+    /* Visible-normal pdf: G1(wo) (wo.wm) D(wm) / wo.z. */
+    double pdf_wm = d * dot_o / ((1.0 + lo) * oz);
+    double f, pdf_d;
+    if (reflect) {
+        f = fr * d * g / (4.0 * oz * iz);
+        pdf_d = fr * pdf_wm / (4.0 * dot_o);
+    } else {
+        double tr = 1.0 - fr;
+        double s = eta * dot_i + dot_o;
+        double s2 = s * s;
+        if (!(s2 > 0.0)) return 0.0f;
+        /* Walter et al. 2007 eq. 21 with eta_o = 1, eta_i = eta: the 1/eta^2 radiance scaling
+         * of pbrt's form cancels against the eta^2 of its denominator. */
+        f = tr * d * g * fabs(dot_i * dot_o) / (oz * fabs(iz) * s2);
+        pdf_d = tr * pdf_wm * fabs(dot_i) * eta * eta / s2;
+        *refracted = 1;
+    }
+    float ff = (float)f, pf = (float)pdf_d;
+    if (!isfinite(ff) || !isfinite(pf) || !(ff >= 0.0f) || !(pf >= 0.0f)) return 0.0f;
+    *pdf = pf;
+    return ff;
+}
+
+/* Evaluate f and the mixture pdf (non-delta lobes only). */
+static vec3 eval_pdf(const Prep *q, vec3 wo, vec3 wi, float *pdf_out) {
+    vec3 f = v3s(0.0f);
+    float pdf = 0.0f;
+    float prob[LOBE_COUNT];
+    lobe_probs(q, wo, prob);
+    if (wo.z > 0.0f && wi.z > 0.0f) {
+        float opaque = (1.0f - q->m) * (1.0f - q->t);
+        if (q->m > 0.0f || (opaque > 0.0f && q->spec_on)) {
+            vec3 wm = v3(0.0f, 0.0f, 1.0f);
+            float pdf_refl;
+            float dg = ggx_reflect_common(wo, wi, q->alpha, &wm, &pdf_refl);
+            float c = v3_dot(wo, wm);
+            if (q->m > 0.0f) f = v3_madd(f, schlick(q->base, 1.0f, c), q->m * dg);
+            if (opaque > 0.0f && q->spec_on) f = v3_madd(f, schlick(q->f0_spec, q->f90_spec, c), opaque * dg);
+            pdf += (prob[LOBE_METAL] + prob[LOBE_SPEC]) * pdf_refl;
+        }
+        if (opaque > 0.0f) {
+            float kd = (1.0f - spec_fmax(q, wo.z)) * (1.0f - spec_fmax(q, wi.z));
+            f = v3_madd(f, q->base, opaque * kd * INV_PI_F);
+            pdf += prob[LOBE_DIFFUSE] * wi.z * INV_PI_F;
+        }
+    }
+    float wg = (1.0f - q->m) * q->t;
+    if (wg > 0.0f && !q->glass_delta && wo.z != 0.0f) {
+        float s = wo.z > 0.0f ? 1.0f : -1.0f;
+        float eta = wo.z > 0.0f ? q->ior : 1.0f / q->ior;
+        float gp;
+        int refr;
+        float g = glass_eval_pdf(q, v3_scale(wo, s), v3_scale(wi, s), eta, &gp, &refr);
+        f = refr ? v3_madd(f, q->base, wg * g) : v3_add(f, v3s(wg * g));
+        pdf += prob[LOBE_GLASS] * gp;
+    }
+    if (!v3_is_finite(f) || !isfinite(pdf)) {
+        f = v3s(0.0f);
+        pdf = 0.0f;
+    }
+    if (pdf_out) *pdf_out = pdf;
+    return f;
+}
+
+vec3 bsdf_eval(const BsdfParams *p, vec3 wo, vec3 wi) {
+    Prep q;
+    prepare(p, &q);
+    return eval_pdf(&q, wo, wi, NULL);
+}
+
+float bsdf_pdf(const BsdfParams *p, vec3 wo, vec3 wi) {
+    Prep q;
+    prepare(p, &q);
+    float pdf;
+    eval_pdf(&q, wo, wi, &pdf);
+    return pdf;
+}
+
+static vec3 reflect_about(vec3 wo, vec3 n) { return v3_sub(v3_scale(n, 2.0f * v3_dot(wo, n)), wo); }
+
+/* Refraction of wo (dot(wo,n) > 0) through n with eta = eta_t / eta_o. Returns 0 on TIR. */
+static int refract_about(vec3 wo, vec3 n, float eta, vec3 *wt) {
+    float ci = v3_dot(wo, n);
+    float sin2_t = fmaxf(0.0f, 1.0f - ci * ci) / (eta * eta);
+    if (sin2_t >= 1.0f) return 0;
+    float ct = sqrtf(1.0f - sin2_t);
+    *wt = v3_normalize(v3_add(v3_scale(wo, -1.0f / eta), v3_scale(n, ci / eta - ct)));
+    return 1;
+}
+
+int bsdf_sample(const BsdfParams *p, vec3 wo, float u_lobe, float u1, float u2, BsdfSample *s) {
+    Prep q;
+    prepare(p, &q);
+    s->wi = v3(0.0f, 0.0f, 1.0f);
+    s->f = v3s(0.0f);
+    s->pdf = 0.0f;
+    s->flags = 0;
+    if (!v3_is_finite(wo) || wo.z == 0.0f) return 0;
+    u_lobe = clampf(isnan(u_lobe) ? 0.0f : u_lobe, 0.0f, 0x1.fffffep-1f);
+    u1 = clampf(isnan(u1) ? 0.0f : u1, 0.0f, 0x1.fffffep-1f);
+    u2 = clampf(isnan(u2) ? 0.0f : u2, 0.0f, 0x1.fffffep-1f);
+
+    float prob[LOBE_COUNT];
+    if (!(lobe_probs(&q, wo, prob) > 0.0f)) return 0;
+    int lobe = -1;
+    float acc = 0.0f, u_rem = 0.0f;
+    for (int k = 0; k < LOBE_COUNT; ++k) {
+        if (prob[k] <= 0.0f) continue;
+        lobe = k;
+        if (u_lobe < acc + prob[k]) break;
+        acc += prob[k];
+    }
+    if (lobe < 0) return 0;
+    u_rem = clampf((u_lobe - acc) / prob[lobe], 0.0f, 0x1.fffffep-1f);
+
+    vec3 wi;
+    switch (lobe) {
+    case LOBE_METAL:
+    case LOBE_SPEC: {
+        vec3 wm = ggx_sample_visible_normal(wo, q.alpha, u1, u2);
+        wi = reflect_about(wo, wm);
+        if (!(wi.z > MIN_COS)) return 0;
+        s->flags = BSDF_REFLECTION;
+        break;
+    }
+    case LOBE_DIFFUSE:
+        wi = sample_cosine_hemisphere(u1, u2);
+        if (!(wi.z > MIN_COS)) return 0;
+        s->flags = BSDF_REFLECTION;
+        break;
+    default: { /* LOBE_GLASS */
+        float sg = wo.z > 0.0f ? 1.0f : -1.0f;
+        float eta = wo.z > 0.0f ? q.ior : 1.0f / q.ior;
+        vec3 o = v3_scale(wo, sg);
+        float wg = (1.0f - q.m) * q.t;
+        if (q.glass_delta) {
+            float fr = (float)(q.specular * fr_dielectric(o.z, eta));
+            vec3 w;
+            float pr, weight_f;
+            vec3 tint = v3s(1.0f);
+            if (u_rem < fr) {
+                w = v3(-o.x, -o.y, o.z);
+                pr = fr;
+                weight_f = fr;
+                s->flags = BSDF_REFLECTION | BSDF_DELTA;
+            } else {
+                if (!refract_about(o, v3(0.0f, 0.0f, 1.0f), eta, &w)) return 0;
+                pr = 1.0f - fr;
+                weight_f = (1.0f - fr) / (eta * eta);
+                tint = q.base;
+                s->flags = BSDF_TRANSMISSION | BSDF_DELTA;
+            }
+            if (!(fabsf(w.z) > MIN_COS) || !(pr > 0.0f)) return 0;
+            s->wi = v3_scale(w, sg);
+            s->pdf = prob[LOBE_GLASS] * pr;
+            /* weight = f |cos| / pdf = wg * weight_f * tint / (prob * pr): the lobe's mixture
+             * weight over its selection probability. */
+            s->f = v3_scale(tint, wg * weight_f / fabsf(w.z));
+            if (!(s->pdf > 0.0f) || !v3_is_finite(s->f)) return 0;
+            return 1;
+        }
+        vec3 wm = ggx_sample_visible_normal(o, q.alpha_glass, u1, u2);
+        float dot_o = v3_dot(o, wm);
+        if (!(dot_o > 0.0f)) return 0;
+        float fr = (float)(q.specular * fr_dielectric(dot_o, eta));
+        vec3 w;
+        if (u_rem < fr) {
+            w = reflect_about(o, wm);
+            if (!(w.z > MIN_COS)) return 0;
+            s->flags = BSDF_REFLECTION;
+        } else {
+            if (!refract_about(o, wm, eta, &w)) return 0;
+            if (!(w.z < -MIN_COS)) return 0;
+            s->flags = BSDF_TRANSMISSION;
+        }
+        wi = v3_scale(w, sg);
+        break;
+    }
+    }
+    float pdf;
+    vec3 f = eval_pdf(&q, wo, wi, &pdf);
+    if (!(pdf > 0.0f) || !v3_is_finite(f)) return 0;
+    vec3 weight = v3_scale(f, fabsf(wi.z) / pdf);
+    if (!v3_is_finite(weight)) return 0;
+    s->wi = wi;
+    s->f = f;
+    s->pdf = pdf;
+    return 1;
+}
+
+int bsdf_is_delta(const BsdfParams *p) {
+    Prep q;
+    prepare(p, &q);
+    return q.m == 0.0f && q.t == 1.0f && q.glass_delta;
+}
+
+int bsdf_has_transmission(const BsdfParams *p) {
+    Prep q;
+    prepare(p, &q);
+    return q.t > 0.0f && q.m < 1.0f;
+}

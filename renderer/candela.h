@@ -1,0 +1,89 @@
+/* renderer/candela.h: the renderer's public API (the CLI in main.c and the tests use it).
+ *
+ * candela_render() loads a glTF scene, builds the Embree scene, runs the wavefront
+ * iterations and returns the film; candela_write_outputs() writes EXR (+AOVs) and PNG. */
+#ifndef CANDELA_H
+#define CANDELA_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#define CANDELA_ERR_LEN 512
+
+typedef enum {
+    CANDELA_LIGHT_SAMPLER_UNIFORM = 0,
+    CANDELA_LIGHT_SAMPLER_POWER = 1
+} CandelaLightSampler;
+
+typedef enum {
+    CANDELA_LIGHT_UNITS_BLENDER = 0, /* point/spot W/sr = cd/683, sun W/m^2 = lux/683 */
+    CANDELA_LIGHT_UNITS_RAW = 1      /* intensities are already radiometric */
+} CandelaLightUnits;
+
+typedef struct CandelaOptions {
+    const char *scene_path;
+    const char *camera_name;   /* NULL: first camera, or a default view framing the scene */
+    int width, height;         /* 0: from the camera's aspect (width 640) */
+    int spp;                   /* samples per pixel in total */
+    uint64_t seed;
+    int threads;               /* 0: all cores */
+    int max_depth;             /* path vertices after the camera; 1 = direct light only */
+    CandelaLightSampler light_sampler;
+    CandelaLightUnits light_units;
+    const char *env_path;      /* overrides the scene's extras; NULL: none */
+    float env_strength;
+    uint32_t batch_size;       /* paths in flight per batch; 0: default. Never changes the image. */
+    int max_iteration_spp;     /* cap of the 1,1,2,4,... schedule; 0: default */
+    int quiet;                 /* no progress output */
+    int record_rays;           /* keep every traced ray for the Embree replay benchmark */
+} CandelaOptions;
+
+void candela_options_default(CandelaOptions *o);
+
+/* Wall-clock seconds per wavefront stage, summed over threads' shared wall time. */
+typedef struct CandelaStats {
+    double time_load, time_build, time_total;
+    double time_generate, time_sort, time_trace, time_shade, time_shadow, time_film;
+    uint64_t rays_camera, rays_bounce, rays_shadow;
+    uint64_t paths;
+    int iterations;
+    size_t peak_memory_bytes;
+    uint32_t num_triangles, num_lights, num_instances;
+} CandelaStats;
+
+/* The film after the render: per-pixel mean and AOVs, top row first. */
+typedef struct CandelaImage {
+    int width, height;
+    float *rgb;       /* 3 per pixel, mean radiance */
+    float *variance;  /* 3 per pixel, variance of the pixel mean (sample variance / n) */
+    float *albedo;    /* 3 per pixel, first-hit albedo */
+    float *normal;    /* 3 per pixel, first-hit shading normal (world) */
+    float *depth;     /* 1 per pixel, first-hit distance along the camera ray (inf: miss) */
+} CandelaImage;
+
+/* Captured rays for the bare-Embree replay (record_rays). */
+typedef struct CandelaRayLog {
+    size_t count, capacity;
+    float *org_dir_tfar;   /* 7 floats per ray: ox oy oz dx dy dz tfar */
+    uint8_t *is_shadow;
+} CandelaRayLog;
+
+int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *stats,
+                   CandelaRayLog *ray_log, char err[CANDELA_ERR_LEN]);
+void candela_image_free(CandelaImage *image);
+void candela_ray_log_free(CandelaRayLog *log);
+
+/* Writes the EXR (RGBA + albedo, N, Z, variance layers) and, if png_path != NULL, an sRGB
+ * preview. Both go to a temporary name first and are renamed when complete. */
+int candela_write_outputs(const CandelaImage *image, const char *exr_path, const char *png_path,
+                          char err[CANDELA_ERR_LEN]);
+
+/* Replays a ray log through bare Embree on the scene (closest hit for bounce rays,
+ * occlusion for shadow rays); returns the seconds spent tracing. */
+int candela_replay_rays(const CandelaOptions *o, const CandelaRayLog *log, int threads,
+                        double *seconds, char err[CANDELA_ERR_LEN]);
+
+int candela_write_stats_json(const char *path, const CandelaOptions *o, const CandelaStats *s,
+                             char err[CANDELA_ERR_LEN]);
+
+#endif

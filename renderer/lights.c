@@ -1,0 +1,305 @@
+/* renderer/lights.c: light list, light sampling and the light-selection strategies. */
+#include "lights.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "scene.h"
+
+/* Luminous efficacy used by Blender's glTF importer in its default ("standard") lighting
+ * mode: point/spot W/sr = cd / 683, sun W/m^2 = lux / 683. */
+#define BLENDER_LM_PER_W 683.0f
+
+static float finite_or_zero(float x) { return isfinite(x) ? x : 0.0f; }
+
+static int push_light(Lights *ls, uint32_t *cap, const Light *l) {
+    if (ls->count == *cap) {
+        uint32_t nc = *cap ? *cap * 2 : 16;
+        Light *nl = realloc(ls->lights, nc * sizeof *nl);
+        if (!nl) return -1;
+        ls->lights = nl;
+        *cap = nc;
+    }
+    ls->lights[ls->count++] = *l;
+    return 0;
+}
+
+static int build_area_light(Scene *scene, uint32_t instance, uint32_t local, Light *l) {
+    const SceneInstance *inst = &scene->instances[instance];
+    const IoMesh *mesh = &scene->io.meshes[inst->mesh];
+    uint32_t global = mesh->first_primitive + local;
+    const IoPrimitive *p = scene->prims[global].io;
+    memset(l, 0, sizeof *l);
+    l->type = LIGHT_AREA;
+    l->instance = instance;
+    l->local_prim = local;
+    l->global_prim = global;
+    l->world_vertices = malloc((size_t)p->num_triangles * 9 * sizeof(float) + 1);
+    float *areas = malloc(((size_t)p->num_triangles + 1) * sizeof(float));
+    if (!l->world_vertices || !areas) { free(l->world_vertices); free(areas); return -1; }
+    double total = 0.0;
+    for (uint32_t t = 0; t < p->num_triangles; ++t) {
+        vec3 w[3];
+        for (int k = 0; k < 3; ++k) {
+            uint32_t vi = p->indices[3 * t + k];
+            w[k] = xform_point(inst->xform, v3(p->positions[3 * vi], p->positions[3 * vi + 1], p->positions[3 * vi + 2]));
+            l->world_vertices[9 * t + 3 * k] = w[k].x;
+            l->world_vertices[9 * t + 3 * k + 1] = w[k].y;
+            l->world_vertices[9 * t + 3 * k + 2] = w[k].z;
+        }
+        float a = 0.5f * v3_length(v3_cross(v3_sub(w[1], w[0]), v3_sub(w[2], w[0])));
+        areas[t] = finite_or_zero(a);
+        total += areas[t];
+    }
+    l->area = (float)total;
+    int rc = dist1d_init(&l->triangles, areas, p->num_triangles);
+    free(areas);
+    if (rc != 0) { free(l->world_vertices); return -1; }
+    const IoMaterial *mat = scene->prims[global].material;
+    vec3 e = v3_scale(v3(mat->emissive[0], mat->emissive[1], mat->emissive[2]), mat->emissive_strength);
+    l->power = PI_F * l->area * fmaxf(v3_luminance(e), 0.0f) * (mat->double_sided ? 2.0f : 1.0f);
+    return 0;
+}
+
+static float env_average_luminance(const Scene *scene) {
+    const IoImage *im = &scene->env;
+    double sum = 0.0, wsum = 0.0;
+    for (int y = 0; y < im->height; ++y) {
+        double w = sin(PI_F * ((double)y + 0.5) / (double)im->height);
+        for (int x = 0; x < im->width; ++x) {
+            const float *t = im->rgba + 4 * ((size_t)y * (size_t)im->width + (size_t)x);
+            sum += w * v3_luminance(v3(t[0], t[1], t[2]));
+            wsum += w;
+        }
+    }
+    return wsum > 0.0 ? (float)(sum / wsum) * scene->env_strength : 0.0f;
+}
+
+int lights_build(Scene *scene, CandelaLightUnits units, CandelaLightSampler strategy, char *err, size_t err_len) {
+    Lights *ls = &scene->lights;
+    memset(ls, 0, sizeof *ls);
+    ls->environment = -1;
+    ls->strategy = strategy;
+    uint32_t cap = 0;
+    float scale = units == CANDELA_LIGHT_UNITS_BLENDER ? 1.0f / BLENDER_LM_PER_W : 1.0f;
+    float r = scene->radius;
+    for (uint32_t i = 0; i < scene->io.num_lights; ++i) {
+        const IoLight *il = &scene->io.lights[i];
+        Light l;
+        memset(&l, 0, sizeof l);
+        vec3 color = v3(finite_or_zero(il->color[0]), finite_or_zero(il->color[1]), finite_or_zero(il->color[2]));
+        float intensity = finite_or_zero(il->intensity) * scale;
+        l.intensity = v3_max(v3_scale(color, intensity), v3s(0.0f));
+        l.position = v3(il->position[0], il->position[1], il->position[2]);
+        l.direction = v3_normalize(v3(il->direction[0], il->direction[1], il->direction[2]));
+        if (!v3_is_finite(l.position) || !v3_is_finite(l.direction)) {
+            fprintf(stderr, "%s: warning: light '%s' has a non-finite position or direction; ignored\n",
+                    scene->io.env_path[0] ? "scene" : "scene", il->name);
+            continue;
+        }
+        float lum = v3_luminance(l.intensity);
+        switch (il->type) {
+        case IO_LIGHT_POINT:
+            l.type = LIGHT_POINT;
+            l.power = 4.0f * PI_F * lum;
+            break;
+        case IO_LIGHT_SPOT: {
+            l.type = LIGHT_SPOT;
+            float outer = clampf(finite_or_zero(il->outer_cone_angle), 0.0f, 0.5f * PI_F);
+            float inner = clampf(finite_or_zero(il->inner_cone_angle), 0.0f, outer);
+            l.cos_outer = cosf(outer);
+            l.cos_inner = cosf(inner);
+            l.power = 2.0f * PI_F * (1.0f - 0.5f * (l.cos_inner + l.cos_outer)) * lum;
+            break;
+        }
+        default:
+            l.type = LIGHT_DIRECTIONAL;
+            l.power = PI_F * r * r * lum;
+            break;
+        }
+        if (push_light(ls, &cap, &l) != 0) goto oom;
+    }
+    for (uint32_t i = 0; i < scene->io.num_instances; ++i) {
+        const SceneInstance *inst = &scene->instances[i];
+        const IoMesh *mesh = &scene->io.meshes[inst->mesh];
+        for (uint32_t k = 0; k < mesh->num_primitives; ++k) {
+            const ScenePrimitive *sp = &scene->prims[mesh->first_primitive + k];
+            const float *e = sp->material->emissive;
+            if (!(e[0] > 0.0f || e[1] > 0.0f || e[2] > 0.0f) || !(sp->material->emissive_strength > 0.0f) ||
+                sp->io->num_triangles == 0)
+                continue;
+            Light l;
+            if (build_area_light(scene, i, k, &l) != 0) goto oom;
+            if (!(l.area > 0.0f)) { dist1d_free(&l.triangles); free(l.world_vertices); continue; }
+            scene->light_of_primitive[inst->light_table_base + k] = (int32_t)ls->count;
+            if (push_light(ls, &cap, &l) != 0) { dist1d_free(&l.triangles); free(l.world_vertices); goto oom; }
+        }
+    }
+    if (scene->env.width > 0) {
+        const IoImage *im = &scene->env;
+        float *f = malloc((size_t)im->width * (size_t)im->height * sizeof(float));
+        if (!f) goto oom;
+        for (int y = 0; y < im->height; ++y) {
+            float s = sinf(PI_F * ((float)y + 0.5f) / (float)im->height);
+            for (int x = 0; x < im->width; ++x) {
+                const float *t = im->rgba + 4 * ((size_t)y * (size_t)im->width + (size_t)x);
+                /* max component rather than luminance: no colour is ever left unsampled */
+                f[(size_t)y * (size_t)im->width + (size_t)x] = v3_max_component(v3(t[0], t[1], t[2])) * s;
+            }
+        }
+        int rc = dist2d_init(&ls->env_distribution, f, (uint32_t)im->width, (uint32_t)im->height);
+        free(f);
+        if (rc != 0) goto oom;
+        Light l;
+        memset(&l, 0, sizeof l);
+        l.type = LIGHT_ENVIRONMENT;
+        l.power = 4.0f * PI_F * PI_F * r * r * env_average_luminance(scene);
+        ls->environment = (int32_t)ls->count;
+        if (push_light(ls, &cap, &l) != 0) goto oom;
+    }
+    if (ls->count == 0) return 0; /* a scene without lights renders black (plus emission seen directly: none) */
+    float *powers = malloc((ls->count + 1) * sizeof(float));
+    if (!powers) goto oom;
+    for (uint32_t i = 0; i < ls->count; ++i) powers[i] = ls->lights[i].power;
+    int rc = dist1d_init(&ls->power_distribution, powers, ls->count);
+    free(powers);
+    if (rc != 0) goto oom;
+    return 0;
+oom:
+    snprintf(err, err_len, "out of memory while building the light list");
+    lights_free(ls);
+    return -1;
+}
+
+void lights_free(Lights *ls) {
+    for (uint32_t i = 0; i < ls->count; ++i) {
+        if (ls->lights[i].type == LIGHT_AREA) {
+            dist1d_free(&ls->lights[i].triangles);
+            free(ls->lights[i].world_vertices);
+        }
+    }
+    free(ls->lights);
+    if (ls->environment >= 0) dist2d_free(&ls->env_distribution);
+    if (ls->power_distribution.cdf) dist1d_free(&ls->power_distribution);
+    memset(ls, 0, sizeof *ls);
+    ls->environment = -1;
+}
+
+/* ---------------------------------------------------------------- selection */
+
+uint32_t light_select(const Lights *ls, const LightSampleContext *ctx, float u, float *pmf) {
+    (void)ctx; /* uniform and power ignore the shading point; context-aware strategies use it */
+    if (ls->count == 0) { *pmf = 0.0f; return 0; }
+    switch (ls->strategy) {
+    case CANDELA_LIGHT_SAMPLER_POWER:
+        return dist1d_sample_discrete(&ls->power_distribution, u, pmf, NULL);
+    default: {
+        uint32_t i = (uint32_t)(u * (float)ls->count);
+        if (i >= ls->count) i = ls->count - 1;
+        *pmf = 1.0f / (float)ls->count;
+        return i;
+    }
+    }
+}
+
+float light_select_pmf(const Lights *ls, const LightSampleContext *ctx, uint32_t light) {
+    (void)ctx;
+    if (light >= ls->count) return 0.0f;
+    switch (ls->strategy) {
+    case CANDELA_LIGHT_SAMPLER_POWER:
+        return dist1d_pmf(&ls->power_distribution, light);
+    default:
+        return 1.0f / (float)ls->count;
+    }
+}
+
+/* ---------------------------------------------------------------- sampling */
+
+float light_area_pdf_li(const Light *l, vec3 p, vec3 y, vec3 ny) {
+    /* triangles are chosen in proportion to area, points uniformly on them: the area density
+     * is 1/A over the whole primitive; convert to solid angle. */
+    vec3 d = v3_sub(y, p);
+    float d2 = v3_dot(d, d);
+    float cos_l = fabsf(v3_dot(ny, d)) / sqrtf(d2);
+    if (!(cos_l > 0.0f) || !(l->area > 0.0f)) return 0.0f;
+    return d2 / (cos_l * l->area);
+}
+
+float light_env_pdf_li(const Scene *scene, vec3 d) {
+    if (scene->lights.environment < 0) return 0.0f;
+    vec2 uv = scene_env_dir_to_uv(d);
+    float sin_theta = sqrtf(fmaxf(0.0f, 1.0f - d.y * d.y));
+    if (!(sin_theta > 0.0f)) return 0.0f;
+    return dist2d_pdf(&scene->lights.env_distribution, uv) / (2.0f * PI_F * PI_F * sin_theta);
+}
+
+int light_sample_li(const Scene *scene, const Light *l, vec3 p, float u0, float u1, float u2, LightLiSample *s) {
+    switch (l->type) {
+    case LIGHT_POINT:
+    case LIGHT_SPOT: {
+        vec3 d = v3_sub(l->position, p);
+        float d2 = v3_dot(d, d);
+        if (!(d2 > 0.0f)) return 0;
+        float dist = sqrtf(d2);
+        s->wi = v3_scale(d, 1.0f / dist);
+        s->distance = dist;
+        vec3 I = l->intensity;
+        if (l->type == LIGHT_SPOT) {
+            /* glTF's recommended smooth falloff between the cones (squared linear ramp in cos) */
+            float c = v3_dot(v3_neg(s->wi), l->direction);
+            float t = l->cos_inner > l->cos_outer ? (c - l->cos_outer) / (l->cos_inner - l->cos_outer)
+                                                  : (c >= l->cos_outer ? 1.0f : 0.0f);
+            t = clampf(t, 0.0f, 1.0f);
+            I = v3_scale(I, t * t);
+        }
+        s->radiance = v3_scale(I, 1.0f / d2);
+        s->pdf = 1.0f;
+        s->is_delta = 1;
+        return !v3_is_black(s->radiance);
+    }
+    case LIGHT_DIRECTIONAL:
+        s->wi = v3_neg(l->direction);
+        s->distance = INFINITY;
+        s->radiance = l->intensity;
+        s->pdf = 1.0f;
+        s->is_delta = 1;
+        return !v3_is_black(s->radiance);
+    case LIGHT_AREA: {
+        float tri_pmf;
+        uint32_t t = dist1d_sample_discrete(&l->triangles, u0, &tri_pmf, NULL);
+        const float *w = l->world_vertices + 9 * (size_t)t;
+        vec3 a = v3(w[0], w[1], w[2]), b = v3(w[3], w[4], w[5]), c = v3(w[6], w[7], w[8]);
+        vec2 bc = sample_uniform_triangle(u1, u2);
+        vec3 y = v3_add(v3_add(v3_scale(a, 1.0f - bc.x - bc.y), v3_scale(b, bc.x)), v3_scale(c, bc.y));
+        vec3 d = v3_sub(y, p);
+        float d2 = v3_dot(d, d);
+        if (!(d2 > 0.0f)) return 0;
+        float dist = sqrtf(d2);
+        s->wi = v3_scale(d, 1.0f / dist);
+        s->distance = dist;
+        /* radiance leaving y towards p: evaluate the material at the sampled point */
+        SurfaceHit hit;
+        scene_surface_hit(scene, l->instance, l->local_prim, t, bc.x, bc.y, &hit);
+        s->radiance = scene_emitted_radiance(scene, &hit, v3_neg(s->wi));
+        s->pdf = light_area_pdf_li(l, p, y, hit.ng);
+        s->is_delta = 0;
+        return s->pdf > 0.0f && isfinite(s->pdf) && !v3_is_black(s->radiance);
+    }
+    case LIGHT_ENVIRONMENT: {
+        float pdf_uv;
+        vec2 uv = dist2d_sample(&scene->lights.env_distribution, u0, u1, &pdf_uv);
+        (void)u2;
+        vec3 d = scene_env_uv_to_dir(uv);
+        float sin_theta = sinf(uv.y * PI_F);
+        if (!(pdf_uv > 0.0f) || !(sin_theta > 0.0f)) return 0;
+        s->wi = d;
+        s->distance = INFINITY;
+        s->radiance = scene_env_radiance(scene, d);
+        s->pdf = pdf_uv / (2.0f * PI_F * PI_F * sin_theta);
+        s->is_delta = 0;
+        return isfinite(s->pdf) && !v3_is_black(s->radiance);
+    }
+    }
+    return 0;
+}

@@ -1,0 +1,236 @@
+/* renderer/main.c: the `candela` command line. */
+#include <errno.h>
+#include <limits.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "candela.h"
+
+static const char *USAGE =
+    "usage: candela render SCENE.gltf|SCENE.glb [options]\n"
+    "       candela bench SCENE [options]   render, then replay the same rays through bare Embree\n"
+    "       candela --help | --version\n"
+    "\n"
+    "options:\n"
+    "  -o, --output FILE.exr     output EXR (RGBA + albedo, N, Z, variance layers);\n"
+    "                            default out/<scene name>.exr\n"
+    "  --png FILE.png            preview PNG path (default: the EXR path with .png)\n"
+    "  --no-png                  do not write the PNG preview\n"
+    "  --spp N                   samples per pixel (default 16)\n"
+    "  --seed S                  random seed (default 0)\n"
+    "  --res WxH                 resolution (default: 640 wide, camera aspect)\n"
+    "  --threads N               worker threads (default: all cores)\n"
+    "  --max-depth N             maximum bounces; 1 = direct light only (default 8)\n"
+    "  --light-sampler S         uniform | power (default power)\n"
+    "  --light-units U           blender (default: cd/683, lux/683) | raw (W/sr, W/m^2)\n"
+    "  --camera NAME             glTF camera by name (default: the first, or a framing view)\n"
+    "  --env FILE                lat-long environment map (EXR/HDR/PNG...)\n"
+    "  --env-strength S          environment multiplier (default 1)\n"
+    "  --batch N                 paths in flight per batch (default 262144; never changes the image)\n"
+    "  --stats-json FILE         write render statistics as JSON\n"
+    "  --quiet                   no progress or statistics on stderr\n";
+
+static void die(const char *msg, const char *arg) {
+    fprintf(stderr, "candela: %s%s%s\n", msg, arg ? arg : "", arg ? "" : "");
+    exit(2);
+}
+
+static long parse_long(const char *flag, const char *s, long lo, long hi) {
+    if (!s) die("missing value for ", flag);
+    char *end;
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (errno || end == s || *end != 0 || v < lo || v > hi) {
+        fprintf(stderr, "candela: invalid value '%s' for %s (expected an integer in [%ld, %ld])\n", s, flag, lo, hi);
+        exit(2);
+    }
+    return v;
+}
+
+static float parse_float(const char *flag, const char *s, float lo, float hi) {
+    if (!s) die("missing value for ", flag);
+    char *end;
+    errno = 0;
+    float v = strtof(s, &end);
+    if (errno || end == s || *end != 0 || !(v >= lo && v <= hi)) {
+        fprintf(stderr, "candela: invalid value '%s' for %s (expected a number in [%g, %g])\n", s, flag, lo, hi);
+        exit(2);
+    }
+    return v;
+}
+
+static int ensure_parent_dir(const char *path, int create) {
+    char dir[PATH_MAX];
+    snprintf(dir, sizeof dir, "%s", path);
+    char *slash = strrchr(dir, '/');
+    if (!slash) return access(".", W_OK) == 0 ? 0 : -1;
+    *slash = 0;
+    if (dir[0] == 0) return 0;
+    if (create) mkdir(dir, 0777);
+    struct stat st;
+    return stat(dir, &st) == 0 && S_ISDIR(st.st_mode) && access(dir, W_OK) == 0 ? 0 : -1;
+}
+
+static void print_stats(const CandelaStats *s) {
+    uint64_t rays = s->rays_camera + s->rays_bounce + s->rays_shadow;
+    double render = s->time_generate + s->time_sort + s->time_trace + s->time_shade + s->time_shadow + s->time_film;
+    fprintf(stderr,
+            "candela: %u triangles, %u instances, %u lights; %d iterations, %llu paths\n"
+            "  time: load %.3fs, setup %.3fs, render %.3fs (generate %.3f, sort %.3f, trace %.3f, shade %.3f,"
+            " shadow %.3f, film %.3f), total %.3fs\n"
+            "  rays: %llu camera, %llu bounce, %llu shadow; %.2f Mrays/s\n"
+            "  peak memory: %.1f MiB\n",
+            s->num_triangles, s->num_instances, s->num_lights, s->iterations, (unsigned long long)s->paths,
+            s->time_load, s->time_build, render, s->time_generate, s->time_sort, s->time_trace, s->time_shade,
+            s->time_shadow, s->time_film, s->time_total, (unsigned long long)s->rays_camera,
+            (unsigned long long)s->rays_bounce, (unsigned long long)s->rays_shadow,
+            render > 0 ? (double)rays / render * 1e-6 : 0.0, (double)s->peak_memory_bytes / (1024.0 * 1024.0));
+}
+
+int main(int argc, char **argv) {
+    if (argc < 2) { fputs(USAGE, stderr); return 2; }
+    if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0) { fputs(USAGE, stdout); return 0; }
+    if (strcmp(argv[1], "--version") == 0) { printf("candela %s\n", CANDELA_VERSION); return 0; }
+    int bench = 0;
+    if (strcmp(argv[1], "bench") == 0) bench = 1;
+    else if (strcmp(argv[1], "render") != 0) {
+        fprintf(stderr, "candela: unknown command '%s' (see candela --help)\n", argv[1]);
+        return 2;
+    }
+    CandelaOptions o;
+    candela_options_default(&o);
+    const char *out = NULL, *png = NULL, *stats_json = NULL;
+    int no_png = 0;
+    for (int i = 2; i < argc; ++i) {
+        const char *a = argv[i];
+        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
+        if (strcmp(a, "-o") == 0 || strcmp(a, "--output") == 0) { if (!v) die("missing value for ", a); out = v; ++i; }
+        else if (strcmp(a, "--png") == 0) { if (!v) die("missing value for ", a); png = v; ++i; }
+        else if (strcmp(a, "--no-png") == 0) no_png = 1;
+        else if (strcmp(a, "--spp") == 0) { o.spp = (int)parse_long(a, v, 1, 1 << 20); ++i; }
+        else if (strcmp(a, "--seed") == 0) { o.seed = (uint64_t)parse_long(a, v, 0, LONG_MAX); ++i; }
+        else if (strcmp(a, "--threads") == 0) { o.threads = (int)parse_long(a, v, 1, 1024); ++i; }
+        else if (strcmp(a, "--max-depth") == 0) { o.max_depth = (int)parse_long(a, v, 0, 1024); ++i; }
+        else if (strcmp(a, "--batch") == 0) { o.batch_size = (uint32_t)parse_long(a, v, 1, 1 << 22); ++i; }
+        else if (strcmp(a, "--env-strength") == 0) { o.env_strength = parse_float(a, v, 0.0f, 1e9f); ++i; }
+        else if (strcmp(a, "--env") == 0) { if (!v) die("missing value for ", a); o.env_path = v; ++i; }
+        else if (strcmp(a, "--camera") == 0) { if (!v) die("missing value for ", a); o.camera_name = v; ++i; }
+        else if (strcmp(a, "--stats-json") == 0) { if (!v) die("missing value for ", a); stats_json = v; ++i; }
+        else if (strcmp(a, "--quiet") == 0 || strcmp(a, "-q") == 0) o.quiet = 1;
+        else if (strcmp(a, "--res") == 0) {
+            if (!v) die("missing value for ", a);
+            int w = 0, h = 0;
+            char tail;
+            if (sscanf(v, "%dx%d%c", &w, &h, &tail) != 2 || w < 1 || h < 1 || w > 16384 || h > 16384) {
+                fprintf(stderr, "candela: invalid value '%s' for --res (expected WxH, 1..16384 each)\n", v);
+                return 2;
+            }
+            o.width = w; o.height = h; ++i;
+        } else if (strcmp(a, "--light-sampler") == 0) {
+            if (!v) die("missing value for ", a);
+            if (strcmp(v, "uniform") == 0) o.light_sampler = CANDELA_LIGHT_SAMPLER_UNIFORM;
+            else if (strcmp(v, "power") == 0) o.light_sampler = CANDELA_LIGHT_SAMPLER_POWER;
+            else { fprintf(stderr, "candela: unknown light sampler '%s' (uniform, power)\n", v); return 2; }
+            ++i;
+        } else if (strcmp(a, "--light-units") == 0) {
+            if (!v) die("missing value for ", a);
+            if (strcmp(v, "blender") == 0) o.light_units = CANDELA_LIGHT_UNITS_BLENDER;
+            else if (strcmp(v, "raw") == 0) o.light_units = CANDELA_LIGHT_UNITS_RAW;
+            else { fprintf(stderr, "candela: unknown light units '%s' (blender, raw)\n", v); return 2; }
+            ++i;
+        } else if (a[0] == '-') {
+            fprintf(stderr, "candela: unknown option '%s' (see candela --help)\n", a);
+            return 2;
+        } else if (!o.scene_path) {
+            o.scene_path = a;
+        } else {
+            fprintf(stderr, "candela: unexpected argument '%s' (one scene per run)\n", a);
+            return 2;
+        }
+    }
+    if (!o.scene_path) { fprintf(stderr, "candela: no scene given (see candela --help)\n"); return 2; }
+    if (access(o.scene_path, R_OK) != 0) {
+        fprintf(stderr, "candela: %s: cannot read: %s\n", o.scene_path, strerror(errno));
+        return 1;
+    }
+
+    char default_out[PATH_MAX], png_buf[PATH_MAX];
+    if (!out) {
+        const char *base = strrchr(o.scene_path, '/');
+        base = base ? base + 1 : o.scene_path;
+        snprintf(default_out, sizeof default_out, "out/%s", base);
+        char *dot = strrchr(default_out, '.');
+        if (dot && dot > default_out + 4) *dot = 0;
+        strncat(default_out, ".exr", sizeof default_out - strlen(default_out) - 1);
+        out = default_out;
+    }
+    if (!png && !no_png) {
+        snprintf(png_buf, sizeof png_buf, "%s", out);
+        char *dot = strrchr(png_buf, '.');
+        char *slash = strrchr(png_buf, '/');
+        if (dot && (!slash || dot > slash)) *dot = 0;
+        strncat(png_buf, ".png", sizeof png_buf - strlen(png_buf) - 1);
+        png = png_buf;
+    }
+    if (no_png) png = NULL;
+    if (!bench) {
+        if (ensure_parent_dir(out, out == default_out) != 0) {
+            fprintf(stderr, "candela: %s: output directory does not exist or is not writable\n", out);
+            return 1;
+        }
+        if (png && ensure_parent_dir(png, 0) != 0) {
+            fprintf(stderr, "candela: %s: output directory does not exist or is not writable\n", png);
+            return 1;
+        }
+    }
+
+    char err[CANDELA_ERR_LEN];
+    CandelaImage image;
+    CandelaStats stats;
+    CandelaRayLog log = {0};
+    o.record_rays = bench;
+    if (candela_render(&o, &image, &stats, bench ? &log : NULL, err) != 0) {
+        fprintf(stderr, "candela: %s\n", err);
+        return 1;
+    }
+    int rc = 0;
+    if (bench) {
+        double replay = 0.0;
+        if (candela_replay_rays(&o, &log, o.threads, &replay, err) != 0) {
+            fprintf(stderr, "candela: %s\n", err);
+            rc = 1;
+        } else {
+            double render = stats.time_generate + stats.time_sort + stats.time_trace + stats.time_shade +
+                            stats.time_shadow + stats.time_film;
+            double rr = (double)log.count / render, br = (double)log.count / replay;
+            printf("scene            %s\n", o.scene_path);
+            printf("rays             %zu (%llu camera, %llu bounce, %llu shadow)\n", log.count,
+                   (unsigned long long)stats.rays_camera, (unsigned long long)stats.rays_bounce,
+                   (unsigned long long)stats.rays_shadow);
+            printf("renderer         %.3f s  %.3f Mrays/s (generate+sort+trace+shade+shadow+film)\n", render, rr * 1e-6);
+            printf("bare embree      %.3f s  %.3f Mrays/s (same rays, rtcIntersect1/rtcOccluded1)\n", replay, br * 1e-6);
+            printf("ratio            %.3f\n", rr / br);
+            printf("stage seconds    sort %.3f trace %.3f shade %.3f shadow %.3f generate %.3f film %.3f\n",
+                   stats.time_sort, stats.time_trace, stats.time_shade, stats.time_shadow, stats.time_generate,
+                   stats.time_film);
+        }
+        candela_ray_log_free(&log);
+    } else {
+        if (candela_write_outputs(&image, out, png, err) != 0) {
+            fprintf(stderr, "candela: %s\n", err);
+            rc = 1;
+        } else if (!o.quiet) {
+            fprintf(stderr, "candela: wrote %s%s%s\n", out, png ? " and " : "", png ? png : "");
+        }
+    }
+    if (rc == 0 && !o.quiet) print_stats(&stats);
+    if (rc == 0 && stats_json && candela_write_stats_json(stats_json, &o, &stats, err) != 0) {
+        fprintf(stderr, "candela: %s\n", err);
+        rc = 1;
+    }
+    candela_image_free(&image);
+    return rc;
+}

@@ -1,0 +1,130 @@
+/* renderer/output.c: EXR/PNG output, statistics JSON and the bare-Embree ray replay. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "candela.h"
+#include "scene.h"
+#include "threads.h"
+
+static float srgb_encode(float x) {
+    if (!(x > 0.0f)) return 0.0f;
+    if (x >= 1.0f) return 1.0f;
+    return x <= 0.0031308f ? 12.92f * x : 1.055f * powf(x, 1.0f / 2.4f) - 0.055f;
+}
+
+int candela_write_outputs(const CandelaImage *img, const char *exr_path, const char *png_path,
+                          char err[CANDELA_ERR_LEN]) {
+    size_t n = (size_t)img->width * (size_t)img->height;
+    float *planes = malloc(14 * n * sizeof(float));
+    if (!planes) { snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", exr_path); return -1; }
+    /* planar copies: R G B A albedo.RGB N.XYZ Z variance.RGB */
+    for (size_t i = 0; i < n; ++i) {
+        for (int k = 0; k < 3; ++k) {
+            planes[k * n + i] = img->rgb[3 * i + k];
+            planes[(4 + k) * n + i] = img->albedo[3 * i + k];
+            planes[(7 + k) * n + i] = img->normal[3 * i + k];
+            planes[(11 + k) * n + i] = img->variance[3 * i + k];
+        }
+        planes[3 * n + i] = 1.0f;
+        planes[10 * n + i] = img->depth[i];
+    }
+    IoExrChannel ch[14] = {
+        {"R", planes}, {"G", planes + n}, {"B", planes + 2 * n}, {"A", planes + 3 * n},
+        {"albedo.R", planes + 4 * n}, {"albedo.G", planes + 5 * n}, {"albedo.B", planes + 6 * n},
+        {"N.X", planes + 7 * n}, {"N.Y", planes + 8 * n}, {"N.Z", planes + 9 * n},
+        {"Z", planes + 10 * n},
+        {"variance.R", planes + 11 * n}, {"variance.G", planes + 12 * n}, {"variance.B", planes + 13 * n},
+    };
+    char ioerr[IO_ERR_LEN];
+    int rc = io_write_exr(exr_path, img->width, img->height, ch, 14, ioerr);
+    free(planes);
+    if (rc != 0) { snprintf(err, CANDELA_ERR_LEN, "%s", ioerr); return -1; }
+    if (png_path) {
+        float *rgb = malloc(3 * n * sizeof(float));
+        if (!rgb) { snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", png_path); return -1; }
+        /* preview: linear radiance clipped to [0,1] and sRGB-encoded (Blender's "Standard") */
+        for (size_t i = 0; i < 3 * n; ++i) rgb[i] = srgb_encode(img->rgb[i]);
+        rc = io_write_png(png_path, img->width, img->height, rgb, ioerr);
+        free(rgb);
+        if (rc != 0) { snprintf(err, CANDELA_ERR_LEN, "%s", ioerr); return -1; }
+    }
+    return 0;
+}
+
+int candela_write_stats_json(const char *path, const CandelaOptions *o, const CandelaStats *s,
+                             char err[CANDELA_ERR_LEN]) {
+    char tmp[4096];
+    snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
+    FILE *f = fopen(tmp, "w");
+    if (!f) { snprintf(err, CANDELA_ERR_LEN, "%s: cannot open for writing", path); return -1; }
+    uint64_t rays = s->rays_camera + s->rays_bounce + s->rays_shadow;
+    double render = s->time_generate + s->time_sort + s->time_trace + s->time_shade + s->time_shadow + s->time_film;
+    fprintf(f, "{\n  \"scene\": \"%s\",\n  \"spp\": %d,\n  \"seed\": %llu,\n  \"max_depth\": %d,\n",
+            o->scene_path, o->spp, (unsigned long long)o->seed, o->max_depth);
+    fprintf(f, "  \"light_sampler\": \"%s\",\n", o->light_sampler == CANDELA_LIGHT_SAMPLER_POWER ? "power" : "uniform");
+    fprintf(f, "  \"time_seconds\": {\"load\": %.6f, \"build\": %.6f, \"generate\": %.6f, \"sort\": %.6f, "
+               "\"trace\": %.6f, \"shade\": %.6f, \"shadow\": %.6f, \"film\": %.6f, \"total\": %.6f},\n",
+            s->time_load, s->time_build, s->time_generate, s->time_sort, s->time_trace, s->time_shade,
+            s->time_shadow, s->time_film, s->time_total);
+    fprintf(f, "  \"rays\": {\"camera\": %llu, \"bounce\": %llu, \"shadow\": %llu, \"total\": %llu},\n",
+            (unsigned long long)s->rays_camera, (unsigned long long)s->rays_bounce,
+            (unsigned long long)s->rays_shadow, (unsigned long long)rays);
+    fprintf(f, "  \"rays_per_second\": %.1f,\n", render > 0 ? (double)rays / render : 0.0);
+    fprintf(f, "  \"iterations\": %d,\n  \"paths\": %llu,\n", s->iterations, (unsigned long long)s->paths);
+    fprintf(f, "  \"triangles\": %u,\n  \"lights\": %u,\n  \"instances\": %u,\n", s->num_triangles, s->num_lights,
+            s->num_instances);
+    fprintf(f, "  \"peak_memory_bytes\": %zu\n}\n", s->peak_memory_bytes);
+    if (fclose(f) != 0 || rename(tmp, path) != 0) {
+        remove(tmp);
+        snprintf(err, CANDELA_ERR_LEN, "%s: cannot write", path);
+        return -1;
+    }
+    return 0;
+}
+
+/* ---------------------------------------------------------------- replay */
+
+typedef struct ReplayCtx { const Scene *scene; const CandelaRayLog *log; } ReplayCtx;
+
+static void replay_range(void *vctx, size_t b, size_t e, int thread) {
+    (void)thread;
+    const ReplayCtx *c = vctx;
+    struct RTCIntersectContext ictx;
+    rtcInitIntersectContext(&ictx);
+    for (size_t i = b; i < e; ++i) {
+        const float *r = c->log->org_dir_tfar + 7 * i;
+        if (c->log->is_shadow[i]) {
+            struct RTCRay ray = {r[0], r[1], r[2], 0.0f, r[3], r[4], r[5], 0.0f, r[6], 0xffffffffu, (unsigned)i, 0};
+            rtcOccluded1(c->scene->top, &ictx, &ray);
+        } else {
+            struct RTCRayHit rh;
+            memset(&rh, 0, sizeof rh);
+            rh.ray.org_x = r[0]; rh.ray.org_y = r[1]; rh.ray.org_z = r[2];
+            rh.ray.dir_x = r[3]; rh.ray.dir_y = r[4]; rh.ray.dir_z = r[5];
+            rh.ray.tfar = r[6];
+            rh.ray.mask = 0xffffffffu;
+            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rtcIntersect1(c->scene->top, &ictx, &rh);
+        }
+    }
+}
+
+int candela_replay_rays(const CandelaOptions *o, const CandelaRayLog *log, int threads, double *seconds,
+                        char err[CANDELA_ERR_LEN]) {
+    Scene scene;
+    if (scene_load(&scene, o, err) != 0) return -1;
+    ThreadPool *pool = threadpool_create(threads);
+    if (!pool) { scene_free(&scene); snprintf(err, CANDELA_ERR_LEN, "candela: out of memory"); return -1; }
+    ReplayCtx c = {&scene, log};
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    threadpool_parallel_for(pool, log->count, 4096, replay_range, &c);
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    *seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+    threadpool_destroy(pool);
+    scene_free(&scene);
+    return 0;
+}

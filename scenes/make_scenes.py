@@ -1,0 +1,637 @@
+#!/usr/bin/env python3
+"""scenes/make_scenes.py: generates Candela's demo scene and the analytic test scenes.
+
+Python 3 standard library only, deterministic: running it twice writes byte-identical files.
+Every .gltf is self-contained (geometry in a base64 data: URI buffer). glTF 2.0, Y-up, metres.
+
+Outputs (paths relative to the repository root):
+  scenes/default.gltf                 the demo room (Blender light units: cd, /683)
+  tests/scenes/furnace_sphere.gltf     closed emissive Lambert sphere, camera at the centre
+  tests/scenes/point_plane.gltf        Lambert plane + point light (RAW units)
+  tests/scenes/spot_plane.gltf         Lambert plane + spot light, all pixels in the inner cone
+  tests/scenes/directional_plane.gltf  Lambert plane + directional light at 30 degrees
+  tests/scenes/area_plane.gltf         Lambert plane + one-sided emissive square (+ a back-facing one)
+  tests/scenes/env_constant.gltf       nothing visible, constant environment (env_constant.exr)
+  tests/scenes/env_plane.gltf          Lambert plane under the constant environment
+  tests/scenes/env_directions.gltf     orthographic cameras looking at texel centres of env_grid.exr
+  tests/scenes/two_lights.gltf         floor + wall, 1 emissive quad, 3 point lights of very different power
+  tests/scenes/env_constant.exr        16x8 FLOAT EXR, every pixel (0.5, 0.75, 1.0)
+  tests/scenes/env_grid.exr            8x4 FLOAT EXR, texel (i, j) = ((i+1)/8, (j+1)/4, 0.25 + 0.5*((i+j)%2))
+
+The expected values the tests use are documented next to each scene below and in
+tests/test_analytic.c.
+"""
+
+import base64
+import json
+import math
+import os
+import struct
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+# ----------------------------------------------------------------------------------------------
+# small vector helpers
+
+
+def sub(a, b):
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+def add(a, b):
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+def scale(a, s):
+    return (a[0] * s, a[1] * s, a[2] * s)
+
+
+def dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def normalize(a):
+    n = math.sqrt(dot(a, a))
+    return (a[0] / n, a[1] / n, a[2] / n)
+
+
+def quat_from_basis(x, y, z):
+    """Unit quaternion (x, y, z, w) of the rotation whose matrix has columns x, y, z."""
+    m00, m10, m20 = x
+    m01, m11, m21 = y
+    m02, m12, m22 = z
+    tr = m00 + m11 + m22
+    if tr > 0:
+        s = math.sqrt(tr + 1.0) * 2
+        q = ((m21 - m12) / s, (m02 - m20) / s, (m10 - m01) / s, 0.25 * s)
+    elif m00 > m11 and m00 > m22:
+        s = math.sqrt(1.0 + m00 - m11 - m22) * 2
+        q = (0.25 * s, (m01 + m10) / s, (m02 + m20) / s, (m21 - m12) / s)
+    elif m11 > m22:
+        s = math.sqrt(1.0 + m11 - m00 - m22) * 2
+        q = ((m01 + m10) / s, 0.25 * s, (m12 + m21) / s, (m02 - m20) / s)
+    else:
+        s = math.sqrt(1.0 + m22 - m00 - m11) * 2
+        q = ((m02 + m20) / s, (m12 + m21) / s, 0.25 * s, (m10 - m01) / s)
+    n = math.sqrt(sum(c * c for c in q))
+    q = tuple(c / n for c in q)
+    if q[3] < 0:
+        q = tuple(-c for c in q)
+    return q
+
+
+def look_rotation(forward, up_hint=(0.0, 1.0, 0.0)):
+    """Quaternion turning a glTF camera/light (looks down local -Z, +Y up) to look along forward."""
+    f = normalize(forward)
+    if abs(dot(f, normalize(up_hint))) > 0.999:
+        up_hint = (0.0, 0.0, -1.0)
+    right = normalize(cross(f, up_hint))
+    up = cross(right, f)
+    back = scale(f, -1.0)
+    return quat_from_basis(right, up, back)
+
+
+def quat_axis_angle(axis, angle):
+    a = normalize(axis)
+    s = math.sin(angle / 2)
+    q = (a[0] * s, a[1] * s, a[2] * s, math.cos(angle / 2))
+    if q[3] < 0:
+        q = tuple(-c for c in q)
+    return q
+
+
+def rotate(q, v):
+    x, y, z, w = q
+    u = (x, y, z)
+    t = scale(cross(u, v), 2.0)
+    return add(add(v, scale(t, w)), cross(u, t))
+
+
+def r(x, digits=7):
+    """Round a float for the JSON so the file is tidy and stable."""
+    v = round(float(x), digits)
+    return 0.0 if v == 0 else v
+
+
+def rv(v, digits=7):
+    return [r(c, digits) for c in v]
+
+
+# ----------------------------------------------------------------------------------------------
+# geometry: every builder returns (positions, normals, indices) with counter-clockwise front faces
+
+
+def quad(p0, p1, p2, p3):
+    """Planar quad p0 p1 p2 p3, counter-clockwise seen from its front; flat normal."""
+    n = normalize(cross(sub(p1, p0), sub(p2, p0)))
+    return [p0, p1, p2, p3], [n] * 4, [0, 1, 2, 0, 2, 3]
+
+
+def merge(*parts):
+    pos, nrm, idx = [], [], []
+    for p, n, i in parts:
+        base = len(pos)
+        pos += p
+        nrm += n
+        idx += [base + k for k in i]
+    return pos, nrm, idx
+
+
+def box(sx, sy, sz, center=(0.0, 0.0, 0.0), inward=False):
+    """Axis-aligned box with flat normals (24 vertices), outward-facing unless inward."""
+    hx, hy, hz = sx / 2, sy / 2, sz / 2
+    cx, cy, cz = center
+    faces = []
+    for axis in range(3):
+        for sign in (1.0, -1.0):
+            n = [0.0, 0.0, 0.0]
+            n[axis] = sign
+            # two tangent axes so that t1 x t2 = n
+            a1, a2 = (axis + 1) % 3, (axis + 2) % 3
+            corners = []
+            for s1, s2 in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+                p = [0.0, 0.0, 0.0]
+                p[axis] = sign
+                p[a1] = s1 * sign
+                p[a2] = s2
+                corners.append(p)
+            pts = [(cx + c[0] * hx, cy + c[1] * hy, cz + c[2] * hz) for c in corners]
+            if inward:
+                pts = pts[::-1]
+            faces.append(quad(*pts))
+    return merge(*faces)
+
+
+def uv_sphere(radius, segments=32, rings=16, inward=False, flat=False):
+    """UV sphere: smooth (shared, radial) normals, or flat per-triangle normals (unshared
+    vertices, normal = geometric normal) when flat."""
+    grid = []
+    for j in range(rings + 1):
+        theta = math.pi * j / rings          # 0 at the north pole (+y)
+        st, ct = math.sin(theta), math.cos(theta)
+        if j == 0 or j == rings:
+            st = 0.0
+        row = []
+        for i in range(segments + 1):
+            phi = 2 * math.pi * (i % segments) / segments
+            d = (st * math.cos(phi), ct, -st * math.sin(phi))
+            row.append(d)
+        grid.append(row)
+    tris = []
+    for j in range(rings):
+        for i in range(segments):
+            a = (j, i)
+            b = (j + 1, i)
+            c = (j + 1, i + 1)
+            d = (j, i + 1)
+            # outward CCW: a (top) -> b (below) -> c (below, next) ; phi grows counter-clockwise
+            # seen from +y with d = (cos, ., -sin), so this order faces outward.
+            if j != 0:
+                tris.append((a, b, d))
+            if j != rings - 1:
+                tris.append((b, c, d))
+    if inward:
+        tris = [(t[0], t[2], t[1]) for t in tris]
+    if flat:
+        pos, nrm, idx = [], [], []
+        for t in tris:
+            ps = [scale(grid[j][i], radius) for (j, i) in t]
+            n = normalize(cross(sub(ps[1], ps[0]), sub(ps[2], ps[0])))
+            for p in ps:
+                idx.append(len(pos))
+                pos.append(p)
+                nrm.append(n)
+        return pos, nrm, idx
+    pos, nrm = [], []
+    for j in range(rings + 1):
+        for i in range(segments + 1):
+            d = grid[j][i]
+            pos.append(scale(d, radius))
+            nrm.append(scale(d, -1.0) if inward else d)
+    idx = [j * (segments + 1) + i for t in tris for (j, i) in t]
+    return pos, nrm, idx
+
+
+# ----------------------------------------------------------------------------------------------
+# glTF writer
+
+
+def f32(x):
+    return struct.unpack('<f', struct.pack('<f', x))[0]
+
+
+class Gltf:
+    def __init__(self, generator='candela scenes/make_scenes.py'):
+        self.buf = bytearray()
+        self.doc = {
+            'asset': {'version': '2.0', 'generator': generator},
+            'extensionsUsed': [],
+            'scene': 0,
+            'scenes': [{'name': 'Scene', 'nodes': []}],
+            'nodes': [],
+            'meshes': [],
+            'materials': [],
+            'accessors': [],
+            'bufferViews': [],
+            'buffers': [],
+        }
+        self.lights = []
+        self.cameras = []
+        self.geom_cache = {}
+
+    def use(self, ext):
+        if ext not in self.doc['extensionsUsed']:
+            self.doc['extensionsUsed'].append(ext)
+
+    def _view(self, data, target):
+        while len(self.buf) % 4:
+            self.buf.append(0)
+        view = {'buffer': 0, 'byteOffset': len(self.buf), 'byteLength': len(data), 'target': target}
+        self.buf += data
+        self.doc['bufferViews'].append(view)
+        return len(self.doc['bufferViews']) - 1
+
+    def _vec_accessor(self, vecs, with_bounds):
+        flat = [f32(c) for v in vecs for c in v]
+        data = struct.pack('<%df' % len(flat), *flat)
+        acc = {'bufferView': self._view(data, 34962), 'componentType': 5126,
+               'count': len(vecs), 'type': 'VEC3'}
+        if with_bounds:
+            acc['min'] = [min(flat[k::3]) for k in range(3)]
+            acc['max'] = [max(flat[k::3]) for k in range(3)]
+        self.doc['accessors'].append(acc)
+        return len(self.doc['accessors']) - 1
+
+    def geometry(self, key, geom):
+        """Adds positions/normals/indices once per key; returns the primitive attributes."""
+        if key in self.geom_cache:
+            return self.geom_cache[key]
+        pos, nrm, idx = geom
+        assert len(idx) % 3 == 0 and max(idx) < len(pos)
+        p = self._vec_accessor(pos, True)
+        n = self._vec_accessor(nrm, False)
+        if len(pos) < 65536:
+            data, ctype = struct.pack('<%dH' % len(idx), *idx), 5123
+        else:
+            data, ctype = struct.pack('<%dI' % len(idx), *idx), 5125
+        self.doc['accessors'].append({'bufferView': self._view(data, 34963), 'componentType': ctype,
+                                      'count': len(idx), 'type': 'SCALAR'})
+        prim = {'attributes': {'POSITION': p, 'NORMAL': n}, 'indices': len(self.doc['accessors']) - 1}
+        self.geom_cache[key] = prim
+        return prim
+
+    def material(self, name, base=(0.8, 0.8, 0.8), metallic=0.0, roughness=1.0, lambert=False,
+                 emissive=None, strength=1.0, transmission=0.0, ior=None, double_sided=False):
+        m = {'name': name,
+             'pbrMetallicRoughness': {'baseColorFactor': rv(list(base) + [1.0]),
+                                      'metallicFactor': r(metallic), 'roughnessFactor': r(roughness)}}
+        ext = {}
+        if lambert:
+            self.use('KHR_materials_specular')
+            ext['KHR_materials_specular'] = {'specularFactor': 0.0}
+        if emissive is not None:
+            m['emissiveFactor'] = rv(emissive)
+            if strength != 1.0:
+                self.use('KHR_materials_emissive_strength')
+                ext['KHR_materials_emissive_strength'] = {'emissiveStrength': r(strength)}
+        if transmission:
+            self.use('KHR_materials_transmission')
+            ext['KHR_materials_transmission'] = {'transmissionFactor': r(transmission)}
+        if ior is not None:
+            self.use('KHR_materials_ior')
+            ext['KHR_materials_ior'] = {'ior': r(ior)}
+        if ext:
+            m['extensions'] = ext
+        if double_sided:
+            m['doubleSided'] = True
+        self.doc['materials'].append(m)
+        return len(self.doc['materials']) - 1
+
+    def node(self, name, translation=None, rotation=None, scale_=None, **kw):
+        n = {'name': name}
+        if translation is not None:
+            n['translation'] = rv(translation)
+        if rotation is not None:
+            n['rotation'] = rv(rotation, 8)
+        if scale_ is not None:
+            n['scale'] = rv(scale_)
+        n.update(kw)
+        self.doc['nodes'].append(n)
+        self.doc['scenes'][0]['nodes'].append(len(self.doc['nodes']) - 1)
+        return len(self.doc['nodes']) - 1
+
+    def mesh(self, name, key, geom, material, translation=None, rotation=None):
+        prim = dict(self.geometry(key, geom))
+        prim['material'] = material
+        self.doc['meshes'].append({'name': name, 'primitives': [prim]})
+        return self.node(name, translation, rotation, mesh=len(self.doc['meshes']) - 1)
+
+    def light(self, name, kind, intensity, color=(1.0, 1.0, 1.0), translation=None, rotation=None,
+              inner=None, outer=None):
+        self.use('KHR_lights_punctual')
+        lt = {'name': name, 'type': kind, 'color': rv(color), 'intensity': r(intensity)}
+        if kind == 'spot':
+            lt['spot'] = {'innerConeAngle': r(inner), 'outerConeAngle': r(outer)}
+        self.lights.append(lt)
+        return self.node(name, translation, rotation,
+                         extensions={'KHR_lights_punctual': {'light': len(self.lights) - 1}})
+
+    def perspective(self, name, translation, target, yfov_deg, aspect=None, up=(0.0, 1.0, 0.0)):
+        cam = {'name': name, 'type': 'perspective',
+               'perspective': {'yfov': r(math.radians(yfov_deg)), 'znear': 0.01, 'zfar': 1000.0}}
+        if aspect:
+            cam['perspective']['aspectRatio'] = r(aspect)
+        self.cameras.append(cam)
+        rot = look_rotation(sub(target, translation), up)
+        return self.node(name, translation, rot, camera=len(self.cameras) - 1)
+
+    def orthographic(self, name, translation, forward, xmag, ymag, up=(0.0, 1.0, 0.0)):
+        self.cameras.append({'name': name, 'type': 'orthographic',
+                             'orthographic': {'xmag': r(xmag), 'ymag': r(ymag),
+                                              'znear': 0.001, 'zfar': 1000.0}})
+        return self.node(name, translation, look_rotation(forward, up),
+                         camera=len(self.cameras) - 1)
+
+    def environment(self, uri, strength=1.0):
+        self.doc['scenes'][0]['extras'] = {'candela_environment': {'uri': uri, 'strength': r(strength)}}
+
+    def write(self, path):
+        doc = dict(self.doc)
+        if not doc['extensionsUsed']:
+            del doc['extensionsUsed']
+        if self.lights:
+            doc['extensions'] = {'KHR_lights_punctual': {'lights': self.lights}}
+        if self.cameras:
+            doc['cameras'] = self.cameras
+        doc['buffers'] = [{'byteLength': len(self.buf),
+                           'uri': 'data:application/octet-stream;base64,'
+                                  + base64.b64encode(bytes(self.buf)).decode('ascii')}]
+        text = json.dumps(doc, indent=1) + '\n'
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        with open(path, 'w', newline='\n') as fh:
+            fh.write(text)
+        print('wrote %s (%d bytes)' % (os.path.relpath(path, ROOT), len(text)))
+
+
+# ----------------------------------------------------------------------------------------------
+# images
+
+
+def write_exr(path, width, height, pixel):
+    """Minimal single-part scanline OpenEXR: channels B, G, R (FLOAT), compression NONE,
+    one scanline per block. pixel(x, y) -> (r, g, b), y = 0 is the top row."""
+
+    def attr(name, typ, data):
+        return name.encode() + b'\0' + typ.encode() + b'\0' + struct.pack('<i', len(data)) + data
+
+    chlist = b''
+    for ch in ('B', 'G', 'R'):  # alphabetical, as OpenEXR stores them
+        chlist += ch.encode() + b'\0' + struct.pack('<iB3xii', 2, 0, 1, 1)
+    chlist += b'\0'
+    box = struct.pack('<iiii', 0, 0, width - 1, height - 1)
+    header = (attr('channels', 'chlist', chlist)
+              + attr('compression', 'compression', b'\0')
+              + attr('dataWindow', 'box2i', box)
+              + attr('displayWindow', 'box2i', box)
+              + attr('lineOrder', 'lineOrder', b'\0')
+              + attr('pixelAspectRatio', 'float', struct.pack('<f', 1.0))
+              + attr('screenWindowCenter', 'v2f', struct.pack('<ff', 0.0, 0.0))
+              + attr('screenWindowWidth', 'float', struct.pack('<f', 1.0))
+              + b'\0')
+    magic = struct.pack('<ii', 20000630, 2)
+    table_size = 8 * height
+    first = len(magic) + len(header) + table_size
+    block_size = 8 + 3 * 4 * width
+    offsets = struct.pack('<%dQ' % height, *[first + y * block_size for y in range(height)])
+    blocks = b''
+    for y in range(height):
+        px = [pixel(x, y) for x in range(width)]
+        data = b''
+        for c in (2, 1, 0):  # B, G, R
+            data += struct.pack('<%df' % width, *[p[c] for p in px])
+        blocks += struct.pack('<ii', y, len(data)) + data
+    with open(path, 'wb') as fh:
+        fh.write(magic + header + offsets + blocks)
+    print('wrote %s (%d bytes)' % (os.path.relpath(path, ROOT), len(magic + header + offsets + blocks)))
+
+
+# ----------------------------------------------------------------------------------------------
+# scenes
+
+LAMBERT_WHITE = dict(base=(0.5, 0.5, 0.5), lambert=True)
+PLANE_HALF = 50.0
+PLANE = quad((-PLANE_HALF, 0.0, -PLANE_HALF), (-PLANE_HALF, 0.0, PLANE_HALF),
+             (PLANE_HALF, 0.0, PLANE_HALF), (PLANE_HALF, 0.0, -PLANE_HALF))  # faces +y
+DOWN = (0.0, -1.0, 0.0)
+
+
+def default_scene():
+    """The demo room, 4 x 3 x 4 m (x, z in [-2, 2], y in [0, 3]), Blender light units.
+
+    Point light 4600 cd at (0, 2.6, 0): 4600/683 = 6.73 W/sr, irradiance on the floor below
+    6.73 / 2.6^2 = 1.0 W/m^2. Spot 6000 cd (8.8 W/sr) from a ceiling corner at the diffuse
+    box/metal sphere, cone 0.35/0.55 rad. Emissive cube: radiance (1, 0.55, 0.2) x 4."""
+    g = Gltf()
+    white = g.material('white_wall', base=(0.8, 0.8, 0.8), lambert=True)
+    red = g.material('red_wall', base=(0.7, 0.08, 0.06), lambert=True)
+    green = g.material('green_wall', base=(0.1, 0.6, 0.12), lambert=True)
+    floor_m = g.material('floor', base=(0.75, 0.72, 0.65), roughness=0.9)
+    box_m = g.material('diffuse_box', base=(0.75, 0.55, 0.3), lambert=True)
+    metal = g.material('gold_metal', base=(1.0, 0.78, 0.34), metallic=1.0, roughness=0.2)
+    glass = g.material('glass', base=(1.0, 1.0, 1.0), roughness=0.0, transmission=1.0, ior=1.5)
+    glow = g.material('glow', base=(0.0, 0.0, 0.0), lambert=True, emissive=(1.0, 0.55, 0.2),
+                      strength=4.0)
+
+    X, Y, Z = 2.0, 3.0, 2.0
+    # inward-facing room surfaces (CCW seen from inside)
+    g.mesh('floor', 'floor', quad((-X, 0, -Z), (-X, 0, Z), (X, 0, Z), (X, 0, -Z)), floor_m)
+    g.mesh('ceiling', 'ceiling', quad((-X, Y, -Z), (X, Y, -Z), (X, Y, Z), (-X, Y, Z)), white)
+    g.mesh('back_wall', 'back', quad((-X, 0, -Z), (X, 0, -Z), (X, Y, -Z), (-X, Y, -Z)), white)
+    g.mesh('front_wall', 'front', quad((-X, 0, Z), (-X, Y, Z), (X, Y, Z), (X, 0, Z)), white)
+    g.mesh('left_wall_red', 'left', quad((-X, 0, -Z), (-X, Y, -Z), (-X, Y, Z), (-X, 0, Z)), red)
+    g.mesh('right_wall_green', 'right', quad((X, 0, -Z), (X, 0, Z), (X, Y, Z), (X, Y, -Z)), green)
+
+    g.mesh('diffuse_box', 'tallbox', box(0.6, 1.0, 0.6), box_m, translation=(-1.0, 0.5, -1.0),
+           rotation=quat_axis_angle((0, 1, 0), math.radians(20)))
+    sphere = uv_sphere(1.0)
+    g.mesh('metal_sphere', 'sphere', sphere, metal, translation=(0.85, 0.45, -0.85))
+    g.doc['nodes'][-1]['scale'] = [0.45, 0.45, 0.45]
+    g.mesh('glass_sphere', 'sphere', sphere, glass, translation=(-0.3, 0.4, -0.25))
+    g.doc['nodes'][-1]['scale'] = [0.4, 0.4, 0.4]
+    g.mesh('glow_cube', 'cube', box(0.25, 0.25, 0.25), glow, translation=(0.5, 0.125, 0.2),
+           rotation=quat_axis_angle((0, 1, 0), math.radians(-30)))
+
+    g.light('ceiling_point', 'point', 4600.0, color=(1.0, 0.95, 0.88), translation=(0.0, 2.6, 0.0))
+    spot_pos = (1.7, 2.85, 1.6)
+    spot_target = (0.0, 0.4, -0.9)
+    g.light('corner_spot', 'spot', 6000.0, color=(0.9, 0.95, 1.0), translation=spot_pos,
+            rotation=look_rotation(sub(spot_target, spot_pos)), inner=0.35, outer=0.55)
+
+    g.perspective('camera', (0.0, 1.5, 1.9), (0.0, 0.65, -0.6), 58.0, aspect=4 / 3)
+    g.write(os.path.join(ROOT, 'scenes', 'default.gltf'))
+
+
+def top_ortho(g, height=3.0, mag=1.0):
+    """Orthographic camera above the origin looking straight down (image right = +x, up = -z),
+    covering x, z in [-mag, mag]."""
+    g.orthographic('top', (0.0, height, 0.0), DOWN, mag, mag, up=(0.0, 0.0, -1.0))
+
+
+def furnace_sphere():
+    """Closed flat-shaded UV sphere (radius 1, 32x16, front faces inward, doubleSided),
+    Lambert albedo a = 0.5, emission Le = 1. Any closed Lambert enclosure with uniform Le and
+    albedo a has radiance Le / (1 - a) = 2 everywhere (truncated: Le * sum_{k<D} a^k)."""
+    g = Gltf()
+    m = g.material('furnace', base=(0.5, 0.5, 0.5), lambert=True, emissive=(1.0, 1.0, 1.0),
+                   double_sided=True)
+    g.mesh('sphere', 'sphere', uv_sphere(1.0, inward=True, flat=True), m)
+    g.perspective('centre', (0.0, 0.0, 0.0), (0.0, 0.0, -1.0), 90.0, aspect=1.0)
+    g.write(os.path.join(ROOT, 'tests', 'scenes', 'furnace_sphere.gltf'))
+
+
+def point_plane():
+    """Plane y = 0 (100 x 100 m, Lambert rho = 0.5, faces +y), point light I = 2*pi at height
+    h = 1 (RAW: W/sr). L(x) = rho/pi * I * h / r^3, r^2 = h^2 + |x|^2; L(0) = 1."""
+    g = Gltf()
+    g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
+    g.light('point', 'point', 2 * math.pi, translation=(0.0, 1.0, 0.0))
+    top_ortho(g)
+    g.write(os.path.join(ROOT, 'tests', 'scenes', 'point_plane.gltf'))
+
+
+def spot_plane():
+    """As point_plane but a spot light pointing down, inner cone 1.2 rad (68.8 deg), outer 1.4 rad.
+    The camera's corners are at 54.7 deg from the axis, so every pixel is inside the inner cone
+    and sees exactly the point-light value."""
+    g = Gltf()
+    g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
+    g.light('spot', 'spot', 2 * math.pi, translation=(0.0, 1.0, 0.0),
+            rotation=look_rotation(DOWN, (0.0, 0.0, -1.0)), inner=1.2, outer=1.4)
+    top_ortho(g)
+    g.write(os.path.join(ROOT, 'tests', 'scenes', 'spot_plane.gltf'))
+
+
+def directional_plane():
+    """Plane + directional light 30 deg from the normal (travelling along
+    -(sin 30, cos 30, 0)), E = 2*pi W/m^2 (RAW). L = rho/pi * E * cos 30 = cos 30 = 0.8660254."""
+    g = Gltf()
+    g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
+    th = math.radians(30.0)
+    travel = (-math.sin(th), -math.cos(th), 0.0)
+    g.light('sun', 'directional', 2 * math.pi, translation=(0.0, 10.0, 0.0),
+            rotation=look_rotation(travel))
+    top_ortho(g)
+    g.write(os.path.join(ROOT, 'tests', 'scenes', 'directional_plane.gltf'))
+
+
+def area_plane():
+    """Plane + one-sided emissive square (side 1, y = 1, centred, facing -y, Le = 2 via
+    emissive_strength 2, black base colour). The camera is orthographic at y = 0.5 (below the
+    square) looking down. L(x) = rho/pi * E(x), E from Lambert's polygon formula (see the test).
+    A second emissive square at (3, 2, 0) faces +y: its back faces the plane, so it must add
+    nothing (one-sided emission)."""
+    g = Gltf()
+    g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
+    emit = g.material('emitter', base=(0.0, 0.0, 0.0), lambert=True, emissive=(1.0, 1.0, 1.0),
+                      strength=2.0)
+    s = 0.5
+    g.mesh('light_down', 'light_down',
+           quad((-s, 1.0, -s), (s, 1.0, -s), (s, 1.0, s), (-s, 1.0, s)), emit)  # faces -y
+    g.mesh('light_up_backfacing', 'light_up',
+           quad((3 - s, 2.0, -s), (3 - s, 2.0, s), (3 + s, 2.0, s), (3 + s, 2.0, -s)), emit)  # +y
+    top_ortho(g, height=0.5)
+    g.write(os.path.join(ROOT, 'tests', 'scenes', 'area_plane.gltf'))
+
+
+def tiny_far_box(g):
+    """A 1 cm diffuse box 100 m below the origin, so the scene is not empty but nothing sees it."""
+    g.mesh('tiny_far_box', 'tiny', box(0.01, 0.01, 0.01), g.material('black', base=(0, 0, 0), lambert=True),
+           translation=(0.0, -100.0, 0.0))
+
+
+ENV_CONSTANT = (0.5, 0.75, 1.0)
+
+
+def env_grid_texel(i, j):
+    return ((i + 1) / 8.0, (j + 1) / 4.0, 0.25 + 0.5 * ((i + j) % 2))
+
+
+# texels (i, j) the env_directions cameras look at (centres of an 8x4 lat-long image)
+ENV_DIR_TEXELS = [(0, 1), (1, 2), (2, 1), (3, 0), (4, 2), (5, 3), (6, 1), (7, 2)]
+
+
+def latlong_dir(u, v):
+    """Inverse of u = atan2(-dz, -dx)/(2 pi) + 0.5, v_top = 0.5 - atan2(dy, hypot(dx, dz))/pi."""
+    phi = (u - 0.5) * 2 * math.pi
+    el = (0.5 - v) * math.pi
+    return (-math.cos(el) * math.cos(phi), math.sin(el), -math.cos(el) * math.sin(phi))
+
+
+def env_scenes():
+    d = os.path.join(ROOT, 'tests', 'scenes')
+    os.makedirs(d, exist_ok=True)
+    write_exr(os.path.join(d, 'env_constant.exr'), 16, 8, lambda x, y: ENV_CONSTANT)
+    write_exr(os.path.join(d, 'env_grid.exr'), 8, 4, env_grid_texel)
+
+    # every camera ray misses: pixel = Lenv = (0.5, 0.75, 1.0)
+    g = Gltf()
+    tiny_far_box(g)
+    g.perspective('camera', (0.0, 0.0, 0.0), (0.0, 0.3, -1.0), 60.0, aspect=1.0)
+    g.environment('env_constant.exr', 1.0)
+    g.write(os.path.join(d, 'env_constant.gltf'))
+
+    # Lambert plane rho = 0.5 under the constant environment: L = rho * Lenv = (0.25, 0.375, 0.5)
+    g = Gltf()
+    g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
+    top_ortho(g)
+    g.environment('env_constant.exr', 1.0)
+    g.write(os.path.join(d, 'env_plane.gltf'))
+
+    # orthographic cameras (all rays parallel) looking at texel centres of env_grid.exr: each
+    # pixel = that texel exactly (with nearest or bilinear lookup). Camera "texel_i_j".
+    g = Gltf()
+    tiny_far_box(g)
+    for (i, j) in ENV_DIR_TEXELS:
+        fwd = latlong_dir((i + 0.5) / 8.0, (j + 0.5) / 4.0)
+        g.orthographic('texel_%d_%d' % (i, j), (0.0, 0.0, 0.0), fwd, 0.01, 0.01)
+    g.environment('env_grid.exr', 1.0)
+    g.write(os.path.join(d, 'env_directions.gltf'))
+
+
+def two_lights():
+    """Floor (4 x 4 m) + back wall, Lambert 0.5; a one-sided emissive quad (0.5 x 0.5 m at
+    y = 1.8, facing down, Le = 5) and 3 point lights of 0.05, 1 and 20 W/sr (RAW units).
+    No analytic value: rendered with the uniform and the power light sampler, which must agree."""
+    g = Gltf()
+    m = g.material('lambert_half', **LAMBERT_WHITE)
+    g.mesh('floor', 'floor', quad((-2, 0, -2), (-2, 0, 2), (2, 0, 2), (2, 0, -2)), m)
+    g.mesh('back_wall', 'back', quad((-2, 0, -2), (2, 0, -2), (2, 2.5, -2), (-2, 2.5, -2)), m)
+    emit = g.material('emitter', base=(0.0, 0.0, 0.0), lambert=True, emissive=(1.0, 1.0, 1.0),
+                      strength=5.0)
+    s = 0.25
+    g.mesh('area_light', 'area', quad((0.6 - s, 1.8, -0.5 - s), (0.6 + s, 1.8, -0.5 - s),
+                                      (0.6 + s, 1.8, -0.5 + s), (0.6 - s, 1.8, -0.5 + s)), emit)
+    g.light('weak', 'point', 0.05, translation=(-1.2, 0.5, -1.0))
+    g.light('medium', 'point', 1.0, color=(1.0, 0.8, 0.6), translation=(-0.5, 1.2, 0.5))
+    g.light('strong', 'point', 20.0, color=(0.6, 0.8, 1.0), translation=(1.5, 2.2, -1.5))
+    g.perspective('camera', (0.0, 1.6, 2.5), (0.0, 0.5, -1.0), 60.0, aspect=1.0)
+    g.write(os.path.join(ROOT, 'tests', 'scenes', 'two_lights.gltf'))
+
+
+def main():
+    default_scene()
+    furnace_sphere()
+    point_plane()
+    spot_plane()
+    directional_plane()
+    area_plane()
+    env_scenes()
+    two_lights()
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,392 @@
+/* tests/test_analytic.c: end-to-end renders of scenes with known answers.
+ *
+ * Usage: test_analytic SCENES_DIR   (the scenes come from scenes/make_scenes.py)
+ *
+ * Every render is small (32x32 or less) and uses RAW light units (W/sr, W/m^2) unless noted.
+ * A pixel of the film is the mean over its samples of radiance along rays jittered uniformly
+ * over the pixel (box filter), so the exact value of a pixel is the average of the radiance
+ * over the pixel's footprint; for the plane scenes that average is integrated numerically
+ * (midpoint rule, 16x16 points per pixel, error < 1e-7 relative).
+ *
+ * Statistical checks, per channel, with image.variance = the variance of each pixel's mean:
+ *   aggregate : |mean over pixels of (pixel - exact)| <= 5 sqrt(sum var) / Npix + floor
+ *   per pixel : |pixel - exact| <= 6 sqrt(var) + floor for >= 99% of the pixels
+ * floor = 1e-4 |exact| + 1e-6 absorbs float32 rounding where the estimator has no variance
+ * (directional light, constant environment). Every value must be finite, variance >= 0.
+ *
+ * Scenes and exact values (rho = 0.5 Lambert, specularFactor 0, everywhere):
+ *   furnace_sphere     closed sphere, Le = 1, albedo a = 0.5, camera at the centre:
+ *                      L = Le / (1 - a) = 2. With max_depth D the path sum is truncated to
+ *                      Le * sum_{k=0}^{D} a^k (or up to D-1, depending on whether the emission
+ *                      seen at vertex 1 counts as depth 0); max_depth 64 makes the truncation
+ *                      < 1e-19. Russian roulette does not bias.
+ *   point_plane        point light I = 2 pi W/sr at h = 1 over the plane y = 0:
+ *                      L(x) = rho/pi * I * h / r^3, r^2 = h^2 + |x|^2, so L(0) = 1.
+ *                      Also rendered with Blender units: exactly 1/683 of that.
+ *   spot_plane         the same light as a spot pointing down, every pixel in the inner cone.
+ *   directional_plane  E = 2 pi W/m^2 at 30 deg from the normal: L = rho/pi E cos 30 = 0.8660254.
+ *   area_plane         one-sided square emitter (side 1, height 1, Le = 2, facing down):
+ *                      L(x) = rho/pi * E(x) with Lambert's polygon formula
+ *                      E = Le/2 * sum_i angle(a_i, a_i+1) * n.unit(a_i x a_i+1); a second emitter
+ *                      facing away from the plane must add nothing.
+ *   env_constant       camera sees only the constant environment: L = (0.5, 0.75, 1.0).
+ *   env_plane          plane under it: irradiance pi Lenv, L = rho Lenv = (0.25, 0.375, 0.5).
+ *   env_directions     orthographic cameras (parallel rays) aimed at texel centres of the 8x4
+ *                      lat-long env_grid.exr: pixel = texel ((i+1)/8, (j+1)/4, .25 + .5((i+j)%2)).
+ *                      Checks the mapping u = atan2(-dz, -dx)/2pi + .5, v = .5 - asin(dy)/pi.
+ *   two_lights         no exact value: the uniform and the power light sampler (different seeds)
+ *                      must agree: z = (a - b)/sqrt(va + vb) per pixel, mean z^2 within
+ *                      1 +- 5 sqrt(2/N), and the mean difference within 5 standard errors.
+ *   default            scenes/default.gltf (Blender units) smoke test: renders, finite, sane mean. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "candela.h"
+#include "check.h"
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
+static const char *g_dir = ".";
+
+static double now_seconds(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+typedef struct RenderSpec {
+    const char *file;        /* relative to g_dir (or absolute when it starts with '/') */
+    const char *camera;      /* NULL: first camera */
+    int width, height, spp, max_depth; /* max_depth 0: renderer default */
+    CandelaLightSampler sampler;
+    CandelaLightUnits units;
+    uint64_t seed;
+} RenderSpec;
+
+/* Renders; on failure records a CHECK failure and returns non-zero (image left empty). */
+static int render(const RenderSpec *s, CandelaImage *img) {
+    CandelaOptions o;
+    candela_options_default(&o);
+    char path[4096];
+    if (s->file[0] == '/')
+        snprintf(path, sizeof path, "%s", s->file);
+    else
+        snprintf(path, sizeof path, "%s/%s", g_dir, s->file);
+    o.scene_path = path;
+    o.camera_name = s->camera;
+    o.width = s->width;
+    o.height = s->height;
+    o.spp = s->spp;
+    if (s->max_depth > 0) o.max_depth = s->max_depth;
+    o.light_sampler = s->sampler;
+    o.light_units = s->units;
+    o.seed = s->seed;
+    o.threads = 2;
+    o.quiet = 1;
+
+    memset(img, 0, sizeof *img);
+    CandelaStats st;
+    memset(&st, 0, sizeof st);
+    char err[CANDELA_ERR_LEN];
+    err[0] = 0;
+    double t0 = now_seconds();
+    int rc = candela_render(&o, img, &st, NULL, err);
+    double t = now_seconds() - t0;
+    CHECK(rc == 0, "%s: candela_render failed: %s", s->file, err);
+    if (rc != 0) return rc;
+    CHECK(img->width == s->width && img->height == s->height, "%s: got %dx%d, asked %dx%d",
+          s->file, img->width, img->height, s->width, s->height);
+    CHECK(img->rgb != NULL && img->variance != NULL, "%s: missing rgb/variance", s->file);
+    if (img->width != s->width || img->height != s->height || !img->rgb || !img->variance) return 1;
+    fprintf(stderr, "  render %-22s %-10s %dx%d %4d spp depth %2d %s %s: %.2f s, %u tris, %u lights\n",
+            s->file, s->camera ? s->camera : "-", s->width, s->height, s->spp, o.max_depth,
+            s->sampler == CANDELA_LIGHT_SAMPLER_POWER ? "power" : "uniform",
+            s->units == CANDELA_LIGHT_UNITS_RAW ? "raw" : "blender", t, st.num_triangles,
+            st.num_lights);
+    CHECK(t < 30.0, "%s: render took %.1f s", s->file, t);
+    return 0;
+}
+
+static int all_finite(const char *name, const CandelaImage *img) {
+    size_t n = (size_t)img->width * (size_t)img->height * 3;
+    size_t bad = 0;
+    for (size_t i = 0; i < n; ++i)
+        if (!isfinite(img->rgb[i]) || !isfinite(img->variance[i]) || img->variance[i] < 0.0f) ++bad;
+    CHECK(bad == 0, "%s: %zu non-finite values or negative variances", name, bad);
+    return bad == 0;
+}
+
+/* Compares the film with per-pixel exact values (3 per pixel). */
+static void compare(const char *name, const CandelaImage *img, const double *exact) {
+    const double rel_floor = 1e-4, abs_floor = 1e-6;
+    if (!all_finite(name, img)) return;
+    int n = img->width * img->height;
+    int ok_pixels = 0;
+    double worst_excess = 0.0;
+    int worst_pixel = -1;
+    for (int p = 0; p < n; ++p) {
+        int ok = 1;
+        for (int c = 0; c < 3; ++c) {
+            double v = img->rgb[3 * p + c], e = exact[3 * p + c];
+            double tol = 6.0 * sqrt((double)img->variance[3 * p + c]) + rel_floor * fabs(e) + abs_floor;
+            double excess = fabs(v - e) / tol;
+            if (excess > 1.0) ok = 0;
+            if (excess > worst_excess) { worst_excess = excess; worst_pixel = p; }
+        }
+        ok_pixels += ok;
+    }
+    CHECK(ok_pixels >= (int)ceil(0.99 * n),
+          "%s: only %d of %d pixels within 6 sigma (worst: pixel (%d,%d) rgb %g %g %g exact %g %g %g)",
+          name, ok_pixels, n, worst_pixel % img->width, worst_pixel / img->width,
+          img->rgb[3 * worst_pixel], img->rgb[3 * worst_pixel + 1], img->rgb[3 * worst_pixel + 2],
+          exact[3 * worst_pixel], exact[3 * worst_pixel + 1], exact[3 * worst_pixel + 2]);
+    for (int c = 0; c < 3; ++c) {
+        double sd = 0, sv = 0, se = 0, sr = 0;
+        for (int p = 0; p < n; ++p) {
+            sd += img->rgb[3 * p + c] - exact[3 * p + c];
+            sv += img->variance[3 * p + c];
+            se += fabs(exact[3 * p + c]);
+            sr += img->rgb[3 * p + c];
+        }
+        double mean_d = sd / n, se_mean = sqrt(sv) / n;
+        double tol = 5.0 * se_mean + rel_floor * se / n + abs_floor;
+        CHECK(fabs(mean_d) <= tol, "%s: channel %d mean %.7g, exact %.7g: bias %.3g > tol %.3g",
+              name, c, sr / n, se / n, mean_d, tol);
+        fprintf(stderr, "  %-28s ch%d mean %.6f exact %.6f (diff %+.2e, stderr %.2e)\n", name, c,
+                sr / n, se / n, mean_d, se_mean);
+    }
+    fprintf(stderr, "  %-28s %d/%d pixels within 6 sigma\n", name, ok_pixels, n);
+}
+
+static double *constant_exact(int n, double r, double g, double b) {
+    double *e = malloc(sizeof(double) * 3 * (size_t)n);
+    for (int p = 0; p < n; ++p) { e[3 * p] = r; e[3 * p + 1] = g; e[3 * p + 2] = b; }
+    return e;
+}
+
+/* Exact pixel values for the top orthographic camera (x, z in [-mag, mag], image right = +x,
+ * image up = -z) over the plane y = 0: footprint average of f(x, z), 16x16 midpoint rule. */
+typedef double (*PlaneFn)(double x, double z);
+static double *plane_exact(int w, int h, double mag, PlaneFn f, double scale_) {
+    double *e = malloc(sizeof(double) * 3 * (size_t)w * (size_t)h);
+    const int sub = 16;
+    for (int py = 0; py < h; ++py)
+        for (int px = 0; px < w; ++px) {
+            double sum = 0;
+            for (int j = 0; j < sub; ++j)
+                for (int i = 0; i < sub; ++i) {
+                    double sx = (px + (i + 0.5) / sub) / w, sy = (py + (j + 0.5) / sub) / h;
+                    double x = mag * (2 * sx - 1), z = mag * (2 * sy - 1); /* z: top row is -z */
+                    sum += f(x, z);
+                }
+            double v = scale_ * sum / (sub * sub);
+            for (int c = 0; c < 3; ++c) e[3 * (py * w + px) + c] = v;
+        }
+    return e;
+}
+
+static double point_light_L(double x, double z) {
+    const double rho = 0.5, I = 2 * M_PI, h = 1.0;
+    double r2 = h * h + x * x + z * z;
+    return rho / M_PI * I * h / (r2 * sqrt(r2));
+}
+
+/* Irradiance at (x, 0, z), normal +y, from the square [-.5,.5]^2 at y = 1 with radiance Le. */
+static double square_irradiance(double x, double z, double Le) {
+    const double v[4][3] = {{-0.5, 1, -0.5}, {0.5, 1, -0.5}, {0.5, 1, 0.5}, {-0.5, 1, 0.5}};
+    double a[4][3];
+    for (int i = 0; i < 4; ++i) {
+        double d[3] = {v[i][0] - x, v[i][1], v[i][2] - z};
+        double l = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        for (int k = 0; k < 3; ++k) a[i][k] = d[k] / l;
+    }
+    double sum = 0;
+    for (int i = 0; i < 4; ++i) {
+        const double *p = a[i], *q = a[(i + 1) % 4];
+        double cr[3] = {p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]};
+        double cl = sqrt(cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]);
+        double ang = acos(fmax(-1.0, fmin(1.0, p[0] * q[0] + p[1] * q[1] + p[2] * q[2])));
+        sum += ang * cr[1] / cl; /* n = +y */
+    }
+    return Le * 0.5 * fabs(sum);
+}
+
+static double area_light_L(double x, double z) { return 0.5 / M_PI * square_irradiance(x, z, 2.0); }
+
+static void test_furnace(void) {
+    RenderSpec s = {"furnace_sphere.gltf", NULL, 32, 32, 64, 64, CANDELA_LIGHT_SAMPLER_POWER,
+                    CANDELA_LIGHT_UNITS_RAW, 1};
+    CandelaImage img;
+    if (render(&s, &img) == 0) {
+        double *e = constant_exact(32 * 32, 2.0, 2.0, 2.0);
+        compare("furnace_sphere", &img, e);
+        free(e);
+    }
+    candela_image_free(&img);
+}
+
+static void check_top_aovs(const char *name, const CandelaImage *img, double depth) {
+    int n = img->width * img->height, bad_depth = 0, bad_normal = 0, bad_albedo = 0;
+    for (int p = 0; p < n; ++p) {
+        if (img->depth && !(fabs(img->depth[p] - depth) <= 1e-3 * depth)) ++bad_depth;
+        if (img->normal && !(fabs(img->normal[3 * p + 1] - 1.0) <= 1e-3)) ++bad_normal;
+        if (img->albedo)
+            for (int c = 0; c < 3; ++c)
+                if (!(fabs(img->albedo[3 * p + c] - 0.5) <= 1e-3)) { ++bad_albedo; break; }
+    }
+    CHECK(bad_depth == 0, "%s: %d pixels with depth != %g", name, bad_depth, depth);
+    CHECK(bad_normal == 0, "%s: %d pixels with normal != +y", name, bad_normal);
+    CHECK(bad_albedo == 0, "%s: %d pixels with albedo != 0.5", name, bad_albedo);
+}
+
+static void test_plane(const char *file, const char *name, PlaneFn f, double scale_,
+                       CandelaLightUnits units, double cam_height) {
+    RenderSpec s = {file, NULL, 32, 32, 64, 0, CANDELA_LIGHT_SAMPLER_POWER, units, 7};
+    CandelaImage img;
+    if (render(&s, &img) == 0) {
+        double *e = plane_exact(32, 32, 1.0, f, scale_);
+        compare(name, &img, e);
+        check_top_aovs(name, &img, cam_height);
+        free(e);
+    }
+    candela_image_free(&img);
+}
+
+static double directional_L(double x, double z) {
+    (void)x; (void)z;
+    return 0.5 / M_PI * 2 * M_PI * cos(M_PI / 6);
+}
+
+static void test_env(void) {
+    RenderSpec s = {"env_constant.gltf", NULL, 32, 32, 16, 0, CANDELA_LIGHT_SAMPLER_POWER,
+                    CANDELA_LIGHT_UNITS_RAW, 3};
+    CandelaImage img;
+    if (render(&s, &img) == 0) {
+        double *e = constant_exact(32 * 32, 0.5, 0.75, 1.0);
+        compare("env_constant", &img, e);
+        free(e);
+        int finite_depth = 0;
+        for (int p = 0; p < 32 * 32; ++p)
+            if (img.depth && isfinite(img.depth[p])) ++finite_depth;
+        CHECK(finite_depth == 0, "env_constant: %d pixels hit something", finite_depth);
+    }
+    candela_image_free(&img);
+
+    RenderSpec s2 = {"env_plane.gltf", NULL, 32, 32, 64, 0, CANDELA_LIGHT_SAMPLER_POWER,
+                     CANDELA_LIGHT_UNITS_RAW, 4};
+    if (render(&s2, &img) == 0) {
+        double *e = constant_exact(32 * 32, 0.25, 0.375, 0.5);
+        compare("env_plane", &img, e);
+        check_top_aovs("env_plane", &img, 3.0);
+        free(e);
+    }
+    candela_image_free(&img);
+
+    static const int texels[][2] = {{0, 1}, {1, 2}, {2, 1}, {3, 0}, {4, 2}, {5, 3}, {6, 1}, {7, 2}};
+    for (size_t k = 0; k < sizeof texels / sizeof texels[0]; ++k) {
+        int i = texels[k][0], j = texels[k][1];
+        char cam[32], name[64];
+        snprintf(cam, sizeof cam, "texel_%d_%d", i, j);
+        snprintf(name, sizeof name, "env_directions %s", cam);
+        RenderSpec sd = {"env_directions.gltf", cam, 4, 4, 4, 0, CANDELA_LIGHT_SAMPLER_POWER,
+                         CANDELA_LIGHT_UNITS_RAW, 5};
+        if (render(&sd, &img) == 0) {
+            double *e = constant_exact(16, (i + 1) / 8.0, (j + 1) / 4.0, 0.25 + 0.5 * ((i + j) % 2));
+            /* bilinear lookups at a texel centre are exact to float rounding of the direction */
+            int bad = 0;
+            for (int p = 0; p < 16; ++p)
+                for (int c = 0; c < 3; ++c)
+                    if (!(fabs(img.rgb[3 * p + c] - e[3 * p + c]) <= 1e-3)) ++bad;
+            CHECK(bad == 0, "%s: expected texel (%d,%d) = %g %g %g, pixel 0 = %g %g %g", name, i, j,
+                  e[0], e[1], e[2], img.rgb[0], img.rgb[1], img.rgb[2]);
+            free(e);
+        }
+        candela_image_free(&img);
+    }
+}
+
+static void test_samplers(void) {
+    const int w = 32, h = 32, n = w * h;
+    RenderSpec su = {"two_lights.gltf", NULL, w, h, 256, 0, CANDELA_LIGHT_SAMPLER_UNIFORM,
+                     CANDELA_LIGHT_UNITS_RAW, 11};
+    RenderSpec sp = su;
+    sp.sampler = CANDELA_LIGHT_SAMPLER_POWER;
+    sp.seed = 12; /* independent samples: same seeds would correlate the two images */
+    CandelaImage a, b;
+    int ra = render(&su, &a), rb = render(&sp, &b);
+    if (ra == 0 && rb == 0 && all_finite("two_lights uniform", &a) && all_finite("two_lights power", &b)) {
+        for (int c = 0; c < 3; ++c) {
+            double z2 = 0, sd = 0, sv = 0, sa = 0, sb = 0, va_sum = 0, vb_sum = 0;
+            int m = 0, exact_mismatch = 0;
+            for (int p = 0; p < n; ++p) {
+                double x = a.rgb[3 * p + c], y = b.rgb[3 * p + c];
+                double va = a.variance[3 * p + c], vb = b.variance[3 * p + c];
+                sa += x; sb += y; sd += x - y; sv += va + vb; va_sum += va; vb_sum += vb;
+                if (va + vb > 0) {
+                    z2 += (x - y) * (x - y) / (va + vb);
+                    ++m;
+                } else if (fabs(x - y) > 1e-5 * fmax(fabs(x), fabs(y)) + 1e-7) {
+                    ++exact_mismatch; /* both noiseless (e.g. the emitter seen directly) */
+                }
+            }
+            CHECK(exact_mismatch == 0, "two_lights ch%d: %d noiseless pixels differ", c, exact_mismatch);
+            CHECK(m > n / 2, "two_lights ch%d: only %d noisy pixels", c, m);
+            double mz2 = m ? z2 / m : 0, tol = 5.0 * sqrt(2.0 / (m ? m : 1));
+            CHECK(fabs(mz2 - 1.0) <= tol, "two_lights ch%d: mean z^2 = %.4f, expected 1 +- %.3f", c,
+                  mz2, tol);
+            double se = sqrt(sv) / n;
+            CHECK(fabs(sd / n) <= 5.0 * se, "two_lights ch%d: mean difference %.3g > 5 x stderr %.3g",
+                  c, sd / n, se);
+            fprintf(stderr,
+                    "  two_lights ch%d: uniform mean %.5f power mean %.5f diff %+.2e (stderr %.2e), "
+                    "mean z^2 %.4f over %d px, sum var uniform %.3g power %.3g\n",
+                    c, sa / n, sb / n, sd / n, se, mz2, m, va_sum, vb_sum);
+        }
+    }
+    candela_image_free(&a);
+    candela_image_free(&b);
+}
+
+static void test_default_scene(void) {
+    char path[4096];
+    snprintf(path, sizeof path, "%s/../../scenes/default.gltf", g_dir);
+    FILE *fh = fopen(path, "rb");
+    if (!fh) {
+        fprintf(stderr, "  (no %s, default-scene smoke test skipped)\n", path);
+        return;
+    }
+    fclose(fh);
+    RenderSpec s = {path, NULL, 48, 36, 16, 0, CANDELA_LIGHT_SAMPLER_POWER,
+                    CANDELA_LIGHT_UNITS_BLENDER, 1};
+    CandelaImage img;
+    if (render(&s, &img) == 0 && all_finite("default", &img)) {
+        double sum = 0;
+        int n = img.width * img.height;
+        for (int i = 0; i < 3 * n; ++i) sum += img.rgb[i];
+        double mean = sum / (3.0 * n);
+        fprintf(stderr, "  default: mean pixel value %.4f\n", mean);
+        CHECK(mean > 0.02 && mean < 5.0, "default: mean pixel value %g is not a sane exposure", mean);
+    }
+    candela_image_free(&img);
+}
+
+int main(int argc, char **argv) {
+    if (argc > 1) g_dir = argv[1];
+    test_furnace();
+    test_plane("point_plane.gltf", "point_plane", point_light_L, 1.0, CANDELA_LIGHT_UNITS_RAW, 3.0);
+    test_plane("point_plane.gltf", "point_plane (blender units)", point_light_L, 1.0 / 683.0,
+               CANDELA_LIGHT_UNITS_BLENDER, 3.0);
+    test_plane("spot_plane.gltf", "spot_plane", point_light_L, 1.0, CANDELA_LIGHT_UNITS_RAW, 3.0);
+    test_plane("directional_plane.gltf", "directional_plane", directional_L, 1.0,
+               CANDELA_LIGHT_UNITS_RAW, 3.0);
+    test_plane("area_plane.gltf", "area_plane", area_light_L, 1.0, CANDELA_LIGHT_UNITS_RAW, 0.5);
+    test_env();
+    test_samplers();
+    test_default_scene();
+    return test_exit();
+}

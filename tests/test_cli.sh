@@ -1,0 +1,75 @@
+#!/usr/bin/env bash
+# CLI-level tests: bad input gives one clear line and a non-zero exit and leaves no output;
+# determinism across thread counts and batch sizes (bit-identical EXR); --help/--version.
+# usage: test_cli.sh CANDELA_BINARY SOURCE_ROOT
+set -u
+bin=$1; root=$2
+tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
+pass=0; fail=0
+ok()  { pass=$((pass + 1)); }
+bad() { fail=$((fail + 1)); echo "FAIL: $*" >&2; }
+
+# expect_error NAME PATTERN -- ARGS... : non-zero exit, exactly one stderr line containing
+# PATTERN, no crash (exit < 128), no file at $tmp/out.exr or $tmp/out.png
+expect_error() {
+  local name=$1 pattern=$2; shift 3
+  rm -f "$tmp/out.exr" "$tmp/out.png"
+  "$bin" "$@" >"$tmp/stdout" 2>"$tmp/stderr"; local rc=$?
+  local lines; lines=$(grep -c . "$tmp/stderr")
+  if [ $rc -eq 0 ] || [ $rc -ge 128 ]; then bad "$name: exit code $rc"; return; fi
+  if [ "$lines" -ne 1 ]; then bad "$name: expected one error line, got $lines: $(cat "$tmp/stderr")"; return; fi
+  if ! grep -q -- "$pattern" "$tmp/stderr"; then bad "$name: message lacks '$pattern': $(cat "$tmp/stderr")"; return; fi
+  if ls "$tmp"/out.* >/dev/null 2>&1; then bad "$name: left an output file"; return; fi
+  ok
+}
+
+scene=$root/tests/scenes/point_plane.gltf
+common=(-o "$tmp/out.exr" --res 16x16 --spp 1 --quiet)
+
+expect_error "unknown flag" "unknown option '--bogus'" -- render "$scene" --bogus "${common[@]}"
+expect_error "bad spp" "--spp" -- render "$scene" --spp 0 -o "$tmp/out.exr"
+expect_error "bad res" "--res" -- render "$scene" --res 100000x2 -o "$tmp/out.exr"
+expect_error "nan res" "--res" -- render "$scene" --res axb -o "$tmp/out.exr"
+expect_error "bad sampler" "light sampler" -- render "$scene" --light-sampler best "${common[@]}"
+expect_error "missing scene" "nonexistent.gltf" -- render "$tmp/nonexistent.gltf" "${common[@]}"
+expect_error "unknown command" "unknown command" -- paint "$scene"
+expect_error "missing env" "nope.exr" -- render "$scene" --env "$tmp/nope.exr" "${common[@]}"
+expect_error "bad camera" "no camera named" -- render "$scene" --camera nosuchcam "${common[@]}"
+expect_error "no output dir" "not writable" -- render "$scene" -o "$tmp/missing/dir/out.exr" --quiet
+
+# malformed scene files, made here
+head -c 200 "$scene" > "$tmp/truncated.gltf"
+expect_error "truncated gltf" "truncated.gltf" -- render "$tmp/truncated.gltf" "${common[@]}"
+printf 'glTF\x02\x00\x00\x00\xff\x00\x00\x00' > "$tmp/truncated.glb"
+expect_error "truncated glb" "truncated.glb" -- render "$tmp/truncated.glb" "${common[@]}"
+head -c 3000 /dev/urandom > "$tmp/garbage.gltf"
+expect_error "garbage gltf" "garbage.gltf" -- render "$tmp/garbage.gltf" "${common[@]}"
+: > "$tmp/empty.gltf"
+expect_error "empty gltf" "empty.gltf" -- render "$tmp/empty.gltf" "${common[@]}"
+sed 's/"uri" *: *"data:[^"]*"/"uri": "missing.bin"/' "$scene" > "$tmp/missing_buffer.gltf"
+expect_error "missing buffer" "missing_buffer.gltf" -- render "$tmp/missing_buffer.gltf" "${common[@]}"
+
+# help and version
+"$bin" --help | grep -q "candela render" && ok || bad "--help"
+"$bin" --version | grep -q "^candela [0-9]" && ok || bad "--version"
+
+# determinism: threads 1 vs 2 and two batch sizes give bit-identical EXRs
+det=$root/tests/scenes/two_lights.gltf
+[ -f "$det" ] || det=$scene
+"$bin" render "$det" -o "$tmp/t1.exr" --no-png --res 24x20 --spp 5 --threads 1 --quiet --seed 7 || bad "render t1"
+"$bin" render "$det" -o "$tmp/t2.exr" --no-png --res 24x20 --spp 5 --threads 2 --quiet --seed 7 || bad "render t2"
+"$bin" render "$det" -o "$tmp/t3.exr" --no-png --res 24x20 --spp 5 --threads 2 --batch 97 --quiet --seed 7 || bad "render t3"
+"$bin" render "$det" -o "$tmp/t4.exr" --no-png --res 24x20 --spp 5 --threads 2 --quiet --seed 8 || bad "render t4"
+cmp -s "$tmp/t1.exr" "$tmp/t2.exr" && ok || bad "threads 1 vs 2 differ"
+cmp -s "$tmp/t2.exr" "$tmp/t3.exr" && ok || bad "batch sizes differ"
+cmp -s "$tmp/t2.exr" "$tmp/t4.exr" && bad "different seeds gave identical images" || ok
+[ -f "$tmp/t1.png" ] && bad "--no-png wrote a PNG" || ok
+
+# a normal render writes both files and nothing temporary
+"$bin" render "$scene" -o "$tmp/good.exr" --res 16x16 --spp 2 --quiet --stats-json "$tmp/stats.json" || bad "good render"
+[ -s "$tmp/good.exr" ] && [ -s "$tmp/good.png" ] && ok || bad "good render outputs missing"
+grep -q '"rays_per_second"' "$tmp/stats.json" && ok || bad "stats json"
+ls "$tmp" | grep -q 'tmp-' && bad "temporary file left behind" || ok
+
+echo "$pass passed, $fail failed"
+[ "$fail" -eq 0 ]

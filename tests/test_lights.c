@@ -1,0 +1,106 @@
+/* Light selection and light sampling: the PMF of every strategy sums to one over all lights,
+ * select() reports exactly the PMF that pmf() evaluates, selection frequencies match the PMF
+ * (chi-square), and light_sample_li's solid-angle pdf matches the standalone pdf functions
+ * used for MIS. argv[1]: a glTF with many lights (../shared/assets/gltf/cornell_many_lights.gltf),
+ * argv[2]: tests/scenes (for the environment scene). */
+#include <math.h>
+#include <string.h>
+
+#include "check.h"
+#include "rng.h"
+#include "scene.h"
+
+static void check_strategy(const char *path, CandelaLightSampler strategy, const char *env) {
+    CandelaOptions o;
+    candela_options_default(&o);
+    o.scene_path = path;
+    o.light_sampler = strategy;
+    o.width = o.height = 8;
+    o.env_path = env;
+    Scene scene;
+    char err[CANDELA_ERR_LEN];
+    int rc = scene_load(&scene, &o, err);
+    CHECK(rc == 0, "%s", err);
+    if (rc != 0) return;
+    const Lights *ls = &scene.lights;
+    CHECK(ls->count > 1, "lights: %u", ls->count);
+    uint64_t key = rng_path_key(3, 1, 2);
+    for (int q = 0; q < 8; ++q) {
+        LightSampleContext ctx = {v3(rng_uniform(key, 3 * q) * 2 - 1, rng_uniform(key, 3 * q + 1) * 2, rng_uniform(key, 3 * q + 2) * 2 - 1),
+                                  v3(0, 1, 0)};
+        double sum = 0.0;
+        for (uint32_t i = 0; i < ls->count; ++i) sum += light_select_pmf(ls, &ctx, i);
+        CHECK(fabs(sum - 1.0) < 1e-4, "strategy %d: pmf sums to %.7f", (int)strategy, sum);
+        /* select/pmf consistency and frequencies */
+        enum { N = 200000 };
+        uint32_t *hist = calloc(ls->count, sizeof *hist);
+        int mismatch = 0;
+        for (int s = 0; s < N; ++s) {
+            float pmf;
+            uint32_t i = light_select(ls, &ctx, rng_uniform(key, 1000 + s), &pmf);
+            if (i >= ls->count || pmf != light_select_pmf(ls, &ctx, i)) ++mismatch;
+            else hist[i]++;
+        }
+        CHECK(mismatch == 0, "%d selections disagree with light_select_pmf", mismatch);
+        double chi2 = 0.0;
+        int dof = -1;
+        double pooled_obs = 0, pooled_exp = 0;
+        for (uint32_t i = 0; i < ls->count; ++i) {
+            double e = N * (double)light_select_pmf(ls, &ctx, i);
+            if (e < 5.0) { pooled_obs += hist[i]; pooled_exp += e; continue; }
+            chi2 += (hist[i] - e) * (hist[i] - e) / e;
+            ++dof;
+        }
+        if (pooled_exp > 5.0) { chi2 += (pooled_obs - pooled_exp) * (pooled_obs - pooled_exp) / pooled_exp; ++dof; }
+        /* Wilson-Hilferty: chi2/dof > 1 + 4.5 sqrt(2/(9 dof)) roughly p < 1e-5 */
+        if (dof > 0) {
+            double limit = dof * pow(1.0 - 2.0 / (9.0 * dof) + 4.5 * sqrt(2.0 / (9.0 * dof)), 3.0);
+            CHECK(chi2 < limit, "selection histogram chi2 %.1f > %.1f (dof %d)", chi2, limit, dof);
+        }
+        free(hist);
+    }
+    /* sample_li pdf == standalone pdf (area: light_area_pdf_li, env: light_env_pdf_li) */
+    vec3 p = v3(0.1f, 0.7f, 0.2f);
+    int checked = 0;
+    for (uint32_t i = 0; i < ls->count; ++i) {
+        const Light *l = &ls->lights[i];
+        for (int s = 0; s < 50; ++s) {
+            LightLiSample smp;
+            if (!light_sample_li(&scene, l, p, rng_uniform(key, 5000 + 3 * s), rng_uniform(key, 5001 + 3 * s),
+                                 rng_uniform(key, 5002 + 3 * s), &smp))
+                continue;
+            CHECK(isfinite(smp.pdf) && smp.pdf > 0, "light %u: pdf %g", i, smp.pdf);
+            if (l->type == LIGHT_ENVIRONMENT) {
+                float pdf = light_env_pdf_li(&scene, smp.wi);
+                CHECK(fabsf(pdf - smp.pdf) <= 2e-3f * smp.pdf, "env pdf %g vs %g", pdf, smp.pdf);
+                ++checked;
+            } else if (l->type == LIGHT_AREA) {
+                /* re-find the point by intersecting the light's triangles */
+                vec3 y = v3_madd(p, smp.wi, smp.distance);
+                const float *w = l->world_vertices;
+                vec3 a = v3(w[0], w[1], w[2]), b = v3(w[3], w[4], w[5]), c = v3(w[6], w[7], w[8]);
+                vec3 n = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+                float pdf = light_area_pdf_li(l, p, y, n);
+                CHECK(fabsf(pdf - smp.pdf) <= 2e-3f * smp.pdf, "area pdf %g vs %g", pdf, smp.pdf);
+                ++checked;
+            }
+        }
+    }
+    CHECK(checked > 0, "no area/env light sample was checked");
+    scene_free(&scene);
+}
+
+int main(int argc, char **argv) {
+    if (argc < 3) SKIP("usage: test_lights MANY_LIGHTS.gltf SCENES_DIR");
+    FILE *f = fopen(argv[1], "rb");
+    if (!f) SKIP("%s not found (shared assets absent)", argv[1]);
+    fclose(f);
+    char env[1024];
+    snprintf(env, sizeof env, "%s/sky.hdr", argv[2]);
+    FILE *fe = fopen(env, "rb");
+    const char *envp = fe ? env : NULL;
+    if (fe) fclose(fe);
+    check_strategy(argv[1], CANDELA_LIGHT_SAMPLER_UNIFORM, envp);
+    check_strategy(argv[1], CANDELA_LIGHT_SAMPLER_POWER, envp);
+    return test_exit();
+}
