@@ -166,6 +166,13 @@ static float glass_eval_pdf(const Prep *q, vec3 wo_f, vec3 wi_f, double eta, flo
     double alpha = q->alpha_glass;
     double ox = wo_f.x, oy = wo_f.y, oz = wo_f.z, ix = wi_f.x, iy = wi_f.y, iz = wi_f.z;
     if (!(oz > 0.0) || iz == 0.0) return 0.0f;
+    /* Renormalise in double: float directions are unit only to ~1e-7, which breaks the Snell
+     * consistency of the generalised half vector enough to matter near the critical angle. */
+    double lo2 = ox * ox + oy * oy + oz * oz, li2 = ix * ix + iy * iy + iz * iz;
+    if (!(lo2 > 0.0) || !(li2 > 0.0)) return 0.0f;
+    double no = 1.0 / sqrt(lo2), ni = 1.0 / sqrt(li2);
+    ox *= no; oy *= no; oz *= no;
+    ix *= ni; iy *= ni; iz *= ni;
     int reflect = iz > 0.0;
     double k = reflect ? 1.0 : eta;
     double mx = ox + k * ix, my = oy + k * iy, mz = oz + k * iz;
@@ -229,7 +236,7 @@ static vec3 eval_pdf(const Prep *q, vec3 wo, vec3 wi, float *pdf_out) {
     float wg = (1.0f - q->m) * q->t;
     if (wg > 0.0f && !q->glass_delta && wo.z != 0.0f) {
         float s = wo.z > 0.0f ? 1.0f : -1.0f;
-        float eta = wo.z > 0.0f ? q->ior : 1.0f / q->ior;
+        double eta = wo.z > 0.0f ? (double)q->ior : 1.0 / (double)q->ior;
         float gp;
         int refr;
         float g = glass_eval_pdf(q, v3_scale(wo, s), v3_scale(wi, s), eta, &gp, &refr);
@@ -248,6 +255,12 @@ vec3 bsdf_eval(const BsdfParams *p, vec3 wo, vec3 wi) {
     Prep q;
     prepare(p, &q);
     return eval_pdf(&q, wo, wi, NULL);
+}
+
+vec3 bsdf_eval_pdf(const BsdfParams *p, vec3 wo, vec3 wi, float *pdf) {
+    Prep q;
+    prepare(p, &q);
+    return eval_pdf(&q, wo, wi, pdf);
 }
 
 float bsdf_pdf(const BsdfParams *p, vec3 wo, vec3 wi) {

@@ -51,6 +51,8 @@ typedef struct BsdfSample {
 int bsdf_sample(const BsdfParams *p, vec3 wo, float u_lobe, float u1, float u2, BsdfSample *s);
 vec3 bsdf_eval(const BsdfParams *p, vec3 wo, vec3 wi);
 float bsdf_pdf(const BsdfParams *p, vec3 wo, vec3 wi);
+/* Both at once (next-event estimation needs both; one pass over the lobes). */
+vec3 bsdf_eval_pdf(const BsdfParams *p, vec3 wo, vec3 wi, float *pdf);
 /* 1 if every lobe of p is a delta (smooth glass with metallic 0 and transmission 1): NEE is
  * useless there and the renderer skips it. */
 int bsdf_is_delta(const BsdfParams *p);

@@ -482,7 +482,7 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
             return -1;
         }
         if (!(scene->env_strength >= 0.0f) || !isfinite(scene->env_strength)) {
-            set_error(err, "%s: environment strength must be a finite number >= 0%s", env_path, "");
+            set_error(err, "%.400s: environment strength must be a finite number >= 0%s", env_path, "");
             scene_free(scene);
             return -1;
         }

@@ -62,6 +62,7 @@ typedef struct Renderer {
     WorkQueue rays, hits, escaped, shadows;
     uint64_t *sort_keys, *sort_keys_tmp;
     uint32_t *sort_tmp;
+    uint32_t radix_count[1u << 11];
     Film film;
     CandelaStats *stats;
     CandelaRayLog *ray_log;
@@ -135,19 +136,26 @@ static inline float power_heuristic(float a, float b) {
 
 /* ---------------------------------------------------------------- sorting */
 
-/* LSD radix sort of (key, item) pairs, 8 bits a pass; passes whose byte is constant over
- * all keys are skipped. Stable, so equal keys keep queue order (which is deterministic). */
+/* LSD radix sort of (key, item) pairs, 11 bits a pass; digits that are the same in every
+ * key are skipped. Stable, so equal keys keep queue order (which is deterministic). */
+#define RADIX_BITS 11
+#define RADIX_BUCKETS (1u << RADIX_BITS)
 static void radix_sort_queue(Renderer *r, uint32_t *items, uint64_t *keys, uint32_t n) {
+    if (n < 2) return;
+    uint64_t any = 0, all = ~0ull;
+    for (uint32_t i = 0; i < n; ++i) { any |= keys[i]; all &= keys[i]; }
+    uint64_t varying = any ^ all;
     uint64_t *k_in = keys, *k_out = r->sort_keys_tmp;
     uint32_t *v_in = items, *v_out = r->sort_tmp;
-    for (int shift = 0; shift < 64; shift += 8) {
-        uint32_t count[256] = {0};
-        for (uint32_t i = 0; i < n; ++i) count[(k_in[i] >> shift) & 255]++;
-        if (count[(k_in[0] >> shift) & 255] == n) continue;
+    uint32_t *count = r->radix_count;
+    for (int shift = 0; shift < 64; shift += RADIX_BITS) {
+        if (((varying >> shift) & (RADIX_BUCKETS - 1)) == 0) continue;
+        memset(count, 0, RADIX_BUCKETS * sizeof *count);
+        for (uint32_t i = 0; i < n; ++i) count[(k_in[i] >> shift) & (RADIX_BUCKETS - 1)]++;
         uint32_t sum = 0;
-        for (int b = 0; b < 256; ++b) { uint32_t c = count[b]; count[b] = sum; sum += c; }
+        for (uint32_t b = 0; b < RADIX_BUCKETS; ++b) { uint32_t c = count[b]; count[b] = sum; sum += c; }
         for (uint32_t i = 0; i < n; ++i) {
-            uint32_t dst = count[(k_in[i] >> shift) & 255]++;
+            uint32_t dst = count[(k_in[i] >> shift) & (RADIX_BUCKETS - 1)]++;
             k_out[dst] = k_in[i];
             v_out[dst] = v_in[i];
         }
@@ -190,8 +198,8 @@ static void ray_keys_range(void *vctx, size_t b, size_t e, int thread) {
             q[k] = isfinite(v) ? (uint64_t)v : 0;
         }
         uint64_t morton = morton_spread(q[0]) | morton_spread(q[1]) << 1 | morton_spread(q[2]) << 2;
-        /* octant (3 bits) | Morton (30 bits) | slot (up to 22 bits): unique keys */
-        r->sort_keys[i] = oct << 61 | morton << 22 | p;
+        /* octant (3 bits) | Morton (30 bits); the stable sort keeps queue order for ties */
+        r->sort_keys[i] = oct << 30 | morton;
     }
 }
 
@@ -385,10 +393,11 @@ static void shade_range(void *vctx, size_t b, size_t e, int thread) {
                 float side_g = v3_dot(ls.wi, ng);
                 /* reject directions whose geometric and shading hemispheres disagree (light leaks) */
                 if (side_g * wi_l.z > 0.0f) {
-                    vec3 fv = v3_scale(bsdf_eval(&m.bsdf, wo_l, wi_l), fabsf(wi_l.z));
+                    float bsdf_pdf_wi;
+                    vec3 fv = v3_scale(bsdf_eval_pdf(&m.bsdf, wo_l, wi_l, &bsdf_pdf_wi), fabsf(wi_l.z));
                     if (!v3_is_black(fv)) {
                         float light_pdf = pmf * ls.pdf;
-                        float w = ls.is_delta ? 1.0f : power_heuristic(light_pdf, bsdf_pdf(&m.bsdf, wo_l, wi_l));
+                        float w = ls.is_delta ? 1.0f : power_heuristic(light_pdf, bsdf_pdf_wi);
                         vec3 contrib = v3_scale(v3_mul(v3_mul(beta, fv), ls.radiance), w / light_pdf);
                         if (v3_is_finite(contrib) && !v3_is_black(contrib)) {
                             vec3 o = offset_ray_origin(h.p, side_g > 0.0f ? ng : v3_neg(ng));

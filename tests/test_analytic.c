@@ -136,6 +136,10 @@ static void compare(const char *name, const CandelaImage *img, const double *exa
             double tol = 6.0 * sqrt((double)img->variance[3 * p + c]) + rel_floor * fabs(e) + abs_floor;
             double excess = fabs(v - e) / tol;
             if (excess > 1.0) ok = 0;
+            if (excess > 1.0 && getenv("ANALYTIC_VERBOSE"))
+                fprintf(stderr, "    %s: pixel (%d,%d) ch%d value %.6g exact %.6g sigma %.3g z %.1f\n", name,
+                        p % img->width, p / img->width, c, v, e, sqrt((double)img->variance[3 * p + c]),
+                        (v - e) / sqrt((double)img->variance[3 * p + c]));
             if (excess > worst_excess) { worst_excess = excess; worst_pixel = p; }
         }
         ok_pixels += ok;
