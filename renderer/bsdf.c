@@ -118,23 +118,31 @@ static double ggx_lambda_dbl(double x, double y, double z, double alpha) {
 /* Lobe selection probabilities; they depend only on (q, wo). Opaque lobes vanish unless
  * wo.z > 0; the small floors keep a lobe selectable wherever its f can be nonzero. */
 static float lobe_probs(const Prep *q, vec3 wo, float prob[LOBE_COUNT]) {
-    float w[LOBE_COUNT] = {0.0f, 0.0f, 0.0f, 0.0f};
+    /* scalars, not a stack array: partial stores into an array that is then reloaded whole
+     * stalled store forwarding and made this the hottest function of the shade stage */
+    float w_metal = 0.0f, w_spec = 0.0f, w_diffuse = 0.0f, w_glass = 0.0f;
     if (wo.z > 0.0f) {
         float c = wo.z;
         if (q->m > 0.0f) {
             vec3 fm = schlick(q->base, 1.0f, c);
-            w[LOBE_METAL] = q->m * fmaxf(v3_max_component(fm), 0.05f);
+            float fmax = v3_max_component(fm);
+            w_metal = q->m * (fmax > 0.05f ? fmax : 0.05f);
         }
         float opaque = (1.0f - q->m) * (1.0f - q->t);
         if (opaque > 0.0f) {
             float fs = spec_fmax(q, c);
-            if (q->spec_on) w[LOBE_SPEC] = opaque * fmaxf(fs, 0.02f * q->specular);
-            w[LOBE_DIFFUSE] = opaque * v3_max_component(q->base) * (1.0f - fs);
+            float floor_spec = 0.02f * q->specular;
+            if (q->spec_on) w_spec = opaque * (fs > floor_spec ? fs : floor_spec);
+            w_diffuse = opaque * v3_max_component(q->base) * (1.0f - fs);
         }
     }
-    if (wo.z != 0.0f) w[LOBE_GLASS] = (1.0f - q->m) * q->t;
-    float sum = w[0] + w[1] + w[2] + w[3];
-    for (int k = 0; k < LOBE_COUNT; ++k) prob[k] = sum > 0.0f ? w[k] / sum : 0.0f;
+    if (wo.z != 0.0f) w_glass = (1.0f - q->m) * q->t;
+    float sum = w_metal + w_spec + w_diffuse + w_glass;
+    float inv = sum > 0.0f ? 1.0f / sum : 0.0f;
+    prob[LOBE_METAL] = w_metal * inv;
+    prob[LOBE_SPEC] = w_spec * inv;
+    prob[LOBE_DIFFUSE] = w_diffuse * inv;
+    prob[LOBE_GLASS] = w_glass * inv;
     return sum;
 }
 

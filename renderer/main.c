@@ -29,7 +29,7 @@ static const char *USAGE =
     "  --camera NAME             glTF camera by name (default: the first, or a framing view)\n"
     "  --env FILE                lat-long environment map (EXR/HDR/PNG...)\n"
     "  --env-strength S          environment multiplier (default 1)\n"
-    "  --batch N                 paths in flight per batch (default 262144; never changes the image)\n"
+    "  --batch N                 paths in flight per batch (default 16384; never changes the image)\n"
     "  --stats-json FILE         write render statistics as JSON\n"
     "  --quiet                   no progress or statistics on stderr\n";
 

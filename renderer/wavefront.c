@@ -21,7 +21,7 @@
 #include "threads.h"
 #include "wavefront.h"
 
-#define DEFAULT_BATCH_SIZE (1u << 18)
+#define DEFAULT_BATCH_SIZE (1u << 14) /* fits the path state in L2: shading gathers by slot */
 #define MAX_BATCH_SIZE (1u << 22)
 #define DEFAULT_MAX_ITERATION_SPP 64
 #define RR_START_DEPTH 3

@@ -432,19 +432,23 @@ DOWN = (0.0, -1.0, 0.0)
 def default_scene():
     """The demo room, 4 x 3 x 4 m (x, z in [-2, 2], y in [0, 3]), Blender light units.
 
-    Point light 4600 cd at (0, 2.6, 0): 4600/683 = 6.73 W/sr, irradiance on the floor below
-    6.73 / 2.6^2 = 1.0 W/m^2. Spot 6000 cd (8.8 W/sr) from a ceiling corner at the diffuse
-    box/metal sphere, cone 0.35/0.55 rad. Emissive cube: radiance (1, 0.55, 0.2) x 4."""
+    Point light 2500 cd at (0, 2.6, 0): 2500/683 = 3.66 W/sr, irradiance on the floor below
+    3.66 / 2.6^2 = 0.54 W/m^2 (the closed white room roughly triples it by interreflection).
+    A 900 cd warm fill light near the back-left corner. Spot 4000 cd (5.9 W/sr) from a ceiling
+    corner at the diffuse box/metal sphere, cone 0.35/0.55 rad. Emissive cube: radiance
+    (1, 0.55, 0.2) x 3. The metal is roughness 0.5: at 0.2 (and still at 0.35) its reflection of the point light
+    onto the walls (a glossy caustic, reachable only by a diffuse bounce then NEE) showed as
+    fireflies at hundreds of samples per pixel."""
     g = Gltf()
     white = g.material('white_wall', base=(0.8, 0.8, 0.8), lambert=True)
     red = g.material('red_wall', base=(0.7, 0.08, 0.06), lambert=True)
     green = g.material('green_wall', base=(0.1, 0.6, 0.12), lambert=True)
     floor_m = g.material('floor', base=(0.75, 0.72, 0.65), roughness=0.9)
     box_m = g.material('diffuse_box', base=(0.75, 0.55, 0.3), lambert=True)
-    metal = g.material('gold_metal', base=(1.0, 0.78, 0.34), metallic=1.0, roughness=0.2)
+    metal = g.material('gold_metal', base=(1.0, 0.78, 0.34), metallic=1.0, roughness=0.5)
     glass = g.material('glass', base=(1.0, 1.0, 1.0), roughness=0.0, transmission=1.0, ior=1.5)
     glow = g.material('glow', base=(0.0, 0.0, 0.0), lambert=True, emissive=(1.0, 0.55, 0.2),
-                      strength=4.0)
+                      strength=3.0)
 
     X, Y, Z = 2.0, 3.0, 2.0
     # inward-facing room surfaces (CCW seen from inside)
@@ -465,10 +469,11 @@ def default_scene():
     g.mesh('glow_cube', 'cube', box(0.25, 0.25, 0.25), glow, translation=(0.5, 0.125, 0.2),
            rotation=quat_axis_angle((0, 1, 0), math.radians(-30)))
 
-    g.light('ceiling_point', 'point', 4600.0, color=(1.0, 0.95, 0.88), translation=(0.0, 2.6, 0.0))
+    g.light('ceiling_point', 'point', 2500.0, color=(1.0, 0.95, 0.88), translation=(0.0, 2.6, 0.0))
+    g.light('fill_point', 'point', 900.0, color=(1.0, 0.8, 0.6), translation=(-0.9, 2.5, -1.2))
     spot_pos = (1.7, 2.85, 1.6)
     spot_target = (0.0, 0.4, -0.9)
-    g.light('corner_spot', 'spot', 6000.0, color=(0.9, 0.95, 1.0), translation=spot_pos,
+    g.light('corner_spot', 'spot', 4000.0, color=(0.9, 0.95, 1.0), translation=spot_pos,
             rotation=look_rotation(sub(spot_target, spot_pos)), inner=0.35, outer=0.55)
 
     g.perspective('camera', (0.0, 1.5, 1.9), (0.0, 0.65, -0.6), 58.0, aspect=4 / 3)
