@@ -57,15 +57,15 @@ static void prepare(const BsdfParams *p, Prep *q) {
     float r = sane01(p->roughness, 1.0f);
     float ior = p->ior;
     if (!(ior >= 1.0f) || !isfinite(ior)) ior = isinf(ior) && ior > 0.0f ? 1e4f : 1.0f;
-    q->ior = fminf(ior, 1e4f);
+    q->ior = minf(ior, 1e4f);
     float a = r * r;
-    q->alpha = fmaxf(a, BSDF_MIN_ALPHA);
-    q->alpha_glass = fmaxf(a, BSDF_DELTA_ALPHA);
+    q->alpha = maxf(a, BSDF_MIN_ALPHA);
+    q->alpha_glass = maxf(a, BSDF_DELTA_ALPHA);
     q->glass_delta = a < BSDF_DELTA_ALPHA || q->ior - 1.0f < GLASS_IOR_EPS;
     float r0 = sqr((q->ior - 1.0f) / (q->ior + 1.0f));
     vec3 sc = p->specular_color;
-    sc = v3(isfinite(sc.x) ? fmaxf(sc.x, 0.0f) : 0.0f, isfinite(sc.y) ? fmaxf(sc.y, 0.0f) : 0.0f,
-            isfinite(sc.z) ? fmaxf(sc.z, 0.0f) : 0.0f);
+    sc = v3(isfinite(sc.x) ? maxf(sc.x, 0.0f) : 0.0f, isfinite(sc.y) ? maxf(sc.y, 0.0f) : 0.0f,
+            isfinite(sc.z) ? maxf(sc.z, 0.0f) : 0.0f);
     q->f0_spec = v3_scale(v3_min(v3_scale(sc, r0), v3s(1.0f)), q->specular);
     q->f90_spec = q->specular;
     q->spec_on = q->ior != 1.0f && q->specular > 0.0f;
@@ -284,7 +284,7 @@ static vec3 reflect_about(vec3 wo, vec3 n) { return v3_sub(v3_scale(n, 2.0f * v3
 /* Refraction of wo (dot(wo,n) > 0) through n with eta = eta_t / eta_o. Returns 0 on TIR. */
 static int refract_about(vec3 wo, vec3 n, float eta, vec3 *wt) {
     float ci = v3_dot(wo, n);
-    float sin2_t = fmaxf(0.0f, 1.0f - ci * ci) / (eta * eta);
+    float sin2_t = maxf(1.0f - ci * ci, 0.0f) / (eta * eta);
     if (sin2_t >= 1.0f) return 0;
     float ct = sqrtf(1.0f - sin2_t);
     *wt = v3_normalize(v3_add(v3_scale(wo, -1.0f / eta), v3_scale(n, ci / eta - ct)));

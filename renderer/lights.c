@@ -58,6 +58,7 @@ static int build_area_light(Scene *scene, uint32_t instance, uint32_t local, Lig
     if (rc != 0) { free(l->world_vertices); return -1; }
     const IoMaterial *mat = scene->prims[global].material;
     vec3 e = v3_scale(v3(mat->emissive[0], mat->emissive[1], mat->emissive[2]), mat->emissive_strength);
+    l->emission = v3_max(e, v3s(0.0f));
     l->power = PI_F * l->area * fmaxf(v3_luminance(e), 0.0f) * (mat->double_sided ? 2.0f : 1.0f);
     return 0;
 }
@@ -278,11 +279,19 @@ int light_sample_li(const Scene *scene, const Light *l, vec3 p, float u0, float 
         float dist = sqrtf(d2);
         s->wi = v3_scale(d, 1.0f / dist);
         s->distance = dist;
-        /* radiance leaving y towards p: evaluate the material at the sampled point */
-        SurfaceHit hit;
-        scene_surface_hit(scene, l->instance, l->local_prim, t, bc.x, bc.y, &hit);
-        s->radiance = scene_emitted_radiance(scene, &hit, v3_neg(s->wi));
-        s->pdf = light_area_pdf_li(l, p, y, hit.ng);
+        /* radiance leaving y towards p */
+        const IoMaterial *mat = scene->prims[l->global_prim].material;
+        if (mat->emissive_tex.image >= 0) {
+            SurfaceHit hit; /* textured emission: evaluate the material at the sampled point */
+            scene_surface_hit(scene, l->instance, l->local_prim, t, bc.x, bc.y, &hit);
+            s->radiance = scene_emitted_radiance(scene, &hit, v3_neg(s->wi));
+            s->pdf = light_area_pdf_li(l, p, y, hit.ng);
+        } else {
+            vec3 ng = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+            int front = v3_dot(s->wi, ng) < 0.0f;
+            s->radiance = front || mat->double_sided ? l->emission : v3s(0.0f);
+            s->pdf = light_area_pdf_li(l, p, y, ng);
+        }
         s->is_delta = 0;
         return s->pdf > 0.0f && isfinite(s->pdf) && !v3_is_black(s->radiance);
     }

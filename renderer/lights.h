@@ -31,6 +31,7 @@ typedef struct Light {
     /* area */
     uint32_t instance, local_prim, global_prim;
     float area;               /* world-space area of the primitive */
+    vec3 emission;            /* emissiveFactor x strength (times the texture, if any) */
     Distribution1D triangles; /* world triangle areas */
     float *world_vertices;    /* 9 floats per triangle, world space */
     float power;              /* estimate for the power sampler (luminance, W) */

@@ -110,7 +110,7 @@ vec3 ggx_sample_visible_normal(vec3 wo, float alpha, float u1, float u2) {
     p2 = (1.0f - s) * safe_sqrtf(1.0f - p1 * p1) + s * p2;
     vec3 nh = v3_add(v3_add(v3_scale(t1, p1), v3_scale(t2, p2)),
                      v3_scale(vh, safe_sqrtf(1.0f - p1 * p1 - p2 * p2)));
-    vec3 ne = v3_normalize(v3(alpha * nh.x, alpha * nh.y, fmaxf(0.0f, nh.z)));
+    vec3 ne = v3_normalize(v3(alpha * nh.x, alpha * nh.y, maxf(nh.z, 0.0f)));
     return flip ? v3_neg(ne) : ne;
 }
 

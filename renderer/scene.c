@@ -90,7 +90,9 @@ void scene_surface_hit(const Scene *scene, uint32_t instance, uint32_t local_pri
     vec3 po = v3_add(v3_add(v3_scale(p0, b0), v3_scale(p1, b1)), v3_scale(p2, b2));
     hit->p = xform_point(inst->xform, po);
     vec3 e1 = v3_sub(p1, p0), e2 = v3_sub(p2, p0);
-    vec3 ng = v3_normalize(normal_to_world(inst, v3_cross(e1, e2)));
+    /* world-space winding: glTF flips the front face of mirrored instances (negative
+     * determinant), which the cross product of transformed edges gets right */
+    vec3 ng = v3_normalize(v3_cross(xform_vector(inst->xform, e1), xform_vector(inst->xform, e2)));
     hit->ng = ng;
     vec3 ns = ng;
     if (p->normals) {
@@ -106,57 +108,60 @@ void scene_surface_hit(const Scene *scene, uint32_t instance, uint32_t local_pri
         }
     }
     hit->uv = prim_uv(p, i0, i1, i2, b1, b2);
-    /* tangent: from TANGENT if present, else from the UV parameterisation */
-    vec3 t = v3(0, 0, 0);
-    if (p->tangents) {
-        const float *tg = p->tangents;
-        vec3 t0 = v3(tg[4 * i0], tg[4 * i0 + 1], tg[4 * i0 + 2]);
-        vec3 t1 = v3(tg[4 * i1], tg[4 * i1 + 1], tg[4 * i1 + 2]);
-        vec3 t2 = v3(tg[4 * i2], tg[4 * i2 + 1], tg[4 * i2 + 2]);
-        t = xform_vector(inst->xform, v3_add(v3_add(v3_scale(t0, b0), v3_scale(t1, b1)), v3_scale(t2, b2)));
-        if (tg[4 * i0 + 3] < 0.0f) t = v3_neg(t); /* handedness folded into the tangent sign */
-    } else if (p->uvs) {
-        float du1 = p->uvs[2 * i1] - p->uvs[2 * i0], dv1 = p->uvs[2 * i1 + 1] - p->uvs[2 * i0 + 1];
-        float du2 = p->uvs[2 * i2] - p->uvs[2 * i0], dv2 = p->uvs[2 * i2 + 1] - p->uvs[2 * i0 + 1];
-        float det = du1 * dv2 - dv1 * du2;
-        if (fabsf(det) > 1e-20f)
-            t = xform_vector(inst->xform, v3_scale(v3_sub(v3_scale(e1, dv2), v3_scale(e2, dv1)), 1.0f / det));
-    }
-    t = v3_sub(t, v3_scale(ns, v3_dot(ns, t)));
-    float tl = v3_length(t);
-    if (!(tl > 1e-12f) || !isfinite(tl)) {
-        vec3 b;
-        onb_from_normal(ns, &t, &b);
-    } else {
-        t = v3_scale(t, 1.0f / tl);
-    }
-    hit->dpdu = t;
     hit->ns = ns;
-    hit->material = sp->material;
-    hit->instance = instance;
-    hit->local_prim = local_prim;
-    hit->global_prim = global;
-    hit->triangle = triangle;
-
-    /* normal map (tangent-space, glTF: +Y up in the texture = bitangent) */
     const IoMaterial *mat = sp->material;
-    if (texture_present(scene, &mat->normal_tex)) {
+    if (!texture_present(scene, &mat->normal_tex)) {
+        /* the BSDF is isotropic: any tangent will do, and a branchless basis is cheapest */
+        vec3 b;
+        onb_from_normal(ns, &hit->dpdu, &b);
+    } else {
+        /* tangent: from TANGENT if present, else from the UV parameterisation */
+        vec3 t = v3(0, 0, 0);
+        if (p->tangents) {
+            const float *tg = p->tangents;
+            vec3 t0 = v3(tg[4 * i0], tg[4 * i0 + 1], tg[4 * i0 + 2]);
+            vec3 t1 = v3(tg[4 * i1], tg[4 * i1 + 1], tg[4 * i1 + 2]);
+            vec3 t2 = v3(tg[4 * i2], tg[4 * i2 + 1], tg[4 * i2 + 2]);
+            t = xform_vector(inst->xform, v3_add(v3_add(v3_scale(t0, b0), v3_scale(t1, b1)), v3_scale(t2, b2)));
+        } else if (p->uvs) {
+            float du1 = p->uvs[2 * i1] - p->uvs[2 * i0], dv1 = p->uvs[2 * i1 + 1] - p->uvs[2 * i0 + 1];
+            float du2 = p->uvs[2 * i2] - p->uvs[2 * i0], dv2 = p->uvs[2 * i2 + 1] - p->uvs[2 * i0 + 1];
+            float det = du1 * dv2 - dv1 * du2;
+            if (fabsf(det) > 1e-20f)
+                t = xform_vector(inst->xform, v3_scale(v3_sub(v3_scale(e1, dv2), v3_scale(e2, dv1)), 1.0f / det));
+        }
+        t = v3_sub(t, v3_scale(ns, v3_dot(ns, t)));
+        float tl = v3_length(t);
+        if (!(tl > 1e-12f) || !isfinite(tl)) {
+            vec3 b;
+            onb_from_normal(ns, &t, &b);
+        } else {
+            t = v3_scale(t, 1.0f / tl);
+        }
+        /* bitangent per glTF: cross(normal, tangent) * w, w the tangent's handedness */
+        vec3 bt = v3_cross(ns, t);
+        if (p->tangents && p->tangents[4 * i0 + 3] < 0.0f) bt = v3_neg(bt);
+        hit->dpdu = t;
+        /* normal map (tangent space, glTF: +Y of the texture = bitangent) */
         float texel[4];
         texture_lookup(&scene->io.images[mat->normal_tex.image], &mat->normal_tex, hit->uv, texel);
         vec3 tn = v3((2.0f * texel[0] - 1.0f) * mat->normal_scale,
                      (2.0f * texel[1] - 1.0f) * mat->normal_scale, 2.0f * texel[2] - 1.0f);
-        vec3 bt = v3_cross(ns, t);
-        if (p->tangents && p->tangents[4 * i0 + 3] < 0.0f) bt = v3_neg(bt), t = v3_neg(t);
         vec3 n = v3_add(v3_add(v3_scale(t, tn.x), v3_scale(bt, tn.y)), v3_scale(ns, tn.z));
         float len = v3_length(n);
         if (len > 1e-12f && isfinite(len) && v3_dot(n, ng) > 0.0f) {
             hit->ns = v3_scale(n, 1.0f / len);
-            vec3 tt = v3_sub(hit->dpdu, v3_scale(hit->ns, v3_dot(hit->ns, hit->dpdu)));
+            vec3 tt = v3_sub(t, v3_scale(hit->ns, v3_dot(hit->ns, t)));
             float ttl = v3_length(tt);
             if (ttl > 1e-12f) hit->dpdu = v3_scale(tt, 1.0f / ttl);
             else { vec3 b; onb_from_normal(hit->ns, &hit->dpdu, &b); }
         }
     }
+    hit->material = sp->material;
+    hit->instance = instance;
+    hit->local_prim = local_prim;
+    hit->global_prim = global;
+    hit->triangle = triangle;
 }
 
 void scene_material_at(const Scene *scene, const SurfaceHit *hit, MaterialSample *m) {

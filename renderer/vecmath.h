@@ -14,6 +14,10 @@
 typedef struct { float x, y, z; } vec3;
 typedef struct { float x, y; } vec2;
 
+/* min/max as compares: libm's fminf/fmaxf are calls unless -ffinite-math-only. With a NaN
+ * in a, both return b, so maxf(x, 0.0f) also maps NaN to 0. */
+static inline float maxf(float a, float b) { return a > b ? a : b; }
+static inline float minf(float a, float b) { return a < b ? a : b; }
 static inline vec3 v3(float x, float y, float z) { vec3 r = {x, y, z}; return r; }
 static inline vec3 v3s(float s) { vec3 r = {s, s, s}; return r; }
 static inline vec3 v3_add(vec3 a, vec3 b) { return v3(a.x + b.x, a.y + b.y, a.z + b.z); }
@@ -32,9 +36,9 @@ static inline vec3 v3_normalize(vec3 a) {
     return l > 0.0f ? v3_scale(a, 1.0f / l) : v3(0.0f, 0.0f, 1.0f);
 }
 static inline vec3 v3_lerp(vec3 a, vec3 b, float t) { return v3_add(v3_scale(a, 1.0f - t), v3_scale(b, t)); }
-static inline float v3_max_component(vec3 a) { return fmaxf(a.x, fmaxf(a.y, a.z)); }
-static inline vec3 v3_min(vec3 a, vec3 b) { return v3(fminf(a.x, b.x), fminf(a.y, b.y), fminf(a.z, b.z)); }
-static inline vec3 v3_max(vec3 a, vec3 b) { return v3(fmaxf(a.x, b.x), fmaxf(a.y, b.y), fmaxf(a.z, b.z)); }
+static inline float v3_max_component(vec3 a) { return maxf(a.x, maxf(a.y, a.z)); }
+static inline vec3 v3_min(vec3 a, vec3 b) { return v3(minf(a.x, b.x), minf(a.y, b.y), minf(a.z, b.z)); }
+static inline vec3 v3_max(vec3 a, vec3 b) { return v3(maxf(a.x, b.x), maxf(a.y, b.y), maxf(a.z, b.z)); }
 static inline int v3_is_black(vec3 a) { return a.x == 0.0f && a.y == 0.0f && a.z == 0.0f; }
 static inline int v3_is_finite(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
 /* Rec.709 luminance, used for light power and Russian roulette. */
@@ -42,7 +46,7 @@ static inline float v3_luminance(vec3 a) { return 0.2126f * a.x + 0.7152f * a.y 
 static inline float v3_average(vec3 a) { return (a.x + a.y + a.z) * (1.0f / 3.0f); }
 static inline float clampf(float x, float lo, float hi) { return x < lo ? lo : (x > hi ? hi : x); }
 static inline float sqr(float x) { return x * x; }
-static inline float safe_sqrtf(float x) { return sqrtf(fmaxf(x, 0.0f)); }
+static inline float safe_sqrtf(float x) { return sqrtf(maxf(x, 0.0f)); }
 
 /* Orthonormal basis around unit n (Duff et al. 2017, branchless). */
 static inline void onb_from_normal(vec3 n, vec3 *t, vec3 *b) {

@@ -322,6 +322,25 @@ static void escaped_range(void *vctx, size_t b, size_t e, int thread) {
     }
 }
 
+#define SHADE_PREFETCH 8
+static inline void prefetch_path(const PathState *ps, uint32_t p) {
+    __builtin_prefetch(&ps->rng_key[p]);
+    __builtin_prefetch(&ps->hit_inst[p]);
+    __builtin_prefetch(&ps->hit_geom[p]);
+    __builtin_prefetch(&ps->hit_prim[p]);
+    __builtin_prefetch(&ps->hit_u[p]);
+    __builtin_prefetch(&ps->hit_v[p]);
+    __builtin_prefetch(&ps->hit_t[p]);
+    __builtin_prefetch(&ps->ray_dir[3 * p]);
+    __builtin_prefetch(&ps->throughput[3 * p], 1);
+    __builtin_prefetch(&ps->radiance[3 * p], 1);
+    __builtin_prefetch(&ps->prev_pos[3 * p], 1);
+    __builtin_prefetch(&ps->prev_normal[3 * p], 1);
+    __builtin_prefetch(&ps->prev_delta[p], 1);
+    __builtin_prefetch(&ps->prev_bsdf_pdf[p], 1);
+    __builtin_prefetch(&ps->eta_scale[p], 1);
+}
+
 static void shade_range(void *vctx, size_t b, size_t e, int thread) {
     (void)thread;
     ShadeCtx *c = vctx;
@@ -331,6 +350,9 @@ static void shade_range(void *vctx, size_t b, size_t e, int thread) {
     const Lights *lights = &scene->lights;
     const uint32_t depth = (uint32_t)r->depth;
     for (size_t i = b; i < e; ++i) {
+        /* The hit queue is in (primitive, triangle) order, so slots are visited in random
+         * order: prefetch the slot a few items ahead to overlap the cache misses. */
+        if (i + SHADE_PREFETCH < e) prefetch_path(ps, c->items[i + SHADE_PREFETCH]);
         uint32_t p = c->items[i];
         uint64_t key = ps->rng_key[p];
         ps->continues[p] = 0;

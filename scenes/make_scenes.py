@@ -627,7 +627,40 @@ def two_lights():
     g.write(os.path.join(ROOT, 'tests', 'scenes', 'two_lights.gltf'))
 
 
+def bench_scene():
+    """The benchmark scene (simple materials, heavy geometry): a 12 x 4 x 12 m Lambert room
+    with 64 instances of one 32,768-triangle sphere (2.1 M triangles traced through Embree
+    instancing), four point lights and an emissive ceiling panel, Blender units."""
+    g = Gltf()
+    wall = g.material('wall', base=(0.7, 0.7, 0.7), lambert=True)
+    ball = g.material('ball', base=(0.6, 0.45, 0.3), lambert=True)
+    panel = g.material('panel', base=(0.0, 0.0, 0.0), lambert=True, emissive=(1.0, 0.95, 0.9),
+                       strength=6.0)
+    X, Y, Z = 6.0, 4.0, 6.0
+    g.mesh('floor', 'floor', quad((-X, 0, -Z), (-X, 0, Z), (X, 0, Z), (X, 0, -Z)), wall)
+    g.mesh('ceiling', 'ceiling', quad((-X, Y, -Z), (X, Y, -Z), (X, Y, Z), (-X, Y, Z)), wall)
+    g.mesh('back_wall', 'back', quad((-X, 0, -Z), (X, 0, -Z), (X, Y, -Z), (-X, Y, -Z)), wall)
+    g.mesh('front_wall', 'front', quad((-X, 0, Z), (-X, Y, Z), (X, Y, Z), (X, 0, Z)), wall)
+    g.mesh('left_wall', 'left', quad((-X, 0, -Z), (-X, Y, -Z), (-X, Y, Z), (-X, 0, Z)), wall)
+    g.mesh('right_wall', 'right', quad((X, 0, -Z), (X, 0, Z), (X, Y, Z), (X, Y, -Z)), wall)
+    P = 1.0
+    g.mesh('panel', 'panel', quad((-P, Y - 0.01, -P), (P, Y - 0.01, -P), (P, Y - 0.01, P), (-P, Y - 0.01, P)), panel)
+    g.mesh('ball', 'ball', uv_sphere(0.5, segments=128, rings=128), ball, translation=(-4.2, 0.5, -4.2))
+    ball_mesh = len(g.doc['meshes']) - 1
+    for i in range(8):
+        for j in range(8):
+            if i == 0 and j == 0:
+                continue
+            g.node('ball_%d_%d' % (i, j), (-4.2 + 1.2 * i, 0.5 + 0.25 * ((i + j) % 3), -4.2 + 1.2 * j),
+                   None, mesh=ball_mesh)
+    for k, (x, z) in enumerate([(-3, -3), (3, -3), (-3, 3), (3, 3)]):
+        g.light('point_%d' % k, 'point', 3000.0, translation=(x, 3.2, z))
+    g.perspective('camera', (0.0, 3.2, 5.8), (0.0, 0.3, -0.5), 62.0, aspect=4 / 3)
+    g.write(os.path.join(ROOT, 'scenes', 'bench.gltf'))
+
+
 def main():
+    bench_scene()
     default_scene()
     furnace_sphere()
     point_plane()
