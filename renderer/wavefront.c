@@ -62,7 +62,6 @@ typedef struct Renderer {
     WorkQueue rays, hits, escaped, shadows;
     uint64_t *sort_keys, *sort_keys_tmp;
     uint32_t *sort_tmp;
-    uint32_t radix_count[1u << 11];
     Film film;
     CandelaStats *stats;
     CandelaRayLog *ray_log;
@@ -137,20 +136,21 @@ static inline float power_heuristic(float a, float b) {
 /* ---------------------------------------------------------------- sorting */
 
 /* LSD radix sort of (key, item) pairs, 11 bits a pass; digits that are the same in every
- * key are skipped. Stable, so equal keys keep queue order (which is deterministic). */
+ * key are skipped. Stable, so equal keys keep queue order (which is deterministic).
+ * keys_tmp/items_tmp are scratch of length n. */
 #define RADIX_BITS 11
 #define RADIX_BUCKETS (1u << RADIX_BITS)
-static void radix_sort_queue(Renderer *r, uint32_t *items, uint64_t *keys, uint32_t n) {
+static void radix_sort(uint32_t *items, uint64_t *keys, uint32_t n, uint64_t *keys_tmp, uint32_t *items_tmp) {
     if (n < 2) return;
     uint64_t any = 0, all = ~0ull;
     for (uint32_t i = 0; i < n; ++i) { any |= keys[i]; all &= keys[i]; }
     uint64_t varying = any ^ all;
-    uint64_t *k_in = keys, *k_out = r->sort_keys_tmp;
-    uint32_t *v_in = items, *v_out = r->sort_tmp;
-    uint32_t *count = r->radix_count;
+    uint64_t *k_in = keys, *k_out = keys_tmp;
+    uint32_t *v_in = items, *v_out = items_tmp;
+    uint32_t count[RADIX_BUCKETS];
     for (int shift = 0; shift < 64; shift += RADIX_BITS) {
         if (((varying >> shift) & (RADIX_BUCKETS - 1)) == 0) continue;
-        memset(count, 0, RADIX_BUCKETS * sizeof *count);
+        memset(count, 0, sizeof count);
         for (uint32_t i = 0; i < n; ++i) count[(k_in[i] >> shift) & (RADIX_BUCKETS - 1)]++;
         uint32_t sum = 0;
         for (uint32_t b = 0; b < RADIX_BUCKETS; ++b) { uint32_t c = count[b]; count[b] = sum; sum += c; }
@@ -163,6 +163,27 @@ static void radix_sort_queue(Renderer *r, uint32_t *items, uint64_t *keys, uint3
         uint32_t *tv = v_in; v_in = v_out; v_out = tv;
     }
     if (v_in != items) memcpy(items, v_in, n * sizeof *items);
+}
+
+/* Queues are sorted in fixed segments of SORT_SEGMENT items, in parallel: the tracer and
+ * the shader consume a queue in chunks far smaller than a segment, so coherence within a
+ * segment is what matters, and fixed segment boundaries keep the order deterministic. */
+#define SORT_SEGMENT 8192u
+typedef struct SegmentSortCtx { Renderer *r; uint32_t *items; uint32_t n; } SegmentSortCtx;
+
+static void sort_segments_range(void *vctx, size_t b, size_t e, int thread) {
+    (void)thread;
+    SegmentSortCtx *c = vctx;
+    for (size_t seg = b; seg < e; ++seg) {
+        uint32_t first = (uint32_t)seg * SORT_SEGMENT;
+        uint32_t n = c->n - first < SORT_SEGMENT ? c->n - first : SORT_SEGMENT;
+        radix_sort(c->items + first, c->r->sort_keys + first, n, c->r->sort_keys_tmp + first, c->r->sort_tmp + first);
+    }
+}
+
+static void radix_sort_queue(Renderer *r, uint32_t *items, uint32_t n) {
+    SegmentSortCtx c = {r, items, n};
+    threadpool_parallel_for(r->pool, (n + SORT_SEGMENT - 1) / SORT_SEGMENT, 1, sort_segments_range, &c);
 }
 
 static inline uint64_t morton_spread(uint64_t x) {
@@ -546,7 +567,7 @@ static void run_batch(Renderer *r) {
         double ta = now_seconds();
         SortCtx sc = {r, r->rays.items};
         threadpool_parallel_for(r->pool, r->rays.count, 4096, ray_keys_range, &sc);
-        radix_sort_queue(r, r->rays.items, r->sort_keys, r->rays.count);
+        radix_sort_queue(r, r->rays.items, r->rays.count);
         double tb = now_seconds();
         st->time_sort += tb - ta;
         log_rays(r, &r->rays, 0);
@@ -568,7 +589,7 @@ static void run_batch(Renderer *r) {
         if (r->hits.count > 1) {
             SortCtx hc = {r, r->hits.items};
             threadpool_parallel_for(r->pool, r->hits.count, 4096, hit_keys_range, &hc);
-            radix_sort_queue(r, r->hits.items, r->sort_keys, r->hits.count);
+            radix_sort_queue(r, r->hits.items, r->hits.count);
         }
         double te = now_seconds();
         st->time_sort += te - td;
