@@ -508,6 +508,25 @@ def point_plane():
     g.write(os.path.join(ROOT, 'tests', 'scenes', 'point_plane.gltf'))
 
 
+def masked_planes():
+    """point_plane plus an occluder quad at y = 0.5 over [-2, 2]^2 with alphaMode MASK:
+    alpha 0.2 < cutoff 0.5 (masked_plane.gltf: invisible to camera and shadow rays, so the
+    image equals point_plane's exactly) and alpha 0.8 (masked_plane_opaque.gltf: the control,
+    which must differ)."""
+    for name, alpha in (('masked_plane', 0.2), ('masked_plane_opaque', 0.8)):
+        g = Gltf()
+        g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
+        m = g.material('cutout', **LAMBERT_WHITE)
+        g.doc['materials'][m]['pbrMetallicRoughness']['baseColorFactor'][3] = alpha
+        g.doc['materials'][m]['alphaMode'] = 'MASK'
+        g.doc['materials'][m]['alphaCutoff'] = 0.5
+        g.mesh('occluder', 'occluder', quad((-2.0, 0.5, -2.0), (-2.0, 0.5, 2.0), (2.0, 0.5, 2.0),
+                                            (2.0, 0.5, -2.0)), m)
+        g.light('point', 'point', 2 * math.pi, translation=(0.0, 1.0, 0.0))
+        top_ortho(g)
+        g.write(os.path.join(ROOT, 'tests', 'scenes', name + '.gltf'))
+
+
 def spot_plane():
     """As point_plane but a spot light pointing down, inner cone 1.2 rad (68.8 deg), outer 1.4 rad.
     The camera's corners are at 54.7 deg from the axis, so every pixel is inside the inner cone
@@ -664,6 +683,7 @@ def main():
     default_scene()
     furnace_sphere()
     point_plane()
+    masked_planes()
     spot_plane()
     directional_plane()
     area_plane()
