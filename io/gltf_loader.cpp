@@ -311,8 +311,10 @@ class Loader {
     std::vector<IoCamera> cameras_;
     std::map<std::pair<std::string, int>, int32_t> image_cache_;
 
+    // Warnings are held until the load succeeds: a failed load prints only its one error line.
+    std::vector<std::string> pending_warnings_;
     void warn(const std::string &msg) {
-        std::fprintf(stderr, "%s: warning: %s\n", path_.c_str(), msg.c_str());
+        pending_warnings_.push_back(msg);
         ++warnings_;
     }
     void release_all() {
@@ -962,6 +964,8 @@ void Loader::transfer(IoScene *out) {
     out->lights = s.lights;         out->num_lights = uint32_t(lights_.size());
     out->cameras = s.cameras;       out->num_cameras = uint32_t(cameras_.size());
     out->num_warnings = warnings_;
+    for (const std::string &w : pending_warnings_)
+        std::fprintf(stderr, "%s: warning: %s\n", path_.c_str(), w.c_str());
     prims_.clear();  // ownership of their arrays moved to *out
     images_.clear();
 }

@@ -678,8 +678,45 @@ def bench_scene():
     g.write(os.path.join(ROOT, 'scenes', 'bench.gltf'))
 
 
+def bad_inputs():
+    """Malformed scenes for tests/test_cli.sh, each wrong in exactly one way."""
+    out = os.path.join(ROOT, 'tests', 'bad')
+    tri = ([(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)], [(0.0, 0.0, 1.0)] * 3, [0, 1, 2])
+
+    def base():
+        g = Gltf()
+        g.mesh('tri', 'tri', tri, g.material('m', **LAMBERT_WHITE))
+        g.light('point', 'point', 1.0, translation=(0.0, 0.0, 2.0))
+        return g
+
+    g = base()  # a NaN in the first vertex position (bounds dropped so the JSON stays valid)
+    view = g.doc['bufferViews'][g.doc['accessors'][0]['bufferView']]
+    g.buf[view['byteOffset']:view['byteOffset'] + 4] = struct.pack('<f', float('nan'))
+    del g.doc['accessors'][0]['min'], g.doc['accessors'][0]['max']
+    g.write(os.path.join(out, 'nan_positions.gltf'))
+
+    g = base()  # index 7 into a 3-vertex primitive
+    acc = g.doc['accessors'][g.doc['meshes'][0]['primitives'][0]['indices']]
+    view = g.doc['bufferViews'][acc['bufferView']]
+    g.buf[view['byteOffset']:view['byteOffset'] + 2] = struct.pack('<H', 7)
+    g.write(os.path.join(out, 'index_out_of_range.gltf'))
+
+    for name, uri in (('missing_texture', 'missing.png'), ('zero_size_image', 'empty.png')):
+        g = base()
+        g.doc['images'] = [{'uri': uri}]
+        g.doc['textures'] = [{'source': 0}]
+        g.doc['materials'][0]['pbrMetallicRoughness']['baseColorTexture'] = {'index': 0}
+        g.write(os.path.join(out, name + '.gltf'))
+    open(os.path.join(out, 'empty.png'), 'wb').close()
+
+    g = base()  # an accessor that reads past the end of its buffer view
+    g.doc['accessors'][0]['count'] = 3000
+    g.write(os.path.join(out, 'accessor_overflow.gltf'))
+
+
 def main():
     bench_scene()
+    bad_inputs()
     default_scene()
     furnace_sphere()
     point_plane()

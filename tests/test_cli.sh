@@ -49,6 +49,13 @@ expect_error "empty gltf" "empty.gltf" -- render "$tmp/empty.gltf" "${common[@]}
 sed 's/"uri" *: *"data:[^"]*"/"uri": "missing.bin"/' "$scene" > "$tmp/missing_buffer.gltf"
 expect_error "missing buffer" "missing_buffer.gltf" -- render "$tmp/missing_buffer.gltf" "${common[@]}"
 
+# each file in tests/bad/ is wrong in exactly one way (made by scenes/make_scenes.py)
+expect_error "nan positions" "non-finite vertex positions" -- render "$root/tests/bad/nan_positions.gltf" "${common[@]}"
+expect_error "index out of range" "out of range" -- render "$root/tests/bad/index_out_of_range.gltf" "${common[@]}"
+expect_error "missing texture" "missing.png" -- render "$root/tests/bad/missing_texture.gltf" "${common[@]}"
+expect_error "zero-size image" "empty.png" -- render "$root/tests/bad/zero_size_image.gltf" "${common[@]}"
+expect_error "accessor overflow" "exceeds" -- render "$root/tests/bad/accessor_overflow.gltf" "${common[@]}"
+
 # help and version
 "$bin" --help | grep -q "candela render" && ok || bad "--help"
 "$bin" --version | grep -q "^candela [0-9]" && ok || bad "--version"
