@@ -27,6 +27,7 @@
 #define RR_START_DEPTH 3
 #define TRACE_CHUNK 256
 #define SHADE_GRAIN 256
+#define MAX_PARTS 64
 
 static double now_seconds(void) {
     struct timespec ts;
@@ -184,6 +185,35 @@ static void sort_segments_range(void *vctx, size_t b, size_t e, int thread) {
 static void radix_sort_queue(Renderer *r, uint32_t *items, uint32_t n) {
     SegmentSortCtx c = {r, items, n};
     threadpool_parallel_for(r->pool, (n + SORT_SEGMENT - 1) / SORT_SEGMENT, 1, sort_segments_range, &c);
+}
+
+/* Stages write path state by slot while walking a sorted queue, i.e. at random slots. If two
+ * threads shared a queue, they would write neighbouring slots of the same cache lines all the
+ * time (false sharing). So a queue is stably partitioned by slot block, (slot / 64) mod T,
+ * and each of the T parts goes to one thread: every cache line of the path state has one
+ * writer, and each part keeps the sorted order. */
+#define PARTITION_BLOCK_SHIFT 6
+typedef struct PartitionCtx { ParallelForFn fn; void *ctx; const uint32_t *offsets; } PartitionCtx;
+
+static void partition_trampoline(void *vctx, size_t b, size_t e, int thread) {
+    PartitionCtx *c = vctx;
+    for (size_t part = b; part < e; ++part)
+        if (c->offsets[part + 1] > c->offsets[part]) c->fn(c->ctx, c->offsets[part], c->offsets[part + 1], thread);
+}
+
+static void run_partitioned(Renderer *r, uint32_t *items, uint32_t n, ParallelForFn fn, void *ctx) {
+    uint32_t parts = (uint32_t)threadpool_size(r->pool);
+    if (parts <= 1 || n < 1024) { if (n) fn(ctx, 0, n, 0); return; }
+    if (parts > MAX_PARTS) parts = MAX_PARTS;
+    uint32_t offsets[MAX_PARTS + 1] = {0};
+    for (uint32_t i = 0; i < n; ++i) offsets[((items[i] >> PARTITION_BLOCK_SHIFT) % parts) + 1]++;
+    for (uint32_t k = 0; k < parts; ++k) offsets[k + 1] += offsets[k];
+    uint32_t fill[MAX_PARTS];
+    memcpy(fill, offsets, parts * sizeof *fill);
+    for (uint32_t i = 0; i < n; ++i) r->sort_tmp[fill[(items[i] >> PARTITION_BLOCK_SHIFT) % parts]++] = items[i];
+    memcpy(items, r->sort_tmp, n * sizeof *items);
+    PartitionCtx pc = {fn, ctx, offsets};
+    threadpool_parallel_for(r->pool, parts, 1, partition_trampoline, &pc);
 }
 
 static inline uint64_t morton_spread(uint64_t x) {
@@ -572,7 +602,7 @@ static void run_batch(Renderer *r) {
         st->time_sort += tb - ta;
         log_rays(r, &r->rays, 0);
         TraceCtx tc = {r, r->rays.items, r->depth == 0};
-        threadpool_parallel_for(r->pool, r->rays.count, 1024, trace_range, &tc);
+        run_partitioned(r, r->rays.items, r->rays.count, trace_range, &tc);
         double tc_end = now_seconds();
         st->time_trace += tc_end - tb;
         /* partition into hit and escaped queues, in ray-queue order */
@@ -583,7 +613,7 @@ static void run_batch(Renderer *r) {
             else r->hits.items[r->hits.count++] = p;
         }
         ShadeCtx ec = {r, r->escaped.items};
-        threadpool_parallel_for(r->pool, r->escaped.count, SHADE_GRAIN, escaped_range, &ec);
+        run_partitioned(r, r->escaped.items, r->escaped.count, escaped_range, &ec);
         /* sorted deferred shading: hits ordered by (geometry, primitive) */
         double td = now_seconds();
         if (r->hits.count > 1) {
@@ -594,7 +624,7 @@ static void run_batch(Renderer *r) {
         double te = now_seconds();
         st->time_sort += te - td;
         ShadeCtx shc = {r, r->hits.items};
-        threadpool_parallel_for(r->pool, r->hits.count, SHADE_GRAIN, shade_range, &shc);
+        run_partitioned(r, r->hits.items, r->hits.count, shade_range, &shc);
         /* compaction, in hit-queue order */
         r->rays.count = r->shadows.count = 0;
         for (uint32_t i = 0; i < r->hits.count; ++i) {
@@ -607,7 +637,7 @@ static void run_batch(Renderer *r) {
         st->rays_shadow += r->shadows.count;
         log_rays(r, &r->shadows, 1);
         ShadeCtx sh = {r, r->shadows.items};
-        threadpool_parallel_for(r->pool, r->shadows.count, 1024, shadow_range, &sh);
+        run_partitioned(r, r->shadows.items, r->shadows.count, shadow_range, &sh);
         st->time_shadow += now_seconds() - tf;
     }
 
@@ -815,7 +845,9 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
     int spp_done = 0, iteration = 0;
     while (spp_done < o->spp) {
         /* schedule 1, 1, 2, 4, 8, ... capped, summing to spp */
-        int spp_i = iteration < 2 ? 1 : 1 << (iteration - 1);
+        /* (the shift is bounded: at iteration 32 an unbounded 1 << 31 overflowed and the
+         * schedule ran backwards) */
+        int spp_i = iteration < 2 ? 1 : (iteration - 1 >= 30 ? max_iter_spp : 1 << (iteration - 1));
         if (spp_i > max_iter_spp) spp_i = max_iter_spp;
         if (spp_i > o->spp - spp_done) spp_i = o->spp - spp_done;
         r->sample_base = (uint64_t)spp_done;

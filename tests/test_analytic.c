@@ -16,10 +16,11 @@
  *
  * Scenes and exact values (rho = 0.5 Lambert, specularFactor 0, everywhere):
  *   furnace_sphere     closed sphere, Le = 1, albedo a = 0.5, camera at the centre:
- *                      L = Le / (1 - a) = 2. With max_depth D the path sum is truncated to
- *                      Le * sum_{k=0}^{D} a^k (or up to D-1, depending on whether the emission
- *                      seen at vertex 1 counts as depth 0); max_depth 64 makes the truncation
- *                      < 1e-19. Russian roulette does not bias.
+ *                      L = Le / (1 - a) = 2. With max_depth D (1 = direct light only) the sum
+ *                      is truncated to Le * sum_{k=0}^{D} a^k: 1.5 for D = 1, 1.75 for D = 2
+ *                      (checked); max_depth 64 makes the truncation < 1e-19. Russian roulette
+ *                      does not bias.
+ *   schedule           40 spp with max_iteration_spp 1 (40 iterations) terminates, in a child.
  *   point_plane        point light I = 2 pi W/sr at h = 1 over the plane y = 0:
  *                      L(x) = rho/pi * I * h / r^3, r^2 = h^2 + |x|^2, so L(0) = 1.
  *                      Also rendered with Blender units: exactly 1/683 of that.
@@ -34,7 +35,7 @@
  *   env_directions     orthographic cameras (parallel rays) aimed at texel centres of the 8x4
  *                      lat-long env_grid.exr: pixel = texel ((i+1)/8, (j+1)/4, .25 + .5((i+j)%2)).
  *                      Checks the mapping u = atan2(-dz, -dx)/2pi + .5, v = .5 - asin(dy)/pi.
- *   two_lights         no exact value: the uniform and the power light sampler (different seeds)
+ *   two_lights         no exact value: the uniform vs the power and vs the tree light sampler (different seeds)
  *                      must agree: z = (a - b)/sqrt(va + vb) per pixel, mean z^2 within
  *                      1 +- 5 sqrt(2/N), and the mean difference within 5 standard errors.
  *   default            scenes/default.gltf (Blender units) smoke test: renders, finite, sane mean. */
@@ -42,7 +43,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "candela.h"
 #include "check.h"
@@ -105,7 +108,7 @@ static int render(const RenderSpec *s, CandelaImage *img) {
     if (img->width != s->width || img->height != s->height || !img->rgb || !img->variance) return 1;
     fprintf(stderr, "  render %-22s %-10s %dx%d %4d spp depth %2d %s %s: %.2f s, %u tris, %u lights\n",
             s->file, s->camera ? s->camera : "-", s->width, s->height, s->spp, o.max_depth,
-            s->sampler == CANDELA_LIGHT_SAMPLER_POWER ? "power" : "uniform",
+            s->sampler == CANDELA_LIGHT_SAMPLER_POWER ? "power" : s->sampler == CANDELA_LIGHT_SAMPLER_TREE ? "tree" : "uniform",
             s->units == CANDELA_LIGHT_UNITS_RAW ? "raw" : "blender", t, st.num_triangles,
             st.num_lights);
     CHECK(t < 30.0, "%s: render took %.1f s", s->file, t);
@@ -222,8 +225,10 @@ static double square_irradiance(double x, double z, double Le) {
 
 static double area_light_L(double x, double z) { return 0.5 / M_PI * square_irradiance(x, z, 2.0); }
 
+/* 256 spp: path lengths are geometric, so with few samples the pixels that drew no long path
+ * under-estimate their own variance (64 spp puts ~1% of the pixels beyond 6 sigma). */
 static void test_furnace(void) {
-    RenderSpec s = {"furnace_sphere.gltf", NULL, 32, 32, 64, 64, CANDELA_LIGHT_SAMPLER_POWER,
+    RenderSpec s = {"furnace_sphere.gltf", NULL, 32, 32, 256, 64, CANDELA_LIGHT_SAMPLER_POWER,
                     CANDELA_LIGHT_UNITS_RAW, 1};
     CandelaImage img;
     if (render(&s, &img) == 0) {
@@ -232,6 +237,62 @@ static void test_furnace(void) {
         free(e);
     }
     candela_image_free(&img);
+
+    /* max_depth 2: emission + 2 bounces = Le (1 + a + a^2) = 1.75 (pins the depth convention:
+     * 1.5 or 1.875 would be off by hundreds of standard errors) */
+    RenderSpec s2 = {"furnace_sphere.gltf", NULL, 32, 32, 64, 2, CANDELA_LIGHT_SAMPLER_POWER,
+                     CANDELA_LIGHT_UNITS_RAW, 2};
+    if (render(&s2, &img) == 0) {
+        double *e = constant_exact(32 * 32, 1.75, 1.75, 1.75);
+        compare("furnace_sphere (max_depth 2)", &img, e);
+        free(e);
+    }
+    candela_image_free(&img);
+}
+
+/* The spp schedule 1, 1, 2, 4, ... capped by max_iteration_spp must sum to spp however many
+ * iterations it takes (more than 32 iterations once overflowed "1 << (iteration - 1)" and never
+ * finished). Runs in a child process with an alarm so a hang fails instead of stalling. */
+static void test_schedule(void) {
+    pid_t pid = fork();
+    if (pid < 0) {
+        CHECK(pid >= 0, "fork failed");
+        return;
+    }
+    if (pid == 0) {
+        alarm(30);
+        CandelaOptions o;
+        candela_options_default(&o);
+        char path[4096];
+        snprintf(path, sizeof path, "%s/directional_plane.gltf", g_dir);
+        o.scene_path = path;
+        o.width = 2;
+        o.height = 2;
+        o.spp = 40;
+        o.max_iteration_spp = 1;
+        o.light_units = CANDELA_LIGHT_UNITS_RAW;
+        o.threads = 2;
+        o.quiet = 1;
+        CandelaImage img;
+        CandelaStats st;
+        memset(&st, 0, sizeof st);
+        char err[CANDELA_ERR_LEN];
+        err[0] = 0;
+        if (candela_render(&o, &img, &st, NULL, err) != 0) {
+            fprintf(stderr, "FAIL schedule: %s\n", err);
+            _exit(1);
+        }
+        int ok = st.iterations == 40 && fabs(img.rgb[0] - cos(M_PI / 6)) < 1e-4;
+        if (!ok) fprintf(stderr, "FAIL schedule: %d iterations (expected 40), pixel %g\n", st.iterations, img.rgb[0]);
+        candela_image_free(&img);
+        _exit(ok ? 0 : 1);
+    }
+    int status = 0;
+    waitpid(pid, &status, 0);
+    CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0,
+          "schedule: 40 spp with max_iteration_spp 1 %s", WIFSIGNALED(status) ? "hung (killed by alarm)" : "failed");
+    fprintf(stderr, "  schedule: 40 spp in 40 iterations of 1 spp %s\n",
+            WIFEXITED(status) && WEXITSTATUS(status) == 0 ? "ok" : "FAILED");
 }
 
 static void check_top_aovs(const char *name, const CandelaImage *img, double depth) {
@@ -314,58 +375,70 @@ static void test_env(void) {
     }
 }
 
+/* Compares two renders of the same scene made with different light samplers (uniform as
+ * the reference, seed-independent): per-pixel z^2 and the mean difference. */
+static void compare_samplers(const CandelaImage *a, const CandelaImage *b, const char *bname) {
+    const int n = a->width * a->height;
+    for (int c = 0; c < 3; ++c) {
+        double z2 = 0, sd = 0, sv = 0, sa = 0, sb = 0, va_sum = 0, vb_sum = 0;
+        int m = 0, exact_mismatch = 0;
+        for (int p = 0; p < n; ++p) {
+            double x = a->rgb[3 * p + c], y = b->rgb[3 * p + c];
+            double va = a->variance[3 * p + c], vb = b->variance[3 * p + c];
+            sa += x; sb += y; sd += x - y; sv += va + vb; va_sum += va; vb_sum += vb;
+            if (va + vb > 0) {
+                z2 += (x - y) * (x - y) / (va + vb);
+                ++m;
+            } else if (fabs(x - y) > 1e-5 * fmax(fabs(x), fabs(y)) + 1e-7) {
+                ++exact_mismatch; /* both noiseless (e.g. the emitter seen directly) */
+            }
+        }
+        CHECK(exact_mismatch == 0, "two_lights %s ch%d: %d noiseless pixels differ", bname, c, exact_mismatch);
+        CHECK(m > n / 2, "two_lights %s ch%d: only %d noisy pixels", bname, c, m);
+        double mz2 = m ? z2 / m : 0, tol = 5.0 * sqrt(2.0 / (m ? m : 1));
+        CHECK(fabs(mz2 - 1.0) <= tol, "two_lights %s ch%d: mean z^2 = %.4f, expected 1 +- %.3f", bname, c,
+              mz2, tol);
+        double se = sqrt(sv) / n;
+        CHECK(fabs(sd / n) <= 5.0 * se, "two_lights %s ch%d: mean difference %.3g > 5 x stderr %.3g",
+              bname, c, sd / n, se);
+        fprintf(stderr,
+                "  two_lights ch%d: uniform mean %.5f %s mean %.5f diff %+.2e (stderr %.2e), "
+                "mean z^2 %.4f over %d px, sum var uniform %.3g %s %.3g\n",
+                c, sa / n, bname, sb / n, sd / n, se, mz2, m, va_sum, bname, vb_sum);
+    }
+}
+
 static void test_samplers(void) {
-    const int w = 32, h = 32, n = w * h;
+    const int w = 32, h = 32;
     RenderSpec su = {"two_lights.gltf", NULL, w, h, 256, 0, CANDELA_LIGHT_SAMPLER_UNIFORM,
                      CANDELA_LIGHT_UNITS_RAW, 11};
     RenderSpec sp = su;
     sp.sampler = CANDELA_LIGHT_SAMPLER_POWER;
     sp.seed = 12; /* independent samples: same seeds would correlate the two images */
-    CandelaImage a, b;
-    int ra = render(&su, &a), rb = render(&sp, &b);
-    if (ra == 0 && rb == 0 && all_finite("two_lights uniform", &a) && all_finite("two_lights power", &b)) {
-        for (int c = 0; c < 3; ++c) {
-            double z2 = 0, sd = 0, sv = 0, sa = 0, sb = 0, va_sum = 0, vb_sum = 0;
-            int m = 0, exact_mismatch = 0;
-            for (int p = 0; p < n; ++p) {
-                double x = a.rgb[3 * p + c], y = b.rgb[3 * p + c];
-                double va = a.variance[3 * p + c], vb = b.variance[3 * p + c];
-                sa += x; sb += y; sd += x - y; sv += va + vb; va_sum += va; vb_sum += vb;
-                if (va + vb > 0) {
-                    z2 += (x - y) * (x - y) / (va + vb);
-                    ++m;
-                } else if (fabs(x - y) > 1e-5 * fmax(fabs(x), fabs(y)) + 1e-7) {
-                    ++exact_mismatch; /* both noiseless (e.g. the emitter seen directly) */
-                }
-            }
-            CHECK(exact_mismatch == 0, "two_lights ch%d: %d noiseless pixels differ", c, exact_mismatch);
-            CHECK(m > n / 2, "two_lights ch%d: only %d noisy pixels", c, m);
-            double mz2 = m ? z2 / m : 0, tol = 5.0 * sqrt(2.0 / (m ? m : 1));
-            CHECK(fabs(mz2 - 1.0) <= tol, "two_lights ch%d: mean z^2 = %.4f, expected 1 +- %.3f", c,
-                  mz2, tol);
-            double se = sqrt(sv) / n;
-            CHECK(fabs(sd / n) <= 5.0 * se, "two_lights ch%d: mean difference %.3g > 5 x stderr %.3g",
-                  c, sd / n, se);
-            fprintf(stderr,
-                    "  two_lights ch%d: uniform mean %.5f power mean %.5f diff %+.2e (stderr %.2e), "
-                    "mean z^2 %.4f over %d px, sum var uniform %.3g power %.3g\n",
-                    c, sa / n, sb / n, sd / n, se, mz2, m, va_sum, vb_sum);
-        }
-    }
+    RenderSpec st = su;
+    st.sampler = CANDELA_LIGHT_SAMPLER_TREE;
+    st.seed = 13;
+    CandelaImage a, b, t;
+    int ra = render(&su, &a), rb = render(&sp, &b), rt = render(&st, &t);
+    int fa = ra == 0 && all_finite("two_lights uniform", &a);
+    if (fa && rb == 0 && all_finite("two_lights power", &b)) compare_samplers(&a, &b, "power");
+    if (fa && rt == 0 && all_finite("two_lights tree", &t)) compare_samplers(&a, &t, "tree");
     candela_image_free(&a);
     candela_image_free(&b);
+    candela_image_free(&t);
 }
 
 static void test_default_scene(void) {
+    const char *rel = "../../scenes/default.gltf";
     char path[4096];
-    snprintf(path, sizeof path, "%s/../../scenes/default.gltf", g_dir);
+    snprintf(path, sizeof path, "%s/%s", g_dir, rel);
     FILE *fh = fopen(path, "rb");
     if (!fh) {
         fprintf(stderr, "  (no %s, default-scene smoke test skipped)\n", path);
         return;
     }
     fclose(fh);
-    RenderSpec s = {path, NULL, 48, 36, 16, 0, CANDELA_LIGHT_SAMPLER_POWER,
+    RenderSpec s = {rel, NULL, 48, 36, 16, 0, CANDELA_LIGHT_SAMPLER_POWER,
                     CANDELA_LIGHT_UNITS_BLENDER, 1};
     CandelaImage img;
     if (render(&s, &img) == 0 && all_finite("default", &img)) {
@@ -381,6 +454,7 @@ static void test_default_scene(void) {
 
 int main(int argc, char **argv) {
     if (argc > 1) g_dir = argv[1];
+    test_schedule(); /* first: forks before this process has started any threads */
     test_furnace();
     test_plane("point_plane.gltf", "point_plane", point_light_L, 1.0, CANDELA_LIGHT_UNITS_RAW, 3.0);
     test_plane("point_plane.gltf", "point_plane (blender units)", point_light_L, 1.0 / 683.0,
