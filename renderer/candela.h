@@ -12,7 +12,8 @@
 
 typedef enum {
     CANDELA_LIGHT_SAMPLER_UNIFORM = 0,
-    CANDELA_LIGHT_SAMPLER_POWER = 1
+    CANDELA_LIGHT_SAMPLER_POWER = 1,
+    CANDELA_LIGHT_SAMPLER_TREE = 2   /* light BVH (Conty Estevez & Kulla 2018), renderer/lighttree.h */
 } CandelaLightSampler;
 
 typedef enum {

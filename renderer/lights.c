@@ -59,6 +59,7 @@ static int build_area_light(Scene *scene, uint32_t instance, uint32_t local, Lig
     const IoMaterial *mat = scene->prims[global].material;
     vec3 e = v3_scale(v3(mat->emissive[0], mat->emissive[1], mat->emissive[2]), mat->emissive_strength);
     l->emission = v3_max(e, v3s(0.0f));
+    l->two_sided = mat->double_sided ? 1 : 0;
     l->power = PI_F * l->area * fmaxf(v3_luminance(e), 0.0f) * (mat->double_sided ? 2.0f : 1.0f);
     return 0;
 }
@@ -166,6 +167,7 @@ int lights_build(Scene *scene, CandelaLightUnits units, CandelaLightSampler stra
     int rc = dist1d_init(&ls->power_distribution, powers, ls->count);
     free(powers);
     if (rc != 0) goto oom;
+    if (strategy == CANDELA_LIGHT_SAMPLER_TREE && light_tree_build(&ls->tree, ls->lights, ls->count) != 0) goto oom;
     return 0;
 oom:
     snprintf(err, err_len, "out of memory while building the light list");
@@ -183,6 +185,7 @@ void lights_free(Lights *ls) {
     free(ls->lights);
     if (ls->environment >= 0) dist2d_free(&ls->env_distribution);
     if (ls->power_distribution.cdf) dist1d_free(&ls->power_distribution);
+    light_tree_free(&ls->tree);
     memset(ls, 0, sizeof *ls);
     ls->environment = -1;
 }
@@ -190,9 +193,11 @@ void lights_free(Lights *ls) {
 /* ---------------------------------------------------------------- selection */
 
 uint32_t light_select(const Lights *ls, const LightSampleContext *ctx, float u, float *pmf) {
-    (void)ctx; /* uniform and power ignore the shading point; context-aware strategies use it */
+    /* uniform and power ignore the shading point; context-aware strategies use it */
     if (ls->count == 0) { *pmf = 0.0f; return 0; }
     switch (ls->strategy) {
+    case CANDELA_LIGHT_SAMPLER_TREE:
+        return light_tree_select(&ls->tree, ctx, u, pmf);
     case CANDELA_LIGHT_SAMPLER_POWER:
         return dist1d_sample_discrete(&ls->power_distribution, u, pmf, NULL);
     default: {
@@ -205,9 +210,10 @@ uint32_t light_select(const Lights *ls, const LightSampleContext *ctx, float u, 
 }
 
 float light_select_pmf(const Lights *ls, const LightSampleContext *ctx, uint32_t light) {
-    (void)ctx;
     if (light >= ls->count) return 0.0f;
     switch (ls->strategy) {
+    case CANDELA_LIGHT_SAMPLER_TREE:
+        return light_tree_pmf(&ls->tree, ctx, light);
     case CANDELA_LIGHT_SAMPLER_POWER:
         return dist1d_pmf(&ls->power_distribution, light);
     default:

@@ -7,14 +7,16 @@
  * Light selection goes through one interface so that MIS stays correct whatever the
  * strategy: light_select() picks a light for a shading context and returns its probability;
  * light_select_pmf() returns the probability the same context gives a named light. The two
- * must agree exactly (tests/test_lights.c). Cache points (issue 3) plug in as another
- * LightSelectStrategy whose context carries the cache point index. */
+ * must agree exactly (tests/test_lights.c). Strategies: uniform, power, and the light BVH
+ * (lighttree.h: importance from the shading point and normal). Cache points (issue 3) plug
+ * in as another LightSelectStrategy whose context carries the cache point index. */
 #ifndef CANDELA_LIGHTS_H
 #define CANDELA_LIGHTS_H
 
 #include <stdint.h>
 
 #include "candela.h"
+#include "lighttree.h"
 #include "sampling.h"
 #include "vecmath.h"
 
@@ -34,6 +36,7 @@ typedef struct Light {
     vec3 emission;            /* emissiveFactor x strength (times the texture, if any) */
     Distribution1D triangles; /* world triangle areas */
     float *world_vertices;    /* 9 floats per triangle, world space */
+    int two_sided;            /* the material is double-sided: emits from both faces */
     float power;              /* estimate for the power sampler (luminance, W) */
 } Light;
 
@@ -49,6 +52,7 @@ typedef struct Lights {
     Distribution2D env_distribution;
     CandelaLightSampler strategy;
     Distribution1D power_distribution;
+    LightTree tree;             /* CANDELA_LIGHT_SAMPLER_TREE only */
 } Lights;
 
 /* Build from the scene's punctual lights, emissive primitives and environment. */

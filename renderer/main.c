@@ -24,7 +24,7 @@ static const char *USAGE =
     "  --res WxH                 resolution (default: 640 wide, camera aspect)\n"
     "  --threads N               worker threads (default: all cores)\n"
     "  --max-depth N             maximum bounces; 1 = direct light only (default 8)\n"
-    "  --light-sampler S         uniform | power (default power)\n"
+    "  --light-sampler S         uniform | power | tree (default power)\n"
     "  --light-units U           blender (default: cd/683, lux/683) | raw (W/sr, W/m^2)\n"
     "  --camera NAME             glTF camera by name (default: the first, or a framing view)\n"
     "  --env FILE                lat-long environment map (EXR/HDR/PNG...)\n"
@@ -133,7 +133,8 @@ int main(int argc, char **argv) {
             if (!v) die("missing value for ", a);
             if (strcmp(v, "uniform") == 0) o.light_sampler = CANDELA_LIGHT_SAMPLER_UNIFORM;
             else if (strcmp(v, "power") == 0) o.light_sampler = CANDELA_LIGHT_SAMPLER_POWER;
-            else { fprintf(stderr, "candela: unknown light sampler '%s' (uniform, power)\n", v); return 2; }
+            else if (strcmp(v, "tree") == 0) o.light_sampler = CANDELA_LIGHT_SAMPLER_TREE;
+            else { fprintf(stderr, "candela: unknown light sampler '%s' (uniform, power, tree)\n", v); return 2; }
             ++i;
         } else if (strcmp(a, "--light-units") == 0) {
             if (!v) die("missing value for ", a);

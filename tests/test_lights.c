@@ -26,8 +26,12 @@ static void check_strategy(const char *path, CandelaLightSampler strategy, const
     CHECK(ls->count > 1, "lights: %u", ls->count);
     uint64_t key = rng_path_key(3, 1, 2);
     for (int q = 0; q < 8; ++q) {
+        /* the last context is a point in a medium (zero normal) */
         LightSampleContext ctx = {v3(rng_uniform(key, 3 * q) * 2 - 1, rng_uniform(key, 3 * q + 1) * 2, rng_uniform(key, 3 * q + 2) * 2 - 1),
-                                  v3(0, 1, 0)};
+                                  q == 7 ? v3(0, 0, 0) : v3(0, 1, 0)};
+        /* Every strategy sums to exactly 1 whenever some light has power. The tree too: where
+         * the bounds say a point sees neither child of a node, it splits by power instead of
+         * returning "no light" (lighttree.h), so a sum of 0 is never expected here. */
         double sum = 0.0;
         for (uint32_t i = 0; i < ls->count; ++i) sum += light_select_pmf(ls, &ctx, i);
         CHECK(fabs(sum - 1.0) < 1e-4, "strategy %d: pmf sums to %.7f", (int)strategy, sum);
@@ -102,5 +106,6 @@ int main(int argc, char **argv) {
     if (fe) fclose(fe);
     check_strategy(argv[1], CANDELA_LIGHT_SAMPLER_UNIFORM, envp);
     check_strategy(argv[1], CANDELA_LIGHT_SAMPLER_POWER, envp);
+    check_strategy(argv[1], CANDELA_LIGHT_SAMPLER_TREE, envp);
     return test_exit();
 }

@@ -1,0 +1,464 @@
+/* renderer/lighttree.c: light BVH build, importance, single-path selection and its pmf.
+ * See lighttree.h for the design. */
+#include "lighttree.h"
+
+#include <float.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "lights.h"
+
+#define ONE_MINUS_EPS 0x1.fffffep-1f
+#define NUM_BUCKETS 12
+/* Importance is clamped to this so that the sum of two children stays finite. */
+#define IMPORTANCE_MAX 1e30f
+/* Union cones are widened by this many radians against rounding in the rotation. */
+#define CONE_SLACK 1e-5f
+
+/* ---------------------------------------------------------------- bounds */
+
+typedef struct LB {
+    vec3 bmin, bmax, w;
+    float cos_o, cos_e, phi;
+} LB;
+
+/* Angle between unit vectors, accurate near 0 and pi. */
+static float angle_between(vec3 a, vec3 b) {
+    if (v3_dot(a, b) < 0.0f) return PI_F - 2.0f * asinf(minf(0.5f * v3_length(v3_add(a, b)), 1.0f));
+    return 2.0f * asinf(minf(0.5f * v3_length(v3_sub(b, a)), 1.0f));
+}
+
+/* Smallest-ish cone containing cones (wa, ca) and (wb, cb) (cos of the half-angle). */
+static void cone_union(vec3 wa, float ca, vec3 wb, float cb, vec3 *w, float *c) {
+    if (ca <= -1.0f || cb <= -1.0f) { *w = wa; *c = -1.0f; return; }
+    if (wa.x == wb.x && wa.y == wb.y && wa.z == wb.z) { *w = wa; *c = minf(ca, cb); return; }
+    float ta = acosf(clampf(ca, -1.0f, 1.0f)), tb = acosf(clampf(cb, -1.0f, 1.0f));
+    float td = angle_between(wa, wb);
+    if (minf(td + tb, PI_F) <= ta) { *w = wa; *c = ca; return; }
+    if (minf(td + ta, PI_F) <= tb) { *w = wb; *c = cb; return; }
+    float to = 0.5f * (ta + td + tb) + CONE_SLACK;
+    vec3 k = v3_cross(wa, wb);
+    float kl = v3_length(k);
+    if (to >= PI_F || !(kl > 0.0f)) { *w = wa; *c = -1.0f; return; }
+    k = v3_scale(k, 1.0f / kl);
+    /* rotate wa towards wb by to - ta about k (k is perpendicular to wa) */
+    float tr = to - ta;
+    *w = v3_normalize(v3_add(v3_scale(wa, cosf(tr)), v3_scale(v3_cross(k, wa), sinf(tr))));
+    *c = cosf(to);
+}
+
+static LB lb_union(const LB *a, const LB *b) {
+    LB r;
+    r.bmin = v3_min(a->bmin, b->bmin);
+    r.bmax = v3_max(a->bmax, b->bmax);
+    cone_union(a->w, a->cos_o, b->w, b->cos_o, &r.w, &r.cos_o);
+    r.cos_e = minf(a->cos_e, b->cos_e);
+    r.phi = a->phi + b->phi;
+    return r;
+}
+
+/* Bounds of one light; 0 if it does not go in the BVH (infinite, no power, bad geometry). */
+static int light_bounds(const Light *l, LB *b) {
+    if (!(l->power > 0.0f) || !isfinite(l->power)) return 0;
+    b->phi = l->power;
+    b->w = v3(0.0f, 0.0f, 1.0f);
+    b->cos_e = 0.0f; /* theta_e = pi/2 */
+    switch (l->type) {
+    case LIGHT_POINT:
+        b->bmin = b->bmax = l->position;
+        b->cos_o = -1.0f; /* theta_o = pi */
+        break;
+    case LIGHT_SPOT:
+        b->bmin = b->bmax = l->position;
+        b->w = v3_normalize(l->direction);
+        b->cos_o = 1.0f;
+        b->cos_e = clampf(l->cos_outer, -1.0f, 1.0f);
+        break;
+    case LIGHT_AREA: {
+        uint32_t nt = l->triangles.n;
+        if (nt == 0 || !l->world_vertices) return 0;
+        b->bmin = v3s(INFINITY);
+        b->bmax = v3s(-INFINITY);
+        int have_cone = 0;
+        b->cos_o = 1.0f;
+        for (uint32_t t = 0; t < nt; ++t) {
+            const float *v = l->world_vertices + 9 * (size_t)t;
+            vec3 a = v3(v[0], v[1], v[2]), bb = v3(v[3], v[4], v[5]), c = v3(v[6], v[7], v[8]);
+            b->bmin = v3_min(b->bmin, v3_min(a, v3_min(bb, c)));
+            b->bmax = v3_max(b->bmax, v3_max(a, v3_max(bb, c)));
+            if (l->two_sided) continue;
+            vec3 n = v3_cross(v3_sub(bb, a), v3_sub(c, a));
+            float len = v3_length(n);
+            if (!(len > 0.0f) || !isfinite(len)) continue; /* degenerate: emits nothing */
+            n = v3_scale(n, 1.0f / len);
+            if (!have_cone) { b->w = n; b->cos_o = 1.0f; have_cone = 1; }
+            else cone_union(b->w, b->cos_o, n, 1.0f, &b->w, &b->cos_o);
+        }
+        if (l->two_sided || !have_cone) b->cos_o = -1.0f;
+        break;
+    }
+    default:
+        return 0;
+    }
+    return v3_is_finite(b->bmin) && v3_is_finite(b->bmax) && v3_is_finite(b->w);
+}
+
+/* ---------------------------------------------------------------- importance */
+
+/* cos(max(0, a - b)) and sin(max(0, a - b)) from the sines and cosines of a, b in [0, pi] */
+static inline float cos_sub_clamped(float sin_a, float cos_a, float sin_b, float cos_b) {
+    if (cos_a > cos_b) return 1.0f;
+    return cos_a * cos_b + sin_a * sin_b;
+}
+static inline float sin_sub_clamped(float sin_a, float cos_a, float sin_b, float cos_b) {
+    if (cos_a > cos_b) return 0.0f;
+    return sin_a * cos_b - cos_a * sin_b;
+}
+
+/* pbrt-v4's LightBounds::Importance, with the distance clamped to half the box diagonal:
+ * phi * cos(theta') / d^2 * cos(theta_i'), where theta' = max(0, theta_w - theta_o - theta_b)
+ * (zero beyond theta_e), theta_i' = max(0, theta_i - theta_b), theta_b the half-angle of the
+ * box's bounding sphere seen from p. */
+float light_tree_node_importance(const LightTreeNode *nd, vec3 p, vec3 n) {
+    vec3 pc = v3_scale(v3_add(nd->bmin, nd->bmax), 0.5f);
+    vec3 diag = v3_sub(nd->bmax, nd->bmin);
+    float r2 = 0.25f * v3_dot(diag, diag); /* squared radius of the bounding sphere */
+    vec3 d = v3_sub(p, pc);
+    float dist2 = v3_dot(d, d);
+    float d2 = maxf(dist2, r2);
+    float cos_b, sin_b;
+    vec3 wi;
+    if (dist2 <= r2) { /* inside the bounding sphere: every direction */
+        cos_b = -1.0f;
+        sin_b = 0.0f;
+    } else {
+        float s2 = r2 / dist2;
+        cos_b = safe_sqrtf(1.0f - s2);
+        sin_b = sqrtf(s2);
+    }
+    wi = dist2 > 0.0f ? v3_scale(d, 1.0f / sqrtf(dist2)) : v3(0.0f, 0.0f, 1.0f);
+    float cos_w = v3_dot(nd->w, wi);
+    float sin_w = safe_sqrtf(1.0f - cos_w * cos_w);
+    float sin_o = safe_sqrtf(1.0f - nd->cos_o * nd->cos_o);
+    float cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, nd->cos_o);
+    float sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, nd->cos_o);
+    float cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
+    if (cos_p <= nd->cos_e) return 0.0f;
+    float imp = nd->phi * cos_p / d2;
+    if (n.x != 0.0f || n.y != 0.0f || n.z != 0.0f) {
+        float cos_i = fabsf(v3_dot(wi, n));
+        float sin_i = safe_sqrtf(1.0f - cos_i * cos_i);
+        imp *= cos_sub_clamped(sin_i, cos_i, sin_b, cos_b);
+    }
+    return imp > 0.0f ? minf(imp, IMPORTANCE_MAX) : 0.0f; /* NaN -> 0 */
+}
+
+/* Branch probabilities at interior node `node`. Not inlined: select and pmf must run the
+ * very same instructions so that their products agree bit for bit. */
+__attribute__((noinline)) static void child_probs(const LightTree *t, uint32_t node, vec3 p, vec3 n,
+                                                  float *p0, float *p1) {
+    const LightTreeNode *c0 = &t->nodes[node + 1], *c1 = &t->nodes[t->nodes[node].child];
+    float i0 = light_tree_node_importance(c0, p, n);
+    float i1 = light_tree_node_importance(c1, p, n);
+    if (!(i0 + i1 > 0.0f)) { /* neither child visible by its bounds: split by power */
+        i0 = c0->phi;
+        i1 = c1->phi;
+        if (!(i0 + i1 > 0.0f) || !isfinite(i0 + i1)) i0 = i1 = 1.0f;
+    }
+    float s = i0 + i1;
+    *p0 = i0 / s;
+    *p1 = i1 / s;
+}
+
+/* ---------------------------------------------------------------- build */
+
+typedef struct Item {
+    LB b;
+    vec3 c; /* centroid */
+    uint32_t light;
+} Item;
+
+typedef struct KeyPos { float key; uint32_t pos; } KeyPos;
+
+typedef struct Builder {
+    LightTree *t;
+    Item *items;
+    Item *scratch;    /* for the median fallback's sort */
+    struct KeyPos *keys;
+} Builder;
+
+static inline float v3_get(vec3 v, int a) { return a == 0 ? v.x : (a == 1 ? v.y : v.z); }
+
+static inline int bucket_of(float c, float cmin, float cmax) {
+    int b = (int)((float)NUM_BUCKETS * ((c - cmin) / (cmax - cmin)));
+    return b < 0 ? 0 : (b >= NUM_BUCKETS ? NUM_BUCKETS - 1 : b);
+}
+
+/* pbrt-v4's orientation measure M_Omega of a cone (theta_o, theta_e) times power times the
+ * box's surface area; extents are padded by `pad` so that collinear / coplanar emitters
+ * still rank splits by their extent instead of all costing 0. */
+static double saoh_cost(const LB *b, float pad) {
+    double m;
+    if (b->cos_o <= -1.0f) {
+        m = 4.0 * PI_F; /* theta_o = pi: the whole sphere, whatever theta_e */
+    } else {
+        double to = acos(clampf(b->cos_o, -1.0f, 1.0f)), te = acos(clampf(b->cos_e, -1.0f, 1.0f));
+        double tw = fmin(to + te, (double)PI_F);
+        double so = sqrt(fmax(0.0, 1.0 - (double)b->cos_o * b->cos_o));
+        m = 2.0 * PI_F * (1.0 - b->cos_o) +
+            0.5 * PI_F * (2.0 * tw * so - cos(to - 2.0 * tw) - 2.0 * to * so + b->cos_o);
+    }
+    vec3 e = v3_sub(b->bmax, b->bmin);
+    double ex = (double)e.x + pad, ey = (double)e.y + pad, ez = (double)e.z + pad;
+    double area = 2.0 * (ex * ey + ey * ez + ez * ex);
+    return (double)b->phi * m * area;
+}
+
+static int cmp_key(const void *a, const void *b) {
+    const KeyPos *x = a, *y = b;
+    if (x->key != y->key) return x->key < y->key ? -1 : 1;
+    return x->pos < y->pos ? -1 : (x->pos > y->pos ? 1 : 0);
+}
+
+/* Sorts items[start, end) by centroid along the widest centroid axis (ties: current order). */
+static void sort_range(Builder *B, uint32_t start, uint32_t end) {
+    vec3 cmin = v3s(INFINITY), cmax = v3s(-INFINITY);
+    for (uint32_t i = start; i < end; ++i) {
+        cmin = v3_min(cmin, B->items[i].c);
+        cmax = v3_max(cmax, B->items[i].c);
+    }
+    vec3 ext = v3_sub(cmax, cmin);
+    int axis = ext.x >= ext.y && ext.x >= ext.z ? 0 : (ext.y >= ext.z ? 1 : 2);
+    uint32_t n = end - start;
+    for (uint32_t i = 0; i < n; ++i) {
+        B->keys[i].key = v3_get(B->items[start + i].c, axis);
+        B->keys[i].pos = i;
+    }
+    qsort(B->keys, n, sizeof *B->keys, cmp_key);
+    for (uint32_t i = 0; i < n; ++i) B->scratch[i] = B->items[start + B->keys[i].pos];
+    memcpy(B->items + start, B->scratch, n * sizeof(Item));
+}
+
+/* SAOH split (pbrt-v4 / Conty & Kulla): 12 buckets along each axis, cost
+ * Kr * (cost(left) + cost(right)) with Kr = longest extent / extent along the axis.
+ * Returns the split position, or start + n/2 when no split separates anything. */
+static uint32_t saoh_split(Builder *B, uint32_t start, uint32_t end) {
+    Item *it = B->items;
+    vec3 cmin = v3s(INFINITY), cmax = v3s(-INFINITY), bmin = v3s(INFINITY), bmax = v3s(-INFINITY);
+    for (uint32_t i = start; i < end; ++i) {
+        cmin = v3_min(cmin, it[i].c);
+        cmax = v3_max(cmax, it[i].c);
+        bmin = v3_min(bmin, it[i].b.bmin);
+        bmax = v3_max(bmax, it[i].b.bmax);
+    }
+    vec3 diag = v3_sub(bmax, bmin);
+    float maxext = v3_max_component(diag);
+    float pad = 1e-4f * maxext;
+    LB bk[3][NUM_BUCKETS];
+    uint32_t cnt[3][NUM_BUCKETS];
+    memset(cnt, 0, sizeof cnt);
+    int use[3];
+    for (int a = 0; a < 3; ++a) use[a] = v3_get(cmax, a) > v3_get(cmin, a) && v3_get(diag, a) > 0.0f;
+    if (!use[0] && !use[1] && !use[2]) return start + (end - start) / 2;
+    for (uint32_t i = start; i < end; ++i) {
+        for (int a = 0; a < 3; ++a) {
+            if (!use[a]) continue;
+            int b = bucket_of(v3_get(it[i].c, a), v3_get(cmin, a), v3_get(cmax, a));
+            if (cnt[a][b]++ == 0) bk[a][b] = it[i].b;
+            else bk[a][b] = lb_union(&bk[a][b], &it[i].b);
+        }
+    }
+    double best = INFINITY;
+    int best_axis = -1, best_bucket = -1;
+    for (int a = 0; a < 3; ++a) {
+        if (!use[a]) continue;
+        double kr = (double)maxext / (double)v3_get(diag, a);
+        /* suffix unions: right[i] = buckets i..11 */
+        LB right[NUM_BUCKETS];
+        uint32_t rc[NUM_BUCKETS];
+        rc[NUM_BUCKETS - 1] = cnt[a][NUM_BUCKETS - 1];
+        right[NUM_BUCKETS - 1] = bk[a][NUM_BUCKETS - 1];
+        for (int i = NUM_BUCKETS - 2; i >= 0; --i) {
+            rc[i] = rc[i + 1] + cnt[a][i];
+            if (cnt[a][i] == 0) right[i] = right[i + 1];
+            else if (rc[i + 1] == 0) right[i] = bk[a][i];
+            else right[i] = lb_union(&bk[a][i], &right[i + 1]);
+        }
+        LB left;
+        uint32_t lc = 0;
+        for (int i = 0; i < NUM_BUCKETS - 1; ++i) {
+            if (cnt[a][i]) {
+                left = lc ? lb_union(&left, &bk[a][i]) : bk[a][i];
+                lc += cnt[a][i];
+            }
+            if (lc == 0 || rc[i + 1] == 0) continue;
+            double cost = kr * (saoh_cost(&left, pad) + saoh_cost(&right[i + 1], pad));
+            if (cost < best) { best = cost; best_axis = a; best_bucket = i; }
+        }
+    }
+    if (best_axis < 0) return start + (end - start) / 2;
+    float lo = v3_get(cmin, best_axis), hi = v3_get(cmax, best_axis);
+    uint32_t i = start, j = end;
+    while (i < j) {
+        if (bucket_of(v3_get(it[i].c, best_axis), lo, hi) <= best_bucket) { ++i; continue; }
+        --j;
+        Item tmp = it[i];
+        it[i] = it[j];
+        it[j] = tmp;
+    }
+    if (i == start || i == end) return start + (end - start) / 2; /* cannot happen */
+    return i;
+}
+
+static LB build_node(Builder *B, uint32_t start, uint32_t end, uint64_t trail, int depth, int sorted) {
+    LightTree *t = B->t;
+    uint32_t idx = t->node_count++;
+    LightTreeNode *nd;
+    if (end - start == 1) {
+        const Item *it = &B->items[start];
+        nd = &t->nodes[idx];
+        nd->bmin = it->b.bmin;
+        nd->bmax = it->b.bmax;
+        nd->w = it->b.w;
+        nd->cos_o = it->b.cos_o;
+        nd->cos_e = it->b.cos_e;
+        nd->phi = it->b.phi;
+        nd->child = 0;
+        nd->light = it->light;
+        t->trail[it->light] = trail;
+        return it->b;
+    }
+    uint32_t mid;
+    if (!sorted && depth >= LIGHT_TREE_SAH_DEPTH) {
+        sort_range(B, start, end); /* from here on: balanced median splits */
+        sorted = 1;
+    }
+    mid = sorted || end - start == 2 ? start + (end - start) / 2 : saoh_split(B, start, end);
+    LB l = build_node(B, start, mid, trail, depth + 1, sorted);
+    uint32_t second = t->node_count;
+    LB r = build_node(B, mid, end, trail | ((uint64_t)1 << depth), depth + 1, sorted);
+    LB u = lb_union(&l, &r);
+    nd = &t->nodes[idx];
+    nd->bmin = u.bmin;
+    nd->bmax = u.bmax;
+    nd->w = u.w;
+    nd->cos_o = u.cos_o;
+    nd->cos_e = u.cos_e;
+    nd->phi = u.phi;
+    nd->child = second;
+    nd->light = LIGHT_TREE_INTERIOR;
+    return u;
+}
+
+int light_tree_build(LightTree *t, const Light *lights, uint32_t count) {
+    memset(t, 0, sizeof *t);
+    if (count == 0) return 0;
+    t->light_count = count;
+    t->trail = calloc(count, sizeof *t->trail);
+    t->kind = calloc(count, sizeof *t->kind);
+    Builder B = {t, NULL, NULL, NULL};
+    B.items = malloc(count * sizeof(Item));
+    if (!t->trail || !t->kind || !B.items) goto oom;
+    uint32_t m = 0, ninf = 0;
+    for (uint32_t i = 0; i < count; ++i) {
+        const Light *l = &lights[i];
+        if (l->type == LIGHT_DIRECTIONAL || l->type == LIGHT_ENVIRONMENT) {
+            t->kind[i] = LIGHT_TREE_INFINITE;
+            ++ninf;
+            continue;
+        }
+        Item *it = &B.items[m];
+        if (!light_bounds(l, &it->b)) continue;
+        it->c = v3_scale(v3_add(it->b.bmin, it->b.bmax), 0.5f);
+        it->light = i;
+        t->kind[i] = LIGHT_TREE_BVH;
+        ++m;
+    }
+    if (ninf) {
+        t->infinite = malloc(ninf * sizeof *t->infinite);
+        if (!t->infinite) goto oom;
+        for (uint32_t i = 0; i < count; ++i)
+            if (t->kind[i] == LIGHT_TREE_INFINITE) t->infinite[t->num_infinite++] = i;
+    }
+    if (m) {
+        t->nodes = malloc((2 * (size_t)m - 1) * sizeof *t->nodes);
+        B.scratch = malloc(m * sizeof(Item));
+        B.keys = malloc(m * sizeof *B.keys);
+        if (!t->nodes || !B.scratch || !B.keys) goto oom;
+        build_node(&B, 0, m, 0, 0, 0);
+    }
+    t->p_inf = (float)ninf / (float)(ninf + (m ? 1u : 0u));
+    if (ninf + m == 0) t->p_inf = 0.0f;
+    t->p_bvh = 1.0f - t->p_inf;
+    t->pmf_inf = ninf ? t->p_inf / (float)ninf : 0.0f;
+    free(B.items);
+    free(B.scratch);
+    free(B.keys);
+    return 0;
+oom:
+    free(B.items);
+    free(B.scratch);
+    free(B.keys);
+    light_tree_free(t);
+    return -1;
+}
+
+void light_tree_free(LightTree *t) {
+    free(t->nodes);
+    free(t->trail);
+    free(t->kind);
+    free(t->infinite);
+    memset(t, 0, sizeof *t);
+}
+
+/* ---------------------------------------------------------------- selection */
+
+uint32_t light_tree_select(const LightTree *t, const LightSampleContext *ctx, float u, float *pmf) {
+    if (u < t->p_inf) {
+        uint32_t k = (uint32_t)(minf(u / t->p_inf, ONE_MINUS_EPS) * (float)t->num_infinite);
+        if (k >= t->num_infinite) k = t->num_infinite - 1;
+        *pmf = t->pmf_inf;
+        return t->infinite[k];
+    }
+    if (t->node_count == 0) { *pmf = 0.0f; return 0; }
+    u = clampf((u - t->p_inf) / t->p_bvh, 0.0f, ONE_MINUS_EPS);
+    float pr = t->p_bvh;
+    uint32_t node = 0;
+    while (t->nodes[node].light == LIGHT_TREE_INTERIOR) {
+        float p0, p1;
+        child_probs(t, node, ctx->p, ctx->n, &p0, &p1);
+        if (u < p0) {
+            pr *= p0;
+            u = minf(u / p0, ONE_MINUS_EPS);
+            node = node + 1;
+        } else {
+            pr *= p1;
+            u = clampf((u - p0) / p1, 0.0f, ONE_MINUS_EPS);
+            node = t->nodes[node].child;
+        }
+    }
+    *pmf = pr;
+    return t->nodes[node].light;
+}
+
+float light_tree_pmf(const LightTree *t, const LightSampleContext *ctx, uint32_t light) {
+    if (light >= t->light_count) return 0.0f;
+    if (t->kind[light] == LIGHT_TREE_INFINITE) return t->pmf_inf;
+    if (t->kind[light] != LIGHT_TREE_BVH) return 0.0f;
+    uint64_t trail = t->trail[light];
+    float pr = t->p_bvh;
+    uint32_t node = 0;
+    while (t->nodes[node].light == LIGHT_TREE_INTERIOR) {
+        float p0, p1;
+        child_probs(t, node, ctx->p, ctx->n, &p0, &p1);
+        if (trail & 1u) {
+            pr *= p1;
+            node = t->nodes[node].child;
+        } else {
+            pr *= p0;
+            node = node + 1;
+        }
+        trail >>= 1;
+    }
+    return pr;
+}

@@ -1,0 +1,74 @@
+/* renderer/lighttree.h (private): light BVH for context-aware light selection
+ * (Conty Estevez & Kulla 2018, "Importance Sampling of Many Lights with Adaptive Tree
+ * Splitting"; the single-path variant of pbrt-v4's BVHLightSampler).
+ *
+ * Every finite light with power > 0 is a leaf of a binary BVH whose nodes store a bounding
+ * box, a bounding cone of emitter normals (axis w, spread theta_o, emission falloff theta_e)
+ * and the summed power phi. Selection walks one path from the root, choosing a child with
+ * probability proportional to its importance for the shading point (p, n); the light's
+ * probability is the product of the branch probabilities. light_tree_pmf() recomputes the
+ * same branch probabilities along the light's stored bit trail, with the same float
+ * operations in the same order, so it returns exactly what light_tree_select() reported.
+ *
+ * Infinite lights (directional, environment) are not in the BVH: with n_inf of them they are
+ * chosen with probability p_inf = n_inf / (n_inf + (BVH non-empty ? 1 : 0)), uniformly among
+ * themselves. Lights with zero (or non-finite) power are left out: probability 0 everywhere.
+ *
+ * When both children of a node have zero importance (the bounds say the point sees nothing
+ * in either), the node splits in proportion to the children's power instead of giving up, so
+ * the probabilities over all lights always sum to 1 (when any light is selectable) and a
+ * light whose bounds are wrong by rounding is still never starved. Such samples cost one
+ * light_sample_li() call that contributes nothing. */
+#ifndef CANDELA_LIGHTTREE_H
+#define CANDELA_LIGHTTREE_H
+
+#include <stdint.h>
+
+#include "vecmath.h"
+
+typedef struct Light Light;                           /* lights.h */
+typedef struct LightSampleContext LightSampleContext; /* lights.h */
+
+#define LIGHT_TREE_INTERIOR UINT32_MAX
+/* Tree depth limit: SAOH splits up to LIGHT_TREE_SAH_DEPTH, then median splits (<= 32 more
+ * levels for any uint32 light count), so every bit trail fits in 64 bits. */
+#define LIGHT_TREE_SAH_DEPTH 32
+
+enum { LIGHT_TREE_NONE = 0, LIGHT_TREE_BVH = 1, LIGHT_TREE_INFINITE = 2 };
+
+typedef struct LightTreeNode {
+    vec3 bmin, bmax;     /* bounds of the emitting geometry */
+    vec3 w;              /* unit axis of the normal cone */
+    float cos_o;         /* cos theta_o: spread of the normals around w (-1: every direction) */
+    float cos_e;         /* cos theta_e: emission beyond the normals (point 0, spot cos_outer) */
+    float phi;           /* summed power */
+    uint32_t child;      /* interior: index of the second child (the first is this + 1) */
+    uint32_t light;      /* leaf: light index; interior: LIGHT_TREE_INTERIOR */
+} LightTreeNode;
+
+typedef struct LightTree {
+    LightTreeNode *nodes;  /* depth-first; node 0 is the root */
+    uint32_t node_count;
+    uint32_t light_count;  /* size of the per-light arrays */
+    uint64_t *trail;       /* per light: bit d = 1 -> second child at depth d */
+    uint8_t *kind;         /* per light: LIGHT_TREE_NONE / _BVH / _INFINITE */
+    uint32_t *infinite;    /* light indices of the infinite lights */
+    uint32_t num_infinite;
+    float p_inf;           /* probability of choosing among the infinite lights */
+    float p_bvh;           /* 1 - p_inf: the factor every BVH light's pmf starts from */
+    float pmf_inf;         /* p_inf / num_infinite */
+} LightTree;
+
+/* Build over lights[0..count). 0 ok, -1 out of memory (t is then empty). */
+int light_tree_build(LightTree *t, const Light *lights, uint32_t count);
+void light_tree_free(LightTree *t);
+/* Picks a light for ctx with u in [0,1); *pmf is its probability. Always returns an index
+ * < count (0 when nothing is selectable, with *pmf = 0). */
+uint32_t light_tree_select(const LightTree *t, const LightSampleContext *ctx, float u, float *pmf);
+/* The probability light_tree_select gives `light` for ctx (bit-identical). */
+float light_tree_pmf(const LightTree *t, const LightSampleContext *ctx, uint32_t light);
+/* Importance of one node for a shading point (n zero: a point in a medium). Exposed for
+ * tests. */
+float light_tree_node_importance(const LightTreeNode *node, vec3 p, vec3 n);
+
+#endif

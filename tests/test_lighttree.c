@@ -1,0 +1,346 @@
+/* Light BVH (renderer/lighttree.c), on Light structs built in memory (no scene):
+ *   (a) 10,000 random point/spot lights with random powers, a few one- and two-sided area
+ *       lights, a directional light and a zero-power light: at 50 random contexts (surface
+ *       points and medium points) the pmf sums to 1 over all lights, 100k selections report
+ *       exactly light_tree_pmf() of the light they pick, and the selection frequencies pass a
+ *       chi-square test (bins with expected count < 5 pooled);
+ *   (b) two-light trees whose probabilities are worked out by hand from the importance
+ *       (point lights: phi |n.w| / d^2; spot: times cos of the angle off its axis, zero outside
+ *       the outer cone; both invisible: split by power), plus degenerate trees (no light, one
+ *       light, only infinite lights, only zero-power lights);
+ *   (c) the build time for 1,000,000 point lights (printed; must be < 60 s). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "check.h"
+#include "lights.h"
+#include "lighttree.h"
+
+static uint64_t g_state = 0x9e3779b97f4a7c15ull;
+static double rnd(void) { /* splitmix64 -> [0,1) */
+    uint64_t z = (g_state += 0x9e3779b97f4a7c15ull);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    z ^= z >> 31;
+    return (double)(z >> 11) * 0x1.0p-53;
+}
+static float rndf(float lo, float hi) { return lo + (hi - lo) * (float)rnd(); }
+static vec3 rnd_dir(void) {
+    float z = rndf(-1.0f, 1.0f), phi = rndf(0.0f, 2.0f * PI_F), r = sqrtf(fmaxf(0.0f, 1.0f - z * z));
+    return v3(r * cosf(phi), r * sinf(phi), z);
+}
+static double now_seconds(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static Light point_light(vec3 p, float power) {
+    Light l;
+    memset(&l, 0, sizeof l);
+    l.type = LIGHT_POINT;
+    l.position = p;
+    l.power = power;
+    return l;
+}
+static Light spot_light(vec3 p, vec3 dir, float outer, float power) {
+    Light l = point_light(p, power);
+    l.type = LIGHT_SPOT;
+    l.direction = v3_normalize(dir);
+    l.cos_outer = cosf(outer);
+    l.cos_inner = cosf(0.5f * outer);
+    return l;
+}
+/* A quad of two triangles, centre c, edge vectors e1, e2; front face along e1 x e2. */
+static Light quad_light(vec3 c, vec3 e1, vec3 e2, float radiance, int two_sided) {
+    Light l;
+    memset(&l, 0, sizeof l);
+    l.type = LIGHT_AREA;
+    l.two_sided = two_sided;
+    vec3 a = v3_sub(v3_sub(c, v3_scale(e1, 0.5f)), v3_scale(e2, 0.5f));
+    vec3 b = v3_add(a, e1), d = v3_add(a, e2), e = v3_add(b, e2);
+    vec3 v[6] = {a, b, e, a, e, d};
+    l.world_vertices = malloc(18 * sizeof(float));
+    for (int i = 0; i < 6; ++i) {
+        l.world_vertices[3 * i] = v[i].x;
+        l.world_vertices[3 * i + 1] = v[i].y;
+        l.world_vertices[3 * i + 2] = v[i].z;
+    }
+    float area = v3_length(v3_cross(e1, e2));
+    float areas[2] = {0.5f * area, 0.5f * area};
+    dist1d_init(&l.triangles, areas, 2);
+    l.area = area;
+    l.emission = v3s(radiance);
+    l.power = PI_F * area * radiance * (two_sided ? 2.0f : 1.0f);
+    return l;
+}
+static void free_lights(Light *ls, uint32_t n) {
+    for (uint32_t i = 0; i < n; ++i)
+        if (ls[i].type == LIGHT_AREA) {
+            dist1d_free(&ls[i].triangles);
+            free(ls[i].world_vertices);
+        }
+    free(ls);
+}
+
+/* ---------------------------------------------------------------- (a) */
+
+static void test_random(void) {
+    enum { NPUNCT = 10000, NAREA = 6, N = NPUNCT + NAREA + 2 };
+    Light *ls = calloc(N, sizeof *ls);
+    uint32_t n = 0;
+    for (int i = 0; i < NPUNCT; ++i) {
+        vec3 p = v3(rndf(-10, 10), rndf(0, 5), rndf(-10, 10));
+        float power = (float)exp(rndf(-3.0f, 3.0f));
+        if (i % 3 == 0) ls[n++] = spot_light(p, rnd_dir(), rndf(0.05f, 1.5f), power);
+        else ls[n++] = point_light(p, power);
+    }
+    for (int i = 0; i < NAREA; ++i)
+        ls[n++] = quad_light(v3(rndf(-8, 8), rndf(1, 5), rndf(-8, 8)), v3_scale(rnd_dir(), rndf(0.2f, 3.0f)),
+                             v3_scale(rnd_dir(), rndf(0.2f, 3.0f)), rndf(1.0f, 20.0f), i % 2);
+    Light dir;
+    memset(&dir, 0, sizeof dir);
+    dir.type = LIGHT_DIRECTIONAL;
+    dir.direction = v3(0, -1, 0);
+    dir.power = 50.0f;
+    ls[n++] = dir;
+    ls[n++] = point_light(v3(0, 1, 0), 0.0f); /* zero power: never chosen */
+    CHECK(n == N, "%u lights", n);
+
+    LightTree t;
+    double t0 = now_seconds();
+    CHECK(light_tree_build(&t, ls, n) == 0, "build failed");
+    fprintf(stderr, "  (a) %u lights: build %.3f s, %u nodes, p_inf %g\n", n, now_seconds() - t0, t.node_count, t.p_inf);
+    CHECK(t.node_count == 2 * (N - 2) - 1, "node count %u", t.node_count);
+    CHECK(t.num_infinite == 1 && t.p_inf == 0.5f, "infinite lights %u, p_inf %g", t.num_infinite, t.p_inf);
+
+    double *pmf = malloc(n * sizeof *pmf);
+    uint32_t *hist = malloc(n * sizeof *hist);
+    enum { NSEL = 100000, NCTX = 50 };
+    int bad_sum = 0, chi_fail = 0, mismatch = 0, zero_pmf_light = 0;
+    for (int q = 0; q < NCTX; ++q) {
+        LightSampleContext ctx;
+        ctx.p = v3(rndf(-12, 12), rndf(-1, 6), rndf(-12, 12));
+        ctx.n = q % 5 == 4 ? v3s(0.0f) : rnd_dir(); /* every fifth: a medium point */
+        double sum = 0.0;
+        for (uint32_t i = 0; i < n; ++i) {
+            pmf[i] = light_tree_pmf(&t, &ctx, i);
+            sum += pmf[i];
+            if (!(pmf[i] >= 0.0)) ++bad_sum;
+        }
+        zero_pmf_light += pmf[n - 1] != 0.0;
+        CHECK(pmf[n - 2] == 0.5, "ctx %d: directional pmf %g", q, pmf[n - 2]);
+        if (!(fabs(sum - 1.0) < 1e-4)) {
+            ++bad_sum;
+            fprintf(stderr, "FAIL ctx %d: pmf sums to %.7f\n", q, sum);
+        }
+        memset(hist, 0, n * sizeof *hist);
+        for (int s = 0; s < NSEL; ++s) {
+            float p;
+            uint32_t i = light_tree_select(&t, &ctx, (float)rnd(), &p);
+            if (i >= n || p != light_tree_pmf(&t, &ctx, i) || !(p > 0.0f)) ++mismatch;
+            else hist[i]++;
+        }
+        double chi2 = 0.0, pooled_obs = 0, pooled_exp = 0;
+        int dof = -1;
+        for (uint32_t i = 0; i < n; ++i) {
+            double e = NSEL * pmf[i];
+            if (e < 5.0) { pooled_obs += hist[i]; pooled_exp += e; continue; }
+            chi2 += (hist[i] - e) * (hist[i] - e) / e;
+            ++dof;
+        }
+        if (pooled_exp > 5.0) { chi2 += (pooled_obs - pooled_exp) * (pooled_obs - pooled_exp) / pooled_exp; ++dof; }
+        if (dof > 0) {
+            /* Wilson-Hilferty: roughly p < 1e-5 */
+            double limit = dof * pow(1.0 - 2.0 / (9.0 * dof) + 4.5 * sqrt(2.0 / (9.0 * dof)), 3.0);
+            if (!(chi2 < limit)) {
+                ++chi_fail;
+                fprintf(stderr, "FAIL ctx %d: chi2 %.1f > %.1f (dof %d)\n", q, chi2, limit, dof);
+            }
+        }
+        if (q < 3) fprintf(stderr, "  (a) ctx %d: sum %.7f, chi2 dof %d\n", q, sum, dof);
+    }
+    CHECK(bad_sum == 0, "%d contexts with a bad pmf sum", bad_sum);
+    CHECK(mismatch == 0, "%d selections disagree with light_tree_pmf", mismatch);
+    CHECK(chi_fail == 0, "%d contexts fail the chi-square test", chi_fail);
+    CHECK(zero_pmf_light == 0, "the zero-power light was given a probability");
+    free(pmf);
+    free(hist);
+    light_tree_free(&t);
+    free_lights(ls, n);
+}
+
+/* ---------------------------------------------------------------- (b) */
+
+/* Builds over two lights and compares both pmfs (and a few selections) with p0, p1. */
+static void expect2(const char *name, const Light *two, LightSampleContext ctx, double p0, double p1) {
+    LightTree t;
+    CHECK(light_tree_build(&t, two, 2) == 0, "%s: build", name);
+    float a = light_tree_pmf(&t, &ctx, 0), b = light_tree_pmf(&t, &ctx, 1);
+    CHECK(fabs(a - p0) <= 1e-5 * fmax(p0, 1e-30) + 1e-7 && fabs(b - p1) <= 1e-5 * fmax(p1, 1e-30) + 1e-7,
+          "%s: pmf %.7g %.7g, expected %.7g %.7g", name, a, b, p0, p1);
+    int n0 = 0;
+    for (int s = 0; s < 1000; ++s) {
+        float p;
+        uint32_t i = light_tree_select(&t, &ctx, (s + 0.5f) / 1000.0f, &p);
+        CHECK(i < 2 && p == (i ? b : a), "%s: select %u pmf %g", name, i, p);
+        n0 += i == 0;
+    }
+    CHECK(abs(n0 - (int)lround(1000 * p0)) <= 1, "%s: %d of 1000 stratified picks chose light 0, p0 %g", name, n0, p0);
+    fprintf(stderr, "  (b) %-28s pmf %.6f %.6f (expected %.6f %.6f)\n", name, a, b, p0, p1);
+    light_tree_free(&t);
+}
+
+static void test_by_hand(void) {
+    Light two[2];
+    /* two point lights: importance phi |n.w| / d^2 (box = point, so theta_b = 0) */
+    vec3 p = v3(0, 0, 0), n = v3_normalize(v3(0.3f, 1.0f, 0.1f));
+    two[0] = point_light(v3(1, 2, 0), 3.0f);
+    two[1] = point_light(v3(-2, 1, 1), 1.0f);
+    double imp[2];
+    for (int i = 0; i < 2; ++i) {
+        vec3 d = v3_sub(two[i].position, p);
+        double d2 = v3_dot(d, d);
+        imp[i] = two[i].power * fabs(v3_dot(n, d)) / sqrt(d2) / d2;
+    }
+    LightSampleContext ctx = {p, n};
+    expect2("two points", two, ctx, imp[0] / (imp[0] + imp[1]), imp[1] / (imp[0] + imp[1]));
+    /* medium point: no cosine factor */
+    LightSampleContext med = {p, v3s(0.0f)};
+    double m0 = 3.0 / 5.0, m1 = 1.0 / 6.0;
+    expect2("two points, medium", two, med, m0 / (m0 + m1), m1 / (m0 + m1));
+    /* spot at (0,2,0) aiming at (0.5,-1,0): p = origin is 0.4636 rad off its axis, outer 0.8:
+     * importance phi cos(angle) |n.w| / d^2 */
+    two[0] = spot_light(v3(0, 2, 0), v3(0.5f, -1.0f, 0.0f), 0.8f, 2.0f);
+    {
+        vec3 d = v3_sub(p, two[0].position);
+        double dist = sqrt(v3_dot(d, d));
+        double cos_axis = v3_dot(v3_scale(d, 1.0f / (float)dist), two[0].direction);
+        double i0 = 2.0 * cos_axis * fabs(v3_dot(n, d)) / dist / (dist * dist);
+        vec3 d1 = v3_sub(two[1].position, p);
+        double dd1 = v3_dot(d1, d1);
+        double i1 = 1.0 * fabs(v3_dot(n, d1)) / sqrt(dd1) / dd1;
+        expect2("spot inside its cone + point", two, ctx, i0 / (i0 + i1), i1 / (i0 + i1));
+    }
+    /* the spot turned away (origin outside its outer cone): probability 0 */
+    two[0] = spot_light(v3(0, 2, 0), v3(0.0f, 1.0f, 0.0f), 0.8f, 2.0f);
+    expect2("spot facing away + point", two, ctx, 0.0, 1.0);
+    /* both spots facing away: the bounds say nothing is visible, split by power */
+    two[1] = spot_light(v3(-2, 1, 1), v3(-1.0f, 0.2f, 0.0f), 0.3f, 6.0f);
+    expect2("both invisible: by power", two, ctx, 0.25, 0.75);
+    /* one-sided quad facing down at height 2 vs the same facing up: only the first is seen */
+    two[0] = quad_light(v3(0, 2, 0), v3(0, 0, 1), v3(1, 0, 0), 1.0f, 0); /* z x x = +y: faces up */
+    two[1] = quad_light(v3(0, 2, 0), v3(1, 0, 0), v3(0, 0, 1), 1.0f, 0); /* x x z = -y: faces p */
+    expect2("one-sided quads", two, ctx, 0.0, 1.0);
+    free(two[0].world_vertices); dist1d_free(&two[0].triangles);
+    free(two[1].world_vertices); dist1d_free(&two[1].triangles);
+
+    /* degenerate trees */
+    LightTree t;
+    float pm;
+    CHECK(light_tree_build(&t, NULL, 0) == 0, "empty build");
+    CHECK(light_tree_select(&t, &ctx, 0.3f, &pm) == 0 && pm == 0.0f, "empty: pmf %g", pm);
+    light_tree_free(&t);
+    Light one = point_light(v3(5, 5, 5), 2.0f);
+    CHECK(light_tree_build(&t, &one, 1) == 0, "one-light build");
+    CHECK(light_tree_select(&t, &ctx, 0.7f, &pm) == 0 && pm == 1.0f && light_tree_pmf(&t, &ctx, 0) == 1.0f,
+          "one light: pmf %g", pm);
+    light_tree_free(&t);
+    Light inf[3];
+    memset(inf, 0, sizeof inf);
+    inf[0].type = LIGHT_DIRECTIONAL;
+    inf[1].type = LIGHT_ENVIRONMENT;
+    inf[2] = point_light(v3(0, 3, 0), 0.0f);
+    CHECK(light_tree_build(&t, inf, 3) == 0, "infinite-only build");
+    int seen[3] = {0, 0, 0};
+    for (int s = 0; s < 100; ++s) {
+        uint32_t i = light_tree_select(&t, &ctx, (s + 0.5f) / 100.0f, &pm);
+        CHECK(i < 2 && pm == 0.5f && light_tree_pmf(&t, &ctx, i) == pm, "infinite-only: %u pmf %g", i, pm);
+        if (i < 3) seen[i]++;
+    }
+    CHECK(seen[0] == 50 && seen[1] == 50 && light_tree_pmf(&t, &ctx, 2) == 0.0f, "infinite-only: %d %d", seen[0], seen[1]);
+    light_tree_free(&t);
+    Light zero[2] = {point_light(v3(0, 1, 0), 0.0f), point_light(v3(0, 2, 0), 0.0f)};
+    CHECK(light_tree_build(&t, zero, 2) == 0, "zero-power build");
+    uint32_t zi = light_tree_select(&t, &ctx, 0.5f, &pm);
+    CHECK(zi < 2 && pm == 0.0f && light_tree_pmf(&t, &ctx, 0) == 0.0f, "zero power: %u pmf %g", zi, pm);
+    light_tree_free(&t);
+}
+
+/* Degenerate layouts: exponentially spaced lights on a line (SAOH peels a few lights per
+ * level, so the depth cap and its median splits are used) and lights all at one point (no
+ * split separates anything). The pmf must still sum to 1 and match selections. */
+static void test_degenerate_layouts(void) {
+    enum { N = 100000 };
+    Light *ls = malloc(N * sizeof *ls);
+    for (int layout = 0; layout < 2; ++layout) {
+        for (int i = 0; i < N; ++i)
+            ls[i] = point_light(layout == 0 ? v3(expf(0.0008f * (float)i), 0, 0) : v3(1, 2, 3), 1.0f + (float)(i % 7));
+        LightTree t;
+        CHECK(light_tree_build(&t, ls, N) == 0, "layout %d: build", layout);
+        int maxd = 0, bad_trail = 0;
+        for (uint32_t i = 0; i < N; ++i) {
+            uint64_t tr = t.trail[i];
+            uint32_t node = 0;
+            int d = 0;
+            while (t.nodes[node].light == LIGHT_TREE_INTERIOR) {
+                node = (tr & 1) ? t.nodes[node].child : node + 1;
+                tr >>= 1;
+                ++d;
+            }
+            bad_trail += t.nodes[node].light != i;
+            if (d > maxd) maxd = d;
+        }
+        CHECK(bad_trail == 0, "layout %d: %d bit trails lead to another light", layout, bad_trail);
+        LightSampleContext ctx = {v3(30.0f, 1.0f, 0.5f), v3(0, 1, 0)};
+        double sum = 0.0;
+        for (uint32_t i = 0; i < N; ++i) sum += light_tree_pmf(&t, &ctx, i);
+        CHECK(fabs(sum - 1.0) < 1e-4, "layout %d: pmf sums to %.7f", layout, sum);
+        int mismatch = 0;
+        for (int s = 0; s < 10000; ++s) {
+            float p;
+            uint32_t i = light_tree_select(&t, &ctx, (float)rnd(), &p);
+            if (i >= N || !(p > 0.0f) || p != light_tree_pmf(&t, &ctx, i)) ++mismatch;
+        }
+        CHECK(mismatch == 0, "layout %d: %d selections disagree with the pmf", layout, mismatch);
+        CHECK(maxd <= 64, "layout %d: depth %d", layout, maxd);
+        fprintf(stderr, "  %s: max depth %d, pmf sum %.7f\n", layout == 0 ? "exponential line" : "coincident", maxd, sum);
+        light_tree_free(&t);
+    }
+    free(ls);
+}
+
+/* ---------------------------------------------------------------- (c) */
+
+static void test_million(void) {
+    enum { N = 1000000 };
+    Light *ls = malloc(N * sizeof *ls);
+    for (int i = 0; i < N; ++i) ls[i] = point_light(v3(rndf(-100, 100), rndf(-100, 100), rndf(-100, 100)), rndf(0.1f, 10.0f));
+    LightTree t;
+    double t0 = now_seconds();
+    int rc = light_tree_build(&t, ls, N);
+    double dt = now_seconds() - t0;
+    CHECK(rc == 0, "1M build failed");
+    fprintf(stderr, "  (c) 1,000,000 point lights: build %.3f s, %u nodes\n", dt, t.node_count);
+    CHECK(dt < 60.0, "1M build took %.1f s", dt);
+    LightSampleContext ctx = {v3(1, 2, 3), v3(0, 1, 0)};
+    int mismatch = 0;
+    for (int s = 0; s < 1000; ++s) {
+        float p;
+        uint32_t i = light_tree_select(&t, &ctx, (float)rnd(), &p);
+        if (i >= N || !(p > 0.0f) || p != light_tree_pmf(&t, &ctx, i)) ++mismatch;
+    }
+    CHECK(mismatch == 0, "1M: %d selections disagree with the pmf", mismatch);
+    light_tree_free(&t);
+    free(ls);
+}
+
+int main(void) {
+    test_by_hand();
+    test_random();
+    test_degenerate_layouts();
+    test_million();
+    return test_exit();
+}
