@@ -13,7 +13,8 @@
 typedef enum {
     CANDELA_LIGHT_SAMPLER_UNIFORM = 0,
     CANDELA_LIGHT_SAMPLER_POWER = 1,
-    CANDELA_LIGHT_SAMPLER_TREE = 2   /* light BVH (Conty Estevez & Kulla 2018), renderer/lighttree.h */
+    CANDELA_LIGHT_SAMPLER_TREE = 2,  /* light BVH (Conty Estevez & Kulla 2018), renderer/lighttree.h */
+    CANDELA_LIGHT_SAMPLER_OPTIMAL = 3 /* every light's estimate per vertex: the paper's reference */
 } CandelaLightSampler;
 
 typedef enum {
@@ -37,9 +38,13 @@ typedef struct CandelaOptions {
     int max_iteration_spp;     /* cap of the 1,1,2,4,... schedule; 0: default */
     int quiet;                 /* no progress output */
     int record_rays;           /* keep every traced ray for the Embree replay benchmark */
+    int optimal_occlusion;     /* optimal sampler: one shadow ray per light per vertex */
 } CandelaOptions;
 
 void candela_options_default(CandelaOptions *o);
+/* "uniform", "power", "tree", "optimal" */
+const char *candela_light_sampler_name(CandelaLightSampler s);
+int candela_light_sampler_parse(const char *name, CandelaLightSampler *s); /* 0 ok */
 
 /* Wall-clock seconds per wavefront stage, summed over threads' shared wall time. */
 typedef struct CandelaStats {
@@ -83,6 +88,17 @@ int candela_write_outputs(const CandelaImage *image, const char *exr_path, const
  * occlusion for shadow rays); returns the seconds spent tracing. */
 int candela_replay_rays(const CandelaOptions *o, const CandelaRayLog *log, int threads,
                         double *seconds, char err[CANDELA_ERR_LEN]);
+
+/* candela compare: every strategy at equal spp against a reference (renderer/compare.c). */
+typedef struct CandelaCompareOptions {
+    const char *strategies;      /* comma-separated, e.g. "uniform,power,tree,optimal" */
+    int reference_spp;           /* 0: 16 x spp */
+    const char *reference_path;  /* reuse this EXR instead of rendering a reference */
+    const char *out_dir;
+    int optimal_max_lights;      /* skip `optimal` above this many lights (0: never skip) */
+} CandelaCompareOptions;
+
+int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, char err[CANDELA_ERR_LEN]);
 
 int candela_write_stats_json(const char *path, const CandelaOptions *o, const CandelaStats *s,
                              char err[CANDELA_ERR_LEN]);

@@ -168,6 +168,8 @@ int lights_build(Scene *scene, CandelaLightUnits units, CandelaLightSampler stra
     free(powers);
     if (rc != 0) goto oom;
     if (strategy == CANDELA_LIGHT_SAMPLER_TREE && light_tree_build(&ls->tree, ls->lights, ls->count) != 0) goto oom;
+    ls->scene = scene;
+    if (ls->environment >= 0) lights_env_estimates(scene, ls->env_estimate);
     return 0;
 oom:
     snprintf(err, err_len, "out of memory while building the light list");
@@ -198,6 +200,8 @@ uint32_t light_select(const Lights *ls, const LightSampleContext *ctx, float u, 
     switch (ls->strategy) {
     case CANDELA_LIGHT_SAMPLER_TREE:
         return light_tree_select(&ls->tree, ctx, u, pmf);
+    case CANDELA_LIGHT_SAMPLER_OPTIMAL:
+        return optimal_select(ls, ctx, u, pmf);
     case CANDELA_LIGHT_SAMPLER_POWER:
         return dist1d_sample_discrete(&ls->power_distribution, u, pmf, NULL);
     default: {
@@ -214,6 +218,8 @@ float light_select_pmf(const Lights *ls, const LightSampleContext *ctx, uint32_t
     switch (ls->strategy) {
     case CANDELA_LIGHT_SAMPLER_TREE:
         return light_tree_pmf(&ls->tree, ctx, light);
+    case CANDELA_LIGHT_SAMPLER_OPTIMAL:
+        return optimal_pmf(ls, ctx, light);
     case CANDELA_LIGHT_SAMPLER_POWER:
         return dist1d_pmf(&ls->power_distribution, light);
     default:

@@ -53,6 +53,9 @@ typedef struct Lights {
     CandelaLightSampler strategy;
     Distribution1D power_distribution;
     LightTree tree;             /* CANDELA_LIGHT_SAMPLER_TREE only */
+    const struct Scene *scene;  /* for --optimal-occlusion's shadow rays */
+    int optimal_occlusion;
+    float env_estimate[7];      /* environment irradiance on the 6 axis planes + fluence */
 } Lights;
 
 /* Build from the scene's punctual lights, emissive primitives and environment. */
@@ -63,6 +66,13 @@ void lights_free(Lights *lights);
 /* §Light selection interface. */
 uint32_t light_select(const Lights *lights, const LightSampleContext *ctx, float u, float *pmf);
 float light_select_pmf(const Lights *lights, const LightSampleContext *ctx, uint32_t light);
+
+/* lightselect_optimal.c: unoccluded contribution estimates (cache points spec §3.4) and
+ * the locally optimal strategy (§5.8). */
+float light_contribution_estimate(const Lights *ls, const Light *l, vec3 p, vec3 n);
+uint32_t optimal_select(const Lights *ls, const LightSampleContext *ctx, float u, float *pmf);
+float optimal_pmf(const Lights *ls, const LightSampleContext *ctx, uint32_t light);
+void lights_env_estimates(const struct Scene *scene, float out[7]);
 
 /* A sampled point on a light as seen from a shading point. */
 typedef struct LightLiSample {

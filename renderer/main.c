@@ -12,6 +12,7 @@
 static const char *USAGE =
     "usage: candela render SCENE.gltf|SCENE.glb [options]\n"
     "       candela bench SCENE [options]   render, then replay the same rays through bare Embree\n"
+    "       candela compare SCENE [options] every light sampler at equal spp vs a reference\n"
     "       candela --help | --version\n"
     "\n"
     "options:\n"
@@ -24,14 +25,21 @@ static const char *USAGE =
     "  --res WxH                 resolution (default: 640 wide, camera aspect)\n"
     "  --threads N               worker threads (default: all cores)\n"
     "  --max-depth N             maximum bounces; 1 = direct light only (default 8)\n"
-    "  --light-sampler S         uniform | power | tree (default power)\n"
+    "  --light-sampler S         uniform | power | tree | optimal (default power)\n"
+    "  --optimal-occlusion       optimal sampler: one shadow ray per light per vertex\n"
     "  --light-units U           blender (default: cd/683, lux/683) | raw (W/sr, W/m^2)\n"
     "  --camera NAME             glTF camera by name (default: the first, or a framing view)\n"
     "  --env FILE                lat-long environment map (EXR/HDR/PNG...)\n"
     "  --env-strength S          environment multiplier (default 1)\n"
     "  --batch N                 paths in flight per batch (default 16384; never changes the image)\n"
     "  --stats-json FILE         write render statistics as JSON\n"
-    "  --quiet                   no progress or statistics on stderr\n";
+    "  --quiet                   no progress or statistics on stderr\n"
+    "compare options:\n"
+    "  --strategies LIST         default uniform,power,tree,optimal\n"
+    "  --ref-spp N               reference spp (default 16 x --spp), power sampler\n"
+    "  --reference FILE.exr      reuse a reference instead of rendering one\n"
+    "  --out-dir DIR             default out/compare-<scene name>\n"
+    "  --optimal-max-lights N    skip optimal above N lights (default 5000; 0 = never)\n";
 
 static void die(const char *msg, const char *arg) {
     fprintf(stderr, "candela: %s%s%s\n", msg, arg ? arg : "", arg ? "" : "");
@@ -94,8 +102,9 @@ int main(int argc, char **argv) {
     if (argc < 2) { fputs(USAGE, stderr); return 2; }
     if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0) { fputs(USAGE, stdout); return 0; }
     if (strcmp(argv[1], "--version") == 0) { printf("candela %s\n", CANDELA_VERSION); return 0; }
-    int bench = 0;
+    int bench = 0, compare = 0;
     if (strcmp(argv[1], "bench") == 0) bench = 1;
+    else if (strcmp(argv[1], "compare") == 0) compare = 1;
     else if (strcmp(argv[1], "render") != 0) {
         fprintf(stderr, "candela: unknown command '%s' (see candela --help)\n", argv[1]);
         return 2;
@@ -104,12 +113,19 @@ int main(int argc, char **argv) {
     candela_options_default(&o);
     const char *out = NULL, *png = NULL, *stats_json = NULL;
     int no_png = 0;
+    CandelaCompareOptions co = {"uniform,power,tree,optimal", 0, NULL, NULL, 5000};
     for (int i = 2; i < argc; ++i) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (strcmp(a, "-o") == 0 || strcmp(a, "--output") == 0) { if (!v) die("missing value for ", a); out = v; ++i; }
         else if (strcmp(a, "--png") == 0) { if (!v) die("missing value for ", a); png = v; ++i; }
         else if (strcmp(a, "--no-png") == 0) no_png = 1;
+        else if (strcmp(a, "--optimal-occlusion") == 0) o.optimal_occlusion = 1;
+        else if (compare && strcmp(a, "--strategies") == 0) { if (!v) die("missing value for ", a); co.strategies = v; ++i; }
+        else if (compare && strcmp(a, "--ref-spp") == 0) { co.reference_spp = (int)parse_long(a, v, 1, 1 << 20); ++i; }
+        else if (compare && strcmp(a, "--reference") == 0) { if (!v) die("missing value for ", a); co.reference_path = v; ++i; }
+        else if (compare && strcmp(a, "--out-dir") == 0) { if (!v) die("missing value for ", a); co.out_dir = v; ++i; }
+        else if (compare && strcmp(a, "--optimal-max-lights") == 0) { co.optimal_max_lights = (int)parse_long(a, v, 0, 1 << 30); ++i; }
         else if (strcmp(a, "--spp") == 0) { o.spp = (int)parse_long(a, v, 1, 1 << 20); ++i; }
         else if (strcmp(a, "--seed") == 0) { o.seed = (uint64_t)parse_long(a, v, 0, LONG_MAX); ++i; }
         else if (strcmp(a, "--threads") == 0) { o.threads = (int)parse_long(a, v, 1, 1024); ++i; }
@@ -131,10 +147,10 @@ int main(int argc, char **argv) {
             o.width = w; o.height = h; ++i;
         } else if (strcmp(a, "--light-sampler") == 0) {
             if (!v) die("missing value for ", a);
-            if (strcmp(v, "uniform") == 0) o.light_sampler = CANDELA_LIGHT_SAMPLER_UNIFORM;
-            else if (strcmp(v, "power") == 0) o.light_sampler = CANDELA_LIGHT_SAMPLER_POWER;
-            else if (strcmp(v, "tree") == 0) o.light_sampler = CANDELA_LIGHT_SAMPLER_TREE;
-            else { fprintf(stderr, "candela: unknown light sampler '%s' (uniform, power, tree)\n", v); return 2; }
+            if (candela_light_sampler_parse(v, &o.light_sampler) != 0) {
+                fprintf(stderr, "candela: unknown light sampler '%s' (uniform, power, tree, optimal)\n", v);
+                return 2;
+            }
             ++i;
         } else if (strcmp(a, "--light-units") == 0) {
             if (!v) die("missing value for ", a);
@@ -189,6 +205,23 @@ int main(int argc, char **argv) {
     }
 
     char err[CANDELA_ERR_LEN];
+    if (compare) {
+        char dir[PATH_MAX];
+        if (!co.out_dir) {
+            const char *base = strrchr(o.scene_path, '/');
+            base = base ? base + 1 : o.scene_path;
+            mkdir("out", 0777);
+            snprintf(dir, sizeof dir, "out/compare-%s", base);
+            char *dot = strrchr(dir, '.');
+            if (dot && dot > dir + 12) *dot = 0;
+            co.out_dir = dir;
+        }
+        if (candela_compare(&o, &co, err) != 0) {
+            fprintf(stderr, "candela: %s\n", err);
+            return 1;
+        }
+        return 0;
+    }
     CandelaImage image;
     CandelaStats stats;
     CandelaRayLog log = {0};

@@ -64,7 +64,7 @@ int candela_write_stats_json(const char *path, const CandelaOptions *o, const Ca
     double render = s->time_generate + s->time_sort + s->time_trace + s->time_shade + s->time_shadow + s->time_film;
     fprintf(f, "{\n  \"scene\": \"%s\",\n  \"spp\": %d,\n  \"seed\": %llu,\n  \"max_depth\": %d,\n",
             o->scene_path, o->spp, (unsigned long long)o->seed, o->max_depth);
-    fprintf(f, "  \"light_sampler\": \"%s\",\n", o->light_sampler == CANDELA_LIGHT_SAMPLER_POWER ? "power" : "uniform");
+    fprintf(f, "  \"light_sampler\": \"%s\",\n", candela_light_sampler_name(o->light_sampler));
     fprintf(f, "  \"time_seconds\": {\"load\": %.6f, \"build\": %.6f, \"generate\": %.6f, \"sort\": %.6f, "
                "\"trace\": %.6f, \"shade\": %.6f, \"shadow\": %.6f, \"film\": %.6f, \"total\": %.6f},\n",
             s->time_load, s->time_build, s->time_generate, s->time_sort, s->time_trace, s->time_shade,

@@ -499,6 +499,7 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
         scene_free(scene);
         return -1;
     }
+    scene->lights.optimal_occlusion = o->optimal_occlusion;
     return 0;
 }
 

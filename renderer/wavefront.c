@@ -45,6 +45,18 @@ void candela_options_default(CandelaOptions *o) {
     o->env_strength = 1.0f;
 }
 
+static const char *const LIGHT_SAMPLER_NAMES[] = {"uniform", "power", "tree", "optimal"};
+
+const char *candela_light_sampler_name(CandelaLightSampler s) {
+    return (unsigned)s < sizeof LIGHT_SAMPLER_NAMES / sizeof LIGHT_SAMPLER_NAMES[0] ? LIGHT_SAMPLER_NAMES[s] : "unknown";
+}
+
+int candela_light_sampler_parse(const char *name, CandelaLightSampler *s) {
+    for (unsigned i = 0; i < sizeof LIGHT_SAMPLER_NAMES / sizeof LIGHT_SAMPLER_NAMES[0]; ++i)
+        if (strcmp(name, LIGHT_SAMPLER_NAMES[i]) == 0) { *s = (CandelaLightSampler)i; return 0; }
+    return -1;
+}
+
 /* ---------------------------------------------------------------- state */
 
 typedef struct Film {

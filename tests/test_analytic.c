@@ -108,7 +108,7 @@ static int render(const RenderSpec *s, CandelaImage *img) {
     if (img->width != s->width || img->height != s->height || !img->rgb || !img->variance) return 1;
     fprintf(stderr, "  render %-22s %-10s %dx%d %4d spp depth %2d %s %s: %.2f s, %u tris, %u lights\n",
             s->file, s->camera ? s->camera : "-", s->width, s->height, s->spp, o.max_depth,
-            s->sampler == CANDELA_LIGHT_SAMPLER_POWER ? "power" : s->sampler == CANDELA_LIGHT_SAMPLER_TREE ? "tree" : "uniform",
+            candela_light_sampler_name(s->sampler),
             s->units == CANDELA_LIGHT_UNITS_RAW ? "raw" : "blender", t, st.num_triangles,
             st.num_lights);
     CHECK(t < 30.0, "%s: render took %.1f s", s->file, t);
@@ -418,11 +418,16 @@ static void test_samplers(void) {
     RenderSpec st = su;
     st.sampler = CANDELA_LIGHT_SAMPLER_TREE;
     st.seed = 13;
-    CandelaImage a, b, t;
-    int ra = render(&su, &a), rb = render(&sp, &b), rt = render(&st, &t);
+    RenderSpec so = su;
+    so.sampler = CANDELA_LIGHT_SAMPLER_OPTIMAL;
+    so.seed = 14;
+    CandelaImage a, b, t, op;
+    int ra = render(&su, &a), rb = render(&sp, &b), rt = render(&st, &t), ro = render(&so, &op);
     int fa = ra == 0 && all_finite("two_lights uniform", &a);
     if (fa && rb == 0 && all_finite("two_lights power", &b)) compare_samplers(&a, &b, "power");
     if (fa && rt == 0 && all_finite("two_lights tree", &t)) compare_samplers(&a, &t, "tree");
+    if (fa && ro == 0 && all_finite("two_lights optimal", &op)) compare_samplers(&a, &op, "optimal");
+    candela_image_free(&op);
     candela_image_free(&a);
     candela_image_free(&b);
     candela_image_free(&t);

@@ -10,9 +10,10 @@
 #include "rng.h"
 #include "scene.h"
 
-static void check_strategy(const char *path, CandelaLightSampler strategy, const char *env) {
+static void check_strategy_occl(const char *path, CandelaLightSampler strategy, const char *env, int occlusion) {
     CandelaOptions o;
     candela_options_default(&o);
+    o.optimal_occlusion = occlusion;
     o.scene_path = path;
     o.light_sampler = strategy;
     o.width = o.height = 8;
@@ -25,7 +26,10 @@ static void check_strategy(const char *path, CandelaLightSampler strategy, const
     const Lights *ls = &scene.lights;
     CHECK(ls->count > 1, "lights: %u", ls->count);
     uint64_t key = rng_path_key(3, 1, 2);
-    for (int q = 0; q < 8; ++q) {
+    /* optimal is O(lights) per call (and a shadow ray per light with occlusion): fewer draws */
+    const int contexts = strategy == CANDELA_LIGHT_SAMPLER_OPTIMAL ? (occlusion ? 2 : 4) : 8;
+    const int N = strategy == CANDELA_LIGHT_SAMPLER_OPTIMAL ? 20000 : 200000;
+    for (int q = 0; q < contexts; ++q) {
         /* the last context is a point in a medium (zero normal) */
         LightSampleContext ctx = {v3(rng_uniform(key, 3 * q) * 2 - 1, rng_uniform(key, 3 * q + 1) * 2, rng_uniform(key, 3 * q + 2) * 2 - 1),
                                   q == 7 ? v3(0, 0, 0) : v3(0, 1, 0)};
@@ -36,7 +40,6 @@ static void check_strategy(const char *path, CandelaLightSampler strategy, const
         for (uint32_t i = 0; i < ls->count; ++i) sum += light_select_pmf(ls, &ctx, i);
         CHECK(fabs(sum - 1.0) < 1e-4, "strategy %d: pmf sums to %.7f", (int)strategy, sum);
         /* select/pmf consistency and frequencies */
-        enum { N = 200000 };
         uint32_t *hist = calloc(ls->count, sizeof *hist);
         int mismatch = 0;
         for (int s = 0; s < N; ++s) {
@@ -94,6 +97,10 @@ static void check_strategy(const char *path, CandelaLightSampler strategy, const
     scene_free(&scene);
 }
 
+static void check_strategy(const char *path, CandelaLightSampler strategy, const char *env) {
+    check_strategy_occl(path, strategy, env, 0);
+}
+
 int main(int argc, char **argv) {
     if (argc < 3) SKIP("usage: test_lights MANY_LIGHTS.gltf SCENES_DIR");
     FILE *f = fopen(argv[1], "rb");
@@ -107,5 +114,7 @@ int main(int argc, char **argv) {
     check_strategy(argv[1], CANDELA_LIGHT_SAMPLER_UNIFORM, envp);
     check_strategy(argv[1], CANDELA_LIGHT_SAMPLER_POWER, envp);
     check_strategy(argv[1], CANDELA_LIGHT_SAMPLER_TREE, envp);
+    check_strategy(argv[1], CANDELA_LIGHT_SAMPLER_OPTIMAL, envp);
+    check_strategy_occl(argv[1], CANDELA_LIGHT_SAMPLER_OPTIMAL, envp, 1);
     return test_exit();
 }

@@ -1,0 +1,246 @@
+/* renderer/compare.c: `candela compare`, the equal-SPP comparison of light-selection
+ * strategies (issue 3, first version).
+ *
+ * Renders the scene once per strategy at the same spp and seed, renders (or reuses) a
+ * high-spp reference, and writes OUT/table.md, OUT/table.csv, OUT/<strategy>.exr and
+ * OUT/<strategy>_error.png (false-colour relative error). Metrics per strategy:
+ *   time        wall seconds of the whole render (load + build + iterations)
+ *   peak memory peak resident set size during that render
+ *   RMSE        sqrt(mean over pixels and channels of (x - ref)^2)
+ *   relMSE      mean of (x - ref)^2 / (ref^2 + 0.01)
+ *   TTUV        time-to-unit-variance = mean per-pixel variance of the estimate x time
+ *               (the cache points paper's Table 3 measure: lower is better, independent of
+ *               spp for an unbiased estimator at fixed cost per sample) */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "candela.h"
+#include "io.h"
+
+typedef struct StrategyResult {
+    const char *name;
+    int skipped;
+    const char *why;
+    double time, ttuv, rmse, relmse, mean_var;
+    size_t peak;
+} StrategyResult;
+
+/* Blue (0) -> green -> yellow -> red (>= 1): a readable false-colour ramp for |error|. */
+static void false_colour(float t, float rgb[3]) {
+    t = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
+    const float stops[4][3] = {{0.05f, 0.05f, 0.5f}, {0.1f, 0.7f, 0.3f}, {0.95f, 0.9f, 0.1f}, {0.9f, 0.1f, 0.05f}};
+    float x = t * 3.0f;
+    int i = x >= 3.0f ? 2 : (int)x;
+    float f = x - (float)i;
+    for (int k = 0; k < 3; ++k) rgb[k] = stops[i][k] * (1.0f - f) + stops[i + 1][k] * f;
+}
+
+static int write_error_png(const char *path, const CandelaImage *img, const float *ref, char err[CANDELA_ERR_LEN]) {
+    size_t n = (size_t)img->width * (size_t)img->height;
+    float *rgb = malloc(3 * n * sizeof(float));
+    if (!rgb) { snprintf(err, CANDELA_ERR_LEN, "%.400s: out of memory", path); return -1; }
+    for (size_t i = 0; i < n; ++i) {
+        double e = 0.0, r = 0.0;
+        for (int k = 0; k < 3; ++k) {
+            e += fabs((double)img->rgb[3 * i + k] - ref[3 * i + k]);
+            r += ref[3 * i + k];
+        }
+        /* relative error, 0 .. 100% mapped over the ramp */
+        false_colour((float)(e / (r + 0.03)), rgb + 3 * i);
+    }
+    char ioerr[IO_ERR_LEN];
+    int rc = io_write_png(path, img->width, img->height, rgb, ioerr);
+    free(rgb);
+    if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
+    return rc;
+}
+
+static int load_reference(const char *path, int w, int h, float **out, char err[CANDELA_ERR_LEN]) {
+    const char *names[3] = {"R", "G", "B"};
+    size_t n = (size_t)w * (size_t)h;
+    float *ref = malloc(3 * n * sizeof(float));
+    if (!ref) { snprintf(err, CANDELA_ERR_LEN, "%.400s: out of memory", path); return -1; }
+    for (int k = 0; k < 3; ++k) {
+        int rw, rh;
+        float *ch = NULL;
+        char ioerr[IO_ERR_LEN];
+        if (io_read_exr_channel(path, names[k], &rw, &rh, &ch, ioerr) != 0) {
+            snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
+            free(ref);
+            return -1;
+        }
+        if (rw != w || rh != h) {
+            snprintf(err, CANDELA_ERR_LEN, "%s: reference is %dx%d, the comparison renders %dx%d", path, rw, rh, w, h);
+            free(ch); free(ref);
+            return -1;
+        }
+        for (size_t i = 0; i < n; ++i) ref[3 * i + k] = ch[i];
+        free(ch);
+    }
+    *out = ref;
+    return 0;
+}
+
+int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, char err[CANDELA_ERR_LEN]) {
+    if (mkdir(c->out_dir, 0777) != 0 && errno != EEXIST) {
+        snprintf(err, CANDELA_ERR_LEN, "%s: cannot create the output folder: %s", c->out_dir, strerror(errno));
+        return -1;
+    }
+    char path[4096];
+    CandelaOptions o = *base;
+    o.quiet = 1;
+    o.record_rays = 0;
+    float *ref = NULL;
+    int width = 0, height = 0;
+    double ref_time = 0.0;
+
+    /* 1. reference: reuse an EXR, or render with the power sampler at reference_spp */
+    if (c->reference_path) {
+        /* the resolution must match: render one sample to learn it cheaply */
+        CandelaOptions probe = o;
+        probe.spp = 1;
+        CandelaImage img;
+        if (candela_render(&probe, &img, NULL, NULL, err) != 0) return -1;
+        width = img.width; height = img.height;
+        candela_image_free(&img);
+        if (load_reference(c->reference_path, width, height, &ref, err) != 0) return -1;
+    } else {
+        CandelaOptions ro = o;
+        ro.spp = c->reference_spp > 0 ? c->reference_spp : 16 * base->spp;
+        ro.seed = base->seed + 0x5eed;  /* independent of the compared renders */
+        ro.light_sampler = CANDELA_LIGHT_SAMPLER_POWER;
+        CandelaImage img;
+        CandelaStats st;
+        fprintf(stderr, "candela compare: reference, %d spp\n", ro.spp);
+        if (candela_render(&ro, &img, &st, NULL, err) != 0) return -1;
+        ref_time = st.time_total;
+        width = img.width; height = img.height;
+        snprintf(path, sizeof path, "%s/reference.exr", c->out_dir);
+        if (candela_write_outputs(&img, path, NULL, err) != 0) { candela_image_free(&img); return -1; }
+        size_t n = (size_t)width * (size_t)height;
+        ref = malloc(3 * n * sizeof(float));
+        if (!ref) { candela_image_free(&img); snprintf(err, CANDELA_ERR_LEN, "out of memory"); return -1; }
+        memcpy(ref, img.rgb, 3 * n * sizeof(float));
+        candela_image_free(&img);
+    }
+    size_t n = (size_t)width * (size_t)height;
+
+    /* 2. every strategy at the same spp and seed */
+    StrategyResult results[16];
+    int count = 0;
+    char list[512];
+    snprintf(list, sizeof list, "%s", c->strategies);
+    for (char *save = NULL, *tok = strtok_r(list, ",", &save); tok && count < 16; tok = strtok_r(NULL, ",", &save)) {
+        StrategyResult *r = &results[count];
+        memset(r, 0, sizeof *r);
+        r->name = strdup(tok);
+        ++count;
+        CandelaLightSampler s;
+        if (candela_light_sampler_parse(tok, &s) != 0) {
+            snprintf(err, CANDELA_ERR_LEN, "unknown strategy '%s' in --strategies", tok);
+            for (int i = 0; i < count; ++i) free((char *)results[i].name);
+            free(ref);
+            return -1;
+        }
+        o.light_sampler = s;
+        if (s == CANDELA_LIGHT_SAMPLER_OPTIMAL && c->optimal_max_lights > 0) {
+            CandelaOptions probe = o;
+            probe.spp = 1;
+            probe.width = probe.height = 1;
+            probe.light_sampler = CANDELA_LIGHT_SAMPLER_POWER;
+            CandelaImage img;
+            CandelaStats st;
+            if (candela_render(&probe, &img, &st, NULL, err) == 0) {
+                candela_image_free(&img);
+                if (st.num_lights > (uint32_t)c->optimal_max_lights) {
+                    r->skipped = 1;
+                    r->why = "skipped: O(lights) per vertex is too slow here (--optimal-max-lights)";
+                    continue;
+                }
+            }
+        }
+        fprintf(stderr, "candela compare: %s, %d spp\n", tok, o.spp);
+        CandelaImage img;
+        CandelaStats st;
+        if (candela_render(&o, &img, &st, NULL, err) != 0) {
+            for (int i = 0; i < count; ++i) free((char *)results[i].name);
+            free(ref);
+            return -1;
+        }
+        double se = 0.0, rel = 0.0, var = 0.0;
+        for (size_t i = 0; i < 3 * n; ++i) {
+            double d = (double)img.rgb[i] - ref[i];
+            se += d * d;
+            rel += d * d / ((double)ref[i] * ref[i] + 0.01);
+            var += img.variance[i];
+        }
+        r->time = st.time_total;
+        r->peak = st.peak_memory_bytes;
+        r->rmse = sqrt(se / (3.0 * (double)n));
+        r->relmse = rel / (3.0 * (double)n);
+        r->mean_var = var / (3.0 * (double)n);
+        r->ttuv = r->mean_var * r->time;
+        snprintf(path, sizeof path, "%s/%s.exr", c->out_dir, tok);
+        int rc = candela_write_outputs(&img, path, NULL, err);
+        snprintf(path, sizeof path, "%s/%s_error.png", c->out_dir, tok);
+        if (rc == 0) rc = write_error_png(path, &img, ref, err);
+        candela_image_free(&img);
+        if (rc != 0) {
+            for (int i = 0; i < count; ++i) free((char *)results[i].name);
+            free(ref);
+            return -1;
+        }
+    }
+    free(ref);
+
+    /* 3. tables; TTUV also relative to the first strategy that ran */
+    double ttuv0 = 0.0;
+    for (int i = 0; i < count; ++i) if (!results[i].skipped) { ttuv0 = results[i].ttuv; break; }
+    snprintf(path, sizeof path, "%s/table.md", c->out_dir);
+    FILE *md = fopen(path, "w");
+    snprintf(path, sizeof path, "%s/table.csv", c->out_dir);
+    FILE *csv = fopen(path, "w");
+    if (!md || !csv) {
+        if (md) fclose(md);
+        if (csv) fclose(csv);
+        for (int i = 0; i < count; ++i) free((char *)results[i].name);
+        snprintf(err, CANDELA_ERR_LEN, "%s: cannot write the tables", c->out_dir);
+        return -1;
+    }
+    fprintf(md, "# %s, %dx%d, %d spp, seed %llu\n\n", base->scene_path, width, height, base->spp,
+            (unsigned long long)base->seed);
+    if (c->reference_path) fprintf(md, "Reference: %s\n\n", c->reference_path);
+    else fprintf(md, "Reference: power sampler, %d spp (%.2f s)\n\n",
+                 c->reference_spp > 0 ? c->reference_spp : 16 * base->spp, ref_time);
+    fprintf(md, "| strategy | time s | cache point build s | cache points | peak MiB | RMSE | relMSE | mean variance | TTUV | TTUV / first |\n");
+    fprintf(md, "|---|---|---|---|---|---|---|---|---|---|\n");
+    fprintf(csv, "strategy,time_s,cachepoint_build_s,cache_points,peak_mib,rmse,relmse,mean_variance,ttuv,ttuv_ratio\n");
+    for (int i = 0; i < count; ++i) {
+        const StrategyResult *r = &results[i];
+        if (r->skipped) {
+            fprintf(md, "| %s | %s | | | | | | | | |\n", r->name, r->why);
+            fprintf(csv, "%s,skipped,,,,,,,,\n", r->name);
+            continue;
+        }
+        /* cache points do not exist yet: their columns stay empty until they do */
+        fprintf(md, "| %s | %.3f | - | - | %.1f | %.5g | %.5g | %.5g | %.5g | %.3f |\n", r->name, r->time,
+                (double)r->peak / 1048576.0, r->rmse, r->relmse, r->mean_var, r->ttuv, ttuv0 > 0 ? r->ttuv / ttuv0 : 0.0);
+        fprintf(csv, "%s,%.6f,,,%.3f,%.8g,%.8g,%.8g,%.8g,%.6f\n", r->name, r->time, (double)r->peak / 1048576.0,
+                r->rmse, r->relmse, r->mean_var, r->ttuv, ttuv0 > 0 ? r->ttuv / ttuv0 : 0.0);
+    }
+    fclose(md);
+    fclose(csv);
+    snprintf(path, sizeof path, "%s/table.md", c->out_dir);
+    FILE *f = fopen(path, "r");
+    if (f) {
+        char line[1024];
+        while (fgets(line, sizeof line, f)) fputs(line, stdout);
+        fclose(f);
+    }
+    for (int i = 0; i < count; ++i) free((char *)results[i].name);
+    return 0;
+}
