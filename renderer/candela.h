@@ -14,7 +14,8 @@ typedef enum {
     CANDELA_LIGHT_SAMPLER_UNIFORM = 0,
     CANDELA_LIGHT_SAMPLER_POWER = 1,
     CANDELA_LIGHT_SAMPLER_TREE = 2,  /* light BVH (Conty Estevez & Kulla 2018), renderer/lighttree.h */
-    CANDELA_LIGHT_SAMPLER_OPTIMAL = 3 /* every light's estimate per vertex: the paper's reference */
+    CANDELA_LIGHT_SAMPLER_OPTIMAL = 3, /* every light's estimate per vertex: the paper's reference */
+    CANDELA_LIGHT_SAMPLER_CACHEPOINTS = 4 /* cache points (Li et al. 2024), cachepoints/ */
 } CandelaLightSampler;
 
 typedef enum {
@@ -39,6 +40,7 @@ typedef struct CandelaOptions {
     int quiet;                 /* no progress output */
     int record_rays;           /* keep every traced ray for the Embree replay benchmark */
     int optimal_occlusion;     /* optimal sampler: one shadow ray per light per vertex */
+    int cachepoint_no_visibility; /* cache points without visibility learning */
 } CandelaOptions;
 
 void candela_options_default(CandelaOptions *o);
@@ -55,6 +57,9 @@ typedef struct CandelaStats {
     int iterations;
     size_t peak_memory_bytes;
     uint32_t num_triangles, num_lights, num_instances;
+    double time_cachepoints;       /* cache point build (inside time_build) */
+    uint32_t num_cachepoints, cachepoint_candidates;
+    size_t cachepoint_bytes;
 } CandelaStats;
 
 /* The film after the render: per-pixel mean and AOVs, top row first. */

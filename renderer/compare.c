@@ -25,8 +25,9 @@ typedef struct StrategyResult {
     const char *name;
     int skipped;
     const char *why;
-    double time, ttuv, rmse, relmse, mean_var;
+    double time, ttuv, rmse, relmse, mean_var, cp_time;
     size_t peak;
+    uint32_t cp_count;
 } StrategyResult;
 
 /* Blue (0) -> green -> yellow -> red (>= 1): a readable false-colour ramp for |error|. */
@@ -140,7 +141,9 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
         r->name = strdup(tok);
         ++count;
         CandelaLightSampler s;
-        if (candela_light_sampler_parse(tok, &s) != 0) {
+        o.cachepoint_no_visibility = base->cachepoint_no_visibility;
+        if (strcmp(tok, "cachepoints-novis") == 0) { s = CANDELA_LIGHT_SAMPLER_CACHEPOINTS; o.cachepoint_no_visibility = 1; }
+        else if (candela_light_sampler_parse(tok, &s) != 0) {
             snprintf(err, CANDELA_ERR_LEN, "unknown strategy '%s' in --strategies", tok);
             for (int i = 0; i < count; ++i) free((char *)results[i].name);
             free(ref);
@@ -179,6 +182,8 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
             var += img.variance[i];
         }
         r->time = st.time_total;
+        r->cp_time = st.time_cachepoints;
+        r->cp_count = st.num_cachepoints;
         r->peak = st.peak_memory_bytes;
         r->rmse = sqrt(se / (3.0 * (double)n));
         r->relmse = rel / (3.0 * (double)n);
@@ -226,11 +231,16 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
             fprintf(csv, "%s,skipped,,,,,,,,\n", r->name);
             continue;
         }
-        /* cache points do not exist yet: their columns stay empty until they do */
-        fprintf(md, "| %s | %.3f | - | - | %.1f | %.5g | %.5g | %.5g | %.5g | %.3f |\n", r->name, r->time,
+        char cpt[32] = "-", cpn[32] = "-";
+        if (r->cp_count) {
+            snprintf(cpt, sizeof cpt, "%.3f", r->cp_time);
+            snprintf(cpn, sizeof cpn, "%u", r->cp_count);
+        }
+        fprintf(md, "| %s | %.3f | %s | %s | %.1f | %.5g | %.5g | %.5g | %.5g | %.3f |\n", r->name, r->time, cpt, cpn,
                 (double)r->peak / 1048576.0, r->rmse, r->relmse, r->mean_var, r->ttuv, ttuv0 > 0 ? r->ttuv / ttuv0 : 0.0);
-        fprintf(csv, "%s,%.6f,,,%.3f,%.8g,%.8g,%.8g,%.8g,%.6f\n", r->name, r->time, (double)r->peak / 1048576.0,
-                r->rmse, r->relmse, r->mean_var, r->ttuv, ttuv0 > 0 ? r->ttuv / ttuv0 : 0.0);
+        fprintf(csv, "%s,%.6f,%s,%s,%.3f,%.8g,%.8g,%.8g,%.8g,%.6f\n", r->name, r->time, r->cp_count ? cpt : "",
+                r->cp_count ? cpn : "", (double)r->peak / 1048576.0, r->rmse, r->relmse, r->mean_var, r->ttuv,
+                ttuv0 > 0 ? r->ttuv / ttuv0 : 0.0);
     }
     fclose(md);
     fclose(csv);

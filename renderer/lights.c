@@ -61,7 +61,22 @@ static int build_area_light(Scene *scene, uint32_t instance, uint32_t local, Lig
     l->emission = v3_max(e, v3s(0.0f));
     l->two_sided = mat->double_sided ? 1 : 0;
     l->power = PI_F * l->area * fmaxf(v3_luminance(e), 0.0f) * (mat->double_sided ? 2.0f : 1.0f);
+    if (light_area_tree_build(l) != 0) { light_area_free(l); return -1; }
     return 0;
+}
+
+int light_area_tree_build(Light *l) {
+    memset(&l->tri_tree, 0, sizeof l->tri_tree);
+    if (l->type != LIGHT_AREA || l->triangles.n <= LIGHT_AREA_TREE_MAX_CDF || !l->world_vertices) return 0;
+    return light_tree_build_triangles(&l->tri_tree, l->world_vertices, l->triangles.n, v3_luminance(l->emission),
+                                      l->two_sided);
+}
+
+void light_area_free(Light *l) {
+    dist1d_free(&l->triangles);
+    free(l->world_vertices);
+    l->world_vertices = NULL;
+    light_tree_free(&l->tri_tree);
 }
 
 static float env_average_luminance(const Scene *scene) {
@@ -133,9 +148,9 @@ int lights_build(Scene *scene, CandelaLightUnits units, CandelaLightSampler stra
                 continue;
             Light l;
             if (build_area_light(scene, i, k, &l) != 0) goto oom;
-            if (!(l.area > 0.0f)) { dist1d_free(&l.triangles); free(l.world_vertices); continue; }
+            if (!(l.area > 0.0f)) { light_area_free(&l); continue; }
             scene->light_of_primitive[inst->light_table_base + k] = (int32_t)ls->count;
-            if (push_light(ls, &cap, &l) != 0) { dist1d_free(&l.triangles); free(l.world_vertices); goto oom; }
+            if (push_light(ls, &cap, &l) != 0) { light_area_free(&l); goto oom; }
         }
     }
     if (scene->env.width > 0) {
@@ -179,15 +194,15 @@ oom:
 
 void lights_free(Lights *ls) {
     for (uint32_t i = 0; i < ls->count; ++i) {
-        if (ls->lights[i].type == LIGHT_AREA) {
-            dist1d_free(&ls->lights[i].triangles);
-            free(ls->lights[i].world_vertices);
-        }
+        if (ls->lights[i].type == LIGHT_AREA) light_area_free(&ls->lights[i]);
     }
     free(ls->lights);
     if (ls->environment >= 0) dist2d_free(&ls->env_distribution);
     if (ls->power_distribution.cdf) dist1d_free(&ls->power_distribution);
     light_tree_free(&ls->tree);
+    cachepoints_free(ls->cachepoints);
+    free(ls->cp_centroid);
+    free(ls->cp_infinite);
     memset(ls, 0, sizeof *ls);
     ls->environment = -1;
 }
@@ -202,6 +217,12 @@ uint32_t light_select(const Lights *ls, const LightSampleContext *ctx, float u, 
         return light_tree_select(&ls->tree, ctx, u, pmf);
     case CANDELA_LIGHT_SAMPLER_OPTIMAL:
         return optimal_select(ls, ctx, u, pmf);
+    case CANDELA_LIGHT_SAMPLER_CACHEPOINTS: {
+        if (!ls->cachepoints) return optimal_select(ls, ctx, u, pmf); /* fallback (§3.1.1) */
+        float x[3] = {ctx->p.x, ctx->p.y, ctx->p.z}, n[3] = {ctx->n.x, ctx->n.y, ctx->n.z};
+        uint32_t point;
+        return cachepoints_select(ls->cachepoints, &ls->cp_view, x, v3_is_black(ctx->n) ? NULL : n, u, pmf, &point);
+    }
     case CANDELA_LIGHT_SAMPLER_POWER:
         return dist1d_sample_discrete(&ls->power_distribution, u, pmf, NULL);
     default: {
@@ -220,6 +241,11 @@ float light_select_pmf(const Lights *ls, const LightSampleContext *ctx, uint32_t
         return light_tree_pmf(&ls->tree, ctx, light);
     case CANDELA_LIGHT_SAMPLER_OPTIMAL:
         return optimal_pmf(ls, ctx, light);
+    case CANDELA_LIGHT_SAMPLER_CACHEPOINTS: {
+        if (!ls->cachepoints) return optimal_pmf(ls, ctx, light);
+        float x[3] = {ctx->p.x, ctx->p.y, ctx->p.z}, n[3] = {ctx->n.x, ctx->n.y, ctx->n.z};
+        return cachepoints_pmf(ls->cachepoints, &ls->cp_view, x, v3_is_black(ctx->n) ? NULL : n, light);
+    }
     case CANDELA_LIGHT_SAMPLER_POWER:
         return dist1d_pmf(&ls->power_distribution, light);
     default:
@@ -229,14 +255,38 @@ float light_select_pmf(const Lights *ls, const LightSampleContext *ctx, uint32_t
 
 /* ---------------------------------------------------------------- sampling */
 
-float light_area_pdf_li(const Light *l, vec3 p, vec3 y, vec3 ny) {
-    /* triangles are chosen in proportion to area, points uniformly on them: the area density
-     * is 1/A over the whole primitive; convert to solid angle. */
+/* Whether the inner tree picks the triangle for ctx (else the area CDF does). Not inlined:
+ * sampling and the pdf must take the same branch for the same context. */
+__attribute__((noinline)) static int area_uses_tree(const Light *l, const LightSampleContext *ctx) {
+    return l->tri_tree.node_count > 0 && light_tree_node_importance(&l->tri_tree.nodes[0], ctx->p, ctx->n) > 0.0f;
+}
+
+/* Area density of a point on triangle t picked with probability tri_pmf (tree) or by area. */
+static inline float area_density(const Light *l, int tree, uint32_t t, float tri_pmf) {
+    if (!tree) return 1.0f / l->area; /* area CDF then uniform on the triangle: 1/A overall */
+    float a = l->triangles.func[t];   /* the triangle's area */
+    return a > 0.0f ? tri_pmf / a : 0.0f;
+}
+
+/* Solid angle from area density at y (normal ny) seen from p. */
+static inline float area_to_solid_angle(float pdf_area, vec3 p, vec3 y, vec3 ny) {
     vec3 d = v3_sub(y, p);
     float d2 = v3_dot(d, d);
     float cos_l = fabsf(v3_dot(ny, d)) / sqrtf(d2);
-    if (!(cos_l > 0.0f) || !(l->area > 0.0f)) return 0.0f;
-    return d2 / (cos_l * l->area);
+    if (!(cos_l > 0.0f) || !(pdf_area > 0.0f)) return 0.0f;
+    return pdf_area * d2 / cos_l;
+}
+
+float light_area_triangle_pmf(const Light *l, const LightSampleContext *ctx, uint32_t triangle) {
+    if (l->type != LIGHT_AREA || triangle >= l->triangles.n || !(l->area > 0.0f)) return 0.0f;
+    return area_uses_tree(l, ctx) ? light_tree_pmf(&l->tri_tree, ctx, triangle) : dist1d_pmf(&l->triangles, triangle);
+}
+
+float light_area_pdf_li(const Light *l, const LightSampleContext *ctx, uint32_t triangle, vec3 y, vec3 ny) {
+    if (l->type != LIGHT_AREA || triangle >= l->triangles.n || !(l->area > 0.0f)) return 0.0f;
+    int tree = area_uses_tree(l, ctx);
+    float tri_pmf = tree ? light_tree_pmf(&l->tri_tree, ctx, triangle) : 0.0f;
+    return area_to_solid_angle(area_density(l, tree, triangle, tri_pmf), ctx->p, y, ny);
 }
 
 float light_env_pdf_li(const Scene *scene, vec3 d) {
@@ -247,7 +297,10 @@ float light_env_pdf_li(const Scene *scene, vec3 d) {
     return dist2d_pdf(&scene->lights.env_distribution, uv) / (2.0f * PI_F * PI_F * sin_theta);
 }
 
-int light_sample_li(const Scene *scene, const Light *l, vec3 p, float u0, float u1, float u2, LightLiSample *s) {
+int light_sample_li(const Scene *scene, const Light *l, const LightSampleContext *ctx, float u0, float u1, float u2,
+                    LightLiSample *s) {
+    vec3 p = ctx->p;
+    s->triangle = 0;
     switch (l->type) {
     case LIGHT_POINT:
     case LIGHT_SPOT: {
@@ -279,8 +332,14 @@ int light_sample_li(const Scene *scene, const Light *l, vec3 p, float u0, float 
         s->is_delta = 1;
         return !v3_is_black(s->radiance);
     case LIGHT_AREA: {
+        if (!(l->area > 0.0f)) return 0;
         float tri_pmf;
-        uint32_t t = dist1d_sample_discrete(&l->triangles, u0, &tri_pmf, NULL);
+        int tree = area_uses_tree(l, ctx);
+        uint32_t t = tree ? light_tree_select(&l->tri_tree, ctx, u0, &tri_pmf)
+                          : dist1d_sample_discrete(&l->triangles, u0, &tri_pmf, NULL);
+        if (!(tri_pmf > 0.0f)) return 0;
+        float pdf_area = area_density(l, tree, t, tri_pmf);
+        s->triangle = t;
         const float *w = l->world_vertices + 9 * (size_t)t;
         vec3 a = v3(w[0], w[1], w[2]), b = v3(w[3], w[4], w[5]), c = v3(w[6], w[7], w[8]);
         vec2 bc = sample_uniform_triangle(u1, u2);
@@ -297,12 +356,12 @@ int light_sample_li(const Scene *scene, const Light *l, vec3 p, float u0, float 
             SurfaceHit hit; /* textured emission: evaluate the material at the sampled point */
             scene_surface_hit(scene, l->instance, l->local_prim, t, bc.x, bc.y, &hit);
             s->radiance = scene_emitted_radiance(scene, &hit, v3_neg(s->wi));
-            s->pdf = light_area_pdf_li(l, p, y, hit.ng);
+            s->pdf = area_to_solid_angle(pdf_area, p, y, hit.ng);
         } else {
             vec3 ng = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
             int front = v3_dot(s->wi, ng) < 0.0f;
             s->radiance = front || mat->double_sided ? l->emission : v3s(0.0f);
-            s->pdf = light_area_pdf_li(l, p, y, ng);
+            s->pdf = area_to_solid_angle(pdf_area, p, y, ng);
         }
         s->is_delta = 0;
         return s->pdf > 0.0f && isfinite(s->pdf) && !v3_is_black(s->radiance);

@@ -1,8 +1,14 @@
 /* renderer/lights.h (private): lights and light selection.
  *
  * Lights: punctual (point, spot, directional; delta), area (one light per emissive glTF
- * primitive per instance; triangles chosen in proportion to area) and the environment map
- * (importance-sampled lat-long).
+ * primitive per instance) and the environment map (importance-sampled lat-long).
+ *
+ * An area light's triangle is picked by its inner light tree (lighttree.h, cache-points spec
+ * §5.5: importance from the shading point and normal) when it has more than
+ * LIGHT_AREA_TREE_MAX_CDF triangles, else in proportion to area (l->triangles). The tree
+ * also falls back to the area CDF for a context from which the tree's root has zero
+ * importance (the bounds say the point sees no emitting side); sampling and
+ * light_area_pdf_li make that decision with the same function, so the pdf stays exact.
  *
  * Light selection goes through one interface so that MIS stays correct whatever the
  * strategy: light_select() picks a light for a shading context and returns its probability;
@@ -15,6 +21,7 @@
 
 #include <stdint.h>
 
+#include "cachepoints.h"
 #include "candela.h"
 #include "lighttree.h"
 #include "sampling.h"
@@ -38,7 +45,11 @@ typedef struct Light {
     float *world_vertices;    /* 9 floats per triangle, world space */
     int two_sided;            /* the material is double-sided: emits from both faces */
     float power;              /* estimate for the power sampler (luminance, W) */
+    LightTree tri_tree;       /* inner tree over the triangles (node_count 0: area CDF only) */
 } Light;
+
+/* Area lights with at most this many triangles pick them by area alone (no inner tree). */
+#define LIGHT_AREA_TREE_MAX_CDF 8
 
 typedef struct LightSampleContext {
     vec3 p;
@@ -56,6 +67,13 @@ typedef struct Lights {
     const struct Scene *scene;  /* for --optimal-occlusion's shadow rays */
     int optimal_occlusion;
     float env_estimate[7];      /* environment irradiance on the 6 axis planes + fluence */
+    /* CANDELA_LIGHT_SAMPLER_CACHEPOINTS (built by lights_build_cachepoints once the thread
+     * pool exists; NULL otherwise, or when fewer than 10 points fell back to optimal) */
+    CachePoints *cachepoints;
+    CachePointLights cp_view;
+    float *cp_centroid;
+    uint8_t *cp_infinite;
+    CachePointStats cp_stats;
 } Lights;
 
 /* Build from the scene's punctual lights, emissive primitives and environment. */
@@ -73,6 +91,13 @@ float light_contribution_estimate(const Lights *ls, const Light *l, vec3 p, vec3
 uint32_t optimal_select(const Lights *ls, const LightSampleContext *ctx, float u, float *pmf);
 float optimal_pmf(const Lights *ls, const LightSampleContext *ctx, uint32_t light);
 void lights_env_estimates(const struct Scene *scene, float out[7]);
+void light_contribution_estimate7(const Lights *ls, const Light *l, vec3 p, float out[7]);
+
+/* cachepoint_setup.c: candidates (§3.1.1), estimate callbacks and the build; pool is the
+ * renderer's ThreadPool. */
+int lights_build_cachepoints(struct Scene *scene, void *pool, const CandelaOptions *o, char err[CANDELA_ERR_LEN]);
+/* The cache point a vertex at p uses. */
+uint32_t lights_cachepoint_at(const Lights *ls, vec3 p);
 
 /* A sampled point on a light as seen from a shading point. */
 typedef struct LightLiSample {
@@ -81,13 +106,23 @@ typedef struct LightLiSample {
     vec3 radiance;    /* arriving radiance (delta lights: intensity / r^2 or irradiance) */
     float pdf;        /* solid-angle pdf given the light (1 for delta lights) */
     int is_delta;
+    uint32_t triangle; /* area lights: the sampled triangle (for light_area_pdf_li) */
 } LightLiSample;
 
-int light_sample_li(const struct Scene *scene, const Light *light, vec3 p, float u0, float u1,
-                    float u2, LightLiSample *s);
-/* Solid-angle pdf (given the light) of sampling the point y with normal ny on an area light
- * from p. */
-float light_area_pdf_li(const Light *light, vec3 p, vec3 y, vec3 ny);
+/* Samples a point on `light` as seen from ctx (ctx->n steers an area light's inner tree; use
+ * the same context for light_area_pdf_li). */
+int light_sample_li(const struct Scene *scene, const Light *light, const LightSampleContext *ctx, float u0,
+                    float u1, float u2, LightLiSample *s);
+/* Solid-angle pdf (given the light) of sampling the point y with normal ny on triangle
+ * `triangle` of an area light from ctx: p_tri(triangle | ctx) / area(triangle) * d^2 / |cos|. */
+float light_area_pdf_li(const Light *light, const LightSampleContext *ctx, uint32_t triangle, vec3 y, vec3 ny);
+/* Probability that light_sample_li picks `triangle` of an area light from ctx. */
+float light_area_triangle_pmf(const Light *light, const LightSampleContext *ctx, uint32_t triangle);
+/* Builds l->tri_tree from world_vertices, emission and two_sided when the light has more than
+ * LIGHT_AREA_TREE_MAX_CDF triangles (else leaves it empty). 0 ok, -1 out of memory. */
+int light_area_tree_build(Light *l);
+/* Frees an area light's arrays and tree. */
+void light_area_free(Light *l);
 /* Solid-angle pdf of the environment light for direction d. */
 float light_env_pdf_li(const struct Scene *scene, vec3 d);
 

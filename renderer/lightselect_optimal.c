@@ -200,3 +200,70 @@ void lights_env_estimates(const Scene *scene, float out[7]) {
     }
     for (int i = 0; i < 7; ++i) out[i] = (float)acc[i];
 }
+
+/* The seven cache-point bins at once (spec §3.4): irradiance on the planes facing
+ * +X -X +Y -Y +Z -Z and the fluence, from the same samples as light_contribution_estimate. */
+void light_contribution_estimate7(const Lights *ls, const Light *l, vec3 p, float out[7]) {
+    for (int i = 0; i < 7; ++i) out[i] = 0.0f;
+    vec3 dirs[AREA_ESTIMATE_SAMPLES];
+    float contrib[AREA_ESTIMATE_SAMPLES];
+    int count = 0;
+    switch (l->type) {
+    case LIGHT_ENVIRONMENT:
+        for (int i = 0; i < 7; ++i) out[i] = ls->env_estimate[i];
+        return;
+    case LIGHT_DIRECTIONAL:
+        dirs[0] = v3_neg(l->direction);
+        contrib[0] = v3_luminance(l->intensity);
+        count = 1;
+        break;
+    case LIGHT_POINT:
+    case LIGHT_SPOT: {
+        vec3 d = v3_sub(l->position, p);
+        float d2 = v3_dot(d, d);
+        if (!(d2 > 0.0f)) return;
+        dirs[0] = v3_scale(d, 1.0f / sqrtf(d2));
+        contrib[0] = light_contribution_estimate(ls, l, p, v3s(0.0f)); /* fluence incl. the cone */
+        count = 1;
+        break;
+    }
+    case LIGHT_AREA: {
+        float L = v3_luminance(l->emission);
+        if (!(L > 0.0f)) return;
+        for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) {
+            float u0 = ((float)k + 0.5f) / AREA_ESTIMATE_SAMPLES;
+            float u1 = (float)((k * 7 + 3) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
+            float u2 = (float)((k * 11 + 5) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
+            float tri_pmf, u_tri;
+            uint32_t t = dist1d_sample_discrete(&l->triangles, u0, &tri_pmf, &u_tri);
+            const float *v = l->world_vertices + 9 * (size_t)t;
+            vec3 a = v3(v[0], v[1], v[2]), b = v3(v[3], v[4], v[5]), c = v3(v[6], v[7], v[8]);
+            vec2 bc = sample_uniform_triangle(u1, u2);
+            vec3 y = v3_add(v3_add(v3_scale(a, 1.0f - bc.x - bc.y), v3_scale(b, bc.x)), v3_scale(c, bc.y));
+            vec3 ng = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+            vec3 d = v3_sub(y, p);
+            float d2 = v3_dot(d, d);
+            if (!(d2 > 1e-12f)) continue;
+            vec3 w = v3_scale(d, 1.0f / sqrtf(d2));
+            float cos_l = -v3_dot(ng, w);
+            if (l->two_sided) cos_l = fabsf(cos_l);
+            if (!(cos_l > 0.0f)) continue;
+            dirs[count] = w;
+            contrib[count] = L * cos_l / d2 * l->area / AREA_ESTIMATE_SAMPLES;
+            ++count;
+        }
+        break;
+    }
+    }
+    for (int k = 0; k < count; ++k) {
+        if (!(contrib[k] > 0.0f) || !isfinite(contrib[k])) continue;
+        vec3 w = dirs[k];
+        out[0] += contrib[k] * maxf(w.x, 0.0f);
+        out[1] += contrib[k] * maxf(-w.x, 0.0f);
+        out[2] += contrib[k] * maxf(w.y, 0.0f);
+        out[3] += contrib[k] * maxf(-w.y, 0.0f);
+        out[4] += contrib[k] * maxf(w.z, 0.0f);
+        out[5] += contrib[k] * maxf(-w.z, 0.0f);
+        out[6] += contrib[k];
+    }
+}

@@ -32,7 +32,8 @@ static float angle_between(vec3 a, vec3 b) {
 static void cone_union(vec3 wa, float ca, vec3 wb, float cb, vec3 *w, float *c) {
     if (ca <= -1.0f || cb <= -1.0f) { *w = wa; *c = -1.0f; return; }
     if (wa.x == wb.x && wa.y == wb.y && wa.z == wb.z) { *w = wa; *c = minf(ca, cb); return; }
-    float ta = acosf(clampf(ca, -1.0f, 1.0f)), tb = acosf(clampf(cb, -1.0f, 1.0f));
+    /* (a single direction, cos 1, is the common case when unioning triangles: skip its acos) */
+    float ta = ca >= 1.0f ? 0.0f : acosf(clampf(ca, -1.0f, 1.0f)), tb = cb >= 1.0f ? 0.0f : acosf(clampf(cb, -1.0f, 1.0f));
     float td = angle_between(wa, wb);
     if (minf(td + tb, PI_F) <= ta) { *w = wa; *c = ca; return; }
     if (minf(td + ta, PI_F) <= tb) { *w = wb; *c = cb; return; }
@@ -139,7 +140,8 @@ float light_tree_node_importance(const LightTreeNode *nd, vec3 p, vec3 n) {
     wi = dist2 > 0.0f ? v3_scale(d, 1.0f / sqrtf(dist2)) : v3(0.0f, 0.0f, 1.0f);
     float cos_w = v3_dot(nd->w, wi);
     float sin_w = safe_sqrtf(1.0f - cos_w * cos_w);
-    float sin_o = safe_sqrtf(1.0f - nd->cos_o * nd->cos_o);
+    /* (cos_o = 1, a single direction, or -1, every direction: sin_o is 0 without a sqrt) */
+    float sin_o = nd->cos_o >= 1.0f || nd->cos_o <= -1.0f ? 0.0f : safe_sqrtf(1.0f - nd->cos_o * nd->cos_o);
     float cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, nd->cos_o);
     float sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, nd->cos_o);
     float cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
@@ -350,6 +352,18 @@ static LB build_node(Builder *B, uint32_t start, uint32_t end, uint64_t trail, i
     return u;
 }
 
+/* Builds the nodes over B->items[0..m) (their bounds, centroids and indices filled in) and
+ * fills t->trail for those indices. 0 ok, -1 out of memory (the caller frees t). */
+static int build_items(LightTree *t, Builder *B, uint32_t m) {
+    if (!m) return 0;
+    t->nodes = malloc((2 * (size_t)m - 1) * sizeof *t->nodes);
+    B->scratch = malloc(m * sizeof(Item));
+    B->keys = malloc(m * sizeof *B->keys);
+    if (!t->nodes || !B->scratch || !B->keys) return -1;
+    build_node(B, 0, m, 0, 0, 0);
+    return 0;
+}
+
 int light_tree_build(LightTree *t, const Light *lights, uint32_t count) {
     memset(t, 0, sizeof *t);
     if (count == 0) return 0;
@@ -380,17 +394,60 @@ int light_tree_build(LightTree *t, const Light *lights, uint32_t count) {
         for (uint32_t i = 0; i < count; ++i)
             if (t->kind[i] == LIGHT_TREE_INFINITE) t->infinite[t->num_infinite++] = i;
     }
-    if (m) {
-        t->nodes = malloc((2 * (size_t)m - 1) * sizeof *t->nodes);
-        B.scratch = malloc(m * sizeof(Item));
-        B.keys = malloc(m * sizeof *B.keys);
-        if (!t->nodes || !B.scratch || !B.keys) goto oom;
-        build_node(&B, 0, m, 0, 0, 0);
-    }
+    if (build_items(t, &B, m) != 0) goto oom;
     t->p_inf = (float)ninf / (float)(ninf + (m ? 1u : 0u));
     if (ninf + m == 0) t->p_inf = 0.0f;
     t->p_bvh = 1.0f - t->p_inf;
     t->pmf_inf = ninf ? t->p_inf / (float)ninf : 0.0f;
+    free(B.items);
+    free(B.scratch);
+    free(B.keys);
+    return 0;
+oom:
+    free(B.items);
+    free(B.scratch);
+    free(B.keys);
+    light_tree_free(t);
+    return -1;
+}
+
+int light_tree_build_triangles(LightTree *t, const float *world_vertices, uint32_t count, float luminance,
+                               int two_sided) {
+    memset(t, 0, sizeof *t);
+    if (count == 0) return 0;
+    t->light_count = count;
+    t->trail = calloc(count, sizeof *t->trail);
+    t->kind = calloc(count, sizeof *t->kind);
+    Builder B = {t, NULL, NULL, NULL};
+    B.items = malloc(count * sizeof(Item));
+    if (!t->trail || !t->kind || !B.items) goto oom;
+    /* relative powers are all that matter; a black (or odd) luminance falls back to area */
+    float scale = (luminance > 0.0f && isfinite(luminance) ? luminance : 1.0f) * (two_sided ? 2.0f : 1.0f);
+    uint32_t m = 0;
+    for (uint32_t i = 0; i < count; ++i) {
+        const float *v = world_vertices + 9 * (size_t)i;
+        vec3 a = v3(v[0], v[1], v[2]), b = v3(v[3], v[4], v[5]), c = v3(v[6], v[7], v[8]);
+        vec3 n = v3_cross(v3_sub(b, a), v3_sub(c, a));
+        float len = v3_length(n);
+        float phi = 0.5f * len * scale;
+        if (!(len > 0.0f) || !isfinite(len) || !(phi > 0.0f) || !isfinite(phi)) continue; /* emits nothing */
+        Item *it = &B.items[m];
+        it->b.bmin = v3_min(a, v3_min(b, c));
+        it->b.bmax = v3_max(a, v3_max(b, c));
+        if (!v3_is_finite(it->b.bmin) || !v3_is_finite(it->b.bmax)) continue;
+        it->b.w = v3_scale(n, 1.0f / len);
+        it->b.cos_o = two_sided ? -1.0f : 1.0f;
+        it->b.cos_e = 0.0f; /* theta_e = pi/2: a cosine emitter */
+        it->b.phi = phi;
+        it->c = v3_scale(v3_add(it->b.bmin, it->b.bmax), 0.5f);
+        it->light = i;
+        t->kind[i] = LIGHT_TREE_BVH;
+        ++m;
+    }
+    if (build_items(t, &B, m) != 0) goto oom;
+    t->p_inf = 0.0f;
+    t->p_bvh = m ? 1.0f : 0.0f;
+    t->pmf_inf = 0.0f;
     free(B.items);
     free(B.scratch);
     free(B.keys);

@@ -18,7 +18,13 @@
  * in either), the node splits in proportion to the children's power instead of giving up, so
  * the probabilities over all lights always sum to 1 (when any light is selectable) and a
  * light whose bounds are wrong by rounding is still never starved. Such samples cost one
- * light_sample_li() call that contributes nothing. */
+ * light_sample_li() call that contributes nothing.
+ *
+ * The same structure serves as the inner tree of an emissive mesh (light_tree_build_triangles,
+ * cache-points spec §5.5): its "lights" are the mesh's triangles (power = area x luminance,
+ * x2 when two-sided; bounds = the triangle's box; normal cone = the triangle's normal, or the
+ * whole sphere when two-sided; theta_e = pi/2), with no infinite entries, so
+ * light_tree_select / light_tree_pmf pick a triangle index and give its probability. */
 #ifndef CANDELA_LIGHTTREE_H
 #define CANDELA_LIGHTTREE_H
 
@@ -61,6 +67,11 @@ typedef struct LightTree {
 
 /* Build over lights[0..count). 0 ok, -1 out of memory (t is then empty). */
 int light_tree_build(LightTree *t, const Light *lights, uint32_t count);
+/* Inner tree over `count` triangles (world_vertices: 9 floats each) of one emitter with the
+ * given emission luminance. Zero-area triangles are left out (probability 0). 0 ok, -1 out
+ * of memory (t is then empty). */
+int light_tree_build_triangles(LightTree *t, const float *world_vertices, uint32_t count, float luminance,
+                               int two_sided);
 void light_tree_free(LightTree *t);
 /* Picks a light for ctx with u in [0,1); *pmf is its probability. Always returns an index
  * < count (0 when nothing is selectable, with *pmf = 0). */

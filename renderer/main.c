@@ -25,7 +25,8 @@ static const char *USAGE =
     "  --res WxH                 resolution (default: 640 wide, camera aspect)\n"
     "  --threads N               worker threads (default: all cores)\n"
     "  --max-depth N             maximum bounces; 1 = direct light only (default 8)\n"
-    "  --light-sampler S         uniform | power | tree | optimal (default power)\n"
+    "  --light-sampler S         uniform | power | tree | optimal | cachepoints (default power)\n"
+    "  --no-visibility           cache points without visibility learning\n"
     "  --optimal-occlusion       optimal sampler: one shadow ray per light per vertex\n"
     "  --light-units U           blender (default: cd/683, lux/683) | raw (W/sr, W/m^2)\n"
     "  --camera NAME             glTF camera by name (default: the first, or a framing view)\n"
@@ -35,7 +36,7 @@ static const char *USAGE =
     "  --stats-json FILE         write render statistics as JSON\n"
     "  --quiet                   no progress or statistics on stderr\n"
     "compare options:\n"
-    "  --strategies LIST         default uniform,power,tree,optimal\n"
+    "  --strategies LIST         default uniform,power,tree,optimal,cachepoints,cachepoints-novis\n"
     "  --ref-spp N               reference spp (default 16 x --spp), power sampler\n"
     "  --reference FILE.exr      reuse a reference instead of rendering one\n"
     "  --out-dir DIR             default out/compare-<scene name>\n"
@@ -113,7 +114,7 @@ int main(int argc, char **argv) {
     candela_options_default(&o);
     const char *out = NULL, *png = NULL, *stats_json = NULL;
     int no_png = 0;
-    CandelaCompareOptions co = {"uniform,power,tree,optimal", 0, NULL, NULL, 5000};
+    CandelaCompareOptions co = {"uniform,power,tree,optimal,cachepoints,cachepoints-novis", 0, NULL, NULL, 5000};
     for (int i = 2; i < argc; ++i) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -121,6 +122,7 @@ int main(int argc, char **argv) {
         else if (strcmp(a, "--png") == 0) { if (!v) die("missing value for ", a); png = v; ++i; }
         else if (strcmp(a, "--no-png") == 0) no_png = 1;
         else if (strcmp(a, "--optimal-occlusion") == 0) o.optimal_occlusion = 1;
+        else if (strcmp(a, "--no-visibility") == 0) o.cachepoint_no_visibility = 1;
         else if (compare && strcmp(a, "--strategies") == 0) { if (!v) die("missing value for ", a); co.strategies = v; ++i; }
         else if (compare && strcmp(a, "--ref-spp") == 0) { co.reference_spp = (int)parse_long(a, v, 1, 1 << 20); ++i; }
         else if (compare && strcmp(a, "--reference") == 0) { if (!v) die("missing value for ", a); co.reference_path = v; ++i; }
@@ -148,7 +150,7 @@ int main(int argc, char **argv) {
         } else if (strcmp(a, "--light-sampler") == 0) {
             if (!v) die("missing value for ", a);
             if (candela_light_sampler_parse(v, &o.light_sampler) != 0) {
-                fprintf(stderr, "candela: unknown light sampler '%s' (uniform, power, tree, optimal)\n", v);
+                fprintf(stderr, "candela: unknown light sampler '%s' (uniform, power, tree, optimal, cachepoints)\n", v);
                 return 2;
             }
             ++i;

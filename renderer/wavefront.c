@@ -45,7 +45,7 @@ void candela_options_default(CandelaOptions *o) {
     o->env_strength = 1.0f;
 }
 
-static const char *const LIGHT_SAMPLER_NAMES[] = {"uniform", "power", "tree", "optimal"};
+static const char *const LIGHT_SAMPLER_NAMES[] = {"uniform", "power", "tree", "optimal", "cachepoints"};
 
 const char *candela_light_sampler_name(CandelaLightSampler s) {
     return (unsigned)s < sizeof LIGHT_SAMPLER_NAMES / sizeof LIGHT_SAMPLER_NAMES[0] ? LIGHT_SAMPLER_NAMES[s] : "unknown";
@@ -119,6 +119,8 @@ static int path_state_alloc(PathState *ps, uint32_t n) {
     ps->shadow_dir = xcalloc(3 * (size_t)n, sizeof(float), &fail);
     ps->shadow_tfar = xcalloc(n, sizeof(float), &fail);
     ps->shadow_contrib = xcalloc(3 * (size_t)n, sizeof(float), &fail);
+    ps->shadow_point = xcalloc(n, sizeof(uint32_t), &fail);
+    ps->shadow_light = xcalloc(n, sizeof(uint32_t), &fail);
     ps->continues = xcalloc(n, 1, &fail);
     ps->has_shadow = xcalloc(n, 1, &fail);
     ps->aov_albedo = xcalloc(3 * (size_t)n, sizeof(float), &fail);
@@ -131,7 +133,7 @@ static void path_state_free(PathState *ps) {
     void *ptrs[] = {ps->rng_key, ps->pixel, ps->radiance, ps->throughput, ps->eta_scale, ps->ray_org,
                     ps->ray_dir, ps->prev_pos, ps->prev_normal, ps->prev_bsdf_pdf, ps->prev_delta,
                     ps->hit_t, ps->hit_u, ps->hit_v, ps->hit_inst, ps->hit_geom, ps->hit_prim,
-                    ps->shadow_org, ps->shadow_dir, ps->shadow_tfar, ps->shadow_contrib,
+                    ps->shadow_org, ps->shadow_dir, ps->shadow_tfar, ps->shadow_contrib, ps->shadow_point, ps->shadow_light,
                     ps->continues, ps->has_shadow, ps->aov_albedo, ps->aov_normal, ps->aov_depth};
     for (size_t i = 0; i < sizeof ptrs / sizeof ptrs[0]; ++i) free(ptrs[i]);
     memset(ps, 0, sizeof *ps);
@@ -448,7 +450,7 @@ static void shade_range(void *vctx, size_t b, size_t e, int thread) {
                     vec3 prev = load3(ps->prev_pos, p);
                     LightSampleContext lc = {prev, load3(ps->prev_normal, p)};
                     float pl = light_select_pmf(lights, &lc, (uint32_t)light_index) *
-                               light_area_pdf_li(&lights->lights[light_index], prev, h.p, h.ng);
+                               light_area_pdf_li(&lights->lights[light_index], &lc, h.triangle, h.p, h.ng);
                     w = power_heuristic(ps->prev_bsdf_pdf[p], pl);
                 }
                 L = v3_add(L, v3_scale(v3_mul(beta, le), w));
@@ -464,14 +466,23 @@ static void shade_range(void *vctx, size_t b, size_t e, int thread) {
         f.b = v3_cross(ns, f.t);
         vec3 wo_l = frame_to_local(&f, wo);
 
+        /* light-selection context: transmissive surfaces receive light from both sides, so
+         * they use the omnidirectional (fluence) estimates, as volumes do (spec §5.2) */
+        vec3 ctx_n = transmissive ? v3s(0.0f) : ns;
         /* next-event estimation */
         if (!bsdf_is_delta(&m.bsdf) && lights->count > 0) {
-            LightSampleContext lc = {h.p, ns};
+            LightSampleContext lc = {h.p, ctx_n};
             float pmf;
             uint32_t li = light_select(lights, &lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_SELECT)), &pmf);
             LightLiSample ls;
+            if (lights->cachepoints) { /* §3.2.1: count the attempt at the point that chose */
+                uint32_t cpi = lights_cachepoint_at(lights, h.p);
+                cachepoints_record(lights->cachepoints, cpi, li, 0);
+                ps->shadow_point[p] = cpi;
+                ps->shadow_light[p] = li;
+            }
             if (pmf > 0.0f &&
-                light_sample_li(scene, &lights->lights[li], h.p, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_U)),
+                light_sample_li(scene, &lights->lights[li], &lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_U)),
                                 rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_V)),
                                 rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_W)), &ls)) {
                 vec3 wi_l = frame_to_local(&f, ls.wi);
@@ -486,9 +497,20 @@ static void shade_range(void *vctx, size_t b, size_t e, int thread) {
                         vec3 contrib = v3_scale(v3_mul(v3_mul(beta, fv), ls.radiance), w / light_pdf);
                         if (v3_is_finite(contrib) && !v3_is_black(contrib)) {
                             vec3 o = offset_ray_origin(h.p, side_g > 0.0f ? ng : v3_neg(ng));
+                            vec3 dir = ls.wi;
+                            float tfar = INFINITY;
+                            if (!isinf(ls.distance)) {
+                                /* aim from the offset origin at the sampled point itself: keeping
+                                 * the unoffset direction and length made the ray end behind
+                                 * nearby emitters and darkened small scenes */
+                                vec3 to = v3_sub(v3_madd(h.p, ls.wi, ls.distance), o);
+                                float len = v3_length(to);
+                                if (len > 0.0f) { dir = v3_scale(to, 1.0f / len); tfar = len * (1.0f - 1e-3f); }
+                                else tfar = 0.0f;
+                            }
                             store3(ps->shadow_org, p, o);
-                            store3(ps->shadow_dir, p, ls.wi);
-                            ps->shadow_tfar[p] = isinf(ls.distance) ? INFINITY : ls.distance * (1.0f - 1e-3f);
+                            store3(ps->shadow_dir, p, dir);
+                            ps->shadow_tfar[p] = tfar;
                             store3(ps->shadow_contrib, p, contrib);
                             ps->has_shadow[p] = 1;
                         }
@@ -521,7 +543,7 @@ static void shade_range(void *vctx, size_t b, size_t e, int thread) {
         }
         store3(ps->throughput, p, beta);
         store3(ps->prev_pos, p, h.p);
-        store3(ps->prev_normal, p, ns);
+        store3(ps->prev_normal, p, ctx_n);
         ps->prev_bsdf_pdf[p] = bs.pdf;
         ps->prev_delta[p] = (bs.flags & BSDF_DELTA) ? 1 : 0;
         store3(ps->ray_org, p, offset_ray_origin(h.p, side_g > 0.0f ? ng : v3_neg(ng)));
@@ -558,6 +580,9 @@ static void shadow_range(void *vctx, size_t b, size_t e, int thread) {
             if (rays[k].tfar >= 0.0f) { /* tfar becomes -inf when occluded */
                 vec3 L = v3_add(load3(ps->radiance, p), load3(ps->shadow_contrib, p));
                 store3(ps->radiance, p, L);
+                /* §3.2.1: the shadow ray got through with a useful (non-zero) contribution */
+                if (r->scene.lights.cachepoints)
+                    cachepoints_record(r->scene.lights.cachepoints, ps->shadow_point[p], ps->shadow_light[p], 1);
             }
         }
     }
@@ -702,10 +727,13 @@ static void report_progress(Renderer *r, uint64_t done, uint64_t total, int fina
     }
 }
 
-/* The iteration barrier: no ray is in flight. Cache points and guiding update here; for
- * now the only work is reporting progress per iteration. */
+/* The iteration barrier: no ray is in flight, so learned state can change without any
+ * path seeing two versions of it. Cache points update their visibility weights here
+ * (guiding will train here too), then progress is reported. */
 static void iteration_barrier(Renderer *r, int iteration, uint64_t done, uint64_t total) {
     r->stats->iterations = iteration + 1;
+    /* cache points: Eqs. 5-6 and the visibility blur from this iteration's counters (§3.2) */
+    if (r->scene.lights.cachepoints) cachepoints_update_visibility(r->scene.lights.cachepoints);
     report_progress(r, done, total, done == total);
 }
 
@@ -848,6 +876,14 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
         snprintf(err, CANDELA_ERR_LEN, "%s: out of memory allocating %u paths", o->scene_path, batch);
         renderer_free(r); free(r);
         return -1;
+    }
+    if (o->light_sampler == CANDELA_LIGHT_SAMPLER_CACHEPOINTS) {
+        double tcp = now_seconds();
+        if (lights_build_cachepoints(&r->scene, r->pool, o, err) != 0) { renderer_free(r); free(r); return -1; }
+        stats->time_cachepoints = now_seconds() - tcp;
+        stats->num_cachepoints = cachepoints_count(r->scene.lights.cachepoints);
+        stats->cachepoint_candidates = r->scene.lights.cp_stats.candidates;
+        stats->cachepoint_bytes = r->scene.lights.cp_stats.bytes;
     }
     stats->time_build = now_seconds() - t_loaded;
 

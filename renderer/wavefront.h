@@ -33,6 +33,7 @@ typedef struct PathState {
     uint32_t *hit_inst, *hit_geom, *hit_prim;
     /* shadow ray of the current wave */
     float *shadow_org, *shadow_dir, *shadow_tfar, *shadow_contrib; /* 3,3,1,3 */
+    uint32_t *shadow_point, *shadow_light; /* cache point and light of the shadow ray (§3.2.1) */
     uint8_t *continues, *has_shadow;
     /* first-hit AOVs */
     float *aov_albedo, *aov_normal, *aov_depth; /* 3,3,1 */

@@ -68,12 +68,13 @@ static void check_strategy_occl(const char *path, CandelaLightSampler strategy, 
     }
     /* sample_li pdf == standalone pdf (area: light_area_pdf_li, env: light_env_pdf_li) */
     vec3 p = v3(0.1f, 0.7f, 0.2f);
+    LightSampleContext pctx = {p, v3(0, 1, 0)};
     int checked = 0;
     for (uint32_t i = 0; i < ls->count; ++i) {
         const Light *l = &ls->lights[i];
         for (int s = 0; s < 50; ++s) {
             LightLiSample smp;
-            if (!light_sample_li(&scene, l, p, rng_uniform(key, 5000 + 3 * s), rng_uniform(key, 5001 + 3 * s),
+            if (!light_sample_li(&scene, l, &pctx, rng_uniform(key, 5000 + 3 * s), rng_uniform(key, 5001 + 3 * s),
                                  rng_uniform(key, 5002 + 3 * s), &smp))
                 continue;
             CHECK(isfinite(smp.pdf) && smp.pdf > 0, "light %u: pdf %g", i, smp.pdf);
@@ -82,12 +83,13 @@ static void check_strategy_occl(const char *path, CandelaLightSampler strategy, 
                 CHECK(fabsf(pdf - smp.pdf) <= 2e-3f * smp.pdf, "env pdf %g vs %g", pdf, smp.pdf);
                 ++checked;
             } else if (l->type == LIGHT_AREA) {
-                /* re-find the point by intersecting the light's triangles */
+                /* the sampled point and its triangle's normal */
                 vec3 y = v3_madd(p, smp.wi, smp.distance);
-                const float *w = l->world_vertices;
+                CHECK(smp.triangle < l->triangles.n, "triangle %u of %u", smp.triangle, l->triangles.n);
+                const float *w = l->world_vertices + 9 * (size_t)smp.triangle;
                 vec3 a = v3(w[0], w[1], w[2]), b = v3(w[3], w[4], w[5]), c = v3(w[6], w[7], w[8]);
                 vec3 n = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
-                float pdf = light_area_pdf_li(l, p, y, n);
+                float pdf = light_area_pdf_li(l, &pctx, smp.triangle, y, n);
                 CHECK(fabsf(pdf - smp.pdf) <= 2e-3f * smp.pdf, "area pdf %g vs %g", pdf, smp.pdf);
                 ++checked;
             }

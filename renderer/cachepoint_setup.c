@@ -1,0 +1,235 @@
+/* renderer/cachepoint_setup.c: connects the cachepoints module to the renderer: candidate
+ * generation (§3.1.1: points in object bounding boxes in proportion to volume, plus pilot
+ * path vertices), the light estimate callbacks (spec §3.4) and the build call. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cachepoints.h"
+#include "rng.h"
+#include "sampling.h"
+#include "scene.h"
+#include "threads.h"
+
+#define BBOX_CANDIDATES 100000u
+#define PILOT_GRID 256u           /* 65,536 stratified pilot paths (spec §3.1 proposes 512^2) */
+#define PILOT_KEEP 0.5f
+#define PILOT_CAP 1000000u
+#define CANDIDATE_SEED_SALT 0xcac4e9017ull
+
+static void cp_estimate7(const void *user, uint32_t light, const float x[3], float out[7]) {
+    const Lights *ls = user;
+    light_contribution_estimate7(ls, &ls->lights[light], v3(x[0], x[1], x[2]), out);
+}
+
+static float cp_estimate(const void *user, uint32_t light, const float x[3], const float *n) {
+    const Lights *ls = user;
+    vec3 nn = n ? v3(n[0], n[1], n[2]) : v3s(0.0f);
+    return light_contribution_estimate(ls, &ls->lights[light], v3(x[0], x[1], x[2]), nn);
+}
+
+static void pool_parallel_for(void *pool, size_t n, size_t grain, void (*fn)(void *, size_t, size_t, int), void *ctx) {
+    threadpool_parallel_for((ThreadPool *)pool, n, grain, fn, ctx);
+}
+
+/* Instances whose every primitive has zero base colour never do light sampling (§3.1.1). */
+static int instance_reflects(const Scene *scene, uint32_t inst) {
+    const IoMesh *mesh = &scene->io.meshes[scene->instances[inst].mesh];
+    for (uint32_t k = 0; k < mesh->num_primitives; ++k) {
+        const IoMaterial *m = scene->prims[mesh->first_primitive + k].material;
+        if (m->base_color[0] > 0.0f || m->base_color[1] > 0.0f || m->base_color[2] > 0.0f) return 1;
+    }
+    return 0;
+}
+
+static void instance_bounds(const Scene *scene, uint32_t inst, vec3 *lo, vec3 *hi) {
+    const SceneInstance *si = &scene->instances[inst];
+    const IoMesh *mesh = &scene->io.meshes[si->mesh];
+    *lo = v3s(INFINITY);
+    *hi = v3s(-INFINITY);
+    for (uint32_t k = 0; k < mesh->num_primitives; ++k) {
+        const IoPrimitive *p = scene->prims[mesh->first_primitive + k].io;
+        for (uint32_t v = 0; v < p->num_vertices; ++v) {
+            vec3 w = xform_point(si->xform, v3(p->positions[3 * v], p->positions[3 * v + 1], p->positions[3 * v + 2]));
+            *lo = v3_min(*lo, w);
+            *hi = v3_max(*hi, w);
+        }
+    }
+}
+
+typedef struct Candidates { float *xyz; uint32_t count, capacity; } Candidates;
+
+static int push(Candidates *c, vec3 p) {
+    if (c->count == c->capacity) {
+        uint32_t nc = c->capacity ? 2 * c->capacity : 1024;
+        float *n = realloc(c->xyz, (size_t)nc * 3 * sizeof(float));
+        if (!n) return -1;
+        c->xyz = n;
+        c->capacity = nc;
+    }
+    c->xyz[3 * c->count] = p.x; c->xyz[3 * c->count + 1] = p.y; c->xyz[3 * c->count + 2] = p.z;
+    ++c->count;
+    return 0;
+}
+
+/* 100,000 points in the instances' world boxes in proportion to (padded) volume; budget split
+ * by largest remainder in instance order; positions from the counter-based RNG keyed by
+ * (seed, instance, k), so they never depend on threads (spec §3.1). */
+static int bbox_candidates(const Scene *scene, uint64_t seed, Candidates *c) {
+    uint32_t n = scene->io.num_instances;
+    if (n == 0) return 0;
+    vec3 *lo = malloc(n * sizeof *lo), *hi = malloc(n * sizeof *hi);
+    double *vol = calloc(n, sizeof *vol);
+    uint32_t *quota = calloc(n, sizeof *quota);
+    double *rem = calloc(n, sizeof *rem);
+    if (!lo || !hi || !vol || !quota || !rem) { free(lo); free(hi); free(vol); free(quota); free(rem); return -1; }
+    float pad = 1e-3f * 2.0f * scene->radius;
+    double total = 0.0;
+    for (uint32_t i = 0; i < n; ++i) {
+        if (!instance_reflects(scene, i)) continue;
+        instance_bounds(scene, i, &lo[i], &hi[i]);
+        if (!(lo[i].x <= hi[i].x)) continue;
+        vec3 ext = v3_sub(hi[i], lo[i]);
+        /* flat objects get a minimum thickness so they receive points (spec §3.1) */
+        vol[i] = (double)maxf(ext.x, pad) * maxf(ext.y, pad) * maxf(ext.z, pad);
+        total += vol[i];
+    }
+    uint32_t assigned = 0;
+    for (uint32_t i = 0; i < n && total > 0.0; ++i) {
+        double share = BBOX_CANDIDATES * vol[i] / total;
+        quota[i] = (uint32_t)share;
+        rem[i] = share - quota[i];
+        assigned += quota[i];
+    }
+    while (total > 0.0 && assigned < BBOX_CANDIDATES) { /* largest remainder, lowest index wins ties */
+        uint32_t best = 0;
+        for (uint32_t i = 1; i < n; ++i) if (rem[i] > rem[best]) best = i;
+        if (!(rem[best] > 0.0)) break;
+        quota[best]++;
+        rem[best] = -1.0;
+        ++assigned;
+    }
+    int rc = 0;
+    for (uint32_t i = 0; i < n && rc == 0; ++i) {
+        vec3 ext = v3_sub(hi[i], lo[i]);
+        vec3 mid = v3_scale(v3_add(lo[i], hi[i]), 0.5f);
+        vec3 half = v3_scale(v3(maxf(ext.x, pad), maxf(ext.y, pad), maxf(ext.z, pad)), 0.5f);
+        for (uint32_t k = 0; k < quota[i] && rc == 0; ++k) {
+            uint64_t key = rng_path_key(seed ^ CANDIDATE_SEED_SALT, i, k);
+            vec3 u = v3(rng_uniform(key, 0), rng_uniform(key, 1), rng_uniform(key, 2));
+            rc = push(c, v3(mid.x + (2.0f * u.x - 1.0f) * half.x, mid.y + (2.0f * u.y - 1.0f) * half.y,
+                            mid.z + (2.0f * u.z - 1.0f) * half.z));
+        }
+    }
+    free(lo); free(hi); free(vol); free(quota); free(rem);
+    return rc;
+}
+
+static int trace_closest(const Scene *scene, vec3 o, vec3 d, struct RTCRayHit *rh) {
+    struct RTCIntersectContext ictx;
+    rtcInitIntersectContext(&ictx);
+    memset(rh, 0, sizeof *rh);
+    rh->ray.org_x = o.x; rh->ray.org_y = o.y; rh->ray.org_z = o.z;
+    rh->ray.dir_x = d.x; rh->ray.dir_y = d.y; rh->ray.dir_z = d.z;
+    rh->ray.tfar = INFINITY;
+    rh->ray.mask = 0xffffffffu;
+    rh->hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene->top, &ictx, rh);
+    return rh->hit.geomID != RTC_INVALID_GEOMETRY_ID;
+}
+
+/* Pilot paths (§3.1.1): a stratified grid of camera rays, their first hit and one cosine
+ * bounce; each vertex kept with probability 1/2 (spec §3.1 proposal, fewer paths). */
+static int pilot_candidates(const Scene *scene, uint64_t seed, Candidates *c) {
+    const Camera *cam = &scene->camera;
+    uint32_t kept = 0;
+    for (uint32_t j = 0; j < PILOT_GRID; ++j) {
+        for (uint32_t i = 0; i < PILOT_GRID; ++i) {
+            uint64_t key = rng_path_key(seed ^ (CANDIDATE_SEED_SALT + 1), j * PILOT_GRID + i, 0);
+            float fx = ((float)i + rng_uniform(key, 0)) / PILOT_GRID * (float)cam->width;
+            float fy = ((float)j + rng_uniform(key, 1)) / PILOT_GRID * (float)cam->height;
+            vec3 o, d;
+            camera_generate_ray(cam, fx, fy, &o, &d);
+            for (int bounce = 0; bounce < 2; ++bounce) {
+                struct RTCRayHit rh;
+                if (!trace_closest(scene, o, d, &rh)) break;
+                SurfaceHit h;
+                scene_surface_hit(scene, rh.hit.instID[0], rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v, &h);
+                if (rng_uniform(key, 2 + 4 * (uint32_t)bounce) < PILOT_KEEP && kept < PILOT_CAP) {
+                    if (push(c, h.p) != 0) return -1;
+                    ++kept;
+                }
+                vec3 ng = v3_dot(h.ng, d) < 0.0f ? h.ng : v3_neg(h.ng);
+                Frame f = frame_from_normal(ng);
+                vec3 wl = sample_cosine_hemisphere(rng_uniform(key, 3 + 4 * (uint32_t)bounce), rng_uniform(key, 4 + 4 * (uint32_t)bounce));
+                o = offset_ray_origin(h.p, ng);
+                d = v3_normalize(frame_to_world(&f, wl));
+            }
+        }
+    }
+    return 0;
+}
+
+int lights_build_cachepoints(Scene *scene, void *pool, const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
+    Lights *ls = &scene->lights;
+    if (ls->count == 0) return 0;
+    ls->cp_centroid = malloc((size_t)ls->count * 3 * sizeof(float));
+    ls->cp_infinite = malloc(ls->count);
+    if (!ls->cp_centroid || !ls->cp_infinite) goto oom;
+    for (uint32_t i = 0; i < ls->count; ++i) {
+        const Light *l = &ls->lights[i];
+        vec3 c = l->position;
+        if (l->type == LIGHT_AREA) {
+            double s[3] = {0, 0, 0}, wsum = 0.0;
+            for (uint32_t t = 0; t < l->triangles.n; ++t) {
+                const float *v = l->world_vertices + 9 * (size_t)t;
+                double a = l->triangles.func[t];
+                for (int k = 0; k < 3; ++k) s[k] += a * (v[k] + v[3 + k] + v[6 + k]) / 3.0;
+                wsum += a;
+            }
+            c = wsum > 0 ? v3((float)(s[0] / wsum), (float)(s[1] / wsum), (float)(s[2] / wsum)) : v3(l->world_vertices[0], l->world_vertices[1], l->world_vertices[2]);
+        }
+        ls->cp_centroid[3 * i] = c.x; ls->cp_centroid[3 * i + 1] = c.y; ls->cp_centroid[3 * i + 2] = c.z;
+        ls->cp_infinite[i] = l->type == LIGHT_DIRECTIONAL || l->type == LIGHT_ENVIRONMENT;
+    }
+    ls->cp_view.count = ls->count;
+    ls->cp_view.centroid = ls->cp_centroid;
+    ls->cp_view.infinite = ls->cp_infinite;
+    ls->cp_view.estimate7 = cp_estimate7;
+    ls->cp_view.estimate = cp_estimate;
+    ls->cp_view.user = ls;
+
+    Candidates cand = {0};
+    if (bbox_candidates(scene, o->seed, &cand) != 0 || pilot_candidates(scene, o->seed, &cand) != 0) {
+        free(cand.xyz);
+        goto oom;
+    }
+    const Camera *cam = &scene->camera;
+    CachePointCamera cc;
+    vec3 cpos = xform_point(cam->xform, v3s(0.0f));
+    cc.position[0] = cpos.x; cc.position[1] = cpos.y; cc.position[2] = cpos.z;
+    cc.pixel_angle = cam->type == IO_CAMERA_PERSPECTIVE ? 2.0f * cam->tan_half_fov_y / (float)cam->height : 0.0f;
+    cc.pixel_size = 2.0f * cam->ymag / (float)cam->height;
+    CachePointParams params;
+    cachepoints_default_params(&params);
+    params.visibility = !o->cachepoint_no_visibility;
+    params.parallel_for = pool_parallel_for;
+    params.pool = pool;
+    int rc = cachepoints_build(&ls->cachepoints, cand.xyz, cand.count, &ls->cp_view, &cc, &params, &ls->cp_stats);
+    free(cand.xyz);
+    if (rc < 0) goto oom;
+    if (rc > 0) {
+        /* fewer than 10 points: per-vertex optimal selection instead (§3.1.1) */
+        fprintf(stderr, "%s: warning: fewer than 10 cache points; using optimal light selection\n", o->scene_path);
+        ls->strategy = CANDELA_LIGHT_SAMPLER_OPTIMAL;
+    }
+    return 0;
+oom:
+    snprintf(err, CANDELA_ERR_LEN, "%s: out of memory building cache points", o->scene_path);
+    return -1;
+}
+
+uint32_t lights_cachepoint_at(const Lights *ls, vec3 p) {
+    float x[3] = {p.x, p.y, p.z};
+    return cachepoints_nearest(ls->cachepoints, x);
+}
