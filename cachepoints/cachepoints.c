@@ -30,6 +30,11 @@ struct CachePoints {
     uint32_t *vis_off, *vis_light;
     uint32_t *h_total, *h_success;     /* atomics */
     float *w_vis, *w_blurred;          /* Eq. 6, then the §3.2.2 blur (used at render time) */
+    /* render-time tables, rebuilt whenever W' changes: per far entry and bin the effective
+     * weight E_i(e) W'(e) (0 for lights also in the near list: near wins) and its inclusive
+     * running sum within the point; per point and bin the total T_i */
+    float *far_eff, *far_cdf;          /* FAR_BINS per far entry */
+    float *bin_total;                  /* FAR_BINS per point */
     uint32_t *nbr;                     /* blur_neighbours per point (UINT32_MAX: none) */
     float *nbr_w;                      /* normalised Eq. 4 weights */
     float *self_w;
@@ -518,12 +523,6 @@ static void vis_blur_range(void *vctx, size_t b, size_t e, int thread) {
     }
 }
 
-void cachepoints_update_visibility(CachePoints *cp) {
-    if (!cp || !cp->params.visibility) return;
-    VisCtx c = {cp};
-    run_parallel(&cp->params, cp->n, 256, vis_weight_range, &c);
-    run_parallel(&cp->params, cp->n, 256, vis_blur_range, &c);
-}
 
 float cachepoints_visibility(const CachePoints *cp, uint32_t point, uint32_t light) {
     uint32_t slot;
@@ -533,25 +532,23 @@ float cachepoints_visibility(const CachePoints *cp, uint32_t point, uint32_t lig
 
 /* ---------------------------------------------------------------- selection (§3.3) */
 
-static inline float far_value(const FarEntry *f, const float *n) {
-    if (!n) return f->value[OMNI_BIN];
-    /* b_i(n) = max(0, n.a_i)^2 sums to 1 for a unit normal (spec §5.3) */
-    float px = n[0] > 0.0f ? n[0] : 0.0f, nx = n[0] < 0.0f ? -n[0] : 0.0f;
-    float py = n[1] > 0.0f ? n[1] : 0.0f, ny = n[1] < 0.0f ? -n[1] : 0.0f;
-    float pz = n[2] > 0.0f ? n[2] : 0.0f, nz = n[2] < 0.0f ? -n[2] : 0.0f;
-    return px * px * f->value[0] + nx * nx * f->value[1] + py * py * f->value[2] + ny * ny * f->value[3] +
-           pz * pz * f->value[4] + nz * nz * f->value[5];
+/* Far bins are blended by b_i(n) = max(0, n.a_i)^2, which sums to 1 for a unit normal
+ * (spec §5.3); without a normal (volumes, transmissive surfaces) only the fluence bin. */
+static int bin_blend(const float *n, float b[FAR_BINS]) {
+    for (int i = 0; i < FAR_BINS; ++i) b[i] = 0.0f;
+    if (!n) { b[OMNI_BIN] = 1.0f; return 1; }
+    b[0] = n[0] > 0.0f ? n[0] * n[0] : 0.0f;
+    b[1] = n[0] < 0.0f ? n[0] * n[0] : 0.0f;
+    b[2] = n[1] > 0.0f ? n[1] * n[1] : 0.0f;
+    b[3] = n[1] < 0.0f ? n[1] * n[1] : 0.0f;
+    b[4] = n[2] > 0.0f ? n[2] * n[2] : 0.0f;
+    b[5] = n[2] < 0.0f ? n[2] * n[2] : 0.0f;
+    return 1;
 }
 
 static inline float vis_of(const CachePoints *cp, uint32_t point, uint32_t light) {
     uint32_t slot;
     return vis_slot(cp, point, light, &slot) ? cp->w_blurred[slot] : 1.0f;
-}
-
-static int in_near(const CachePoints *cp, uint32_t point, uint32_t light) {
-    uint32_t at;
-    find_u32(cp->near_light, cp->near_off[point], cp->near_off[point + 1], light, &at);
-    return at < cp->near_off[point + 1] && cp->near_light[at] == light;
 }
 
 static int far_index(const CachePoints *cp, uint32_t point, uint32_t light, uint32_t *at) {
@@ -565,8 +562,48 @@ static int far_index(const CachePoints *cp, uint32_t point, uint32_t light, uint
     return lo < cp->far_off[point + 1] && cp->far[lo].light == light;
 }
 
-/* un-normalised weight of entry k of point's list (near entries first, then far entries
- * not in the near list); the same function serves the total, the walk and the PMF */
+static int near_index(const CachePoints *cp, uint32_t point, uint32_t light, uint32_t *at) {
+    find_u32(cp->near_light, cp->near_off[point], cp->near_off[point + 1], light, at);
+    return *at < cp->near_off[point + 1] && cp->near_light[*at] == light;
+}
+
+typedef struct TableCtx { CachePoints *cp; } TableCtx;
+
+static void tables_range(void *vctx, size_t b, size_t e, int thread) {
+    (void)thread;
+    CachePoints *cp = ((TableCtx *)vctx)->cp;
+    for (size_t p = b; p < e; ++p) {
+        double run[FAR_BINS] = {0};
+        for (uint32_t k = cp->far_off[p]; k < cp->far_off[p + 1]; ++k) {
+            const FarEntry *f = &cp->far[k];
+            uint32_t at;
+            int dup = near_index(cp, (uint32_t)p, f->light, &at);
+            float w = dup ? 0.0f : vis_of(cp, (uint32_t)p, f->light);
+            for (int i = 0; i < FAR_BINS; ++i) {
+                float v = f->value[i] > 0.0f && isfinite(f->value[i]) ? f->value[i] * w : 0.0f;
+                cp->far_eff[(size_t)k * FAR_BINS + i] = v;
+                run[i] += v;
+                cp->far_cdf[(size_t)k * FAR_BINS + i] = (float)run[i];
+            }
+        }
+        for (int i = 0; i < FAR_BINS; ++i) cp->bin_total[p * FAR_BINS + i] = (float)run[i];
+    }
+}
+
+static void rebuild_tables(CachePoints *cp) {
+    TableCtx c = {cp};
+    run_parallel(&cp->params, cp->n, 256, tables_range, &c);
+}
+
+void cachepoints_update_visibility(CachePoints *cp) {
+    if (!cp || !cp->params.visibility) return;
+    VisCtx c = {cp};
+    run_parallel(&cp->params, cp->n, 256, vis_weight_range, &c);
+    run_parallel(&cp->params, cp->n, 256, vis_blur_range, &c);
+    rebuild_tables(cp);
+}
+
+/* Exact weight of near light k at the vertex: its estimate times W' (§3.3). */
 static float near_weight(const CachePoints *cp, const CachePointLights *L, uint32_t point, uint32_t k,
                          const float x[3], const float *n) {
     uint32_t light = cp->near_light[k];
@@ -575,29 +612,36 @@ static float near_weight(const CachePoints *cp, const CachePointLights *L, uint3
     return w * vis_of(cp, point, light);
 }
 
-static float far_weight(const CachePoints *cp, uint32_t point, uint32_t k, const float *n) {
-    const FarEntry *f = &cp->far[k];
-    if (in_near(cp, point, f->light)) return 0.0f; /* near wins (spec §5.3) */
-    float w = far_value(f, n);
-    if (!(w > 0.0f) || !isfinite(w)) return 0.0f;
-    return w * vis_of(cp, point, f->light);
+/* The vertex's distribution is a mixture: near lights with their exact weights, and far bin i
+ * with weight b_i(n) T_i, each bin sampled through its running sums. A far light's weight is
+ * then sum_i b_i eff_i(e), so the PMF is one formula whichever branch picked the light. */
+typedef struct VertexWeights {
+    uint32_t point;
+    float b[FAR_BINS];
+    float near_total, far_total, total;
+} VertexWeights;
+
+static void vertex_weights(const CachePoints *cp, const CachePointLights *L, uint32_t point, const float x[3],
+                           const float *n, VertexWeights *v) {
+    v->point = point;
+    bin_blend(n, v->b);
+    float nt = 0.0f;
+    for (uint32_t k = cp->near_off[point]; k < cp->near_off[point + 1]; ++k) nt += near_weight(cp, L, point, k, x, n);
+    float ft = 0.0f;
+    for (int i = 0; i < FAR_BINS; ++i) ft += v->b[i] * cp->bin_total[(size_t)point * FAR_BINS + i];
+    v->near_total = nt;
+    v->far_total = ft;
+    v->total = nt + ft;
 }
 
-static float point_total(const CachePoints *cp, const CachePointLights *L, uint32_t point, const float x[3],
-                         const float *n) {
-    float total = 0.0f;
-    for (uint32_t k = cp->near_off[point]; k < cp->near_off[point + 1]; ++k) total += near_weight(cp, L, point, k, x, n);
-    for (uint32_t k = cp->far_off[point]; k < cp->far_off[point + 1]; ++k) total += far_weight(cp, point, k, n);
-    return total;
-}
-
-static float light_weight(const CachePoints *cp, const CachePointLights *L, uint32_t point, uint32_t light,
+static float light_weight(const CachePoints *cp, const CachePointLights *L, const VertexWeights *v, uint32_t light,
                           const float x[3], const float *n) {
     uint32_t at;
-    find_u32(cp->near_light, cp->near_off[point], cp->near_off[point + 1], light, &at);
-    if (at < cp->near_off[point + 1] && cp->near_light[at] == light) return near_weight(cp, L, point, at, x, n);
-    if (far_index(cp, point, light, &at)) return far_weight(cp, point, at, n);
-    return 0.0f;
+    if (near_index(cp, v->point, light, &at)) return near_weight(cp, L, v->point, at, x, n);
+    if (!far_index(cp, v->point, light, &at)) return 0.0f;
+    float w = 0.0f;
+    for (int i = 0; i < FAR_BINS; ++i) w += v->b[i] * cp->far_eff[(size_t)at * FAR_BINS + i];
+    return w;
 }
 
 static inline float pmf_from(float w, float total, float eps, uint32_t count) {
@@ -611,34 +655,55 @@ uint32_t cachepoints_select(const CachePoints *cp, const CachePointLights *L, co
     float eps = cp->params.epsilon;
     uint32_t point = kdtree_nearest(&cp->kd, x, NULL);
     *point_out = point;
-    float total = point_total(cp, L, point, x, n);
-    uint32_t pick;
-    if (!(total > 0.0f) || u < eps) {
-        float uu = total > 0.0f ? u / eps : u;
+    VertexWeights v;
+    vertex_weights(cp, L, point, x, n, &v);
+    uint32_t pick = UINT32_MAX;
+    if (!(v.total > 0.0f) || u < eps) {
+        float uu = v.total > 0.0f ? u / eps : u;
         pick = (uint32_t)(uu * (float)N);
         if (pick >= N) pick = N - 1;
     } else {
-        float target = (u - eps) / (1.0f - eps) * total;
-        float cum = 0.0f;
-        uint32_t last = UINT32_MAX;
-        pick = UINT32_MAX;
-        for (uint32_t k = cp->near_off[point]; k < cp->near_off[point + 1] && pick == UINT32_MAX; ++k) {
-            float w = near_weight(cp, L, point, k, x, n);
-            if (!(w > 0.0f)) continue;
-            cum += w;
-            last = cp->near_light[k];
-            if (target < cum) pick = last;
+        float target = (u - eps) / (1.0f - eps) * v.total;
+        if (target < v.near_total) {
+            float cum = 0.0f;
+            for (uint32_t k = cp->near_off[point]; k < cp->near_off[point + 1]; ++k) {
+                float w = near_weight(cp, L, point, k, x, n);
+                if (!(w > 0.0f)) continue;
+                cum += w;
+                pick = cp->near_light[k];
+                if (target < cum) break;
+            }
         }
-        for (uint32_t k = cp->far_off[point]; k < cp->far_off[point + 1] && pick == UINT32_MAX; ++k) {
-            float w = far_weight(cp, point, k, n);
-            if (!(w > 0.0f)) continue;
-            cum += w;
-            last = cp->far[k].light;
-            if (target < cum) pick = last;
+        if (pick == UINT32_MAX && v.far_total > 0.0f) {
+            /* choose a bin, then a light inside it by binary search over the running sums */
+            float t = target - v.near_total;
+            if (t < 0.0f) t = 0.0f;
+            int bin = -1;
+            float cum = 0.0f;
+            for (int i = 0; i < FAR_BINS; ++i) {
+                float wi = v.b[i] * cp->bin_total[(size_t)point * FAR_BINS + i];
+                if (!(wi > 0.0f)) continue;
+                bin = i;
+                if (t < cum + wi) break;
+                cum += wi;
+            }
+            if (bin >= 0) {
+                float tb = v.b[bin] > 0.0f ? (t - cum) / v.b[bin] : 0.0f;
+                uint32_t lo = cp->far_off[point], hi = cp->far_off[point + 1];
+                while (lo < hi) { /* first entry whose running sum exceeds tb */
+                    uint32_t mid = lo + (hi - lo) / 2;
+                    if (cp->far_cdf[(size_t)mid * FAR_BINS + bin] <= tb) lo = mid + 1;
+                    else hi = mid;
+                }
+                if (lo >= cp->far_off[point + 1]) lo = cp->far_off[point + 1] - 1;
+                /* rounding may land on a zero-weight entry: step back to one with weight */
+                while (lo > cp->far_off[point] && !(cp->far_eff[(size_t)lo * FAR_BINS + bin] > 0.0f)) --lo;
+                pick = cp->far[lo].light;
+            }
         }
-        if (pick == UINT32_MAX) pick = last; /* rounding at the very end of the walk */
+        if (pick == UINT32_MAX) pick = (uint32_t)(u * (float)N) < N ? (uint32_t)(u * (float)N) : N - 1;
     }
-    *pmf = pmf_from(light_weight(cp, L, point, pick, x, n), total, eps, N);
+    *pmf = pmf_from(light_weight(cp, L, &v, pick, x, n), v.total, eps, N);
     return pick;
 }
 
@@ -649,9 +714,9 @@ uint32_t cachepoints_nearest(const CachePoints *cp, const float x[3]) {
 float cachepoints_pmf(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
                       uint32_t light) {
     if (light >= L->count) return 0.0f;
-    uint32_t point = kdtree_nearest(&cp->kd, x, NULL);
-    float total = point_total(cp, L, point, x, n);
-    return pmf_from(light_weight(cp, L, point, light, x, n), total, cp->params.epsilon, L->count);
+    VertexWeights v;
+    vertex_weights(cp, L, kdtree_nearest(&cp->kd, x, NULL), x, n, &v);
+    return pmf_from(light_weight(cp, L, &v, light, x, n), v.total, cp->params.epsilon, L->count);
 }
 
 /* ---------------------------------------------------------------- build */
@@ -672,6 +737,7 @@ void cachepoints_free(CachePoints *cp) {
     free(cp->vis_off); free(cp->vis_light);
     free(cp->h_total); free(cp->h_success); free(cp->w_vis); free(cp->w_blurred);
     free(cp->nbr); free(cp->nbr_w); free(cp->self_w);
+    free(cp->far_eff); free(cp->far_cdf); free(cp->bin_total);
     free(cp);
 }
 
@@ -822,6 +888,10 @@ int cachepoints_build(CachePoints **out, const float *cand, uint32_t num_candida
         cp->w_vis = malloc((v + 1) * sizeof(float));
         cp->w_blurred = malloc((v + 1) * sizeof(float));
         failed = !cp->h_total || !cp->h_success || !cp->w_vis || !cp->w_blurred;
+        cp->far_eff = malloc((f + 1) * FAR_BINS * sizeof(float));
+        cp->far_cdf = malloc((f + 1) * FAR_BINS * sizeof(float));
+        cp->bin_total = malloc(((size_t)n + 1) * FAR_BINS * sizeof(float));
+        failed = failed || !cp->far_eff || !cp->far_cdf || !cp->bin_total;
         if (!failed) for (size_t s = 0; s < v; ++s) cp->w_vis[s] = cp->w_blurred[s] = 1.0f; /* first iteration: W = 1 */
         st.bytes = (size_t)n * (3 + 1 + 3 + 2 * K + 1) * sizeof(float) + a * 4 + f * sizeof(FarEntry) + v * 20;
     }
@@ -829,6 +899,7 @@ int cachepoints_build(CachePoints **out, const float *cand, uint32_t num_candida
     free(dist);
     free(blurred);
     if (failed) { cachepoints_free(cp); return -1; }
+    rebuild_tables(cp);
     st.final_points = n;
     st.seconds = now_seconds() - t0;
     if (stats) *stats = st;
