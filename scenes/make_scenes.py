@@ -646,6 +646,55 @@ def two_lights():
     g.write(os.path.join(ROOT, 'tests', 'scenes', 'two_lights.gltf'))
 
 
+def occluded_lights():
+    """The occlusion case in miniature (RAW units): a 6 x 3 x 4 m room split by a wall with a
+    1 m doorway; 24 point lights (0.5-2 W/sr) in the far half, 8 in the camera's half, a
+    double-sided emissive panel behind the wall and a glass sphere. No analytic value: every
+    light sampler must agree with uniform (tests/test_strategies.c)."""
+    import random
+    rng = random.Random(7)
+    g = Gltf()
+    m = g.material('lambert_half', **LAMBERT_WHITE)
+    g.mesh('floor', 'floor', quad((-3, 0, -2), (-3, 0, 2), (3, 0, 2), (3, 0, -2)), m)
+    g.mesh('ceiling', 'ceiling', quad((-3, 3, -2), (3, 3, -2), (3, 3, 2), (-3, 3, 2)), m)
+    g.mesh('back', 'back', quad((-3, 0, -2), (3, 0, -2), (3, 3, -2), (-3, 3, -2)), m)
+    # dividing wall at x = 0 with a doorway for z in [-0.5, 0.5], y < 2 (double-sided)
+    wall = g.material('wall', base=(0.5, 0.5, 0.5), lambert=True, double_sided=True)
+    g.mesh('wall_a', 'wall_a', quad((0, 0, -2), (0, 0, -0.5), (0, 3, -0.5), (0, 3, -2)), wall)
+    g.mesh('wall_b', 'wall_b', quad((0, 0, 0.5), (0, 0, 2), (0, 3, 2), (0, 3, 0.5)), wall)
+    g.mesh('wall_c', 'wall_c', quad((0, 2, -0.5), (0, 2, 0.5), (0, 3, 0.5), (0, 3, -0.5)), wall)
+    emit = g.material('panel', base=(0.0, 0.0, 0.0), lambert=True, emissive=(1.0, 0.9, 0.7),
+                      strength=3.0, double_sided=True)
+    g.mesh('panel', 'panel', quad((1.5, 0.5, -1.9), (2.5, 0.5, -1.9), (2.5, 1.5, -1.9), (1.5, 1.5, -1.9)), emit)
+    glass = g.material('glass', base=(1.0, 1.0, 1.0), roughness=0.0, transmission=1.0, ior=1.5)
+    g.mesh('glass', 'sphere', uv_sphere(0.4, segments=24, rings=12), glass, translation=(-1.5, 0.4, 0.5))
+    for k in range(24):
+        g.light('far_%d' % k, 'point', 0.5 + 1.5 * rng.random(),
+                translation=(0.3 + 2.5 * rng.random(), 0.3 + 2.5 * rng.random(), -1.8 + 3.6 * rng.random()))
+    for k in range(8):
+        g.light('near_%d' % k, 'point', 0.5 + 1.5 * rng.random(),
+                translation=(-2.7 + 2.4 * rng.random(), 0.3 + 2.5 * rng.random(), -1.8 + 3.6 * rng.random()))
+    g.perspective('camera', (-2.8, 1.5, 1.8), (0.5, 0.8, -0.8), 70.0, aspect=1.0)
+    g.write(os.path.join(ROOT, 'tests', 'scenes', 'occluded_lights.gltf'))
+
+
+def light_edge_cases():
+    """Valid but awkward light setups that must render without a crash or a division by zero:
+    no lights at all, a zero-intensity light beside a normal one, a light whose intensity
+    overflows to infinity in single precision (1e39) beside a normal one, a single light."""
+    out = os.path.join(ROOT, 'tests', 'scenes')
+    for name, lights in (('no_lights', []),
+                         ('zero_power_light', [('zero', 0.0), ('one', 1.0)]),
+                         ('overflow_light', [('huge', 1e39), ('one', 1.0)]),
+                         ('single_light', [('one', 1.0)])):
+        g = Gltf()
+        g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
+        for k, (lname, intensity) in enumerate(lights):
+            g.light(lname, 'point', intensity, translation=(0.3 * k, 1.0, 0.0))
+        top_ortho(g)
+        g.write(os.path.join(out, name + '.gltf'))
+
+
 def bench_scene():
     """The benchmark scene (simple materials, heavy geometry): a 12 x 4 x 12 m Lambert room
     with 64 instances of one 32,768-triangle sphere (2.1 M triangles traced through Embree
@@ -726,6 +775,8 @@ def main():
     area_plane()
     env_scenes()
     two_lights()
+    occluded_lights()
+    light_edge_cases()
 
 
 if __name__ == '__main__':

@@ -9,6 +9,7 @@
 #include "check.h"
 #include "rng.h"
 #include "scene.h"
+#include "threads.h"
 
 static void check_strategy_occl(const char *path, CandelaLightSampler strategy, const char *env, int occlusion) {
     CandelaOptions o;
@@ -23,6 +24,12 @@ static void check_strategy_occl(const char *path, CandelaLightSampler strategy, 
     int rc = scene_load(&scene, &o, err);
     CHECK(rc == 0, "%s", err);
     if (rc != 0) return;
+    ThreadPool *pool = NULL;
+    if (strategy == CANDELA_LIGHT_SAMPLER_CACHEPOINTS) {
+        pool = threadpool_create(2);
+        rc = lights_build_cachepoints(&scene, pool, &o, err);
+        CHECK(rc == 0 && scene.lights.cachepoints != NULL, "cache point build: %s", rc ? err : "fell back");
+    }
     const Lights *ls = &scene.lights;
     CHECK(ls->count > 1, "lights: %u", ls->count);
     uint64_t key = rng_path_key(3, 1, 2);
@@ -97,6 +104,7 @@ static void check_strategy_occl(const char *path, CandelaLightSampler strategy, 
     }
     CHECK(checked > 0, "no area/env light sample was checked");
     scene_free(&scene);
+    if (pool) threadpool_destroy(pool);
 }
 
 static void check_strategy(const char *path, CandelaLightSampler strategy, const char *env) {
@@ -118,5 +126,6 @@ int main(int argc, char **argv) {
     check_strategy(argv[1], CANDELA_LIGHT_SAMPLER_TREE, envp);
     check_strategy(argv[1], CANDELA_LIGHT_SAMPLER_OPTIMAL, envp);
     check_strategy_occl(argv[1], CANDELA_LIGHT_SAMPLER_OPTIMAL, envp, 1);
+    check_strategy(argv[1], CANDELA_LIGHT_SAMPLER_CACHEPOINTS, envp);
     return test_exit();
 }

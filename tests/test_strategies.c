@@ -1,0 +1,115 @@
+/* Unbiasedness of every light-selection strategy: on two scenes (tests/scenes/two_lights.gltf,
+ * and occluded_lights.gltf with a wall, a doorway, 32 point lights, an area light and glass),
+ * power, tree, optimal (with and without occlusion rays) and cache points (with and without
+ * visibility learning) each converge to the same image as uniform. Tolerances come from the
+ * renders' own per-pixel variances: the image-mean difference within 5 standard errors, and
+ * the mean squared per-pixel z-score near 1. Also: cache point renders are bit-identical for
+ * 1 and 2 threads. argv[1]: tests/scenes. */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "candela.h"
+#include "check.h"
+
+static int render(const char *dir, const char *scene, CandelaLightSampler s, int occlusion, int novis, int spp,
+                  uint64_t seed, int threads, CandelaImage *img, CandelaStats *st) {
+    char path[1024];
+    snprintf(path, sizeof path, "%s/%s", dir, scene);
+    CandelaOptions o;
+    candela_options_default(&o);
+    o.scene_path = path;
+    o.width = o.height = 24;
+    o.spp = spp;
+    o.seed = seed;
+    o.threads = threads;
+    o.quiet = 1;
+    o.light_units = CANDELA_LIGHT_UNITS_RAW;
+    o.light_sampler = s;
+    o.optimal_occlusion = occlusion;
+    o.cachepoint_no_visibility = novis;
+    char err[CANDELA_ERR_LEN];
+    int rc = candela_render(&o, img, st, NULL, err);
+    CHECK(rc == 0, "%s: %s", scene, err);
+    return rc;
+}
+
+static void agree(const char *scene, const char *name, const CandelaImage *a, const CandelaImage *b) {
+    int n = a->width * a->height * 3, m = 0;
+    double diff = 0.0, var = 0.0, z2 = 0.0;
+    for (int i = 0; i < n; ++i) {
+        CHECK(isfinite(b->rgb[i]), "%s %s: non-finite pixel", scene, name);
+        double v = (double)a->variance[i] + b->variance[i];
+        diff += (double)a->rgb[i] - b->rgb[i];
+        var += v;
+        if (v > 0.0) { z2 += ((double)a->rgb[i] - b->rgb[i]) * ((double)a->rgb[i] - b->rgb[i]) / v; ++m; }
+    }
+    double se = sqrt(var) / n, md = diff / n, mz2 = m ? z2 / m : 0.0;
+    fprintf(stderr, "  %-16s %-22s mean diff %+.3e (stderr %.3e)  mean z^2 %.3f over %d\n", scene, name, md, se, mz2, m);
+    CHECK(fabs(md) <= 5.0 * se + 1e-6, "%s %s: image means differ by %.3e, %.1f standard errors", scene, name, md,
+          se > 0 ? fabs(md) / se : 0.0);
+    /* per-pixel variance estimates from a few dozen samples are themselves noisy and heavy
+     * tailed (the analytic tests see 1.05-1.2); a biased strategy shows up far above that */
+    CHECK(mz2 < 1.0 + 0.5 + 8.0 * sqrt(2.0 / (m ? m : 1)), "%s %s: mean z^2 %.3f", scene, name, mz2);
+}
+
+int main(int argc, char **argv) {
+    if (argc < 2) SKIP("usage: test_strategies SCENES_DIR");
+    const char *scenes[2] = {"two_lights.gltf", "occluded_lights.gltf"};
+    struct { const char *name; CandelaLightSampler s; int occlusion, novis; } strategies[] = {
+        {"power", CANDELA_LIGHT_SAMPLER_POWER, 0, 0},
+        {"tree", CANDELA_LIGHT_SAMPLER_TREE, 0, 0},
+        {"optimal", CANDELA_LIGHT_SAMPLER_OPTIMAL, 0, 0},
+        {"optimal+occlusion", CANDELA_LIGHT_SAMPLER_OPTIMAL, 1, 0},
+        {"cachepoints", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0},
+        {"cachepoints-novis", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 1},
+    };
+    for (int sc = 0; sc < 2; ++sc) {
+        CandelaImage ref;
+        CandelaStats st;
+        if (render(argv[1], scenes[sc], CANDELA_LIGHT_SAMPLER_UNIFORM, 0, 0, 1024, 1, 2, &ref, &st) != 0) continue;
+        for (size_t k = 0; k < sizeof strategies / sizeof strategies[0]; ++k) {
+            CandelaImage img;
+            if (render(argv[1], scenes[sc], strategies[k].s, strategies[k].occlusion, strategies[k].novis, 128,
+                       100 + k, 2, &img, &st) != 0)
+                continue;
+            if (strategies[k].s == CANDELA_LIGHT_SAMPLER_CACHEPOINTS)
+                CHECK(st.num_cachepoints >= 10, "%s: only %u cache points", scenes[sc], st.num_cachepoints);
+            agree(scenes[sc], strategies[k].name, &ref, &img);
+            candela_image_free(&img);
+        }
+        candela_image_free(&ref);
+    }
+    /* awkward but valid light setups: no lights, a zero-intensity light, an intensity that
+     * overflows to infinity in single precision, a single light; every strategy renders
+     * finite pixels (black without lights) */
+    const char *edge[4] = {"no_lights.gltf", "zero_power_light.gltf", "overflow_light.gltf", "single_light.gltf"};
+    for (int e = 0; e < 4; ++e) {
+        for (size_t k = 0; k < sizeof strategies / sizeof strategies[0]; ++k) {
+            CandelaImage img;
+            CandelaStats st;
+            if (render(argv[1], edge[e], strategies[k].s, strategies[k].occlusion, strategies[k].novis, 4, 3, 2, &img, &st) != 0)
+                continue;
+            double sum = 0.0;
+            int finite = 1;
+            for (int i = 0; i < img.width * img.height * 3; ++i) { finite &= isfinite(img.rgb[i]) != 0; sum += img.rgb[i]; }
+            CHECK(finite, "%s with %s: non-finite pixels", edge[e], strategies[k].name);
+            if (e == 0) CHECK(sum == 0.0, "%s with %s: not black (%g)", edge[e], strategies[k].name, sum);
+            else CHECK(sum > 0.0, "%s with %s: black", edge[e], strategies[k].name);
+            candela_image_free(&img);
+        }
+    }
+    /* determinism of the cache point build and of learning: 1 vs 2 threads */
+    CandelaImage a, b;
+    CandelaStats sa, sb;
+    if (render(argv[1], scenes[1], CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 16, 5, 1, &a, &sa) == 0 &&
+        render(argv[1], scenes[1], CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 16, 5, 2, &b, &sb) == 0) {
+        CHECK(sa.num_cachepoints == sb.num_cachepoints, "cache points: %u vs %u", sa.num_cachepoints, sb.num_cachepoints);
+        size_t bytes = (size_t)a.width * a.height * 3 * sizeof(float);
+        CHECK(memcmp(a.rgb, b.rgb, bytes) == 0 && memcmp(a.variance, b.variance, bytes) == 0,
+              "cache point render differs between 1 and 2 threads");
+        candela_image_free(&a);
+        candela_image_free(&b);
+    }
+    return test_exit();
+}
