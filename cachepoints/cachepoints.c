@@ -30,6 +30,7 @@ struct CachePoints {
     uint32_t *vis_off, *vis_light;
     uint32_t *h_total, *h_success;     /* atomics */
     float *w_vis, *w_blurred;          /* Eq. 6, then the §3.2.2 blur (used at render time) */
+    float *blur_wsum;                  /* scratch of the visibility blur */
     /* render-time tables, rebuilt whenever W' changes: per far entry and bin the effective
      * weight E_i(e) W'(e) (0 for lights also in the near list: near wins) and its inclusive
      * running sum within the point; per point and bin the total T_i */
@@ -509,17 +510,31 @@ static void vis_blur_range(void *vctx, size_t b, size_t e, int thread) {
     CachePoints *cp = ((VisCtx *)vctx)->cp;
     uint32_t K = cp->params.blur_neighbours;
     for (size_t p = b; p < e; ++p) {
-        for (uint32_t s = cp->vis_off[p]; s < cp->vis_off[p + 1]; ++s) {
-            uint32_t light = cp->vis_light[s];
-            float acc = cp->self_w[p] * cp->w_vis[s], wsum = cp->self_w[p];
-            for (uint32_t j = 0; j < K; ++j) {
-                uint32_t nb = cp->nbr[p * K + j], slot;
-                if (nb == UINT32_MAX || !vis_slot(cp, nb, light, &slot)) continue;
-                acc += cp->nbr_w[p * K + j] * cp->w_vis[slot];
-                wsum += cp->nbr_w[p * K + j];
-            }
-            cp->w_blurred[s] = cp->params.vis_blur_renorm ? acc / wsum : acc;
+        uint32_t s0 = cp->vis_off[p], s1 = cp->vis_off[p + 1];
+        /* accumulate in w_blurred (acc) and h_scratch (weight sums); each neighbour's sorted
+         * slot list is merged against p's in one linear walk */
+        for (uint32_t s = s0; s < s1; ++s) {
+            cp->w_blurred[s] = cp->self_w[p] * cp->w_vis[s];
+            cp->blur_wsum[s] = cp->self_w[p];
         }
+        for (uint32_t j = 0; j < K; ++j) {
+            uint32_t nb = cp->nbr[p * K + j];
+            if (nb == UINT32_MAX) continue;
+            float w = cp->nbr_w[p * K + j];
+            uint32_t a = s0, q = cp->vis_off[nb], q1 = cp->vis_off[nb + 1];
+            while (a < s1 && q < q1) {
+                uint32_t la = cp->vis_light[a], lq = cp->vis_light[q];
+                if (la < lq) ++a;
+                else if (la > lq) ++q;
+                else {
+                    cp->w_blurred[a] += w * cp->w_vis[q];
+                    cp->blur_wsum[a] += w;
+                    ++a; ++q;
+                }
+            }
+        }
+        if (cp->params.vis_blur_renorm)
+            for (uint32_t s = s0; s < s1; ++s) cp->w_blurred[s] /= cp->blur_wsum[s];
     }
 }
 
@@ -735,7 +750,7 @@ void cachepoints_free(CachePoints *cp) {
     free(cp->near_off); free(cp->near_light);
     free(cp->far_off); free(cp->far);
     free(cp->vis_off); free(cp->vis_light);
-    free(cp->h_total); free(cp->h_success); free(cp->w_vis); free(cp->w_blurred);
+    free(cp->h_total); free(cp->h_success); free(cp->w_vis); free(cp->w_blurred); free(cp->blur_wsum);
     free(cp->nbr); free(cp->nbr_w); free(cp->self_w);
     free(cp->far_eff); free(cp->far_cdf); free(cp->bin_total);
     free(cp);
@@ -887,7 +902,8 @@ int cachepoints_build(CachePoints **out, const float *cand, uint32_t num_candida
         cp->h_success = calloc(v + 1, sizeof(uint32_t));
         cp->w_vis = malloc((v + 1) * sizeof(float));
         cp->w_blurred = malloc((v + 1) * sizeof(float));
-        failed = !cp->h_total || !cp->h_success || !cp->w_vis || !cp->w_blurred;
+        cp->blur_wsum = malloc((v + 1) * sizeof(float));
+        failed = !cp->h_total || !cp->h_success || !cp->w_vis || !cp->w_blurred || !cp->blur_wsum;
         cp->far_eff = malloc((f + 1) * FAR_BINS * sizeof(float));
         cp->far_cdf = malloc((f + 1) * FAR_BINS * sizeof(float));
         cp->bin_total = malloc(((size_t)n + 1) * FAR_BINS * sizeof(float));
