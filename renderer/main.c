@@ -97,6 +97,9 @@ static void print_stats(const CandelaStats *s) {
             s->time_shadow, s->time_film, s->time_total, (unsigned long long)s->rays_camera,
             (unsigned long long)s->rays_bounce, (unsigned long long)s->rays_shadow,
             render > 0 ? (double)rays / render * 1e-6 : 0.0, (double)s->peak_memory_bytes / (1024.0 * 1024.0));
+    if (s->num_cachepoints)
+        fprintf(stderr, "  cache points: %u from %u candidates, built in %.3fs, %.1f MiB\n", s->num_cachepoints,
+                s->cachepoint_candidates, s->time_cachepoints, (double)s->cachepoint_bytes / (1024.0 * 1024.0));
 }
 
 int main(int argc, char **argv) {
