@@ -212,10 +212,95 @@ typedef struct DistCtx {
 
 typedef struct ValueIndex { float v; uint32_t light; } ValueIndex;
 
-static int cmp_value_desc(const void *a, const void *b) {
-    const ValueIndex *x = a, *y = b;
-    if (x->v != y->v) return x->v > y->v ? -1 : 1;
-    return x->light < y->light ? -1 : (x->light > y->light);
+
+/* Total orders (ties by light id / position) keep every result deterministic. */
+static inline int vi_before(const ValueIndex *a, const ValueIndex *b) { /* value desc, light asc */
+    return a->v > b->v || (a->v == b->v && a->light < b->light);
+}
+
+static void sort_u64(uint64_t *a, size_t n) {
+    for (size_t start = n / 2; start-- > 0;) {
+        size_t root = start;
+        for (;;) {
+            size_t child = 2 * root + 1;
+            if (child >= n) break;
+            if (child + 1 < n && a[child] < a[child + 1]) ++child;
+            if (!(a[root] < a[child])) break;
+            uint64_t t = a[root]; a[root] = a[child]; a[child] = t;
+            root = child;
+        }
+    }
+    for (size_t end = n; end > 1; --end) {
+        uint64_t t = a[0]; a[0] = a[end - 1]; a[end - 1] = t;
+        size_t root = 0, m = end - 1;
+        for (;;) {
+            size_t child = 2 * root + 1;
+            if (child >= m) break;
+            if (child + 1 < m && a[child] < a[child + 1]) ++child;
+            if (!(a[root] < a[child])) break;
+            uint64_t u = a[root]; a[root] = a[child]; a[child] = u;
+            root = child;
+        }
+    }
+}
+
+/* Quickselect-style partitions under the (value desc, light asc) order, O(n) expected: the
+ * far-bin rule needs only the membership of a prefix of the sorted order, never its order. */
+static void vi_insertion_sort(ValueIndex *a, uint32_t n) {
+    for (uint32_t i = 1; i < n; ++i) {
+        ValueIndex x = a[i];
+        uint32_t j = i;
+        while (j > 0 && vi_before(&x, &a[j - 1])) { a[j] = a[j - 1]; --j; }
+        a[j] = x;
+    }
+}
+
+/* Partitions a[lo, hi) around a median-of-three pivot; returns the pivot's final index. */
+static uint32_t vi_partition(ValueIndex *a, uint32_t lo, uint32_t hi) {
+    uint32_t mid = lo + (hi - lo) / 2, last = hi - 1;
+    if (vi_before(&a[mid], &a[lo])) { ValueIndex t = a[mid]; a[mid] = a[lo]; a[lo] = t; }
+    if (vi_before(&a[last], &a[lo])) { ValueIndex t = a[last]; a[last] = a[lo]; a[lo] = t; }
+    if (vi_before(&a[mid], &a[last])) { ValueIndex t = a[mid]; a[mid] = a[last]; a[last] = t; }
+    ValueIndex pivot = a[last]; /* the median */
+    uint32_t store = lo;
+    for (uint32_t i = lo; i < last; ++i)
+        if (vi_before(&a[i], &pivot)) { ValueIndex t = a[i]; a[i] = a[store]; a[store] = t; ++store; }
+    ValueIndex t = a[store]; a[store] = a[last]; a[last] = t;
+    return store;
+}
+
+/* Moves the first m elements of the sorted order to the front, m the smallest count whose
+ * sum reaches target (n if none does); returns m. */
+static uint32_t select_energy_prefix(ValueIndex *a, uint32_t n, double target) {
+    uint32_t lo = 0, hi = n;
+    double acc = 0.0;
+    while (hi - lo > 24) {
+        uint32_t p = vi_partition(a, lo, hi);
+        double before = 0.0;
+        for (uint32_t i = lo; i < p; ++i) before += a[i].v;
+        if (acc + before >= target) { hi = p; continue; }
+        acc += before + a[p].v;
+        if (acc >= target) return p + 1;
+        lo = p + 1;
+    }
+    vi_insertion_sort(a + lo, hi - lo);
+    for (uint32_t i = lo; i < hi; ++i) {
+        acc += a[i].v;
+        if (acc >= target) return i + 1;
+    }
+    return hi < n ? hi : n;
+}
+
+/* Moves the first k elements of the sorted order to the front. */
+static void select_top(ValueIndex *a, uint32_t n, uint32_t k) {
+    uint32_t lo = 0, hi = n;
+    while (hi - lo > 24 && k > lo && k < hi) {
+        uint32_t p = vi_partition(a, lo, hi);
+        if (p == k || p + 1 == k) return;
+        if (p > k) hi = p;
+        else lo = p + 1;
+    }
+    vi_insertion_sort(a + lo, hi - lo);
 }
 
 static void dist_range(void *vctx, size_t b, size_t e, int thread) {
@@ -249,7 +334,7 @@ static void dist_range(void *vctx, size_t b, size_t e, int thread) {
             uint32_t m = 0;
             for (uint32_t l = 0; l < N; ++l)
                 if (is_near[l]) { vi[m].v = values[(size_t)l * FAR_BINS + OMNI_BIN]; vi[m].light = l; ++m; }
-            qsort(vi, m, sizeof *vi, cmp_value_desc);
+            select_top(vi, m, P->max_near);
             for (uint32_t j = P->max_near; j < m; ++j) is_near[vi[j].light] = 0;
             near_count = P->max_near;
         }
@@ -273,13 +358,11 @@ static void dist_range(void *vctx, size_t b, size_t e, int thread) {
                 total += v;
             }
             if (nz == 0) continue;
-            qsort(vi, nz, sizeof *vi, cmp_value_desc);
-            double acc = 0.0;
-            uint32_t len = 0;
-            while (len < nz && acc < P->energy_fraction * total) acc += vi[len++].v;
+            /* the shortest prefix of the (value desc, light asc) order holding 97% */
+            uint32_t len = select_energy_prefix(vi, nz, P->energy_fraction * total);
             uint32_t lo = P->min_per_bin < nz ? P->min_per_bin : nz;
-            if (len < lo) len = lo;
-            if (len > P->max_per_bin) len = P->max_per_bin;
+            if (len < lo) { select_top(vi, nz, lo); len = lo; }
+            if (len > P->max_per_bin) { select_top(vi, len, P->max_per_bin); len = P->max_per_bin; }
             for (uint32_t j = 0; j < len; ++j) keep[vi[j].light] |= (uint8_t)(1u << bin);
         }
         uint32_t fc = 0;
@@ -390,10 +473,6 @@ typedef struct BlurCtx {
     int failed;
 } BlurCtx;
 
-static int cmp_u64(const void *a, const void *b) {
-    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-    return x < y ? -1 : (x > y);
-}
 
 static void blur_weights(CachePoints *cp, size_t i) {
     uint32_t K = cp->params.blur_neighbours;
@@ -418,47 +497,54 @@ static void blur_range(void *vctx, size_t b, size_t e, int thread) {
     (void)thread;
     BlurCtx *c = vctx;
     CachePoints *cp = c->cp;
-    uint32_t K = cp->params.blur_neighbours;
+    uint32_t K = cp->params.blur_neighbours, N = cp->num_lights;
+    /* dense per-light accumulators: contributions are added in source order (self, then the
+     * neighbours by distance), so the float sums are deterministic */
+    float *acc = calloc((size_t)N * FAR_BINS + 1, sizeof(float));
+    uint8_t *touched = calloc((size_t)N + 1, 1);
+    uint32_t *list = malloc(((size_t)N + 1) * sizeof(uint32_t));
+    if (!acc || !touched || !list) { free(acc); free(touched); free(list); c->failed = 1; return; }
     for (size_t i = b; i < e; ++i) {
         blur_weights(cp, i);
-        size_t total = c->dist[i].far_count;
-        for (uint32_t j = 0; j < K; ++j)
-            if (cp->nbr[i * K + j] != UINT32_MAX) total += c->dist[cp->nbr[i * K + j]].far_count;
-        FarEntry *tmp = malloc((total ? total : 1) * sizeof *tmp);
-        if (!tmp) { c->failed = 1; return; }
-        size_t m = 0;
+        uint32_t count = 0;
         for (int j = -1; j < (int)K; ++j) {
             uint32_t src = j < 0 ? (uint32_t)i : cp->nbr[i * K + (uint32_t)j];
             if (src == UINT32_MAX) continue;
             float w = j < 0 ? cp->self_w[i] : cp->nbr_w[i * K + (uint32_t)j];
             const Dist *d = &c->dist[src];
             for (uint32_t q = 0; q < d->far_count; ++q) {
-                tmp[m].light = d->far[q].light;
-                for (int bin = 0; bin < FAR_BINS; ++bin) tmp[m].value[bin] = w * d->far[q].value[bin];
-                ++m;
+                uint32_t l = d->far[q].light;
+                if (!touched[l]) { touched[l] = 1; list[count++] = l; }
+                for (int bin = 0; bin < FAR_BINS; ++bin) acc[(size_t)l * FAR_BINS + bin] += w * d->far[q].value[bin];
             }
         }
-        /* group by light id keeping source order (self, then neighbours by distance), so the
-         * sums are added in a fixed order: sort packed (light, position) keys */
-        uint64_t *keys = malloc((m ? m : 1) * sizeof *keys);
-        if (!keys) { free(tmp); c->failed = 1; return; }
-        for (size_t q = 0; q < m; ++q) keys[q] = (uint64_t)tmp[q].light << 32 | (uint64_t)q;
-        qsort(keys, m, sizeof *keys, cmp_u64);
+        /* emit sorted by light id: a scan when dense, a sort of the touched ids when sparse */
+        if ((uint64_t)count * 16 >= N) {
+            count = 0;
+            for (uint32_t l = 0; l < N; ++l) if (touched[l]) list[count++] = l;
+        } else {
+            uint64_t *tmp = (uint64_t *)malloc((size_t)count * sizeof(uint64_t) + 8);
+            if (!tmp) { c->failed = 1; break; }
+            for (uint32_t q = 0; q < count; ++q) tmp[q] = list[q];
+            sort_u64(tmp, count);
+            for (uint32_t q = 0; q < count; ++q) list[q] = (uint32_t)tmp[q];
+            free(tmp);
+        }
         Dist *out = &c->blurred[i];
-        out->far = malloc((m ? m : 1) * sizeof(FarEntry));
-        if (!out->far) { free(keys); free(tmp); c->failed = 1; return; }
-        uint32_t fc = 0;
-        for (size_t q = 0; q < m; ++q) {
-            const FarEntry *src = &tmp[keys[q] & 0xffffffffu];
-            if (fc > 0 && out->far[fc - 1].light == src->light) {
-                for (int bin = 0; bin < FAR_BINS; ++bin) out->far[fc - 1].value[bin] += src->value[bin];
-            } else {
-                out->far[fc++] = *src;
+        out->far = malloc((count ? count : 1) * sizeof(FarEntry));
+        if (!out->far) { c->failed = 1; break; }
+        for (uint32_t q = 0; q < count; ++q) {
+            uint32_t l = list[q];
+            out->far[q].light = l;
+            for (int bin = 0; bin < FAR_BINS; ++bin) {
+                out->far[q].value[bin] = acc[(size_t)l * FAR_BINS + bin];
+                acc[(size_t)l * FAR_BINS + bin] = 0.0f;
             }
+            touched[l] = 0;
         }
-        out->far_count = fc;
-        free(keys); free(tmp);
+        out->far_count = count;
     }
+    free(acc); free(touched); free(list);
 }
 
 /* ---------------------------------------------------------------- visibility (§3.2) */
