@@ -751,10 +751,10 @@ static inline float pmf_from(float w, float total, float eps, uint32_t count) {
 }
 
 uint32_t cachepoints_select(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
-                            float u, float *pmf, uint32_t *point_out) {
+                            uint32_t point_hint, float u, float *pmf, uint32_t *point_out) {
     uint32_t N = L->count;
     float eps = cp->params.epsilon;
-    uint32_t point = kdtree_nearest(&cp->kd, x, NULL);
+    uint32_t point = point_hint < cp->n ? point_hint : kdtree_nearest(&cp->kd, x, NULL);
     *point_out = point;
     VertexWeights v;
     vertex_weights(cp, L, point, x, n, &v);
@@ -813,10 +813,10 @@ uint32_t cachepoints_nearest(const CachePoints *cp, const float x[3]) {
 }
 
 float cachepoints_pmf(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
-                      uint32_t light) {
+                      uint32_t point_hint, uint32_t light) {
     if (light >= L->count) return 0.0f;
     VertexWeights v;
-    vertex_weights(cp, L, kdtree_nearest(&cp->kd, x, NULL), x, n, &v);
+    vertex_weights(cp, L, point_hint < cp->n ? point_hint : kdtree_nearest(&cp->kd, x, NULL), x, n, &v);
     return pmf_from(light_weight(cp, L, &v, light, x, n), v.total, cp->params.epsilon, L->count);
 }
 

@@ -81,12 +81,14 @@ void cachepoints_point(const CachePoints *cp, uint32_t i, float pos[3], float *r
  * by n (n == NULL: volumes and transmissive surfaces use the fluence bin), visibility
  * weights, uniform floor epsilon. *point receives the cache point used. */
 uint32_t cachepoints_select(const CachePoints *cp, const CachePointLights *lights, const float x[3],
-                            const float *n, float u, float *pmf, uint32_t *point);
+                            const float *n, uint32_t point_hint, float u, float *pmf, uint32_t *point);
 /* The cache point a vertex at x uses (the nearest; ties: lowest index). */
 uint32_t cachepoints_nearest(const CachePoints *cp, const float x[3]);
-/* Exactly the probability cachepoints_select gives `light` at (x, n). */
+/* Exactly the probability cachepoints_select gives `light` at (x, n). point_hint: the
+ * vertex's cache point if the caller already has it from cachepoints_nearest, else
+ * UINT32_MAX. */
 float cachepoints_pmf(const CachePoints *cp, const CachePointLights *lights, const float x[3],
-                      const float *n, uint32_t light);
+                      const float *n, uint32_t point_hint, uint32_t light);
 
 /* Visibility learning (§3.2): count an attempt of `light` from `point` (atomic; ignored when
  * the light is not in the point's lists), and a success when the shadow ray got through

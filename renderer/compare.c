@@ -113,7 +113,7 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
         CandelaOptions ro = o;
         ro.spp = c->reference_spp > 0 ? c->reference_spp : 16 * base->spp;
         ro.seed = base->seed + 0x5eed;  /* independent of the compared renders */
-        ro.light_sampler = CANDELA_LIGHT_SAMPLER_POWER;
+        ro.light_sampler = CANDELA_LIGHT_SAMPLER_TREE; /* the best general-purpose sampler here */
         CandelaImage img;
         CandelaStats st;
         fprintf(stderr, "candela compare: reference, %d spp\n", ro.spp);
@@ -219,7 +219,7 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
     fprintf(md, "# %s, %dx%d, %d spp, seed %llu\n\n", base->scene_path, width, height, base->spp,
             (unsigned long long)base->seed);
     if (c->reference_path) fprintf(md, "Reference: %s\n\n", c->reference_path);
-    else fprintf(md, "Reference: power sampler, %d spp (%.2f s)\n\n",
+    else fprintf(md, "Reference: tree sampler, %d spp (%.2f s)\n\n",
                  c->reference_spp > 0 ? c->reference_spp : 16 * base->spp, ref_time);
     fprintf(md, "| strategy | time s | cache point build s | cache points | peak MiB | RMSE | relMSE | mean variance | TTUV | TTUV / first |\n");
     fprintf(md, "|---|---|---|---|---|---|---|---|---|---|\n");

@@ -221,7 +221,7 @@ uint32_t light_select(const Lights *ls, const LightSampleContext *ctx, float u, 
         if (!ls->cachepoints) return optimal_select(ls, ctx, u, pmf); /* fallback (§3.1.1) */
         float x[3] = {ctx->p.x, ctx->p.y, ctx->p.z}, n[3] = {ctx->n.x, ctx->n.y, ctx->n.z};
         uint32_t point;
-        return cachepoints_select(ls->cachepoints, &ls->cp_view, x, v3_is_black(ctx->n) ? NULL : n, u, pmf, &point);
+        return cachepoints_select(ls->cachepoints, &ls->cp_view, x, v3_is_black(ctx->n) ? NULL : n, ctx->cache_point1 - 1u, u, pmf, &point);
     }
     case CANDELA_LIGHT_SAMPLER_POWER:
         return dist1d_sample_discrete(&ls->power_distribution, u, pmf, NULL);
@@ -244,7 +244,7 @@ float light_select_pmf(const Lights *ls, const LightSampleContext *ctx, uint32_t
     case CANDELA_LIGHT_SAMPLER_CACHEPOINTS: {
         if (!ls->cachepoints) return optimal_pmf(ls, ctx, light);
         float x[3] = {ctx->p.x, ctx->p.y, ctx->p.z}, n[3] = {ctx->n.x, ctx->n.y, ctx->n.z};
-        return cachepoints_pmf(ls->cachepoints, &ls->cp_view, x, v3_is_black(ctx->n) ? NULL : n, light);
+        return cachepoints_pmf(ls->cachepoints, &ls->cp_view, x, v3_is_black(ctx->n) ? NULL : n, ctx->cache_point1 - 1u, light);
     }
     case CANDELA_LIGHT_SAMPLER_POWER:
         return dist1d_pmf(&ls->power_distribution, light);

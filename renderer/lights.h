@@ -54,6 +54,10 @@ typedef struct Light {
 typedef struct LightSampleContext {
     vec3 p;
     vec3 n;     /* shading normal, or zero for a point in a medium */
+    /* cache point of this vertex + 1, when the caller already knows it (0: look it up). The
+     * wavefront stores it per path, so NEE, counting and the MIS PDF at the next wave use
+     * one nearest-point query (spec §5.1 proposal). */
+    uint32_t cache_point1;
 } LightSampleContext;
 
 typedef struct Lights {

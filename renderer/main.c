@@ -37,7 +37,7 @@ static const char *USAGE =
     "  --quiet                   no progress or statistics on stderr\n"
     "compare options:\n"
     "  --strategies LIST         default uniform,power,tree,optimal,cachepoints,cachepoints-novis\n"
-    "  --ref-spp N               reference spp (default 16 x --spp), power sampler\n"
+    "  --ref-spp N               reference spp (default 16 x --spp), tree sampler\n"
     "  --reference FILE.exr      reuse a reference instead of rendering one\n"
     "  --out-dir DIR             default out/compare-<scene name>\n"
     "  --optimal-max-lights N    skip optimal above N lights (default 5000; 0 = never)\n";

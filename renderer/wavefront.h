@@ -28,6 +28,7 @@ typedef struct PathState {
     float *prev_pos, *prev_normal; /* 3 each: the light-selection context there */
     float *prev_bsdf_pdf;
     uint8_t *prev_delta;
+    uint32_t *prev_cache_point1;   /* that vertex's cache point + 1 (0: none) */
     /* intersection results of the current wave */
     float *hit_t, *hit_u, *hit_v;
     uint32_t *hit_inst, *hit_geom, *hit_prim;

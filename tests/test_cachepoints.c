@@ -99,9 +99,9 @@ int main(void) {
         const float *n = q % 3 == 0 ? NULL : nrm;
         double sum = 0.0;
         for (uint32_t l = 0; l < NL; ++l) {
-            float pa = cachepoints_pmf(a, &L, x, n, l);
+            float pa = cachepoints_pmf(a, &L, x, n, UINT32_MAX, l);
             sum += pa;
-            if (pa != cachepoints_pmf(b, &L, x, n, l)) ++differ;
+            if (pa != cachepoints_pmf(b, &L, x, n, UINT32_MAX, l)) ++differ;
         }
         CHECK(fabs(sum - 1.0) < 1e-4, "pmf sums to %.7f", sum);
         enum { S = 20000 };
@@ -110,14 +110,16 @@ int main(void) {
         for (int s = 0; s < S; ++s) {
             float pmf;
             uint32_t cpi;
-            uint32_t l = cachepoints_select(a, &L, x, n, (float)rnd(), &pmf, &cpi);
-            if (l >= NL || pmf != cachepoints_pmf(a, &L, x, n, l) || cpi != cachepoints_nearest(a, x)) ++mismatch;
+            uint32_t l = cachepoints_select(a, &L, x, n, UINT32_MAX, (float)rnd(), &pmf, &cpi);
+            if (l >= NL || pmf != cachepoints_pmf(a, &L, x, n, UINT32_MAX, l) || pmf != cachepoints_pmf(a, &L, x, n, cpi, l) ||
+                cpi != cachepoints_nearest(a, x))
+                ++mismatch;
             else hist[l]++;
         }
         double chi2 = 0.0, pooled_o = 0.0, pooled_e = 0.0;
         int dof = -1;
         for (uint32_t l = 0; l < NL; ++l) {
-            double e = S * (double)cachepoints_pmf(a, &L, x, n, l);
+            double e = S * (double)cachepoints_pmf(a, &L, x, n, UINT32_MAX, l);
             if (e < 5.0) { pooled_o += hist[l]; pooled_e += e; continue; }
             chi2 += (hist[l] - e) * (hist[l] - e) / e;
             ++dof;
@@ -135,14 +137,14 @@ int main(void) {
     float x0[3] = {5, 5, 5};
     uint32_t p0 = cachepoints_nearest(a, x0), best = 0;
     for (uint32_t l = 1; l < NL; ++l)
-        if (cachepoints_pmf(a, &L, x0, NULL, l) > cachepoints_pmf(a, &L, x0, NULL, best)) best = l;
-    float before = cachepoints_pmf(a, &L, x0, NULL, best);
+        if (cachepoints_pmf(a, &L, x0, NULL, UINT32_MAX, l) > cachepoints_pmf(a, &L, x0, NULL, UINT32_MAX, best)) best = l;
+    float before = cachepoints_pmf(a, &L, x0, NULL, UINT32_MAX, best);
     for (uint32_t p = 0; p < cachepoints_count(a); ++p)
         for (int t = 0; t < 99; ++t)
             for (uint32_t l = 0; l < NL; ++l) cachepoints_record(a, p, l, l != best);
     cachepoints_update_visibility(a);
     float wb = cachepoints_visibility(a, p0, best), wo = cachepoints_visibility(a, p0, best == 0 ? 1 : 0);
-    float after = cachepoints_pmf(a, &L, x0, NULL, best);
+    float after = cachepoints_pmf(a, &L, x0, NULL, UINT32_MAX, best);
     fprintf(stderr, "visibility: W'(occluded) %.4f, W'(other) %.4f; pmf(occluded) %.5f -> %.5f\n", wb, wo, before, after);
     CHECK(fabsf(wb - 0.0625f) < 1e-5f, "never-visible light after 99 attempts: W' = %g, expected 625/100^2", wb);
     CHECK(fabsf(wo - 1.0f) < 1e-6f, "a visible light keeps W' = 1 (%g)", wo);
