@@ -36,6 +36,7 @@ struct CachePoints {
      * running sum within the point; per point and bin the total T_i */
     float *far_eff, *far_cdf;          /* FAR_BINS per far entry */
     float *bin_total;                  /* FAR_BINS per point */
+    float *near_vis;                   /* W' of each near entry */
     uint32_t *nbr;                     /* blur_neighbours per point (UINT32_MAX: none) */
     float *nbr_w;                      /* normalised Eq. 4 weights */
     float *self_w;
@@ -675,11 +676,15 @@ static void tables_range(void *vctx, size_t b, size_t e, int thread) {
     CachePoints *cp = ((TableCtx *)vctx)->cp;
     for (size_t p = b; p < e; ++p) {
         double run[FAR_BINS] = {0};
+        /* far, near and visibility lists are all sorted by light id: one merge walk */
+        uint32_t a = cp->near_off[p], a1 = cp->near_off[p + 1];
+        uint32_t sl = cp->vis_off[p], s1 = cp->vis_off[p + 1];
         for (uint32_t k = cp->far_off[p]; k < cp->far_off[p + 1]; ++k) {
             const FarEntry *f = &cp->far[k];
-            uint32_t at;
-            int dup = near_index(cp, (uint32_t)p, f->light, &at);
-            float w = dup ? 0.0f : vis_of(cp, (uint32_t)p, f->light);
+            while (a < a1 && cp->near_light[a] < f->light) ++a;
+            while (sl < s1 && cp->vis_light[sl] < f->light) ++sl;
+            int dup = a < a1 && cp->near_light[a] == f->light;
+            float w = dup ? 0.0f : (sl < s1 && cp->vis_light[sl] == f->light ? cp->w_blurred[sl] : 1.0f);
             for (int i = 0; i < FAR_BINS; ++i) {
                 float v = f->value[i] > 0.0f && isfinite(f->value[i]) ? f->value[i] * w : 0.0f;
                 cp->far_eff[(size_t)k * FAR_BINS + i] = v;
@@ -688,6 +693,12 @@ static void tables_range(void *vctx, size_t b, size_t e, int thread) {
             }
         }
         for (int i = 0; i < FAR_BINS; ++i) cp->bin_total[p * FAR_BINS + i] = (float)run[i];
+        /* each near light's visibility slot, so per-vertex weights need no search */
+        sl = cp->vis_off[p];
+        for (uint32_t k = cp->near_off[p]; k < a1; ++k) {
+            while (sl < s1 && cp->vis_light[sl] < cp->near_light[k]) ++sl;
+            cp->near_vis[k] = sl < s1 && cp->vis_light[sl] == cp->near_light[k] ? cp->w_blurred[sl] : 1.0f;
+        }
     }
 }
 
@@ -708,9 +719,10 @@ void cachepoints_update_visibility(CachePoints *cp) {
 static float near_weight(const CachePoints *cp, const CachePointLights *L, uint32_t point, uint32_t k,
                          const float x[3], const float *n) {
     uint32_t light = cp->near_light[k];
+    (void)point;
     float w = L->estimate(L->user, light, x, n);
     if (!(w > 0.0f) || !isfinite(w)) return 0.0f;
-    return w * vis_of(cp, point, light);
+    return w * cp->near_vis[k];
 }
 
 /* The vertex's distribution is a mixture: near lights with their exact weights, and far bin i
@@ -838,7 +850,7 @@ void cachepoints_free(CachePoints *cp) {
     free(cp->vis_off); free(cp->vis_light);
     free(cp->h_total); free(cp->h_success); free(cp->w_vis); free(cp->w_blurred); free(cp->blur_wsum);
     free(cp->nbr); free(cp->nbr_w); free(cp->self_w);
-    free(cp->far_eff); free(cp->far_cdf); free(cp->bin_total);
+    free(cp->far_eff); free(cp->far_cdf); free(cp->bin_total); free(cp->near_vis);
     free(cp);
 }
 
@@ -993,7 +1005,8 @@ int cachepoints_build(CachePoints **out, const float *cand, uint32_t num_candida
         cp->far_eff = malloc((f + 1) * FAR_BINS * sizeof(float));
         cp->far_cdf = malloc((f + 1) * FAR_BINS * sizeof(float));
         cp->bin_total = malloc(((size_t)n + 1) * FAR_BINS * sizeof(float));
-        failed = failed || !cp->far_eff || !cp->far_cdf || !cp->bin_total;
+        cp->near_vis = malloc((a + 1) * sizeof(float));
+        failed = failed || !cp->far_eff || !cp->far_cdf || !cp->bin_total || !cp->near_vis;
         if (!failed) for (size_t s = 0; s < v; ++s) cp->w_vis[s] = cp->w_blurred[s] = 1.0f; /* first iteration: W = 1 */
         st.bytes = (size_t)n * (3 + 1 + 3 + 2 * K + 1) * sizeof(float) + a * 4 + f * sizeof(FarEntry) + v * 20;
     }
