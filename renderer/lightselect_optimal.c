@@ -35,6 +35,39 @@ static inline float receiver_cos(vec3 n, vec3 w) {
     return v3_is_black(n) ? 1.0f : maxf(v3_dot(n, w), 0.0f);
 }
 
+/* The area-light estimate's 16 fixed stratified points (triangles in proportion to area): for
+ * each, the direction from p and the unoccluded contribution L cos_l / r^2 * A / 16. The same
+ * points for every call, so estimates are deterministic. Returns the number written. */
+static int area_estimate_samples(const Light *l, vec3 p, vec3 dirs[AREA_ESTIMATE_SAMPLES],
+                                 float contrib[AREA_ESTIMATE_SAMPLES]) {
+    float L = v3_luminance(l->emission);
+    if (!(L > 0.0f)) return 0;
+    int count = 0;
+    for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) {
+        float u0 = ((float)k + 0.5f) / AREA_ESTIMATE_SAMPLES;
+        float u1 = (float)((k * 7 + 3) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
+        float u2 = (float)((k * 11 + 5) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
+        float tri_pmf, u_tri;
+        uint32_t t = dist1d_sample_discrete(&l->triangles, u0, &tri_pmf, &u_tri);
+        const float *v = l->world_vertices + 9 * (size_t)t;
+        vec3 a = v3(v[0], v[1], v[2]), b = v3(v[3], v[4], v[5]), c = v3(v[6], v[7], v[8]);
+        vec2 bc = sample_uniform_triangle(u1, u2);
+        vec3 y = v3_add(v3_add(v3_scale(a, 1.0f - bc.x - bc.y), v3_scale(b, bc.x)), v3_scale(c, bc.y));
+        vec3 ng = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+        vec3 d = v3_sub(y, p);
+        float d2 = v3_dot(d, d);
+        if (!(d2 > 1e-12f)) continue;
+        vec3 w = v3_scale(d, 1.0f / sqrtf(d2));
+        float cos_l = -v3_dot(ng, w);
+        if (l->two_sided) cos_l = fabsf(cos_l);
+        if (!(cos_l > 0.0f)) continue;
+        dirs[count] = w;
+        contrib[count] = L * cos_l / d2 * l->area / AREA_ESTIMATE_SAMPLES;
+        ++count;
+    }
+    return count;
+}
+
 float light_contribution_estimate(const Lights *ls, const Light *l, vec3 p, vec3 n) {
     switch (l->type) {
     case LIGHT_POINT:
@@ -58,33 +91,13 @@ float light_contribution_estimate(const Lights *ls, const Light *l, vec3 p, vec3
     case LIGHT_ENVIRONMENT:
         return env_irradiance_estimate(ls, n);
     case LIGHT_AREA: {
-        /* (A/16) sum L cos_l max(0, n.w) / r^2 over 16 stratified points, triangles picked in
-         * proportion to area, so each sample is weighted by A / 16 overall */
-        float L = v3_luminance(l->emission);
-        if (!(L > 0.0f)) return 0.0f;
+        /* (A/16) sum L cos_l max(0, n.w) / r^2 over the 16 stratified points (spec §3.4) */
+        vec3 dirs[AREA_ESTIMATE_SAMPLES];
+        float contrib[AREA_ESTIMATE_SAMPLES];
+        int count = area_estimate_samples(l, p, dirs, contrib);
         float sum = 0.0f;
-        for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) {
-            /* a fixed (0,2)-style stratification: the same points for every call */
-            float u0 = ((float)k + 0.5f) / AREA_ESTIMATE_SAMPLES;
-            float u1 = (float)((k * 7 + 3) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
-            float u2 = (float)((k * 11 + 5) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
-            float tri_pmf, u_tri;
-            uint32_t t = dist1d_sample_discrete(&l->triangles, u0, &tri_pmf, &u_tri);
-            const float *v = l->world_vertices + 9 * (size_t)t;
-            vec3 a = v3(v[0], v[1], v[2]), b = v3(v[3], v[4], v[5]), c = v3(v[6], v[7], v[8]);
-            vec2 bc = sample_uniform_triangle(u1, u2);
-            vec3 y = v3_add(v3_add(v3_scale(a, 1.0f - bc.x - bc.y), v3_scale(b, bc.x)), v3_scale(c, bc.y));
-            vec3 ng = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
-            vec3 d = v3_sub(y, p);
-            float d2 = v3_dot(d, d);
-            if (!(d2 > 1e-12f)) continue;
-            vec3 w = v3_scale(d, 1.0f / sqrtf(d2));
-            float cos_l = -v3_dot(ng, w);
-            if (l->two_sided) cos_l = fabsf(cos_l);
-            if (!(cos_l > 0.0f)) continue;
-            sum += L * cos_l * receiver_cos(n, w) / d2;
-        }
-        return sum * l->area / AREA_ESTIMATE_SAMPLES;
+        for (int k = 0; k < count; ++k) sum += contrib[k] * receiver_cos(n, dirs[k]);
+        return sum;
     }
     }
     return 0.0f;
@@ -228,30 +241,7 @@ void light_contribution_estimate7(const Lights *ls, const Light *l, vec3 p, floa
         break;
     }
     case LIGHT_AREA: {
-        float L = v3_luminance(l->emission);
-        if (!(L > 0.0f)) return;
-        for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) {
-            float u0 = ((float)k + 0.5f) / AREA_ESTIMATE_SAMPLES;
-            float u1 = (float)((k * 7 + 3) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
-            float u2 = (float)((k * 11 + 5) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
-            float tri_pmf, u_tri;
-            uint32_t t = dist1d_sample_discrete(&l->triangles, u0, &tri_pmf, &u_tri);
-            const float *v = l->world_vertices + 9 * (size_t)t;
-            vec3 a = v3(v[0], v[1], v[2]), b = v3(v[3], v[4], v[5]), c = v3(v[6], v[7], v[8]);
-            vec2 bc = sample_uniform_triangle(u1, u2);
-            vec3 y = v3_add(v3_add(v3_scale(a, 1.0f - bc.x - bc.y), v3_scale(b, bc.x)), v3_scale(c, bc.y));
-            vec3 ng = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
-            vec3 d = v3_sub(y, p);
-            float d2 = v3_dot(d, d);
-            if (!(d2 > 1e-12f)) continue;
-            vec3 w = v3_scale(d, 1.0f / sqrtf(d2));
-            float cos_l = -v3_dot(ng, w);
-            if (l->two_sided) cos_l = fabsf(cos_l);
-            if (!(cos_l > 0.0f)) continue;
-            dirs[count] = w;
-            contrib[count] = L * cos_l / d2 * l->area / AREA_ESTIMATE_SAMPLES;
-            ++count;
-        }
+        count = area_estimate_samples(l, p, dirs, contrib);
         break;
     }
     }
