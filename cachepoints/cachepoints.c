@@ -202,6 +202,14 @@ typedef struct Dist {        /* per point, during the build */
     FarEntry *far;           /* sorted by id; union of the 7 truncated bins */
 } Dist;
 
+typedef struct OmniDist { uint32_t count; uint32_t *light; float *p; } OmniDist;
+static int omni_build(const Dist *d, OmniDist *o);
+static void dist_free(Dist *d);
+
+/* Two uses: with omni != NULL only the fluence bin is computed and each point's distribution is
+ * reduced at once to its normalised omni distribution (all merge pass 2 needs); the full seven
+ * bins are computed afterwards for the survivors only, which keeps the build's memory to the
+ * final points rather than every pass-1 survivor. */
 typedef struct DistCtx {
     const float *pts;
     const float *r0;
@@ -209,6 +217,7 @@ typedef struct DistCtx {
     const CachePointParams *params;
     Dist *dist;
     int failed;
+    OmniDist *omni;
 } DistCtx;
 
 typedef struct ValueIndex { float v; uint32_t light; } ValueIndex;
@@ -326,7 +335,8 @@ static void dist_range(void *vctx, size_t b, size_t e, int thread) {
         /* Eq. 1: finite lights whose centroid lies within D r_p are near */
         uint32_t near_count = 0;
         for (uint32_t l = 0; l < N; ++l) {
-            L->estimate7(L->user, l, x, values + (size_t)l * FAR_BINS);
+            if (c->omni) values[(size_t)l * FAR_BINS + OMNI_BIN] = L->estimate(L->user, l, x, NULL);
+            else L->estimate7(L->user, l, x, values + (size_t)l * FAR_BINS);
             is_near[l] = !L->infinite[l] && dist2(L->centroid + 3 * (size_t)l, x) <= rn * rn;
             near_count += is_near[l];
         }
@@ -349,7 +359,7 @@ static void dist_range(void *vctx, size_t b, size_t e, int thread) {
         /* far bins: per bin the shortest prefix (by value, ties by id) holding 97% of the
          * bin's energy, length clamped to [min(4, nonzero), 256] (spec §3.4) */
         memset(keep, 0, N);
-        for (int bin = 0; bin < FAR_BINS; ++bin) {
+        for (int bin = c->omni ? OMNI_BIN : 0; bin < FAR_BINS; ++bin) {
             uint32_t nz = 0;
             double total = 0.0;
             for (uint32_t l = 0; l < N; ++l) {
@@ -379,6 +389,10 @@ static void dist_range(void *vctx, size_t b, size_t e, int thread) {
                 d->far[fc].value[bin] = (keep[l] >> bin) & 1 ? values[(size_t)l * FAR_BINS + bin] : 0.0f;
             ++fc;
         }
+        if (c->omni) {
+            if (omni_build(d, &c->omni[i]) != 0) c->failed = 1;
+            dist_free(d);
+        }
     }
     free(values); free(is_near); free(vi); free(keep);
 }
@@ -392,7 +406,6 @@ static void dist_free(Dist *d) {
 
 /* The omni distribution of a point: near fluence plus the far fluence bin, normalised,
  * as (light, probability) sorted by light id (spec §3.5 proposal). */
-typedef struct OmniDist { uint32_t count; uint32_t *light; float *p; } OmniDist;
 
 static int omni_build(const Dist *d, OmniDist *o) {
     uint32_t n = d->near_count + d->far_count;
@@ -904,44 +917,46 @@ int cachepoints_build(CachePoints **out, const float *cand, uint32_t num_candida
     st.after_pass1 = n1;
     if (n1 < MIN_POINTS) { free(pts); if (stats) *stats = st; return 1; }
 
-    /* r0 (the §3.1.4 initial guess, used by Eq. 1 before §3.1.4 defines r_p) and distributions */
+    /* r0 (the §3.1.4 initial guess, used by Eq. 1 before §3.1.4 defines r_p), then the omni
+     * distributions that merge pass 2 compares */
     float *r0 = malloc(n1 * sizeof(float));
+    OmniDist *omni = calloc(n1, sizeof *omni);
     Dist *dist = calloc(n1, sizeof *dist);
-    if (!r0 || !dist || kdtree_build(&kd, pts, n1) != 0) { free(r0); free(dist); free(pts); return -1; }
+    if (!r0 || !omni || !dist || kdtree_build(&kd, pts, n1) != 0) { free(r0); free(omni); free(dist); free(pts); return -1; }
     R0Ctx rc = {&kd, pts, P->knn, r0, 0.01f * scene_scale};
     run_parallel(P, n1, 512, r0_range, &rc);
-    DistCtx dc = {pts, r0, L, P, dist, 0};
-    run_parallel(P, n1, 16, dist_range, &dc);
-    free(r0);
-    int failed = dc.failed;
+    DistCtx oc = {pts, r0, L, P, dist, 0, omni};
+    run_parallel(P, n1, 16, dist_range, &oc);
+    int failed = oc.failed;
 
     /* merge pass 2 */
-    OmniDist *omni = calloc(n1, sizeof *omni);
     float *radius = malloc(n1 * sizeof(float));
     deleted = calloc(n1, 1);
-    if (!omni || !radius || !deleted) failed = 1;
-    for (uint32_t i = 0; i < n1 && !failed; ++i) failed = omni_build(&dist[i], &omni[i]) != 0;
+    if (!radius || !deleted) failed = 1;
     if (!failed) {
         Pass2Ctx p2 = {pts, &kd, camera, omni, P->knn, scene_scale, radius};
         run_parallel(P, n1, 256, pass2_radius_range, &p2);
         failed = greedy_merge(P, pts, &kd, n1, radius, camera, deleted) != 0;
     }
     kdtree_free(&kd);
-    if (omni) for (uint32_t i = 0; i < n1; ++i) { free(omni[i].light); free(omni[i].p); }
+    for (uint32_t i = 0; i < n1; ++i) { free(omni[i].light); free(omni[i].p); }
     free(omni);
     uint32_t n = 0;
     if (!failed) {
-        for (uint32_t i = 0; i < n1; ++i) {
-            if (deleted[i]) { dist_free(&dist[i]); continue; }
-            dist[n] = dist[i];
-            ++n;
-        }
+        for (uint32_t i = 0; i < n1; ++i) if (!deleted[i]) r0[n++] = r0[i];
         n = compact(pts, radius, deleted, n1) == n ? n : 0;
     }
     free(deleted);
+    /* the seven far bins for the survivors (§3.1.3) */
+    if (!failed && n > 0) {
+        DistCtx dc = {pts, r0, L, P, dist, 0, NULL};
+        run_parallel(P, n, 16, dist_range, &dc);
+        failed = dc.failed;
+    }
+    free(r0);
     CachePoints *cp = calloc(1, sizeof *cp);
     if (failed || !cp || n == 0) {
-        for (uint32_t i = 0; i < (failed ? n1 : n); ++i) dist_free(&dist[i]);
+        for (uint32_t i = 0; i < n1; ++i) dist_free(&dist[i]);
         free(dist); free(pts); free(radius); free(cp);
         return failed ? -1 : 1;
     }
