@@ -215,6 +215,9 @@ int lights_build_cachepoints(Scene *scene, void *pool, const CandelaOptions *o, 
     params.visibility = !o->cachepoint_no_visibility;
     params.parallel_for = pool_parallel_for;
     params.pool = pool;
+    if (!o->quiet)
+        fprintf(stderr, "candela: building cache points from %u candidates over %u lights%s\n", cand.count, ls->count,
+                ls->count > 20000 ? " (the build visits every light for every point: this will be slow)" : "");
     int rc = cachepoints_build(&ls->cachepoints, cand.xyz, cand.count, &ls->cp_view, &cc, &params, &ls->cp_stats);
     free(cand.xyz);
     if (rc < 0) goto oom;
