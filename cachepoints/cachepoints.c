@@ -557,6 +557,38 @@ static void blur_range(void *vctx, size_t b, size_t e, int thread) {
             touched[l] = 0;
         }
         out->far_count = count;
+        if (cp->params.retruncate && count > 0) {
+            /* optional (spec §3.6): re-apply the 97% / 4..256 rule per bin to the blurred
+             * lists, which bounds memory at 7 x 256 lights per point */
+            ValueIndex *vi = malloc(count * sizeof *vi);
+            uint8_t *keep = calloc(count, 1);
+            if (!vi || !keep) { free(vi); free(keep); c->failed = 1; break; }
+            for (int bin = 0; bin < FAR_BINS; ++bin) {
+                uint32_t nz = 0;
+                double total = 0.0;
+                for (uint32_t q = 0; q < count; ++q) {
+                    float v = out->far[q].value[bin];
+                    if (!(v > 0.0f)) continue;
+                    vi[nz].v = v; vi[nz].light = q; ++nz; /* light = position in the list */
+                    total += v;
+                }
+                if (nz == 0) continue;
+                uint32_t len = select_energy_prefix(vi, nz, cp->params.energy_fraction * total);
+                uint32_t lo = cp->params.min_per_bin < nz ? cp->params.min_per_bin : nz;
+                if (len < lo) { select_top(vi, nz, lo); len = lo; }
+                if (len > cp->params.max_per_bin) { select_top(vi, len, cp->params.max_per_bin); len = cp->params.max_per_bin; }
+                for (uint32_t j = 0; j < len; ++j) keep[vi[j].light] |= (uint8_t)(1u << bin);
+            }
+            uint32_t m = 0;
+            for (uint32_t q = 0; q < count; ++q) {
+                if (!keep[q]) continue;
+                FarEntry f = out->far[q];
+                for (int bin = 0; bin < FAR_BINS; ++bin) if (!((keep[q] >> bin) & 1)) f.value[bin] = 0.0f;
+                out->far[m++] = f;
+            }
+            out->far_count = m;
+            free(vi); free(keep);
+        }
     }
     free(acc); free(touched); free(list);
 }

@@ -50,6 +50,7 @@ typedef struct CachePointParams {
     float epsilon;            /* 0.03 uniform floor (spec §5.4) */
     int visibility;           /* learn visibility (§3.2); 0 = --no-visibility */
     int vis_blur_renorm;      /* 1: divide the visibility blur by the weights of points holding e */
+    int retruncate;           /* re-apply 97% / 4..256 per bin after the blur (bounds memory; off = paper) */
     CachePointParallelFor parallel_for;
     void *pool;
 } CachePointParams;

@@ -213,6 +213,7 @@ int lights_build_cachepoints(Scene *scene, void *pool, const CandelaOptions *o, 
     CachePointParams params;
     cachepoints_default_params(&params);
     params.visibility = !o->cachepoint_no_visibility;
+    params.retruncate = o->cachepoint_retruncate;
     params.parallel_for = pool_parallel_for;
     params.pool = pool;
     if (!o->quiet)

@@ -41,6 +41,7 @@ typedef struct CandelaOptions {
     int record_rays;           /* keep every traced ray for the Embree replay benchmark */
     int optimal_occlusion;     /* optimal sampler: one shadow ray per light per vertex */
     int cachepoint_no_visibility; /* cache points without visibility learning */
+    int cachepoint_retruncate;    /* re-truncate blurred far bins (memory bound) */
 } CandelaOptions;
 
 void candela_options_default(CandelaOptions *o);

@@ -27,6 +27,7 @@ static const char *USAGE =
     "  --max-depth N             maximum bounces; 1 = direct light only (default 8)\n"
     "  --light-sampler S         uniform | power | tree | optimal | cachepoints (default power)\n"
     "  --no-visibility           cache points without visibility learning\n"
+    "  --cachepoint-retruncate   re-apply the 97%/256 rule after the far-bin blur (less memory)\n"
     "  --optimal-occlusion       optimal sampler: one shadow ray per light per vertex\n"
     "  --light-units U           blender (default: cd/683, lux/683) | raw (W/sr, W/m^2)\n"
     "  --camera NAME             glTF camera by name (default: the first, or a framing view)\n"
@@ -126,6 +127,7 @@ int main(int argc, char **argv) {
         else if (strcmp(a, "--no-png") == 0) no_png = 1;
         else if (strcmp(a, "--optimal-occlusion") == 0) o.optimal_occlusion = 1;
         else if (strcmp(a, "--no-visibility") == 0) o.cachepoint_no_visibility = 1;
+        else if (strcmp(a, "--cachepoint-retruncate") == 0) o.cachepoint_retruncate = 1;
         else if (compare && strcmp(a, "--strategies") == 0) { if (!v) die("missing value for ", a); co.strategies = v; ++i; }
         else if (compare && strcmp(a, "--ref-spp") == 0) { co.reference_spp = (int)parse_long(a, v, 1, 1 << 20); ++i; }
         else if (compare && strcmp(a, "--reference") == 0) { if (!v) die("missing value for ", a); co.reference_path = v; ++i; }

@@ -12,7 +12,7 @@
 #include "candela.h"
 #include "check.h"
 
-static int render(const char *dir, const char *scene, CandelaLightSampler s, int occlusion, int novis, int spp,
+static int render(const char *dir, const char *scene, CandelaLightSampler s, int occlusion, int novis, int retrunc, int spp,
                   uint64_t seed, int threads, CandelaImage *img, CandelaStats *st) {
     char path[1024];
     snprintf(path, sizeof path, "%s/%s", dir, scene);
@@ -28,6 +28,7 @@ static int render(const char *dir, const char *scene, CandelaLightSampler s, int
     o.light_sampler = s;
     o.optimal_occlusion = occlusion;
     o.cachepoint_no_visibility = novis;
+    o.cachepoint_retruncate = retrunc;
     char err[CANDELA_ERR_LEN];
     int rc = candela_render(&o, img, st, NULL, err);
     CHECK(rc == 0, "%s: %s", scene, err);
@@ -56,21 +57,22 @@ static void agree(const char *scene, const char *name, const CandelaImage *a, co
 int main(int argc, char **argv) {
     if (argc < 2) SKIP("usage: test_strategies SCENES_DIR");
     const char *scenes[2] = {"two_lights.gltf", "occluded_lights.gltf"};
-    struct { const char *name; CandelaLightSampler s; int occlusion, novis; } strategies[] = {
+    struct { const char *name; CandelaLightSampler s; int occlusion, novis, retrunc; } strategies[] = {
         {"power", CANDELA_LIGHT_SAMPLER_POWER, 0, 0},
         {"tree", CANDELA_LIGHT_SAMPLER_TREE, 0, 0},
         {"optimal", CANDELA_LIGHT_SAMPLER_OPTIMAL, 0, 0},
         {"optimal+occlusion", CANDELA_LIGHT_SAMPLER_OPTIMAL, 1, 0},
         {"cachepoints", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0},
         {"cachepoints-novis", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 1},
+        {"cachepoints-retrunc", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 1},
     };
     for (int sc = 0; sc < 2; ++sc) {
         CandelaImage ref;
         CandelaStats st;
-        if (render(argv[1], scenes[sc], CANDELA_LIGHT_SAMPLER_UNIFORM, 0, 0, 1024, 1, 2, &ref, &st) != 0) continue;
+        if (render(argv[1], scenes[sc], CANDELA_LIGHT_SAMPLER_UNIFORM, 0, 0, 0, 1024, 1, 2, &ref, &st) != 0) continue;
         for (size_t k = 0; k < sizeof strategies / sizeof strategies[0]; ++k) {
             CandelaImage img;
-            if (render(argv[1], scenes[sc], strategies[k].s, strategies[k].occlusion, strategies[k].novis, 128,
+            if (render(argv[1], scenes[sc], strategies[k].s, strategies[k].occlusion, strategies[k].novis, strategies[k].retrunc, 128,
                        100 + k, 2, &img, &st) != 0)
                 continue;
             if (strategies[k].s == CANDELA_LIGHT_SAMPLER_CACHEPOINTS)
@@ -88,7 +90,7 @@ int main(int argc, char **argv) {
         for (size_t k = 0; k < sizeof strategies / sizeof strategies[0]; ++k) {
             CandelaImage img;
             CandelaStats st;
-            if (render(argv[1], edge[e], strategies[k].s, strategies[k].occlusion, strategies[k].novis, 4, 3, 2, &img, &st) != 0)
+            if (render(argv[1], edge[e], strategies[k].s, strategies[k].occlusion, strategies[k].novis, strategies[k].retrunc, 4, 3, 2, &img, &st) != 0)
                 continue;
             double sum = 0.0;
             int finite = 1;
@@ -102,8 +104,8 @@ int main(int argc, char **argv) {
     /* determinism of the cache point build and of learning: 1 vs 2 threads */
     CandelaImage a, b;
     CandelaStats sa, sb;
-    if (render(argv[1], scenes[1], CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 16, 5, 1, &a, &sa) == 0 &&
-        render(argv[1], scenes[1], CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 16, 5, 2, &b, &sb) == 0) {
+    if (render(argv[1], scenes[1], CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 16, 5, 1, &a, &sa) == 0 &&
+        render(argv[1], scenes[1], CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 16, 5, 2, &b, &sb) == 0) {
         CHECK(sa.num_cachepoints == sb.num_cachepoints, "cache points: %u vs %u", sa.num_cachepoints, sb.num_cachepoints);
         size_t bytes = (size_t)a.width * a.height * 3 * sizeof(float);
         CHECK(memcmp(a.rgb, b.rgb, bytes) == 0 && memcmp(a.variance, b.variance, bytes) == 0,
