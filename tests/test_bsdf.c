@@ -22,6 +22,7 @@
 
 #include "bsdf.h"
 #include "check.h"
+#include "stats.h"
 #include "rng.h"
 #include "sampling.h"
 
@@ -52,75 +53,7 @@ static vec3 dir_cos(float c, float phi) {
  * materials; opaque ones never refract. */
 static double side_eta(const BsdfParams *p, vec3 w) { return w.z > 0.0f ? 1.0 : p->ior; }
 
-/* ---------------------------------------------------------------- statistics */
-
-static double gamma_q(double a, double x) {
-    if (x <= 0.0) return 1.0;
-    double lg = -x + a * log(x) - lgamma(a);
-    if (x < a + 1.0) {
-        double ap = a, sum = 1.0 / a, del = sum;
-        for (int n = 0; n < 100000; ++n) {
-            ap += 1.0;
-            del *= x / ap;
-            sum += del;
-            if (fabs(del) < fabs(sum) * 1e-15) break;
-        }
-        return 1.0 - sum * exp(lg);
-    }
-    double b = x + 1.0 - a, c = 1.0 / 1e-300, d = 1.0 / b, h = d;
-    for (int i = 1; i < 100000; ++i) {
-        double an = -i * (i - a);
-        b += 2.0;
-        d = an * d + b;
-        if (fabs(d) < 1e-300) d = 1e-300;
-        c = b + an / c;
-        if (fabs(c) < 1e-300) c = 1e-300;
-        d = 1.0 / d;
-        double del = d * c;
-        h *= del;
-        if (fabs(del - 1.0) < 1e-15) break;
-    }
-    return exp(lg) * h;
-}
-
-typedef struct { double obs, expv; } Bin;
-
-static int cmp_bin(const void *a, const void *b) {
-    double x = ((const Bin *)a)->expv, y = ((const Bin *)b)->expv;
-    return (x > y) - (x < y);
-}
-
-/* Pearson chi-square, bins sorted by expectation and pooled until >= 5 (see test_sampling.c). */
-static double chi2_pvalue(const double *obs, const double *expv, int n, int *dof_out, double *stat_out) {
-    Bin *b = malloc(sizeof(Bin) * (size_t)n);
-    for (int i = 0; i < n; ++i) {
-        b[i].obs = obs[i];
-        b[i].expv = expv[i] > 0.0 ? expv[i] : 0.0;
-    }
-    qsort(b, (size_t)n, sizeof(Bin), cmp_bin);
-    double stat = 0.0, po = 0.0, pe = 0.0, last_o = 0.0, last_e = 0.0;
-    int cells = 0;
-    for (int i = 0; i < n; ++i) {
-        po += b[i].obs;
-        pe += b[i].expv;
-        if (pe >= 5.0) {
-            if (cells > 0) stat += (last_o - last_e) * (last_o - last_e) / last_e;
-            last_o = po;
-            last_e = pe;
-            ++cells;
-            po = pe = 0.0;
-        }
-    }
-    if (cells > 0) {
-        last_o += po;
-        last_e += pe;
-        stat += (last_o - last_e) * (last_o - last_e) / last_e;
-    }
-    free(b);
-    *dof_out = cells - 1;
-    *stat_out = stat;
-    return cells > 1 ? gamma_q(0.5 * (cells - 1), 0.5 * stat) : 1.0;
-}
+/* statistics: tests/stats.h */
 
 /* ---------------------------------------------------------------- (a) furnace */
 

@@ -9,40 +9,11 @@
 #include <string.h>
 
 #include "check.h"
+#include "stats.h"
 #include "rng.h"
 
 #define N 1000000
 #define SEED 0x12345678ull
-
-/* Regularised upper incomplete gamma Q(a, x) (Numerical Recipes gser / gcf). */
-static double gamma_q(double a, double x) {
-    if (x <= 0.0) return 1.0;
-    double lg = -x + a * log(x) - lgamma(a);
-    if (x < a + 1.0) {
-        double ap = a, sum = 1.0 / a, del = sum;
-        for (int n = 0; n < 100000; ++n) {
-            ap += 1.0;
-            del *= x / ap;
-            sum += del;
-            if (fabs(del) < fabs(sum) * 1e-15) break;
-        }
-        return 1.0 - sum * exp(lg);
-    }
-    double b = x + 1.0 - a, c = 1.0 / 1e-300, d = 1.0 / b, h = d;
-    for (int i = 1; i < 100000; ++i) {
-        double an = -i * (i - a);
-        b += 2.0;
-        d = an * d + b;
-        if (fabs(d) < 1e-300) d = 1e-300;
-        c = b + an / c;
-        if (fabs(c) < 1e-300) c = 1e-300;
-        d = 1.0 / d;
-        double del = d * c;
-        h *= del;
-        if (fabs(del - 1.0) < 1e-15) break;
-    }
-    return exp(lg) * h;
-}
 
 /* Chi-square p-value of counts against a uniform expectation (all bins have 1000+ expected). */
 static double uniform_chi2(const double *obs, int bins, double total) {
