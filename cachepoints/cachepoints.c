@@ -693,10 +693,6 @@ static int bin_blend(const float *n, float b[FAR_BINS]) {
     return 1;
 }
 
-static inline float vis_of(const CachePoints *cp, uint32_t point, uint32_t light) {
-    uint32_t slot;
-    return vis_slot(cp, point, light, &slot) ? cp->w_blurred[slot] : 1.0f;
-}
 
 static int far_index(const CachePoints *cp, uint32_t point, uint32_t light, uint32_t *at) {
     uint32_t lo = cp->far_off[point], hi = cp->far_off[point + 1];
@@ -761,10 +757,9 @@ void cachepoints_update_visibility(CachePoints *cp) {
 }
 
 /* Exact weight of near light k at the vertex: its estimate times W' (§3.3). */
-static float near_weight(const CachePoints *cp, const CachePointLights *L, uint32_t point, uint32_t k,
+static float near_weight(const CachePoints *cp, const CachePointLights *L, uint32_t k,
                          const float x[3], const float *n) {
     uint32_t light = cp->near_light[k];
-    (void)point;
     float w = L->estimate(L->user, light, x, n);
     if (!(w > 0.0f) || !isfinite(w)) return 0.0f;
     return w * cp->near_vis[k];
@@ -784,7 +779,7 @@ static void vertex_weights(const CachePoints *cp, const CachePointLights *L, uin
     v->point = point;
     bin_blend(n, v->b);
     float nt = 0.0f;
-    for (uint32_t k = cp->near_off[point]; k < cp->near_off[point + 1]; ++k) nt += near_weight(cp, L, point, k, x, n);
+    for (uint32_t k = cp->near_off[point]; k < cp->near_off[point + 1]; ++k) nt += near_weight(cp, L, k, x, n);
     float ft = 0.0f;
     for (int i = 0; i < FAR_BINS; ++i) ft += v->b[i] * cp->bin_total[(size_t)point * FAR_BINS + i];
     v->near_total = nt;
@@ -795,7 +790,7 @@ static void vertex_weights(const CachePoints *cp, const CachePointLights *L, uin
 static float light_weight(const CachePoints *cp, const CachePointLights *L, const VertexWeights *v, uint32_t light,
                           const float x[3], const float *n) {
     uint32_t at;
-    if (near_index(cp, v->point, light, &at)) return near_weight(cp, L, v->point, at, x, n);
+    if (near_index(cp, v->point, light, &at)) return near_weight(cp, L, at, x, n);
     if (!far_index(cp, v->point, light, &at)) return 0.0f;
     float w = 0.0f;
     for (int i = 0; i < FAR_BINS; ++i) w += v->b[i] * cp->far_eff[(size_t)at * FAR_BINS + i];
@@ -825,7 +820,7 @@ uint32_t cachepoints_select(const CachePoints *cp, const CachePointLights *L, co
         if (target < v.near_total) {
             float cum = 0.0f;
             for (uint32_t k = cp->near_off[point]; k < cp->near_off[point + 1]; ++k) {
-                float w = near_weight(cp, L, point, k, x, n);
+                float w = near_weight(cp, L, k, x, n);
                 if (!(w > 0.0f)) continue;
                 cum += w;
                 pick = cp->near_light[k];
