@@ -640,7 +640,10 @@ static void run_batch(Renderer *r) {
         radix_sort_queue(r, r->rays.items, r->rays.count);
         double tb = now_seconds();
         st->time_sort += tb - ta;
-        log_rays(r, &r->rays, 0);
+        if (r->ray_log) { /* bench instrumentation: kept out of the stage times */
+            log_rays(r, &r->rays, 0);
+            tb = now_seconds();
+        }
         TraceCtx tc = {r, r->rays.items, r->depth == 0};
         run_partitioned(r, r->rays.items, r->rays.count, trace_range, &tc);
         double tc_end = now_seconds();
@@ -675,7 +678,10 @@ static void run_batch(Renderer *r) {
         double tf = now_seconds();
         st->time_shade += tf - te;
         st->rays_shadow += r->shadows.count;
-        log_rays(r, &r->shadows, 1);
+        if (r->ray_log) {
+            log_rays(r, &r->shadows, 1);
+            tf = now_seconds();
+        }
         ShadeCtx sh = {r, r->shadows.items};
         run_partitioned(r, r->shadows.items, r->shadows.count, shadow_range, &sh);
         st->time_shadow += now_seconds() - tf;
