@@ -75,8 +75,8 @@ def write_compact(g, path):
 
 def city(out, name, n_lights, seed=1):
     """8x8 blocks of 16 m with 8 m streets (a 184 m square); one building per block, 12-60 m
-    tall. 90% of the lights are window lights 0.25 m in front of a facade (warm or cool, 4-40
-    cd), 10% street lights at 6 m (300 cd). The camera stands in a street at 1.7 m."""
+    tall. 90% of the lights are window lights 0.25 m in front of a facade (warm or cool, 80-800
+    cd), 10% street lights at 6 m (6000 cd). The camera stands in a street at 1.7 m."""
     rng = random.Random(seed)
     g = Gltf('candela scenes/make_manylights.py')
     ground = g.material('asphalt', base=(0.08, 0.08, 0.09), roughness=0.8)
@@ -97,9 +97,9 @@ def city(out, name, n_lights, seed=1):
             node['translation'] = rv((x0 + B / 2, height / 2, z0 + B / 2))
             node['scale'] = rv((B, height, B))
     # shared light definitions
-    warm = [light_def(g, 'point', 4.0 + 36.0 * k / 7.0, (1.0, 0.75, 0.45)) for k in range(8)]
-    cool = [light_def(g, 'point', 4.0 + 36.0 * k / 7.0, (0.7, 0.8, 1.0)) for k in range(8)]
-    street = light_def(g, 'point', 300.0, (1.0, 0.85, 0.6))
+    warm = [light_def(g, 'point', 80.0 + 720.0 * k / 7.0, (1.0, 0.75, 0.45)) for k in range(8)]
+    cool = [light_def(g, 'point', 80.0 + 720.0 * k / 7.0, (0.7, 0.8, 1.0)) for k in range(8)]
+    street = light_def(g, 'point', 6000.0, (1.0, 0.85, 0.6))
     n_street = max(1, n_lights // 10)
     n_window = n_lights - n_street
     for _ in range(n_window):
