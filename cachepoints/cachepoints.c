@@ -34,7 +34,8 @@ struct CachePoints {
     /* render-time tables, rebuilt whenever W' changes: per far entry and bin the effective
      * weight E_i(e) W'(e) (0 for lights also in the near list: near wins) and its inclusive
      * running sum within the point; per point and bin the total T_i */
-    float *far_eff, *far_cdf;          /* FAR_BINS per far entry */
+    float *far_eff;                    /* FAR_BINS per far entry (entry-major) */
+    float *far_cdf;                    /* per point, bin-major: the binary search stays in one array */
     float *bin_total;                  /* FAR_BINS per point */
     float *near_vis;                   /* W' of each near entry */
     uint32_t *nbr;                     /* blur_neighbours per point (UINT32_MAX: none) */
@@ -710,6 +711,13 @@ static int near_index(const CachePoints *cp, uint32_t point, uint32_t light, uin
     return *at < cp->near_off[point + 1] && cp->near_light[*at] == light;
 }
 
+/* far_cdf layout: point p's block starts at FAR_BINS * far_off[p]; inside it bin i's running
+ * sums are contiguous (F = the point's far count). */
+static inline size_t cdf_index(const CachePoints *cp, size_t p, int bin, uint32_t k) {
+    uint32_t base = cp->far_off[p], count = cp->far_off[p + 1] - base;
+    return (size_t)FAR_BINS * base + (size_t)bin * count + (k - base);
+}
+
 typedef struct TableCtx { CachePoints *cp; } TableCtx;
 
 static void tables_range(void *vctx, size_t b, size_t e, int thread) {
@@ -730,7 +738,7 @@ static void tables_range(void *vctx, size_t b, size_t e, int thread) {
                 float v = f->value[i] > 0.0f && isfinite(f->value[i]) ? f->value[i] * w : 0.0f;
                 cp->far_eff[(size_t)k * FAR_BINS + i] = v;
                 run[i] += v;
-                cp->far_cdf[(size_t)k * FAR_BINS + i] = (float)run[i];
+                cp->far_cdf[cdf_index(cp, p, i, k)] = (float)run[i];
             }
         }
         for (int i = 0; i < FAR_BINS; ++i) cp->bin_total[p * FAR_BINS + i] = (float)run[i];
@@ -845,7 +853,7 @@ uint32_t cachepoints_select(const CachePoints *cp, const CachePointLights *L, co
                 uint32_t lo = cp->far_off[point], hi = cp->far_off[point + 1];
                 while (lo < hi) { /* first entry whose running sum exceeds tb */
                     uint32_t mid = lo + (hi - lo) / 2;
-                    if (cp->far_cdf[(size_t)mid * FAR_BINS + bin] <= tb) lo = mid + 1;
+                    if (cp->far_cdf[cdf_index(cp, point, bin, mid)] <= tb) lo = mid + 1;
                     else hi = mid;
                 }
                 if (lo >= cp->far_off[point + 1]) lo = cp->far_off[point + 1] - 1;
