@@ -1012,6 +1012,9 @@ int cachepoints_build(CachePoints **out, const float *cand, uint32_t num_candida
         run_parallel(P, n, 64, blur_range, &bc);
         failed = bc.failed;
     }
+    /* the points' own far lists are no longer needed once blurred: free them before the CSR
+     * arrays exist, so the build never holds three copies of the far data at once */
+    for (uint32_t i = 0; i < n; ++i) { free(dist[i].far); dist[i].far = NULL; dist[i].far_count = 0; }
     /* flatten into CSR arrays */
     size_t near_total = 0, far_total = 0;
     for (uint32_t i = 0; i < n && !failed; ++i) { near_total += dist[i].near_count; far_total += blurred[i].far_count; }
@@ -1042,6 +1045,9 @@ int cachepoints_build(CachePoints **out, const float *cand, uint32_t num_candida
             }
             a += dist[i].near_count;
             f += blurred[i].far_count;
+            free(blurred[i].far); /* copied: release as we go */
+            blurred[i].far = NULL;
+            blurred[i].far_count = 0;
         }
         cp->near_off[n] = (uint32_t)a;
         cp->far_off[n] = (uint32_t)f;
