@@ -172,6 +172,7 @@ typedef struct KdKnn {
     float bound;         /* radius2 until k are kept, then the worst kept distance */
     float *hd;           /* kept distances (sorted mode: ascending; heap mode: max-heap) */
     uint32_t *hi;        /* kept indices */
+    int heap;            /* 0: sorted mode, 1: heap mode */
 } KdKnn;
 
 /* ---- sorted mode (k <= KD_SMALL_K): arrays kept ascending by (d, index) */
@@ -198,30 +199,6 @@ static inline void kd_sorted_consider(KdKnn *r, const KdNode *nd) {
     if (r->n == r->k) r->bound = r->hd[r->k - 1];
 }
 
-static void kd_sorted_rec(KdKnn *r, size_t lo, size_t hi) {
-    if (hi - lo > KD_LEAF) { /* far child: one recursion, off[] restored after */
-        size_t mid = lo + (hi - lo) / 2;
-        const KdNode *m = &r->nodes[mid];
-        int ax = r->axes[mid];
-        float diff = r->q[ax] - m->p[ax];
-        size_t flo, fhi;
-        if (diff < 0) {
-            kd_sorted_rec(r, lo, mid);
-            flo = mid + 1, fhi = hi;
-        } else {
-            kd_sorted_rec(r, mid + 1, hi);
-            flo = lo, fhi = mid;
-        }
-        kd_sorted_consider(r, m);
-        float old = r->off[ax];
-        r->off[ax] = diff;
-        float rd = r->off[0] * r->off[0] + r->off[1] * r->off[1] + r->off[2] * r->off[2];
-        if (!(rd > r->bound)) kd_sorted_rec(r, flo, fhi);
-        r->off[ax] = old;
-        return;
-    }
-    for (size_t i = lo; i < hi; ++i) kd_sorted_consider(r, &r->nodes[i]);
-}
 
 /* ---- heap mode (k > KD_SMALL_K): max-heap on (d, index) */
 
@@ -280,29 +257,36 @@ static void kd_heap_consider(KdKnn *r, const KdNode *nd) {
     if (r->n == r->k) r->bound = kd_hdist(r, 0);
 }
 
-static void kd_heap_rec(KdKnn *r, size_t lo, size_t hi) {
-    if (hi - lo > KD_LEAF) { /* far child: one recursion, off[] restored after */
+/* One traversal for both modes: near child first, then the far child only if the cell's
+ * offset from q can still beat the bound; off[] is restored on the way out. */
+static inline void kd_consider(KdKnn *r, const KdNode *nd) {
+    if (r->heap) kd_heap_consider(r, nd);
+    else kd_sorted_consider(r, nd);
+}
+
+static void kd_knn_rec(KdKnn *r, size_t lo, size_t hi) {
+    if (hi - lo > KD_LEAF) {
         size_t mid = lo + (hi - lo) / 2;
         const KdNode *m = &r->nodes[mid];
         int ax = r->axes[mid];
         float diff = r->q[ax] - m->p[ax];
         size_t flo, fhi;
         if (diff < 0) {
-            kd_heap_rec(r, lo, mid);
+            kd_knn_rec(r, lo, mid);
             flo = mid + 1, fhi = hi;
         } else {
-            kd_heap_rec(r, mid + 1, hi);
+            kd_knn_rec(r, mid + 1, hi);
             flo = lo, fhi = mid;
         }
-        kd_heap_consider(r, m);
+        kd_consider(r, m);
         float old = r->off[ax];
         r->off[ax] = diff;
         float rd = r->off[0] * r->off[0] + r->off[1] * r->off[1] + r->off[2] * r->off[2];
-        if (!(rd > r->bound)) kd_heap_rec(r, flo, fhi);
+        if (!(rd > r->bound)) kd_knn_rec(r, flo, fhi);
         r->off[ax] = old;
         return;
     }
-    for (size_t i = lo; i < hi; ++i) kd_heap_consider(r, &r->nodes[i]);
+    for (size_t i = lo; i < hi; ++i) kd_consider(r, &r->nodes[i]);
 }
 
 uint32_t kdtree_knn(const KdTree *tree, const float q[3], uint32_t k, float radius2, uint32_t exclude,
@@ -319,7 +303,7 @@ uint32_t kdtree_knn(const KdTree *tree, const float q[3], uint32_t k, float radi
         uint32_t ix[KD_SMALL_K];
         r.hd = d;
         r.hi = ix;
-        kd_sorted_rec(&r, 0, tree->count);
+        kd_knn_rec(&r, 0, tree->count);
         memcpy(indices, ix, r.n * sizeof *ix);
         if (dist2) memcpy(dist2, d, r.n * sizeof *d);
         return r.n;
@@ -329,7 +313,8 @@ uint32_t kdtree_knn(const KdTree *tree, const float q[3], uint32_t k, float radi
     if (!dist2) owned = malloc((size_t)k * sizeof *owned); /* NULL: recompute distances */
     r.hd = dist2 ? dist2 : owned;
     r.hi = indices;
-    kd_heap_rec(&r, 0, tree->count);
+    r.heap = 1;
+    kd_knn_rec(&r, 0, tree->count);
     for (uint32_t end = r.n; end > 1; --end) { /* heapsort into ascending order */
         float d = kd_hdist(&r, end - 1);
         uint32_t idx = r.hi[end - 1];

@@ -364,6 +364,12 @@ static int build_items(LightTree *t, Builder *B, uint32_t m) {
     return 0;
 }
 
+static void builder_free(Builder *B) {
+    free(B->items);
+    free(B->scratch);
+    free(B->keys);
+}
+
 int light_tree_build(LightTree *t, const Light *lights, uint32_t count) {
     memset(t, 0, sizeof *t);
     if (count == 0) return 0;
@@ -399,14 +405,10 @@ int light_tree_build(LightTree *t, const Light *lights, uint32_t count) {
     if (ninf + m == 0) t->p_inf = 0.0f;
     t->p_bvh = 1.0f - t->p_inf;
     t->pmf_inf = ninf ? t->p_inf / (float)ninf : 0.0f;
-    free(B.items);
-    free(B.scratch);
-    free(B.keys);
+    builder_free(&B);
     return 0;
 oom:
-    free(B.items);
-    free(B.scratch);
-    free(B.keys);
+    builder_free(&B);
     light_tree_free(t);
     return -1;
 }
@@ -448,14 +450,10 @@ int light_tree_build_triangles(LightTree *t, const float *world_vertices, uint32
     t->p_inf = 0.0f;
     t->p_bvh = m ? 1.0f : 0.0f;
     t->pmf_inf = 0.0f;
-    free(B.items);
-    free(B.scratch);
-    free(B.keys);
+    builder_free(&B);
     return 0;
 oom:
-    free(B.items);
-    free(B.scratch);
-    free(B.keys);
+    builder_free(&B);
     light_tree_free(t);
     return -1;
 }

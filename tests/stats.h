@@ -3,7 +3,18 @@
 #define CANDELA_TEST_STATS_H
 
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
+
+/* splitmix64 step -> uniform double in [0, 1): the tests' own small generator (fixed seeds,
+ * so every run draws the same numbers). */
+static inline double splitmix_uniform(uint64_t *state) {
+    uint64_t z = (*state += 0x9e3779b97f4a7c15ull);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    z ^= z >> 31;
+    return (double)(z >> 11) * (1.0 / 9007199254740992.0);
+}
 
 #ifndef MIN_EXPECTED
 #define MIN_EXPECTED 5.0

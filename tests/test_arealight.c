@@ -17,18 +17,13 @@
 #include <time.h>
 
 #include "check.h"
+#include "stats.h"
 #include "lights.h"
 #include "lighttree.h"
 #include "scene.h"
 
 static uint64_t g_state = 0x243f6a8885a308d3ull;
-static double rnd(void) { /* splitmix64 -> [0,1) */
-    uint64_t z = (g_state += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    z ^= z >> 31;
-    return (double)(z >> 11) * 0x1.0p-53;
-}
+static double rnd(void) { return splitmix_uniform(&g_state); }
 static float rndf(float lo, float hi) { return lo + (hi - lo) * (float)rnd(); }
 static double now_seconds(void) {
     struct timespec ts;

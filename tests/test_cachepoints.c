@@ -7,15 +7,10 @@
 
 #include "cachepoints.h"
 #include "check.h"
+#include "stats.h"
 
 static uint64_t sm_state;
-static double rnd(void) {
-    uint64_t z = (sm_state += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    z ^= z >> 31;
-    return (double)(z >> 11) * (1.0 / 9007199254740992.0);
-}
+static double rnd(void) { return splitmix_uniform(&sm_state); }
 
 #define NL 300
 static float light_pos[3 * NL], light_I[NL];

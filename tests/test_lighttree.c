@@ -15,17 +15,12 @@
 #include <time.h>
 
 #include "check.h"
+#include "stats.h"
 #include "lights.h"
 #include "lighttree.h"
 
 static uint64_t g_state = 0x9e3779b97f4a7c15ull;
-static double rnd(void) { /* splitmix64 -> [0,1) */
-    uint64_t z = (g_state += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    z ^= z >> 31;
-    return (double)(z >> 11) * 0x1.0p-53;
-}
+static double rnd(void) { return splitmix_uniform(&g_state); }
 static float rndf(float lo, float hi) { return lo + (hi - lo) * (float)rnd(); }
 static vec3 rnd_dir(void) {
     float z = rndf(-1.0f, 1.0f), phi = rndf(0.0f, 2.0f * PI_F), r = sqrtf(fmaxf(0.0f, 1.0f - z * z));
