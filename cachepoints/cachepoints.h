@@ -15,6 +15,27 @@
 #include <stddef.h>
 #include <stdint.h>
 
+/* Optional view of the scene's light BVH. With it the build works on clusters of lights (a
+ * cut through the tree) and never visits every light for every point (the paper's scaling
+ * failure, §5.2.2). The tree is binary and depth-first: node 0 is the root and an interior
+ * node's first child is node + 1, so a subtree is a contiguous range of node indices. */
+typedef struct CachePointTree {
+    uint32_t node_count;
+    const uint32_t *second_child; /* per node: interior: index of the second child; leaf: 0 */
+    const uint32_t *leaf_light;   /* per node: leaf: its light; interior: UINT32_MAX */
+    const uint32_t *light_leaf;   /* per light: its leaf, or UINT32_MAX (infinite, or no power) */
+    /* bounding box of the emitters below a node */
+    void (*node_bounds)(const void *user, uint32_t node, float lo[3], float hi[3]);
+    /* Approximate summed unoccluded contribution of the lights below an interior node at x, in
+     * the seven bins of estimate7 (from the node's bounds; only ever a sampling weight). */
+    void (*node_estimate7)(const void *user, uint32_t node, const float x[3], float out[7]);
+    /* Picks a light below `node` for a vertex (x, n; n == NULL: omnidirectional) with u in
+     * [0,1) and reports its probability given the node; descend_pmf returns bit for bit the
+     * probability descend gives `light` (a light below node). */
+    uint32_t (*descend)(const void *user, uint32_t node, const float x[3], const float *n, float u, float *pmf);
+    float (*descend_pmf)(const void *user, uint32_t node, const float x[3], const float *n, uint32_t light);
+} CachePointTree;
+
 /* The scene's lights as the cache points see them. */
 typedef struct CachePointLights {
     uint32_t count;
@@ -27,6 +48,7 @@ typedef struct CachePointLights {
      * exact near-light weights at a vertex (§3.3). */
     float (*estimate)(const void *user, uint32_t light, const float x[3], const float *n);
     const void *user;
+    const CachePointTree *tree; /* NULL: only the linear build is possible */
 } CachePointLights;
 
 /* Camera footprint for the pixel-size radii of §3.1.2/§3.1.4 (r_px). */
@@ -50,7 +72,9 @@ typedef struct CachePointParams {
     float epsilon;            /* 0.03 uniform floor (spec §5.4) */
     int visibility;           /* learn visibility (§3.2); 0 = --no-visibility */
     int vis_blur_renorm;      /* 1: divide the visibility blur by the weights of points holding e */
-    int retruncate;           /* re-apply 97% / 4..256 per bin after the blur (bounds memory; off = paper) */
+    int retruncate;           /* linear: re-apply 97% / 4..256 per bin after the blur (bounds memory; off = paper) */
+    int build_cut;            /* 1: far entries are a cut through lights->tree (needs the tree); 0: linear */
+    uint32_t cut_size;        /* cut build: far entries per point (clusters or single lights) */
     CachePointParallelFor parallel_for;
     void *pool;
 } CachePointParams;
@@ -63,7 +87,9 @@ typedef struct CachePoints CachePoints;
 typedef struct CachePointStats {
     uint32_t candidates, after_pass1, final_points;
     double seconds;
-    size_t bytes;
+    size_t bytes;                 /* the cache points' arrays */
+    double mean_near, mean_far;   /* entries per point (far: after the blur) */
+    double mean_far_clusters;     /* cut build: far entries per point that are clusters */
 } CachePointStats;
 
 /* Builds from candidate positions (3 floats each, in generation order: the spatial sort
@@ -78,26 +104,42 @@ uint32_t cachepoints_count(const CachePoints *cp);
 /* Position and radius of point i (tests, debugging). */
 void cachepoints_point(const CachePoints *cp, uint32_t i, float pos[3], float *radius);
 
-/* Render-time selection (§3.3): the nearest point to x, near lights exact, far bins blended
- * by n (n == NULL: volumes and transmissive surfaces use the fluence bin), visibility
- * weights, uniform floor epsilon. *point receives the cache point used. */
+/* A path vertex as the cache points see it (§3.3): its cache point and the summed exact
+ * weight of that point's near lights at the vertex. Computed once per vertex and kept (the
+ * wavefront stores it in the path state) so that NEE and the MIS PDF at the next wave use
+ * one nearest-point query and one near-light pass (spec §5.1, §5.6). */
+typedef struct CachePointVertex {
+    uint32_t point;
+    float near_total;
+} CachePointVertex;
+
+/* The vertex at x with shading normal n (n == NULL: volumes and transmissive surfaces use
+ * the fluence bin). point: the nearest cache point (ties: lowest index) when UINT32_MAX. */
+void cachepoints_vertex(const CachePoints *cp, const CachePointLights *lights, const float x[3], const float *n,
+                        uint32_t point, CachePointVertex *v);
+/* Render-time selection (§3.3): near lights exact, far bins blended by n, visibility
+ * weights, uniform floor epsilon; a cluster entry descends the light tree with u_descend.
+ * *slot receives the visibility slot to count the attempt in (UINT32_MAX: none). */
 uint32_t cachepoints_select(const CachePoints *cp, const CachePointLights *lights, const float x[3],
-                            const float *n, uint32_t point_hint, float u, float *pmf, uint32_t *point);
+                            const float *n, const CachePointVertex *v, float u, float u_descend, float *pmf,
+                            uint32_t *slot);
+/* Exactly the probability cachepoints_select gives `light` at the vertex. */
+float cachepoints_pmf(const CachePoints *cp, const CachePointLights *lights, const float x[3], const float *n,
+                      const CachePointVertex *v, uint32_t light);
 /* The cache point a vertex at x uses (the nearest; ties: lowest index). */
 uint32_t cachepoints_nearest(const CachePoints *cp, const float x[3]);
-/* Exactly the probability cachepoints_select gives `light` at (x, n). point_hint: the
- * vertex's cache point if the caller already has it from cachepoints_nearest, else
- * UINT32_MAX. */
-float cachepoints_pmf(const CachePoints *cp, const CachePointLights *lights, const float x[3],
-                      const float *n, uint32_t point_hint, uint32_t light);
 
-/* Visibility learning (§3.2): count an attempt of `light` from `point` (atomic; ignored when
- * the light is not in the point's lists), and a success when the shadow ray got through
- * with a useful contribution. */
-void cachepoints_record(CachePoints *cp, uint32_t point, uint32_t light, int success);
+/* Visibility learning (§3.2), atomic: success == 0 counts an attempt (H_total) in the slot
+ * cachepoints_select reported, success == 1 a success (H_success: the shadow ray got
+ * through with a useful contribution). UINT32_MAX is ignored (the light is in none of the
+ * point's lists). */
+void cachepoints_record(CachePoints *cp, uint32_t slot, int success);
+/* The slot of (point, light) (tests): UINT32_MAX when no entry of the point holds it. */
+uint32_t cachepoints_slot(const CachePoints *cp, uint32_t point, uint32_t light);
 /* At the iteration barrier: Eqs. 5-6 then the visibility blur (§3.2.2), out of place. */
 void cachepoints_update_visibility(CachePoints *cp);
-/* The visibility weight W' currently used for (point, light); 1 when not in its lists. */
+/* The visibility weight W' currently used for (point, light): that of the entry holding the
+ * light (a cluster's with the cut build); 1 when no entry holds it. */
 float cachepoints_visibility(const CachePoints *cp, uint32_t point, uint32_t light);
 /* Eq. 5-6 on raw counters (exposed for the anchor-value test). */
 float cachepoints_visibility_weight(uint32_t successes, uint32_t attempts, float r_min);

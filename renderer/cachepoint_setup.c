@@ -28,6 +28,78 @@ static float cp_estimate(const void *user, uint32_t light, const float x[3], con
     return light_contribution_estimate(ls, &ls->lights[light], v3(x[0], x[1], x[2]), nn);
 }
 
+/* --- the light tree as the cut build sees it (CachePointTree) */
+
+static void cp_node_bounds(const void *user, uint32_t node, float lo[3], float hi[3]) {
+    const LightTreeNode *nd = &((const Lights *)user)->tree.nodes[node];
+    lo[0] = nd->bmin.x; lo[1] = nd->bmin.y; lo[2] = nd->bmin.z;
+    hi[0] = nd->bmax.x; hi[1] = nd->bmax.y; hi[2] = nd->bmax.z;
+}
+
+static void cp_node_estimate7(const void *user, uint32_t node, const float x[3], float out[7]) {
+    light_tree_node_estimate7(&((const Lights *)user)->tree, node, v3(x[0], x[1], x[2]), out);
+}
+
+static LightSampleContext cp_context(const float x[3], const float *n) {
+    LightSampleContext c = {v3(x[0], x[1], x[2]), n ? v3(n[0], n[1], n[2]) : v3s(0.0f), 0, 0.0f};
+    return c;
+}
+
+static uint32_t cp_descend(const void *user, uint32_t node, const float x[3], const float *n, float u, float *pmf) {
+    LightSampleContext c = cp_context(x, n);
+    return light_tree_select_from(&((const Lights *)user)->tree, node, &c, u, pmf);
+}
+
+static float cp_descend_pmf(const void *user, uint32_t node, const float x[3], const float *n, uint32_t light) {
+    LightSampleContext c = cp_context(x, n);
+    return light_tree_pmf_from(&((const Lights *)user)->tree, node, &c, light);
+}
+
+/* Peak radiant intensity of a light (luminance, W/sr): what a cluster estimate sums. */
+static float light_peak_intensity(const Light *l) {
+    switch (l->type) {
+    case LIGHT_POINT:
+    case LIGHT_SPOT: return v3_luminance(l->intensity);
+    case LIGHT_AREA: return v3_luminance(l->emission) * l->area; /* a flat emitter seen face on */
+    default: return 0.0f;
+    }
+}
+
+/* Builds ls->tree (if the strategy did not) and the SoA view of it for the cut build. */
+static int setup_tree_view(Lights *ls) {
+    if (!ls->tree.nodes && light_tree_build(&ls->tree, ls->lights, ls->count) != 0) return -1;
+    const LightTree *t = &ls->tree;
+    float *peak = malloc(((size_t)ls->count + 1) * sizeof(float));
+    ls->cp_second = malloc(((size_t)t->node_count + 1) * sizeof(uint32_t));
+    ls->cp_leaf_light = malloc(((size_t)t->node_count + 1) * sizeof(uint32_t));
+    ls->cp_light_leaf = malloc(((size_t)ls->count + 1) * sizeof(uint32_t));
+    if (!peak || !ls->cp_second || !ls->cp_leaf_light || !ls->cp_light_leaf) { free(peak); return -1; }
+    for (uint32_t i = 0; i < ls->count; ++i) {
+        peak[i] = light_peak_intensity(&ls->lights[i]);
+        ls->cp_light_leaf[i] = UINT32_MAX;
+    }
+    int rc = light_tree_set_intensities(&ls->tree, peak);
+    free(peak);
+    if (rc != 0) return -1;
+    for (uint32_t k = 0; k < t->node_count; ++k) {
+        const LightTreeNode *nd = &t->nodes[k];
+        int leaf = nd->light != LIGHT_TREE_INTERIOR;
+        ls->cp_second[k] = leaf ? 0 : nd->child;
+        ls->cp_leaf_light[k] = leaf ? nd->light : UINT32_MAX;
+        if (leaf) ls->cp_light_leaf[nd->light] = k;
+    }
+    ls->cp_tree.node_count = t->node_count;
+    ls->cp_tree.second_child = ls->cp_second;
+    ls->cp_tree.leaf_light = ls->cp_leaf_light;
+    ls->cp_tree.light_leaf = ls->cp_light_leaf;
+    ls->cp_tree.node_bounds = cp_node_bounds;
+    ls->cp_tree.node_estimate7 = cp_node_estimate7;
+    ls->cp_tree.descend = cp_descend;
+    ls->cp_tree.descend_pmf = cp_descend_pmf;
+    ls->cp_view.tree = &ls->cp_tree;
+    return 0;
+}
+
 static void pool_parallel_for(void *pool, size_t n, size_t grain, void (*fn)(void *, size_t, size_t, int), void *ctx) {
     threadpool_parallel_for((ThreadPool *)pool, n, grain, fn, ctx);
 }
@@ -198,6 +270,8 @@ int lights_build_cachepoints(Scene *scene, void *pool, const CandelaOptions *o, 
     ls->cp_view.estimate7 = cp_estimate7;
     ls->cp_view.estimate = cp_estimate;
     ls->cp_view.user = ls;
+    ls->cp_view.tree = NULL;
+    if (!o->cachepoint_build_linear && setup_tree_view(ls) != 0) goto oom;
 
     Candidates cand = {0};
     if (bbox_candidates(scene, o->seed, &cand) != 0 || pilot_candidates(scene, o->seed, &cand) != 0) {
@@ -214,11 +288,14 @@ int lights_build_cachepoints(Scene *scene, void *pool, const CandelaOptions *o, 
     cachepoints_default_params(&params);
     params.visibility = !o->cachepoint_no_visibility;
     params.retruncate = o->cachepoint_retruncate;
+    params.build_cut = !o->cachepoint_build_linear;
+    if (o->cachepoint_cut_size) params.cut_size = o->cachepoint_cut_size;
     params.parallel_for = pool_parallel_for;
     params.pool = pool;
     if (!o->quiet)
-        fprintf(stderr, "candela: building cache points from %u candidates over %u lights%s\n", cand.count, ls->count,
-                ls->count > 20000 ? " (the build visits every light for every point: this will be slow)" : "");
+        fprintf(stderr, "candela: building cache points from %u candidates over %u lights (%s build)%s\n", cand.count,
+                ls->count, params.build_cut ? "cut" : "linear",
+                !params.build_cut && ls->count > 20000 ? "; the linear build visits every light for every point: this will be slow" : "");
     int rc = cachepoints_build(&ls->cachepoints, cand.xyz, cand.count, &ls->cp_view, &cc, &params, &ls->cp_stats);
     free(cand.xyz);
     if (rc < 0) goto oom;
@@ -233,7 +310,4 @@ oom:
     return -1;
 }
 
-uint32_t lights_cachepoint_at(const Lights *ls, vec3 p) {
-    float x[3] = {p.x, p.y, p.z};
-    return cachepoints_nearest(ls->cachepoints, x);
-}
+

@@ -42,10 +42,13 @@ typedef struct CandelaOptions {
     int optimal_occlusion;     /* optimal sampler: one shadow ray per light per vertex */
     int cachepoint_no_visibility; /* cache points without visibility learning */
     int cachepoint_retruncate;    /* re-truncate blurred far bins (memory bound) */
+    int cachepoint_build_linear;  /* 1: the paper's build (every light at every point); 0: a cut
+                                   * through the light tree (the default) */
+    uint32_t cachepoint_cut_size; /* cut build: far entries per point; 0: default */
 } CandelaOptions;
 
 void candela_options_default(CandelaOptions *o);
-/* "uniform", "power", "tree", "optimal" */
+/* "uniform", "power", "tree", "optimal", "cachepoints" */
 const char *candela_light_sampler_name(CandelaLightSampler s);
 int candela_light_sampler_parse(const char *name, CandelaLightSampler *s); /* 0 ok */
 
@@ -61,6 +64,7 @@ typedef struct CandelaStats {
     double time_cachepoints;       /* cache point build (inside time_build) */
     uint32_t num_cachepoints, cachepoint_candidates;
     size_t cachepoint_bytes;
+    double cachepoint_mean_near, cachepoint_mean_far, cachepoint_mean_clusters; /* entries per point */
 } CandelaStats;
 
 /* The film after the render: per-pixel mean and AOVs, top row first. */

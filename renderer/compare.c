@@ -86,6 +86,19 @@ static int load_reference(const char *path, int w, int h, float **out, char err[
     return 0;
 }
 
+/* A strategy name: a light sampler, or cachepoints with -linear, -cut and/or -novis suffixes. */
+static int parse_strategy(const char *tok, CandelaLightSampler *s, CandelaOptions *o) {
+    if (strncmp(tok, "cachepoints", 11) != 0) return candela_light_sampler_parse(tok, s);
+    *s = CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
+    for (const char *t = tok + 11; *t;) {
+        if (strncmp(t, "-linear", 7) == 0) { o->cachepoint_build_linear = 1; t += 7; }
+        else if (strncmp(t, "-cut", 4) == 0) { o->cachepoint_build_linear = 0; t += 4; }
+        else if (strncmp(t, "-novis", 6) == 0) { o->cachepoint_no_visibility = 1; t += 6; }
+        else return -1;
+    }
+    return 0;
+}
+
 int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, char err[CANDELA_ERR_LEN]) {
     if (mkdir(c->out_dir, 0777) != 0 && errno != EEXIST) {
         snprintf(err, CANDELA_ERR_LEN, "%s: cannot create the output folder: %s", c->out_dir, strerror(errno));
@@ -142,8 +155,8 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
         ++count;
         CandelaLightSampler s;
         o.cachepoint_no_visibility = base->cachepoint_no_visibility;
-        if (strcmp(tok, "cachepoints-novis") == 0) { s = CANDELA_LIGHT_SAMPLER_CACHEPOINTS; o.cachepoint_no_visibility = 1; }
-        else if (candela_light_sampler_parse(tok, &s) != 0) {
+        o.cachepoint_build_linear = base->cachepoint_build_linear;
+        if (parse_strategy(tok, &s, &o) != 0) {
             snprintf(err, CANDELA_ERR_LEN, "unknown strategy '%s' in --strategies", tok);
             for (int i = 0; i < count; ++i) free((char *)results[i].name);
             free(ref);

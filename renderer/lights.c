@@ -203,14 +203,41 @@ void lights_free(Lights *ls) {
     cachepoints_free(ls->cachepoints);
     free(ls->cp_centroid);
     free(ls->cp_infinite);
+    free(ls->cp_second);
+    free(ls->cp_leaf_light);
+    free(ls->cp_light_leaf);
     memset(ls, 0, sizeof *ls);
     ls->environment = -1;
 }
 
 /* ---------------------------------------------------------------- selection */
 
-uint32_t light_select(const Lights *ls, const LightSampleContext *ctx, float u, float *pmf) {
+/* The cache point vertex of a context (from the context when prepared, else looked up). */
+static void cp_vertex_of(const Lights *ls, const LightSampleContext *ctx, float x[3], float n[3], const float **np,
+                         CachePointVertex *v) {
+    x[0] = ctx->p.x; x[1] = ctx->p.y; x[2] = ctx->p.z;
+    n[0] = ctx->n.x; n[1] = ctx->n.y; n[2] = ctx->n.z;
+    *np = v3_is_black(ctx->n) ? NULL : n;
+    if (ctx->cache_point1) { v->point = ctx->cache_point1 - 1u; v->near_total = ctx->cp_near_total; }
+    else cachepoints_vertex(ls->cachepoints, &ls->cp_view, x, *np, UINT32_MAX, v);
+}
+
+void lights_prepare_context(const Lights *ls, LightSampleContext *ctx) {
+    ctx->cache_point1 = 0;
+    ctx->cp_near_total = 0.0f;
+    if (ls->strategy != CANDELA_LIGHT_SAMPLER_CACHEPOINTS || !ls->cachepoints) return;
+    float x[3], n[3];
+    const float *np;
+    CachePointVertex v;
+    cp_vertex_of(ls, ctx, x, n, &np, &v);
+    ctx->cache_point1 = v.point + 1u;
+    ctx->cp_near_total = v.near_total;
+}
+
+uint32_t light_select(const Lights *ls, const LightSampleContext *ctx, float u, float u_descend, float *pmf,
+                      uint32_t *cp_slot) {
     /* uniform and power ignore the shading point; context-aware strategies use it */
+    if (cp_slot) *cp_slot = UINT32_MAX;
     if (ls->count == 0) { *pmf = 0.0f; return 0; }
     switch (ls->strategy) {
     case CANDELA_LIGHT_SAMPLER_TREE:
@@ -219,9 +246,14 @@ uint32_t light_select(const Lights *ls, const LightSampleContext *ctx, float u, 
         return optimal_select(ls, ctx, u, pmf);
     case CANDELA_LIGHT_SAMPLER_CACHEPOINTS: {
         if (!ls->cachepoints) return optimal_select(ls, ctx, u, pmf); /* fallback (§3.1.1) */
-        float x[3] = {ctx->p.x, ctx->p.y, ctx->p.z}, n[3] = {ctx->n.x, ctx->n.y, ctx->n.z};
-        uint32_t point;
-        return cachepoints_select(ls->cachepoints, &ls->cp_view, x, v3_is_black(ctx->n) ? NULL : n, ctx->cache_point1 - 1u, u, pmf, &point);
+        float x[3], n[3];
+        const float *np;
+        CachePointVertex v;
+        uint32_t slot;
+        cp_vertex_of(ls, ctx, x, n, &np, &v);
+        uint32_t light = cachepoints_select(ls->cachepoints, &ls->cp_view, x, np, &v, u, u_descend, pmf, &slot);
+        if (cp_slot) *cp_slot = slot;
+        return light;
     }
     case CANDELA_LIGHT_SAMPLER_POWER:
         return dist1d_sample_discrete(&ls->power_distribution, u, pmf, NULL);
@@ -243,8 +275,11 @@ float light_select_pmf(const Lights *ls, const LightSampleContext *ctx, uint32_t
         return optimal_pmf(ls, ctx, light);
     case CANDELA_LIGHT_SAMPLER_CACHEPOINTS: {
         if (!ls->cachepoints) return optimal_pmf(ls, ctx, light);
-        float x[3] = {ctx->p.x, ctx->p.y, ctx->p.z}, n[3] = {ctx->n.x, ctx->n.y, ctx->n.z};
-        return cachepoints_pmf(ls->cachepoints, &ls->cp_view, x, v3_is_black(ctx->n) ? NULL : n, ctx->cache_point1 - 1u, light);
+        float x[3], n[3];
+        const float *np;
+        CachePointVertex v;
+        cp_vertex_of(ls, ctx, x, n, &np, &v);
+        return cachepoints_pmf(ls->cachepoints, &ls->cp_view, x, np, &v, light);
     }
     case CANDELA_LIGHT_SAMPLER_POWER:
         return dist1d_pmf(&ls->power_distribution, light);

@@ -54,10 +54,12 @@ typedef struct Light {
 typedef struct LightSampleContext {
     vec3 p;
     vec3 n;     /* shading normal, or zero for a point in a medium */
-    /* cache point of this vertex + 1, when the caller already knows it (0: look it up). The
-     * wavefront stores it per path, so NEE, counting and the MIS PDF at the next wave use
-     * one nearest-point query (spec §5.1 proposal). */
+    /* cache point of this vertex + 1 and the summed weight of its near lights at the vertex,
+     * when the caller already has them from lights_prepare_context (0: look them up). The
+     * wavefront stores both per path, so NEE, counting and the MIS PDF at the next wave use
+     * one nearest-point query and one near-light pass (spec §5.1, §5.6). */
     uint32_t cache_point1;
+    float cp_near_total;
 } LightSampleContext;
 
 typedef struct Lights {
@@ -78,6 +80,9 @@ typedef struct Lights {
     float *cp_centroid;
     uint8_t *cp_infinite;
     CachePointStats cp_stats;
+    /* --cachepoint-build cut: the light tree (ls->tree) seen by the cache points */
+    CachePointTree cp_tree;
+    uint32_t *cp_second, *cp_leaf_light, *cp_light_leaf;
 } Lights;
 
 /* Build from the scene's punctual lights, emissive primitives and environment. */
@@ -85,8 +90,11 @@ int lights_build(struct Scene *scene, CandelaLightUnits units, CandelaLightSampl
                  char *err, size_t err_len);
 void lights_free(Lights *lights);
 
-/* §Light selection interface. */
-uint32_t light_select(const Lights *lights, const LightSampleContext *ctx, float u, float *pmf);
+/* §Light selection interface. u picks the light; u_descend is a second uniform that cache
+ * point clusters use to descend the light tree. *cp_slot (may be NULL) receives the cache
+ * point visibility slot to count the attempt in (UINT32_MAX: none). */
+uint32_t light_select(const Lights *lights, const LightSampleContext *ctx, float u, float u_descend, float *pmf,
+                      uint32_t *cp_slot);
 float light_select_pmf(const Lights *lights, const LightSampleContext *ctx, uint32_t light);
 
 /* lightselect_optimal.c: unoccluded contribution estimates (cache points spec §3.4) and
@@ -100,8 +108,10 @@ void light_contribution_estimate7(const Lights *ls, const Light *l, vec3 p, floa
 /* cachepoint_setup.c: candidates (§3.1.1), estimate callbacks and the build; pool is the
  * renderer's ThreadPool. */
 int lights_build_cachepoints(struct Scene *scene, void *pool, const CandelaOptions *o, char err[CANDELA_ERR_LEN]);
-/* The cache point a vertex at p uses. */
-uint32_t lights_cachepoint_at(const Lights *ls, vec3 p);
+/* Fills ctx->cache_point1 and ctx->cp_near_total when cache points select lights (else
+ * leaves them 0): once per vertex, before light_select and before storing the context for
+ * the MIS PDF at the next wave. */
+void lights_prepare_context(const Lights *ls, LightSampleContext *ctx);
 
 /* A sampled point on a light as seen from a shading point. */
 typedef struct LightLiSample {

@@ -316,6 +316,7 @@ static LB build_node(Builder *B, uint32_t start, uint32_t end, uint64_t trail, i
     LightTree *t = B->t;
     uint32_t idx = t->node_count++;
     LightTreeNode *nd;
+    t->depth[idx] = (uint8_t)depth;
     if (end - start == 1) {
         const Item *it = &B->items[start];
         nd = &t->nodes[idx];
@@ -357,6 +358,8 @@ static LB build_node(Builder *B, uint32_t start, uint32_t end, uint64_t trail, i
 static int build_items(LightTree *t, Builder *B, uint32_t m) {
     if (!m) return 0;
     t->nodes = malloc((2 * (size_t)m - 1) * sizeof *t->nodes);
+    t->depth = malloc(2 * (size_t)m - 1);
+    if (!t->depth) return -1;
     B->scratch = malloc(m * sizeof(Item));
     B->keys = malloc(m * sizeof *B->keys);
     if (!t->nodes || !B->scratch || !B->keys) return -1;
@@ -460,6 +463,8 @@ oom:
 
 void light_tree_free(LightTree *t) {
     free(t->nodes);
+    free(t->depth);
+    free(t->intensity);
     free(t->trail);
     free(t->kind);
     free(t->infinite);
@@ -516,4 +521,101 @@ float light_tree_pmf(const LightTree *t, const LightSampleContext *ctx, uint32_t
         trail >>= 1;
     }
     return pr;
+}
+
+/* ---------------------------------------------------------------- descent below a node */
+
+uint32_t light_tree_select_from(const LightTree *t, uint32_t node, const LightSampleContext *ctx, float u, float *pmf) {
+    u = clampf(u, 0.0f, ONE_MINUS_EPS);
+    float pr = 1.0f;
+    while (t->nodes[node].light == LIGHT_TREE_INTERIOR) {
+        float p0, p1;
+        child_probs(t, node, ctx->p, ctx->n, &p0, &p1);
+        if (u < p0) {
+            pr *= p0;
+            u = minf(u / p0, ONE_MINUS_EPS);
+            node = node + 1;
+        } else {
+            pr *= p1;
+            u = clampf((u - p0) / p1, 0.0f, ONE_MINUS_EPS);
+            node = t->nodes[node].child;
+        }
+    }
+    *pmf = pr;
+    return t->nodes[node].light;
+}
+
+float light_tree_pmf_from(const LightTree *t, uint32_t node, const LightSampleContext *ctx, uint32_t light) {
+    if (light >= t->light_count || t->kind[light] != LIGHT_TREE_BVH) return 0.0f;
+    uint64_t trail = t->trail[light] >> t->depth[node];
+    float pr = 1.0f;
+    while (t->nodes[node].light == LIGHT_TREE_INTERIOR) {
+        float p0, p1;
+        child_probs(t, node, ctx->p, ctx->n, &p0, &p1);
+        if (trail & 1u) {
+            pr *= p1;
+            node = t->nodes[node].child;
+        } else {
+            pr *= p0;
+            node = node + 1;
+        }
+        trail >>= 1;
+    }
+    return t->nodes[node].light == light ? pr : 0.0f;
+}
+
+/* ---------------------------------------------------------------- cluster estimates */
+
+int light_tree_set_intensities(LightTree *t, const float *light_intensity) {
+    free(t->intensity);
+    t->intensity = malloc((t->node_count + 1) * sizeof(float));
+    if (!t->intensity) return -1;
+    /* children have higher indices than their parent: one reverse sweep sums them */
+    for (uint32_t k = t->node_count; k-- > 0;) {
+        const LightTreeNode *nd = &t->nodes[k];
+        float v = nd->light == LIGHT_TREE_INTERIOR ? t->intensity[k + 1] + t->intensity[nd->child]
+                                                    : light_intensity[nd->light];
+        t->intensity[k] = v > 0.0f && isfinite(v) ? minf(v, IMPORTANCE_MAX) : 0.0f;
+    }
+    return 0;
+}
+
+/* The cluster's summed radiant intensity towards p, I cos(theta') (theta' as in the
+ * importance: the emitter cone widened by the node's angular size), over the squared
+ * distance to its centre clamped to its bounding sphere: the fluence. Irradiance on the axis
+ * planes bounds the receiver cosine the same way, cos(max(0, theta_i - theta_b)). Exact for a
+ * single point light; an approximation for clusters, which only ever sets sampling weights. */
+void light_tree_node_estimate7(const LightTree *t, uint32_t node, vec3 p, float out[7]) {
+    const LightTreeNode *nd = &t->nodes[node];
+    for (int i = 0; i < 7; ++i) out[i] = 0.0f;
+    float I = t->intensity ? t->intensity[node] : 0.0f;
+    if (!(I > 0.0f)) return;
+    vec3 pc = v3_scale(v3_add(nd->bmin, nd->bmax), 0.5f);
+    vec3 diag = v3_sub(nd->bmax, nd->bmin);
+    float r2 = 0.25f * v3_dot(diag, diag);
+    vec3 d = v3_sub(p, pc); /* from the cluster to p */
+    float dist2 = v3_dot(d, d);
+    float cos_b = -1.0f, sin_b = 0.0f;
+    if (dist2 > r2) {
+        float s2 = r2 / dist2;
+        cos_b = safe_sqrtf(1.0f - s2);
+        sin_b = sqrtf(s2);
+    }
+    vec3 wo = dist2 > 0.0f ? v3_scale(d, 1.0f / sqrtf(dist2)) : v3(0.0f, 0.0f, 1.0f);
+    float cos_w = v3_dot(nd->w, wo);
+    float sin_w = safe_sqrtf(1.0f - cos_w * cos_w);
+    float sin_o = nd->cos_o >= 1.0f || nd->cos_o <= -1.0f ? 0.0f : safe_sqrtf(1.0f - nd->cos_o * nd->cos_o);
+    float cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, nd->cos_o);
+    float sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, nd->cos_o);
+    float cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
+    if (cos_p <= nd->cos_e) return;
+    float fluence = I * maxf(cos_p, 0.0f) / maxf(dist2, r2);
+    if (!(fluence > 0.0f) || !isfinite(fluence)) return;
+    out[6] = fluence;
+    /* receiver cosine bound per axis: the direction from p to the cluster is -wo */
+    const float c[6] = {-wo.x, wo.x, -wo.y, wo.y, -wo.z, wo.z};
+    for (int i = 0; i < 6; ++i) {
+        float cos_i = c[i], sin_i = safe_sqrtf(1.0f - cos_i * cos_i);
+        out[i] = fluence * maxf(cos_sub_clamped(sin_i, cos_i, sin_b, cos_b), 0.0f);
+    }
 }

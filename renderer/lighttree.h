@@ -63,6 +63,8 @@ typedef struct LightTree {
     float p_inf;           /* probability of choosing among the infinite lights */
     float p_bvh;           /* 1 - p_inf: the factor every BVH light's pmf starts from */
     float pmf_inf;         /* p_inf / num_infinite */
+    uint8_t *depth;        /* per node: its depth (the root is 0) */
+    float *intensity;      /* per node, optional: summed peak radiant intensity (light_tree_set_intensities) */
 } LightTree;
 
 /* Build over lights[0..count). 0 ok, -1 out of memory (t is then empty). */
@@ -78,6 +80,17 @@ void light_tree_free(LightTree *t);
 uint32_t light_tree_select(const LightTree *t, const LightSampleContext *ctx, float u, float *pmf);
 /* The probability light_tree_select gives `light` for ctx (bit-identical). */
 float light_tree_pmf(const LightTree *t, const LightSampleContext *ctx, uint32_t light);
+/* The single-path descent below `node` (cache point clusters): picks a light of that subtree
+ * for ctx with u, *pmf its probability given the node. light_tree_pmf_from returns bit for
+ * bit the probability light_tree_select_from gives `light` (0 if it is not below node). */
+uint32_t light_tree_select_from(const LightTree *t, uint32_t node, const LightSampleContext *ctx, float u, float *pmf);
+float light_tree_pmf_from(const LightTree *t, uint32_t node, const LightSampleContext *ctx, uint32_t light);
+/* Per-node sums of the lights' peak radiant intensities (luminance, W/sr), for
+ * light_tree_node_estimate7. 0 ok, -1 out of memory. */
+int light_tree_set_intensities(LightTree *t, const float *light_intensity);
+/* A node's approximate unoccluded fluence at p (out[6]) and irradiance on the planes facing
+ * +X -X +Y -Y +Z -Z (out[0..5]), from its bounds, cone and summed intensity. */
+void light_tree_node_estimate7(const LightTree *t, uint32_t node, vec3 p, float out[7]);
 /* Importance of one node for a shading point (n zero: a point in a medium). Exposed for
  * tests. */
 float light_tree_node_importance(const LightTreeNode *node, vec3 p, vec3 n);

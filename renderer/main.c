@@ -27,7 +27,10 @@ static const char *USAGE =
     "  --max-depth N             maximum bounces; 1 = direct light only (default 8)\n"
     "  --light-sampler S         uniform | power | tree | optimal | cachepoints (default power)\n"
     "  --no-visibility           cache points without visibility learning\n"
-    "  --cachepoint-retruncate   re-apply the 97%/256 rule after the far-bin blur (less memory)\n"
+    "  --cachepoint-build B      cut (default: far entries are light-tree clusters) | linear (the\n"
+    "                            paper: every light estimated at every point)\n"
+    "  --cachepoint-cut-size N   cut build: far entries per cache point (default 256)\n"
+    "  --cachepoint-retruncate   linear build: re-apply the 97%/256 rule after the blur (less memory)\n"
     "  --optimal-occlusion       optimal sampler: one shadow ray per light per vertex\n"
     "  --light-units U           blender (default: cd/683, lux/683) | raw (W/sr, W/m^2)\n"
     "  --camera NAME             glTF camera by name (default: the first, or a framing view)\n"
@@ -37,7 +40,8 @@ static const char *USAGE =
     "  --stats-json FILE         write render statistics as JSON\n"
     "  --quiet                   no progress or statistics on stderr\n"
     "compare options:\n"
-    "  --strategies LIST         default uniform,power,tree,optimal,cachepoints,cachepoints-novis\n"
+    "  --strategies LIST         default uniform,power,tree,optimal,cachepoints,cachepoints-novis;\n"
+    "                            also cachepoints-linear, cachepoints-linear-novis\n"
     "  --ref-spp N               reference spp (default 16 x --spp), tree sampler\n"
     "  --reference FILE.exr      reuse a reference instead of rendering one\n"
     "  --out-dir DIR             default out/compare-<scene name>\n"
@@ -99,8 +103,12 @@ static void print_stats(const CandelaStats *s) {
             (unsigned long long)s->rays_bounce, (unsigned long long)s->rays_shadow,
             render > 0 ? (double)rays / render * 1e-6 : 0.0, (double)s->peak_memory_bytes / (1024.0 * 1024.0));
     if (s->num_cachepoints)
-        fprintf(stderr, "  cache points: %u from %u candidates, built in %.3fs, %.1f MiB\n", s->num_cachepoints,
-                s->cachepoint_candidates, s->time_cachepoints, (double)s->cachepoint_bytes / (1024.0 * 1024.0));
+        fprintf(stderr,
+                "  cache points: %u from %u candidates, built in %.3fs, %.1f MiB; per point %.1f near lights, "
+                "%.1f far entries (%.1f clusters)\n",
+                s->num_cachepoints, s->cachepoint_candidates, s->time_cachepoints,
+                (double)s->cachepoint_bytes / (1024.0 * 1024.0), s->cachepoint_mean_near, s->cachepoint_mean_far,
+                s->cachepoint_mean_clusters);
 }
 
 int main(int argc, char **argv) {
@@ -128,6 +136,14 @@ int main(int argc, char **argv) {
         else if (strcmp(a, "--optimal-occlusion") == 0) o.optimal_occlusion = 1;
         else if (strcmp(a, "--no-visibility") == 0) o.cachepoint_no_visibility = 1;
         else if (strcmp(a, "--cachepoint-retruncate") == 0) o.cachepoint_retruncate = 1;
+        else if (strcmp(a, "--cachepoint-cut-size") == 0) { o.cachepoint_cut_size = (uint32_t)parse_long(a, v, 1, 1 << 20); ++i; }
+        else if (strcmp(a, "--cachepoint-build") == 0) {
+            if (!v) die("missing value for ", a);
+            if (strcmp(v, "linear") == 0) o.cachepoint_build_linear = 1;
+            else if (strcmp(v, "cut") == 0) o.cachepoint_build_linear = 0;
+            else { fprintf(stderr, "candela: unknown cache point build '%s' (cut, linear)\n", v); return 2; }
+            ++i;
+        }
         else if (compare && strcmp(a, "--strategies") == 0) { if (!v) die("missing value for ", a); co.strategies = v; ++i; }
         else if (compare && strcmp(a, "--ref-spp") == 0) { co.reference_spp = (int)parse_long(a, v, 1, 1 << 20); ++i; }
         else if (compare && strcmp(a, "--reference") == 0) { if (!v) die("missing value for ", a); co.reference_path = v; ++i; }

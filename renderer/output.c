@@ -76,8 +76,12 @@ int candela_write_stats_json(const char *path, const CandelaOptions *o, const Ca
     fprintf(f, "  \"iterations\": %d,\n  \"paths\": %llu,\n", s->iterations, (unsigned long long)s->paths);
     fprintf(f, "  \"triangles\": %u,\n  \"lights\": %u,\n  \"instances\": %u,\n", s->num_triangles, s->num_lights,
             s->num_instances);
-    fprintf(f, "  \"cachepoints\": {\"build_seconds\": %.6f, \"candidates\": %u, \"points\": %u, \"bytes\": %zu},\n",
-            s->time_cachepoints, s->cachepoint_candidates, s->num_cachepoints, s->cachepoint_bytes);
+    fprintf(f,
+            "  \"cachepoints\": {\"build\": \"%s\", \"build_seconds\": %.6f, \"candidates\": %u, \"points\": %u, "
+            "\"bytes\": %zu, \"mean_near\": %.3f, \"mean_far\": %.3f, \"mean_clusters\": %.3f},\n",
+            o->cachepoint_build_linear ? "linear" : "cut", s->time_cachepoints, s->cachepoint_candidates,
+            s->num_cachepoints, s->cachepoint_bytes, s->cachepoint_mean_near, s->cachepoint_mean_far,
+            s->cachepoint_mean_clusters);
     fprintf(f, "  \"peak_memory_bytes\": %zu\n}\n", s->peak_memory_bytes);
     if (fclose(f) != 0 || rename(tmp, path) != 0) {
         remove(tmp);

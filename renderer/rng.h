@@ -48,6 +48,7 @@ enum {
     RNG_BOUNCE_BSDF_V = 6,
     RNG_BOUNCE_RR = 7,
     RNG_BOUNCE_ALPHA = 8,
+    RNG_BOUNCE_LIGHT_DESCEND = 9, /* cache point clusters: the descent below the chosen node */
     RNG_BOUNCE_DIMS = 16
 };
 

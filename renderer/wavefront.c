@@ -111,6 +111,7 @@ static int path_state_alloc(PathState *ps, uint32_t n) {
     ps->prev_bsdf_pdf = xcalloc(n, sizeof(float), &fail);
     ps->prev_delta = xcalloc(n, 1, &fail);
     ps->prev_cache_point1 = xcalloc(n, sizeof(uint32_t), &fail);
+    ps->prev_cp_near_total = xcalloc(n, sizeof(float), &fail);
     ps->hit_t = xcalloc(n, sizeof(float), &fail);
     ps->hit_u = xcalloc(n, sizeof(float), &fail);
     ps->hit_v = xcalloc(n, sizeof(float), &fail);
@@ -121,8 +122,7 @@ static int path_state_alloc(PathState *ps, uint32_t n) {
     ps->shadow_dir = xcalloc(3 * (size_t)n, sizeof(float), &fail);
     ps->shadow_tfar = xcalloc(n, sizeof(float), &fail);
     ps->shadow_contrib = xcalloc(3 * (size_t)n, sizeof(float), &fail);
-    ps->shadow_point = xcalloc(n, sizeof(uint32_t), &fail);
-    ps->shadow_light = xcalloc(n, sizeof(uint32_t), &fail);
+    ps->shadow_slot = xcalloc(n, sizeof(uint32_t), &fail);
     ps->continues = xcalloc(n, 1, &fail);
     ps->has_shadow = xcalloc(n, 1, &fail);
     ps->aov_albedo = xcalloc(3 * (size_t)n, sizeof(float), &fail);
@@ -133,9 +133,9 @@ static int path_state_alloc(PathState *ps, uint32_t n) {
 
 static void path_state_free(PathState *ps) {
     void *ptrs[] = {ps->rng_key, ps->pixel, ps->radiance, ps->throughput, ps->eta_scale, ps->ray_org,
-                    ps->ray_dir, ps->prev_pos, ps->prev_normal, ps->prev_bsdf_pdf, ps->prev_delta, ps->prev_cache_point1,
+                    ps->ray_dir, ps->prev_pos, ps->prev_normal, ps->prev_bsdf_pdf, ps->prev_delta, ps->prev_cache_point1, ps->prev_cp_near_total,
                     ps->hit_t, ps->hit_u, ps->hit_v, ps->hit_inst, ps->hit_geom, ps->hit_prim,
-                    ps->shadow_org, ps->shadow_dir, ps->shadow_tfar, ps->shadow_contrib, ps->shadow_point, ps->shadow_light,
+                    ps->shadow_org, ps->shadow_dir, ps->shadow_tfar, ps->shadow_contrib, ps->shadow_slot,
                     ps->continues, ps->has_shadow, ps->aov_albedo, ps->aov_normal, ps->aov_depth};
     for (size_t i = 0; i < sizeof ptrs / sizeof ptrs[0]; ++i) free(ptrs[i]);
     memset(ps, 0, sizeof *ps);
@@ -329,7 +329,8 @@ static void escaped_range(void *vctx, size_t b, size_t e, int thread) {
         if (v3_is_black(le)) continue;
         float w = 1.0f;
         if (!ps->prev_delta[p]) {
-            LightSampleContext lc = {load3(ps->prev_pos, p), load3(ps->prev_normal, p), ps->prev_cache_point1[p]};
+            LightSampleContext lc = {load3(ps->prev_pos, p), load3(ps->prev_normal, p), ps->prev_cache_point1[p],
+                                     ps->prev_cp_near_total[p]};
             float pl = light_select_pmf(&scene->lights, &lc, (uint32_t)scene->lights.environment) *
                        light_env_pdf_li(scene, d);
             w = power_heuristic(ps->prev_bsdf_pdf[p], pl);
@@ -400,7 +401,8 @@ static void shade_range(void *vctx, size_t b, size_t e, int thread) {
                 float w = 1.0f;
                 if (!ps->prev_delta[p]) {
                     vec3 prev = load3(ps->prev_pos, p);
-                    LightSampleContext lc = {prev, load3(ps->prev_normal, p), ps->prev_cache_point1[p]};
+                    LightSampleContext lc = {prev, load3(ps->prev_normal, p), ps->prev_cache_point1[p],
+                                             ps->prev_cp_near_total[p]};
                     float pl = light_select_pmf(lights, &lc, (uint32_t)light_index) *
                                light_area_pdf_li(&lights->lights[light_index], &lc, h.triangle, h.p, h.ng);
                     w = power_heuristic(ps->prev_bsdf_pdf[p], pl);
@@ -421,18 +423,19 @@ static void shade_range(void *vctx, size_t b, size_t e, int thread) {
         /* light-selection context: transmissive surfaces receive light from both sides, so
          * they use the omnidirectional (fluence) estimates, as volumes do (spec §5.2) */
         vec3 ctx_n = transmissive ? v3s(0.0f) : ns;
-        uint32_t cache_point1 = lights->cachepoints ? lights_cachepoint_at(lights, h.p) + 1u : 0u;
+        LightSampleContext lc = {h.p, ctx_n, 0, 0.0f};
+        int delta = bsdf_is_delta(&m.bsdf);
+        if (!delta) lights_prepare_context(lights, &lc); /* one nearest-point query per vertex */
         /* next-event estimation */
-        if (!bsdf_is_delta(&m.bsdf) && lights->count > 0) {
-            LightSampleContext lc = {h.p, ctx_n, cache_point1};
+        if (!delta && lights->count > 0) {
             float pmf;
-            uint32_t li = light_select(lights, &lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_SELECT)), &pmf);
+            uint32_t slot;
+            uint32_t li = light_select(lights, &lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_SELECT)),
+                                       rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_DESCEND)), &pmf, &slot);
             LightLiSample ls;
-            if (lights->cachepoints) { /* §3.2.1: count the attempt at the point that chose */
-                uint32_t cpi = cache_point1 - 1u;
-                cachepoints_record(lights->cachepoints, cpi, li, 0);
-                ps->shadow_point[p] = cpi;
-                ps->shadow_light[p] = li;
+            if (lights->cachepoints) { /* §3.2.1: count the attempt in the slot that chose */
+                cachepoints_record(lights->cachepoints, slot, 0);
+                ps->shadow_slot[p] = slot;
             }
             if (pmf > 0.0f &&
                 light_sample_li(scene, &lights->lights[li], &lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_U)),
@@ -497,7 +500,8 @@ static void shade_range(void *vctx, size_t b, size_t e, int thread) {
         store3(ps->throughput, p, beta);
         store3(ps->prev_pos, p, h.p);
         store3(ps->prev_normal, p, ctx_n);
-        ps->prev_cache_point1[p] = cache_point1;
+        ps->prev_cache_point1[p] = lc.cache_point1;
+        ps->prev_cp_near_total[p] = lc.cp_near_total;
         ps->prev_bsdf_pdf[p] = bs.pdf;
         ps->prev_delta[p] = (bs.flags & BSDF_DELTA) ? 1 : 0;
         store3(ps->ray_org, p, offset_ray_origin(h.p, side_g > 0.0f ? ng : v3_neg(ng)));
@@ -536,7 +540,7 @@ static void shadow_range(void *vctx, size_t b, size_t e, int thread) {
                 store3(ps->radiance, p, L);
                 /* §3.2.1: the shadow ray got through with a useful (non-zero) contribution */
                 if (r->scene.lights.cachepoints)
-                    cachepoints_record(r->scene.lights.cachepoints, ps->shadow_point[p], ps->shadow_light[p], 1);
+                    cachepoints_record(r->scene.lights.cachepoints, ps->shadow_slot[p], 1);
             }
         }
     }
@@ -897,6 +901,9 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
         stats->num_cachepoints = cachepoints_count(r->scene.lights.cachepoints);
         stats->cachepoint_candidates = r->scene.lights.cp_stats.candidates;
         stats->cachepoint_bytes = r->scene.lights.cp_stats.bytes;
+        stats->cachepoint_mean_near = r->scene.lights.cp_stats.mean_near;
+        stats->cachepoint_mean_far = r->scene.lights.cp_stats.mean_far;
+        stats->cachepoint_mean_clusters = r->scene.lights.cp_stats.mean_far_clusters;
     }
     stats->time_build = now_seconds() - t_loaded;
 

@@ -29,12 +29,13 @@ typedef struct PathState {
     float *prev_bsdf_pdf;
     uint8_t *prev_delta;
     uint32_t *prev_cache_point1;   /* that vertex's cache point + 1 (0: none) */
+    float *prev_cp_near_total;     /* and its near lights' summed weight (spec §5.6) */
     /* intersection results of the current wave */
     float *hit_t, *hit_u, *hit_v;
     uint32_t *hit_inst, *hit_geom, *hit_prim;
     /* shadow ray of the current wave */
     float *shadow_org, *shadow_dir, *shadow_tfar, *shadow_contrib; /* 3,3,1,3 */
-    uint32_t *shadow_point, *shadow_light; /* cache point and light of the shadow ray (§3.2.1) */
+    uint32_t *shadow_slot;  /* cache point visibility slot of the shadow ray's light (§3.2.1) */
     uint8_t *continues, *has_shadow;
     /* first-hit AOVs */
     float *aov_albedo, *aov_normal, *aov_depth; /* 3,3,1 */

@@ -1,8 +1,12 @@
-/* The cachepoints module on its own, with synthetic point lights: Eq. 5-6 anchor values,
- * build determinism (serial vs a parallel-for that runs chunks in reverse order), PMFs that
- * sum to one, select/pmf agreement and selection frequencies, and visibility learning
- * pushing down a light that is never visible. */
+/* The cachepoints module on its own, with synthetic point lights and two directional
+ * lights, for both builds (linear: the paper's; cut: far entries are clusters of a light
+ * tree, here a synthetic balanced tree whose cluster estimate is the exact sum and whose
+ * descent is proportional to it): Eq. 5-6 anchor values, build determinism (serial vs a
+ * parallel-for that runs chunks in reverse order), PMFs that sum to one, select/pmf
+ * agreement and selection frequencies, and visibility learning pushing down a light that
+ * is never visible. */
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "cachepoints.h"
@@ -12,24 +16,118 @@
 static uint64_t sm_state;
 static double rnd(void) { return splitmix_uniform(&sm_state); }
 
-#define NL 300
+#define NL 302 /* 300 point lights, then 2 directional lights */
+#define NPOINT 300
 static float light_pos[3 * NL], light_I[NL];
 static uint8_t light_inf[NL];
 
 static float point_estimate(const void *user, uint32_t l, const float x[3], const float *n) {
     (void)user;
     float d[3] = {light_pos[3 * l] - x[0], light_pos[3 * l + 1] - x[1], light_pos[3 * l + 2] - x[2]};
-    float d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-    if (!(d2 > 1e-8f)) return 0.0f;
+    float d2 = 1.0f;
+    if (!light_inf[l]) { /* a point light; a directional light's "position" is its direction to it */
+        d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        if (!(d2 > 1e-8f)) return 0.0f;
+    } else {
+        memcpy(d, light_pos + 3 * l, sizeof d);
+    }
     float c = 1.0f;
-    if (n) { c = (n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) / sqrtf(d2); if (c < 0.0f) c = 0.0f; }
+    if (n) { c = (n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) / sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]); if (c < 0.0f) c = 0.0f; }
     return light_I[l] * c / d2;
 }
 
+static const float AXES[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+
 static void point_estimate7(const void *user, uint32_t l, const float x[3], float out[7]) {
-    static const float axes[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
-    for (int i = 0; i < 6; ++i) out[i] = point_estimate(user, l, x, axes[i]);
+    for (int i = 0; i < 6; ++i) out[i] = point_estimate(user, l, x, AXES[i]);
     out[6] = point_estimate(user, l, x, NULL);
+}
+
+/* ---- a balanced binary tree over the 300 point lights, depth-first layout */
+#define MAXNODES (2 * NPOINT)
+static uint32_t order[NPOINT];              /* lights in tree order */
+static uint32_t node_lo[MAXNODES], node_hi[MAXNODES], second[MAXNODES], leaf_light[MAXNODES], light_leaf[NL];
+static float node_box[MAXNODES][6];
+static uint32_t node_count;
+
+static int cmp_axis;
+static int cmp_light(const void *a, const void *b) {
+    float pa = light_pos[3 * *(const uint32_t *)a + cmp_axis], pb = light_pos[3 * *(const uint32_t *)b + cmp_axis];
+    return pa < pb ? -1 : pa > pb;
+}
+
+static uint32_t build_node(uint32_t lo, uint32_t hi, int depth) {
+    uint32_t idx = node_count++;
+    node_lo[idx] = lo;
+    node_hi[idx] = hi;
+    for (int k = 0; k < 3; ++k) { node_box[idx][k] = INFINITY; node_box[idx][3 + k] = -INFINITY; }
+    for (uint32_t i = lo; i < hi; ++i)
+        for (int k = 0; k < 3; ++k) {
+            node_box[idx][k] = fminf(node_box[idx][k], light_pos[3 * order[i] + k]);
+            node_box[idx][3 + k] = fmaxf(node_box[idx][3 + k], light_pos[3 * order[i] + k]);
+        }
+    if (hi - lo == 1) {
+        second[idx] = 0;
+        leaf_light[idx] = order[lo];
+        light_leaf[order[lo]] = idx;
+        return idx;
+    }
+    cmp_axis = depth % 3;
+    qsort(order + lo, hi - lo, sizeof *order, cmp_light);
+    uint32_t mid = lo + (hi - lo) / 2;
+    leaf_light[idx] = UINT32_MAX;
+    build_node(lo, mid, depth + 1);
+    second[idx] = build_node(mid, hi, depth + 1);
+    return idx;
+}
+
+static void tree_bounds(const void *user, uint32_t node, float lo[3], float hi[3]) {
+    (void)user;
+    memcpy(lo, node_box[node], 3 * sizeof(float));
+    memcpy(hi, node_box[node] + 3, 3 * sizeof(float));
+}
+
+static void tree_estimate7(const void *user, uint32_t node, const float x[3], float out[7]) {
+    for (int i = 0; i < 7; ++i) out[i] = 0.0f;
+    for (uint32_t k = node_lo[node]; k < node_hi[node]; ++k) {
+        float v[7];
+        point_estimate7(user, order[k], x, v);
+        for (int i = 0; i < 7; ++i) out[i] += v[i];
+    }
+}
+
+/* child weight: the subtree's summed estimate plus a floor, so every light can be reached */
+static float subtree_weight(uint32_t node, const float x[3], const float *n) {
+    float w = 1e-3f * (float)(node_hi[node] - node_lo[node]);
+    for (uint32_t k = node_lo[node]; k < node_hi[node]; ++k) w += point_estimate(NULL, order[k], x, n);
+    return w;
+}
+
+static uint32_t tree_descend(const void *user, uint32_t node, const float x[3], const float *n, float u, float *pmf) {
+    (void)user;
+    float pr = 1.0f;
+    while (leaf_light[node] == UINT32_MAX) {
+        float w0 = subtree_weight(node + 1, x, n), w1 = subtree_weight(second[node], x, n);
+        float p0 = w0 / (w0 + w1);
+        if (u < p0) { pr *= p0; u = u / p0; node = node + 1; }
+        else { pr *= 1.0f - p0; u = (u - p0) / (1.0f - p0); node = second[node]; }
+        if (u >= 1.0f) u = 0x1.fffffep-1f;
+    }
+    *pmf = pr;
+    return leaf_light[node];
+}
+
+static float tree_descend_pmf(const void *user, uint32_t node, const float x[3], const float *n, uint32_t light) {
+    (void)user;
+    uint32_t target = light_leaf[light];
+    float pr = 1.0f;
+    while (leaf_light[node] == UINT32_MAX) {
+        float w0 = subtree_weight(node + 1, x, n), w1 = subtree_weight(second[node], x, n);
+        float p0 = w0 / (w0 + w1);
+        if (target < second[node]) { pr *= p0; node = node + 1; }
+        else { pr *= 1.0f - p0; node = second[node]; }
+    }
+    return leaf_light[node] == light ? pr : 0.0f;
 }
 
 /* runs chunks of 7 items in reverse order: a build that depended on order would differ */
@@ -38,6 +136,139 @@ static void reverse_parallel_for(void *pool, size_t n, size_t grain, void (*fn)(
     size_t chunk = 7;
     size_t count = (n + chunk - 1) / chunk;
     for (size_t c = count; c-- > 0;) fn(ctx, c * chunk, c * chunk + chunk < n ? c * chunk + chunk : n, (int)(c % 2));
+}
+
+static void random_vertex(float x[3], float nrm[3], const float **n, int q) {
+    for (int k = 0; k < 3; ++k) x[k] = (float)(rnd() * 10);
+    for (int k = 0; k < 3; ++k) nrm[k] = (float)(rnd() - 0.5);
+    float len = sqrtf(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
+    for (int k = 0; k < 3; ++k) nrm[k] /= len;
+    *n = q % 3 == 0 ? NULL : nrm;
+}
+
+static void run(const CachePointLights *L, const float *cand, uint32_t nc, int cut) {
+    const char *mode = cut ? "cut" : "linear";
+    CachePointCamera cam = {{5.0f, 5.0f, 40.0f}, 2.0f * 0.4f / 64.0f, 0.0f};
+    CachePointParams P;
+    cachepoints_default_params(&P);
+    P.build_cut = cut;
+    P.cut_size = 24; /* small, so that clusters are common */
+    CachePoints *a = NULL, *b = NULL;
+    CachePointStats sa, sb;
+    int ra = cachepoints_build(&a, cand, nc, L, &cam, &P, &sa);
+    P.parallel_for = reverse_parallel_for;
+    int rb = cachepoints_build(&b, cand, nc, L, &cam, &P, &sb);
+    CHECK(ra == 0 && rb == 0, "%s: build %d %d", mode, ra, rb);
+    if (ra || rb) return;
+    fprintf(stderr, "%s: candidates %u -> pass 1 %u -> final %u points, %.3f s, %zu bytes; per point %.1f near, %.1f far (%.1f clusters)\n",
+            mode, sa.candidates, sa.after_pass1, sa.final_points, sa.seconds, sa.bytes, sa.mean_near, sa.mean_far,
+            sa.mean_far_clusters);
+    CHECK(sa.final_points > 10 && sa.final_points < sa.after_pass1 && sa.after_pass1 <= sa.candidates,
+          "%s: merging: %u -> %u -> %u", mode, sa.candidates, sa.after_pass1, sa.final_points);
+    if (cut) {
+        /* the budget, the two infinite lights, and the siblings of the near lights' paths
+         * (nodes holding a near light are always split; the tree is 9 levels deep) */
+        CHECK(sa.mean_far <= P.cut_size + 2 + 9.0 * sa.mean_near, "cut: %.1f far entries per point for a budget of %u",
+              sa.mean_far, P.cut_size);
+        CHECK(sa.mean_far_clusters > 1.0, "cut: %.1f clusters per point: the cut is not exercised", sa.mean_far_clusters);
+    } else {
+        CHECK(sa.mean_far_clusters == 0.0, "linear: no clusters expected (%.1f)", sa.mean_far_clusters);
+    }
+    CHECK(cachepoints_count(a) == cachepoints_count(b), "%s: point counts differ: %u vs %u", mode, cachepoints_count(a),
+          cachepoints_count(b));
+    int same = cachepoints_count(a) == cachepoints_count(b);
+    for (uint32_t i = 0; same && i < cachepoints_count(a); ++i) {
+        float pa[3], pb[3], r1, r2;
+        cachepoints_point(a, i, pa, &r1);
+        cachepoints_point(b, i, pb, &r2);
+        if (memcmp(pa, pb, sizeof pa) != 0 || r1 != r2) same = 0;
+    }
+    CHECK(same, "%s: builds differ between serial and reversed-parallel execution", mode);
+
+    /* PMFs: sum to one; select reports exactly pmf(); identical between the two builds */
+    int mismatch = 0, differ = 0;
+    for (int q = 0; q < 10; ++q) {
+        float x[3], nrm[3];
+        const float *n;
+        random_vertex(x, nrm, &n, q);
+        CachePointVertex va, vb;
+        cachepoints_vertex(a, L, x, n, UINT32_MAX, &va);
+        cachepoints_vertex(b, L, x, n, UINT32_MAX, &vb);
+        CHECK(va.point == cachepoints_nearest(a, x), "%s: the vertex uses the nearest point", mode);
+        double sum = 0.0;
+        for (uint32_t l = 0; l < NL; ++l) {
+            float pa = cachepoints_pmf(a, L, x, n, &va, l);
+            sum += pa;
+            if (pa != cachepoints_pmf(b, L, x, n, &vb, l)) ++differ;
+        }
+        CHECK(fabs(sum - 1.0) < 1e-4, "%s: pmf sums to %.7f", mode, sum);
+        enum { S = 20000 };
+        static uint32_t hist[NL];
+        memset(hist, 0, sizeof hist);
+        for (int s = 0; s < S; ++s) {
+            float pmf;
+            uint32_t slot;
+            uint32_t l = cachepoints_select(a, L, x, n, &va, (float)rnd(), (float)rnd(), &pmf, &slot);
+            if (l >= NL || pmf != cachepoints_pmf(a, L, x, n, &va, l) || slot != cachepoints_slot(a, va.point, l)) ++mismatch;
+            else hist[l]++;
+        }
+        double chi2 = 0.0, pooled_o = 0.0, pooled_e = 0.0;
+        int dof = -1;
+        for (uint32_t l = 0; l < NL; ++l) {
+            double e = S * (double)cachepoints_pmf(a, L, x, n, &va, l);
+            if (e < 5.0) { pooled_o += hist[l]; pooled_e += e; continue; }
+            chi2 += (hist[l] - e) * (hist[l] - e) / e;
+            ++dof;
+        }
+        if (pooled_e > 5.0) { chi2 += (pooled_o - pooled_e) * (pooled_o - pooled_e) / pooled_e; ++dof; }
+        if (dof > 0) {
+            double limit = dof * pow(1.0 - 2.0 / (9.0 * dof) + 4.5 * sqrt(2.0 / (9.0 * dof)), 3.0);
+            CHECK(chi2 < limit, "%s: selection chi2 %.1f > %.1f (dof %d)", mode, chi2, limit, dof);
+        }
+    }
+    CHECK(mismatch == 0, "%s: %d selections disagree with cachepoints_pmf / cachepoints_slot", mode, mismatch);
+    CHECK(differ == 0, "%s: %d pmfs differ between the serial and parallel builds", mode, differ);
+
+    /* visibility learning: the most probable light at x0 that has a slot of its own always
+     * fails, every other slot always succeeds */
+    float x0[3] = {5, 5, 5};
+    CachePointVertex v0;
+    cachepoints_vertex(a, L, x0, NULL, UINT32_MAX, &v0);
+    uint32_t p0 = v0.point, best = UINT32_MAX;
+    for (uint32_t l = 0; l < NL; ++l) {
+        uint32_t s = cachepoints_slot(a, p0, l);
+        int own = s != UINT32_MAX;
+        for (uint32_t m = 0; own && m < NL; ++m) own = m == l || cachepoints_slot(a, p0, m) != s;
+        if (own && (best == UINT32_MAX || cachepoints_pmf(a, L, x0, NULL, &v0, l) > cachepoints_pmf(a, L, x0, NULL, &v0, best)))
+            best = l;
+    }
+    CHECK(best != UINT32_MAX, "%s: no light has a slot of its own at x0", mode);
+    if (best == UINT32_MAX) { cachepoints_free(a); cachepoints_free(b); return; }
+    float before = cachepoints_pmf(a, L, x0, NULL, &v0, best);
+    for (uint32_t p = 0; p < cachepoints_count(a); ++p)
+        for (uint32_t l = 0; l < NL; ++l) {
+            uint32_t s = cachepoints_slot(a, p, l);
+            for (int t = 0; t < 99; ++t) {
+                cachepoints_record(a, s, 0);
+                if (l != best) cachepoints_record(a, s, 1);
+            }
+        }
+    cachepoints_update_visibility(a);
+    cachepoints_vertex(a, L, x0, NULL, UINT32_MAX, &v0);
+    uint32_t other = best == 0 ? 1 : 0;
+    float wb = cachepoints_visibility(a, p0, best), wo = cachepoints_visibility(a, p0, other);
+    float after = cachepoints_pmf(a, L, x0, NULL, &v0, best);
+    fprintf(stderr, "%s: visibility: W'(occluded) %.4f, W'(other) %.4f; pmf(occluded) %.5f -> %.5f\n", mode, wb, wo,
+            before, after);
+    CHECK(fabsf(wb - 0.0625f) < 1e-5f, "%s: never-visible light after 99 attempts: W' = %g, expected 625/100^2", mode, wb);
+    CHECK(fabsf(wo - 1.0f) < 1e-6f, "%s: a visible light keeps W' = 1 (%g)", mode, wo);
+    CHECK(after < 0.5f * before, "%s: learning must push the occluded light down (%g -> %g)", mode, before, after);
+    CHECK(after >= 0.03f / NL * 0.999f, "%s: the uniform floor keeps every light selectable (%g)", mode, after);
+    double sum = 0.0;
+    for (uint32_t l = 0; l < NL; ++l) sum += cachepoints_pmf(a, L, x0, NULL, &v0, l);
+    CHECK(fabs(sum - 1.0) < 1e-4, "%s: pmf after learning sums to %.7f", mode, sum);
+    cachepoints_free(a);
+    cachepoints_free(b);
 }
 
 int main(void) {
@@ -50,102 +281,27 @@ int main(void) {
     CHECK(cachepoints_visibility_weight(10, 20, 0.04f) == 1.0f, "visible light keeps W = 1");
 
     sm_state = 42;
-    for (int l = 0; l < NL; ++l) {
+    for (int l = 0; l < NPOINT; ++l) {
         for (int k = 0; k < 3; ++k) light_pos[3 * l + k] = (float)(rnd() * 10.0);
         light_I[l] = (float)(0.1 + 10.0 * rnd() * rnd());
         light_inf[l] = 0;
+        order[l] = (uint32_t)l;
     }
+    const float dirs[2][3] = {{0.3f, 0.9f, 0.1f}, {-0.5f, 0.2f, -0.8f}};
+    for (int j = 0; j < 2; ++j) {
+        memcpy(light_pos + 3 * (NPOINT + j), dirs[j], sizeof dirs[j]);
+        light_I[NPOINT + j] = 0.05f;
+        light_inf[NPOINT + j] = 1;
+        light_leaf[NPOINT + j] = UINT32_MAX;
+    }
+    build_node(0, NPOINT, 0);
     enum { NC = 6000 };
     static float cand[3 * NC];
     for (int i = 0; i < NC; ++i)
         for (int k = 0; k < 3; ++k) cand[3 * i + k] = (float)(rnd() * 10.0);
-    CachePointLights L = {NL, light_pos, light_inf, point_estimate7, point_estimate, NULL};
-    CachePointCamera cam = {{5.0f, 5.0f, 40.0f}, 2.0f * 0.4f / 64.0f, 0.0f};
-    CachePointParams P;
-    cachepoints_default_params(&P);
-    CachePoints *a = NULL, *b = NULL;
-    CachePointStats sa, sb;
-    int ra = cachepoints_build(&a, cand, NC, &L, &cam, &P, &sa);
-    P.parallel_for = reverse_parallel_for;
-    int rb = cachepoints_build(&b, cand, NC, &L, &cam, &P, &sb);
-    CHECK(ra == 0 && rb == 0, "build %d %d", ra, rb);
-    if (ra || rb) return test_exit();
-    fprintf(stderr, "candidates %u -> pass 1 %u -> final %u points, %.3f s, %zu bytes\n", sa.candidates,
-            sa.after_pass1, sa.final_points, sa.seconds, sa.bytes);
-    CHECK(sa.final_points > 10 && sa.final_points < sa.after_pass1 && sa.after_pass1 <= sa.candidates,
-          "merging: %u -> %u -> %u", sa.candidates, sa.after_pass1, sa.final_points);
-    CHECK(cachepoints_count(a) == cachepoints_count(b), "point counts differ: %u vs %u", cachepoints_count(a), cachepoints_count(b));
-    int same = cachepoints_count(a) == cachepoints_count(b);
-    for (uint32_t i = 0; same && i < cachepoints_count(a); ++i) {
-        float pa[3], pb[3], r1, r2;
-        cachepoints_point(a, i, pa, &r1);
-        cachepoints_point(b, i, pb, &r2);
-        if (memcmp(pa, pb, sizeof pa) != 0 || r1 != r2) same = 0;
-    }
-    CHECK(same, "builds differ between serial and reversed-parallel execution");
-
-    /* PMFs: sum to one; select reports exactly pmf(); identical between the two builds */
-    int mismatch = 0, differ = 0;
-    for (int q = 0; q < 10; ++q) {
-        float x[3] = {(float)(rnd() * 10), (float)(rnd() * 10), (float)(rnd() * 10)};
-        float nrm[3] = {(float)(rnd() - 0.5), (float)(rnd() - 0.5), (float)(rnd() - 0.5)};
-        float len = sqrtf(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
-        for (int k = 0; k < 3; ++k) nrm[k] /= len;
-        const float *n = q % 3 == 0 ? NULL : nrm;
-        double sum = 0.0;
-        for (uint32_t l = 0; l < NL; ++l) {
-            float pa = cachepoints_pmf(a, &L, x, n, UINT32_MAX, l);
-            sum += pa;
-            if (pa != cachepoints_pmf(b, &L, x, n, UINT32_MAX, l)) ++differ;
-        }
-        CHECK(fabs(sum - 1.0) < 1e-4, "pmf sums to %.7f", sum);
-        enum { S = 20000 };
-        static uint32_t hist[NL];
-        memset(hist, 0, sizeof hist);
-        for (int s = 0; s < S; ++s) {
-            float pmf;
-            uint32_t cpi;
-            uint32_t l = cachepoints_select(a, &L, x, n, UINT32_MAX, (float)rnd(), &pmf, &cpi);
-            if (l >= NL || pmf != cachepoints_pmf(a, &L, x, n, UINT32_MAX, l) || pmf != cachepoints_pmf(a, &L, x, n, cpi, l) ||
-                cpi != cachepoints_nearest(a, x))
-                ++mismatch;
-            else hist[l]++;
-        }
-        double chi2 = 0.0, pooled_o = 0.0, pooled_e = 0.0;
-        int dof = -1;
-        for (uint32_t l = 0; l < NL; ++l) {
-            double e = S * (double)cachepoints_pmf(a, &L, x, n, UINT32_MAX, l);
-            if (e < 5.0) { pooled_o += hist[l]; pooled_e += e; continue; }
-            chi2 += (hist[l] - e) * (hist[l] - e) / e;
-            ++dof;
-        }
-        if (pooled_e > 5.0) { chi2 += (pooled_o - pooled_e) * (pooled_o - pooled_e) / pooled_e; ++dof; }
-        if (dof > 0) {
-            double limit = dof * pow(1.0 - 2.0 / (9.0 * dof) + 4.5 * sqrt(2.0 / (9.0 * dof)), 3.0);
-            CHECK(chi2 < limit, "selection chi2 %.1f > %.1f (dof %d)", chi2, limit, dof);
-        }
-    }
-    CHECK(mismatch == 0, "%d selections disagree with cachepoints_pmf", mismatch);
-    CHECK(differ == 0, "%d pmfs differ between the serial and parallel builds", differ);
-
-    /* visibility learning: the most probable light at x0 always fails, the others succeed */
-    float x0[3] = {5, 5, 5};
-    uint32_t p0 = cachepoints_nearest(a, x0), best = 0;
-    for (uint32_t l = 1; l < NL; ++l)
-        if (cachepoints_pmf(a, &L, x0, NULL, UINT32_MAX, l) > cachepoints_pmf(a, &L, x0, NULL, UINT32_MAX, best)) best = l;
-    float before = cachepoints_pmf(a, &L, x0, NULL, UINT32_MAX, best);
-    for (uint32_t p = 0; p < cachepoints_count(a); ++p)
-        for (int t = 0; t < 99; ++t)
-            for (uint32_t l = 0; l < NL; ++l) cachepoints_record(a, p, l, l != best);
-    cachepoints_update_visibility(a);
-    float wb = cachepoints_visibility(a, p0, best), wo = cachepoints_visibility(a, p0, best == 0 ? 1 : 0);
-    float after = cachepoints_pmf(a, &L, x0, NULL, UINT32_MAX, best);
-    fprintf(stderr, "visibility: W'(occluded) %.4f, W'(other) %.4f; pmf(occluded) %.5f -> %.5f\n", wb, wo, before, after);
-    CHECK(fabsf(wb - 0.0625f) < 1e-5f, "never-visible light after 99 attempts: W' = %g, expected 625/100^2", wb);
-    CHECK(fabsf(wo - 1.0f) < 1e-6f, "a visible light keeps W' = 1 (%g)", wo);
-    CHECK(after < 0.5f * before, "learning must push the occluded light down (%g -> %g)", before, after);
-    CHECK(after >= 0.03f / NL * 0.999f, "the uniform floor keeps every light selectable (%g)", after);
-    cachepoints_free(a);
-    cachepoints_free(b);
+    CachePointTree T = {node_count, second, leaf_light, light_leaf, tree_bounds, tree_estimate7, tree_descend, tree_descend_pmf};
+    CachePointLights L = {NL, light_pos, light_inf, point_estimate7, point_estimate, NULL, &T};
+    run(&L, cand, NC, 0);
+    run(&L, cand, NC, 1);
     return test_exit();
 }

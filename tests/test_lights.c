@@ -51,7 +51,7 @@ static void check_strategy_occl(const char *path, CandelaLightSampler strategy, 
         int mismatch = 0;
         for (int s = 0; s < N; ++s) {
             float pmf;
-            uint32_t i = light_select(ls, &ctx, rng_uniform(key, 1000 + s), &pmf);
+            uint32_t i = light_select(ls, &ctx, rng_uniform(key, 1000 + s), rng_uniform(key, 900000 + s), &pmf, NULL);
             if (i >= ls->count || pmf != light_select_pmf(ls, &ctx, i)) ++mismatch;
             else hist[i]++;
         }

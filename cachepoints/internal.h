@@ -1,0 +1,94 @@
+/* cachepoints/internal.h (private): the CachePoints structure shared by the build (build.c)
+ * and the render-time side (lookup.c: visibility learning and selection).
+ *
+ * Entries are addressed by *keys*. With the linear build (the paper's) a key is a light
+ * index. With the cut build a key is a node of the scene's light tree (a depth-first binary
+ * tree, so the lights below node k are exactly the leaves with keys in [k, key_end[k])), and
+ * infinite lights, which are not in the tree, get the keys node_count, node_count + 1, ...
+ * A far entry whose key is not a leaf is a *cluster*: selecting it descends the light tree
+ * below the node. Every list is sorted by key, so "the entry holding light l" is one binary
+ * search for the last key <= key_of(l) followed by a range check. */
+#ifndef CANDELA_CACHEPOINTS_INTERNAL_H
+#define CANDELA_CACHEPOINTS_INTERNAL_H
+
+#include <stdint.h>
+
+#include "cachepoints.h"
+#include "kdtree.h"
+
+#define CP_MIN_POINTS 10
+#define CP_FAR_BINS 7
+#define CP_OMNI_BIN 6
+#define CP_NONE UINT32_MAX
+
+typedef struct FarEntry {
+    uint32_t key;
+    float value[CP_FAR_BINS]; /* irradiance on +X -X +Y -Y +Z -Z, fluence (unoccluded) */
+} FarEntry;
+
+struct CachePoints {
+    uint32_t n;
+    float *pos;                /* 3n */
+    float *radius;             /* n: r_p (§3.1.4) */
+    /* key space (see above); light_key == NULL means key == light (linear build) */
+    uint32_t num_lights, num_keys;
+    uint32_t *light_key;       /* cut: per light, its key (CP_NONE: in no entry, only the floor) */
+    uint32_t *key_end;         /* cut: per key, one past the last key of its subtree */
+    uint32_t *key_light;       /* cut: per key, its light (CP_NONE for a cluster) */
+    /* near lists (§3.1.3): keys sorted; the light and visibility slot of each entry */
+    uint32_t *near_off, *near_key, *near_light, *near_slot;
+    float *near_vis;           /* W' of each near entry (rebuilt at each barrier) */
+    /* far lists after the blur (§3.1.5), sorted by key, disjoint from the near list */
+    uint32_t *far_off;
+    FarEntry *far;
+    uint32_t *far_slot;        /* visibility slot of each far entry */
+    /* running sums of value x W' per point and bin (bin-major inside a point's block, so the
+     * binary search stays in one array). An entry's weight in bin i is defined as the
+     * difference of consecutive running sums: exactly the probability the search realises. */
+    float *far_cdf;
+    /* visibility (§3.2): one slot per key of the near and far lists, sorted by key */
+    uint32_t *vis_off, *vis_key;
+    uint32_t *h_total, *h_success; /* atomics */
+    float *w_blurred;              /* W' (Eq. 6, then the §3.2.2 blur) used at render time */
+    /* 16 nearest neighbours and normalised Eq. 4 weights, shared by both blurs */
+    uint32_t *nbr;
+    float *nbr_w, *self_w;
+    CachePointParams params;
+    CachePointStats stats;
+    KdTree kd;
+};
+
+static inline uint32_t cp_key_of_light(const CachePoints *cp, uint32_t light) {
+    if (light >= cp->num_lights) return CP_NONE;
+    return cp->light_key ? cp->light_key[light] : light;
+}
+static inline uint32_t cp_key_end(const CachePoints *cp, uint32_t key) {
+    return cp->key_end ? cp->key_end[key] : key + 1;
+}
+static inline uint32_t cp_key_light(const CachePoints *cp, uint32_t key) {
+    return cp->key_light ? cp->key_light[key] : key;
+}
+
+/* First index in a[lo, hi) whose value is >= key. */
+static inline uint32_t cp_lower_bound(const uint32_t *a, uint32_t lo, uint32_t hi, uint32_t key) {
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo) / 2;
+        if (a[mid] < key) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo;
+}
+
+/* Running sum of bin `bin` up to far entry k (inclusive) of point p. */
+static inline float *cp_cdf(const CachePoints *cp, uint32_t p, int bin, uint32_t k) {
+    uint32_t base = cp->far_off[p], count = cp->far_off[p + 1] - base;
+    return cp->far_cdf + (size_t)CP_FAR_BINS * base + (size_t)bin * count + (k - base);
+}
+
+/* lookup.c: builds the per-point render tables (near_vis, far_cdf) from w_blurred. */
+void cp_rebuild_tables(CachePoints *cp);
+/* build.c: the parallel-for of the params, or a serial loop. */
+void cp_run_parallel(const CachePointParams *p, size_t n, size_t grain, void (*fn)(void *, size_t, size_t, int),
+                     void *ctx);
+
+#endif

@@ -1,0 +1,296 @@
+/* cachepoints/lookup.c: online visibility learning (§3.2) and render-time light selection
+ * (§3.3) over the structure build.c produces (internal.h). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "internal.h"
+
+/* ---------------------------------------------------------------- visibility (§3.2) */
+
+float cachepoints_visibility_weight(uint32_t successes, uint32_t attempts, float r_min) {
+    float r = ((float)successes + 1.0f) / ((float)attempts + 1.0f); /* Eq. 5 */
+    return r <= r_min ? (r / r_min) * (r / r_min) : 1.0f;           /* Eq. 6: never 0 */
+}
+
+/* Where light `light` lives at point p: near entry (*near = 1) or far entry (the one whose
+ * key range holds the light's key); 0 when no entry of p holds it. */
+static int locate(const CachePoints *cp, uint32_t p, uint32_t light, int *near, uint32_t *at) {
+    uint32_t key = cp_key_of_light(cp, light);
+    if (key == CP_NONE) return 0;
+    uint32_t a0 = cp->near_off[p], a1 = cp->near_off[p + 1];
+    uint32_t k = cp_lower_bound(cp->near_key, a0, a1, key);
+    if (k < a1 && cp->near_key[k] == key) { *near = 1; *at = k; return 1; }
+    /* the last far entry with key <= the light's key */
+    uint32_t lo = cp->far_off[p], hi = cp->far_off[p + 1];
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo) / 2;
+        if (cp->far[mid].key <= key) lo = mid + 1;
+        else hi = mid;
+    }
+    if (lo == cp->far_off[p]) return 0;
+    const FarEntry *f = &cp->far[lo - 1];
+    if (key >= cp_key_end(cp, f->key)) return 0;
+    *near = 0;
+    *at = lo - 1;
+    return 1;
+}
+
+uint32_t cachepoints_slot(const CachePoints *cp, uint32_t point, uint32_t light) {
+    int near;
+    uint32_t at;
+    if (!cp || point >= cp->n || !locate(cp, point, light, &near, &at)) return CP_NONE;
+    return near ? cp->near_slot[at] : cp->far_slot[at];
+}
+
+void cachepoints_record(CachePoints *cp, uint32_t slot, int success) {
+    if (!cp || slot >= cp->vis_off[cp->n]) return; /* only listed lights have counters (spec §4.1) */
+    __atomic_fetch_add(success ? &cp->h_success[slot] : &cp->h_total[slot], 1u, __ATOMIC_RELAXED);
+}
+
+float cachepoints_visibility(const CachePoints *cp, uint32_t point, uint32_t light) {
+    uint32_t slot = cachepoints_slot(cp, point, light);
+    return slot == CP_NONE ? 1.0f : cp->w_blurred[slot];
+}
+
+typedef struct VisCtx { CachePoints *cp; uint32_t max_slots; int failed; } VisCtx;
+
+static inline float slot_weight(const CachePoints *cp, uint32_t s) {
+    return cachepoints_visibility_weight(cp->h_success[s], cp->h_total[s], cp->params.r_min);
+}
+
+/* §3.2.2: W'(p,e) = w_p W(p,e) + sum over neighbours n holding key e of w_n W(n,e), with W
+ * from Eqs. 5-6 on the counters; with vis_blur_renorm the sum is divided by the weights of
+ * the points that hold e, so a fully visible light keeps W' = 1 however few neighbours
+ * list it. Each neighbour's sorted slot list is merged against p's in one linear walk. */
+static void vis_blur_range(void *vctx, size_t b, size_t e, int thread) {
+    (void)thread;
+    VisCtx *c = vctx;
+    CachePoints *cp = c->cp;
+    uint32_t K = cp->params.blur_neighbours;
+    float *wsum = malloc(((size_t)c->max_slots + 1) * sizeof(float));
+    if (!wsum) { c->failed = 1; return; }
+    for (size_t p = b; p < e; ++p) {
+        uint32_t s0 = cp->vis_off[p], s1 = cp->vis_off[p + 1];
+        for (uint32_t s = s0; s < s1; ++s) {
+            cp->w_blurred[s] = cp->self_w[p] * slot_weight(cp, s);
+            wsum[s - s0] = cp->self_w[p];
+        }
+        for (uint32_t j = 0; j < K; ++j) {
+            uint32_t nb = cp->nbr[p * K + j];
+            if (nb == CP_NONE) continue;
+            float w = cp->nbr_w[p * K + j];
+            uint32_t a = s0, q = cp->vis_off[nb], q1 = cp->vis_off[nb + 1];
+            while (a < s1 && q < q1) {
+                uint32_t ka = cp->vis_key[a], kq = cp->vis_key[q];
+                if (ka < kq) ++a;
+                else if (ka > kq) ++q;
+                else {
+                    cp->w_blurred[a] += w * slot_weight(cp, q);
+                    wsum[a - s0] += w;
+                    ++a; ++q;
+                }
+            }
+        }
+        if (cp->params.vis_blur_renorm)
+            for (uint32_t s = s0; s < s1; ++s) cp->w_blurred[s] /= wsum[s - s0];
+    }
+    free(wsum);
+}
+
+typedef struct TableCtx { CachePoints *cp; } TableCtx;
+
+/* Per point: W' of each near entry, and per bin the running sums of value x W'. */
+static void tables_range(void *vctx, size_t b, size_t e, int thread) {
+    (void)thread;
+    CachePoints *cp = ((TableCtx *)vctx)->cp;
+    for (size_t p = b; p < e; ++p) {
+        for (uint32_t k = cp->near_off[p]; k < cp->near_off[p + 1]; ++k) cp->near_vis[k] = cp->w_blurred[cp->near_slot[k]];
+        for (int i = 0; i < CP_FAR_BINS; ++i) {
+            double run = 0.0;
+            for (uint32_t k = cp->far_off[p]; k < cp->far_off[p + 1]; ++k) {
+                float v = cp->far[k].value[i];
+                if (v > 0.0f && isfinite(v)) run += (double)(v * cp->w_blurred[cp->far_slot[k]]);
+                *cp_cdf(cp, (uint32_t)p, i, k) = (float)run;
+            }
+        }
+    }
+}
+
+void cp_rebuild_tables(CachePoints *cp) {
+    TableCtx c = {cp};
+    cp_run_parallel(&cp->params, cp->n, 256, tables_range, &c);
+}
+
+void cachepoints_update_visibility(CachePoints *cp) {
+    if (!cp || !cp->params.visibility) return;
+    VisCtx c = {cp, 0, 0};
+    for (uint32_t p = 0; p < cp->n; ++p) {
+        uint32_t s = cp->vis_off[p + 1] - cp->vis_off[p];
+        if (s > c.max_slots) c.max_slots = s;
+    }
+    cp_run_parallel(&cp->params, cp->n, 256, vis_blur_range, &c);
+    if (c.failed) { /* out of memory: keep W' = 1 rather than half-updated weights */
+        for (uint32_t s = 0; s < cp->vis_off[cp->n]; ++s) cp->w_blurred[s] = 1.0f;
+    }
+    cp_rebuild_tables(cp);
+}
+
+/* ---------------------------------------------------------------- selection (§3.3) */
+
+/* Far bins are blended by b_i(n) = max(0, n.a_i)^2, which sums to 1 for a unit normal
+ * (spec §5.3); without a normal (volumes, transmissive surfaces) only the fluence bin. */
+static void bin_blend(const float *n, float b[CP_FAR_BINS]) {
+    for (int i = 0; i < CP_FAR_BINS; ++i) b[i] = 0.0f;
+    if (!n) { b[CP_OMNI_BIN] = 1.0f; return; }
+    b[0] = n[0] > 0.0f ? n[0] * n[0] : 0.0f;
+    b[1] = n[0] < 0.0f ? n[0] * n[0] : 0.0f;
+    b[2] = n[1] > 0.0f ? n[1] * n[1] : 0.0f;
+    b[3] = n[1] < 0.0f ? n[1] * n[1] : 0.0f;
+    b[4] = n[2] > 0.0f ? n[2] * n[2] : 0.0f;
+    b[5] = n[2] < 0.0f ? n[2] * n[2] : 0.0f;
+}
+
+/* Exact weight of near entry k at the vertex: its estimate times W' (§3.3). */
+static float near_weight(const CachePoints *cp, const CachePointLights *L, uint32_t k, const float x[3],
+                         const float *n) {
+    float w = L->estimate(L->user, cp->near_light[k], x, n);
+    if (!(w > 0.0f) || !isfinite(w)) return 0.0f;
+    return w * cp->near_vis[k];
+}
+
+/* Weight of far entry k of point p in bin i: the step of the running sums (what the binary
+ * search realises), blended over the bins. Select and pmf both call this. */
+static float far_weight(const CachePoints *cp, uint32_t p, uint32_t k, const float b[CP_FAR_BINS]) {
+    float w = 0.0f;
+    for (int i = 0; i < CP_FAR_BINS; ++i) {
+        if (!(b[i] > 0.0f)) continue;
+        const float *c = cp_cdf(cp, p, i, k);
+        w += b[i] * (k > cp->far_off[p] ? c[0] - c[-1] : c[0]);
+    }
+    return w;
+}
+
+static float far_total(const CachePoints *cp, uint32_t p, const float b[CP_FAR_BINS]) {
+    float t = 0.0f;
+    uint32_t last = cp->far_off[p + 1];
+    if (last == cp->far_off[p]) return 0.0f;
+    for (int i = 0; i < CP_FAR_BINS; ++i)
+        if (b[i] > 0.0f) t += b[i] * *cp_cdf(cp, p, i, last - 1);
+    return t;
+}
+
+static inline float pmf_from(float w, float total, float eps, uint32_t count) {
+    if (!(total > 0.0f)) return 1.0f / (float)count;
+    return (1.0f - eps) * (w / total) + eps / (float)count;
+}
+
+uint32_t cachepoints_nearest(const CachePoints *cp, const float x[3]) {
+    return kdtree_nearest(&cp->kd, x, NULL);
+}
+
+void cachepoints_vertex(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
+                        uint32_t point, CachePointVertex *v) {
+    v->point = point < cp->n ? point : kdtree_nearest(&cp->kd, x, NULL);
+    float t = 0.0f;
+    for (uint32_t k = cp->near_off[v->point]; k < cp->near_off[v->point + 1]; ++k) t += near_weight(cp, L, k, x, n);
+    v->near_total = t;
+}
+
+/* Weight of `light` at the vertex (0 when no entry holds it): near exact, or the far entry's
+ * weight times the probability of descending from a cluster to the light. */
+static float light_weight(const CachePoints *cp, const CachePointLights *L, uint32_t p, const float x[3],
+                          const float *n, const float b[CP_FAR_BINS], uint32_t light, uint32_t *slot) {
+    int near;
+    uint32_t at;
+    *slot = CP_NONE;
+    if (!locate(cp, p, light, &near, &at)) return 0.0f;
+    if (near) { *slot = cp->near_slot[at]; return near_weight(cp, L, at, x, n); }
+    *slot = cp->far_slot[at];
+    float w = far_weight(cp, p, at, b);
+    uint32_t key = cp->far[at].key;
+    if (cp_key_light(cp, key) == CP_NONE) w *= L->tree->descend_pmf(L->user, key, x, n, light);
+    return w;
+}
+
+uint32_t cachepoints_select(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
+                            const CachePointVertex *v, float u, float u_descend, float *pmf, uint32_t *slot) {
+    uint32_t N = L->count, p = v->point;
+    float eps = cp->params.epsilon;
+    float b[CP_FAR_BINS];
+    bin_blend(n, b);
+    float ft = far_total(cp, p, b), total = v->near_total + ft;
+    uint32_t pick = CP_NONE;
+    float w = 0.0f;
+    *slot = CP_NONE;
+    if (total > 0.0f && u >= eps) {
+        float target = (u - eps) / (1.0f - eps) * total;
+        if (target < v->near_total) {
+            float cum = 0.0f;
+            for (uint32_t k = cp->near_off[p]; k < cp->near_off[p + 1]; ++k) {
+                float wk = near_weight(cp, L, k, x, n);
+                if (!(wk > 0.0f)) continue;
+                cum += wk;
+                pick = cp->near_light[k];
+                w = wk;
+                *slot = cp->near_slot[k];
+                if (target < cum) break;
+            }
+        }
+        if (pick == CP_NONE && ft > 0.0f) {
+            /* a bin, then an entry inside it by binary search over the running sums */
+            float t = fmaxf(target - v->near_total, 0.0f);
+            int bin = -1;
+            float cum = 0.0f;
+            uint32_t f0 = cp->far_off[p], f1 = cp->far_off[p + 1];
+            for (int i = 0; i < CP_FAR_BINS; ++i) {
+                float wi = b[i] > 0.0f ? b[i] * *cp_cdf(cp, p, i, f1 - 1) : 0.0f;
+                if (!(wi > 0.0f)) continue;
+                bin = i;
+                if (t < cum + wi) break;
+                cum += wi;
+            }
+            if (bin >= 0) {
+                float tb = (t - cum) / b[bin];
+                const float *cdf = cp_cdf(cp, p, bin, f0);
+                uint32_t lo = 0, hi = f1 - f0;
+                while (lo < hi) { /* first entry whose running sum exceeds tb */
+                    uint32_t mid = lo + (hi - lo) / 2;
+                    if (cdf[mid] <= tb) lo = mid + 1;
+                    else hi = mid;
+                }
+                if (lo >= f1 - f0) lo = f1 - f0 - 1;
+                /* rounding may land on a zero-weight entry: step back to one with weight */
+                while (lo > 0 && !(cdf[lo] > cdf[lo - 1])) --lo;
+                uint32_t k = f0 + lo, key = cp->far[k].key;
+                w = far_weight(cp, p, k, b);
+                *slot = cp->far_slot[k];
+                pick = cp_key_light(cp, key);
+                if (pick == CP_NONE) { /* a cluster: descend the light tree below it */
+                    float pd;
+                    pick = L->tree->descend(L->user, key, x, n, u_descend, &pd);
+                    w *= pd;
+                }
+            }
+        }
+    }
+    if (pick == CP_NONE || pick >= N) {
+        /* the uniform floor (or rounding at the end of the tables) */
+        float uu = total > 0.0f && u < eps ? u / eps : u;
+        pick = (uint32_t)(uu * (float)N);
+        if (pick >= N) pick = N - 1;
+        w = light_weight(cp, L, p, x, n, b, pick, slot);
+    }
+    *pmf = pmf_from(w, total, eps, N);
+    return pick;
+}
+
+float cachepoints_pmf(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
+                      const CachePointVertex *v, uint32_t light) {
+    if (light >= L->count) return 0.0f;
+    float b[CP_FAR_BINS];
+    bin_blend(n, b);
+    float total = v->near_total + far_total(cp, v->point, b);
+    uint32_t slot;
+    return pmf_from(light_weight(cp, L, v->point, x, n, b, light, &slot), total, cp->params.epsilon, L->count);
+}
