@@ -33,7 +33,7 @@ void cachepoints_default_params(CachePointParams *p) {
     p->visibility = 1;
     p->vis_blur_renorm = 1;
     p->build_cut = 0;
-    p->cut_size = 256;
+    p->cut_size = 128;
 }
 
 static double now_seconds(void) {
@@ -410,6 +410,25 @@ static int linear_point(const DistCtx *c, LinearScratch *s, size_t i) {
 
 /* --- cut: a cut through the light tree */
 
+/* Merge pass 2's omni distributions use cut_size / 4 entries (at least 32). */
+#define CUT_PASS2_DIVISOR 4
+#define CUT_PASS2_MIN 32
+
+/* Sorts (key << 32 | index) pairs by key: LSD radix over the key's bytes, skipping bytes
+ * every key shares. O(n) for the few hundred entries of a cut. */
+static void sort_by_key(uint64_t *a, uint64_t *tmp, uint32_t n) {
+    for (int byte = 4; byte < 8; ++byte) {
+        uint32_t count[256] = {0};
+        int shift = 8 * byte;
+        for (uint32_t i = 0; i < n; ++i) count[(a[i] >> shift) & 0xff]++;
+        if (n == 0 || count[(a[0] >> shift) & 0xff] == n) continue;
+        uint32_t sum = 0;
+        for (int d = 0; d < 256; ++d) { uint32_t c = count[d]; count[d] = sum; sum += c; }
+        for (uint32_t i = 0; i < n; ++i) tmp[count[(a[i] >> shift) & 0xff]++] = a[i];
+        memcpy(a, tmp, n * sizeof *a);
+    }
+}
+
 typedef struct HeapItem { float priority; uint32_t entry; } HeapItem; /* entry: index into the pool */
 
 typedef struct CutScratch {
@@ -506,7 +525,7 @@ static int cut_consider(const DistCtx *c, CutScratch *s, uint32_t key, const flo
     sanitize7(e->value);
     if (!any_positive7(e->value)) return 0; /* reachable through the uniform floor only */
     float pri = 0.0f;
-    for (int i = 0; i < CP_FAR_BINS; ++i) pri = fmaxf(pri, e->value[i]);
+    for (int i = 0; i < CP_FAR_BINS; ++i) pri = e->value[i] > pri ? e->value[i] : pri; /* (fmaxf is a libm call) */
     return heap_push(s, (HeapItem){pri, s->pool_count++});
 }
 
@@ -520,9 +539,11 @@ static int cut_point(const DistCtx *c, CutScratch *s, size_t i) {
     Dist *d = &c->dist[i];
     /* Eq. 1 near lights by a range query on the tree: subtrees whose box is farther than D r_p
      * hold none; leaves test the light's centroid as the linear build does. Depth-first,
-     * first child first: the keys come out sorted. */
+     * first child first: the keys come out sorted. Merge pass 2 compares pure fluence cuts
+     * (no near list: a strong nearby light is resolved to a leaf by the refinement anyway),
+     * which spares the range query and the forced splits for every pass-1 point. */
     s->near_count = 0;
-    if (T->node_count) {
+    if (T->node_count && !c->omni) {
         uint32_t stack[160];
         uint32_t top = 0;
         stack[top++] = 0;
@@ -567,10 +588,13 @@ static int cut_point(const DistCtx *c, CutScratch *s, size_t i) {
         float v = L->estimate(L->user, d->near_light[k], x, NULL);
         d->near_fluence[k] = v > 0.0f && isfinite(v) ? v : 0.0f;
     }
-    /* the cut: split the queued entry of largest estimate while the budget allows */
+    /* the cut: split the queued entry of largest estimate while the budget allows. Merge
+     * pass 2 only compares omni distributions, which a coarser cut describes well enough. */
+    uint32_t budget = c->omni ? (P->cut_size / CUT_PASS2_DIVISOR > CUT_PASS2_MIN ? P->cut_size / CUT_PASS2_DIVISOR : CUT_PASS2_MIN)
+                              : P->cut_size;
     s->pool_count = s->heap_count = s->final_count = 0;
     if (T->node_count && cut_consider(c, s, 0, x) != 0) return -1;
-    while (s->heap_count && s->final_count + s->heap_count + 1 <= P->cut_size) {
+    while (s->heap_count && s->final_count + s->heap_count + 1 <= budget) {
         HeapItem it = heap_pop(s);
         uint32_t key = s->pool[it.entry].key;
         if (K->key_light[key] != CP_NONE) { /* a single light: final */
@@ -596,11 +620,11 @@ static int cut_point(const DistCtx *c, CutScratch *s, size_t i) {
         if (any_positive7(e->value)) ++m;
     }
     /* sort by key (keys are unique) */
-    uint64_t *order = malloc((m ? m : 1) * sizeof *order);
+    uint64_t *order = malloc(2 * (size_t)(m ? m : 1) * sizeof *order);
     FarEntry *sorted = malloc((m ? m : 1) * sizeof *sorted);
     if (!order || !sorted) { free(order); free(sorted); return -1; }
     for (uint32_t k = 0; k < m; ++k) order[k] = (uint64_t)d->far[k].key << 32 | k;
-    sort_u64(order, m);
+    sort_by_key(order, order + m, m);
     for (uint32_t k = 0; k < m; ++k) sorted[k] = d->far[(uint32_t)order[k]];
     free(order);
     free(d->far);
@@ -849,22 +873,26 @@ static void blur_cut_range(void *vctx, size_t b, size_t e, int thread) {
             if (src == CP_NONE) continue;
             float w = cp->nbr_w[i * K + j];
             const Dist *d = &c->dist[src];
+            /* both lists ascend and a cut's entries are disjoint key ranges, so one forward
+             * walk finds every entry's place: at = the first of p's keys above B's key */
+            uint32_t at = 0;
             for (uint32_t q = 0; q < d->far_count; ++q) {
                 const FarEntry *B = &d->far[q];
-                uint32_t at = cp_lower_bound(keys, 0, m, B->key + 1); /* first key > B */
+                while (at < m && keys[at] <= B->key) ++at;
                 if (at > 0 && B->key < cp_key_end(cp, keys[at - 1])) { /* held by entry at - 1 */
                     for (int bin = 0; bin < CP_FAR_BINS; ++bin) out->far[at - 1].value[bin] += w * B->value[bin];
                     continue;
                 }
-                uint32_t lo = at, hi = cp_lower_bound(keys, lo, m, cp_key_end(cp, B->key));
+                uint32_t lo = at, hi = at, end = cp_key_end(cp, B->key);
+                while (hi < m && keys[hi] < end) ++hi;
                 if (lo == hi) continue;
                 for (int bin = 0; bin < CP_FAR_BINS; ++bin) {
                     if (!(B->value[bin] > 0.0f)) continue;
-                    double s = 0.0;
-                    for (uint32_t k = lo; k < hi; ++k) s += own->far[k].value[bin];
-                    if (!(s > 0.0)) continue;
+                    double sum = 0.0;
+                    for (uint32_t k = lo; k < hi; ++k) sum += own->far[k].value[bin];
+                    if (!(sum > 0.0)) continue;
                     for (uint32_t k = lo; k < hi; ++k)
-                        out->far[k].value[bin] += (float)((double)w * B->value[bin] * own->far[k].value[bin] / s);
+                        out->far[k].value[bin] += (float)((double)w * B->value[bin] * own->far[k].value[bin] / sum);
                 }
             }
         }
@@ -926,73 +954,105 @@ void cachepoints_free(CachePoints *cp) {
     free(cp->near_off); free(cp->near_key); free(cp->near_light); free(cp->near_slot); free(cp->near_vis);
     free(cp->far_off); free(cp->far); free(cp->far_slot); free(cp->far_cdf);
     free(cp->vis_off); free(cp->vis_key); free(cp->h_total); free(cp->h_success); free(cp->w_blurred);
+    free(cp->vis_low); free(cp->vis_active); free(cp->tables_dirty);
     free(cp->nbr); free(cp->nbr_w); free(cp->self_w);
     free(cp);
 }
 
 /* Flattens the final points' near lists and blurred far lists into CSR arrays (far entries a
  * near list also holds are dropped: near lights are evaluated exactly, spec §5.3), with one
- * visibility slot per key. Frees the per-point lists as it goes. */
-static int flatten(CachePoints *cp, Dist *dist, Dist *blurred) {
-    uint32_t n = cp->n;
-    size_t near_total = 0, far_total = 0;
-    for (uint32_t i = 0; i < n; ++i) { near_total += dist[i].near_count; far_total += blurred[i].far_count; }
-    if (near_total + far_total >= UINT32_MAX) return -1; /* offsets are 32-bit */
-    cp->near_off = malloc((n + 1) * sizeof(uint32_t));
-    cp->near_key = malloc((near_total + 1) * sizeof(uint32_t));
-    cp->near_light = malloc((near_total + 1) * sizeof(uint32_t));
-    cp->near_slot = malloc((near_total + 1) * sizeof(uint32_t));
-    cp->near_vis = malloc((near_total + 1) * sizeof(float));
-    cp->far_off = malloc((n + 1) * sizeof(uint32_t));
-    cp->far = malloc((far_total + 1) * sizeof(FarEntry));
-    cp->far_slot = malloc((far_total + 1) * sizeof(uint32_t));
-    cp->vis_off = malloc((n + 1) * sizeof(uint32_t));
-    cp->vis_key = malloc((near_total + far_total + 1) * sizeof(uint32_t));
-    if (!cp->near_off || !cp->near_key || !cp->near_light || !cp->near_slot || !cp->near_vis || !cp->far_off ||
-        !cp->far || !cp->far_slot || !cp->vis_off || !cp->vis_key)
-        return -1;
-    size_t a = 0, f = 0, v = 0, clusters = 0;
-    for (uint32_t i = 0; i < n; ++i) {
-        cp->near_off[i] = (uint32_t)a;
-        cp->far_off[i] = (uint32_t)f;
-        cp->vis_off[i] = (uint32_t)v;
-        const Dist *d = &dist[i], *bl = &blurred[i];
-        /* one merge walk over the two sorted lists: copy, drop duplicates, assign slots */
-        uint32_t x = 0, y = 0;
+ * visibility slot per key: a parallel count, prefix sums, then a parallel fill that frees
+ * the per-point lists as it goes. */
+typedef struct FlattenCtx { CachePoints *cp; Dist *dist, *blurred; int fill; size_t clusters[64]; } FlattenCtx;
+
+static void flatten_range(void *vctx, size_t b, size_t e, int thread) {
+    FlattenCtx *c = vctx;
+    CachePoints *cp = c->cp;
+    size_t clusters = 0;
+    for (size_t i = b; i < e; ++i) {
+        Dist *d = &c->dist[i], *bl = &c->blurred[i];
+        uint32_t a = 0, f = 0, v = 0, x = 0, y = 0;
+        if (c->fill) { a = cp->near_off[i]; f = cp->far_off[i]; v = cp->vis_off[i]; }
+        /* one merge walk over the two sorted lists */
         while (x < d->near_count || y < bl->far_count) {
             uint32_t kx = x < d->near_count ? d->near_key[x] : CP_NONE;
             uint32_t ky = y < bl->far_count ? bl->far[y].key : CP_NONE;
             if (kx <= ky) {
-                cp->near_key[a] = kx;
-                cp->near_light[a] = d->near_light[x];
-                cp->near_slot[a++] = (uint32_t)v;
-                cp->vis_key[v++] = kx;
-                ++x;
+                if (c->fill) {
+                    cp->near_key[a] = kx;
+                    cp->near_light[a] = d->near_light[x];
+                    cp->near_slot[a] = v;
+                    cp->vis_key[v] = kx;
+                }
+                ++a; ++v; ++x;
                 if (kx == ky) ++y; /* near wins */
             } else {
-                cp->far[f] = bl->far[y];
-                clusters += cp_key_light(cp, ky) == CP_NONE;
-                cp->far_slot[f++] = (uint32_t)v;
-                cp->vis_key[v++] = ky;
-                ++y;
+                if (c->fill) {
+                    cp->far[f] = bl->far[y];
+                    cp->far_slot[f] = v;
+                    cp->vis_key[v] = ky;
+                    clusters += cp_key_light(cp, ky) == CP_NONE;
+                }
+                ++f; ++v; ++y;
             }
         }
-        dist_free(&dist[i]);
-        dist_free(&blurred[i]);
+        if (c->fill) {
+            dist_free(d);
+            dist_free(bl);
+        } else { /* counts, turned into offsets by the caller */
+            cp->near_off[i + 1] = a;
+            cp->far_off[i + 1] = f;
+            cp->vis_off[i + 1] = v;
+        }
     }
-    cp->near_off[n] = (uint32_t)a;
-    cp->far_off[n] = (uint32_t)f;
-    cp->vis_off[n] = (uint32_t)v;
+    __atomic_fetch_add(&c->clusters[thread & 63], clusters, __ATOMIC_RELAXED);
+}
+
+static int flatten(CachePoints *cp, Dist *dist, Dist *blurred) {
+    uint32_t n = cp->n;
+    cp->near_off = malloc((n + 1) * sizeof(uint32_t));
+    cp->far_off = malloc((n + 1) * sizeof(uint32_t));
+    cp->vis_off = malloc((n + 1) * sizeof(uint32_t));
+    cp->vis_low = calloc(n + 1, 1);
+    cp->vis_active = calloc(n + 1, 1);
+    cp->tables_dirty = calloc(n + 1, 1);
+    if (!cp->near_off || !cp->far_off || !cp->vis_off || !cp->vis_low || !cp->vis_active || !cp->tables_dirty) return -1;
+    FlattenCtx c = {cp, dist, blurred, 0, {0}};
+    run_parallel(&cp->params, n, 64, flatten_range, &c);
+    size_t a = 0, f = 0, v = 0;
+    cp->near_off[0] = cp->far_off[0] = cp->vis_off[0] = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+        a += cp->near_off[i + 1];
+        f += cp->far_off[i + 1];
+        v += cp->vis_off[i + 1];
+        if (v >= UINT32_MAX) return -1; /* offsets are 32-bit */
+        cp->near_off[i + 1] = (uint32_t)a;
+        cp->far_off[i + 1] = (uint32_t)f;
+        cp->vis_off[i + 1] = (uint32_t)v;
+    }
+    cp->near_key = malloc((a + 1) * sizeof(uint32_t));
+    cp->near_light = malloc((a + 1) * sizeof(uint32_t));
+    cp->near_slot = malloc((a + 1) * sizeof(uint32_t));
+    cp->near_vis = malloc((a + 1) * sizeof(float));
+    cp->far = malloc((f + 1) * sizeof(FarEntry));
+    cp->far_slot = malloc((f + 1) * sizeof(uint32_t));
+    cp->vis_key = malloc((v + 1) * sizeof(uint32_t));
     cp->h_total = calloc(v + 1, sizeof(uint32_t));
     cp->h_success = calloc(v + 1, sizeof(uint32_t));
     cp->w_blurred = malloc((v + 1) * sizeof(float));
     cp->far_cdf = malloc((f + 1) * CP_FAR_BINS * sizeof(float));
-    if (!cp->h_total || !cp->h_success || !cp->w_blurred || !cp->far_cdf) return -1;
+    if (!cp->near_key || !cp->near_light || !cp->near_slot || !cp->near_vis || !cp->far || !cp->far_slot ||
+        !cp->vis_key || !cp->h_total || !cp->h_success || !cp->w_blurred || !cp->far_cdf)
+        return -1;
+    c.fill = 1;
+    run_parallel(&cp->params, n, 64, flatten_range, &c);
+    size_t clusters = 0;
+    for (int t = 0; t < 64; ++t) clusters += c.clusters[t];
     for (size_t s = 0; s < v; ++s) cp->w_blurred[s] = 1.0f; /* first iteration: W = 1 */
     uint32_t K = cp->params.blur_neighbours;
     cp->stats.bytes = (size_t)n * (3 + 1 + 3 + 2 * K + 1) * sizeof(float) + a * 16 + f * (sizeof(FarEntry) + 4 + 4 * CP_FAR_BINS) +
                       v * 16 + (size_t)cp->num_keys * 8 + (cp->light_key ? (size_t)cp->num_lights * 4 : 0) +
-                      (size_t)n * 16 /* kd-tree */;
+                      (size_t)n * 19 /* kd-tree, flags */;
     cp->stats.mean_near = n ? (double)a / n : 0.0;
     cp->stats.mean_far = n ? (double)f / n : 0.0;
     cp->stats.mean_far_clusters = n ? (double)clusters / n : 0.0;
@@ -1011,6 +1071,8 @@ int cachepoints_build(CachePoints **out, const float *cand, uint32_t num_candida
     CachePoints *cp = calloc(1, sizeof *cp);
     if (!cp) return -1;
     cp->params = *P;
+    if (cp->params.max_near > CACHEPOINTS_MAX_NEAR) cp->params.max_near = CACHEPOINTS_MAX_NEAR;
+    P = &cp->params;
     if (key_space_init(cp, L) != 0) { cachepoints_free(cp); return -1; }
     /* drop non-finite candidates */
     float *in = malloc(((size_t)num_candidates + 1) * 3 * sizeof(float));
@@ -1072,7 +1134,7 @@ int cachepoints_build(CachePoints **out, const float *cand, uint32_t num_candida
     free(deleted);
     /* the seven far bins for the survivors (§3.1.3) */
     if (!failed && n > 0) {
-        DistCtx dc = {pts, r0, L, P, cp, dist, NULL, 0};
+        DistCtx dc = {pts, radius, L, P, cp, dist, NULL, 0};
         run_parallel(P, n, 16, dist_range, &dc);
         failed = dc.failed;
     }
@@ -1103,7 +1165,7 @@ int cachepoints_build(CachePoints **out, const float *cand, uint32_t num_candida
     free(dist);
     free(blurred);
     if (failed || n == 0) { cachepoints_free(cp); return failed ? -1 : 1; }
-    cp_rebuild_tables(cp);
+    cp_rebuild_tables(cp, 1);
     st.final_points = n;
     st.bytes = cp->stats.bytes;
     st.mean_near = cp->stats.mean_near;

@@ -66,7 +66,7 @@ typedef struct CachePointParams {
     float near_factor;        /* D = 4 (Eq. 1) */
     float energy_fraction;    /* 0.97 per far bin (§3.1.3) */
     uint32_t min_per_bin, max_per_bin; /* 4, 256 */
-    uint32_t max_near;        /* 256 (spec §3.4 proposal) */
+    uint32_t max_near;        /* 256 (spec §3.4 proposal); at most CACHEPOINTS_MAX_NEAR */
     uint32_t blur_neighbours; /* 16 (§3.1.5) */
     float r_min;              /* 0.04 (Eq. 6) */
     float epsilon;            /* 0.03 uniform floor (spec §5.4) */
@@ -113,16 +113,24 @@ typedef struct CachePointVertex {
     float near_total;
 } CachePointVertex;
 
+/* Near lists hold at most this many lights (CachePointParams.max_near is clamped to it), so
+ * a caller can keep a vertex's near weights in a stack array. */
+#define CACHEPOINTS_MAX_NEAR 256
+
 /* The vertex at x with shading normal n (n == NULL: volumes and transmissive surfaces use
- * the fluence bin). point: the nearest cache point (ties: lowest index) when UINT32_MAX. */
+ * the fluence bin); its point is the nearest cache point (ties: lowest index). hint: a guess
+ * that speeds up the search without changing its result (the previous vertex's point in a
+ * coherent stream), or UINT32_MAX.
+ * near_w (may be NULL; CACHEPOINTS_MAX_NEAR floats) receives each near light's weight, which
+ * cachepoints_select then reuses instead of evaluating the near lights again. */
 void cachepoints_vertex(const CachePoints *cp, const CachePointLights *lights, const float x[3], const float *n,
-                        uint32_t point, CachePointVertex *v);
+                        uint32_t hint, CachePointVertex *v, float *near_w);
 /* Render-time selection (§3.3): near lights exact, far bins blended by n, visibility
  * weights, uniform floor epsilon; a cluster entry descends the light tree with u_descend.
  * *slot receives the visibility slot to count the attempt in (UINT32_MAX: none). */
 uint32_t cachepoints_select(const CachePoints *cp, const CachePointLights *lights, const float x[3],
-                            const float *n, const CachePointVertex *v, float u, float u_descend, float *pmf,
-                            uint32_t *slot);
+                            const float *n, const CachePointVertex *v, const float *near_w, float u, float u_descend,
+                            float *pmf, uint32_t *slot);
 /* Exactly the probability cachepoints_select gives `light` at the vertex. */
 float cachepoints_pmf(const CachePoints *cp, const CachePointLights *lights, const float x[3], const float *n,
                       const CachePointVertex *v, uint32_t light);

@@ -50,6 +50,9 @@ struct CachePoints {
     uint32_t *vis_off, *vis_key;
     uint32_t *h_total, *h_success; /* atomics */
     float *w_blurred;              /* W' (Eq. 6, then the §3.2.2 blur) used at render time */
+    uint8_t *vis_low;              /* per point: a slot has W < 1 (this barrier) */
+    uint8_t *vis_active;           /* per point: some W' != 1 (its tables are not the W = 1 ones) */
+    uint8_t *tables_dirty;         /* per point: W' changed, rebuild its tables */
     /* 16 nearest neighbours and normalised Eq. 4 weights, shared by both blurs */
     uint32_t *nbr;
     float *nbr_w, *self_w;
@@ -85,8 +88,9 @@ static inline float *cp_cdf(const CachePoints *cp, uint32_t p, int bin, uint32_t
     return cp->far_cdf + (size_t)CP_FAR_BINS * base + (size_t)bin * count + (k - base);
 }
 
-/* lookup.c: builds the per-point render tables (near_vis, far_cdf) from w_blurred. */
-void cp_rebuild_tables(CachePoints *cp);
+/* lookup.c: builds the per-point render tables (near_vis, far_cdf) from w_blurred, for every
+ * point (all != 0) or for those marked in tables_dirty. */
+void cp_rebuild_tables(CachePoints *cp, int all);
 /* build.c: the parallel-for of the params, or a serial loop. */
 void cp_run_parallel(const CachePointParams *p, size_t n, size_t grain, void (*fn)(void *, size_t, size_t, int),
                      void *ctx);

@@ -370,8 +370,16 @@ static void kd_near_rec(KdNear *r, size_t lo, size_t hi) {
 }
 
 uint32_t kdtree_nearest(const KdTree *tree, const float q[3], float *dist2) {
+    return kdtree_nearest_hint(tree, q, UINT32_MAX, dist2);
+}
+
+uint32_t kdtree_nearest_hint(const KdTree *tree, const float q[3], uint32_t hint, float *dist2) {
     KdNear r = {.nodes = tree ? tree->nodes : NULL, .axes = tree ? tree->axes : NULL,
                 .q = {q[0], q[1], q[2]}, .bd = INFINITY, .bi = UINT32_MAX};
+    if (tree && hint < tree->count) { /* an upper bound that prunes; the answer is unchanged */
+        float d = kd_dist2(tree->points + 3 * (size_t)hint, r.q);
+        if (d <= INFINITY) { r.bd = d; r.bi = hint; } /* (never a NaN point: those are never returned) */
+    }
     if (tree && tree->count) kd_near_rec(&r, 0, tree->count);
     if (dist2) *dist2 = r.bd;
     return r.bi;

@@ -41,5 +41,8 @@ uint32_t kdtree_knn(const KdTree *tree, const float q[3], uint32_t k, float radi
 
 /* The nearest point (ties: lowest index); UINT32_MAX when the tree is empty. */
 uint32_t kdtree_nearest(const KdTree *tree, const float q[3], float *dist2);
+/* The same with a guess (any point index, e.g. the previous query's answer for a coherent
+ * stream of queries): its distance bounds the search, the result is identical. */
+uint32_t kdtree_nearest_hint(const KdTree *tree, const float q[3], uint32_t hint, float *dist2);
 
 #endif

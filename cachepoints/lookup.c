@@ -55,23 +55,53 @@ float cachepoints_visibility(const CachePoints *cp, uint32_t point, uint32_t lig
 
 typedef struct VisCtx { CachePoints *cp; uint32_t max_slots; int failed; } VisCtx;
 
+/* Eq. 6 of a slot; W = 1 without a division while too few attempts were made for R to
+ * reach R_min (R >= 1 / (attempts + 1)). */
 static inline float slot_weight(const CachePoints *cp, uint32_t s) {
-    return cachepoints_visibility_weight(cp->h_success[s], cp->h_total[s], cp->params.r_min);
+    uint32_t t = cp->h_total[s];
+    if ((float)t * cp->params.r_min + cp->params.r_min < 0.999f) return 1.0f;
+    return cachepoints_visibility_weight(cp->h_success[s], t, cp->params.r_min);
+}
+
+static void vis_low_range(void *vctx, size_t b, size_t e, int thread) {
+    (void)thread;
+    CachePoints *cp = ((VisCtx *)vctx)->cp;
+    for (size_t p = b; p < e; ++p) {
+        uint8_t low = 0;
+        for (uint32_t s = cp->vis_off[p]; s < cp->vis_off[p + 1] && !low; ++s) low = slot_weight(cp, s) < 1.0f;
+        cp->vis_low[p] = low;
+    }
 }
 
 /* §3.2.2: W'(p,e) = w_p W(p,e) + sum over neighbours n holding key e of w_n W(n,e), with W
  * from Eqs. 5-6 on the counters; with vis_blur_renorm the sum is divided by the weights of
  * the points that hold e, so a fully visible light keeps W' = 1 however few neighbours
- * list it. Each neighbour's sorted slot list is merged against p's in one linear walk. */
+ * list it. Each neighbour's sorted slot list is merged against p's in one linear walk.
+ * With renorm, a point whose neighbourhood has W = 1 everywhere has W' = 1 everywhere: it
+ * is skipped (reset to 1 if it was not), so early barriers cost next to nothing. */
 static void vis_blur_range(void *vctx, size_t b, size_t e, int thread) {
     (void)thread;
     VisCtx *c = vctx;
     CachePoints *cp = c->cp;
     uint32_t K = cp->params.blur_neighbours;
+    int renorm = cp->params.vis_blur_renorm;
     float *wsum = malloc(((size_t)c->max_slots + 1) * sizeof(float));
     if (!wsum) { c->failed = 1; return; }
     for (size_t p = b; p < e; ++p) {
         uint32_t s0 = cp->vis_off[p], s1 = cp->vis_off[p + 1];
+        int need = !renorm || cp->vis_low[p];
+        for (uint32_t j = 0; j < K && !need; ++j) {
+            uint32_t nb = cp->nbr[p * K + j];
+            need = nb != CP_NONE && cp->vis_low[nb];
+        }
+        cp->tables_dirty[p] = (uint8_t)(need || cp->vis_active[p]);
+        if (!need) {
+            if (cp->vis_active[p])
+                for (uint32_t s = s0; s < s1; ++s) cp->w_blurred[s] = 1.0f;
+            cp->vis_active[p] = 0;
+            continue;
+        }
+        cp->vis_active[p] = 1;
         for (uint32_t s = s0; s < s1; ++s) {
             cp->w_blurred[s] = cp->self_w[p] * slot_weight(cp, s);
             wsum[s - s0] = cp->self_w[p];
@@ -80,31 +110,34 @@ static void vis_blur_range(void *vctx, size_t b, size_t e, int thread) {
             uint32_t nb = cp->nbr[p * K + j];
             if (nb == CP_NONE) continue;
             float w = cp->nbr_w[p * K + j];
+            int trivial = renorm && !cp->vis_low[nb]; /* every W of nb is 1 */
             uint32_t a = s0, q = cp->vis_off[nb], q1 = cp->vis_off[nb + 1];
             while (a < s1 && q < q1) {
                 uint32_t ka = cp->vis_key[a], kq = cp->vis_key[q];
                 if (ka < kq) ++a;
                 else if (ka > kq) ++q;
                 else {
-                    cp->w_blurred[a] += w * slot_weight(cp, q);
+                    cp->w_blurred[a] += w * (trivial ? 1.0f : slot_weight(cp, q));
                     wsum[a - s0] += w;
                     ++a; ++q;
                 }
             }
         }
-        if (cp->params.vis_blur_renorm)
+        if (renorm)
             for (uint32_t s = s0; s < s1; ++s) cp->w_blurred[s] /= wsum[s - s0];
     }
     free(wsum);
 }
 
-typedef struct TableCtx { CachePoints *cp; } TableCtx;
+typedef struct TableCtx { CachePoints *cp; int all; } TableCtx;
 
 /* Per point: W' of each near entry, and per bin the running sums of value x W'. */
 static void tables_range(void *vctx, size_t b, size_t e, int thread) {
     (void)thread;
-    CachePoints *cp = ((TableCtx *)vctx)->cp;
+    TableCtx *c = vctx;
+    CachePoints *cp = c->cp;
     for (size_t p = b; p < e; ++p) {
+        if (!c->all && !cp->tables_dirty[p]) continue;
         for (uint32_t k = cp->near_off[p]; k < cp->near_off[p + 1]; ++k) cp->near_vis[k] = cp->w_blurred[cp->near_slot[k]];
         for (int i = 0; i < CP_FAR_BINS; ++i) {
             double run = 0.0;
@@ -117,8 +150,8 @@ static void tables_range(void *vctx, size_t b, size_t e, int thread) {
     }
 }
 
-void cp_rebuild_tables(CachePoints *cp) {
-    TableCtx c = {cp};
+void cp_rebuild_tables(CachePoints *cp, int all) {
+    TableCtx c = {cp, all};
     cp_run_parallel(&cp->params, cp->n, 256, tables_range, &c);
 }
 
@@ -129,11 +162,15 @@ void cachepoints_update_visibility(CachePoints *cp) {
         uint32_t s = cp->vis_off[p + 1] - cp->vis_off[p];
         if (s > c.max_slots) c.max_slots = s;
     }
+    cp_run_parallel(&cp->params, cp->n, 256, vis_low_range, &c);
     cp_run_parallel(&cp->params, cp->n, 256, vis_blur_range, &c);
-    if (c.failed) { /* out of memory: keep W' = 1 rather than half-updated weights */
+    if (c.failed) { /* out of memory: W' = 1 everywhere rather than half-updated weights */
         for (uint32_t s = 0; s < cp->vis_off[cp->n]; ++s) cp->w_blurred[s] = 1.0f;
+        memset(cp->vis_active, 0, cp->n);
+        cp_rebuild_tables(cp, 1);
+        return;
     }
-    cp_rebuild_tables(cp);
+    cp_rebuild_tables(cp, 0);
 }
 
 /* ---------------------------------------------------------------- selection (§3.3) */
@@ -190,10 +227,15 @@ uint32_t cachepoints_nearest(const CachePoints *cp, const float x[3]) {
 }
 
 void cachepoints_vertex(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
-                        uint32_t point, CachePointVertex *v) {
-    v->point = point < cp->n ? point : kdtree_nearest(&cp->kd, x, NULL);
+                        uint32_t hint, CachePointVertex *v, float *near_w) {
+    v->point = kdtree_nearest_hint(&cp->kd, x, hint, NULL);
     float t = 0.0f;
-    for (uint32_t k = cp->near_off[v->point]; k < cp->near_off[v->point + 1]; ++k) t += near_weight(cp, L, k, x, n);
+    uint32_t k0 = cp->near_off[v->point];
+    for (uint32_t k = k0; k < cp->near_off[v->point + 1]; ++k) {
+        float w = near_weight(cp, L, k, x, n);
+        if (near_w) near_w[k - k0] = w;
+        t += w;
+    }
     v->near_total = t;
 }
 
@@ -214,7 +256,8 @@ static float light_weight(const CachePoints *cp, const CachePointLights *L, uint
 }
 
 uint32_t cachepoints_select(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
-                            const CachePointVertex *v, float u, float u_descend, float *pmf, uint32_t *slot) {
+                            const CachePointVertex *v, const float *near_w, float u, float u_descend, float *pmf,
+                            uint32_t *slot) {
     uint32_t N = L->count, p = v->point;
     float eps = cp->params.epsilon;
     float b[CP_FAR_BINS];
@@ -228,7 +271,7 @@ uint32_t cachepoints_select(const CachePoints *cp, const CachePointLights *L, co
         if (target < v->near_total) {
             float cum = 0.0f;
             for (uint32_t k = cp->near_off[p]; k < cp->near_off[p + 1]; ++k) {
-                float wk = near_weight(cp, L, k, x, n);
+                float wk = near_w ? near_w[k - cp->near_off[p]] : near_weight(cp, L, k, x, n);
                 if (!(wk > 0.0f)) continue;
                 cum += wk;
                 pick = cp->near_light[k];
@@ -239,7 +282,7 @@ uint32_t cachepoints_select(const CachePoints *cp, const CachePointLights *L, co
         }
         if (pick == CP_NONE && ft > 0.0f) {
             /* a bin, then an entry inside it by binary search over the running sums */
-            float t = fmaxf(target - v->near_total, 0.0f);
+            float t = target > v->near_total ? target - v->near_total : 0.0f;
             int bin = -1;
             float cum = 0.0f;
             uint32_t f0 = cp->far_off[p], f1 = cp->far_off[p + 1];

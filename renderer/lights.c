@@ -219,17 +219,18 @@ static void cp_vertex_of(const Lights *ls, const LightSampleContext *ctx, float 
     n[0] = ctx->n.x; n[1] = ctx->n.y; n[2] = ctx->n.z;
     *np = v3_is_black(ctx->n) ? NULL : n;
     if (ctx->cache_point1) { v->point = ctx->cache_point1 - 1u; v->near_total = ctx->cp_near_total; }
-    else cachepoints_vertex(ls->cachepoints, &ls->cp_view, x, *np, UINT32_MAX, v);
+    else cachepoints_vertex(ls->cachepoints, &ls->cp_view, x, *np, UINT32_MAX, v, NULL);
 }
 
-void lights_prepare_context(const Lights *ls, LightSampleContext *ctx) {
+void lights_prepare_context(const Lights *ls, LightSampleContext *ctx, uint32_t *hint) {
     ctx->cache_point1 = 0;
     ctx->cp_near_total = 0.0f;
     if (ls->strategy != CANDELA_LIGHT_SAMPLER_CACHEPOINTS || !ls->cachepoints) return;
-    float x[3], n[3];
-    const float *np;
+    float x[3] = {ctx->p.x, ctx->p.y, ctx->p.z}, n[3] = {ctx->n.x, ctx->n.y, ctx->n.z};
     CachePointVertex v;
-    cp_vertex_of(ls, ctx, x, n, &np, &v);
+    cachepoints_vertex(ls->cachepoints, &ls->cp_view, x, v3_is_black(ctx->n) ? NULL : n, hint ? *hint : UINT32_MAX, &v,
+                       ctx->cp_near_w);
+    if (hint) *hint = v.point;
     ctx->cache_point1 = v.point + 1u;
     ctx->cp_near_total = v.near_total;
 }
@@ -251,7 +252,9 @@ uint32_t light_select(const Lights *ls, const LightSampleContext *ctx, float u, 
         CachePointVertex v;
         uint32_t slot;
         cp_vertex_of(ls, ctx, x, n, &np, &v);
-        uint32_t light = cachepoints_select(ls->cachepoints, &ls->cp_view, x, np, &v, u, u_descend, pmf, &slot);
+        /* the near weights are valid only for the vertex prepare_context filled them for */
+        const float *near_w = ctx->cache_point1 ? ctx->cp_near_w : NULL;
+        uint32_t light = cachepoints_select(ls->cachepoints, &ls->cp_view, x, np, &v, near_w, u, u_descend, pmf, &slot);
         if (cp_slot) *cp_slot = slot;
         return light;
     }

@@ -60,6 +60,10 @@ typedef struct LightSampleContext {
      * one nearest-point query and one near-light pass (spec §5.1, §5.6). */
     uint32_t cache_point1;
     float cp_near_total;
+    /* scratch for the near lights' weights at this vertex (CACHEPOINTS_MAX_NEAR floats), filled
+     * by lights_prepare_context and reused by light_select; NULL: evaluate them again. Never
+     * stored: the MIS PDF at the next wave needs only one light's weight. */
+    float *cp_near_w;
 } LightSampleContext;
 
 typedef struct Lights {
@@ -108,10 +112,12 @@ void light_contribution_estimate7(const Lights *ls, const Light *l, vec3 p, floa
 /* cachepoint_setup.c: candidates (§3.1.1), estimate callbacks and the build; pool is the
  * renderer's ThreadPool. */
 int lights_build_cachepoints(struct Scene *scene, void *pool, const CandelaOptions *o, char err[CANDELA_ERR_LEN]);
-/* Fills ctx->cache_point1 and ctx->cp_near_total when cache points select lights (else
- * leaves them 0): once per vertex, before light_select and before storing the context for
- * the MIS PDF at the next wave. */
-void lights_prepare_context(const Lights *ls, LightSampleContext *ctx);
+/* Fills ctx->cache_point1 and ctx->cp_near_total (and ctx->cp_near_w) when cache points
+ * select lights (else leaves them 0): once per vertex, before light_select and before
+ * storing the context for the MIS PDF at the next wave. *hint (may be NULL) is the previous
+ * vertex's cache point of a coherent stream, updated: it speeds up the nearest-point search
+ * and never changes its result. */
+void lights_prepare_context(const Lights *ls, LightSampleContext *ctx, uint32_t *hint);
 
 /* A sampled point on a light as seen from a shading point. */
 typedef struct LightLiSample {

@@ -612,10 +612,12 @@ void light_tree_node_estimate7(const LightTree *t, uint32_t node, vec3 p, float 
     float fluence = I * maxf(cos_p, 0.0f) / maxf(dist2, r2);
     if (!(fluence > 0.0f) || !isfinite(fluence)) return;
     out[6] = fluence;
-    /* receiver cosine bound per axis: the direction from p to the cluster is -wo */
-    const float c[6] = {-wo.x, wo.x, -wo.y, wo.y, -wo.z, wo.z};
-    for (int i = 0; i < 6; ++i) {
-        float cos_i = c[i], sin_i = safe_sqrtf(1.0f - cos_i * cos_i);
-        out[i] = fluence * maxf(cos_sub_clamped(sin_i, cos_i, sin_b, cos_b), 0.0f);
+    /* receiver cosine bound per axis: the direction from p to the cluster is -wo; the two
+     * planes of an axis share the sine */
+    const float c[3] = {-wo.x, -wo.y, -wo.z};
+    for (int k = 0; k < 3; ++k) {
+        float sin_i = safe_sqrtf(1.0f - c[k] * c[k]);
+        out[2 * k] = fluence * maxf(cos_sub_clamped(sin_i, c[k], sin_b, cos_b), 0.0f);
+        out[2 * k + 1] = fluence * maxf(cos_sub_clamped(sin_i, -c[k], sin_b, cos_b), 0.0f);
     }
 }

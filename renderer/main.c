@@ -29,7 +29,7 @@ static const char *USAGE =
     "  --no-visibility           cache points without visibility learning\n"
     "  --cachepoint-build B      cut (default: far entries are light-tree clusters) | linear (the\n"
     "                            paper: every light estimated at every point)\n"
-    "  --cachepoint-cut-size N   cut build: far entries per cache point (default 256)\n"
+    "  --cachepoint-cut-size N   cut build: far entries per cache point (default 128)\n"
     "  --cachepoint-retruncate   linear build: re-apply the 97%/256 rule after the blur (less memory)\n"
     "  --optimal-occlusion       optimal sampler: one shadow ray per light per vertex\n"
     "  --light-units U           blender (default: cd/683, lux/683) | raw (W/sr, W/m^2)\n"

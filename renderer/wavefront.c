@@ -195,28 +195,32 @@ static inline uint64_t morton_spread(uint64_t x) {
 
 typedef struct SortCtx { Renderer *r; const uint32_t *items; uint64_t *keys; } SortCtx;
 
+/* 30-bit Morton code of p quantised over the scene bounds (10 bits per axis) */
+static inline uint64_t morton30(const Renderer *r, vec3 p) {
+    vec3 lo = r->scene.bounds_min;
+    vec3 ext = v3_sub(r->scene.bounds_max, lo);
+    const float cells = 1024.0f;
+    float f[3] = {(p.x - lo.x) / fmaxf(ext.x, 1e-20f), (p.y - lo.y) / fmaxf(ext.y, 1e-20f),
+                  (p.z - lo.z) / fmaxf(ext.z, 1e-20f)};
+    uint64_t q[3];
+    for (int k = 0; k < 3; ++k) {
+        float v = clampf(f[k], 0.0f, 0.999f) * cells;
+        q[k] = isfinite(v) ? (uint64_t)v : 0;
+    }
+    return morton_spread(q[0]) | morton_spread(q[1]) << 1 | morton_spread(q[2]) << 2;
+}
+
 static void ray_keys_range(void *vctx, size_t b, size_t e, int thread) {
     (void)thread;
     SortCtx *c = vctx;
     Renderer *r = c->r;
     const PathState *ps = &r->ps;
-    vec3 lo = r->scene.bounds_min;
-    vec3 ext = v3_sub(r->scene.bounds_max, lo);
-    const float cells = 1024.0f; /* 10 bits per axis after the 3-bit octant */
     for (size_t i = b; i < e; ++i) {
         uint32_t p = c->items[i];
         vec3 d = load3(ps->ray_dir, p), o = load3(ps->ray_org, p);
         uint64_t oct = (uint64_t)((d.x < 0) | ((d.y < 0) << 1) | ((d.z < 0) << 2));
-        uint64_t q[3];
-        float f[3] = {(o.x - lo.x) / fmaxf(ext.x, 1e-20f), (o.y - lo.y) / fmaxf(ext.y, 1e-20f),
-                      (o.z - lo.z) / fmaxf(ext.z, 1e-20f)};
-        for (int k = 0; k < 3; ++k) {
-            float v = clampf(f[k], 0.0f, 0.999f) * cells;
-            q[k] = isfinite(v) ? (uint64_t)v : 0;
-        }
-        uint64_t morton = morton_spread(q[0]) | morton_spread(q[1]) << 1 | morton_spread(q[2]) << 2;
         /* octant (3 bits) | Morton (30 bits); the stable sort keeps queue order for ties */
-        c->keys[i] = oct << 30 | morton;
+        c->keys[i] = oct << 30 | morton30(r, o);
     }
 }
 
@@ -229,8 +233,12 @@ static void hit_keys_range(void *vctx, size_t b, size_t e, int thread) {
         uint32_t p = c->items[i];
         const SceneInstance *inst = &r->scene.instances[ps->hit_inst[p]];
         uint64_t global = r->scene.io.meshes[inst->mesh].first_primitive + ps->hit_geom[p];
-        /* (geometry, primitive): the glTF primitive shares vertex data across instances */
-        c->keys[i] = global << 32 | ps->hit_prim[p];
+        /* (glTF primitive, Morton code of the hit point): the primitive shares material and
+         * vertex data across instances; inside it, spatial order keeps consecutive vertices
+         * near each other, so they share cache points and texture tiles (a large quad's two
+         * triangles say nothing about where on it a hit lies) */
+        vec3 hp = v3_madd(load3(ps->ray_org, p), load3(ps->ray_dir, p), ps->hit_t[p]);
+        c->keys[i] = global << 30 | morton30(r, hp);
     }
 }
 
@@ -367,6 +375,7 @@ static void shade_range(void *vctx, size_t b, size_t e, int thread) {
     const Scene *scene = &r->scene;
     const Lights *lights = &scene->lights;
     const uint32_t depth = c->depth;
+    uint32_t cp_hint = UINT32_MAX; /* hits are sorted by primitive: the last vertex's cache point is near */
     for (size_t i = b; i < e; ++i) {
         /* The hit queue is in (primitive, triangle) order, so slots are visited in random
          * order: prefetch the slot a few items ahead to overlap the cache misses. */
@@ -423,9 +432,10 @@ static void shade_range(void *vctx, size_t b, size_t e, int thread) {
         /* light-selection context: transmissive surfaces receive light from both sides, so
          * they use the omnidirectional (fluence) estimates, as volumes do (spec §5.2) */
         vec3 ctx_n = transmissive ? v3s(0.0f) : ns;
-        LightSampleContext lc = {h.p, ctx_n, 0, 0.0f};
+        float cp_near_w[CACHEPOINTS_MAX_NEAR];
+        LightSampleContext lc = {h.p, ctx_n, 0, 0.0f, cp_near_w};
         int delta = bsdf_is_delta(&m.bsdf);
-        if (!delta) lights_prepare_context(lights, &lc); /* one nearest-point query per vertex */
+        if (!delta) lights_prepare_context(lights, &lc, &cp_hint); /* one nearest-point query per vertex */
         /* next-event estimation */
         if (!delta && lights->count > 0) {
             float pmf;

@@ -192,8 +192,9 @@ static void run(const CachePointLights *L, const float *cand, uint32_t nc, int c
         const float *n;
         random_vertex(x, nrm, &n, q);
         CachePointVertex va, vb;
-        cachepoints_vertex(a, L, x, n, UINT32_MAX, &va);
-        cachepoints_vertex(b, L, x, n, UINT32_MAX, &vb);
+        float near_w[CACHEPOINTS_MAX_NEAR]; /* odd queries: select reuses the near weights */
+        cachepoints_vertex(a, L, x, n, UINT32_MAX, &va, q % 2 ? near_w : NULL);
+        cachepoints_vertex(b, L, x, n, UINT32_MAX, &vb, NULL);
         CHECK(va.point == cachepoints_nearest(a, x), "%s: the vertex uses the nearest point", mode);
         double sum = 0.0;
         for (uint32_t l = 0; l < NL; ++l) {
@@ -208,7 +209,7 @@ static void run(const CachePointLights *L, const float *cand, uint32_t nc, int c
         for (int s = 0; s < S; ++s) {
             float pmf;
             uint32_t slot;
-            uint32_t l = cachepoints_select(a, L, x, n, &va, (float)rnd(), (float)rnd(), &pmf, &slot);
+            uint32_t l = cachepoints_select(a, L, x, n, &va, q % 2 ? near_w : NULL, (float)rnd(), (float)rnd(), &pmf, &slot);
             if (l >= NL || pmf != cachepoints_pmf(a, L, x, n, &va, l) || slot != cachepoints_slot(a, va.point, l)) ++mismatch;
             else hist[l]++;
         }
@@ -233,7 +234,7 @@ static void run(const CachePointLights *L, const float *cand, uint32_t nc, int c
      * fails, every other slot always succeeds */
     float x0[3] = {5, 5, 5};
     CachePointVertex v0;
-    cachepoints_vertex(a, L, x0, NULL, UINT32_MAX, &v0);
+    cachepoints_vertex(a, L, x0, NULL, UINT32_MAX, &v0, NULL);
     uint32_t p0 = v0.point, best = UINT32_MAX;
     for (uint32_t l = 0; l < NL; ++l) {
         uint32_t s = cachepoints_slot(a, p0, l);
@@ -254,7 +255,7 @@ static void run(const CachePointLights *L, const float *cand, uint32_t nc, int c
             }
         }
     cachepoints_update_visibility(a);
-    cachepoints_vertex(a, L, x0, NULL, UINT32_MAX, &v0);
+    cachepoints_vertex(a, L, x0, NULL, UINT32_MAX, &v0, NULL);
     uint32_t other = best == 0 ? 1 : 0;
     float wb = cachepoints_visibility(a, p0, best), wo = cachepoints_visibility(a, p0, other);
     float after = cachepoints_pmf(a, L, x0, NULL, &v0, best);

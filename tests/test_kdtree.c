@@ -150,6 +150,13 @@ static void check_set(const char *name, const float *pts, uint32_t n, int querie
         uint32_t ni = kdtree_nearest(&tree, q, &nd);
         uint32_t bni = brute_nearest(pts, n, q, &bnd);
         ok = ni == bni && (n == 0 || same_bits(nd, bnd)) && kdtree_nearest(&tree, q, NULL) == bni;
+        /* a guess (a random point, the exact answer, the last point) never changes the answer */
+        if (n > 0) {
+            float hd;
+            uint32_t guesses[3] = {(uint32_t)((unsigned)qi * 7919u) % n, bni, n - 1};
+            for (int g = 0; g < 3 && ok; ++g)
+                ok = kdtree_nearest_hint(&tree, q, guesses[g], &hd) == bni && same_bits(hd, bnd);
+        }
         CHECK(ok, "%s: nearest q=(%g %g %g): tree %u (%g) vs brute %u (%g)", name, (double)q[0], (double)q[1],
               (double)q[2], ni, (double)nd, bni, (double)bnd);
         fails += !ok;

@@ -46,6 +46,16 @@ static void check_strategy_occl(const char *path, CandelaLightSampler strategy, 
         double sum = 0.0;
         for (uint32_t i = 0; i < ls->count; ++i) sum += light_select_pmf(ls, &ctx, i);
         CHECK(fabs(sum - 1.0) < 1e-4, "strategy %d: pmf sums to %.7f", (int)strategy, sum);
+        /* as the wavefront does: prepare the vertex once (its cache point, its near lights'
+         * weights); the prepared context must give exactly the unprepared probabilities */
+        float near_w[CACHEPOINTS_MAX_NEAR];
+        LightSampleContext raw = ctx;
+        ctx.cp_near_w = near_w;
+        lights_prepare_context(ls, &ctx, NULL);
+        int prepared_differs = 0;
+        for (uint32_t i = 0; i < ls->count; ++i) prepared_differs += light_select_pmf(ls, &ctx, i) != light_select_pmf(ls, &raw, i);
+        CHECK(prepared_differs == 0, "strategy %d: %d pmfs differ between prepared and raw contexts", (int)strategy,
+              prepared_differs);
         /* select/pmf consistency and frequencies */
         uint32_t *hist = calloc(ls->count, sizeof *hist);
         int mismatch = 0;
