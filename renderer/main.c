@@ -25,7 +25,7 @@ static const char *USAGE =
     "  --res WxH                 resolution (default: 640 wide, camera aspect)\n"
     "  --threads N               worker threads (default: all cores)\n"
     "  --max-depth N             maximum bounces; 1 = direct light only (default 8)\n"
-    "  --light-sampler S         uniform | power | tree | optimal | cachepoints (default power)\n"
+    "  --light-sampler S         uniform | power | tree | optimal | cachepoints (default cachepoints)\n"
     "  --no-visibility           cache points without visibility learning\n"
     "  --cachepoint-build B      cut (default: far entries are light-tree clusters) | linear (the\n"
     "                            paper: every light estimated at every point)\n"

@@ -1,10 +1,11 @@
 /* Unbiasedness of every light-selection strategy: on two scenes (tests/scenes/two_lights.gltf,
  * and occluded_lights.gltf with a wall, a doorway, 32 point lights, an area light and glass),
- * power, tree, optimal (with and without occlusion rays) and cache points (with and without
- * visibility learning) each converge to the same image as uniform. Tolerances come from the
- * renders' own per-pixel variances: the image-mean difference within 5 standard errors, and
- * the mean squared per-pixel z-score near 1. Also: cache point renders are bit-identical for
- * 1 and 2 threads. argv[1]: tests/scenes. */
+ * power, tree, optimal (with and without occlusion rays) and cache points (cut and linear
+ * builds, with and without visibility learning; a cut of 4 entries so that nearly every far
+ * sample descends a cluster) each converge to the same image as uniform. Tolerances come
+ * from the renders' own per-pixel variances: the image-mean difference within 5 standard
+ * errors, and the mean squared per-pixel z-score near 1. Also: cache point renders are
+ * bit-identical for 1 and 2 threads, with either build. argv[1]: tests/scenes. */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -12,8 +13,15 @@
 #include "candela.h"
 #include "check.h"
 
-static int render(const char *dir, const char *scene, CandelaLightSampler s, int occlusion, int novis, int retrunc, int spp,
-                  uint64_t seed, int threads, CandelaImage *img, CandelaStats *st) {
+typedef struct Strategy {
+    const char *name;
+    CandelaLightSampler s;
+    int occlusion, novis, retrunc, linear;
+    uint32_t cut_size;
+} Strategy;
+
+static int render(const char *dir, const char *scene, const Strategy *k, int spp, uint64_t seed, int threads,
+                  CandelaImage *img, CandelaStats *st) {
     char path[1024];
     snprintf(path, sizeof path, "%s/%s", dir, scene);
     CandelaOptions o;
@@ -25,10 +33,12 @@ static int render(const char *dir, const char *scene, CandelaLightSampler s, int
     o.threads = threads;
     o.quiet = 1;
     o.light_units = CANDELA_LIGHT_UNITS_RAW;
-    o.light_sampler = s;
-    o.optimal_occlusion = occlusion;
-    o.cachepoint_no_visibility = novis;
-    o.cachepoint_retruncate = retrunc;
+    o.light_sampler = k->s;
+    o.optimal_occlusion = k->occlusion;
+    o.cachepoint_no_visibility = k->novis;
+    o.cachepoint_retruncate = k->retrunc;
+    o.cachepoint_build_linear = k->linear;
+    o.cachepoint_cut_size = k->cut_size;
     char err[CANDELA_ERR_LEN];
     int rc = candela_render(&o, img, st, NULL, err);
     CHECK(rc == 0, "%s: %s", scene, err);
@@ -57,23 +67,26 @@ static void agree(const char *scene, const char *name, const CandelaImage *a, co
 int main(int argc, char **argv) {
     if (argc < 2) SKIP("usage: test_strategies SCENES_DIR");
     const char *scenes[2] = {"two_lights.gltf", "occluded_lights.gltf"};
-    struct { const char *name; CandelaLightSampler s; int occlusion, novis, retrunc; } strategies[] = {
-        {"power", CANDELA_LIGHT_SAMPLER_POWER, 0, 0},
-        {"tree", CANDELA_LIGHT_SAMPLER_TREE, 0, 0},
-        {"optimal", CANDELA_LIGHT_SAMPLER_OPTIMAL, 0, 0},
-        {"optimal+occlusion", CANDELA_LIGHT_SAMPLER_OPTIMAL, 1, 0},
-        {"cachepoints", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0},
-        {"cachepoints-novis", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 1},
-        {"cachepoints-retrunc", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 1},
+    const Strategy uniform = {"uniform", CANDELA_LIGHT_SAMPLER_UNIFORM, 0, 0, 0, 0, 0};
+    const Strategy strategies[] = {
+        {"power", CANDELA_LIGHT_SAMPLER_POWER, 0, 0, 0, 0, 0},
+        {"tree", CANDELA_LIGHT_SAMPLER_TREE, 0, 0, 0, 0, 0},
+        {"optimal", CANDELA_LIGHT_SAMPLER_OPTIMAL, 0, 0, 0, 0, 0},
+        {"optimal+occlusion", CANDELA_LIGHT_SAMPLER_OPTIMAL, 1, 0, 0, 0, 0},
+        {"cachepoints", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 0, 0},
+        {"cachepoints-novis", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 1, 0, 0, 0},
+        {"cachepoints-cut4", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 0, 4},
+        {"cachepoints-linear", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 1, 0},
+        {"cachepoints-lin-novis", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 1, 0, 1, 0},
+        {"cachepoints-lin-retrunc", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 1, 1, 0},
     };
     for (int sc = 0; sc < 2; ++sc) {
         CandelaImage ref;
         CandelaStats st;
-        if (render(argv[1], scenes[sc], CANDELA_LIGHT_SAMPLER_UNIFORM, 0, 0, 0, 1024, 1, 2, &ref, &st) != 0) continue;
+        if (render(argv[1], scenes[sc], &uniform, 1024, 1, 2, &ref, &st) != 0) continue;
         for (size_t k = 0; k < sizeof strategies / sizeof strategies[0]; ++k) {
             CandelaImage img;
-            if (render(argv[1], scenes[sc], strategies[k].s, strategies[k].occlusion, strategies[k].novis, strategies[k].retrunc, 128,
-                       100 + k, 2, &img, &st) != 0)
+            if (render(argv[1], scenes[sc], &strategies[k], 128, 100 + k, 2, &img, &st) != 0)
                 continue;
             if (strategies[k].s == CANDELA_LIGHT_SAMPLER_CACHEPOINTS)
                 CHECK(st.num_cachepoints >= 10, "%s: only %u cache points", scenes[sc], st.num_cachepoints);
@@ -90,7 +103,7 @@ int main(int argc, char **argv) {
         for (size_t k = 0; k < sizeof strategies / sizeof strategies[0]; ++k) {
             CandelaImage img;
             CandelaStats st;
-            if (render(argv[1], edge[e], strategies[k].s, strategies[k].occlusion, strategies[k].novis, strategies[k].retrunc, 4, 3, 2, &img, &st) != 0)
+            if (render(argv[1], edge[e], &strategies[k], 4, 3, 2, &img, &st) != 0)
                 continue;
             double sum = 0.0;
             int finite = 1;
@@ -101,17 +114,21 @@ int main(int argc, char **argv) {
             candela_image_free(&img);
         }
     }
-    /* determinism of the cache point build and of learning: 1 vs 2 threads */
-    CandelaImage a, b;
-    CandelaStats sa, sb;
-    if (render(argv[1], scenes[1], CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 16, 5, 1, &a, &sa) == 0 &&
-        render(argv[1], scenes[1], CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 16, 5, 2, &b, &sb) == 0) {
-        CHECK(sa.num_cachepoints == sb.num_cachepoints, "cache points: %u vs %u", sa.num_cachepoints, sb.num_cachepoints);
-        size_t bytes = (size_t)a.width * a.height * 3 * sizeof(float);
-        CHECK(memcmp(a.rgb, b.rgb, bytes) == 0 && memcmp(a.variance, b.variance, bytes) == 0,
-              "cache point render differs between 1 and 2 threads");
+    /* determinism of the cache point build and of learning, both builds: 1 vs 2 threads */
+    for (int linear = 0; linear < 2; ++linear) {
+        const Strategy *k = &strategies[linear ? 7 : 4];
+        CandelaImage a, b;
+        CandelaStats sa, sb;
+        if (render(argv[1], scenes[1], k, 16, 5, 1, &a, &sa) != 0) continue;
+        if (render(argv[1], scenes[1], k, 16, 5, 2, &b, &sb) == 0) {
+            CHECK(sa.num_cachepoints == sb.num_cachepoints, "%s: cache points: %u vs %u", k->name, sa.num_cachepoints,
+                  sb.num_cachepoints);
+            size_t bytes = (size_t)a.width * a.height * 3 * sizeof(float);
+            CHECK(memcmp(a.rgb, b.rgb, bytes) == 0 && memcmp(a.variance, b.variance, bytes) == 0,
+                  "%s: cache point render differs between 1 and 2 threads", k->name);
+            candela_image_free(&b);
+        }
         candela_image_free(&a);
-        candela_image_free(&b);
     }
     return test_exit();
 }
