@@ -13,9 +13,10 @@
  * Light selection goes through one interface so that MIS stays correct whatever the
  * strategy: light_select() picks a light for a shading context and returns its probability;
  * light_select_pmf() returns the probability the same context gives a named light. The two
- * must agree exactly (tests/test_lights.c). Strategies: uniform, power, and the light BVH
- * (lighttree.h: importance from the shading point and normal). Cache points (issue 3) plug
- * in as another LightSelectStrategy whose context carries the cache point index. */
+ * must agree exactly (tests/test_lights.c). Strategies: uniform, power, the light BVH
+ * (lighttree.h: importance from the shading point and normal), per-vertex optimal, and cache
+ * points (cachepoints/, set up in cachepoint_setup.c), whose context carries the vertex's
+ * cache point and near-light sum (lights_prepare_context). */
 #ifndef CANDELA_LIGHTS_H
 #define CANDELA_LIGHTS_H
 

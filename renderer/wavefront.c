@@ -377,7 +377,7 @@ static void shade_range(void *vctx, size_t b, size_t e, int thread) {
     const uint32_t depth = c->depth;
     uint32_t cp_hint = UINT32_MAX; /* hits are sorted by primitive: the last vertex's cache point is near */
     for (size_t i = b; i < e; ++i) {
-        /* The hit queue is in (primitive, triangle) order, so slots are visited in random
+        /* The hit queue is in (primitive, Morton) order, so slots are visited in random
          * order: prefetch the slot a few items ahead to overlap the cache misses. */
         if (i + SHADE_PREFETCH < e) prefetch_path(ps, c->items[i + SHADE_PREFETCH]);
         uint32_t p = c->items[i];
