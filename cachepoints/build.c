@@ -318,7 +318,9 @@ static int omni_build(const Dist *d, OmniDist *o) {
  * the final points; the full seven bins are computed afterwards for the survivors only. */
 typedef struct DistCtx {
     const float *pts;
-    const float *r0;
+    /* the r_p of Eq. 1: the final radius for the survivors; in the pass-1 phase, before
+     * §3.1.4 defines it, its initial guess r0 (the mean 20-NN distance) */
+    const float *near_radius;
     const CachePointLights *lights;
     const CachePointParams *params;
     const CachePoints *keys;   /* key space (cut build) */
@@ -345,7 +347,7 @@ static int linear_point(const DistCtx *c, LinearScratch *s, size_t i) {
     const CachePointParams *P = c->params;
     uint32_t N = L->count;
     const float *x = c->pts + 3 * i;
-    float rn = P->near_factor * c->r0[i];
+    float rn = P->near_factor * c->near_radius[i];
     Dist *d = &c->dist[i];
     float *values = s->values;
     /* Eq. 1: finite lights whose centroid lies within D r_p are near */
@@ -535,7 +537,7 @@ static int cut_point(const DistCtx *c, CutScratch *s, size_t i) {
     const CachePointParams *P = c->params;
     const CachePoints *K = c->keys;
     const float *x = c->pts + 3 * i;
-    float rn = P->near_factor * c->r0[i], rn2 = rn * rn;
+    float rn = P->near_factor * c->near_radius[i], rn2 = rn * rn;
     Dist *d = &c->dist[i];
     /* Eq. 1 near lights by a range query on the tree: subtrees whose box is farther than D r_p
      * hold none; leaves test the light's centroid as the linear build does. Depth-first,

@@ -88,14 +88,10 @@ static int setup_tree_view(Lights *ls) {
         ls->cp_leaf_light[k] = leaf ? nd->light : UINT32_MAX;
         if (leaf) ls->cp_light_leaf[nd->light] = k;
     }
-    ls->cp_tree.node_count = t->node_count;
-    ls->cp_tree.second_child = ls->cp_second;
-    ls->cp_tree.leaf_light = ls->cp_leaf_light;
-    ls->cp_tree.light_leaf = ls->cp_light_leaf;
-    ls->cp_tree.node_bounds = cp_node_bounds;
-    ls->cp_tree.node_estimate7 = cp_node_estimate7;
-    ls->cp_tree.descend = cp_descend;
-    ls->cp_tree.descend_pmf = cp_descend_pmf;
+    ls->cp_tree = (CachePointTree){.node_count = t->node_count, .second_child = ls->cp_second,
+                                   .leaf_light = ls->cp_leaf_light, .light_leaf = ls->cp_light_leaf,
+                                   .node_bounds = cp_node_bounds, .node_estimate7 = cp_node_estimate7,
+                                   .descend = cp_descend, .descend_pmf = cp_descend_pmf};
     ls->cp_view.tree = &ls->cp_tree;
     return 0;
 }
@@ -264,13 +260,8 @@ int lights_build_cachepoints(Scene *scene, void *pool, const CandelaOptions *o, 
         ls->cp_centroid[3 * i] = c.x; ls->cp_centroid[3 * i + 1] = c.y; ls->cp_centroid[3 * i + 2] = c.z;
         ls->cp_infinite[i] = l->type == LIGHT_DIRECTIONAL || l->type == LIGHT_ENVIRONMENT;
     }
-    ls->cp_view.count = ls->count;
-    ls->cp_view.centroid = ls->cp_centroid;
-    ls->cp_view.infinite = ls->cp_infinite;
-    ls->cp_view.estimate7 = cp_estimate7;
-    ls->cp_view.estimate = cp_estimate;
-    ls->cp_view.user = ls;
-    ls->cp_view.tree = NULL;
+    ls->cp_view = (CachePointLights){.count = ls->count, .centroid = ls->cp_centroid, .infinite = ls->cp_infinite,
+                                     .estimate7 = cp_estimate7, .estimate = cp_estimate, .user = ls, .tree = NULL};
     if (!o->cachepoint_build_linear && setup_tree_view(ls) != 0) goto oom;
 
     Candidates cand = {0};

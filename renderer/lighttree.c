@@ -481,50 +481,23 @@ uint32_t light_tree_select(const LightTree *t, const LightSampleContext *ctx, fl
         return t->infinite[k];
     }
     if (t->node_count == 0) { *pmf = 0.0f; return 0; }
-    u = clampf((u - t->p_inf) / t->p_bvh, 0.0f, ONE_MINUS_EPS);
-    float pr = t->p_bvh;
-    uint32_t node = 0;
-    while (t->nodes[node].light == LIGHT_TREE_INTERIOR) {
-        float p0, p1;
-        child_probs(t, node, ctx->p, ctx->n, &p0, &p1);
-        if (u < p0) {
-            pr *= p0;
-            u = minf(u / p0, ONE_MINUS_EPS);
-            node = node + 1;
-        } else {
-            pr *= p1;
-            u = clampf((u - p0) / p1, 0.0f, ONE_MINUS_EPS);
-            node = t->nodes[node].child;
-        }
-    }
-    *pmf = pr;
-    return t->nodes[node].light;
+    float pr;
+    uint32_t light = light_tree_select_from(t, 0, ctx, (u - t->p_inf) / t->p_bvh, &pr);
+    *pmf = t->p_bvh * pr;
+    return light;
 }
 
 float light_tree_pmf(const LightTree *t, const LightSampleContext *ctx, uint32_t light) {
     if (light >= t->light_count) return 0.0f;
     if (t->kind[light] == LIGHT_TREE_INFINITE) return t->pmf_inf;
     if (t->kind[light] != LIGHT_TREE_BVH) return 0.0f;
-    uint64_t trail = t->trail[light];
-    float pr = t->p_bvh;
-    uint32_t node = 0;
-    while (t->nodes[node].light == LIGHT_TREE_INTERIOR) {
-        float p0, p1;
-        child_probs(t, node, ctx->p, ctx->n, &p0, &p1);
-        if (trail & 1u) {
-            pr *= p1;
-            node = t->nodes[node].child;
-        } else {
-            pr *= p0;
-            node = node + 1;
-        }
-        trail >>= 1;
-    }
-    return pr;
+    return t->p_bvh * light_tree_pmf_from(t, 0, ctx, light);
 }
 
 /* ---------------------------------------------------------------- descent below a node */
 
+/* The single-path descent: the whole tree from node 0 (light_tree_select/pmf), a cache point
+ * cluster from its node. */
 uint32_t light_tree_select_from(const LightTree *t, uint32_t node, const LightSampleContext *ctx, float u, float *pmf) {
     u = clampf(u, 0.0f, ONE_MINUS_EPS);
     float pr = 1.0f;

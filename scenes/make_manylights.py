@@ -7,7 +7,8 @@ so they are generated on demand into a build folder (default build/scenes/, git-
 rather than committed. Blender light units (cd, lux; the renderer divides by 683).
 
   city.gltf            night city block: 8x8 blocks of buildings, 100,000 lights (window
-                       lights on facades + street lights), occluded from most points
+                       lights on facades + street lights), occluded from most points; the
+                       scale series keeps the total power of city_1k
   city_1k/_10k/_100k/_1m.gltf   the same layout with 1k ... 1M lights (the scale series)
   windows.gltf         four closed rooms in a row, each with a small window facing a low sun
                        and 120 ceiling lights; the camera is in room 0, so the other rooms'
@@ -76,7 +77,9 @@ def write_compact(g, path):
 def city(out, name, n_lights, seed=1):
     """8x8 blocks of 16 m with 8 m streets (a 184 m square); one building per block, 12-60 m
     tall. 90% of the lights are window lights 0.25 m in front of a facade (warm or cool, 80-800
-    cd), 10% street lights at 6 m (6000 cd). The camera stands in a street at 1.7 m."""
+    cd at 1,000 lights), 10% street lights at 6 m (6000 cd at 1,000 lights). Intensities scale
+    with 1000 / n_lights, so every member of the scale series has the same total power and
+    the same exposure. The camera stands in a street at 1.7 m."""
     rng = random.Random(seed)
     g = Gltf('candela scenes/make_manylights.py')
     ground = g.material('asphalt', base=(0.08, 0.08, 0.09), roughness=0.8)
@@ -97,9 +100,10 @@ def city(out, name, n_lights, seed=1):
             node['translation'] = rv((x0 + B / 2, height / 2, z0 + B / 2))
             node['scale'] = rv((B, height, B))
     # shared light definitions
-    warm = [light_def(g, 'point', 80.0 + 720.0 * k / 7.0, (1.0, 0.75, 0.45)) for k in range(8)]
-    cool = [light_def(g, 'point', 80.0 + 720.0 * k / 7.0, (0.7, 0.8, 1.0)) for k in range(8)]
-    street = light_def(g, 'point', 6000.0, (1.0, 0.85, 0.6))
+    scale = 1000.0 / n_lights
+    warm = [light_def(g, 'point', scale * (80.0 + 720.0 * k / 7.0), (1.0, 0.75, 0.45)) for k in range(8)]
+    cool = [light_def(g, 'point', scale * (80.0 + 720.0 * k / 7.0), (0.7, 0.8, 1.0)) for k in range(8)]
+    street = light_def(g, 'point', scale * 6000.0, (1.0, 0.85, 0.6))
     n_street = max(1, n_lights // 10)
     n_window = n_lights - n_street
     for _ in range(n_window):
