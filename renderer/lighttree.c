@@ -120,37 +120,47 @@ static inline float sin_sub_clamped(float sin_a, float cos_a, float sin_b, float
  * phi * cos(theta') / d^2 * cos(theta_i'), where theta' = max(0, theta_w - theta_o - theta_b)
  * (zero beyond theta_e), theta_i' = max(0, theta_i - theta_b), theta_b the half-angle of the
  * box's bounding sphere seen from p. */
-float light_tree_node_importance(const LightTreeNode *nd, vec3 p, vec3 n) {
+/* A node as seen from p: the squared distance to its centre clamped to its bounding sphere
+ * (d2), the sphere's half-angle theta_b (cos_b, sin_b; every direction when p is inside), the
+ * unit direction from the centre to p (wi), and the emitter bound cos(theta') (0 or below
+ * cos_e: no emission towards p). Shared by the importance and the cluster estimate. */
+typedef struct NodeView { float d2, cos_b, sin_b, cos_p; vec3 wi; } NodeView;
+
+static inline NodeView node_view(const LightTreeNode *nd, vec3 p) {
+    NodeView v;
     vec3 pc = v3_scale(v3_add(nd->bmin, nd->bmax), 0.5f);
     vec3 diag = v3_sub(nd->bmax, nd->bmin);
     float r2 = 0.25f * v3_dot(diag, diag); /* squared radius of the bounding sphere */
     vec3 d = v3_sub(p, pc);
     float dist2 = v3_dot(d, d);
-    float d2 = maxf(dist2, r2);
-    float cos_b, sin_b;
-    vec3 wi;
+    v.d2 = maxf(dist2, r2);
     if (dist2 <= r2) { /* inside the bounding sphere: every direction */
-        cos_b = -1.0f;
-        sin_b = 0.0f;
+        v.cos_b = -1.0f;
+        v.sin_b = 0.0f;
     } else {
         float s2 = r2 / dist2;
-        cos_b = safe_sqrtf(1.0f - s2);
-        sin_b = sqrtf(s2);
+        v.cos_b = safe_sqrtf(1.0f - s2);
+        v.sin_b = sqrtf(s2);
     }
-    wi = dist2 > 0.0f ? v3_scale(d, 1.0f / sqrtf(dist2)) : v3(0.0f, 0.0f, 1.0f);
-    float cos_w = v3_dot(nd->w, wi);
+    v.wi = dist2 > 0.0f ? v3_scale(d, 1.0f / sqrtf(dist2)) : v3(0.0f, 0.0f, 1.0f);
+    float cos_w = v3_dot(nd->w, v.wi);
     float sin_w = safe_sqrtf(1.0f - cos_w * cos_w);
     /* (cos_o = 1, a single direction, or -1, every direction: sin_o is 0 without a sqrt) */
     float sin_o = nd->cos_o >= 1.0f || nd->cos_o <= -1.0f ? 0.0f : safe_sqrtf(1.0f - nd->cos_o * nd->cos_o);
     float cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, nd->cos_o);
     float sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, nd->cos_o);
-    float cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
-    if (cos_p <= nd->cos_e) return 0.0f;
-    float imp = nd->phi * cos_p / d2;
+    v.cos_p = cos_sub_clamped(sin_x, cos_x, v.sin_b, v.cos_b);
+    return v;
+}
+
+float light_tree_node_importance(const LightTreeNode *nd, vec3 p, vec3 n) {
+    NodeView v = node_view(nd, p);
+    if (v.cos_p <= nd->cos_e) return 0.0f;
+    float imp = nd->phi * v.cos_p / v.d2;
     if (n.x != 0.0f || n.y != 0.0f || n.z != 0.0f) {
-        float cos_i = fabsf(v3_dot(wi, n));
+        float cos_i = fabsf(v3_dot(v.wi, n));
         float sin_i = safe_sqrtf(1.0f - cos_i * cos_i);
-        imp *= cos_sub_clamped(sin_i, cos_i, sin_b, cos_b);
+        imp *= cos_sub_clamped(sin_i, cos_i, v.sin_b, v.cos_b);
     }
     return imp > 0.0f ? minf(imp, IMPORTANCE_MAX) : 0.0f; /* NaN -> 0 */
 }
@@ -563,34 +573,17 @@ void light_tree_node_estimate7(const LightTree *t, uint32_t node, vec3 p, float 
     for (int i = 0; i < 7; ++i) out[i] = 0.0f;
     float I = t->intensity ? t->intensity[node] : 0.0f;
     if (!(I > 0.0f)) return;
-    vec3 pc = v3_scale(v3_add(nd->bmin, nd->bmax), 0.5f);
-    vec3 diag = v3_sub(nd->bmax, nd->bmin);
-    float r2 = 0.25f * v3_dot(diag, diag);
-    vec3 d = v3_sub(p, pc); /* from the cluster to p */
-    float dist2 = v3_dot(d, d);
-    float cos_b = -1.0f, sin_b = 0.0f;
-    if (dist2 > r2) {
-        float s2 = r2 / dist2;
-        cos_b = safe_sqrtf(1.0f - s2);
-        sin_b = sqrtf(s2);
-    }
-    vec3 wo = dist2 > 0.0f ? v3_scale(d, 1.0f / sqrtf(dist2)) : v3(0.0f, 0.0f, 1.0f);
-    float cos_w = v3_dot(nd->w, wo);
-    float sin_w = safe_sqrtf(1.0f - cos_w * cos_w);
-    float sin_o = nd->cos_o >= 1.0f || nd->cos_o <= -1.0f ? 0.0f : safe_sqrtf(1.0f - nd->cos_o * nd->cos_o);
-    float cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, nd->cos_o);
-    float sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, nd->cos_o);
-    float cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
-    if (cos_p <= nd->cos_e) return;
-    float fluence = I * maxf(cos_p, 0.0f) / maxf(dist2, r2);
+    NodeView v = node_view(nd, p);
+    if (v.cos_p <= nd->cos_e) return;
+    float fluence = I * maxf(v.cos_p, 0.0f) / v.d2;
     if (!(fluence > 0.0f) || !isfinite(fluence)) return;
     out[6] = fluence;
-    /* receiver cosine bound per axis: the direction from p to the cluster is -wo; the two
+    /* receiver cosine bound per axis: the direction from p to the cluster is -wi; the two
      * planes of an axis share the sine */
-    const float c[3] = {-wo.x, -wo.y, -wo.z};
+    const float c[3] = {-v.wi.x, -v.wi.y, -v.wi.z};
     for (int k = 0; k < 3; ++k) {
         float sin_i = safe_sqrtf(1.0f - c[k] * c[k]);
-        out[2 * k] = fluence * maxf(cos_sub_clamped(sin_i, c[k], sin_b, cos_b), 0.0f);
-        out[2 * k + 1] = fluence * maxf(cos_sub_clamped(sin_i, -c[k], sin_b, cos_b), 0.0f);
+        out[2 * k] = fluence * maxf(cos_sub_clamped(sin_i, c[k], v.sin_b, v.cos_b), 0.0f);
+        out[2 * k + 1] = fluence * maxf(cos_sub_clamped(sin_i, -c[k], v.sin_b, v.cos_b), 0.0f);
     }
 }
