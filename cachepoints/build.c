@@ -847,20 +847,25 @@ static void blur_linear_range(void *vctx, size_t b, size_t e, int thread) {
 
 /* Cut build: p keeps its own cut; each neighbour's entry B is mapped onto it. If an entry of
  * p holds B (same node or an ancestor), B's values go to that entry; if B is coarser, its
- * values are shared among p's entries inside B in proportion to p's own values, bin by bin
- * (the part of B that p evaluates as near lights, or not at all, is dropped). Eq. 4 weights,
- * self first, then neighbours by distance: deterministic. */
+ * values are shared among p's entries inside B in proportion to p's own values, bin by bin.
+ * If B falls in a hole of p's cut (p estimated nothing there: typically a narrow spot light
+ * whose cone misses p but not the neighbour, the paper's §5.2.1 case), B becomes an entry of
+ * p, holes nested in one another merging into the outermost; a B holding one of p's near
+ * lights is dropped instead, so near and far stay disjoint. Eq. 4 weights, self first, then
+ * neighbours by distance, holes summed in (key, arrival) order: deterministic. */
 static void blur_cut_range(void *vctx, size_t b, size_t e, int thread) {
     (void)thread;
     BlurCtx *c = vctx;
     CachePoints *cp = c->cp;
     uint32_t K = cp->params.blur_neighbours;
-    uint32_t *keys = NULL;
-    uint32_t cap = 0;
-    for (size_t i = b; i < e; ++i) {
+    uint32_t *keys = NULL, cap = 0, hole_cap = 0;
+    FarEntry *holes = NULL;
+    uint64_t *order = NULL;
+    uint32_t order_cap = 0;
+    for (size_t i = b; i < e && !c->failed; ++i) {
         blur_weights(cp, i);
         const Dist *own = &c->dist[i];
-        uint32_t m = own->far_count;
+        uint32_t m = own->far_count, nholes = 0;
         Dist *out = &c->blurred[i];
         out->far = malloc((m ? m : 1) * sizeof(FarEntry));
         if (!out->far || grow((void **)&keys, &cap, m + 1, sizeof(uint32_t)) != 0) { c->failed = 1; break; }
@@ -870,7 +875,7 @@ static void blur_cut_range(void *vctx, size_t b, size_t e, int thread) {
             out->far[q].key = own->far[q].key;
             for (int bin = 0; bin < CP_FAR_BINS; ++bin) out->far[q].value[bin] = cp->self_w[i] * own->far[q].value[bin];
         }
-        for (uint32_t j = 0; j < K; ++j) {
+        for (uint32_t j = 0; j < K && !c->failed; ++j) {
             uint32_t src = cp->nbr[i * K + j];
             if (src == CP_NONE) continue;
             float w = cp->nbr_w[i * K + j];
@@ -887,7 +892,15 @@ static void blur_cut_range(void *vctx, size_t b, size_t e, int thread) {
                 }
                 uint32_t lo = at, hi = at, end = cp_key_end(cp, B->key);
                 while (hi < m && keys[hi] < end) ++hi;
-                if (lo == hi) continue;
+                if (lo == hi) { /* a hole of p's cut */
+                    uint32_t nk = cp_lower_bound(own->near_key, 0, own->near_count, B->key);
+                    if (nk < own->near_count && own->near_key[nk] < end) continue; /* near wins */
+                    if (grow((void **)&holes, &hole_cap, nholes + 1, sizeof(FarEntry)) != 0) { c->failed = 1; break; }
+                    holes[nholes].key = B->key;
+                    for (int bin = 0; bin < CP_FAR_BINS; ++bin) holes[nholes].value[bin] = w * B->value[bin];
+                    ++nholes;
+                    continue;
+                }
                 for (int bin = 0; bin < CP_FAR_BINS; ++bin) {
                     if (!(B->value[bin] > 0.0f)) continue;
                     double sum = 0.0;
@@ -898,8 +911,33 @@ static void blur_cut_range(void *vctx, size_t b, size_t e, int thread) {
                 }
             }
         }
+        if (c->failed || nholes == 0) continue;
+        /* holes in key order (ties: arrival order), nested ones merged into the outermost,
+         * then merged with p's entries (disjoint from them by construction) */
+        if (grow((void **)&order, &order_cap, 2 * nholes, sizeof(uint64_t)) != 0) { c->failed = 1; break; }
+        for (uint32_t h = 0; h < nholes; ++h) order[h] = (uint64_t)holes[h].key << 32 | h;
+        sort_by_key(order, order + nholes, nholes);
+        FarEntry *merged = malloc(((size_t)m + nholes) * sizeof(FarEntry));
+        if (!merged) { c->failed = 1; break; }
+        uint32_t a = 0, n = 0, h = 0;
+        while (a < m || h < nholes) {
+            if (h == nholes || (a < m && out->far[a].key < holes[(uint32_t)order[h]].key)) {
+                merged[n++] = out->far[a++];
+                continue;
+            }
+            FarEntry outer = holes[(uint32_t)order[h++]];
+            uint32_t end = cp_key_end(cp, outer.key);
+            while (h < nholes && holes[(uint32_t)order[h]].key < end) {
+                const FarEntry *inner = &holes[(uint32_t)order[h++]];
+                for (int bin = 0; bin < CP_FAR_BINS; ++bin) outer.value[bin] += inner->value[bin];
+            }
+            merged[n++] = outer;
+        }
+        free(out->far);
+        out->far = merged;
+        out->far_count = n;
     }
-    free(keys);
+    free(keys); free(holes); free(order);
 }
 
 /* ---------------------------------------------------------------- key space */
