@@ -1189,7 +1189,8 @@ int cachepoints_build(CachePoints **out, const float *cand, uint32_t num_candida
         cp->nbr_w = malloc((size_t)n * K * sizeof(float) + 1);
         cp->self_w = malloc(n * sizeof(float));
         blurred = calloc(n, sizeof *blurred);
-        failed = !cp->nbr || !cp->nbr_w || !cp->self_w || !blurred || kdtree_build(&cp->kd, cp->pos, n) != 0;
+        failed = !cp->nbr || !cp->nbr_w || !cp->self_w || !blurred || kdtree_build(&cp->kd, cp->pos, n) != 0 ||
+                 kdtree_build_clearance(&cp->kd) != 0; /* render-time 1-NN shortcut */
     }
     if (!failed && n > 0) {
         /* blur the far bins out of place (§3.1.5); then the points' own lists are freed

@@ -152,6 +152,7 @@ void kdtree_free(KdTree *tree) {
     if (!tree) return;
     free(tree->nodes);
     free(tree->axes);
+    free(tree->clear2);
     memset(tree, 0, sizeof *tree);
 }
 
@@ -369,6 +370,23 @@ static void kd_near_rec(KdNear *r, size_t lo, size_t hi) {
     for (size_t i = lo; i < hi; ++i) kd_near_consider(r, &r->nodes[i]);
 }
 
+int kdtree_build_clearance(KdTree *tree) {
+    if (!tree->count) return 0;
+    float *c = malloc((size_t)tree->count * sizeof *c);
+    if (!c) return -1;
+    for (uint32_t i = 0; i < tree->count; ++i) {
+        uint32_t nb;
+        float d2 = 0.0f;
+        const float *p = tree->points + 3 * (size_t)i;
+        /* 0.2401 = 0.49^2: |q - p| < 0.49 nn gives |q - o| >= 0.51 nn for every other o */
+        c[i] = p[0] == p[0] && p[1] == p[1] && p[2] == p[2] && kdtree_knn(tree, p, 1, INFINITY, i, &nb, &d2) == 1
+                   ? 0.2401f * d2
+                   : 0.0f;
+    }
+    tree->clear2 = c;
+    return 0;
+}
+
 uint32_t kdtree_nearest(const KdTree *tree, const float q[3], float *dist2) {
     return kdtree_nearest_hint(tree, q, UINT32_MAX, dist2);
 }
@@ -378,6 +396,10 @@ uint32_t kdtree_nearest_hint(const KdTree *tree, const float q[3], uint32_t hint
                 .q = {q[0], q[1], q[2]}, .bd = INFINITY, .bi = UINT32_MAX};
     if (tree && hint < tree->count) { /* an upper bound that prunes; the answer is unchanged */
         float d = kd_dist2(tree->points + 3 * (size_t)hint, r.q);
+        if (tree->clear2 && d < tree->clear2[hint]) { /* inside the hint's clearance: it is the nearest */
+            if (dist2) *dist2 = d;
+            return hint;
+        }
         if (d <= INFINITY) { r.bd = d; r.bi = hint; } /* (never a NaN point: those are never returned) */
     }
     if (tree && tree->count) kd_near_rec(&r, 0, tree->count);

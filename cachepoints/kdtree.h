@@ -26,6 +26,8 @@ typedef struct KdTree {
     void *nodes;           /* count x {x, y, z, index}: point copies in tree order */
     uint8_t *axes;         /* count: split axis of the range whose mid is this position */
     size_t num_nodes;      /* == count */
+    float *clear2;         /* optional (kdtree_build_clearance): per point, a squared radius
+                            * inside which it is certainly the nearest point */
 } KdTree;
 
 /* Build over points[0 .. count) (3 floats each). 0 ok, -1 out of memory. count may be 0. */
@@ -38,6 +40,12 @@ void kdtree_free(KdTree *tree);
  * dist2 != NULL); returns how many were found. Thread-safe (read-only). */
 uint32_t kdtree_knn(const KdTree *tree, const float q[3], uint32_t k, float radius2, uint32_t exclude,
                     uint32_t *indices, float *dist2);
+
+/* Optional, after kdtree_build: per point the squared radius c^2 nn^2 (nn: distance to its
+ * nearest other point, c = 0.49) inside which no other point can be nearer, so that
+ * kdtree_nearest_hint answers without a traversal when q lies that close to the hint (the
+ * triangle inequality leaves a 2% margin, far above float rounding). 0 ok, -1 out of memory. */
+int kdtree_build_clearance(KdTree *tree);
 
 /* The nearest point (ties: lowest index); UINT32_MAX when the tree is empty. */
 uint32_t kdtree_nearest(const KdTree *tree, const float q[3], float *dist2);

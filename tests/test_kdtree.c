@@ -84,12 +84,18 @@ static int same_bits(float a, float b) { return memcmp(&a, &b, sizeof a) == 0; }
 
 enum { MAXK = 64 };
 
+static long shortcuts_taken; /* hint queries answered by the clearance shortcut */
+
 /* Random queries against brute force on one point set. */
 static void check_set(const char *name, const float *pts, uint32_t n, int queries) {
     KdTree tree;
     int rc = kdtree_build(&tree, pts, n);
     CHECK(rc == 0, "%s: build failed", name);
     if (rc) return;
+    /* every other set: the clearance shortcut of kdtree_nearest_hint (must not change answers) */
+    static int with_clearance = 0;
+    with_clearance = !with_clearance;
+    if (with_clearance) CHECK(kdtree_build_clearance(&tree) == 0, "%s: clearance failed", name);
     Cand *scratch = malloc(((size_t)n + 1) * sizeof *scratch);
     int fails = 0;
     for (int qi = 0; qi < queries && fails < 5; ++qi) {
@@ -154,8 +160,11 @@ static void check_set(const char *name, const float *pts, uint32_t n, int querie
         if (n > 0) {
             float hd;
             uint32_t guesses[3] = {(uint32_t)((unsigned)qi * 7919u) % n, bni, n - 1};
-            for (int g = 0; g < 3 && ok; ++g)
+            for (int g = 0; g < 3 && ok; ++g) {
                 ok = kdtree_nearest_hint(&tree, q, guesses[g], &hd) == bni && same_bits(hd, bnd);
+                if (tree.clear2 && dist2(&pts[3 * (size_t)guesses[g]], q) < tree.clear2[guesses[g]])
+                    ++shortcuts_taken;
+            }
         }
         CHECK(ok, "%s: nearest q=(%g %g %g): tree %u (%g) vs brute %u (%g)", name, (double)q[0], (double)q[1],
               (double)q[2], ni, (double)nd, bni, (double)bnd);
@@ -338,6 +347,7 @@ static void timings(void) {
 int main(void) {
     sm_state = 0x4B44545245453031ull;
     test_sets();
+    CHECK(shortcuts_taken > 100, "the clearance shortcut was exercised only %ld times", shortcuts_taken);
     test_large_k();
     timings();
     return test_exit();
