@@ -993,7 +993,7 @@ void cachepoints_free(CachePoints *cp) {
     free(cp->light_key); free(cp->key_end); free(cp->key_light);
     free(cp->near_off); free(cp->near_key); free(cp->near_light); free(cp->near_slot); free(cp->near_vis);
     free(cp->far_off); free(cp->far); free(cp->far_slot); free(cp->far_cdf);
-    free(cp->vis_off); free(cp->vis_key); free(cp->h_total); free(cp->h_success); free(cp->w_blurred);
+    free(cp->vis_off); free(cp->vis_key); free(cp->vis_count); free(cp->far_bin_total); free(cp->w_blurred);
     free(cp->vis_low); free(cp->vis_active); free(cp->tables_dirty);
     free(cp->nbr); free(cp->nbr_w); free(cp->self_w);
     free(cp);
@@ -1077,12 +1077,12 @@ static int flatten(CachePoints *cp, Dist *dist, Dist *blurred) {
     cp->far = malloc((f + 1) * sizeof(FarEntry));
     cp->far_slot = malloc((f + 1) * sizeof(uint32_t));
     cp->vis_key = malloc((v + 1) * sizeof(uint32_t));
-    cp->h_total = calloc(v + 1, sizeof(uint32_t));
-    cp->h_success = calloc(v + 1, sizeof(uint32_t));
+    cp->vis_count = calloc(v + 1, sizeof(VisCounter));
+    cp->far_bin_total = calloc((size_t)n * CP_BIN_STRIDE + 1, sizeof(float));
     cp->w_blurred = malloc((v + 1) * sizeof(float));
     cp->far_cdf = malloc((f + 1) * CP_FAR_BINS * sizeof(float));
     if (!cp->near_key || !cp->near_light || !cp->near_slot || !cp->near_vis || !cp->far || !cp->far_slot ||
-        !cp->vis_key || !cp->h_total || !cp->h_success || !cp->w_blurred || !cp->far_cdf)
+        !cp->vis_key || !cp->vis_count || !cp->far_bin_total || !cp->w_blurred || !cp->far_cdf)
         return -1;
     c.fill = 1;
     run_parallel(&cp->params, n, 64, flatten_range, &c);
@@ -1090,7 +1090,7 @@ static int flatten(CachePoints *cp, Dist *dist, Dist *blurred) {
     for (int t = 0; t < 64; ++t) clusters += c.clusters[t];
     for (size_t s = 0; s < v; ++s) cp->w_blurred[s] = 1.0f; /* first iteration: W = 1 */
     uint32_t K = cp->params.blur_neighbours;
-    cp->stats.bytes = (size_t)n * (3 + 1 + 3 + 2 * K + 1) * sizeof(float) + a * 16 + f * (sizeof(FarEntry) + 4 + 4 * CP_FAR_BINS) +
+    cp->stats.bytes = (size_t)n * (3 + 1 + 3 + 2 * K + 1 + CP_BIN_STRIDE) * sizeof(float) + a * 16 + f * (sizeof(FarEntry) + 4 + 4 * CP_FAR_BINS) +
                       v * 16 + (size_t)cp->num_keys * 8 + (cp->light_key ? (size_t)cp->num_lights * 4 : 0) +
                       (size_t)n * 19 /* kd-tree, flags */;
     cp->stats.mean_near = n ? (double)a / n : 0.0;

@@ -21,6 +21,14 @@
 #define CP_OMNI_BIN 6
 #define CP_NONE UINT32_MAX
 
+#define CP_BIN_STRIDE 8 /* 7 bins padded to 32 bytes */
+
+/* H_total and H_success of a slot (Eqs. 5-6), adjacent: NEE counts the attempt and the
+ * shadow ray the success on the same line. */
+typedef struct VisCounter {
+    uint32_t total, success;
+} VisCounter;
+
 typedef struct FarEntry {
     uint32_t key;
     float value[CP_FAR_BINS]; /* irradiance on +X -X +Y -Y +Z -Z, fluence (unoccluded) */
@@ -46,9 +54,12 @@ struct CachePoints {
      * binary search stays in one array). An entry's weight in bin i is defined as the
      * difference of consecutive running sums: exactly the probability the search realises. */
     float *far_cdf;
+    /* per point, the 7 bin totals (the last running sum of each bin) side by side, so
+     * blending the bins at a vertex touches one cache line, not seven */
+    float *far_bin_total;      /* CP_BIN_STRIDE per point */
     /* visibility (§3.2): one slot per key of the near and far lists, sorted by key */
     uint32_t *vis_off, *vis_key;
-    uint32_t *h_total, *h_success; /* atomics */
+    VisCounter *vis_count;     /* atomics; a slot's two counters share a cache line */
     float *w_blurred;              /* W' (Eq. 6, then the §3.2.2 blur) used at render time */
     uint8_t *vis_low;              /* per point: a slot has W < 1 (this barrier) */
     uint8_t *vis_active;           /* per point: some W' != 1 (its tables are not the W = 1 ones) */

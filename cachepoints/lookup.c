@@ -45,7 +45,8 @@ uint32_t cachepoints_slot(const CachePoints *cp, uint32_t point, uint32_t light)
 
 void cachepoints_record(CachePoints *cp, uint32_t slot, int success) {
     if (!cp || slot >= cp->vis_off[cp->n]) return; /* only listed lights have counters (spec §4.1) */
-    __atomic_fetch_add(success ? &cp->h_success[slot] : &cp->h_total[slot], 1u, __ATOMIC_RELAXED);
+    VisCounter *h = &cp->vis_count[slot];
+    __atomic_fetch_add(success ? &h->success : &h->total, 1u, __ATOMIC_RELAXED);
 }
 
 float cachepoints_visibility(const CachePoints *cp, uint32_t point, uint32_t light) {
@@ -58,9 +59,9 @@ typedef struct VisCtx { CachePoints *cp; uint32_t max_slots; int failed; } VisCt
 /* Eq. 6 of a slot; W = 1 without a division while too few attempts were made for R to
  * reach R_min (R >= 1 / (attempts + 1)). */
 static inline float slot_weight(const CachePoints *cp, uint32_t s) {
-    uint32_t t = cp->h_total[s];
+    uint32_t t = cp->vis_count[s].total;
     if ((float)t * cp->params.r_min + cp->params.r_min < 0.999f) return 1.0f;
-    return cachepoints_visibility_weight(cp->h_success[s], t, cp->params.r_min);
+    return cachepoints_visibility_weight(cp->vis_count[s].success, t, cp->params.r_min);
 }
 
 static void vis_low_range(void *vctx, size_t b, size_t e, int thread) {
@@ -146,6 +147,8 @@ static void tables_range(void *vctx, size_t b, size_t e, int thread) {
                 if (v > 0.0f && isfinite(v)) run += (double)(v * cp->w_blurred[cp->far_slot[k]]);
                 *cp_cdf(cp, (uint32_t)p, i, k) = (float)run;
             }
+            cp->far_bin_total[p * CP_BIN_STRIDE + i] =
+                cp->far_off[p + 1] > cp->far_off[p] ? *cp_cdf(cp, (uint32_t)p, i, cp->far_off[p + 1] - 1) : 0.0f;
         }
     }
 }
@@ -210,10 +213,9 @@ static float far_weight(const CachePoints *cp, uint32_t p, uint32_t k, const flo
 
 static float far_total(const CachePoints *cp, uint32_t p, const float b[CP_FAR_BINS]) {
     float t = 0.0f;
-    uint32_t last = cp->far_off[p + 1];
-    if (last == cp->far_off[p]) return 0.0f;
+    const float *bt = cp->far_bin_total + (size_t)p * CP_BIN_STRIDE; /* == the last running sums */
     for (int i = 0; i < CP_FAR_BINS; ++i)
-        if (b[i] > 0.0f) t += b[i] * *cp_cdf(cp, p, i, last - 1);
+        if (b[i] > 0.0f) t += b[i] * bt[i];
     return t;
 }
 
@@ -286,8 +288,9 @@ uint32_t cachepoints_select(const CachePoints *cp, const CachePointLights *L, co
             int bin = -1;
             float cum = 0.0f;
             uint32_t f0 = cp->far_off[p], f1 = cp->far_off[p + 1];
+            const float *bt = cp->far_bin_total + (size_t)p * CP_BIN_STRIDE;
             for (int i = 0; i < CP_FAR_BINS; ++i) {
-                float wi = b[i] > 0.0f ? b[i] * *cp_cdf(cp, p, i, f1 - 1) : 0.0f;
+                float wi = b[i] > 0.0f ? b[i] * bt[i] : 0.0f;
                 if (!(wi > 0.0f)) continue;
                 bin = i;
                 if (t < cum + wi) break;

@@ -106,6 +106,7 @@ typedef struct CandelaCompareOptions {
     const char *reference_path;  /* reuse this EXR instead of rendering a reference */
     const char *out_dir;
     int optimal_max_lights;      /* skip `optimal` above this many lights (0: never skip) */
+    int timing_runs;             /* renders per strategy for the median time (1..15; 0 = 1) */
 } CandelaCompareOptions;
 
 int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, char err[CANDELA_ERR_LEN]);

@@ -45,7 +45,9 @@ static const char *USAGE =
     "  --ref-spp N               reference spp (default 16 x --spp), tree sampler\n"
     "  --reference FILE.exr      reuse a reference instead of rendering one\n"
     "  --out-dir DIR             default out/compare-<scene name>\n"
-    "  --optimal-max-lights N    skip optimal above N lights (default 5000; 0 = never)\n";
+    "  --optimal-max-lights N    skip optimal above N lights (default 5000; 0 = never)\n"
+    "  --timing-runs N           render each strategy N times (1-15, round-robin) and report the\n"
+    "                            median time: robust timings on a busy machine (default 1)\n";
 
 static void die(const char *msg, const char *arg) {
     fprintf(stderr, "candela: %s%s%s\n", msg, arg ? arg : "", arg ? "" : "");
@@ -149,6 +151,7 @@ int main(int argc, char **argv) {
         else if (compare && strcmp(a, "--reference") == 0) { if (!v) die("missing value for ", a); co.reference_path = v; ++i; }
         else if (compare && strcmp(a, "--out-dir") == 0) { if (!v) die("missing value for ", a); co.out_dir = v; ++i; }
         else if (compare && strcmp(a, "--optimal-max-lights") == 0) { co.optimal_max_lights = (int)parse_long(a, v, 0, 1 << 30); ++i; }
+        else if (compare && strcmp(a, "--timing-runs") == 0) { co.timing_runs = (int)parse_long(a, v, 1, 15); ++i; }
         else if (strcmp(a, "--spp") == 0) { o.spp = (int)parse_long(a, v, 1, 1 << 20); ++i; }
         else if (strcmp(a, "--seed") == 0) { o.seed = (uint64_t)parse_long(a, v, 0, LONG_MAX); ++i; }
         else if (strcmp(a, "--threads") == 0) { o.threads = (int)parse_long(a, v, 1, 1024); ++i; }

@@ -78,5 +78,24 @@ cmp -s "$tmp/t2.exr" "$tmp/t4.exr" && bad "different seeds gave identical images
 grep -q '"rays_per_second"' "$tmp/stats.json" && ok || bad "stats json"
 ls "$tmp" | grep -q 'tmp-' && bad "temporary file left behind" || ok
 
+# candela compare: every strategy's row, EXR and error PNG; a repeated render per strategy
+# (--timing-runs 2) must be bit-identical or compare fails; the reference can be reused
+cmpd=$tmp/cmp
+if "$bin" compare "$det" --strategies uniform,tree,cachepoints-novis --spp 2 --res 24x16 --ref-spp 8 \
+     --timing-runs 2 --out-dir "$cmpd" --quiet >"$tmp/cmp.out" 2>"$tmp/cmp.err"; then ok; else bad "compare: $(cat "$tmp/cmp.err")"; fi
+[ "$(grep -c . "$cmpd/table.csv" 2>/dev/null)" = 4 ] && ok || bad "compare: table.csv rows"
+awk -F, 'NR > 1 && !($NF == 2 && $6 + 0 > 0 && $9 + 0 > 0 && $11 <= $2 && $2 <= $12) { exit 1 }' "$cmpd/table.csv" \
+  && ok || bad "compare: table.csv values $(cat "$cmpd/table.csv")"
+for s in uniform tree cachepoints-novis; do
+  [ -s "$cmpd/$s.exr" ] && [ -s "$cmpd/${s}_error.png" ] && ok || bad "compare: $s outputs missing"
+done
+grep -q "| tree |" "$cmpd/table.md" && grep -q "| tree |" "$tmp/cmp.out" && ok || bad "compare: table.md"
+"$bin" compare "$det" --strategies power --spp 2 --res 24x16 --reference "$cmpd/reference.exr" --out-dir "$tmp/cmp2" \
+  --quiet >/dev/null 2>&1 && grep -q "^power," "$tmp/cmp2/table.csv" && ok || bad "compare: --reference"
+expect_error "compare bad strategy" "unknown strategy 'best'" -- compare "$det" --strategies tree,best --spp 1 --res 8x8 --ref-spp 1 --out-dir "$tmp/cmp3" --quiet
+[ -e "$tmp/cmp3" ] && bad "compare bad strategy: created its output folder" || ok
+expect_error "compare bad reference size" "reference is 24x16" -- compare "$det" --strategies tree --spp 1 --res 8x8 --reference "$cmpd/reference.exr" --out-dir "$tmp/cmp4" --quiet
+expect_error "compare bad timing runs" "--timing-runs" -- compare "$det" --timing-runs 0 --out-dir "$tmp/cmp5" --quiet
+
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]
