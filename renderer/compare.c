@@ -289,7 +289,7 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
             r->times[r->runs] = st.time_total;
             r->cp_times[r->runs] = st.time_cachepoints;
             ++r->runs;
-            if (st.peak_memory_bytes > r->peak) r->peak = st.peak_memory_bytes;
+            if (st.peak_memory_bytes < r->peak) r->peak = st.peak_memory_bytes; /* least disturbed run */
         }
     }
     for (int i = 0; i < count; ++i) {

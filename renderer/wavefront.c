@@ -11,6 +11,9 @@
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 #include <string.h>
 #include <sys/resource.h>
 #include <time.h>
@@ -767,6 +770,9 @@ static void iteration_barrier(Renderer *r, int iteration, uint64_t done, uint64_
  * (candela compare, the tests) each report their own peak; elsewhere getrusage's lifetime
  * maximum is the fallback. */
 static void peak_rss_reset(void) {
+#ifdef __GLIBC__
+    malloc_trim(0); /* hand the previous render's freed heap back first, or it counts here */
+#endif
     FILE *f = fopen("/proc/self/clear_refs", "w");
     if (f) { fputs("5", f); fclose(f); }
 }
