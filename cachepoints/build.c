@@ -1078,7 +1078,9 @@ static int flatten(CachePoints *cp, Dist *dist, Dist *blurred) {
     cp->far_slot = malloc((f + 1) * sizeof(uint32_t));
     cp->vis_key = malloc((v + 1) * sizeof(uint32_t));
     cp->vis_count = calloc(v + 1, sizeof(VisCounter));
-    cp->far_bin_total = calloc((size_t)n * CP_BIN_STRIDE + 1, sizeof(float));
+    size_t bt_bytes = ((size_t)n * CP_BIN_STRIDE * sizeof(float) + 63) / 64 * 64 + 64;
+    cp->far_bin_total = aligned_alloc(64, bt_bytes); /* a point's 32-byte block never straddles a line */
+    if (cp->far_bin_total) memset(cp->far_bin_total, 0, bt_bytes);
     cp->w_blurred = malloc((v + 1) * sizeof(float));
     cp->far_cdf = malloc((f + 1) * CP_FAR_BINS * sizeof(float));
     if (!cp->near_key || !cp->near_light || !cp->near_slot || !cp->near_vis || !cp->far || !cp->far_slot ||
