@@ -137,11 +137,15 @@ float cachepoints_pmf(const CachePoints *cp, const CachePointLights *lights, con
 /* The cache point a vertex at x uses (the nearest; ties: lowest index). */
 uint32_t cachepoints_nearest(const CachePoints *cp, const float x[3]);
 
-/* Visibility learning (§3.2), atomic: success == 0 counts an attempt (H_total) in the slot
- * cachepoints_select reported, success == 1 a success (H_success: the shadow ray got
- * through with a useful contribution). UINT32_MAX is ignored (the light is in none of the
- * point's lists). */
+/* Visibility learning (§3.2), atomic: one call per selection, once its outcome is known,
+ * in the slot cachepoints_select reported: an attempt (H_total), and with success != 0 also
+ * a success (H_success: the shadow ray got through with a useful contribution). Counting
+ * both at the shadow ray's end touches the counters once. UINT32_MAX is ignored (the
+ * light is in none of the point's lists). */
 void cachepoints_record(CachePoints *cp, uint32_t slot, int success);
+/* A hint to fetch a slot's counters ahead of cachepoints_record (e.g. before tracing the
+ * shadow rays whose outcome it will record); no effect on results. */
+void cachepoints_prefetch_counters(const CachePoints *cp, uint32_t slot);
 /* The slot of (point, light) (tests): UINT32_MAX when no entry of the point holds it. */
 uint32_t cachepoints_slot(const CachePoints *cp, uint32_t point, uint32_t light);
 /* At the iteration barrier: Eqs. 5-6 then the visibility blur (§3.2.2), out of place. */

@@ -46,7 +46,12 @@ uint32_t cachepoints_slot(const CachePoints *cp, uint32_t point, uint32_t light)
 void cachepoints_record(CachePoints *cp, uint32_t slot, int success) {
     if (!cp || slot >= cp->vis_off[cp->n]) return; /* only listed lights have counters (spec §4.1) */
     VisCounter *h = &cp->vis_count[slot];
-    __atomic_fetch_add(success ? &h->success : &h->total, 1u, __ATOMIC_RELAXED);
+    __atomic_fetch_add(&h->total, 1u, __ATOMIC_RELAXED);
+    if (success) __atomic_fetch_add(&h->success, 1u, __ATOMIC_RELAXED);
+}
+
+void cachepoints_prefetch_counters(const CachePoints *cp, uint32_t slot) {
+    if (cp && slot < cp->vis_off[cp->n]) __builtin_prefetch(&cp->vis_count[slot], 1);
 }
 
 float cachepoints_visibility(const CachePoints *cp, uint32_t point, uint32_t light) {

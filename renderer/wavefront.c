@@ -446,10 +446,7 @@ static void shade_range(void *vctx, size_t b, size_t e, int thread) {
             uint32_t li = light_select(lights, &lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_SELECT)),
                                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_DESCEND)), &pmf, &slot);
             LightLiSample ls;
-            if (lights->cachepoints) { /* §3.2.1: count the attempt in the slot that chose */
-                cachepoints_record(lights->cachepoints, slot, 0);
-                ps->shadow_slot[p] = slot;
-            }
+            if (lights->cachepoints) ps->shadow_slot[p] = slot; /* §3.2.1: the slot that chose */
             if (pmf > 0.0f &&
                 light_sample_li(scene, &lights->lights[li], &lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_U)),
                                 rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_V)),
@@ -486,6 +483,8 @@ static void shade_range(void *vctx, size_t b, size_t e, int thread) {
                     }
                 }
             }
+            /* no shadow ray: the attempt failed already (the shadow stage counts the others) */
+            if (lights->cachepoints && !ps->has_shadow[p]) cachepoints_record(lights->cachepoints, slot, 0);
         }
 
         /* BSDF sampling for the continuation ray */
@@ -528,6 +527,7 @@ static void shadow_range(void *vctx, size_t b, size_t e, int thread) {
     ShadeCtx *c = vctx;
     Renderer *r = c->r;
     PathState *ps = &r->ps;
+    CachePoints *cp = r->scene.lights.cachepoints;
     struct RTCRay rays[TRACE_CHUNK];
     struct RTCIntersectContext ictx;
     rtcInitIntersectContext(&ictx);
@@ -544,6 +544,7 @@ static void shadow_range(void *vctx, size_t b, size_t e, int thread) {
             ray->mask = 0xffffffffu;
             ray->id = p;
             ray->flags = 0;
+            if (cp) cachepoints_prefetch_counters(cp, ps->shadow_slot[p]); /* arrives while tracing */
         }
         rtcOccluded1M(r->scene.top, &ictx, rays, m, sizeof(struct RTCRay));
         for (unsigned k = 0; k < m; ++k) {
@@ -551,10 +552,10 @@ static void shadow_range(void *vctx, size_t b, size_t e, int thread) {
             if (rays[k].tfar >= 0.0f) { /* tfar becomes -inf when occluded */
                 vec3 L = v3_add(load3(ps->radiance, p), load3(ps->shadow_contrib, p));
                 store3(ps->radiance, p, L);
-                /* §3.2.1: the shadow ray got through with a useful (non-zero) contribution */
-                if (r->scene.lights.cachepoints)
-                    cachepoints_record(r->scene.lights.cachepoints, ps->shadow_slot[p], 1);
             }
+            /* §3.2.1: the attempt, and a success if the shadow ray got through with a useful
+             * (non-zero) contribution */
+            if (cp) cachepoints_record(cp, ps->shadow_slot[p], rays[k].tfar >= 0.0f);
         }
     }
 }

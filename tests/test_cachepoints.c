@@ -250,8 +250,7 @@ static void run(const CachePointLights *L, const float *cand, uint32_t nc, int c
         for (uint32_t l = 0; l < NL; ++l) {
             uint32_t s = cachepoints_slot(a, p, l);
             for (int t = 0; t < 99; ++t) {
-                cachepoints_record(a, s, 0);
-                if (l != best) cachepoints_record(a, s, 1);
+                cachepoints_record(a, s, l != best);
             }
         }
     cachepoints_update_visibility(a);
