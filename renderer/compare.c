@@ -276,12 +276,16 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
             CandelaImage img;
             CandelaStats st;
             int rc = candela_render(&r->opts, &img, &st, NULL, err);
-            if (rc == 0 && image_hash(&img) != r->image_hash) {
-                snprintf(err, CANDELA_ERR_LEN, "%s: strategy %s gave a different image on a repeated render (not deterministic)",
-                         base->scene_path, r->name);
-                rc = -1;
+            if (rc == 0) {
+                uint64_t hash = image_hash(&img);
+                candela_image_free(&img);
+                if (hash != r->image_hash) {
+                    snprintf(err, CANDELA_ERR_LEN,
+                             "%s: strategy %s gave a different image on a repeated render (not deterministic)",
+                             base->scene_path, r->name);
+                    rc = -1;
+                }
             }
-            if (rc == 0) candela_image_free(&img);
             if (rc != 0) {
                 for (int j = 0; j < count; ++j) free((char *)results[j].name);
                 return -1;
