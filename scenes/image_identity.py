@@ -1,0 +1,99 @@
+#!/usr/bin/env python3
+"""Bit-identity check between two candela binaries (for refactors that must not change images).
+
+    python3 scenes/image_identity.py OLD_CANDELA NEW_CANDELA [--out DIR] [--res WxH] [--spp N]
+
+Renders every scene below with every light sampler (and the cache point variants) with both
+binaries at the same seed and compares the EXR files byte for byte (the writer is
+deterministic, so equal pixels give equal files). Generated many-light scenes are used when
+`python3 scenes/make_manylights.py` has written them to build/scenes/. Prints one line per
+render and exits non-zero if any pair differs or a render fails.
+"""
+import argparse
+import filecmp
+import os
+import subprocess
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SHARED = os.path.join(ROOT, "..", "shared", "assets", "gltf")
+
+SCENES = [
+    os.path.join(ROOT, "scenes", "default.gltf"),
+    os.path.join(SHARED, "cornell_lights.gltf"),
+    os.path.join(SHARED, "cornell_area_only.gltf"),
+    os.path.join(SHARED, "cornell_many_lights.gltf"),
+    os.path.join(SHARED, "cornell_1k_lights.gltf"),
+    os.path.join(ROOT, "tests", "scenes", "env_directions.gltf"),
+    os.path.join(ROOT, "tests", "scenes", "masked_plane.gltf"),
+    os.path.join(ROOT, "build", "scenes", "windows.gltf"),
+    os.path.join(ROOT, "build", "scenes", "spotlights.gltf"),
+    os.path.join(ROOT, "build", "scenes", "emissive_mesh.gltf"),
+    os.path.join(ROOT, "build", "scenes", "city_1k.gltf"),
+]
+
+VARIANTS = [
+    ("uniform", ["--light-sampler", "uniform"]),
+    ("power", ["--light-sampler", "power"]),
+    ("tree", ["--light-sampler", "tree"]),
+    ("optimal", ["--light-sampler", "optimal"]),
+    ("optimal-occl", ["--light-sampler", "optimal", "--optimal-occlusion"]),
+    ("cachepoints", ["--light-sampler", "cachepoints"]),
+    ("cachepoints-novis", ["--light-sampler", "cachepoints", "--no-visibility"]),
+    ("cachepoints-linear", ["--light-sampler", "cachepoints", "--cachepoint-build", "linear"]),
+]
+
+
+def render(binary, scene, flags, out, res, spp):
+    cmd = [binary, "render", scene, "--res", res, "--spp", str(spp), "--seed", "7", "--quiet", "--no-png",
+           "-o", out] + flags
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    return r.returncode == 0, r.stderr.strip()
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("old")
+    ap.add_argument("new")
+    ap.add_argument("--out", default="/tmp/candela-identity")
+    ap.add_argument("--res", default="96x72")
+    ap.add_argument("--spp", type=int, default=8)
+    ap.add_argument("--only", default="", help="comma-separated substrings of scene names")
+    a = ap.parse_args()
+    os.makedirs(a.out, exist_ok=True)
+    bad = 0
+    total = 0
+    for scene in SCENES:
+        if not os.path.exists(scene):
+            print(f"skip   {scene} (absent)")
+            continue
+        name = os.path.splitext(os.path.basename(scene))[0]
+        if a.only and not any(s in name for s in a.only.split(",")):
+            continue
+        for vname, flags in VARIANTS:
+            if vname.startswith("optimal") and "1k" in name:
+                continue  # O(lights) per vertex: slow and adds nothing the other scenes do not test
+            outs = []
+            ok = True
+            for tag, binary in (("old", a.old), ("new", a.new)):
+                out = os.path.join(a.out, f"{name}-{vname}-{tag}.exr")
+                if os.path.exists(out):
+                    os.remove(out)
+                good, err = render(binary, scene, flags, out, a.res, a.spp)
+                if not good:
+                    print(f"FAIL   {name} {vname} ({tag}): {err}")
+                    ok = False
+                outs.append(out)
+            total += 1
+            if ok and filecmp.cmp(outs[0], outs[1], shallow=False):
+                print(f"same   {name} {vname}")
+            else:
+                if ok:
+                    print(f"DIFFER {name} {vname}")
+                bad += 1
+    print(f"{total - bad} of {total} renders identical")
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
