@@ -38,7 +38,6 @@ typedef struct CandelaOptions {
     uint32_t batch_size;       /* paths in flight per batch; 0: default. Never changes the image. */
     int max_iteration_spp;     /* cap of the 1,1,2,4,... schedule; 0: default */
     int quiet;                 /* no progress output */
-    int record_rays;           /* keep every traced ray for the Embree replay benchmark */
     int optimal_occlusion;     /* optimal sampler: one shadow ray per light per vertex */
     int cachepoint_no_visibility; /* cache points without visibility learning */
     int cachepoint_retruncate;    /* re-truncate blurred far bins (memory bound) */
@@ -77,13 +76,15 @@ typedef struct CandelaImage {
     float *depth;     /* 1 per pixel, first-hit distance along the camera ray (inf: miss) */
 } CandelaImage;
 
-/* Captured rays for the bare-Embree replay (record_rays). */
+/* Every ray a render traced, for the bare-Embree replay of `candela bench`. */
 typedef struct CandelaRayLog {
     size_t count, capacity;
     float *org_dir_tfar;   /* 7 floats per ray: ox oy oz dx dy dz tfar */
     uint8_t *is_shadow;
+    int failed;            /* out of memory: the log is incomplete and must not be used */
 } CandelaRayLog;
 
+/* ray_log (may be NULL): receives every traced ray (the benchmark). */
 int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *stats,
                    CandelaRayLog *ray_log, char err[CANDELA_ERR_LEN]);
 void candela_image_free(CandelaImage *image);

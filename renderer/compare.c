@@ -153,7 +153,6 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
     char path[4096];
     CandelaOptions o = *base;
     o.quiet = 1;
-    o.record_rays = 0;
     float *ref = NULL;
     int width = 0, height = 0;
     double ref_time = 0.0;

@@ -1,4 +1,4 @@
-/* renderer/lights.c: light list, light sampling and the light-selection strategies. */
+/* renderer/lights.c: the light list (built from a loaded scene) and light sampling. */
 #include "lights.h"
 
 #include <stdio.h>
@@ -25,7 +25,7 @@ static int push_light(Lights *ls, uint32_t *cap, const Light *l) {
     return 0;
 }
 
-static int build_area_light(Scene *scene, uint32_t instance, uint32_t local, Light *l) {
+static int build_area_light(const Scene *scene, uint32_t instance, uint32_t local, Light *l) {
     const SceneInstance *inst = &scene->instances[instance];
     const IoMesh *mesh = &scene->io.meshes[inst->mesh];
     uint32_t global = mesh->first_primitive + local;
@@ -93,12 +93,14 @@ static float env_average_luminance(const Scene *scene) {
     return wsum > 0.0 ? (float)(sum / wsum) * scene->env_strength : 0.0f;
 }
 
-int lights_build(Scene *scene, CandelaLightUnits units, CandelaLightSampler strategy, char *err, size_t err_len) {
-    Lights *ls = &scene->lights;
+int lights_build(Lights *ls, const Scene *scene, CandelaLightUnits units, char *err, size_t err_len) {
     memset(ls, 0, sizeof *ls);
     ls->environment = -1;
-    ls->strategy = strategy;
+    ls->scene = scene;
     uint32_t cap = 0;
+    ls->of_primitive = malloc(((size_t)scene->num_instance_primitives + 1) * sizeof *ls->of_primitive);
+    if (!ls->of_primitive) goto oom;
+    for (uint32_t i = 0; i < scene->num_instance_primitives; ++i) ls->of_primitive[i] = -1;
     float scale = units == CANDELA_LIGHT_UNITS_BLENDER ? 1.0f / BLENDER_LM_PER_W : 1.0f;
     float r = scene->radius;
     for (uint32_t i = 0; i < scene->io.num_lights; ++i) {
@@ -111,8 +113,8 @@ int lights_build(Scene *scene, CandelaLightUnits units, CandelaLightSampler stra
         l.position = v3(il->position[0], il->position[1], il->position[2]);
         l.direction = v3_normalize(v3(il->direction[0], il->direction[1], il->direction[2]));
         if (!v3_is_finite(l.position) || !v3_is_finite(l.direction)) {
-            fprintf(stderr, "%s: warning: light '%s' has a non-finite position or direction; ignored\n",
-                    scene->io.env_path[0] ? "scene" : "scene", il->name);
+            fprintf(stderr, "candela: warning: light '%s' has a non-finite position or direction; ignored\n",
+                    il->name);
             continue;
         }
         float lum = v3_luminance(l.intensity);
@@ -149,7 +151,7 @@ int lights_build(Scene *scene, CandelaLightUnits units, CandelaLightSampler stra
             Light l;
             if (build_area_light(scene, i, k, &l) != 0) goto oom;
             if (!(l.area > 0.0f)) { light_area_free(&l); continue; }
-            scene->light_of_primitive[inst->light_table_base + k] = (int32_t)ls->count;
+            ls->of_primitive[inst->primitive_base + k] = (int32_t)ls->count;
             if (push_light(ls, &cap, &l) != 0) { light_area_free(&l); goto oom; }
         }
     }
@@ -175,16 +177,7 @@ int lights_build(Scene *scene, CandelaLightUnits units, CandelaLightSampler stra
         ls->environment = (int32_t)ls->count;
         if (push_light(ls, &cap, &l) != 0) goto oom;
     }
-    if (ls->count == 0) return 0; /* a scene without lights renders black (plus emission seen directly: none) */
-    float *powers = malloc((ls->count + 1) * sizeof(float));
-    if (!powers) goto oom;
-    for (uint32_t i = 0; i < ls->count; ++i) powers[i] = ls->lights[i].power;
-    int rc = dist1d_init(&ls->power_distribution, powers, ls->count);
-    free(powers);
-    if (rc != 0) goto oom;
-    if (strategy == CANDELA_LIGHT_SAMPLER_TREE && light_tree_build(&ls->tree, ls->lights, ls->count) != 0) goto oom;
-    ls->scene = scene;
-    if (ls->environment >= 0) lights_env_estimates(scene, ls->env_estimate);
+    if (ls->environment >= 0) light_env_estimates(scene, ls->env_estimate);
     return 0;
 oom:
     snprintf(err, err_len, "out of memory while building the light list");
@@ -198,97 +191,21 @@ void lights_free(Lights *ls) {
     }
     free(ls->lights);
     if (ls->environment >= 0) dist2d_free(&ls->env_distribution);
-    if (ls->power_distribution.cdf) dist1d_free(&ls->power_distribution);
-    light_tree_free(&ls->tree);
-    cachepoints_free(ls->cachepoints);
-    free(ls->cp_centroid);
-    free(ls->cp_infinite);
-    free(ls->cp_second);
-    free(ls->cp_leaf_light);
-    free(ls->cp_light_leaf);
+    free(ls->of_primitive);
     memset(ls, 0, sizeof *ls);
     ls->environment = -1;
 }
 
-/* ---------------------------------------------------------------- selection */
-
-/* The cache point vertex of a context (from the context when prepared, else looked up). */
-static void cp_vertex_of(const Lights *ls, const LightSampleContext *ctx, float x[3], float n[3], const float **np,
-                         CachePointVertex *v) {
-    x[0] = ctx->p.x; x[1] = ctx->p.y; x[2] = ctx->p.z;
-    n[0] = ctx->n.x; n[1] = ctx->n.y; n[2] = ctx->n.z;
-    *np = v3_is_black(ctx->n) ? NULL : n;
-    if (ctx->cache_point1) { v->point = ctx->cache_point1 - 1u; v->near_total = ctx->cp_near_total; }
-    else cachepoints_vertex(ls->cachepoints, &ls->cp_view, x, *np, UINT32_MAX, v, NULL);
+int32_t lights_of_primitive(const Lights *ls, uint32_t instance, uint32_t local_prim) {
+    return ls->of_primitive[ls->scene->instances[instance].primitive_base + local_prim];
 }
 
-void lights_prepare_context(const Lights *ls, LightSampleContext *ctx, uint32_t *hint) {
-    ctx->cache_point1 = 0;
-    ctx->cp_near_total = 0.0f;
-    if (ls->strategy != CANDELA_LIGHT_SAMPLER_CACHEPOINTS || !ls->cachepoints) return;
-    float x[3] = {ctx->p.x, ctx->p.y, ctx->p.z}, n[3] = {ctx->n.x, ctx->n.y, ctx->n.z};
-    CachePointVertex v;
-    cachepoints_vertex(ls->cachepoints, &ls->cp_view, x, v3_is_black(ctx->n) ? NULL : n, hint ? *hint : UINT32_MAX, &v,
-                       ctx->cp_near_w);
-    if (hint) *hint = v.point;
-    ctx->cache_point1 = v.point + 1u;
-    ctx->cp_near_total = v.near_total;
-}
-
-uint32_t light_select(const Lights *ls, const LightSampleContext *ctx, float u, float u_descend, float *pmf,
-                      uint32_t *cp_slot) {
-    /* uniform and power ignore the shading point; context-aware strategies use it */
-    if (cp_slot) *cp_slot = UINT32_MAX;
-    if (ls->count == 0) { *pmf = 0.0f; return 0; }
-    switch (ls->strategy) {
-    case CANDELA_LIGHT_SAMPLER_TREE:
-        return light_tree_select(&ls->tree, ctx, u, pmf);
-    case CANDELA_LIGHT_SAMPLER_OPTIMAL:
-        return optimal_select(ls, ctx, u, pmf);
-    case CANDELA_LIGHT_SAMPLER_CACHEPOINTS: {
-        if (!ls->cachepoints) return optimal_select(ls, ctx, u, pmf); /* fallback (§3.1.1) */
-        float x[3], n[3];
-        const float *np;
-        CachePointVertex v;
-        uint32_t slot;
-        cp_vertex_of(ls, ctx, x, n, &np, &v);
-        /* the near weights are valid only for the vertex prepare_context filled them for */
-        const float *near_w = ctx->cache_point1 ? ctx->cp_near_w : NULL;
-        uint32_t light = cachepoints_select(ls->cachepoints, &ls->cp_view, x, np, &v, near_w, u, u_descend, pmf, &slot);
-        if (cp_slot) *cp_slot = slot;
-        return light;
-    }
-    case CANDELA_LIGHT_SAMPLER_POWER:
-        return dist1d_sample_discrete(&ls->power_distribution, u, pmf, NULL);
-    default: {
-        uint32_t i = (uint32_t)(u * (float)ls->count);
-        if (i >= ls->count) i = ls->count - 1;
-        *pmf = 1.0f / (float)ls->count;
-        return i;
-    }
-    }
-}
-
-float light_select_pmf(const Lights *ls, const LightSampleContext *ctx, uint32_t light) {
-    if (light >= ls->count) return 0.0f;
-    switch (ls->strategy) {
-    case CANDELA_LIGHT_SAMPLER_TREE:
-        return light_tree_pmf(&ls->tree, ctx, light);
-    case CANDELA_LIGHT_SAMPLER_OPTIMAL:
-        return optimal_pmf(ls, ctx, light);
-    case CANDELA_LIGHT_SAMPLER_CACHEPOINTS: {
-        if (!ls->cachepoints) return optimal_pmf(ls, ctx, light);
-        float x[3], n[3];
-        const float *np;
-        CachePointVertex v;
-        cp_vertex_of(ls, ctx, x, n, &np, &v);
-        return cachepoints_pmf(ls->cachepoints, &ls->cp_view, x, np, &v, light);
-    }
-    case CANDELA_LIGHT_SAMPLER_POWER:
-        return dist1d_pmf(&ls->power_distribution, light);
-    default:
-        return 1.0f / (float)ls->count;
-    }
+float light_spot_falloff(const Light *l, vec3 w) {
+    float c = v3_dot(w, l->direction);
+    float t = l->cos_inner > l->cos_outer ? (c - l->cos_outer) / (l->cos_inner - l->cos_outer)
+                                          : (c >= l->cos_outer ? 1.0f : 0.0f);
+    t = clampf(t, 0.0f, 1.0f);
+    return t * t;
 }
 
 /* ---------------------------------------------------------------- sampling */
@@ -327,16 +244,17 @@ float light_area_pdf_li(const Light *l, const LightSampleContext *ctx, uint32_t 
     return area_to_solid_angle(area_density(l, tree, triangle, tri_pmf), ctx->p, y, ny);
 }
 
-float light_env_pdf_li(const Scene *scene, vec3 d) {
-    if (scene->lights.environment < 0) return 0.0f;
+float light_env_pdf_li(const Lights *ls, vec3 d) {
+    if (ls->environment < 0) return 0.0f;
     vec2 uv = scene_env_dir_to_uv(d);
     float sin_theta = sqrtf(fmaxf(0.0f, 1.0f - d.y * d.y));
     if (!(sin_theta > 0.0f)) return 0.0f;
-    return dist2d_pdf(&scene->lights.env_distribution, uv) / (2.0f * PI_F * PI_F * sin_theta);
+    return dist2d_pdf(&ls->env_distribution, uv) / (2.0f * PI_F * PI_F * sin_theta);
 }
 
-int light_sample_li(const Scene *scene, const Light *l, const LightSampleContext *ctx, float u0, float u1, float u2,
+int light_sample_li(const Lights *ls, const Light *l, const LightSampleContext *ctx, float u0, float u1, float u2,
                     LightLiSample *s) {
+    const Scene *scene = ls->scene;
     vec3 p = ctx->p;
     s->triangle = 0;
     switch (l->type) {
@@ -349,14 +267,7 @@ int light_sample_li(const Scene *scene, const Light *l, const LightSampleContext
         s->wi = v3_scale(d, 1.0f / dist);
         s->distance = dist;
         vec3 I = l->intensity;
-        if (l->type == LIGHT_SPOT) {
-            /* glTF's recommended smooth falloff between the cones (squared linear ramp in cos) */
-            float c = v3_dot(v3_neg(s->wi), l->direction);
-            float t = l->cos_inner > l->cos_outer ? (c - l->cos_outer) / (l->cos_inner - l->cos_outer)
-                                                  : (c >= l->cos_outer ? 1.0f : 0.0f);
-            t = clampf(t, 0.0f, 1.0f);
-            I = v3_scale(I, t * t);
-        }
+        if (l->type == LIGHT_SPOT) I = v3_scale(I, light_spot_falloff(l, v3_neg(s->wi)));
         s->radiance = v3_scale(I, 1.0f / d2);
         s->pdf = 1.0f;
         s->is_delta = 1;
@@ -406,7 +317,7 @@ int light_sample_li(const Scene *scene, const Light *l, const LightSampleContext
     }
     case LIGHT_ENVIRONMENT: {
         float pdf_uv;
-        vec2 uv = dist2d_sample(&scene->lights.env_distribution, u0, u1, &pdf_uv);
+        vec2 uv = dist2d_sample(&ls->env_distribution, u0, u1, &pdf_uv);
         (void)u2;
         vec3 d = scene_env_uv_to_dir(uv);
         float sin_theta = sinf(uv.y * PI_F);

@@ -1,28 +1,21 @@
-/* renderer/lights.h (private): lights and light selection.
+/* renderer/lights.h (private): the light list and light sampling.
  *
  * Lights: punctual (point, spot, directional; delta), area (one light per emissive glTF
- * primitive per instance) and the environment map (importance-sampled lat-long).
+ * primitive per instance) and the environment map (importance-sampled lat-long). They are
+ * built beside the scene from the loaded Scene (lights_build), which knows nothing of them.
+ * How NEE picks one of them is the light-selection protocol's business (light_sampler.h).
  *
- * An area light's triangle is picked by its inner light tree (lighttree.h, cache-points spec
- * §5.5: importance from the shading point and normal) when it has more than
+ * An area light's triangle is picked by its inner light tree (lighttree.h; importance from
+ * the shading point and normal, as for whole lights) when it has more than
  * LIGHT_AREA_TREE_MAX_CDF triangles, else in proportion to area (l->triangles). The tree
  * also falls back to the area CDF for a context from which the tree's root has zero
  * importance (the bounds say the point sees no emitting side); sampling and
- * light_area_pdf_li make that decision with the same function, so the pdf stays exact.
- *
- * Light selection goes through one interface so that MIS stays correct whatever the
- * strategy: light_select() picks a light for a shading context and returns its probability;
- * light_select_pmf() returns the probability the same context gives a named light. The two
- * must agree exactly (tests/test_lights.c). Strategies: uniform, power, the light BVH
- * (lighttree.h: importance from the shading point and normal), per-vertex optimal, and cache
- * points (cachepoints/, set up in cachepoint_setup.c), whose context carries the vertex's
- * cache point and near-light sum (lights_prepare_context). */
+ * light_area_pdf_li make that decision with the same function, so the pdf stays exact. */
 #ifndef CANDELA_LIGHTS_H
 #define CANDELA_LIGHTS_H
 
 #include <stdint.h>
 
-#include "cachepoints.h"
 #include "candela.h"
 #include "lighttree.h"
 #include "sampling.h"
@@ -52,19 +45,25 @@ typedef struct Light {
 /* Area lights with at most this many triangles pick them by area alone (no inner tree). */
 #define LIGHT_AREA_TREE_MAX_CDF 8
 
+/* A light-selection strategy's per-vertex state, opaque to everyone else: the strategy fills
+ * it in light_sampler_prepare and reads it back in select / pmf. The wavefront keeps it in the
+ * path state, so the MIS pdf of a light found by the next wave's BSDF sample is evaluated with
+ * the very context NEE used at this vertex. All zero: not prepared (the strategy then works
+ * it out again, with the same result). */
+typedef struct LightVertex {
+    uint32_t word;
+    float value;
+} LightVertex;
+
+/* Where light arrives: a point with a shading normal, or (n = 0) an omnidirectional receiver
+ * (a point in a medium, a transmissive surface), for which strategies use fluence. */
 typedef struct LightSampleContext {
     vec3 p;
-    vec3 n;     /* shading normal, or zero for a point in a medium */
-    /* cache point of this vertex + 1 and the summed weight of its near lights at the vertex,
-     * when the caller already has them from lights_prepare_context (0: look them up). The
-     * wavefront stores both per path, so NEE, counting and the MIS PDF at the next wave use
-     * one nearest-point query and one near-light pass (spec §5.1, §5.6). */
-    uint32_t cache_point1;
-    float cp_near_total;
-    /* scratch for the near lights' weights at this vertex (CACHEPOINTS_MAX_NEAR floats), filled
-     * by lights_prepare_context and reused by light_select; NULL: evaluate them again. Never
-     * stored: the MIS PDF at the next wave needs only one light's weight. */
-    float *cp_near_w;
+    vec3 n;
+    LightVertex vertex;  /* from light_sampler_prepare; zero: not prepared */
+    /* LIGHT_SAMPLER_SCRATCH floats the strategy may fill in prepare and reuse in select for
+     * this vertex only (e.g. cache points' near-light weights); NULL: none */
+    float *scratch;
 } LightSampleContext;
 
 typedef struct Lights {
@@ -72,53 +71,35 @@ typedef struct Lights {
     uint32_t count;
     int32_t environment;        /* index of the environment light or -1 */
     Distribution2D env_distribution;
-    CandelaLightSampler strategy;
-    Distribution1D power_distribution;
-    LightTree tree;             /* CANDELA_LIGHT_SAMPLER_TREE only */
-    const struct Scene *scene;  /* for --optimal-occlusion's shadow rays */
-    int optimal_occlusion;
     float env_estimate[7];      /* environment irradiance on the 6 axis planes + fluence */
-    /* CANDELA_LIGHT_SAMPLER_CACHEPOINTS (built by lights_build_cachepoints once the thread
-     * pool exists; NULL otherwise, or when fewer than 10 points fell back to optimal) */
-    CachePoints *cachepoints;
-    CachePointLights cp_view;
-    float *cp_centroid;
-    uint8_t *cp_infinite;
-    CachePointStats cp_stats;
-    /* --cachepoint-build cut: the light tree (ls->tree) seen by the cache points */
-    CachePointTree cp_tree;
-    uint32_t *cp_second, *cp_leaf_light, *cp_light_leaf;
+    /* per instance primitive (SceneInstance.primitive_base + local primitive): the area light
+     * it is, or -1: how a hit on an emitter finds its light for MIS */
+    int32_t *of_primitive;
+    const struct Scene *scene;  /* built from (environment image, emissive materials) */
 } Lights;
 
-/* Build from the scene's punctual lights, emissive primitives and environment. */
-int lights_build(struct Scene *scene, CandelaLightUnits units, CandelaLightSampler strategy,
-                 char *err, size_t err_len);
+/* Builds the lights of a loaded scene: punctual lights, emissive primitives, environment.
+ * The scene must outlive the lights. 0 ok; -1 with a message in err. */
+int lights_build(Lights *lights, const struct Scene *scene, CandelaLightUnits units, char *err, size_t err_len);
 void lights_free(Lights *lights);
 
-/* §Light selection interface. u picks the light; u_descend is a second uniform that cache
- * point clusters use to descend the light tree. *cp_slot (may be NULL) receives the cache
- * point visibility slot to count the attempt in (UINT32_MAX: none). */
-uint32_t light_select(const Lights *lights, const LightSampleContext *ctx, float u, float u_descend, float *pmf,
-                      uint32_t *cp_slot);
-float light_select_pmf(const Lights *lights, const LightSampleContext *ctx, uint32_t light);
+/* The area light a hit on (instance, local primitive) belongs to, or -1. */
+int32_t lights_of_primitive(const Lights *lights, uint32_t instance, uint32_t local_prim);
 
-/* lightselect_optimal.c: unoccluded contribution estimates (cache points spec §3.4) and
- * the locally optimal strategy (§5.8). */
+/* A spot light's intensity factor in direction w (unit, from the light): glTF's recommended
+ * smooth falloff between the cones (a squared linear ramp in cos). */
+float light_spot_falloff(const Light *l, vec3 w);
+
+/* light_estimates.c: unoccluded contribution estimates (the cache points paper's Table 1
+ * "optimal" selection weights; the estimators are described there). Irradiance at p on the
+ * plane with normal n (fluence when n = 0); estimate7 gives the irradiance on the six planes
+ * facing +X -X +Y -Y +Z -Z and the fluence at once. Deterministic functions of (light, p, n). */
 float light_contribution_estimate(const Lights *ls, const Light *l, vec3 p, vec3 n);
-uint32_t optimal_select(const Lights *ls, const LightSampleContext *ctx, float u, float *pmf);
-float optimal_pmf(const Lights *ls, const LightSampleContext *ctx, uint32_t light);
-void lights_env_estimates(const struct Scene *scene, float out[7]);
 void light_contribution_estimate7(const Lights *ls, const Light *l, vec3 p, float out[7]);
-
-/* cachepoint_setup.c: candidates (§3.1.1), estimate callbacks and the build; pool is the
- * renderer's ThreadPool. */
-int lights_build_cachepoints(struct Scene *scene, void *pool, const CandelaOptions *o, char err[CANDELA_ERR_LEN]);
-/* Fills ctx->cache_point1 and ctx->cp_near_total (and ctx->cp_near_w) when cache points
- * select lights (else leaves them 0): once per vertex, before light_select and before
- * storing the context for the MIS PDF at the next wave. *hint (may be NULL) is the previous
- * vertex's cache point of a coherent stream, updated: it speeds up the nearest-point search
- * and never changes its result. */
-void lights_prepare_context(const Lights *ls, LightSampleContext *ctx, uint32_t *hint);
+/* The environment's estimates (position-independent), computed once by lights_build. */
+void light_env_estimates(const struct Scene *scene, float out[7]);
+/* Peak radiant intensity of a light (luminance, W/sr): what a light-tree cluster estimate sums. */
+float light_peak_intensity(const Light *l);
 
 /* A sampled point on a light as seen from a shading point. */
 typedef struct LightLiSample {
@@ -132,8 +113,8 @@ typedef struct LightLiSample {
 
 /* Samples a point on `light` as seen from ctx (ctx->n steers an area light's inner tree; use
  * the same context for light_area_pdf_li). */
-int light_sample_li(const struct Scene *scene, const Light *light, const LightSampleContext *ctx, float u0,
-                    float u1, float u2, LightLiSample *s);
+int light_sample_li(const Lights *ls, const Light *light, const LightSampleContext *ctx, float u0, float u1,
+                    float u2, LightLiSample *s);
 /* Solid-angle pdf (given the light) of sampling the point y with normal ny on triangle
  * `triangle` of an area light from ctx: p_tri(triangle | ctx) / area(triangle) * d^2 / |cos|. */
 float light_area_pdf_li(const Light *light, const LightSampleContext *ctx, uint32_t triangle, vec3 y, vec3 ny);
@@ -145,6 +126,6 @@ int light_area_tree_build(Light *l);
 /* Frees an area light's arrays and tree. */
 void light_area_free(Light *l);
 /* Solid-angle pdf of the environment light for direction d. */
-float light_env_pdf_li(const struct Scene *scene, vec3 d);
+float light_env_pdf_li(const Lights *ls, vec3 d);
 
 #endif

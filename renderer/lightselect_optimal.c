@@ -1,112 +1,29 @@
-/* renderer/lightselect_optimal.c: unoccluded light-contribution estimates and the
- * "locally optimal" light-selection strategy (cache points paper §3 and its Table 1
- * baseline; spec §3.4 estimators, §5.8 optimal mode).
- *
- * For a shading context (p, n) every light gets an estimate w_e of its unoccluded
- * irradiance at p on the plane with normal n (fluence when n is zero: volumes), optionally
- * times a binary visibility from one shadow ray (--optimal-occlusion, as Table 1 measures).
- * The selection PMF mixes in a uniform floor so no light ever has probability zero
- * (spec §5.4/§5.8, eps = 0.03):
+/* renderer/lightselect_optimal.c: the "locally optimal" light-selection strategy (the cache
+ * points paper's reference, Table 1): every light's unoccluded estimate (light_estimates.c) at
+ * every vertex, optionally times a binary visibility from one shadow ray per light
+ * (--optimal-occlusion, as Table 1 measures "optimal selection"). The selection PMF mixes in a
+ * uniform floor so no light ever has probability zero (eps = 0.03, as cache points use):
  *     p(e | x) = (1 - eps) w_e / W + eps / N,   W = sum_e w_e;   p = 1/N when W == 0.
- * Every estimate is a deterministic function of (light, p, n): select and pmf recompute
- * the same numbers in the same order, so the PMF select reports equals optimal_pmf bit for bit.
+ * Every estimate is a deterministic function of (light, p, n): select and pmf recompute the
+ * same numbers in the same order, so the PMF select reports equals the pmf bit for bit.
  * Cost is O(N) per call, which is the point of the paper: this is the reference that cache
  * points compress. */
-#include <string.h>
+#include <stdlib.h>
 
-#include "lights.h"
+#include "light_sampler.h"
 #include "scene.h"
 
 #define OPTIMAL_EPSILON 0.03f
-#define AREA_ESTIMATE_SAMPLES 16
 
-/* b_i(n) = max(0, n.a_i)^2 over the 6 cardinal axes sums to 1 for a unit n (spec §5.3). */
-static float env_irradiance_estimate(const Lights *ls, vec3 n) {
-    if (v3_is_black(n)) return ls->env_estimate[6];
-    float w[6] = {sqr(maxf(n.x, 0.0f)), sqr(maxf(-n.x, 0.0f)), sqr(maxf(n.y, 0.0f)),
-                  sqr(maxf(-n.y, 0.0f)), sqr(maxf(n.z, 0.0f)), sqr(maxf(-n.z, 0.0f))};
-    float e = 0.0f;
-    for (int i = 0; i < 6; ++i) e += w[i] * ls->env_estimate[i];
-    return e;
-}
-
-/* cosine factor of the receiver: max(0, n.w), or 1 for an omnidirectional receiver */
-static inline float receiver_cos(vec3 n, vec3 w) {
-    return v3_is_black(n) ? 1.0f : maxf(v3_dot(n, w), 0.0f);
-}
-
-/* The area-light estimate's 16 fixed stratified points (triangles in proportion to area): for
- * each, the direction from p and the unoccluded contribution L cos_l / r^2 * A / 16. The same
- * points for every call, so estimates are deterministic. Returns the number written. */
-static int area_estimate_samples(const Light *l, vec3 p, vec3 dirs[AREA_ESTIMATE_SAMPLES],
-                                 float contrib[AREA_ESTIMATE_SAMPLES]) {
-    float L = v3_luminance(l->emission);
-    if (!(L > 0.0f)) return 0;
-    int count = 0;
-    for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) {
-        float u0 = ((float)k + 0.5f) / AREA_ESTIMATE_SAMPLES;
-        float u1 = (float)((k * 7 + 3) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
-        float u2 = (float)((k * 11 + 5) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
-        float tri_pmf, u_tri;
-        uint32_t t = dist1d_sample_discrete(&l->triangles, u0, &tri_pmf, &u_tri);
-        const float *v = l->world_vertices + 9 * (size_t)t;
-        vec3 a = v3(v[0], v[1], v[2]), b = v3(v[3], v[4], v[5]), c = v3(v[6], v[7], v[8]);
-        vec2 bc = sample_uniform_triangle(u1, u2);
-        vec3 y = v3_add(v3_add(v3_scale(a, 1.0f - bc.x - bc.y), v3_scale(b, bc.x)), v3_scale(c, bc.y));
-        vec3 ng = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
-        vec3 d = v3_sub(y, p);
-        float d2 = v3_dot(d, d);
-        if (!(d2 > 1e-12f)) continue;
-        vec3 w = v3_scale(d, 1.0f / sqrtf(d2));
-        float cos_l = -v3_dot(ng, w);
-        if (l->two_sided) cos_l = fabsf(cos_l);
-        if (!(cos_l > 0.0f)) continue;
-        dirs[count] = w;
-        contrib[count] = L * cos_l / d2 * l->area / AREA_ESTIMATE_SAMPLES;
-        ++count;
-    }
-    return count;
-}
-
-float light_contribution_estimate(const Lights *ls, const Light *l, vec3 p, vec3 n) {
-    switch (l->type) {
-    case LIGHT_POINT:
-    case LIGHT_SPOT: {
-        vec3 d = v3_sub(l->position, p);
-        float d2 = v3_dot(d, d);
-        if (!(d2 > 0.0f)) return 0.0f;
-        vec3 w = v3_scale(d, 1.0f / sqrtf(d2));
-        float I = v3_luminance(l->intensity);
-        if (l->type == LIGHT_SPOT) {
-            float c = v3_dot(v3_neg(w), l->direction);
-            float t = l->cos_inner > l->cos_outer ? (c - l->cos_outer) / (l->cos_inner - l->cos_outer)
-                                                  : (c >= l->cos_outer ? 1.0f : 0.0f);
-            t = clampf(t, 0.0f, 1.0f);
-            I *= t * t;
-        }
-        return I * receiver_cos(n, w) / d2;
-    }
-    case LIGHT_DIRECTIONAL:
-        return v3_luminance(l->intensity) * receiver_cos(n, v3_neg(l->direction));
-    case LIGHT_ENVIRONMENT:
-        return env_irradiance_estimate(ls, n);
-    case LIGHT_AREA: {
-        /* (A/16) sum L cos_l max(0, n.w) / r^2 over the 16 stratified points (spec §3.4) */
-        vec3 dirs[AREA_ESTIMATE_SAMPLES];
-        float contrib[AREA_ESTIMATE_SAMPLES];
-        int count = area_estimate_samples(l, p, dirs, contrib);
-        float sum = 0.0f;
-        for (int k = 0; k < count; ++k) sum += contrib[k] * receiver_cos(n, dirs[k]);
-        return sum;
-    }
-    }
-    return 0.0f;
-}
+typedef struct OptimalSampler {
+    const Lights *lights;
+    const Scene *scene;  /* for the occlusion rays */
+    int occlusion;
+} OptimalSampler;
 
 /* One shadow ray from p towards the light's reference point (point/spot position, the
- * first stratified area sample, or the direction of a distant light). */
-static int light_visible(const Lights *ls, const Light *l, vec3 p, vec3 n) {
-    const Scene *scene = ls->scene;
+ * centroid of the first triangle of an area light, or the direction of a distant light). */
+static int light_visible(const Scene *scene, const Light *l, vec3 p, vec3 n) {
     vec3 target;
     float tfar;
     vec3 dir;
@@ -134,18 +51,14 @@ static int light_visible(const Lights *ls, const Light *l, vec3 p, vec3 n) {
     tfar *= 1.0f - 1e-3f;
 trace:;
     vec3 o = v3_is_black(n) ? p : offset_ray_origin(p, v3_dot(dir, n) >= 0.0f ? n : v3_neg(n));
-    struct RTCIntersectContext ictx;
-    rtcInitIntersectContext(&ictx);
-    struct RTCRay ray = {o.x, o.y, o.z, 0.0f, dir.x, dir.y, dir.z, 0.0f, tfar, 0xffffffffu, 0, 0};
-    rtcOccluded1(scene->top, &ictx, &ray);
-    return ray.tfar >= 0.0f;
+    return scene_visible1(scene, (SceneRay){o, 0.0f, dir, tfar});
 }
 
-static inline float optimal_weight(const Lights *ls, uint32_t i, const LightSampleContext *ctx) {
-    const Light *l = &ls->lights[i];
-    float w = light_contribution_estimate(ls, l, ctx->p, ctx->n);
+static inline float optimal_weight(const OptimalSampler *s, uint32_t i, const LightSampleContext *ctx) {
+    const Light *l = &s->lights->lights[i];
+    float w = light_contribution_estimate(s->lights, l, ctx->p, ctx->n);
     if (!(w > 0.0f) || !isfinite(w)) return 0.0f;
-    if (ls->optimal_occlusion && !light_visible(ls, l, ctx->p, ctx->n)) return 0.0f;
+    if (s->occlusion && !light_visible(s->scene, l, ctx->p, ctx->n)) return 0.0f;
     return w;
 }
 
@@ -154,106 +67,56 @@ static inline float optimal_pmf_from(float w, float total, uint32_t count) {
     return (1.0f - OPTIMAL_EPSILON) * (w / total) + OPTIMAL_EPSILON / (float)count;
 }
 
-static float optimal_total(const Lights *ls, const LightSampleContext *ctx) {
+static float optimal_total(const OptimalSampler *s, const LightSampleContext *ctx) {
     float total = 0.0f;
-    for (uint32_t i = 0; i < ls->count; ++i) total += optimal_weight(ls, i, ctx);
+    for (uint32_t i = 0; i < s->lights->count; ++i) total += optimal_weight(s, i, ctx);
     return total;
 }
 
-uint32_t optimal_select(const Lights *ls, const LightSampleContext *ctx, float u, float *pmf) {
-    float total = optimal_total(ls, ctx);
+static uint32_t optimal_select(const void *state, const LightSampleContext *ctx, float u, float u1, float *pmf,
+                               uint32_t *outcome) {
+    (void)u1;
+    (void)outcome;
+    const OptimalSampler *s = state;
+    uint32_t count = s->lights->count;
+    float total = optimal_total(s, ctx);
     uint32_t pick;
     if (!(total > 0.0f) || u < OPTIMAL_EPSILON) {
         float uu = total > 0.0f ? u / OPTIMAL_EPSILON : u;
-        pick = (uint32_t)(uu * (float)ls->count);
-        if (pick >= ls->count) pick = ls->count - 1;
-        *pmf = optimal_pmf_from(optimal_weight(ls, pick, ctx), total, ls->count);
+        pick = (uint32_t)(uu * (float)count);
+        if (pick >= count) pick = count - 1;
+        *pmf = optimal_pmf_from(optimal_weight(s, pick, ctx), total, count);
         return pick;
     }
     float target = (u - OPTIMAL_EPSILON) / (1.0f - OPTIMAL_EPSILON) * total;
     float cum = 0.0f, w = 0.0f;
-    pick = ls->count - 1;
-    for (uint32_t i = 0; i < ls->count; ++i) {
-        w = optimal_weight(ls, i, ctx);
+    pick = count - 1;
+    for (uint32_t i = 0; i < count; ++i) {
+        w = optimal_weight(s, i, ctx);
         cum += w;
         if (w > 0.0f && target < cum) { pick = i; break; }
     }
     /* rounding can leave target >= cum at the end: take the last light with weight */
     if (!(target < cum)) {
-        while (pick > 0 && !(optimal_weight(ls, pick, ctx) > 0.0f)) --pick;
+        while (pick > 0 && !(optimal_weight(s, pick, ctx) > 0.0f)) --pick;
     }
-    *pmf = optimal_pmf_from(optimal_weight(ls, pick, ctx), total, ls->count);
+    *pmf = optimal_pmf_from(optimal_weight(s, pick, ctx), total, count);
     return pick;
 }
 
-float optimal_pmf(const Lights *ls, const LightSampleContext *ctx, uint32_t light) {
-    if (light >= ls->count) return 0.0f;
-    float total = optimal_total(ls, ctx);
-    return optimal_pmf_from(optimal_weight(ls, light, ctx), total, ls->count);
+static float optimal_pmf(const void *state, const LightSampleContext *ctx, uint32_t light) {
+    const OptimalSampler *s = state;
+    float total = optimal_total(s, ctx);
+    return optimal_pmf_from(optimal_weight(s, light, ctx), total, s->lights->count);
 }
 
-/* Env irradiance on the 6 cardinal planes and the fluence (index 6), integrated over the
- * lat-long cells once at build: position-independent (spec §3.4, "dome"). */
-void lights_env_estimates(const Scene *scene, float out[7]) {
-    memset(out, 0, 7 * sizeof(float));
-    const IoImage *im = &scene->env;
-    if (im->width <= 0) return;
-    const vec3 axes[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
-    double acc[7] = {0};
-    for (int y = 0; y < im->height; ++y) {
-        float v = ((float)y + 0.5f) / (float)im->height;
-        float dw = (2.0f * PI_F / (float)im->width) * (PI_F / (float)im->height) * sinf(v * PI_F);
-        for (int x = 0; x < im->width; ++x) {
-            vec3 d = scene_env_uv_to_dir((vec2){((float)x + 0.5f) / (float)im->width, v});
-            const float *t = im->rgba + 4 * ((size_t)y * (size_t)im->width + (size_t)x);
-            double L = (double)v3_luminance(v3(t[0], t[1], t[2])) * scene->env_strength * dw;
-            for (int i = 0; i < 6; ++i) acc[i] += L * maxf(v3_dot(axes[i], d), 0.0f);
-            acc[6] += L;
-        }
-    }
-    for (int i = 0; i < 7; ++i) out[i] = (float)acc[i];
-}
+static const LightSamplerOps OPTIMAL_OPS = {
+    .name = "optimal", .select = optimal_select, .pmf = optimal_pmf, .destroy = free};
 
-/* The seven cache-point bins at once (spec §3.4): irradiance on the planes facing
- * +X -X +Y -Y +Z -Z and the fluence, from the same samples as light_contribution_estimate. */
-void light_contribution_estimate7(const Lights *ls, const Light *l, vec3 p, float out[7]) {
-    for (int i = 0; i < 7; ++i) out[i] = 0.0f;
-    vec3 dirs[AREA_ESTIMATE_SAMPLES];
-    float contrib[AREA_ESTIMATE_SAMPLES];
-    int count = 0;
-    switch (l->type) {
-    case LIGHT_ENVIRONMENT:
-        for (int i = 0; i < 7; ++i) out[i] = ls->env_estimate[i];
-        return;
-    case LIGHT_DIRECTIONAL:
-        dirs[0] = v3_neg(l->direction);
-        contrib[0] = v3_luminance(l->intensity);
-        count = 1;
-        break;
-    case LIGHT_POINT:
-    case LIGHT_SPOT: {
-        vec3 d = v3_sub(l->position, p);
-        float d2 = v3_dot(d, d);
-        if (!(d2 > 0.0f)) return;
-        dirs[0] = v3_scale(d, 1.0f / sqrtf(d2));
-        contrib[0] = light_contribution_estimate(ls, l, p, v3s(0.0f)); /* fluence incl. the cone */
-        count = 1;
-        break;
-    }
-    case LIGHT_AREA: {
-        count = area_estimate_samples(l, p, dirs, contrib);
-        break;
-    }
-    }
-    for (int k = 0; k < count; ++k) {
-        if (!(contrib[k] > 0.0f) || !isfinite(contrib[k])) continue;
-        vec3 w = dirs[k];
-        out[0] += contrib[k] * maxf(w.x, 0.0f);
-        out[1] += contrib[k] * maxf(-w.x, 0.0f);
-        out[2] += contrib[k] * maxf(w.y, 0.0f);
-        out[3] += contrib[k] * maxf(-w.y, 0.0f);
-        out[4] += contrib[k] * maxf(w.z, 0.0f);
-        out[5] += contrib[k] * maxf(-w.z, 0.0f);
-        out[6] += contrib[k];
-    }
+int light_sampler_optimal_create(LightSampler *ls, const Lights *lights, const Scene *scene, int occlusion) {
+    OptimalSampler *s = malloc(sizeof *s);
+    if (!s) return -1;
+    *s = (OptimalSampler){lights, scene, occlusion};
+    *ls = (LightSampler){&OPTIMAL_OPS, s, lights->count};
+    return 0;
 }

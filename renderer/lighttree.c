@@ -6,7 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "lights.h"
+#include "light_sampler.h"
 
 #define ONE_MINUS_EPS 0x1.fffffep-1f
 #define NUM_BUCKETS 12
@@ -586,4 +586,33 @@ void light_tree_node_estimate7(const LightTree *t, uint32_t node, vec3 p, float 
         out[2 * k] = fluence * maxf(cos_sub_clamped(sin_i, c[k], v.sin_b, v.cos_b), 0.0f);
         out[2 * k + 1] = fluence * maxf(cos_sub_clamped(sin_i, -c[k], v.sin_b, v.cos_b), 0.0f);
     }
+}
+
+/* ---------------------------------------------------------------- as a strategy */
+
+/* The light BVH as a light-selection strategy (light_sampler.h): one descent per selection. */
+static uint32_t tree_select(const void *state, const LightSampleContext *ctx, float u, float u1, float *pmf,
+                            uint32_t *outcome) {
+    (void)u1; (void)outcome;
+    return light_tree_select(state, ctx, u, pmf);
+}
+
+static float tree_pmf(const void *state, const LightSampleContext *ctx, uint32_t light) {
+    return light_tree_pmf(state, ctx, light);
+}
+
+static void tree_destroy(void *state) {
+    light_tree_free(state);
+    free(state);
+}
+
+static const LightSamplerOps TREE_OPS = {
+    .name = "tree", .select = tree_select, .pmf = tree_pmf, .destroy = tree_destroy};
+
+int light_sampler_tree_create(LightSampler *s, const Lights *lights) {
+    LightTree *t = calloc(1, sizeof *t);
+    if (!t) return -1;
+    if (light_tree_build(t, lights->lights, lights->count) != 0) { free(t); return -1; }
+    *s = (LightSampler){&TREE_OPS, t, lights->count};
+    return 0;
 }

@@ -251,7 +251,6 @@ int main(int argc, char **argv) {
     CandelaImage image;
     CandelaStats stats;
     CandelaRayLog log = {0};
-    o.record_rays = bench;
     if (candela_render(&o, &image, &stats, bench ? &log : NULL, err) != 0) {
         fprintf(stderr, "candela: %s\n", err);
         return 1;
@@ -259,7 +258,11 @@ int main(int argc, char **argv) {
     int rc = 0;
     if (bench) {
         double replay = 0.0;
-        if (candela_replay_rays(&o, &log, o.threads, &replay, err) != 0) {
+        if (log.failed) {
+            fprintf(stderr, "candela: %s: out of memory recording the rays for the replay (try a smaller --res or --spp)\n",
+                    o.scene_path);
+            rc = 1;
+        } else if (candela_replay_rays(&o, &log, o.threads, &replay, err) != 0) {
             fprintf(stderr, "candela: %s\n", err);
             rc = 1;
         } else {

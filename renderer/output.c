@@ -1,13 +1,13 @@
-/* renderer/output.c: EXR/PNG output, statistics JSON and the bare-Embree ray replay. */
+/* renderer/output.c: EXR/PNG output and the statistics JSON. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 #include <unistd.h>
 
+#include <math.h>
+
 #include "candela.h"
-#include "scene.h"
-#include "threads.h"
+#include "io.h"
 
 static float srgb_encode(float x) {
     if (!(x > 0.0f)) return 0.0f;
@@ -91,46 +91,3 @@ int candela_write_stats_json(const char *path, const CandelaOptions *o, const Ca
     return 0;
 }
 
-/* ---------------------------------------------------------------- replay */
-
-typedef struct ReplayCtx { const Scene *scene; const CandelaRayLog *log; } ReplayCtx;
-
-static void replay_range(void *vctx, size_t b, size_t e, int thread) {
-    (void)thread;
-    const ReplayCtx *c = vctx;
-    struct RTCIntersectContext ictx;
-    rtcInitIntersectContext(&ictx);
-    for (size_t i = b; i < e; ++i) {
-        const float *r = c->log->org_dir_tfar + 7 * i;
-        if (c->log->is_shadow[i]) {
-            struct RTCRay ray = {r[0], r[1], r[2], 0.0f, r[3], r[4], r[5], 0.0f, r[6], 0xffffffffu, (unsigned)i, 0};
-            rtcOccluded1(c->scene->top, &ictx, &ray);
-        } else {
-            struct RTCRayHit rh;
-            memset(&rh, 0, sizeof rh);
-            rh.ray.org_x = r[0]; rh.ray.org_y = r[1]; rh.ray.org_z = r[2];
-            rh.ray.dir_x = r[3]; rh.ray.dir_y = r[4]; rh.ray.dir_z = r[5];
-            rh.ray.tfar = r[6];
-            rh.ray.mask = 0xffffffffu;
-            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-            rtcIntersect1(c->scene->top, &ictx, &rh);
-        }
-    }
-}
-
-int candela_replay_rays(const CandelaOptions *o, const CandelaRayLog *log, int threads, double *seconds,
-                        char err[CANDELA_ERR_LEN]) {
-    Scene scene;
-    if (scene_load(&scene, o, err) != 0) return -1;
-    ThreadPool *pool = threadpool_create(threads);
-    if (!pool) { scene_free(&scene); snprintf(err, CANDELA_ERR_LEN, "candela: out of memory"); return -1; }
-    ReplayCtx c = {&scene, log};
-    struct timespec t0, t1;
-    clock_gettime(CLOCK_MONOTONIC, &t0);
-    threadpool_parallel_for(pool, log->count, 4096, replay_range, &c);
-    clock_gettime(CLOCK_MONOTONIC, &t1);
-    *seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
-    threadpool_destroy(pool);
-    scene_free(&scene);
-    return 0;
-}

@@ -31,12 +31,13 @@ static inline float rng_uniform(uint64_t key, uint32_t dim) {
     return (float)(h >> 40) * (1.0f / 16777216.0f);
 }
 
-/* Dimension layout of a path: camera uses the first few, then each bounce a fixed block. */
+/* Dimension layout of a path: the camera uses the first dimensions, then each bounce (path
+ * vertex) `depth` a fixed block of RNG_BOUNCE_DIMS starting at rng_bounce_dim(depth, 0).
+ * Dimensions 2-3 (a lens) and the unnamed ones of each block are unused: the layout is kept
+ * so that images stay identical to earlier versions. */
 enum {
     RNG_DIM_PIXEL_X = 0,
     RNG_DIM_PIXEL_Y = 1,
-    RNG_DIM_LENS_U = 2,
-    RNG_DIM_LENS_V = 3,
     RNG_DIM_CAMERA_END = 4,
     /* per bounce */
     RNG_BOUNCE_LIGHT_SELECT = 0,
@@ -47,13 +48,32 @@ enum {
     RNG_BOUNCE_BSDF_U = 5,
     RNG_BOUNCE_BSDF_V = 6,
     RNG_BOUNCE_RR = 7,
-    RNG_BOUNCE_ALPHA = 8,
-    RNG_BOUNCE_LIGHT_DESCEND = 9, /* cache point clusters: the descent below the chosen node */
+    RNG_BOUNCE_LIGHT_DESCEND = 9, /* strategies that descend a tree below their first choice */
     RNG_BOUNCE_DIMS = 16
 };
 
 static inline uint32_t rng_bounce_dim(uint32_t depth, uint32_t which) {
     return RNG_DIM_CAMERA_END + depth * RNG_BOUNCE_DIMS + which;
 }
+
+/* A sub-stream: an unbounded sequence of numbers for one purpose at one bounce of a path,
+ * for work that draws as many numbers as it needs (a null-collision walk through a medium
+ * takes an unbounded number of steps per bounce). Its key is a function of (path key, depth,
+ * purpose) only, so the numbers never depend on which thread runs the path or on what the
+ * path did before; they are independent of the path's bounce dimensions. */
+typedef struct RngStream {
+    uint64_t key;
+    uint32_t next;  /* the next dimension to draw */
+} RngStream;
+
+enum { RNG_STREAM_MEDIUM = 1 };
+
+static inline RngStream rng_stream(uint64_t path_key, uint32_t depth, uint32_t purpose) {
+    uint64_t salt = ((uint64_t)depth << 32 | purpose) * 0x9e3779b97f4a7c15ull + 0x5851f42d4c957f2dull;
+    RngStream s = {rng_mix64(rng_mix64(path_key ^ 0xa0761d6478bd642full) ^ salt), 0};
+    return s;
+}
+
+static inline float rng_stream_next(RngStream *s) { return rng_uniform(s->key, s->next++); }
 
 #endif

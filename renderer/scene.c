@@ -187,13 +187,6 @@ void scene_material_at(const Scene *scene, const SurfaceHit *hit, MaterialSample
     m->bsdf.transmission = clampf(mat->transmission, 0.0f, 1.0f);
     m->bsdf.ior = mat->ior >= 1.0f && isfinite(mat->ior) ? mat->ior : 1.5f;
     m->double_sided = mat->double_sided;
-    vec3 e = v3_scale(v3(mat->emissive[0], mat->emissive[1], mat->emissive[2]), mat->emissive_strength);
-    if (!v3_is_black(e) && texture_present(scene, &mat->emissive_tex)) {
-        float t[4];
-        texture_lookup(&scene->io.images[mat->emissive_tex.image], &mat->emissive_tex, hit->uv, t);
-        e = v3_mul(e, v3(t[0], t[1], t[2]));
-    }
-    m->emission = e;
 }
 
 vec3 scene_emitted_radiance(const Scene *scene, const SurfaceHit *hit, vec3 w) {
@@ -432,15 +425,13 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
         rtcCommitScene(ms);
     }
     scene->top = rtcNewScene(scene->device);
-    uint32_t table_size = 0;
     for (uint32_t i = 0; i < io->num_instances; ++i) {
         SceneInstance *si = &scene->instances[i];
         memcpy(si->xform, io->instances[i].xform, sizeof si->xform);
         invert_transpose3(si->xform, si->normal_xform);
         si->mesh = io->instances[i].mesh;
-        si->light_table_base = table_size;
-        table_size += io->meshes[si->mesh].num_primitives;
-        scene->num_triangles_total += 0;
+        si->primitive_base = scene->num_instance_primitives;
+        scene->num_instance_primitives += io->meshes[si->mesh].num_primitives;
         for (uint32_t k = 0; k < io->meshes[si->mesh].num_primitives; ++k)
             scene->num_triangles_total += io->primitives[io->meshes[si->mesh].first_primitive + k].num_triangles;
         RTCGeometry g = rtcNewGeometry(scene->device, RTC_GEOMETRY_TYPE_INSTANCE);
@@ -456,14 +447,6 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
         scene_free(scene);
         return -1;
     }
-    scene->light_of_primitive = malloc((table_size ? table_size : 1) * sizeof *scene->light_of_primitive);
-    if (!scene->light_of_primitive) {
-        set_error(err, "%s: out of memory%s", o->scene_path, "");
-        scene_free(scene);
-        return -1;
-    }
-    for (uint32_t i = 0; i < table_size; ++i) scene->light_of_primitive[i] = -1;
-
     struct RTCBounds b;
     rtcGetSceneBounds(scene->top, &b);
     if (io->num_instances == 0 || !(b.lower_x <= b.upper_x)) {
@@ -495,16 +478,10 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
         for (size_t i = 0; i < n; ++i)
             if (!isfinite(scene->env.rgba[i]) || scene->env.rgba[i] < 0.0f) scene->env.rgba[i] = 0.0f;
     }
-    if (lights_build(scene, o->light_units, o->light_sampler, err, CANDELA_ERR_LEN) != 0) {
-        scene_free(scene);
-        return -1;
-    }
-    scene->lights.optimal_occlusion = o->optimal_occlusion;
     return 0;
 }
 
 void scene_free(Scene *scene) {
-    lights_free(&scene->lights);
     if (scene->top) rtcReleaseScene(scene->top);
     if (scene->mesh_scenes)
         for (uint32_t m = 0; m < scene->io.num_meshes; ++m)
@@ -513,7 +490,6 @@ void scene_free(Scene *scene) {
     free(scene->mesh_scenes);
     free(scene->prims);
     free(scene->instances);
-    free(scene->light_of_primitive);
     io_image_free(&scene->env);
     io_scene_free(&scene->io);
     memset(scene, 0, sizeof *scene);

@@ -1,9 +1,14 @@
 /* renderer/scene.h (private): the render-time scene.
  *
  * Owns the IoScene from io/, the Embree device and scenes (one Embree scene per glTF mesh,
- * instanced once per node that references it), the camera, the environment and the lights.
- * Everything here is read-only once scene_build() returns, so every stage may read it from
- * any thread. */
+ * instanced once per node that references it), the camera and the environment image. The
+ * lights are built beside it from the loaded scene (lights.h), so the scene knows nothing of
+ * lights or of how they are selected. Everything here is read-only once scene_load()
+ * returns, so every stage may read it from any thread.
+ *
+ * Every ray the renderer traces goes through the scene ray interface below (closest hit and
+ * occlusion, one ray or a batch): the wavefront stages, the cache point pilot paths, the
+ * optimal sampler's occlusion rays and the benchmark's bare-Embree replay. */
 #ifndef CANDELA_SCENE_H
 #define CANDELA_SCENE_H
 
@@ -12,7 +17,6 @@
 #include "bsdf.h"
 #include "candela.h"
 #include "io.h"
-#include "lights.h"
 #include "vecmath.h"
 
 typedef struct Camera {
@@ -36,7 +40,9 @@ typedef struct SceneInstance {
     float xform[16];          /* object to world */
     float normal_xform[9];    /* inverse transpose of the 3x3 part, row-major */
     uint32_t mesh;
-    uint32_t light_table_base; /* light_of_primitive[base + local primitive] */
+    uint32_t primitive_base;  /* index of (this instance, local primitive 0) among all instance
+                               * primitives: per-instance-primitive tables (the area light of
+                               * a hit) are indexed by primitive_base + local primitive */
 } SceneInstance;
 
 typedef struct Scene {
@@ -47,7 +53,7 @@ typedef struct Scene {
     RTCScene *mesh_scenes;     /* io.num_meshes */
     ScenePrimitive *prims;     /* io.num_primitives */
     SceneInstance *instances;  /* io.num_instances */
-    int32_t *light_of_primitive; /* per (instance, local primitive): area light index or -1 */
+    uint32_t num_instance_primitives; /* sum over instances of their mesh's primitives */
     uint32_t num_triangles_total;
     vec3 bounds_min, bounds_max;
     vec3 center;
@@ -55,11 +61,10 @@ typedef struct Scene {
     Camera camera;
     IoImage env;               /* linear RGBA lat-long; width 0 when there is none */
     float env_strength;
-    Lights lights;
 } Scene;
 
-/* Loads the glTF, applies options (camera choice, resolution, environment, light units),
- * builds the Embree scene and the light list. */
+/* Loads the glTF, applies options (camera choice, resolution, environment) and builds the
+ * Embree scene. */
 int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN]);
 void scene_free(Scene *scene);
 
@@ -77,11 +82,9 @@ typedef struct SurfaceHit {
 void scene_surface_hit(const Scene *scene, uint32_t instance, uint32_t local_prim,
                        uint32_t triangle, float b1, float b2, SurfaceHit *hit);
 
-/* The material at a hit: BSDF parameters, emitted radiance (factor x strength x texture, 0
- * when not emissive) and opacity. */
+/* The material at a hit: BSDF parameters (emission is scene_emitted_radiance's). */
 typedef struct MaterialSample {
     BsdfParams bsdf;
-    vec3 emission;
     int double_sided;
 } MaterialSample;
 
@@ -102,6 +105,36 @@ void camera_generate_ray(const Camera *c, float fx, float fy, vec3 *org, vec3 *d
 
 /* Bilinear lookup with glTF wrap modes and KHR_texture_transform applied. */
 void texture_lookup(const IoImage *image, const IoTextureRef *ref, vec2 uv, float out[4]);
+
+/* ---------------------------------------------------------------- the scene ray interface */
+
+/* A ray segment [tnear, tfar] from org along dir (unit for the renderer's own rays). */
+typedef struct SceneRay {
+    vec3 org;
+    float tnear;
+    vec3 dir;
+    float tfar;
+} SceneRay;
+
+/* The closest hit of a ray: t = INFINITY when it escaped (the rest is then undefined). */
+typedef struct SceneHit {
+    float t, u, v;       /* distance and barycentrics (b1, b2) of the hit */
+    uint32_t instance, local_prim, triangle;
+} SceneHit;
+
+/* Closest hits of n rays: ray i is rays[items[i]] (items NULL: rays[i]); its hit goes to
+ * hits[i]. Any n (traced in packets of SCENE_RAY_PACKET). coherent: a hint that the rays share
+ * an origin and similar directions (camera rays). */
+#define SCENE_RAY_PACKET 256
+void scene_intersect(const Scene *scene, const SceneRay *rays, const uint32_t *items, uint32_t n, SceneHit *hits,
+                     int coherent);
+/* Occlusion of n rays (indexed as above): occluded[i] = 1 if anything lies on ray i within
+ * [tnear, tfar]. */
+void scene_occluded(const Scene *scene, const SceneRay *rays, const uint32_t *items, uint32_t n, uint8_t *occluded);
+/* One ray: 1 if it hit (and *hit holds the hit), 0 if it escaped. */
+int scene_intersect1(const Scene *scene, SceneRay ray, SceneHit *hit);
+/* One ray: 1 if nothing lies on it. */
+int scene_visible1(const Scene *scene, SceneRay ray);
 
 /* Offset a ray origin off the surface along n, scaled to the position's magnitude. */
 static inline vec3 offset_ray_origin(vec3 p, vec3 n) {

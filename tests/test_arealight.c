@@ -83,8 +83,8 @@ static vec3 sphere(int i, int j, int nu, int nv) {
 }
 
 /* light_sample_li reads the scene only for the light's material (texture, double-sidedness):
- * a zeroed Scene with one primitive and material stands in. */
-typedef struct Fake { Scene scene; ScenePrimitive prim; IoMaterial mat; } Fake;
+ * lights over a zeroed Scene with one primitive and material stand in. */
+typedef struct Fake { Lights lights; Scene scene; ScenePrimitive prim; IoMaterial mat; } Fake;
 static void fake_scene(Fake *f, const Light *l) {
     memset(f, 0, sizeof *f);
     f->mat.emissive_tex.image = -1;
@@ -96,6 +96,8 @@ static void fake_scene(Fake *f, const Light *l) {
     f->mat.emissive_strength = 1.0f;
     f->prim.material = &f->mat;
     f->scene.prims = &f->prim;
+    f->lights.scene = &f->scene;
+    f->lights.environment = -1;
 }
 
 static vec3 tri_normal(const Light *l, uint32_t t) {
@@ -131,7 +133,7 @@ static void check_pmf(const char *name, const Light *l, vec3 lo, vec3 hi) {
         }
         for (int s = 0; s < 200; ++s) {
             LightLiSample smp;
-            if (!light_sample_li(&f.scene, l, &ctx, (float)rnd(), (float)rnd(), (float)rnd(), &smp)) continue;
+            if (!light_sample_li(&f.lights, l, &ctx, (float)rnd(), (float)rnd(), (float)rnd(), &smp)) continue;
             ++samples;
             vec3 y = v3_madd(ctx.p, smp.wi, smp.distance);
             float pdf = light_area_pdf_li(l, &ctx, smp.triangle, y, tri_normal(l, smp.triangle));
@@ -156,7 +158,7 @@ static void irradiance(const Light *l, const LightSampleContext *ctx, int n, dou
     for (int i = 0; i < n; ++i) {
         LightLiSample smp;
         double x = 0.0;
-        if (light_sample_li(&f.scene, l, ctx, (float)rnd(), (float)rnd(), (float)rnd(), &smp)) {
+        if (light_sample_li(&f.lights, l, ctx, (float)rnd(), (float)rnd(), (float)rnd(), &smp)) {
             double c = ctx->n.x == 0.0f && ctx->n.y == 0.0f && ctx->n.z == 0.0f ? 1.0 : fmax(0.0, v3_dot(smp.wi, ctx->n));
             x = v3_luminance(smp.radiance) * c / smp.pdf;
         }

@@ -8,6 +8,7 @@
 
 #include "check.h"
 #include "rng.h"
+#include "light_sampler.h"
 #include "scene.h"
 #include "threads.h"
 
@@ -24,13 +25,19 @@ static void check_strategy_occl(const char *path, CandelaLightSampler strategy, 
     int rc = scene_load(&scene, &o, err);
     CHECK(rc == 0, "%s", err);
     if (rc != 0) return;
-    ThreadPool *pool = NULL;
-    if (strategy == CANDELA_LIGHT_SAMPLER_CACHEPOINTS) {
-        pool = threadpool_create(2);
-        rc = lights_build_cachepoints(&scene, pool, &o, err);
-        CHECK(rc == 0 && scene.lights.cachepoints != NULL, "cache point build: %s", rc ? err : "fell back");
-    }
-    const Lights *ls = &scene.lights;
+    Lights lights;
+    rc = lights_build(&lights, &scene, o.light_units, err, sizeof err);
+    CHECK(rc == 0, "%s", err);
+    if (rc != 0) { scene_free(&scene); return; }
+    /* the strategy is driven through the light-selection protocol alone (light_sampler.h) */
+    ThreadPool *pool = threadpool_create(2);
+    LightSampler sampler;
+    rc = light_sampler_create(&sampler, &lights, &scene, pool, &o, err);
+    CHECK(rc == 0, "light sampler: %s", err);
+    if (rc != 0) { lights_free(&lights); scene_free(&scene); threadpool_destroy(pool); return; }
+    CHECK(strcmp(sampler.ops->name, candela_light_sampler_name(strategy)) == 0, "asked for %s, got %s (fell back?)",
+          candela_light_sampler_name(strategy), sampler.ops->name);
+    const Lights *ls = &lights;
     CHECK(ls->count > 1, "lights: %u", ls->count);
     uint64_t key = rng_path_key(3, 1, 2);
     /* optimal is O(lights) per call (and a shadow ray per light with occlusion): fewer draws */
@@ -44,16 +51,19 @@ static void check_strategy_occl(const char *path, CandelaLightSampler strategy, 
          * the bounds say a point sees neither child of a node, it splits by power instead of
          * returning "no light" (lighttree.h), so a sum of 0 is never expected here. */
         double sum = 0.0;
-        for (uint32_t i = 0; i < ls->count; ++i) sum += light_select_pmf(ls, &ctx, i);
+        for (uint32_t i = 0; i < ls->count; ++i) sum += light_sampler_pmf(&sampler, &ctx, i);
         CHECK(fabs(sum - 1.0) < 1e-4, "strategy %d: pmf sums to %.7f", (int)strategy, sum);
-        /* as the wavefront does: prepare the vertex once (its cache point, its near lights'
-         * weights); the prepared context must give exactly the unprepared probabilities */
-        float near_w[CACHEPOINTS_MAX_NEAR];
+        /* as the wavefront does: prepare the vertex once (the strategy's per-vertex work, e.g.
+         * its cache point and near lights' weights); the prepared context must give exactly the
+         * unprepared probabilities */
+        float scratch[LIGHT_SAMPLER_SCRATCH];
         LightSampleContext raw = ctx;
-        ctx.cp_near_w = near_w;
-        lights_prepare_context(ls, &ctx, NULL);
+        ctx.scratch = scratch;
+        uint32_t hint = UINT32_MAX;
+        light_sampler_prepare(&sampler, &ctx, &hint);
         int prepared_differs = 0;
-        for (uint32_t i = 0; i < ls->count; ++i) prepared_differs += light_select_pmf(ls, &ctx, i) != light_select_pmf(ls, &raw, i);
+        for (uint32_t i = 0; i < ls->count; ++i)
+            prepared_differs += light_sampler_pmf(&sampler, &ctx, i) != light_sampler_pmf(&sampler, &raw, i);
         CHECK(prepared_differs == 0, "strategy %d: %d pmfs differ between prepared and raw contexts", (int)strategy,
               prepared_differs);
         /* select/pmf consistency and frequencies */
@@ -61,8 +71,10 @@ static void check_strategy_occl(const char *path, CandelaLightSampler strategy, 
         int mismatch = 0;
         for (int s = 0; s < N; ++s) {
             float pmf;
-            uint32_t i = light_select(ls, &ctx, rng_uniform(key, 1000 + s), rng_uniform(key, 900000 + s), &pmf, NULL);
-            if (i >= ls->count || pmf != light_select_pmf(ls, &ctx, i)) ++mismatch;
+            uint32_t outcome;
+            uint32_t i = light_sampler_select(&sampler, &ctx, rng_uniform(key, 1000 + s), rng_uniform(key, 900000 + s),
+                                              &pmf, &outcome);
+            if (i >= ls->count || pmf != light_sampler_pmf(&sampler, &ctx, i)) ++mismatch;
             else hist[i]++;
         }
         CHECK(mismatch == 0, "%d selections disagree with light_select_pmf", mismatch);
@@ -70,7 +82,7 @@ static void check_strategy_occl(const char *path, CandelaLightSampler strategy, 
         int dof = -1;
         double pooled_obs = 0, pooled_exp = 0;
         for (uint32_t i = 0; i < ls->count; ++i) {
-            double e = N * (double)light_select_pmf(ls, &ctx, i);
+            double e = N * (double)light_sampler_pmf(&sampler, &ctx, i);
             if (e < 5.0) { pooled_obs += hist[i]; pooled_exp += e; continue; }
             chi2 += (hist[i] - e) * (hist[i] - e) / e;
             ++dof;
@@ -91,12 +103,12 @@ static void check_strategy_occl(const char *path, CandelaLightSampler strategy, 
         const Light *l = &ls->lights[i];
         for (int s = 0; s < 50; ++s) {
             LightLiSample smp;
-            if (!light_sample_li(&scene, l, &pctx, rng_uniform(key, 5000 + 3 * s), rng_uniform(key, 5001 + 3 * s),
+            if (!light_sample_li(ls, l, &pctx, rng_uniform(key, 5000 + 3 * s), rng_uniform(key, 5001 + 3 * s),
                                  rng_uniform(key, 5002 + 3 * s), &smp))
                 continue;
             CHECK(isfinite(smp.pdf) && smp.pdf > 0, "light %u: pdf %g", i, smp.pdf);
             if (l->type == LIGHT_ENVIRONMENT) {
-                float pdf = light_env_pdf_li(&scene, smp.wi);
+                float pdf = light_env_pdf_li(ls, smp.wi);
                 CHECK(fabsf(pdf - smp.pdf) <= 2e-3f * smp.pdf, "env pdf %g vs %g", pdf, smp.pdf);
                 ++checked;
             } else if (l->type == LIGHT_AREA) {
@@ -113,8 +125,10 @@ static void check_strategy_occl(const char *path, CandelaLightSampler strategy, 
         }
     }
     CHECK(checked > 0, "no area/env light sample was checked");
+    light_sampler_free(&sampler);
+    lights_free(&lights);
     scene_free(&scene);
-    if (pool) threadpool_destroy(pool);
+    threadpool_destroy(pool);
 }
 
 static void check_strategy(const char *path, CandelaLightSampler strategy, const char *env) {

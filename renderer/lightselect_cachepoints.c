@@ -1,11 +1,19 @@
-/* renderer/cachepoint_setup.c: connects the cachepoints module to the renderer: candidate
- * generation (§3.1.1: points in object bounding boxes in proportion to volume, plus pilot
- * path vertices), the light estimate callbacks (spec §3.4) and the build call. */
+/* renderer/lightselect_cachepoints.c: cache points (Li et al. 2024, cachepoints/) as a
+ * light-selection strategy. All the glue between the renderer and the cachepoints module is
+ * here: candidate generation (§3.1.1: points in object bounding boxes in proportion to
+ * volume, plus pilot path vertices), the light estimate callbacks (light_estimates.c), the
+ * light tree the cut build's clusters descend, the build, and the protocol (light_sampler.h):
+ * prepare = the vertex's cache point and its near lights' weights (§3.3), select / pmf,
+ * record = the visibility counters (§3.2.1), barrier = Eqs. 5-6 and the visibility blur
+ * (§3.2.2). The per-vertex token (LightVertex) is the point + 1 and the near lights' summed
+ * weight, so the MIS pdf at the next wave costs one light's weight. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cachepoints.h"
+#include "clock.h"
+#include "light_sampler.h"
 #include "rng.h"
 #include "sampling.h"
 #include "scene.h"
@@ -17,13 +25,28 @@
 #define PILOT_CAP 1000000u
 #define CANDIDATE_SEED_SALT 0xcac4e9017ull
 
+/* The strategy's state: the built points and everything their callbacks read. */
+typedef struct CachePointSampler {
+    const Lights *lights;
+    CachePoints *cp;
+    CachePointLights view;       /* the lights as the cachepoints module sees them */
+    float *centroid;
+    uint8_t *infinite;
+    CachePointStats stats;
+    double build_seconds;
+    /* the cut build: the light tree and its view (CachePointTree) */
+    LightTree tree;
+    CachePointTree tree_view;
+    uint32_t *second, *leaf_light, *light_leaf;
+} CachePointSampler;
+
 static void cp_estimate7(const void *user, uint32_t light, const float x[3], float out[7]) {
-    const Lights *ls = user;
+    const Lights *ls = ((const CachePointSampler *)user)->lights;
     light_contribution_estimate7(ls, &ls->lights[light], v3(x[0], x[1], x[2]), out);
 }
 
 static float cp_estimate(const void *user, uint32_t light, const float x[3], const float *n) {
-    const Lights *ls = user;
+    const Lights *ls = ((const CachePointSampler *)user)->lights;
     vec3 nn = n ? v3(n[0], n[1], n[2]) : v3s(0.0f);
     return light_contribution_estimate(ls, &ls->lights[light], v3(x[0], x[1], x[2]), nn);
 }
@@ -31,68 +54,59 @@ static float cp_estimate(const void *user, uint32_t light, const float x[3], con
 /* --- the light tree as the cut build sees it (CachePointTree) */
 
 static void cp_node_bounds(const void *user, uint32_t node, float lo[3], float hi[3]) {
-    const LightTreeNode *nd = &((const Lights *)user)->tree.nodes[node];
+    const LightTreeNode *nd = &((const CachePointSampler *)user)->tree.nodes[node];
     lo[0] = nd->bmin.x; lo[1] = nd->bmin.y; lo[2] = nd->bmin.z;
     hi[0] = nd->bmax.x; hi[1] = nd->bmax.y; hi[2] = nd->bmax.z;
 }
 
 static void cp_node_estimate7(const void *user, uint32_t node, const float x[3], float out[7]) {
-    light_tree_node_estimate7(&((const Lights *)user)->tree, node, v3(x[0], x[1], x[2]), out);
+    light_tree_node_estimate7(&((const CachePointSampler *)user)->tree, node, v3(x[0], x[1], x[2]), out);
 }
 
 static LightSampleContext cp_context(const float x[3], const float *n) {
-    LightSampleContext c = {v3(x[0], x[1], x[2]), n ? v3(n[0], n[1], n[2]) : v3s(0.0f), 0, 0.0f};
+    LightSampleContext c = {v3(x[0], x[1], x[2]), n ? v3(n[0], n[1], n[2]) : v3s(0.0f)};
     return c;
 }
 
 static uint32_t cp_descend(const void *user, uint32_t node, const float x[3], const float *n, float u, float *pmf) {
     LightSampleContext c = cp_context(x, n);
-    return light_tree_select_from(&((const Lights *)user)->tree, node, &c, u, pmf);
+    return light_tree_select_from(&((const CachePointSampler *)user)->tree, node, &c, u, pmf);
 }
 
 static float cp_descend_pmf(const void *user, uint32_t node, const float x[3], const float *n, uint32_t light) {
     LightSampleContext c = cp_context(x, n);
-    return light_tree_pmf_from(&((const Lights *)user)->tree, node, &c, light);
+    return light_tree_pmf_from(&((const CachePointSampler *)user)->tree, node, &c, light);
 }
 
-/* Peak radiant intensity of a light (luminance, W/sr): what a cluster estimate sums. */
-static float light_peak_intensity(const Light *l) {
-    switch (l->type) {
-    case LIGHT_POINT:
-    case LIGHT_SPOT: return v3_luminance(l->intensity);
-    case LIGHT_AREA: return v3_luminance(l->emission) * l->area; /* a flat emitter seen face on */
-    default: return 0.0f;
-    }
-}
-
-/* Builds ls->tree (if the strategy did not) and the SoA view of it for the cut build. */
-static int setup_tree_view(Lights *ls) {
-    if (!ls->tree.nodes && light_tree_build(&ls->tree, ls->lights, ls->count) != 0) return -1;
-    const LightTree *t = &ls->tree;
+/* Builds the light tree and the SoA view of it for the cut build. */
+static int setup_tree_view(CachePointSampler *s) {
+    const Lights *ls = s->lights;
+    if (light_tree_build(&s->tree, ls->lights, ls->count) != 0) return -1;
+    const LightTree *t = &s->tree;
     float *peak = malloc(((size_t)ls->count + 1) * sizeof(float));
-    ls->cp_second = malloc(((size_t)t->node_count + 1) * sizeof(uint32_t));
-    ls->cp_leaf_light = malloc(((size_t)t->node_count + 1) * sizeof(uint32_t));
-    ls->cp_light_leaf = malloc(((size_t)ls->count + 1) * sizeof(uint32_t));
-    if (!peak || !ls->cp_second || !ls->cp_leaf_light || !ls->cp_light_leaf) { free(peak); return -1; }
+    s->second = malloc(((size_t)t->node_count + 1) * sizeof(uint32_t));
+    s->leaf_light = malloc(((size_t)t->node_count + 1) * sizeof(uint32_t));
+    s->light_leaf = malloc(((size_t)ls->count + 1) * sizeof(uint32_t));
+    if (!peak || !s->second || !s->leaf_light || !s->light_leaf) { free(peak); return -1; }
     for (uint32_t i = 0; i < ls->count; ++i) {
         peak[i] = light_peak_intensity(&ls->lights[i]);
-        ls->cp_light_leaf[i] = UINT32_MAX;
+        s->light_leaf[i] = UINT32_MAX;
     }
-    int rc = light_tree_set_intensities(&ls->tree, peak);
+    int rc = light_tree_set_intensities(&s->tree, peak);
     free(peak);
     if (rc != 0) return -1;
     for (uint32_t k = 0; k < t->node_count; ++k) {
         const LightTreeNode *nd = &t->nodes[k];
         int leaf = nd->light != LIGHT_TREE_INTERIOR;
-        ls->cp_second[k] = leaf ? 0 : nd->child;
-        ls->cp_leaf_light[k] = leaf ? nd->light : UINT32_MAX;
-        if (leaf) ls->cp_light_leaf[nd->light] = k;
+        s->second[k] = leaf ? 0 : nd->child;
+        s->leaf_light[k] = leaf ? nd->light : UINT32_MAX;
+        if (leaf) s->light_leaf[nd->light] = k;
     }
-    ls->cp_tree = (CachePointTree){.node_count = t->node_count, .second_child = ls->cp_second,
-                                   .leaf_light = ls->cp_leaf_light, .light_leaf = ls->cp_light_leaf,
-                                   .node_bounds = cp_node_bounds, .node_estimate7 = cp_node_estimate7,
-                                   .descend = cp_descend, .descend_pmf = cp_descend_pmf};
-    ls->cp_view.tree = &ls->cp_tree;
+    s->tree_view = (CachePointTree){.node_count = t->node_count, .second_child = s->second,
+                                    .leaf_light = s->leaf_light, .light_leaf = s->light_leaf,
+                                    .node_bounds = cp_node_bounds, .node_estimate7 = cp_node_estimate7,
+                                    .descend = cp_descend, .descend_pmf = cp_descend_pmf};
+    s->view.tree = &s->tree_view;
     return 0;
 }
 
@@ -193,19 +207,6 @@ static int bbox_candidates(const Scene *scene, uint64_t seed, Candidates *c) {
     return rc;
 }
 
-static int trace_closest(const Scene *scene, vec3 o, vec3 d, struct RTCRayHit *rh) {
-    struct RTCIntersectContext ictx;
-    rtcInitIntersectContext(&ictx);
-    memset(rh, 0, sizeof *rh);
-    rh->ray.org_x = o.x; rh->ray.org_y = o.y; rh->ray.org_z = o.z;
-    rh->ray.dir_x = d.x; rh->ray.dir_y = d.y; rh->ray.dir_z = d.z;
-    rh->ray.tfar = INFINITY;
-    rh->ray.mask = 0xffffffffu;
-    rh->hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(scene->top, &ictx, rh);
-    return rh->hit.geomID != RTC_INVALID_GEOMETRY_ID;
-}
-
 /* Pilot paths (§3.1.1): a stratified grid of camera rays, their first hit and one cosine
  * bounce; each vertex kept with probability 1/2 (spec §3.1 proposal, fewer paths). */
 static int pilot_candidates(const Scene *scene, uint64_t seed, Candidates *c) {
@@ -219,10 +220,10 @@ static int pilot_candidates(const Scene *scene, uint64_t seed, Candidates *c) {
             vec3 o, d;
             camera_generate_ray(cam, fx, fy, &o, &d);
             for (int bounce = 0; bounce < 2; ++bounce) {
-                struct RTCRayHit rh;
-                if (!trace_closest(scene, o, d, &rh)) break;
+                SceneHit sh;
+                if (!scene_intersect1(scene, (SceneRay){o, 0.0f, d, INFINITY}, &sh)) break;
                 SurfaceHit h;
-                scene_surface_hit(scene, rh.hit.instID[0], rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v, &h);
+                scene_surface_hit(scene, sh.instance, sh.local_prim, sh.triangle, sh.u, sh.v, &h);
                 if (rng_uniform(key, 2 + 4 * (uint32_t)bounce) < PILOT_KEEP && kept < PILOT_CAP) {
                     if (push(c, h.p) != 0) return -1;
                     ++kept;
@@ -238,36 +239,120 @@ static int pilot_candidates(const Scene *scene, uint64_t seed, Candidates *c) {
     return 0;
 }
 
-int lights_build_cachepoints(Scene *scene, void *pool, const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
-    Lights *ls = &scene->lights;
-    if (ls->count == 0) return 0;
-    ls->cp_centroid = malloc((size_t)ls->count * 3 * sizeof(float));
-    ls->cp_infinite = malloc(ls->count);
-    if (!ls->cp_centroid || !ls->cp_infinite) goto oom;
+/* ---------------------------------------------------------------- the protocol */
+
+/* The cache point vertex of a context: from its token when prepared, else looked up. */
+static void vertex_of(const CachePointSampler *s, const LightSampleContext *ctx, float x[3], float n[3],
+                      const float **np, CachePointVertex *v) {
+    x[0] = ctx->p.x; x[1] = ctx->p.y; x[2] = ctx->p.z;
+    n[0] = ctx->n.x; n[1] = ctx->n.y; n[2] = ctx->n.z;
+    *np = v3_is_black(ctx->n) ? NULL : n;
+    if (ctx->vertex.word) { v->point = ctx->vertex.word - 1u; v->near_total = ctx->vertex.value; }
+    else cachepoints_vertex(s->cp, &s->view, x, *np, UINT32_MAX, v, NULL);
+}
+
+static void cp_prepare(const void *state, LightSampleContext *ctx, uint32_t *hint) {
+    const CachePointSampler *s = state;
+    float x[3] = {ctx->p.x, ctx->p.y, ctx->p.z}, n[3] = {ctx->n.x, ctx->n.y, ctx->n.z};
+    CachePointVertex v;
+    cachepoints_vertex(s->cp, &s->view, x, v3_is_black(ctx->n) ? NULL : n, hint ? *hint : UINT32_MAX, &v,
+                       ctx->scratch);
+    if (hint) *hint = v.point;
+    ctx->vertex = (LightVertex){v.point + 1u, v.near_total};
+}
+
+static uint32_t cp_select(const void *state, const LightSampleContext *ctx, float u, float u_descend, float *pmf,
+                          uint32_t *outcome) {
+    const CachePointSampler *s = state;
+    float x[3], n[3];
+    const float *np;
+    CachePointVertex v;
+    vertex_of(s, ctx, x, n, &np, &v);
+    /* the near weights in the scratch are valid only for the vertex prepare filled them for */
+    const float *near_w = ctx->vertex.word ? ctx->scratch : NULL;
+    return cachepoints_select(s->cp, &s->view, x, np, &v, near_w, u, u_descend, pmf, outcome);
+}
+
+static float cp_pmf(const void *state, const LightSampleContext *ctx, uint32_t light) {
+    const CachePointSampler *s = state;
+    float x[3], n[3];
+    const float *np;
+    CachePointVertex v;
+    vertex_of(s, ctx, x, n, &np, &v);
+    return cachepoints_pmf(s->cp, &s->view, x, np, &v, light);
+}
+
+static void cp_record(void *state, uint32_t outcome, float visibility) {
+    cachepoints_record(((CachePointSampler *)state)->cp, outcome, visibility > 0.0f);
+}
+
+static void cp_prefetch_outcome(const void *state, uint32_t outcome) {
+    cachepoints_prefetch_counters(((const CachePointSampler *)state)->cp, outcome);
+}
+
+static void cp_barrier(void *state) { cachepoints_update_visibility(((CachePointSampler *)state)->cp); }
+
+static void cp_report(const void *state, CandelaStats *st) {
+    const CachePointSampler *s = state;
+    st->time_cachepoints = s->build_seconds;
+    st->num_cachepoints = cachepoints_count(s->cp);
+    st->cachepoint_candidates = s->stats.candidates;
+    st->cachepoint_bytes = s->stats.bytes;
+    st->cachepoint_mean_near = s->stats.mean_near;
+    st->cachepoint_mean_far = s->stats.mean_far;
+    st->cachepoint_mean_clusters = s->stats.mean_far_clusters;
+}
+
+static void cp_destroy(void *state) {
+    CachePointSampler *s = state;
+    if (!s) return;
+    cachepoints_free(s->cp);
+    free(s->centroid);
+    free(s->infinite);
+    light_tree_free(&s->tree);
+    free(s->second);
+    free(s->leaf_light);
+    free(s->light_leaf);
+    free(s);
+}
+
+static const LightSamplerOps CACHEPOINT_OPS = {
+    .name = "cachepoints", .prepare = cp_prepare, .select = cp_select, .pmf = cp_pmf, .record = cp_record,
+    .prefetch_outcome = cp_prefetch_outcome, .barrier = cp_barrier, .report = cp_report, .destroy = cp_destroy};
+
+/* ---------------------------------------------------------------- build */
+
+/* Fills s->cp (NULL when fewer than 10 points exist). 0 ok, -1 out of memory. */
+static int build(CachePointSampler *s, const Scene *scene, ThreadPool *pool, const CandelaOptions *o) {
+    const Lights *ls = s->lights;
+    s->centroid = malloc((size_t)ls->count * 3 * sizeof(float));
+    s->infinite = malloc(ls->count);
+    if (!s->centroid || !s->infinite) return -1;
     for (uint32_t i = 0; i < ls->count; ++i) {
         const Light *l = &ls->lights[i];
         vec3 c = l->position;
         if (l->type == LIGHT_AREA) {
-            double s[3] = {0, 0, 0}, wsum = 0.0;
+            double sum[3] = {0, 0, 0}, wsum = 0.0;
             for (uint32_t t = 0; t < l->triangles.n; ++t) {
                 const float *v = l->world_vertices + 9 * (size_t)t;
                 double a = l->triangles.func[t];
-                for (int k = 0; k < 3; ++k) s[k] += a * (v[k] + v[3 + k] + v[6 + k]) / 3.0;
+                for (int k = 0; k < 3; ++k) sum[k] += a * (v[k] + v[3 + k] + v[6 + k]) / 3.0;
                 wsum += a;
             }
-            c = wsum > 0 ? v3((float)(s[0] / wsum), (float)(s[1] / wsum), (float)(s[2] / wsum)) : v3(l->world_vertices[0], l->world_vertices[1], l->world_vertices[2]);
+            c = wsum > 0 ? v3((float)(sum[0] / wsum), (float)(sum[1] / wsum), (float)(sum[2] / wsum))
+                         : v3(l->world_vertices[0], l->world_vertices[1], l->world_vertices[2]);
         }
-        ls->cp_centroid[3 * i] = c.x; ls->cp_centroid[3 * i + 1] = c.y; ls->cp_centroid[3 * i + 2] = c.z;
-        ls->cp_infinite[i] = l->type == LIGHT_DIRECTIONAL || l->type == LIGHT_ENVIRONMENT;
+        s->centroid[3 * i] = c.x; s->centroid[3 * i + 1] = c.y; s->centroid[3 * i + 2] = c.z;
+        s->infinite[i] = l->type == LIGHT_DIRECTIONAL || l->type == LIGHT_ENVIRONMENT;
     }
-    ls->cp_view = (CachePointLights){.count = ls->count, .centroid = ls->cp_centroid, .infinite = ls->cp_infinite,
-                                     .estimate7 = cp_estimate7, .estimate = cp_estimate, .user = ls, .tree = NULL};
-    if (!o->cachepoint_build_linear && setup_tree_view(ls) != 0) goto oom;
+    s->view = (CachePointLights){.count = ls->count, .centroid = s->centroid, .infinite = s->infinite,
+                                 .estimate7 = cp_estimate7, .estimate = cp_estimate, .user = s, .tree = NULL};
+    if (!o->cachepoint_build_linear && setup_tree_view(s) != 0) return -1;
 
     Candidates cand = {0};
     if (bbox_candidates(scene, o->seed, &cand) != 0 || pilot_candidates(scene, o->seed, &cand) != 0) {
         free(cand.xyz);
-        goto oom;
+        return -1;
     }
     const Camera *cam = &scene->camera;
     CachePointCamera cc;
@@ -287,18 +372,32 @@ int lights_build_cachepoints(Scene *scene, void *pool, const CandelaOptions *o, 
         fprintf(stderr, "candela: building cache points from %u candidates over %u lights (%s build)%s\n", cand.count,
                 ls->count, params.build_cut ? "cut" : "linear",
                 !params.build_cut && ls->count > 20000 ? "; the linear build visits every light for every point: this will be slow" : "");
-    int rc = cachepoints_build(&ls->cachepoints, cand.xyz, cand.count, &ls->cp_view, &cc, &params, &ls->cp_stats);
+    int rc = cachepoints_build(&s->cp, cand.xyz, cand.count, &s->view, &cc, &params, &s->stats);
     free(cand.xyz);
-    if (rc < 0) goto oom;
-    if (rc > 0) {
+    return rc < 0 ? -1 : 0;
+}
+
+int light_sampler_cachepoints_create(LightSampler *ls, const Lights *lights, const Scene *scene, ThreadPool *pool,
+                                     const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
+    int rc = 0;
+    if (lights->count > 0) {
+        double t0 = clock_seconds();
+        CachePointSampler *s = calloc(1, sizeof *s);
+        if (!s) goto oom;
+        s->lights = lights;
+        if (build(s, scene, pool, o) != 0) { cp_destroy(s); goto oom; }
+        s->build_seconds = clock_seconds() - t0;
+        if (s->cp) {
+            *ls = (LightSampler){&CACHEPOINT_OPS, s, lights->count};
+            return 0;
+        }
+        cp_destroy(s);
         /* fewer than 10 points: per-vertex optimal selection instead (§3.1.1) */
         fprintf(stderr, "%s: warning: fewer than 10 cache points; using optimal light selection\n", o->scene_path);
-        ls->strategy = CANDELA_LIGHT_SAMPLER_OPTIMAL;
     }
-    return 0;
+    rc = light_sampler_optimal_create(ls, lights, scene, o->optimal_occlusion);
+    if (rc == 0) return 0;
 oom:
     snprintf(err, CANDELA_ERR_LEN, "%s: out of memory building cache points", o->scene_path);
     return -1;
 }
-
-

@@ -1,0 +1,83 @@
+/* renderer/film.c: the film: per-pixel sums over the render, and their resolution into the
+ * image (mean, variance of the mean, first-hit AOVs). */
+#include <stdlib.h>
+#include <string.h>
+
+#include "integrator.h"
+
+int film_alloc(Film *f, int w, int h) {
+    size_t n = (size_t)w * (size_t)h;
+    memset(f, 0, sizeof *f);
+    f->width = w; f->height = h;
+    f->sum = calloc(3 * n, sizeof(double));
+    f->sum2 = calloc(3 * n, sizeof(double));
+    f->albedo = calloc(3 * n, sizeof(double));
+    f->normal = calloc(3 * n, sizeof(double));
+    f->depth = calloc(n, sizeof(double));
+    f->hits = calloc(n, sizeof(uint32_t));
+    f->count = calloc(n, sizeof(uint32_t));
+    if (!f->sum || !f->sum2 || !f->albedo || !f->normal || !f->depth || !f->hits || !f->count) {
+        film_free(f);
+        return -1;
+    }
+    return 0;
+}
+
+void film_free(Film *f) {
+    free(f->sum); free(f->sum2); free(f->albedo); free(f->normal); free(f->depth); free(f->hits); free(f->count);
+    memset(f, 0, sizeof *f);
+}
+
+static inline void add3(double *sum, vec3 v) { sum[0] += v.x; sum[1] += v.y; sum[2] += v.z; }
+
+void film_add_paths(Film *f, const PathState *ps, uint32_t count) {
+    for (uint32_t i = 0; i < count; ++i) {
+        uint32_t px = ps->pixel[i];
+        vec3 L = ps->radiance[i];
+        if (!v3_is_finite(L)) L = v3s(0.0f); /* never reached in tests; keeps one bad path from poisoning a pixel */
+        add3(f->sum + 3 * (size_t)px, L);
+        f->sum2[3 * px] += (double)L.x * L.x;
+        f->sum2[3 * px + 1] += (double)L.y * L.y;
+        f->sum2[3 * px + 2] += (double)L.z * L.z;
+        f->count[px]++;
+        if (isfinite(ps->aov_depth[i])) {
+            add3(f->albedo + 3 * (size_t)px, ps->aov_albedo[i]);
+            add3(f->normal + 3 * (size_t)px, ps->aov_normal[i]);
+            f->depth[px] += ps->aov_depth[i];
+            f->hits[px]++;
+        }
+    }
+}
+
+int film_resolve(const Film *f, CandelaImage *img) {
+    size_t n = (size_t)f->width * (size_t)f->height;
+    memset(img, 0, sizeof *img);
+    img->width = f->width; img->height = f->height;
+    img->rgb = malloc(3 * n * sizeof(float));
+    img->variance = malloc(3 * n * sizeof(float));
+    img->albedo = malloc(3 * n * sizeof(float));
+    img->normal = malloc(3 * n * sizeof(float));
+    img->depth = malloc(n * sizeof(float));
+    if (!img->rgb || !img->variance || !img->albedo || !img->normal || !img->depth) {
+        candela_image_free(img);
+        return -1;
+    }
+    for (size_t i = 0; i < n; ++i) {
+        double cnt = f->count[i];
+        for (int k = 0; k < 3; ++k) {
+            double mean = cnt > 0 ? f->sum[3 * i + k] / cnt : 0.0;
+            img->rgb[3 * i + k] = (float)mean;
+            double var = cnt > 1 ? (f->sum2[3 * i + k] - cnt * mean * mean) / (cnt - 1.0) / cnt : 0.0;
+            img->variance[3 * i + k] = (float)(var > 0.0 ? var : 0.0);
+            img->albedo[3 * i + k] = f->hits[i] ? (float)(f->albedo[3 * i + k] / f->hits[i]) : 0.0f;
+            img->normal[3 * i + k] = f->hits[i] ? (float)(f->normal[3 * i + k] / f->hits[i]) : 0.0f;
+        }
+        img->depth[i] = f->hits[i] ? (float)(f->depth[i] / f->hits[i]) : INFINITY;
+    }
+    return 0;
+}
+
+void candela_image_free(CandelaImage *img) {
+    free(img->rgb); free(img->variance); free(img->albedo); free(img->normal); free(img->depth);
+    memset(img, 0, sizeof *img);
+}

@@ -1,0 +1,167 @@
+/* renderer/integrator.h (private): the wavefront integrator's state and its stages.
+ *
+ * The integrator renders iterations of batches of paths. A batch's paths live in the
+ * PathState (path_state.h), indexed by slot; the batch is cut into one contiguous slice of
+ * slots per worker thread, and each thread runs every wave of its slice on its own queues
+ * (arrays of slots). One wave advances every live path of the slice by one bounce:
+ *
+ *   stage_generate ─> rays ─sort_rays─> stage_intersect ─┬─> escaped ─> stage_escaped
+ *        (once)        ^                                  └─> hits ─sort_hits─> stage_surface ─┐
+ *                      │                                                   │                    │
+ *                      └───────── continuation rays (the next wave) <──────┘    shadows <──────┘
+ *                                                                                  │
+ *                                                                            stage_shadow
+ *
+ * Stages are functions of (integrator, slice) in one file each (stage_*.c); the sequencing,
+ * timing and ray logging are in wavefront.c. Every path carries its own depth, so a queue may
+ * hold paths of different depths. Queues are filled in queue order by one thread, so their
+ * contents are a function of the input only, never of thread timing.
+ *
+ * Two seams: a medium stage (the volume integrator's walk: free-flight sampling between the
+ * ray origin and its hit, scattering and NEE in the medium through the light-selection
+ * protocol and the scattering interface, then back into the hit or escaped queue) plugs in
+ * between stage_intersect and the hit/escaped stages; the radiance recorder sees every
+ * contribution through path_add_radiance and every scattering event in stage_surface's
+ * continuation, and trains at the barrier (a hook). */
+#ifndef CANDELA_INTEGRATOR_H
+#define CANDELA_INTEGRATOR_H
+
+#include <pthread.h>
+#include <stdint.h>
+
+#include "candela.h"
+#include "light_sampler.h"
+#include "lights.h"
+#include "path_state.h"
+#include "scene.h"
+#include "threads.h"
+
+/* Per-pixel sums over the render (double: thousands of samples per pixel). */
+typedef struct Film {
+    int width, height;
+    double *sum, *sum2;      /* 3 per pixel: sums of L and L^2 */
+    double *albedo, *normal; /* 3 per pixel: sums over the paths whose camera ray hit */
+    double *depth;           /* per pixel: sum of first-hit distances */
+    uint32_t *hits, *count;  /* per pixel: camera rays that hit; samples */
+} Film;
+
+int film_alloc(Film *f, int width, int height);
+void film_free(Film *f);
+/* Adds paths [0, count) of the batch, in path order, so every pixel sums its samples in
+ * sample order whatever the batch size or thread count. */
+void film_add_paths(Film *f, const PathState *ps, uint32_t count);
+/* Mean, variance of the mean (sample variance / n) and AOVs. 0 ok, -1 out of memory. */
+int film_resolve(const Film *f, CandelaImage *img);
+
+/* Work at an iteration barrier, when no ray is in flight: learned state (cache point
+ * visibility now; guiding training, volume estimator choices later) changes only here. */
+typedef struct BarrierHook {
+    void (*run)(void *user);
+    void *user;
+} BarrierHook;
+#define MAX_BARRIER_HOOKS 8
+
+typedef struct Integrator {
+    const CandelaOptions *opt;
+    const Scene *scene;
+    const Lights *lights;
+    const LightSampler *light_sampler;
+    PathState ps;
+    /* queue storage for the whole batch; a slice uses its own [begin, end) part of each */
+    uint32_t *queue_rays, *queue_hits, *queue_escaped, *queue_shadows;
+    uint64_t *sort_keys, *sort_keys_tmp;
+    uint32_t *sort_items_tmp;
+    /* the batch being rendered: paths j = batch_first .. batch_first + batch_count - 1 of the
+     * iteration (pixel j mod npixels, sample sample_base + j / npixels) */
+    uint64_t batch_first, sample_base;
+    uint32_t batch_count, npixels;
+    Film film;
+    BarrierHook hooks[MAX_BARRIER_HOOKS];
+    int num_hooks;
+    CandelaRayLog *ray_log;   /* bench: every traced ray (NULL: not recorded) */
+    pthread_mutex_t ray_log_mutex;
+} Integrator;
+
+/* wavefront.c: allocation for batches of up to `batch` paths (0 ok, -1 out of memory), one
+ * batch (the paths the caller set in batch_first / batch_count / sample_base) on the pool,
+ * added to the film and the statistics, and the barrier hooks. */
+int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene, const Lights *lights,
+                    const LightSampler *sampler, uint32_t batch);
+void integrator_free(Integrator *ig);
+void integrator_run_batch(Integrator *ig, ThreadPool *pool, CandelaStats *stats);
+void integrator_add_barrier_hook(Integrator *ig, void (*run)(void *user), void *user);
+void integrator_barrier(Integrator *ig);
+
+/* bench.c: appends rays[items[i]] (i < n) to the benchmark's ray log (bounce rays with an
+ * infinite tfar, shadow rays with theirs). */
+void ray_log_append(CandelaRayLog *log, const SceneRay *rays, const uint32_t *items, uint32_t n, int shadow);
+
+enum { STAGE_GENERATE, STAGE_SORT, STAGE_TRACE, STAGE_SHADE, STAGE_SHADOW, STAGE_COUNT };
+
+/* One thread's part of a batch: slots [begin, end) and its queues. */
+typedef struct Slice {
+    uint32_t begin, end;
+    uint32_t wave;                                 /* 0: the camera rays */
+    uint32_t *rays, *hits, *escaped, *shadows;    /* queues (slot indices) */
+    uint32_t num_rays, num_hits, num_escaped, num_shadows;
+    uint64_t *keys, *keys_tmp;                   /* sort scratch */
+    uint32_t *items_tmp;
+    double seconds[STAGE_COUNT];
+    uint64_t bounce_rays, shadow_rays;
+} Slice;
+
+/* ---------------------------------------------------------------- stages (stage_*.c) */
+
+/* Stages take the integrator const: during a batch the threads share it read-only, and each
+ * writes only the path state of its own slots (the PathState's arrays are not const) and its
+ * own slice. */
+
+/* Camera rays for every slot of the slice: the path's pixel and sample, its RNG key, an empty
+ * radiance, unit throughput; fills the ray queue. */
+void stage_generate(const Integrator *ig, Slice *s);
+/* Closest hits of the ray queue; splits it into the hit and escaped queues (queue order). */
+void stage_intersect(const Integrator *ig, Slice *s);
+/* Escaped rays: the environment's radiance, MIS-weighted against the light sampler. */
+void stage_escaped(const Integrator *ig, Slice *s);
+/* Hits, in the sorted hit queue: emission found (MIS), next-event estimation (a shadow ray
+ * into the shadow queue), and the continuation (scatter, roulette; into the ray queue). */
+void stage_surface(const Integrator *ig, Slice *s);
+/* Shadow rays: the NEE contribution of the ones that get through; their outcome goes back to
+ * the light sampler. */
+void stage_shadow(const Integrator *ig, Slice *s);
+
+/* sort.c: the ray queue by (direction octant, Morton code of the origin), the hit queue by
+ * (glTF primitive, Morton code of the hit point); stable radix sorts. */
+void sort_rays(const Integrator *ig, Slice *s);
+void sort_hits(const Integrator *ig, Slice *s);
+
+/* ---------------------------------------------------------------- the radiance funnel */
+
+typedef enum {
+    RADIANCE_EMISSION,    /* an emitter hit by the path (camera or BSDF sample), MIS-weighted */
+    RADIANCE_ENVIRONMENT, /* the environment seen by an escaped ray, MIS-weighted */
+    RADIANCE_DIRECT       /* next-event estimation through an unoccluded shadow ray */
+} RadianceSource;
+
+/* Every addition to a path's radiance goes through here (throughput and MIS weight already
+ * applied): the one place a radiance recorder observes the contributions of a path. */
+static inline void path_add_radiance(const PathState *ps, uint32_t p, vec3 contribution, RadianceSource source) {
+    (void)source;
+    ps->radiance[p] = v3_add(ps->radiance[p], contribution);
+}
+
+/* The first-hit AOVs of a path (written once, at depth 0). */
+static inline void path_write_aovs(const PathState *ps, uint32_t p, vec3 albedo, vec3 normal, float depth) {
+    ps->aov_albedo[p] = albedo;
+    ps->aov_normal[p] = normal;
+    ps->aov_depth[p] = depth;
+}
+
+/* MIS weight of a technique with pdf a against one with pdf b (power heuristic, beta = 2). */
+static inline float power_heuristic(float a, float b) {
+    if (isinf(a)) return 1.0f;
+    float a2 = a * a, b2 = b * b;
+    return a2 + b2 > 0.0f ? a2 / (a2 + b2) : 0.0f;
+}
+
+#endif

@@ -1,0 +1,169 @@
+/* renderer/light_estimates.c: unoccluded light-contribution estimates.
+ *
+ * For a receiver (p, n) every light gets an estimate of its unoccluded irradiance at p on the
+ * plane with normal n (fluence when n is zero: volumes, transmissive surfaces). These are the
+ * weights of the cache points paper's "optimal" per-vertex selection (Table 1), of the cache
+ * points' near lists (§3.3) and far bins (§3.1.3: irradiance on the six cardinal planes and
+ * the fluence, estimate7). Point and spot lights are exact (intensity cos / r^2); an area
+ * light sums 16 fixed stratified points on it; a directional light is its irradiance times the
+ * receiver cosine; the environment is integrated once over its cells (position-independent)
+ * and blended over the six planes by max(0, n.a_i)^2, which sums to 1 for a unit n.
+ * Every estimate is a deterministic function of (light, p, n). */
+#include <string.h>
+
+#include "lights.h"
+#include "scene.h"
+
+#define AREA_ESTIMATE_SAMPLES 16
+
+/* b_i(n) = max(0, n.a_i)^2 over the 6 cardinal axes sums to 1 for a unit n (spec §5.3). */
+static float env_irradiance_estimate(const Lights *ls, vec3 n) {
+    if (v3_is_black(n)) return ls->env_estimate[6];
+    float w[6] = {sqr(maxf(n.x, 0.0f)), sqr(maxf(-n.x, 0.0f)), sqr(maxf(n.y, 0.0f)),
+                  sqr(maxf(-n.y, 0.0f)), sqr(maxf(n.z, 0.0f)), sqr(maxf(-n.z, 0.0f))};
+    float e = 0.0f;
+    for (int i = 0; i < 6; ++i) e += w[i] * ls->env_estimate[i];
+    return e;
+}
+
+/* cosine factor of the receiver: max(0, n.w), or 1 for an omnidirectional receiver */
+static inline float receiver_cos(vec3 n, vec3 w) {
+    return v3_is_black(n) ? 1.0f : maxf(v3_dot(n, w), 0.0f);
+}
+
+/* The area-light estimate's 16 fixed stratified points (triangles in proportion to area): for
+ * each, the direction from p and the unoccluded contribution L cos_l / r^2 * A / 16. The same
+ * points for every call, so estimates are deterministic. Returns the number written. */
+static int area_estimate_samples(const Light *l, vec3 p, vec3 dirs[AREA_ESTIMATE_SAMPLES],
+                                 float contrib[AREA_ESTIMATE_SAMPLES]) {
+    float L = v3_luminance(l->emission);
+    if (!(L > 0.0f)) return 0;
+    int count = 0;
+    for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) {
+        float u0 = ((float)k + 0.5f) / AREA_ESTIMATE_SAMPLES;
+        float u1 = (float)((k * 7 + 3) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
+        float u2 = (float)((k * 11 + 5) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
+        float tri_pmf, u_tri;
+        uint32_t t = dist1d_sample_discrete(&l->triangles, u0, &tri_pmf, &u_tri);
+        const float *v = l->world_vertices + 9 * (size_t)t;
+        vec3 a = v3(v[0], v[1], v[2]), b = v3(v[3], v[4], v[5]), c = v3(v[6], v[7], v[8]);
+        vec2 bc = sample_uniform_triangle(u1, u2);
+        vec3 y = v3_add(v3_add(v3_scale(a, 1.0f - bc.x - bc.y), v3_scale(b, bc.x)), v3_scale(c, bc.y));
+        vec3 ng = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+        vec3 d = v3_sub(y, p);
+        float d2 = v3_dot(d, d);
+        if (!(d2 > 1e-12f)) continue;
+        vec3 w = v3_scale(d, 1.0f / sqrtf(d2));
+        float cos_l = -v3_dot(ng, w);
+        if (l->two_sided) cos_l = fabsf(cos_l);
+        if (!(cos_l > 0.0f)) continue;
+        dirs[count] = w;
+        contrib[count] = L * cos_l / d2 * l->area / AREA_ESTIMATE_SAMPLES;
+        ++count;
+    }
+    return count;
+}
+
+float light_contribution_estimate(const Lights *ls, const Light *l, vec3 p, vec3 n) {
+    switch (l->type) {
+    case LIGHT_POINT:
+    case LIGHT_SPOT: {
+        vec3 d = v3_sub(l->position, p);
+        float d2 = v3_dot(d, d);
+        if (!(d2 > 0.0f)) return 0.0f;
+        vec3 w = v3_scale(d, 1.0f / sqrtf(d2));
+        float I = v3_luminance(l->intensity);
+        if (l->type == LIGHT_SPOT) I *= light_spot_falloff(l, v3_neg(w));
+        return I * receiver_cos(n, w) / d2;
+    }
+    case LIGHT_DIRECTIONAL:
+        return v3_luminance(l->intensity) * receiver_cos(n, v3_neg(l->direction));
+    case LIGHT_ENVIRONMENT:
+        return env_irradiance_estimate(ls, n);
+    case LIGHT_AREA: {
+        /* (A/16) sum L cos_l max(0, n.w) / r^2 over the 16 stratified points (spec §3.4) */
+        vec3 dirs[AREA_ESTIMATE_SAMPLES];
+        float contrib[AREA_ESTIMATE_SAMPLES];
+        int count = area_estimate_samples(l, p, dirs, contrib);
+        float sum = 0.0f;
+        for (int k = 0; k < count; ++k) sum += contrib[k] * receiver_cos(n, dirs[k]);
+        return sum;
+    }
+    }
+    return 0.0f;
+}
+
+/* Env irradiance on the 6 cardinal planes and the fluence (index 6), integrated over the
+ * lat-long cells once at build: position-independent (a dome at infinity). */
+void light_env_estimates(const Scene *scene, float out[7]) {
+    memset(out, 0, 7 * sizeof(float));
+    const IoImage *im = &scene->env;
+    if (im->width <= 0) return;
+    const vec3 axes[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+    double acc[7] = {0};
+    for (int y = 0; y < im->height; ++y) {
+        float v = ((float)y + 0.5f) / (float)im->height;
+        float dw = (2.0f * PI_F / (float)im->width) * (PI_F / (float)im->height) * sinf(v * PI_F);
+        for (int x = 0; x < im->width; ++x) {
+            vec3 d = scene_env_uv_to_dir((vec2){((float)x + 0.5f) / (float)im->width, v});
+            const float *t = im->rgba + 4 * ((size_t)y * (size_t)im->width + (size_t)x);
+            double L = (double)v3_luminance(v3(t[0], t[1], t[2])) * scene->env_strength * dw;
+            for (int i = 0; i < 6; ++i) acc[i] += L * maxf(v3_dot(axes[i], d), 0.0f);
+            acc[6] += L;
+        }
+    }
+    for (int i = 0; i < 7; ++i) out[i] = (float)acc[i];
+}
+
+/* The seven cache-point bins at once (§3.1.3): irradiance on the planes facing +X -X +Y -Y
+ * +Z -Z and the fluence, from the same samples as light_contribution_estimate. */
+void light_contribution_estimate7(const Lights *ls, const Light *l, vec3 p, float out[7]) {
+    for (int i = 0; i < 7; ++i) out[i] = 0.0f;
+    vec3 dirs[AREA_ESTIMATE_SAMPLES];
+    float contrib[AREA_ESTIMATE_SAMPLES];
+    int count = 0;
+    switch (l->type) {
+    case LIGHT_ENVIRONMENT:
+        for (int i = 0; i < 7; ++i) out[i] = ls->env_estimate[i];
+        return;
+    case LIGHT_DIRECTIONAL:
+        dirs[0] = v3_neg(l->direction);
+        contrib[0] = v3_luminance(l->intensity);
+        count = 1;
+        break;
+    case LIGHT_POINT:
+    case LIGHT_SPOT: {
+        vec3 d = v3_sub(l->position, p);
+        float d2 = v3_dot(d, d);
+        if (!(d2 > 0.0f)) return;
+        dirs[0] = v3_scale(d, 1.0f / sqrtf(d2));
+        contrib[0] = light_contribution_estimate(ls, l, p, v3s(0.0f)); /* fluence incl. the cone */
+        count = 1;
+        break;
+    }
+    case LIGHT_AREA: {
+        count = area_estimate_samples(l, p, dirs, contrib);
+        break;
+    }
+    }
+    for (int k = 0; k < count; ++k) {
+        if (!(contrib[k] > 0.0f) || !isfinite(contrib[k])) continue;
+        vec3 w = dirs[k];
+        out[0] += contrib[k] * maxf(w.x, 0.0f);
+        out[1] += contrib[k] * maxf(-w.x, 0.0f);
+        out[2] += contrib[k] * maxf(w.y, 0.0f);
+        out[3] += contrib[k] * maxf(-w.y, 0.0f);
+        out[4] += contrib[k] * maxf(w.z, 0.0f);
+        out[5] += contrib[k] * maxf(-w.z, 0.0f);
+        out[6] += contrib[k];
+    }
+}
+
+float light_peak_intensity(const Light *l) {
+    switch (l->type) {
+    case LIGHT_POINT:
+    case LIGHT_SPOT: return v3_luminance(l->intensity);
+    case LIGHT_AREA: return v3_luminance(l->emission) * l->area; /* a flat emitter seen face on */
+    default: return 0.0f;
+    }
+}

@@ -1,0 +1,108 @@
+/* renderer/light_sampler.h (private): the light-selection protocol.
+ *
+ * Next-event estimation picks a light through a LightSampler, whatever the strategy, in four
+ * steps that every caller (surface shading now, a medium walk later) follows:
+ *
+ *   1. light_sampler_prepare(s, &ctx, &hint): once per vertex, before anything else. The
+ *      strategy may do per-vertex work here (cache points: find the vertex's point, weigh its
+ *      near lights into ctx.scratch) and leaves its per-vertex state in ctx.vertex, an opaque
+ *      token the caller keeps (the path state stores it for the MIS pdf at the next wave).
+ *      hint is per-caller scratch (UINT32_MAX to start) that a coherent stream of vertices
+ *      passes from one vertex to the next; it speeds a strategy up, never changes a result.
+ *   2. light_sampler_select(s, &ctx, u0, u1, &pmf, &outcome) -> a light and its probability;
+ *      light_sampler_pmf(s, &ctx, light) returns exactly that probability for any light
+ *      (MIS needs it for lights found by BSDF sampling). The two agree bit for bit.
+ *   3. light_sampler_record(s, outcome, visibility): once the selection's shadow ray is
+ *      traced, the fraction of it that reached the light (0 or 1 through opaque geometry, a
+ *      transmittance through media; 0 when no shadow ray was cast). outcome is the token
+ *      select returned (LIGHT_OUTCOME_NONE: nothing to learn). Thread-safe.
+ *   4. light_sampler_barrier(s): at an iteration barrier, when no ray is in flight. Learned
+ *      state changes only here, so every pmf within an iteration sees one distribution.
+ *
+ * Strategies (one file each; the wavefront never names one): uniform and power (this
+ * protocol's own light_sampler.c), the light BVH (lighttree.c), per-vertex optimal
+ * (lightselect_optimal.c) and cache points (lightselect_cachepoints.c). */
+#ifndef CANDELA_LIGHT_SAMPLER_H
+#define CANDELA_LIGHT_SAMPLER_H
+
+#include <stdint.h>
+
+#include "candela.h"
+#include "lights.h"
+
+struct Scene;
+struct ThreadPool;
+
+#define LIGHT_OUTCOME_NONE UINT32_MAX
+/* Floats a caller provides in LightSampleContext.scratch (cache points' near lists hold at
+ * most this many lights). */
+#define LIGHT_SAMPLER_SCRATCH 256
+
+typedef struct LightSamplerOps {
+    const char *name;
+    /* optional (NULL: nothing per vertex) */
+    void (*prepare)(const void *state, LightSampleContext *ctx, uint32_t *hint);
+    uint32_t (*select)(const void *state, const LightSampleContext *ctx, float u0, float u1, float *pmf,
+                       uint32_t *outcome);
+    float (*pmf)(const void *state, const LightSampleContext *ctx, uint32_t light);
+    /* optional: strategies that learn from shadow rays */
+    void (*record)(void *state, uint32_t outcome, float visibility);
+    void (*prefetch_outcome)(const void *state, uint32_t outcome); /* a cache hint before tracing */
+    void (*barrier)(void *state);
+    /* optional: the strategy's build statistics */
+    void (*report)(const void *state, CandelaStats *stats);
+    void (*destroy)(void *state);
+} LightSamplerOps;
+
+typedef struct LightSampler {
+    const LightSamplerOps *ops;
+    void *state;
+    uint32_t light_count;
+} LightSampler;
+
+/* Builds the strategy o->light_sampler over the lights (the optimal strategy's occlusion rays
+ * and the cache points' candidates use the scene; the cache point build runs on the pool).
+ * 0 ok; -1 with a message in err. */
+int light_sampler_create(LightSampler *s, const Lights *lights, const struct Scene *scene, struct ThreadPool *pool,
+                         const CandelaOptions *o, char err[CANDELA_ERR_LEN]);
+void light_sampler_free(LightSampler *s);
+
+/* The strategies' constructors (light_sampler_create dispatches to them). */
+int light_sampler_uniform_create(LightSampler *s, const Lights *lights);
+int light_sampler_power_create(LightSampler *s, const Lights *lights);
+int light_sampler_tree_create(LightSampler *s, const Lights *lights);
+int light_sampler_optimal_create(LightSampler *s, const Lights *lights, const struct Scene *scene, int occlusion);
+int light_sampler_cachepoints_create(LightSampler *s, const Lights *lights, const struct Scene *scene,
+                                     struct ThreadPool *pool, const CandelaOptions *o, char err[CANDELA_ERR_LEN]);
+
+static inline void light_sampler_prepare(const LightSampler *s, LightSampleContext *ctx, uint32_t *hint) {
+    ctx->vertex = (LightVertex){0, 0.0f};
+    if (s->ops->prepare) s->ops->prepare(s->state, ctx, hint);
+}
+
+static inline uint32_t light_sampler_select(const LightSampler *s, const LightSampleContext *ctx, float u0, float u1,
+                                            float *pmf, uint32_t *outcome) {
+    *outcome = LIGHT_OUTCOME_NONE;
+    if (s->light_count == 0) { *pmf = 0.0f; return 0; }
+    return s->ops->select(s->state, ctx, u0, u1, pmf, outcome);
+}
+
+static inline float light_sampler_pmf(const LightSampler *s, const LightSampleContext *ctx, uint32_t light) {
+    return light < s->light_count ? s->ops->pmf(s->state, ctx, light) : 0.0f;
+}
+
+static inline void light_sampler_record(const LightSampler *s, uint32_t outcome, float visibility) {
+    if (outcome != LIGHT_OUTCOME_NONE && s->ops->record) s->ops->record(s->state, outcome, visibility);
+}
+
+static inline void light_sampler_prefetch_outcome(const LightSampler *s, uint32_t outcome) {
+    if (outcome != LIGHT_OUTCOME_NONE && s->ops->prefetch_outcome) s->ops->prefetch_outcome(s->state, outcome);
+}
+
+static inline void light_sampler_barrier(const LightSampler *s) {
+    if (s->ops->barrier) s->ops->barrier(s->state);
+}
+
+static inline int light_sampler_learns(const LightSampler *s) { return s->ops->record != NULL; }
+
+#endif

@@ -1,0 +1,26 @@
+/* renderer/options.c: render option defaults and the light sampler names. */
+#include <string.h>
+
+#include "candela.h"
+
+void candela_options_default(CandelaOptions *o) {
+    memset(o, 0, sizeof *o);
+    o->spp = 16;
+    o->seed = 0;
+    o->max_depth = 8;
+    o->light_sampler = CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
+    o->light_units = CANDELA_LIGHT_UNITS_BLENDER;
+    o->env_strength = 1.0f;
+}
+
+static const char *const LIGHT_SAMPLER_NAMES[] = {"uniform", "power", "tree", "optimal", "cachepoints"};
+
+const char *candela_light_sampler_name(CandelaLightSampler s) {
+    return (unsigned)s < sizeof LIGHT_SAMPLER_NAMES / sizeof LIGHT_SAMPLER_NAMES[0] ? LIGHT_SAMPLER_NAMES[s] : "unknown";
+}
+
+int candela_light_sampler_parse(const char *name, CandelaLightSampler *s) {
+    for (unsigned i = 0; i < sizeof LIGHT_SAMPLER_NAMES / sizeof LIGHT_SAMPLER_NAMES[0]; ++i)
+        if (strcmp(name, LIGHT_SAMPLER_NAMES[i]) == 0) { *s = (CandelaLightSampler)i; return 0; }
+    return -1;
+}

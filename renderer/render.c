@@ -1,0 +1,189 @@
+/* renderer/render.c: candela_render(), a render from file to film.
+ *
+ *   scene_load -> lights_build -> light_sampler_create (on the thread pool) -> for each
+ *   iteration (spp schedule 1, 1, 2, 4, 8, ... capped, summing to --spp): for each batch of
+ *   paths, integrator_run_batch (waves, film) -> the iteration barrier (no ray in flight:
+ *   the barrier hooks run, then progress is reported) -> film_resolve.
+ * Path j of an iteration is pixel j % npixels, sample base + j / npixels, so batches are
+ * contiguous runs of j and the film receives every pixel's samples in sample order whatever
+ * the batch size or thread count: the image is bit-identical across both. */
+#include <stdio.h>
+#include <stdlib.h>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
+#include <string.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include "clock.h"
+#include "integrator.h"
+
+#define DEFAULT_BATCH_SIZE (1u << 14) /* fits the path state in L2: shading gathers by slot */
+#define MAX_BATCH_SIZE (1u << 22)
+#define DEFAULT_MAX_ITERATION_SPP 64
+
+/* ---------------------------------------------------------------- progress */
+
+typedef struct Progress {
+    int quiet, is_tty;
+    double start, last;
+} Progress;
+
+static void report_progress(Progress *pr, uint64_t done, uint64_t total, int final) {
+    if (pr->quiet) return;
+    double t = clock_seconds();
+    double elapsed = t - pr->start;
+    double frac = total ? (double)done / (double)total : 1.0;
+    double eta = frac > 0.0 ? elapsed * (1.0 - frac) / frac : 0.0;
+    if (pr->is_tty) {
+        if (!final && t - pr->last < 0.2) return;
+        pr->last = t;
+        int width = 40, filled = (int)(frac * width);
+        char bar[64];
+        for (int i = 0; i < width; ++i) bar[i] = i < filled ? '#' : '-';
+        bar[width] = 0;
+        fprintf(stderr, "\r[%s] %5.1f%%  %6.1fs elapsed  ETA %6.1fs", bar, 100.0 * frac, elapsed, eta);
+        if (final) fputc('\n', stderr);
+        fflush(stderr);
+    } else {
+        if (!final && t - pr->last < 10.0) return;
+        pr->last = t;
+        fprintf(stderr, "candela: %5.1f%% done, %.1fs elapsed, ETA %.1fs\n", 100.0 * frac, elapsed, eta);
+    }
+}
+
+/* ---------------------------------------------------------------- peak memory */
+
+/* Peak resident memory of this render. Linux lets a process reset its high-water mark
+ * (write "5" to /proc/self/clear_refs), so renders run one after another in one process
+ * (candela compare, the tests) each report their own peak; elsewhere getrusage's lifetime
+ * maximum is the fallback. */
+static void peak_rss_reset(void) {
+#ifdef __GLIBC__
+    malloc_trim(0); /* hand the previous render's freed heap back first, or it counts here */
+#endif
+    FILE *f = fopen("/proc/self/clear_refs", "w");
+    if (f) { fputs("5", f); fclose(f); }
+}
+
+static size_t peak_rss_bytes(void) {
+    FILE *f = fopen("/proc/self/status", "r");
+    if (f) {
+        char line[256];
+        size_t kb = 0;
+        while (fgets(line, sizeof line, f))
+            if (sscanf(line, "VmHWM: %zu kB", &kb) == 1) break;
+        fclose(f);
+        if (kb > 0) return kb * 1024u;
+    }
+    struct rusage ru;
+    if (getrusage(RUSAGE_SELF, &ru) != 0) return 0;
+    return (size_t)ru.ru_maxrss * 1024u;
+}
+
+/* ---------------------------------------------------------------- render */
+
+static void light_sampler_barrier_hook(void *sampler) { light_sampler_barrier(sampler); }
+
+/* Samples per pixel of iteration i: 1, 1, 2, 4, 8, ... capped, and never past the total. (The
+ * shift is bounded: at iteration 32 an unbounded 1 << 31 overflowed and the schedule ran
+ * backwards.) */
+static int iteration_spp(int iteration, int max_iteration_spp, int remaining) {
+    int spp = iteration < 2 ? 1 : (iteration - 1 >= 30 ? max_iteration_spp : 1 << (iteration - 1));
+    if (spp > max_iteration_spp) spp = max_iteration_spp;
+    return spp < remaining ? spp : remaining;
+}
+
+typedef struct Render {
+    Scene scene;
+    Lights lights;
+    LightSampler sampler;
+    ThreadPool *pool;
+    Integrator ig;
+    int have_scene, have_lights, have_sampler, have_integrator;
+} Render;
+
+static void render_free(Render *r) {
+    if (r->have_integrator) integrator_free(&r->ig);
+    if (r->have_sampler) light_sampler_free(&r->sampler);
+    if (r->pool) threadpool_destroy(r->pool);
+    if (r->have_lights) lights_free(&r->lights);
+    if (r->have_scene) scene_free(&r->scene);
+    free(r);
+}
+
+int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *stats, CandelaRayLog *ray_log,
+                   char err[CANDELA_ERR_LEN]) {
+    CandelaStats local_stats;
+    if (!stats) stats = &local_stats;
+    memset(stats, 0, sizeof *stats);
+    memset(image, 0, sizeof *image);
+    if (o->spp < 1 || o->max_depth < 0 || o->width < 0 || o->height < 0 || o->width > 16384 || o->height > 16384) {
+        snprintf(err, CANDELA_ERR_LEN, "%s: invalid render options (spp >= 1, 0 <= max depth, resolution <= 16384)",
+                 o->scene_path ? o->scene_path : "candela");
+        return -1;
+    }
+    Render *r = calloc(1, sizeof *r);
+    if (!r) { snprintf(err, CANDELA_ERR_LEN, "candela: out of memory"); return -1; }
+    peak_rss_reset();
+    double t_start = clock_seconds();
+    if (scene_load(&r->scene, o, err) != 0) { render_free(r); return -1; }
+    r->have_scene = 1;
+    if (lights_build(&r->lights, &r->scene, o->light_units, err, CANDELA_ERR_LEN) != 0) { render_free(r); return -1; }
+    r->have_lights = 1;
+    double t_loaded = clock_seconds();
+    stats->time_load = t_loaded - t_start;
+    stats->num_triangles = r->scene.num_triangles_total;
+    stats->num_lights = r->lights.count;
+    stats->num_instances = r->scene.io.num_instances;
+
+    const Camera *cam = &r->scene.camera;
+    uint32_t npixels = (uint32_t)cam->width * (uint32_t)cam->height;
+    uint32_t batch = o->batch_size ? o->batch_size : DEFAULT_BATCH_SIZE;
+    if (batch > MAX_BATCH_SIZE) batch = MAX_BATCH_SIZE;
+    uint64_t max_paths_per_iteration = (uint64_t)npixels * (uint64_t)o->spp;
+    if (batch > max_paths_per_iteration) batch = (uint32_t)max_paths_per_iteration;
+    r->pool = threadpool_create(o->threads);
+    if (!r->pool) { snprintf(err, CANDELA_ERR_LEN, "candela: out of memory"); render_free(r); return -1; }
+    if (light_sampler_create(&r->sampler, &r->lights, &r->scene, r->pool, o, err) != 0) { render_free(r); return -1; }
+    r->have_sampler = 1;
+    if (r->sampler.ops->report) r->sampler.ops->report(r->sampler.state, stats);
+    if (integrator_init(&r->ig, o, &r->scene, &r->lights, &r->sampler, batch) != 0) {
+        snprintf(err, CANDELA_ERR_LEN, "%s: out of memory allocating %u paths", o->scene_path, batch);
+        render_free(r);
+        return -1;
+    }
+    r->have_integrator = 1;
+    Integrator *ig = &r->ig;
+    ig->ray_log = ray_log;
+    if (r->sampler.ops->barrier) integrator_add_barrier_hook(ig, light_sampler_barrier_hook, &r->sampler);
+    stats->time_build = clock_seconds() - t_loaded;
+
+    Progress progress = {o->quiet, isatty(2), clock_seconds(), 0.0}; /* the first report comes at once */
+    int max_iter_spp = o->max_iteration_spp > 0 ? o->max_iteration_spp : DEFAULT_MAX_ITERATION_SPP;
+    uint64_t total_paths = (uint64_t)npixels * (uint64_t)o->spp, done_paths = 0;
+    int spp_done = 0, iteration = 0;
+    for (; spp_done < o->spp; ++iteration) {
+        int spp_i = iteration_spp(iteration, max_iter_spp, o->spp - spp_done);
+        ig->sample_base = (uint64_t)spp_done;
+        uint64_t iter_paths = (uint64_t)npixels * (uint64_t)spp_i;
+        for (uint64_t first = 0; first < iter_paths; first += batch) {
+            ig->batch_first = first;
+            ig->batch_count = (uint32_t)((iter_paths - first) < batch ? (iter_paths - first) : batch);
+            integrator_run_batch(ig, r->pool, stats);
+            done_paths += ig->batch_count;
+            report_progress(&progress, done_paths, total_paths, 0);
+        }
+        spp_done += spp_i;
+        integrator_barrier(ig); /* no ray in flight: learned state changes here */
+        stats->iterations = iteration + 1;
+        report_progress(&progress, done_paths, total_paths, done_paths == total_paths);
+    }
+    stats->time_total = clock_seconds() - t_start;
+    int rc = film_resolve(&ig->film, image);
+    if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s: out of memory resolving the film", o->scene_path);
+    stats->peak_memory_bytes = peak_rss_bytes();
+    render_free(r);
+    return rc;
+}

@@ -1,0 +1,79 @@
+/* renderer/scene_rays.c: the scene ray interface (scene.h) over Embree 3. Every ray the
+ * renderer traces comes through here, so a change of ray tracing back-end, ray flags or
+ * statistics is one file. */
+#include "scene.h"
+
+static inline void fill_ray(struct RTCRay *r, const SceneRay *s, unsigned id) {
+    r->org_x = s->org.x; r->org_y = s->org.y; r->org_z = s->org.z;
+    r->tnear = s->tnear;
+    r->dir_x = s->dir.x; r->dir_y = s->dir.y; r->dir_z = s->dir.z;
+    r->time = 0.0f;
+    r->tfar = s->tfar;
+    r->mask = 0xffffffffu;
+    r->id = id;
+    r->flags = 0;
+}
+
+static inline void read_hit(const struct RTCRayHit *h, SceneHit *out) {
+    if (h->hit.geomID == RTC_INVALID_GEOMETRY_ID) {
+        out->t = INFINITY;
+        return;
+    }
+    out->t = h->ray.tfar;
+    out->u = h->hit.u;
+    out->v = h->hit.v;
+    out->instance = h->hit.instID[0];
+    out->local_prim = h->hit.geomID;
+    out->triangle = h->hit.primID;
+}
+
+void scene_intersect(const Scene *scene, const SceneRay *rays, const uint32_t *items, uint32_t n, SceneHit *hits,
+                     int coherent) {
+    struct RTCRayHit rh[SCENE_RAY_PACKET];
+    struct RTCIntersectContext ictx;
+    rtcInitIntersectContext(&ictx);
+    ictx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    for (uint32_t s = 0; s < n; s += SCENE_RAY_PACKET) {
+        unsigned m = n - s < SCENE_RAY_PACKET ? n - s : SCENE_RAY_PACKET;
+        for (unsigned k = 0; k < m; ++k) {
+            fill_ray(&rh[k].ray, &rays[items ? items[s + k] : s + k], k);
+            rh[k].hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rh[k].hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        }
+        rtcIntersect1M(scene->top, &ictx, rh, m, sizeof(struct RTCRayHit));
+        for (unsigned k = 0; k < m; ++k) read_hit(&rh[k], &hits[s + k]);
+    }
+}
+
+void scene_occluded(const Scene *scene, const SceneRay *rays, const uint32_t *items, uint32_t n, uint8_t *occluded) {
+    struct RTCRay r[SCENE_RAY_PACKET];
+    struct RTCIntersectContext ictx;
+    rtcInitIntersectContext(&ictx);
+    for (uint32_t s = 0; s < n; s += SCENE_RAY_PACKET) {
+        unsigned m = n - s < SCENE_RAY_PACKET ? n - s : SCENE_RAY_PACKET;
+        for (unsigned k = 0; k < m; ++k) fill_ray(&r[k], &rays[items ? items[s + k] : s + k], k);
+        rtcOccluded1M(scene->top, &ictx, r, m, sizeof(struct RTCRay));
+        for (unsigned k = 0; k < m; ++k) occluded[s + k] = !(r[k].tfar >= 0.0f); /* tfar = -inf when occluded */
+    }
+}
+
+int scene_intersect1(const Scene *scene, SceneRay ray, SceneHit *hit) {
+    struct RTCRayHit rh;
+    struct RTCIntersectContext ictx;
+    rtcInitIntersectContext(&ictx);
+    fill_ray(&rh.ray, &ray, 0);
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene->top, &ictx, &rh);
+    read_hit(&rh, hit);
+    return hit->t < INFINITY;
+}
+
+int scene_visible1(const Scene *scene, SceneRay ray) {
+    struct RTCRay r;
+    struct RTCIntersectContext ictx;
+    rtcInitIntersectContext(&ictx);
+    fill_ray(&r, &ray, 0);
+    rtcOccluded1(scene->top, &ictx, &r);
+    return r.tfar >= 0.0f;
+}

@@ -1,0 +1,24 @@
+/* renderer/stage_escaped.c: rays that left the scene see the environment. Its radiance is
+ * MIS-weighted against the light sampler, evaluated with the context the previous vertex used
+ * for NEE (kept in the path state). */
+#include "integrator.h"
+
+void stage_escaped(const Integrator *ig, Slice *s) {
+    const PathState *ps = &ig->ps;
+    const Lights *lights = ig->lights;
+    if (lights->environment < 0) return;
+    for (uint32_t i = 0; i < s->num_escaped; ++i) {
+        uint32_t p = s->escaped[i];
+        vec3 d = ps->ray[p].dir;
+        vec3 le = scene_env_radiance(ig->scene, d);
+        if (v3_is_black(le)) continue;
+        float w = 1.0f;
+        if (!ps->prev_delta[p]) {
+            LightSampleContext lc = {ps->prev_pos[p], ps->prev_normal[p], ps->prev_light_vertex[p]};
+            float pl = light_sampler_pmf(ig->light_sampler, &lc, (uint32_t)lights->environment) *
+                       light_env_pdf_li(lights, d);
+            w = power_heuristic(ps->prev_scatter_pdf[p], pl);
+        }
+        path_add_radiance(ps, p, v3_scale(v3_mul(ps->throughput[p], le), w), RADIANCE_ENVIRONMENT);
+    }
+}

@@ -1,0 +1,31 @@
+/* renderer/stage_generate.c: camera rays. Path j of the iteration is pixel j mod npixels,
+ * sample sample_base + j / npixels; its RNG key is a function of (seed, pixel, sample). */
+#include "integrator.h"
+#include "rng.h"
+
+void stage_generate(const Integrator *ig, Slice *s) {
+    const PathState *ps = &ig->ps; /* the arrays, not the integrator, are written */
+    const Camera *cam = &ig->scene->camera;
+    s->num_rays = 0;
+    for (uint32_t p = s->begin; p < s->end; ++p) {
+        uint64_t j = ig->batch_first + p;
+        uint32_t pixel = (uint32_t)(j % ig->npixels);
+        uint64_t sample = ig->sample_base + j / ig->npixels;
+        uint64_t key = rng_path_key(ig->opt->seed, pixel, sample);
+        ps->rng_key[p] = key;
+        ps->pixel[p] = pixel;
+        ps->depth[p] = 0;
+        float fx = (float)(pixel % (uint32_t)cam->width) + rng_uniform(key, RNG_DIM_PIXEL_X);
+        float fy = (float)(pixel / (uint32_t)cam->width) + rng_uniform(key, RNG_DIM_PIXEL_Y);
+        vec3 o, d;
+        camera_generate_ray(cam, fx, fy, &o, &d);
+        ps->ray[p] = (SceneRay){o, 0.0f, d, INFINITY};
+        ps->radiance[p] = v3s(0.0f);
+        ps->throughput[p] = v3s(1.0f);
+        ps->rr_scale[p] = 1.0f;
+        ps->prev_delta[p] = 1; /* the camera: emission seen directly takes no MIS weight */
+        ps->prev_scatter_pdf[p] = 0.0f;
+        path_write_aovs(ps, p, v3s(0.0f), v3s(0.0f), INFINITY);
+        s->rays[s->num_rays++] = p;
+    }
+}

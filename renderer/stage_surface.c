@@ -1,0 +1,157 @@
+/* renderer/stage_surface.c: sorted deferred shading of the hit queue.
+ *
+ * Per hit, in three steps (each a function below): the emission the path found (MIS against
+ * the light sampler with the previous vertex's context), next-event estimation (the light
+ * sampler picks a light, the light is sampled, the scattering function evaluated; a shadow
+ * ray with its pending contribution goes to the shadow queue), and the continuation (the
+ * scattering function samples a direction, Russian roulette, the next wave's ray). The hit
+ * queue is in (primitive, Morton) order, so consecutive hits share materials, textures and
+ * cache points, and the path state is visited in random slot order: it is prefetched ahead. */
+#include "integrator.h"
+#include "rng.h"
+#include "scatter.h"
+
+#define SHADE_PREFETCH 8
+#define RR_START_DEPTH 3 /* first depth whose continuation is subject to Russian roulette, minus one */
+
+/* Emission of the emitter the path hit, MIS-weighted against NEE's probability of sampling the
+ * same point from the previous vertex. */
+static void surface_emission(const Integrator *ig, uint32_t p, const SurfaceHit *h, vec3 wo) {
+    const PathState *ps = &ig->ps;
+    int32_t light = lights_of_primitive(ig->lights, h->instance, h->local_prim);
+    if (light < 0) return;
+    vec3 le = scene_emitted_radiance(ig->scene, h, wo);
+    if (v3_is_black(le)) return;
+    float w = 1.0f;
+    if (!ps->prev_delta[p]) {
+        LightSampleContext lc = {ps->prev_pos[p], ps->prev_normal[p], ps->prev_light_vertex[p]};
+        float pl = light_sampler_pmf(ig->light_sampler, &lc, (uint32_t)light) *
+                   light_area_pdf_li(&ig->lights->lights[light], &lc, h->triangle, h->p, h->ng);
+        w = power_heuristic(ps->prev_scatter_pdf[p], pl);
+    }
+    path_add_radiance(ps, p, v3_scale(v3_mul(ps->throughput[p], le), w), RADIANCE_EMISSION);
+}
+
+/* Next-event estimation from the vertex: one light from the light sampler, one point on it,
+ * the MIS-weighted contribution pending on a shadow ray (queued when non-zero). The selection's
+ * outcome goes back to the sampler: from the shadow stage when a ray is queued, from here
+ * (nothing got through) when not. */
+static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, const SurfaceHit *h,
+                                 const Scatter *sc, const LightSampleContext *lc) {
+    const PathState *ps = &ig->ps;
+    const LightSampler *sampler = ig->light_sampler;
+    uint64_t key = ps->rng_key[p];
+    uint32_t depth = ps->depth[p];
+    float pmf;
+    uint32_t outcome;
+    uint32_t li = light_sampler_select(sampler, lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_SELECT)),
+                                       rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_DESCEND)), &pmf,
+                                       &outcome);
+    LightLiSample ls;
+    if (pmf > 0.0f &&
+        light_sample_li(ig->lights, &ig->lights->lights[li], lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_U)),
+                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_V)),
+                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_W)), &ls)) {
+        float scatter_pdf;
+        vec3 f = scatter_eval(sc, ls.wi, &scatter_pdf);
+        if (!v3_is_black(f)) {
+            float light_pdf = pmf * ls.pdf;
+            float w = ls.is_delta ? 1.0f : power_heuristic(light_pdf, scatter_pdf);
+            vec3 contrib = v3_scale(v3_mul(v3_mul(ps->throughput[p], f), ls.radiance), w / light_pdf);
+            if (v3_is_finite(contrib) && !v3_is_black(contrib)) {
+                vec3 o = offset_ray_origin(h->p, scatter_side_normal(sc, ls.wi));
+                vec3 dir = ls.wi;
+                float tfar = INFINITY;
+                if (!isinf(ls.distance)) {
+                    /* aim from the offset origin at the sampled point itself: keeping the
+                     * unoffset direction and length made the ray end behind nearby emitters
+                     * and darkened small scenes */
+                    vec3 to = v3_sub(v3_madd(h->p, ls.wi, ls.distance), o);
+                    float len = v3_length(to);
+                    if (len > 0.0f) { dir = v3_scale(to, 1.0f / len); tfar = len * (1.0f - 1e-3f); }
+                    else tfar = 0.0f;
+                }
+                ps->shadow_ray[p] = (SceneRay){o, 0.0f, dir, tfar};
+                ps->shadow_contrib[p] = contrib;
+                ps->shadow_outcome[p] = outcome;
+                s->shadows[s->num_shadows++] = p;
+                return;
+            }
+        }
+    }
+    light_sampler_record(sampler, outcome, 0.0f); /* no shadow ray: nothing reached the light */
+}
+
+/* Russian roulette on the throughput with refraction's radiance scaling removed: the path
+ * survives with probability 1 - q, q = 1 - max(beta) rr_scale clamped to [0, 0.95], and its
+ * throughput is divided by that. Returns 0 when the path is terminated. */
+static int russian_roulette(vec3 *beta, float rr_scale, float u) {
+    float q = fmaxf(0.0f, 1.0f - v3_max_component(*beta) * rr_scale);
+    q = fminf(q, 0.95f);
+    if (u < q) return 0;
+    *beta = v3_scale(*beta, 1.0f / (1.0f - q));
+    return 1;
+}
+
+/* The continuation: a direction from the scattering function, the roulette, and the next
+ * wave's ray with the MIS context of this vertex. */
+static void surface_continuation(const Integrator *ig, Slice *s, uint32_t p, const SurfaceHit *h,
+                                 const Scatter *sc, const LightSampleContext *lc) {
+    const PathState *ps = &ig->ps;
+    uint64_t key = ps->rng_key[p];
+    uint32_t depth = ps->depth[p];
+    ScatterSample ss;
+    if (!scatter_sample(sc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_LOBE)),
+                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_U)),
+                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_V)), &ss))
+        return;
+    vec3 beta = v3_mul(ps->throughput[p], ss.weight);
+    ps->rr_scale[p] *= ss.rr_factor;
+    if (!v3_is_finite(beta) || v3_is_black(beta)) return;
+    if (depth + 1 >= RR_START_DEPTH &&
+        !russian_roulette(&beta, ps->rr_scale[p], rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_RR))))
+        return;
+    ps->throughput[p] = beta;
+    ps->prev_pos[p] = h->p;
+    ps->prev_normal[p] = lc->n;
+    ps->prev_light_vertex[p] = lc->vertex;
+    ps->prev_scatter_pdf[p] = ss.pdf;
+    ps->prev_delta[p] = (uint8_t)ss.delta;
+    ps->ray[p] = (SceneRay){offset_ray_origin(h->p, scatter_side_normal(sc, ss.wi)), 0.0f, ss.wi, INFINITY};
+    ps->depth[p] = depth + 1;
+    s->rays[s->num_rays++] = p;
+}
+
+void stage_surface(const Integrator *ig, Slice *s) {
+    const PathState *ps = &ig->ps;
+    const Scene *scene = ig->scene;
+    uint32_t hint = UINT32_MAX; /* hits are sorted spatially: the last vertex's answer is near */
+    float scratch[LIGHT_SAMPLER_SCRATCH];
+    s->num_shadows = 0;
+    s->num_rays = 0; /* the ray queue was consumed by stage_intersect: it now collects the next wave */
+    for (uint32_t i = 0; i < s->num_hits; ++i) {
+        if (i + SHADE_PREFETCH < s->num_hits) path_state_prefetch_shade(ps, s->hits[i + SHADE_PREFETCH]);
+        uint32_t p = s->hits[i];
+        const SceneHit *hit = &ps->hit[p];
+        vec3 wo = v3_neg(ps->ray[p].dir);
+        SurfaceHit h;
+        scene_surface_hit(scene, hit->instance, hit->local_prim, hit->triangle, hit->u, hit->v, &h);
+        MaterialSample m;
+        scene_material_at(scene, &h, &m);
+        Scatter sc;
+        scatter_init_surface(&sc, &h, &m.bsdf, wo);
+        uint32_t depth = ps->depth[p];
+        if (depth == 0) path_write_aovs(ps, p, m.bsdf.base_color, sc.frame.n, hit->t);
+
+        surface_emission(ig, p, &h, wo);
+        if ((int)depth >= ig->opt->max_depth) continue;
+
+        /* light-selection context: transmissive surfaces receive light from both sides, so they
+         * use the omnidirectional (fluence) estimates, as a point in a medium does */
+        LightSampleContext lc = {h.p, scatter_light_normal(&sc), {0, 0.0f}, scratch};
+        int delta = scatter_is_delta(&sc);
+        if (!delta) light_sampler_prepare(ig->light_sampler, &lc, &hint); /* once per vertex */
+        if (!delta && ig->lights->count > 0) surface_direct_light(ig, s, p, &h, &sc, &lc);
+        surface_continuation(ig, s, p, &h, &sc, &lc);
+    }
+}
