@@ -1,5 +1,5 @@
 /* renderer/compare.c: `candela compare`, the equal-SPP comparison of light-selection
- * strategies (issue 3, first version).
+ * strategies.
  *
  * Renders the scene once per strategy at the same spp and seed, renders (or reuses) a
  * high-spp reference, and writes OUT/table.md, OUT/table.csv, OUT/<strategy>.exr and

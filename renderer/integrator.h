@@ -53,8 +53,8 @@ void film_add_paths(Film *f, const PathState *ps, uint32_t count);
 /* Mean, variance of the mean (sample variance / n) and AOVs. 0 ok, -1 out of memory. */
 int film_resolve(const Film *f, CandelaImage *img);
 
-/* Work at an iteration barrier, when no ray is in flight: learned state (cache point
- * visibility now; guiding training, volume estimator choices later) changes only here. */
+/* Work at an iteration barrier, when no ray is in flight: learned state (a light
+ * sampler's visibility now; guiding training, volume estimator choices later) changes only here. */
 typedef struct BarrierHook {
     void (*run)(void *user);
     void *user;

@@ -104,5 +104,10 @@ static inline void light_sampler_barrier(const LightSampler *s) {
 }
 
 static inline int light_sampler_learns(const LightSampler *s) { return s->ops->record != NULL; }
+static inline int light_sampler_has_barrier(const LightSampler *s) { return s->ops->barrier != NULL; }
+
+static inline void light_sampler_report(const LightSampler *s, CandelaStats *stats) {
+    if (s->ops->report) s->ops->report(s->state, stats);
+}
 
 #endif

@@ -383,15 +383,20 @@ static void builder_free(Builder *B) {
     free(B->keys);
 }
 
-int light_tree_build(LightTree *t, const Light *lights, uint32_t count) {
-    memset(t, 0, sizeof *t);
-    if (count == 0) return 0;
+/* The start of both builds: the per-light arrays and the item buffer. 0 ok, -1 out of memory. */
+static int builder_begin(LightTree *t, Builder *B, uint32_t count) {
     t->light_count = count;
     t->trail = calloc(count, sizeof *t->trail);
     t->kind = calloc(count, sizeof *t->kind);
+    B->items = malloc(count * sizeof(Item));
+    return t->trail && t->kind && B->items ? 0 : -1;
+}
+
+int light_tree_build(LightTree *t, const Light *lights, uint32_t count) {
+    memset(t, 0, sizeof *t);
+    if (count == 0) return 0;
     Builder B = {t, NULL, NULL, NULL};
-    B.items = malloc(count * sizeof(Item));
-    if (!t->trail || !t->kind || !B.items) goto oom;
+    if (builder_begin(t, &B, count) != 0) goto oom;
     uint32_t m = 0, ninf = 0;
     for (uint32_t i = 0; i < count; ++i) {
         const Light *l = &lights[i];
@@ -430,12 +435,8 @@ int light_tree_build_triangles(LightTree *t, const float *world_vertices, uint32
                                int two_sided) {
     memset(t, 0, sizeof *t);
     if (count == 0) return 0;
-    t->light_count = count;
-    t->trail = calloc(count, sizeof *t->trail);
-    t->kind = calloc(count, sizeof *t->kind);
     Builder B = {t, NULL, NULL, NULL};
-    B.items = malloc(count * sizeof(Item));
-    if (!t->trail || !t->kind || !B.items) goto oom;
+    if (builder_begin(t, &B, count) != 0) goto oom;
     /* relative powers are all that matter; a black (or odd) luminance falls back to area */
     float scale = (luminance > 0.0f && isfinite(luminance) ? luminance : 1.0f) * (two_sided ? 2.0f : 1.0f);
     uint32_t m = 0;

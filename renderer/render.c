@@ -148,7 +148,7 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
     if (!r->pool) { snprintf(err, CANDELA_ERR_LEN, "candela: out of memory"); render_free(r); return -1; }
     if (light_sampler_create(&r->sampler, &r->lights, &r->scene, r->pool, o, err) != 0) { render_free(r); return -1; }
     r->have_sampler = 1;
-    if (r->sampler.ops->report) r->sampler.ops->report(r->sampler.state, stats);
+    light_sampler_report(&r->sampler, stats);
     if (integrator_init(&r->ig, o, &r->scene, &r->lights, &r->sampler, batch) != 0) {
         snprintf(err, CANDELA_ERR_LEN, "%s: out of memory allocating %u paths", o->scene_path, batch);
         render_free(r);
@@ -157,7 +157,7 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
     r->have_integrator = 1;
     Integrator *ig = &r->ig;
     ig->ray_log = ray_log;
-    if (r->sampler.ops->barrier) integrator_add_barrier_hook(ig, light_sampler_barrier_hook, &r->sampler);
+    if (light_sampler_has_barrier(&r->sampler)) integrator_add_barrier_hook(ig, light_sampler_barrier_hook, &r->sampler);
     stats->time_build = clock_seconds() - t_loaded;
 
     Progress progress = {o->quiet, isatty(2), clock_seconds(), 0.0}; /* the first report comes at once */

@@ -1,7 +1,7 @@
 /* renderer/sort.c: the wavefront's queue sorts. Rays are sorted by (direction octant, Morton
  * code of the origin) so Embree traces coherent packets; hits by (glTF primitive, Morton code of
  * the hit point) so shading visits one material at a time, and consecutive vertices are near
- * each other (they share cache points and texture tiles: a large quad's two triangles say
+ * each other (they share the light sampler's per-vertex lookups and texture tiles: a large quad's two triangles say
  * nothing about where on it a hit lies). Both are stable radix sorts, so equal keys keep queue
  * order, which is deterministic. */
 #include <string.h>

@@ -6,7 +6,7 @@
  * ray with its pending contribution goes to the shadow queue), and the continuation (the
  * scattering function samples a direction, Russian roulette, the next wave's ray). The hit
  * queue is in (primitive, Morton) order, so consecutive hits share materials, textures and
- * cache points, and the path state is visited in random slot order: it is prefetched ahead. */
+ * the light sampler's per-vertex lookups, and the path state is visited in random slot order: it is prefetched ahead. */
 #include "integrator.h"
 #include "rng.h"
 #include "scatter.h"

@@ -41,9 +41,9 @@ static void run_chunks(Job *job, int thread_index) {
 
 typedef struct { ThreadPool *pool; int index; } WorkerArg;
 
-/* Stages are short (a wave of a 16k-path batch is a few hundred microseconds), so a worker
- * spins for a while before sleeping, and the caller spins before waiting: a condition
- * variable round trip per stage cost a third of the 2-thread speed-up. */
+/* Parallel loops come in quick succession (one per batch of a few milliseconds, and the
+ * cache point build's many short loops), so a worker spins for a while before sleeping, and
+ * the caller spins before waiting: a condition variable round trip per loop is then rare. */
 #define SPIN_ITERATIONS 2000
 
 static inline void cpu_relax(void) {

@@ -6,6 +6,7 @@
 
 #include <stdio.h>
 #include <stdlib.h>
+#include <time.h>
 
 static int check_failures = 0;
 static int check_count = 0;
@@ -28,6 +29,14 @@ static int check_count = 0;
         fputc('\n', stderr);                                                     \
         exit(77);                                                                \
     } while (0)
+
+/* Wall-clock seconds, for what a test prints (never for what it asserts: a test proves
+ * results, the benchmarks measure time). */
+static inline double test_seconds(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
 
 static inline int test_exit(void) {
     fprintf(stderr, "%d checks, %d failed\n", check_count, check_failures);

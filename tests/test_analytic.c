@@ -44,7 +44,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/wait.h>
-#include <time.h>
 #include <unistd.h>
 
 #include "candela.h"
@@ -56,11 +55,6 @@
 
 static const char *g_dir = ".";
 
-static double now_seconds(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 typedef struct RenderSpec {
     const char *file;        /* relative to g_dir (or absolute when it starts with '/') */
@@ -97,9 +91,9 @@ static int render(const RenderSpec *s, CandelaImage *img) {
     memset(&st, 0, sizeof st);
     char err[CANDELA_ERR_LEN];
     err[0] = 0;
-    double t0 = now_seconds();
+    double t0 = test_seconds();
     int rc = candela_render(&o, img, &st, NULL, err);
-    double t = now_seconds() - t0;
+    double t = test_seconds() - t0;
     CHECK(rc == 0, "%s: candela_render failed: %s", s->file, err);
     if (rc != 0) return rc;
     CHECK(img->width == s->width && img->height == s->height, "%s: got %dx%d, asked %dx%d",

@@ -22,8 +22,8 @@ static double uniform_chi2(const double *obs, int bins, double total) {
     return gamma_q(0.5 * (bins - 1), 0.5 * stat);
 }
 
-enum { AXIS_PIXEL, AXIS_SAMPLE, AXIS_DIM, AXIS_SEED, AXIS_COUNT };
-static const char *axis_name[AXIS_COUNT] = {"pixel", "sample", "dim", "seed"};
+enum { AXIS_PIXEL, AXIS_SAMPLE, AXIS_DIM, AXIS_SEED, AXIS_STREAM, AXIS_COUNT };
+static const char *axis_name[AXIS_COUNT] = {"pixel", "sample", "dim", "seed", "stream"};
 
 /* The i-th draw along an axis (the other coordinates fixed at arbitrary values). */
 static float draw(int axis, uint64_t i) {
@@ -31,6 +31,11 @@ static float draw(int axis, uint64_t i) {
     case AXIS_PIXEL: return rng_uniform(rng_path_key(SEED, i, 3), 5);
     case AXIS_SAMPLE: return rng_uniform(rng_path_key(SEED, 777, i), 5);
     case AXIS_DIM: return rng_uniform(rng_path_key(SEED, 777, 3), (uint32_t)i);
+    case AXIS_STREAM: { /* the i-th number of one sub-stream */
+        RngStream st = rng_stream(rng_path_key(SEED, 777, 3), 2, RNG_STREAM_MEDIUM);
+        st.next = (uint32_t)i;
+        return rng_stream_next(&st);
+    }
     default: return rng_uniform(rng_path_key(SEED + i, 777, 3), 5);
     }
 }
@@ -128,6 +133,27 @@ static void test_dims_across_paths(void) {
     r = correlation(a, b, M);
     worst = fmax(worst, fabs(r) * sqrt((double)M));
     CHECK(fabs(r) < 5.0 / sqrt((double)M), "same sample of adjacent pixels correlated: %g", r);
+    /* Sub-streams: independent of the path's own dimensions and of the streams of other
+     * bounces, over many paths. */
+    for (uint32_t d = 0; d < 4; ++d) {
+        uint32_t dim = rng_bounce_dim(d, (d * 5) % RNG_BOUNCE_DIMS);
+        for (int i = 0; i < M; ++i) {
+            uint64_t key = rng_path_key(SEED, (uint64_t)i, 1);
+            RngStream st = rng_stream(key, d, RNG_STREAM_MEDIUM);
+            a[i] = rng_stream_next(&st);
+            b[i] = rng_uniform(key, dim);
+        }
+        r = correlation(a, b, M);
+        worst = fmax(worst, fabs(r) * sqrt((double)M));
+        CHECK(fabs(r) < 5.0 / sqrt((double)M), "stream of depth %u correlated with its bounce dims: %g", d, r);
+        for (int i = 0; i < M; ++i) {
+            RngStream next = rng_stream(rng_path_key(SEED, (uint64_t)i, 1), d + 1, RNG_STREAM_MEDIUM);
+            b[i] = rng_stream_next(&next);
+        }
+        r = correlation(a, b, M);
+        worst = fmax(worst, fabs(r) * sqrt((double)M));
+        CHECK(fabs(r) < 5.0 / sqrt((double)M), "streams of depths %u and %u correlated: %g", d, d + 1, r);
+    }
     fprintf(stderr, "  cross-path correlations: worst %.2f sigma\n", worst);
     free(a);
     free(b);
