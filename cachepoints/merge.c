@@ -206,8 +206,8 @@ typedef struct Pass2Ctx {
     const KdTree *kd;
     const CachePointCamera *camera;
     const OmniDist *omni;
+    const float *r0;
     uint32_t knn;
-    float scene_scale;
     float *radius;
 } Pass2Ctx;
 
@@ -218,17 +218,12 @@ static void pass2_radius_range(void *vctx, size_t b, size_t e, int thread) {
     float d2[64];
     for (size_t i = b; i < e; ++i) {
         const float *x = c->pts + 3 * i;
-        uint32_t k = kdtree_knn(c->kd, x, c->knn, INFINITY, (uint32_t)i, nb, d2);
-        float r0 = 0.0f, msum = 0.0f;
-        for (uint32_t j = 0; j < k; ++j) {
-            r0 += sqrtf(d2[j]);
-            msum += similarity(&c->omni[i], &c->omni[nb[j]]);
-        }
-        float mavg = k ? msum / (float)k : 1.0f;
-        r0 = k ? r0 / (float)k : 0.01f * c->scene_scale;
+        uint32_t k = kdtree_knn(c->kd, x, c->knn, INFINITY, (uint32_t)i, nb, d2); /* r0's neighbours */
+        float msum = 0.0f;
+        for (uint32_t j = 0; j < k; ++j) msum += similarity(&c->omni[i], &c->omni[nb[j]]);
+        float mavg = k ? msum / (float)k : 1.0f, r0 = c->r0[i];
         /* r_p = r0 M_avg, limited to 25% of r0 and to at least 3 pixels (§3.1.4) */
-        float r = fmaxf(fmaxf(r0 * mavg, 0.25f * r0), 3.0f * pixel_footprint(c->camera, x));
-        c->radius[i] = r;
+        c->radius[i] = fmaxf(fmaxf(r0 * mavg, 0.25f * r0), 3.0f * pixel_footprint(c->camera, x));
     }
 }
 
@@ -247,7 +242,7 @@ int cp_merge_pass2(const CachePoints *keys, const CachePointLights *L, const Cac
         DistCtx oc = {pts, r0, L, P, keys, dist, omni, 0};
         failed = cp_build_distributions(&oc, n) != 0;
         if (!failed) {
-            Pass2Ctx p2 = {pts, &kd, camera, omni, P->knn, scene_scale, radius};
+            Pass2Ctx p2 = {pts, &kd, camera, omni, r0, P->knn, radius};
             cp_run_parallel(P, n, 256, pass2_radius_range, &p2);
             failed = greedy_merge(P, pts, &kd, n, radius, camera, deleted) != 0;
         }
