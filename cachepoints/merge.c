@@ -184,41 +184,35 @@ static float similarity(const OmniDist *A, const OmniDist *B) {
     return (float)(2.0 * s / (double)(A->count + B->count));
 }
 
-/* r0: the mean distance to the kNN, §3.1.4's initial guess of r_p, which Eq. 1 already
- * needs before §3.1.4 defines r_p (fallback: 1% of the scene's size) */
-typedef struct R0Ctx { const KdTree *kd; const float *pts; uint32_t knn; float *r0; float fallback; } R0Ctx;
-
-static void r0_range(void *vctx, size_t b, size_t e, int thread) {
-    (void)thread;
-    R0Ctx *c = vctx;
-    uint32_t nb[64];
-    float d2[64];
-    for (size_t i = b; i < e; ++i) {
-        uint32_t k = kdtree_knn(c->kd, c->pts + 3 * i, c->knn, INFINITY, (uint32_t)i, nb, d2);
-        float s = 0.0f;
-        for (uint32_t j = 0; j < k; ++j) s += sqrtf(d2[j]);
-        c->r0[i] = k ? s / (float)k : c->fallback;
-    }
-}
-
+/* The two kNN passes of merge pass 2 over the same neighbours. First (omni == NULL) r0, the
+ * mean distance to the kNN: §3.1.4's initial guess of r_p, which Eq. 1 already needs for
+ * the omni distributions before §3.1.4 defines r_p (no neighbours: 1% of the scene's size).
+ * Then M_avg over the omni distributions (Eq. 2) and r_p. */
 typedef struct Pass2Ctx {
     const float *pts;
     const KdTree *kd;
     const CachePointCamera *camera;
-    const OmniDist *omni;
-    const float *r0;
+    const OmniDist *omni;      /* NULL: the r0 pass */
     uint32_t knn;
+    float r0_fallback;
+    float *r0;
     float *radius;
 } Pass2Ctx;
 
-static void pass2_radius_range(void *vctx, size_t b, size_t e, int thread) {
+static void pass2_range(void *vctx, size_t b, size_t e, int thread) {
     (void)thread;
     Pass2Ctx *c = vctx;
     uint32_t nb[64];
     float d2[64];
     for (size_t i = b; i < e; ++i) {
         const float *x = c->pts + 3 * i;
-        uint32_t k = kdtree_knn(c->kd, x, c->knn, INFINITY, (uint32_t)i, nb, d2); /* r0's neighbours */
+        uint32_t k = kdtree_knn(c->kd, x, c->knn, INFINITY, (uint32_t)i, nb, d2);
+        if (!c->omni) {
+            float s = 0.0f;
+            for (uint32_t j = 0; j < k; ++j) s += sqrtf(d2[j]);
+            c->r0[i] = k ? s / (float)k : c->r0_fallback;
+            continue;
+        }
         float msum = 0.0f;
         for (uint32_t j = 0; j < k; ++j) msum += similarity(&c->omni[i], &c->omni[nb[j]]);
         float mavg = k ? msum / (float)k : 1.0f, r0 = c->r0[i];
@@ -237,13 +231,13 @@ int cp_merge_pass2(const CachePoints *keys, const CachePointLights *L, const Cac
     KdTree kd;
     int failed = !r0 || !omni || !deleted || kdtree_build(&kd, pts, n) != 0;
     if (!failed) {
-        R0Ctx rc = {&kd, pts, P->knn, r0, 0.01f * scene_scale};
-        cp_run_parallel(P, n, 512, r0_range, &rc);
+        Pass2Ctx p2 = {pts, &kd, camera, NULL, P->knn, 0.01f * scene_scale, r0, radius};
+        cp_run_parallel(P, n, 512, pass2_range, &p2);
         DistCtx oc = {pts, r0, L, P, keys, dist, omni, 0};
         failed = cp_build_distributions(&oc, n) != 0;
         if (!failed) {
-            Pass2Ctx p2 = {pts, &kd, camera, omni, r0, P->knn, radius};
-            cp_run_parallel(P, n, 256, pass2_radius_range, &p2);
+            p2.omni = omni;
+            cp_run_parallel(P, n, 256, pass2_range, &p2);
             failed = greedy_merge(P, pts, &kd, n, radius, camera, deleted) != 0;
         }
         kdtree_free(&kd);

@@ -5,29 +5,22 @@
 
 #include "build_internal.h"
 
-void cp_sort_u64(uint64_t *a, size_t n) {
-    for (size_t start = n / 2; start-- > 0;) {
-        size_t root = start;
-        for (;;) {
-            size_t child = 2 * root + 1;
-            if (child >= n) break;
-            if (child + 1 < n && a[child] < a[child + 1]) ++child;
-            if (!(a[root] < a[child])) break;
-            uint64_t t = a[root]; a[root] = a[child]; a[child] = t;
-            root = child;
-        }
+static void sift_down_u64(uint64_t *a, size_t root, size_t n) {
+    for (;;) {
+        size_t child = 2 * root + 1;
+        if (child >= n) break;
+        if (child + 1 < n && a[child] < a[child + 1]) ++child;
+        if (!(a[root] < a[child])) break;
+        uint64_t t = a[root]; a[root] = a[child]; a[child] = t;
+        root = child;
     }
+}
+
+void cp_sort_u64(uint64_t *a, size_t n) {
+    for (size_t start = n / 2; start-- > 0;) sift_down_u64(a, start, n);
     for (size_t end = n; end > 1; --end) {
         uint64_t t = a[0]; a[0] = a[end - 1]; a[end - 1] = t;
-        size_t root = 0, m = end - 1;
-        for (;;) {
-            size_t child = 2 * root + 1;
-            if (child >= m) break;
-            if (child + 1 < m && a[child] < a[child + 1]) ++child;
-            if (!(a[root] < a[child])) break;
-            uint64_t u = a[root]; a[root] = a[child]; a[child] = u;
-            root = child;
-        }
+        sift_down_u64(a, 0, end - 1);
     }
 }
 
