@@ -88,7 +88,8 @@ int cp_build_distributions(const DistCtx *proto, uint32_t n) {
 
 /* ---------------------------------------------------------------- key space */
 
-/* Cut build: keys are the tree's nodes, then one per infinite light (see internal.h). */
+/* Cut build: keys are the tree's nodes, then one per infinite light (see internal.h).
+ * 0 ok, -1 out of memory, -2 a tree that is not the layout CachePointTree documents. */
 static int key_space_init(CachePoints *cp, const CachePointLights *L) {
     cp->num_lights = L->count;
     cp->num_keys = L->count;
@@ -101,7 +102,8 @@ static int key_space_init(CachePoints *cp, const CachePointLights *L) {
     cp->key_end = malloc(((size_t)cp->num_keys + 1) * sizeof(uint32_t));
     cp->key_light = malloc(((size_t)cp->num_keys + 1) * sizeof(uint32_t));
     if (!cp->light_key || !cp->key_end || !cp->key_light) return -1;
-    /* depth-first layout: node k's subtree is k, its first child's subtree, its second's */
+    /* depth-first layout: node k's subtree is k, its first child's subtree, its second's;
+     * a tree not laid out so is an invalid parameter (-2) */
     for (uint32_t k = nn; k-- > 0;) {
         uint32_t light = T->leaf_light[k];
         int leaf = light != CP_NONE;
@@ -112,6 +114,7 @@ static int key_space_init(CachePoints *cp, const CachePointLights *L) {
     }
     uint32_t j = nn;
     for (uint32_t l = 0; l < L->count; ++l) {
+        if (T->light_leaf[l] != CP_NONE && (T->light_leaf[l] >= nn || T->leaf_light[T->light_leaf[l]] != l)) return -2;
         cp->light_key[l] = T->light_leaf[l];
         if (L->infinite[l] && T->light_leaf[l] == CP_NONE) {
             cp->light_key[l] = j;
@@ -251,6 +254,18 @@ static int flatten(CachePoints *cp, Dist *dist, Dist *blurred) {
 
 /* ---------------------------------------------------------------- the build */
 
+/* What the build cannot run with (-2): more neighbours than the fixed kNN arrays hold
+ * (64), a uniform floor that is not a probability, or a cut build without a usable tree
+ * (key_space_init checks its layout). */
+static int params_valid(const CachePointParams *P, const CachePointLights *L) {
+    if (P->knn > 64 || P->blur_neighbours > 64) return 0;
+    if (!(P->epsilon >= 0.0f && P->epsilon <= 1.0f)) return 0;
+    if (!P->build_cut) return 1;
+    const CachePointTree *T = L->tree;
+    return T && T->node_bounds && T->node_estimate7 && T->descend && T->descend_pmf && P->cut_size >= 1 &&
+           (T->node_count == 0 || (T->second_child && T->leaf_light)) && (L->count == 0 || T->light_leaf);
+}
+
 int cachepoints_build(CachePoints **out, const float *cand, uint32_t num_candidates, const CachePointLights *L,
                       const CachePointCamera *camera, const CachePointParams *P, CachePointStats *stats) {
     double t0 = now_seconds();
@@ -258,14 +273,15 @@ int cachepoints_build(CachePoints **out, const float *cand, uint32_t num_candida
     CachePointStats st = {0};
     st.candidates = num_candidates;
     if (stats) *stats = st;
-    if (P->knn > 64 || P->blur_neighbours > 64 || L->count == 0) return 1;
-    if (P->build_cut && (!L->tree || !L->tree->node_bounds || !L->tree->node_estimate7 || P->cut_size < 1)) return -1;
+    if (!params_valid(P, L)) return -2;
+    if (L->count == 0) return 1; /* nothing to select: no points needed */
     CachePoints *cp = calloc(1, sizeof *cp);
     if (!cp) return -1;
     cp->params = *P;
     if (cp->params.max_near > CACHEPOINTS_MAX_NEAR) cp->params.max_near = CACHEPOINTS_MAX_NEAR;
     P = &cp->params;
-    if (key_space_init(cp, L) != 0) { cachepoints_free(cp); return -1; }
+    int rc = key_space_init(cp, L);
+    if (rc != 0) { cachepoints_free(cp); return rc; }
     /* drop non-finite candidates */
     float *in = malloc(((size_t)num_candidates + 1) * 3 * sizeof(float));
     if (!in) { cachepoints_free(cp); return -1; }

@@ -93,9 +93,15 @@ typedef struct CachePointStats {
 } CachePointStats;
 
 /* Builds from candidate positions (3 floats each, in generation order: the spatial sort
- * breaks ties by it). Returns 0 and *out, or 1 with *out == NULL when fewer than 10 points
- * exist (the caller falls back to per-vertex optimal selection, §3.1.1), or -1 (out of
- * memory). */
+ * breaks ties by it). Returns
+ *    0  ok, *out is the cache points;
+ *    1  fewer than 10 points (§3.1.1: the caller falls back to per-vertex optimal
+ *       selection), or no lights at all (nothing to select: no points are needed);
+ *   -1  out of memory;
+ *   -2  invalid parameters: knn or blur_neighbours above 64, epsilon outside [0, 1], or
+ *       build_cut without a complete tree (every callback, cut_size >= 1, the documented
+ *       layout).
+ * Whenever it does not return 0, *out is NULL. */
 int cachepoints_build(CachePoints **out, const float *candidates, uint32_t num_candidates,
                       const CachePointLights *lights, const CachePointCamera *camera,
                       const CachePointParams *params, CachePointStats *stats);

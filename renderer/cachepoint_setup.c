@@ -289,6 +289,10 @@ int lights_build_cachepoints(Scene *scene, void *pool, const CandelaOptions *o, 
                 !params.build_cut && ls->count > 20000 ? "; the linear build visits every light for every point: this will be slow" : "");
     int rc = cachepoints_build(&ls->cachepoints, cand.xyz, cand.count, &ls->cp_view, &cc, &params, &ls->cp_stats);
     free(cand.xyz);
+    if (rc == -2) {
+        snprintf(err, CANDELA_ERR_LEN, "%s: invalid cache point parameters", o->scene_path);
+        return -1;
+    }
     if (rc < 0) goto oom;
     if (rc > 0) {
         /* fewer than 10 points: per-vertex optimal selection instead (§3.1.1) */

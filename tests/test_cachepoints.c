@@ -271,6 +271,60 @@ static void run(const CachePointLights *L, const float *cand, uint32_t nc, int c
     cachepoints_free(b);
 }
 
+/* Return codes: -2 for parameters the build cannot run with, 1 for too few points or no
+ * lights, and *out == NULL whenever the build does not return 0. */
+static void build_errors(const CachePointLights *L, const float *cand, uint32_t nc) {
+    CachePointCamera cam = {{5.0f, 5.0f, 40.0f}, 2.0f * 0.4f / 64.0f, 0.0f};
+    CachePointParams P;
+    CachePoints *cp;
+    int rc;
+#define EXPECT_BUILD(want, what, lights, count)                                                      \
+    do {                                                                                             \
+        cp = (CachePoints *)&P; /* must be reset to NULL */                                          \
+        rc = cachepoints_build(&cp, cand, count, lights, &cam, &P, NULL);                           \
+        CHECK(rc == (want) && cp == NULL, "%s: build returned %d (expected %d), out %p", what, rc, want, (void *)cp); \
+        cachepoints_default_params(&P);                                                              \
+    } while (0)
+    cachepoints_default_params(&P);
+    P.knn = 65;
+    EXPECT_BUILD(-2, "knn 65", L, nc);
+    P.blur_neighbours = 65;
+    EXPECT_BUILD(-2, "blur_neighbours 65", L, nc);
+    P.epsilon = 1.5f;
+    EXPECT_BUILD(-2, "epsilon 1.5", L, nc);
+    P.epsilon = NAN;
+    EXPECT_BUILD(-2, "epsilon NaN", L, nc);
+    CachePointLights no_tree = *L;
+    no_tree.tree = NULL;
+    P.build_cut = 1;
+    EXPECT_BUILD(-2, "cut build without a tree", &no_tree, nc);
+    P.build_cut = 1;
+    P.cut_size = 0;
+    EXPECT_BUILD(-2, "cut_size 0", L, nc);
+    CachePointTree bad = *L->tree;
+    bad.descend_pmf = NULL;
+    CachePointLights bad_lights = *L;
+    bad_lights.tree = &bad;
+    P.build_cut = 1;
+    EXPECT_BUILD(-2, "cut build without descend_pmf", &bad_lights, nc);
+    static uint32_t bad_second[MAXNODES];
+    memcpy(bad_second, second, sizeof bad_second);
+    bad_second[0] = 0; /* the root's second child before the root: not depth-first */
+    bad = *L->tree;
+    bad.second_child = bad_second;
+    P.build_cut = 1;
+    EXPECT_BUILD(-2, "malformed tree", &bad_lights, nc);
+    P.knn = 65; /* invalid parameters are reported before the fallback cases */
+    EXPECT_BUILD(-2, "knn 65 with 5 candidates", L, 5);
+    EXPECT_BUILD(1, "5 candidates", L, 5);
+    CachePointLights none = *L;
+    none.count = 0;
+    EXPECT_BUILD(1, "no lights", &none, nc);
+    P.build_cut = 1;
+    EXPECT_BUILD(1, "no lights, cut build", &none, nc);
+#undef EXPECT_BUILD
+}
+
 int main(void) {
     /* Eq. 5-6 anchors (spec §4.1) */
     CHECK(cachepoints_visibility_weight(0, 24, 0.04f) == 1.0f, "W(0,24) = %g", cachepoints_visibility_weight(0, 24, 0.04f));
@@ -301,6 +355,7 @@ int main(void) {
         for (int k = 0; k < 3; ++k) cand[3 * i + k] = (float)(rnd() * 10.0);
     CachePointTree T = {node_count, second, leaf_light, light_leaf, tree_bounds, tree_estimate7, tree_descend, tree_descend_pmf};
     CachePointLights L = {NL, light_pos, light_inf, point_estimate7, point_estimate, NULL, &T};
+    build_errors(&L, cand, NC);
     run(&L, cand, NC, 0);
     run(&L, cand, NC, 1);
     return test_exit();
