@@ -14,7 +14,6 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "build_internal.h"
 
@@ -33,12 +32,6 @@ void cachepoints_default_params(CachePointParams *p) {
     p->vis_blur_renorm = 1;
     p->build_cut = 0;
     p->cut_size = 128;
-}
-
-static double now_seconds(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 void cp_run_parallel(const CachePointParams *p, size_t n, size_t grain, void (*fn)(void *, size_t, size_t, int),
@@ -268,7 +261,6 @@ static int params_valid(const CachePointParams *P, const CachePointLights *L) {
 
 int cachepoints_build(CachePoints **out, const float *cand, uint32_t num_candidates, const CachePointLights *L,
                       const CachePointCamera *camera, const CachePointParams *P, CachePointStats *stats) {
-    double t0 = now_seconds();
     *out = NULL;
     CachePointStats st = {0};
     st.candidates = num_candidates;
@@ -335,7 +327,6 @@ int cachepoints_build(CachePoints **out, const float *cand, uint32_t num_candida
     st.mean_near = cp->stats.mean_near;
     st.mean_far = cp->stats.mean_far;
     st.mean_far_clusters = cp->stats.mean_far_clusters;
-    st.seconds = now_seconds() - t0;
     cp->stats = st;
     if (stats) *stats = st;
     *out = cp;

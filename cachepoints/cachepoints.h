@@ -83,10 +83,9 @@ void cachepoints_default_params(CachePointParams *p);
 
 typedef struct CachePoints CachePoints;
 
-/* Statistics of the build, for the comparison table. */
+/* Statistics of the build, for the comparison table (the caller times the build). */
 typedef struct CachePointStats {
     uint32_t candidates, after_pass1, final_points;
-    double seconds;
     size_t bytes;                 /* the cache points' arrays */
     double mean_near, mean_far;   /* entries per point (far: after the blur) */
     double mean_far_clusters;     /* cut build: far entries per point that are clusters */

@@ -160,8 +160,8 @@ static void run(const CachePointLights *L, const float *cand, uint32_t nc, int c
     int rb = cachepoints_build(&b, cand, nc, L, &cam, &P, &sb);
     CHECK(ra == 0 && rb == 0, "%s: build %d %d", mode, ra, rb);
     if (ra || rb) return;
-    fprintf(stderr, "%s: candidates %u -> pass 1 %u -> final %u points, %.3f s, %zu bytes; per point %.1f near, %.1f far (%.1f clusters)\n",
-            mode, sa.candidates, sa.after_pass1, sa.final_points, sa.seconds, sa.bytes, sa.mean_near, sa.mean_far,
+    fprintf(stderr, "%s: candidates %u -> pass 1 %u -> final %u points, %zu bytes; per point %.1f near, %.1f far (%.1f clusters)\n",
+            mode, sa.candidates, sa.after_pass1, sa.final_points, sa.bytes, sa.mean_near, sa.mean_far,
             sa.mean_far_clusters);
     CHECK(sa.final_points > 10 && sa.final_points < sa.after_pass1 && sa.after_pass1 <= sa.candidates,
           "%s: merging: %u -> %u -> %u", mode, sa.candidates, sa.after_pass1, sa.final_points);
