@@ -29,7 +29,6 @@ void cachepoints_default_params(CachePointParams *p) {
     p->r_min = 0.04f;
     p->epsilon = 0.03f;
     p->visibility = 1;
-    p->vis_blur_renorm = 1;
     p->build_cut = 0;
     p->cut_size = 128;
 }

@@ -71,7 +71,6 @@ typedef struct CachePointParams {
     float r_min;              /* 0.04 (Eq. 6) */
     float epsilon;            /* 0.03 uniform floor (spec §5.4) */
     int visibility;           /* learn visibility (§3.2); 0 = --no-visibility */
-    int vis_blur_renorm;      /* 1: divide the visibility blur by the weights of points holding e */
     int retruncate;           /* linear: re-apply 97% / 4..256 per bin after the blur (bounds memory; off = paper) */
     int build_cut;            /* 1: far entries are a cut through lights->tree (needs the tree); 0: linear */
     uint32_t cut_size;        /* cut build: far entries per point (clusters or single lights) */

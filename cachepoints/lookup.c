@@ -80,22 +80,24 @@ static void vis_low_range(void *vctx, size_t b, size_t e, int thread) {
 }
 
 /* §3.2.2: W'(p,e) = w_p W(p,e) + sum over neighbours n holding key e of w_n W(n,e), with W
- * from Eqs. 5-6 on the counters; with vis_blur_renorm the sum is divided by the weights of
- * the points that hold e, so a fully visible light keeps W' = 1 however few neighbours
- * list it. Each neighbour's sorted slot list is merged against p's in one linear walk.
- * With renorm, a point whose neighbourhood has W = 1 everywhere has W' = 1 everywhere: it
- * is skipped (reset to 1 if it was not), so early barriers cost next to nothing. */
+ * from Eqs. 5-6 on the counters and the normalised Eq. 4 weights of the far-bin blur.
+ * Deviation from the paper: the sum is divided by the weights of the points that hold e
+ * (p and the neighbours listing it). As printed, a neighbour without e adds 0, so a light
+ * few neighbours list (typically a near light) would sink towards w_p <= 1/2 even when
+ * fully visible; renormalised, a fully visible light keeps W' = 1. Hence also: a point
+ * whose neighbourhood has W = 1 everywhere has W' = 1 everywhere, and is skipped (reset to
+ * 1 if it was not), so early barriers cost next to nothing. Each neighbour's sorted slot
+ * list is merged against p's in one linear walk. */
 static void vis_blur_range(void *vctx, size_t b, size_t e, int thread) {
     (void)thread;
     VisCtx *c = vctx;
     CachePoints *cp = c->cp;
     uint32_t K = cp->params.blur_neighbours;
-    int renorm = cp->params.vis_blur_renorm;
     float *wsum = malloc(((size_t)c->max_slots + 1) * sizeof(float));
     if (!wsum) { c->failed = 1; return; }
     for (size_t p = b; p < e; ++p) {
         uint32_t s0 = cp->vis_off[p], s1 = cp->vis_off[p + 1];
-        int need = !renorm || cp->vis_low[p];
+        int need = cp->vis_low[p];
         for (uint32_t j = 0; j < K && !need; ++j) {
             uint32_t nb = cp->nbr[p * K + j];
             need = nb != CP_NONE && cp->vis_low[nb];
@@ -116,7 +118,7 @@ static void vis_blur_range(void *vctx, size_t b, size_t e, int thread) {
             uint32_t nb = cp->nbr[p * K + j];
             if (nb == CP_NONE) continue;
             float w = cp->nbr_w[p * K + j];
-            int trivial = renorm && !cp->vis_low[nb]; /* every W of nb is 1 */
+            int trivial = !cp->vis_low[nb]; /* every W of nb is 1 */
             uint32_t a = s0, q = cp->vis_off[nb], q1 = cp->vis_off[nb + 1];
             while (a < s1 && q < q1) {
                 uint32_t ka = cp->vis_key[a], kq = cp->vis_key[q];
@@ -129,8 +131,7 @@ static void vis_blur_range(void *vctx, size_t b, size_t e, int thread) {
                 }
             }
         }
-        if (renorm)
-            for (uint32_t s = s0; s < s1; ++s) cp->w_blurred[s] /= wsum[s - s0];
+        for (uint32_t s = s0; s < s1; ++s) cp->w_blurred[s] /= wsum[s - s0];
     }
     free(wsum);
 }
