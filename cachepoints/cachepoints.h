@@ -141,23 +141,29 @@ float cachepoints_pmf(const CachePoints *cp, const CachePointLights *lights, con
 /* The cache point a vertex at x uses (the nearest; ties: lowest index). */
 uint32_t cachepoints_nearest(const CachePoints *cp, const float x[3]);
 
-/* Visibility learning (§3.2), atomic: one call per selection, once its outcome is known,
- * in the slot cachepoints_select reported: an attempt (H_total), and with success != 0 also
- * a success (H_success: the shadow ray got through with a useful contribution). Counting
- * both at the shadow ray's end touches the counters once. UINT32_MAX is ignored (the
- * light is in none of the point's lists). */
-void cachepoints_record(CachePoints *cp, uint32_t slot, int success);
+/* Visibility learning (§3.2.1), atomic: one call per selection, once its outcome is known,
+ * in the slot cachepoints_select reported. It counts an attempt (H_total) and adds
+ * `visibility` to H_success: the fraction of the shadow ray that got through with a useful
+ * contribution, in [0, 1] (clamped; NaN counts 0): 0 or 1 for surfaces, a transmittance
+ * through participating media. Fractions are kept in steps of 1/256 (round to nearest), so
+ * results do not depend on the order of the calls. Counting both at the outcome touches
+ * the counters once. UINT32_MAX is ignored (the light is in none of the point's lists). */
+void cachepoints_record(CachePoints *cp, uint32_t slot, float visibility);
 /* A hint to fetch a slot's counters ahead of cachepoints_record (e.g. before tracing the
  * shadow rays whose outcome it will record); no effect on results. */
 void cachepoints_prefetch_counters(const CachePoints *cp, uint32_t slot);
 /* The slot of (point, light) (tests): UINT32_MAX when no entry of the point holds it. */
 uint32_t cachepoints_slot(const CachePoints *cp, uint32_t point, uint32_t light);
-/* At the iteration barrier: Eqs. 5-6 then the visibility blur (§3.2.2), out of place. */
+/* At the iteration barrier: Eqs. 5-6 then the visibility blur (§3.2.2), out of place. A
+ * slot past 2^23 attempts has both counters halved here (a deterministic rescale that
+ * keeps R), so the counters never overflow while a slot gets fewer than 2^23 records per
+ * iteration. */
 void cachepoints_update_visibility(CachePoints *cp);
 /* The visibility weight W' currently used for (point, light): that of the entry holding the
  * light (a cluster's with the cut build); 1 when no entry holds it. */
 float cachepoints_visibility(const CachePoints *cp, uint32_t point, uint32_t light);
-/* Eq. 5-6 on raw counters (exposed for the anchor-value test). */
-float cachepoints_visibility_weight(uint32_t successes, uint32_t attempts, float r_min);
+/* Eqs. 5-6: W for `successes` (the summed visibility of the attempts) out of `attempts`
+ * (exposed for the anchor-value tests). */
+float cachepoints_visibility_weight(float successes, uint32_t attempts, float r_min);
 
 #endif

@@ -8,8 +8,8 @@
 
 /* ---------------------------------------------------------------- visibility (§3.2) */
 
-float cachepoints_visibility_weight(uint32_t successes, uint32_t attempts, float r_min) {
-    float r = ((float)successes + 1.0f) / ((float)attempts + 1.0f); /* Eq. 5 */
+float cachepoints_visibility_weight(float successes, uint32_t attempts, float r_min) {
+    float r = (successes + 1.0f) / ((float)attempts + 1.0f); /* Eq. 5 */
     return r <= r_min ? (r / r_min) * (r / r_min) : 1.0f;           /* Eq. 6: never 0 */
 }
 
@@ -43,11 +43,14 @@ uint32_t cachepoints_slot(const CachePoints *cp, uint32_t point, uint32_t light)
     return near ? cp->near_slot[at] : cp->far_slot[at];
 }
 
-void cachepoints_record(CachePoints *cp, uint32_t slot, int success) {
-    if (!cp || slot >= cp->vis_off[cp->n]) return; /* only listed lights have counters (spec §4.1) */
+void cachepoints_record(CachePoints *cp, uint32_t slot, float visibility) {
+    /* a light no entry of the point holds (picked by the uniform floor) has no counters */
+    if (!cp || slot >= cp->vis_off[cp->n]) return;
     VisCounter *h = &cp->vis_count[slot];
+    float v = visibility > 0.0f ? (visibility < 1.0f ? visibility : 1.0f) : 0.0f; /* NaN: 0 */
+    uint32_t success = (uint32_t)lrintf(v * (float)CP_VIS_ONE);
     __atomic_fetch_add(&h->total, 1u, __ATOMIC_RELAXED);
-    if (success) __atomic_fetch_add(&h->success, 1u, __ATOMIC_RELAXED);
+    if (success) __atomic_fetch_add(&h->success, success, __ATOMIC_RELAXED);
 }
 
 void cachepoints_prefetch_counters(const CachePoints *cp, uint32_t slot) {
@@ -61,20 +64,30 @@ float cachepoints_visibility(const CachePoints *cp, uint32_t point, uint32_t lig
 
 typedef struct VisCtx { CachePoints *cp; uint32_t max_slots; int failed; } VisCtx;
 
-/* Eq. 6 of a slot; W = 1 without a division while too few attempts were made for R to
- * reach R_min (R >= 1 / (attempts + 1)). */
+/* Eqs. 5-6 of a slot (H_success back from fixed point: exact, as a float holds 256 k
+ * exactly when it holds k); W = 1 without a division while too few attempts were made for
+ * R to reach R_min (R >= 1 / (attempts + 1)). */
 static inline float slot_weight(const CachePoints *cp, uint32_t s) {
     uint32_t t = cp->vis_count[s].total;
     if ((float)t * cp->params.r_min + cp->params.r_min < 0.999f) return 1.0f;
-    return cachepoints_visibility_weight(cp->vis_count[s].success, t, cp->params.r_min);
+    return cachepoints_visibility_weight((float)cp->vis_count[s].success / (float)CP_VIS_ONE, t, cp->params.r_min);
 }
 
+/* Per point: rescales the counters that passed CP_VIS_RESCALE attempts (see internal.h),
+ * then flags the point if a slot has W < 1. */
 static void vis_low_range(void *vctx, size_t b, size_t e, int thread) {
     (void)thread;
     CachePoints *cp = ((VisCtx *)vctx)->cp;
     for (size_t p = b; p < e; ++p) {
         uint8_t low = 0;
-        for (uint32_t s = cp->vis_off[p]; s < cp->vis_off[p + 1] && !low; ++s) low = slot_weight(cp, s) < 1.0f;
+        for (uint32_t s = cp->vis_off[p]; s < cp->vis_off[p + 1]; ++s) {
+            VisCounter *h = &cp->vis_count[s];
+            if (h->total > CP_VIS_RESCALE) {
+                h->total = (h->total + 1) / 2;
+                h->success /= 2;
+            }
+            if (!low) low = slot_weight(cp, s) < 1.0f;
+        }
         cp->vis_low[p] = low;
     }
 }

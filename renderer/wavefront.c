@@ -484,7 +484,7 @@ static void shade_range(void *vctx, size_t b, size_t e, int thread) {
                 }
             }
             /* no shadow ray: the attempt failed already (the shadow stage counts the others) */
-            if (lights->cachepoints && !ps->has_shadow[p]) cachepoints_record(lights->cachepoints, slot, 0);
+            if (lights->cachepoints && !ps->has_shadow[p]) cachepoints_record(lights->cachepoints, slot, 0.0f);
         }
 
         /* BSDF sampling for the continuation ray */
@@ -555,7 +555,7 @@ static void shadow_range(void *vctx, size_t b, size_t e, int thread) {
             }
             /* §3.2.1: the attempt, and a success if the shadow ray got through with a useful
              * (non-zero) contribution */
-            if (cp) cachepoints_record(cp, ps->shadow_slot[p], rays[k].tfar >= 0.0f);
+            if (cp) cachepoints_record(cp, ps->shadow_slot[p], rays[k].tfar >= 0.0f ? 1.0f : 0.0f);
         }
     }
 }
