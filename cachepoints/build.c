@@ -1,11 +1,11 @@
 /* cachepoints/build.c: the cache point build (§3.1), step by step:
  *
- *   candidates -> spatial sort (§3.1.1) -> merge pass 1 (§3.1.2)          merge.c
- *   -> per point the near list and the fluence bin (§3.1.3)              far_linear.c / far_cut.c
- *   -> merge pass 2 (§3.1.4, Eqs. 2-3)                                   merge.c
- *   -> the seven far bins for the survivors (§3.1.3)                     far_linear.c / far_cut.c
- *   -> far-bin blur (§3.1.5, Eq. 4)                                      blur.c
- *   -> flat arrays (internal.h), render tables (lookup.c)                here
+ *   candidates -> spatial sort (§3.1.1) -> merge pass 1 (§3.1.2)     merge.c
+ *   -> merge pass 2 (§3.1.4, Eqs. 2-3) on the points' fluence         merge.c, with
+ *      distributions (§3.1.3)                                         far_linear.c / far_cut.c
+ *   -> the seven far bins for the survivors (§3.1.3)                  far_linear.c / far_cut.c
+ *   -> far-bin blur (§3.1.5, Eq. 4)                                   blur.c
+ *   -> flat arrays (internal.h), render tables (lookup.c)             here
  *
  * Two ways to build a point's far distribution: linear (the paper: every light estimated at
  * every point) and cut (a cut through the scene's light tree, so that no point visits every
@@ -142,10 +142,11 @@ void cachepoints_free(CachePoints *cp) {
 
 /* ---------------------------------------------------------------- flat arrays */
 
-/* Flattens the final points' near lists and blurred far lists into CSR arrays (far entries a
- * near list also holds are dropped: near lights are evaluated exactly, §3.3), with one
+/* Flattens the final points' near lists and blurred far lists into CSR arrays, with one
  * visibility slot per key: a parallel count, prefix sums, then a parallel fill that frees
- * the per-point lists as it goes. */
+ * the per-point lists as it goes. A far entry for a light of the near list (brought in by
+ * a neighbour's list in the blur) is dropped: the near list evaluates that light exactly at
+ * the vertex (§3.3), and a light must have one entry only. */
 typedef struct FlattenCtx { CachePoints *cp; Dist *dist, *blurred; int fill; size_t clusters[64]; } FlattenCtx;
 
 static void flatten_range(void *vctx, size_t b, size_t e, int thread) {

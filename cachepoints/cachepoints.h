@@ -1,5 +1,7 @@
-/* cachepoints/cachepoints.h: cache points for occlusion-aware many-light selection
- * (Li et al., DigiPro 2024, §3; implementation spec ../shared/design/cache-points-spec.md).
+/* cachepoints/cachepoints.h: cache points for occlusion-aware many-light selection (Li et
+ * al., "Cache Points for Production-Scale Occlusion-Aware Many-Lights Sampling and
+ * Volumetric Scattering", DigiPro 2024, §3). Section (§) and equation numbers in this
+ * module's comments are the paper's.
  *
  * A sparse set of world-space points, each holding a compressed light distribution: a near
  * list (lights evaluated exactly at the shading vertex) and seven far bins (irradiance on the
@@ -41,8 +43,8 @@ typedef struct CachePointLights {
     uint32_t count;
     const float *centroid;   /* 3 per light */
     const uint8_t *infinite; /* 1: directional / environment (always far, §3.1.3) */
-    /* Unoccluded estimate of light `light` at x (spec §3.4): out[0..5] irradiance on the
-     * planes facing +X, -X, +Y, -Y, +Z, -Z; out[6] fluence. Deterministic. */
+    /* Unoccluded estimate of light `light` at x for the seven sensors of §3.1.3: out[0..5]
+     * irradiance on the planes facing +X, -X, +Y, -Y, +Z, -Z; out[6] fluence. Deterministic. */
     void (*estimate7)(const void *user, uint32_t light, const float x[3], float out[7]);
     /* The same irradiance on the plane with unit normal n (n == NULL: fluence), used for the
      * exact near-light weights at a vertex (§3.3). */
@@ -51,7 +53,8 @@ typedef struct CachePointLights {
     const CachePointTree *tree; /* NULL: only the linear build is possible */
 } CachePointLights;
 
-/* Camera footprint for the pixel-size radii of §3.1.2/§3.1.4 (r_px). */
+/* Camera footprint for the pixel-sized radii of the merge passes (r_px): pass 1 merges
+ * within one pixel (merge.c says why not the paper's 1e-5), §3.1.4 keeps r_p >= 3 pixels. */
 typedef struct CachePointCamera {
     float position[3];
     float pixel_angle;   /* perspective: 2 tan(fov_y/2) / height; 0 for orthographic */
@@ -66,10 +69,12 @@ typedef struct CachePointParams {
     float near_factor;        /* D = 4 (Eq. 1) */
     float energy_fraction;    /* 0.97 per far bin (§3.1.3) */
     uint32_t min_per_bin, max_per_bin; /* 4, 256 */
-    uint32_t max_near;        /* 256 (spec §3.4 proposal); at most CACHEPOINTS_MAX_NEAR */
+    uint32_t max_near;        /* 256, at most CACHEPOINTS_MAX_NEAR (the paper sets no cap: this bounds the
+                               * work per vertex; the strongest by fluence stay near, the rest go far) */
     uint32_t blur_neighbours; /* 16 (§3.1.5) */
     float r_min;              /* 0.04 (Eq. 6) */
-    float epsilon;            /* 0.03 uniform floor (spec §5.4) */
+    float epsilon;            /* 0.03: probability of a uniform pick among all lights (§3.3, which gives
+                               * no value; bins keep 97% of their energy) */
     int visibility;           /* learn visibility (§3.2); 0 = --no-visibility */
     int retruncate;           /* linear: re-apply 97% / 4..256 per bin after the blur (bounds memory; off = paper) */
     int build_cut;            /* 1: far entries are a cut through lights->tree (needs the tree); 0: linear */
@@ -110,8 +115,9 @@ void cachepoints_point(const CachePoints *cp, uint32_t i, float pos[3], float *r
 
 /* A path vertex as the cache points see it (§3.3): its cache point and the summed exact
  * weight of that point's near lights at the vertex. Computed once per vertex and kept (the
- * wavefront stores it in the path state) so that NEE and the MIS PDF at the next wave use
- * one nearest-point query and one near-light pass (spec §5.1, §5.6). */
+ * wavefront stores it in the path state), so that NEE and the MIS PDF of the next bounce
+ * hitting a light use one nearest-point query and one near-light pass, and the PDF is
+ * exactly that of the distribution NEE sampled from. */
 typedef struct CachePointVertex {
     uint32_t point;
     float near_total;
@@ -131,7 +137,8 @@ void cachepoints_vertex(const CachePoints *cp, const CachePointLights *lights, c
                         uint32_t hint, CachePointVertex *v, float *near_w);
 /* Render-time selection (§3.3): near lights exact, far bins blended by n, visibility
  * weights, uniform floor epsilon; a cluster entry descends the light tree with u_descend.
- * *slot receives the visibility slot to count the attempt in (UINT32_MAX: none). */
+ * *slot receives the visibility slot cachepoints_record counts the outcome in
+ * (UINT32_MAX: none). */
 uint32_t cachepoints_select(const CachePoints *cp, const CachePointLights *lights, const float x[3],
                             const float *n, const CachePointVertex *v, const float *near_w, float u, float u_descend,
                             float *pmf, uint32_t *slot);

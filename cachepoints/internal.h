@@ -1,5 +1,6 @@
-/* cachepoints/internal.h (private): the CachePoints structure shared by the build (build.c)
- * and the render-time side (lookup.c: visibility learning and selection).
+/* cachepoints/internal.h (private): the CachePoints structure shared by the build (build.c
+ * and its steps, build_internal.h) and the render-time side (lookup.c: visibility learning
+ * and selection).
  *
  * Entries are addressed by *keys*. With the linear build (the paper's) a key is a light
  * index. With the cut build a key is a node of the scene's light tree (a depth-first binary
@@ -16,7 +17,7 @@
 #include "cachepoints.h"
 #include "kdtree.h"
 
-#define CP_MIN_POINTS 10
+#define CP_MIN_POINTS 10 /* §3.1.1: fewer, and the caller selects per vertex instead */
 #define CP_FAR_BINS 7
 #define CP_OMNI_BIN 6
 #define CP_NONE UINT32_MAX
@@ -113,7 +114,7 @@ static inline float *cp_cdf(const CachePoints *cp, uint32_t p, int bin, uint32_t
 /* lookup.c: builds the per-point render tables (near_vis, far_cdf) from w_blurred, for every
  * point (all != 0) or for those marked in tables_dirty. */
 void cp_rebuild_tables(CachePoints *cp, int all);
-/* build.c: the parallel-for of the params, or a serial loop. */
+/* build.c: the parallel-for of the params, or a serial loop (the build and the barrier). */
 void cp_run_parallel(const CachePointParams *p, size_t n, size_t grain, void (*fn)(void *, size_t, size_t, int),
                      void *ctx);
 

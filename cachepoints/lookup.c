@@ -1,5 +1,5 @@
 /* cachepoints/lookup.c: online visibility learning (§3.2) and render-time light selection
- * (§3.3) over the structure build.c produces (internal.h). */
+ * (§3.3) over the structure the build produces (internal.h). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -151,7 +151,9 @@ static void vis_blur_range(void *vctx, size_t b, size_t e, int thread) {
 
 typedef struct TableCtx { CachePoints *cp; int all; } TableCtx;
 
-/* Per point: W' of each near entry, and per bin the running sums of value x W'. */
+/* Per point: W' of each near entry, and per bin the running sums of value x W'. The paper
+ * builds the CDFs at lookup (§3.1.3, §3.3); they depend only on the point and W', so they
+ * are built here once per barrier, for the points whose W' changed. */
 static void tables_range(void *vctx, size_t b, size_t e, int thread) {
     (void)thread;
     TableCtx *c = vctx;
@@ -197,8 +199,10 @@ void cachepoints_update_visibility(CachePoints *cp) {
 
 /* ---------------------------------------------------------------- selection (§3.3) */
 
-/* Far bins are blended by b_i(n) = max(0, n.a_i)^2, which sums to 1 for a unit normal
- * (spec §5.3); without a normal (volumes, transmissive surfaces) only the fluence bin. */
+/* §3.3 blends the cardinal bins by the similarity of each bin's axis a_i to the normal, with
+ * weights summing to 1, without giving the function: b_i(n) = max(0, n.a_i)^2 sums to
+ * |n|^2 = 1 for a unit normal. Without a normal (volumes, and here also transmissive
+ * surfaces, whose lights may lie behind them) only the fluence bin. */
 static void bin_blend(const float *n, float b[CP_FAR_BINS]) {
     for (int i = 0; i < CP_FAR_BINS; ++i) b[i] = 0.0f;
     if (!n) { b[CP_OMNI_BIN] = 1.0f; return; }
