@@ -5,7 +5,6 @@
  * blur (§3.2.2, lookup.c). */
 #include <math.h>
 #include <stdlib.h>
-#include <string.h>
 
 #include "build_internal.h"
 

@@ -9,7 +9,6 @@
  * reachable through some cluster. Keys are tree nodes (internal.h). */
 #include <math.h>
 #include <stdlib.h>
-#include <string.h>
 
 #include "build_internal.h"
 
