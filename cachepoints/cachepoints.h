@@ -1,5 +1,7 @@
-/* cachepoints/cachepoints.h: cache points for occlusion-aware many-light selection
- * (Li et al., DigiPro 2024, §3; implementation spec ../shared/design/cache-points-spec.md).
+/* cachepoints/cachepoints.h: cache points for occlusion-aware many-light selection (Li et
+ * al., "Cache Points for Production-Scale Occlusion-Aware Many-Lights Sampling and
+ * Volumetric Scattering", DigiPro 2024, §3). Section (§) and equation numbers in this
+ * module's comments are the paper's.
  *
  * A sparse set of world-space points, each holding a compressed light distribution: a near
  * list (lights evaluated exactly at the shading vertex) and seven far bins (irradiance on the
@@ -41,8 +43,8 @@ typedef struct CachePointLights {
     uint32_t count;
     const float *centroid;   /* 3 per light */
     const uint8_t *infinite; /* 1: directional / environment (always far, §3.1.3) */
-    /* Unoccluded estimate of light `light` at x (spec §3.4): out[0..5] irradiance on the
-     * planes facing +X, -X, +Y, -Y, +Z, -Z; out[6] fluence. Deterministic. */
+    /* Unoccluded estimate of light `light` at x for the seven sensors of §3.1.3: out[0..5]
+     * irradiance on the planes facing +X, -X, +Y, -Y, +Z, -Z; out[6] fluence. Deterministic. */
     void (*estimate7)(const void *user, uint32_t light, const float x[3], float out[7]);
     /* The same irradiance on the plane with unit normal n (n == NULL: fluence), used for the
      * exact near-light weights at a vertex (§3.3). */
@@ -51,7 +53,8 @@ typedef struct CachePointLights {
     const CachePointTree *tree; /* NULL: only the linear build is possible */
 } CachePointLights;
 
-/* Camera footprint for the pixel-size radii of §3.1.2/§3.1.4 (r_px). */
+/* Camera footprint for the pixel-sized radii of the merge passes (r_px): pass 1 merges
+ * within one pixel (merge.c says why not the paper's 1e-5), §3.1.4 keeps r_p >= 3 pixels. */
 typedef struct CachePointCamera {
     float position[3];
     float pixel_angle;   /* perspective: 2 tan(fov_y/2) / height; 0 for orthographic */
@@ -66,12 +69,13 @@ typedef struct CachePointParams {
     float near_factor;        /* D = 4 (Eq. 1) */
     float energy_fraction;    /* 0.97 per far bin (§3.1.3) */
     uint32_t min_per_bin, max_per_bin; /* 4, 256 */
-    uint32_t max_near;        /* 256 (spec §3.4 proposal); at most CACHEPOINTS_MAX_NEAR */
+    uint32_t max_near;        /* 256, at most CACHEPOINTS_MAX_NEAR (the paper sets no cap: this bounds the
+                               * work per vertex; the strongest by fluence stay near, the rest go far) */
     uint32_t blur_neighbours; /* 16 (§3.1.5) */
     float r_min;              /* 0.04 (Eq. 6) */
-    float epsilon;            /* 0.03 uniform floor (spec §5.4) */
+    float epsilon;            /* 0.03: probability of a uniform pick among all lights (§3.3, which gives
+                               * no value; bins keep 97% of their energy) */
     int visibility;           /* learn visibility (§3.2); 0 = --no-visibility */
-    int vis_blur_renorm;      /* 1: divide the visibility blur by the weights of points holding e */
     int retruncate;           /* linear: re-apply 97% / 4..256 per bin after the blur (bounds memory; off = paper) */
     int build_cut;            /* 1: far entries are a cut through lights->tree (needs the tree); 0: linear */
     uint32_t cut_size;        /* cut build: far entries per point (clusters or single lights) */
@@ -83,19 +87,24 @@ void cachepoints_default_params(CachePointParams *p);
 
 typedef struct CachePoints CachePoints;
 
-/* Statistics of the build, for the comparison table. */
+/* Statistics of the build, for the comparison table (the caller times the build). */
 typedef struct CachePointStats {
     uint32_t candidates, after_pass1, final_points;
-    double seconds;
     size_t bytes;                 /* the cache points' arrays */
     double mean_near, mean_far;   /* entries per point (far: after the blur) */
     double mean_far_clusters;     /* cut build: far entries per point that are clusters */
 } CachePointStats;
 
 /* Builds from candidate positions (3 floats each, in generation order: the spatial sort
- * breaks ties by it). Returns 0 and *out, or 1 with *out == NULL when fewer than 10 points
- * exist (the caller falls back to per-vertex optimal selection, §3.1.1), or -1 (out of
- * memory). */
+ * breaks ties by it). Returns
+ *    0  ok, *out is the cache points;
+ *    1  fewer than 10 points (§3.1.1: the caller falls back to per-vertex optimal
+ *       selection), or no lights at all (nothing to select: no points are needed);
+ *   -1  out of memory;
+ *   -2  invalid parameters: knn or blur_neighbours above 64, epsilon outside [0, 1], or
+ *       build_cut without a complete tree (every callback, cut_size >= 1, the documented
+ *       layout).
+ * Whenever it does not return 0, *out is NULL. */
 int cachepoints_build(CachePoints **out, const float *candidates, uint32_t num_candidates,
                       const CachePointLights *lights, const CachePointCamera *camera,
                       const CachePointParams *params, CachePointStats *stats);
@@ -106,8 +115,9 @@ void cachepoints_point(const CachePoints *cp, uint32_t i, float pos[3], float *r
 
 /* A path vertex as the cache points see it (§3.3): its cache point and the summed exact
  * weight of that point's near lights at the vertex. Computed once per vertex and kept (the
- * wavefront stores it in the path state) so that NEE and the MIS PDF at the next wave use
- * one nearest-point query and one near-light pass (spec §5.1, §5.6). */
+ * wavefront stores it in the path state), so that NEE and the MIS PDF of the next bounce
+ * hitting a light use one nearest-point query and one near-light pass, and the PDF is
+ * exactly that of the distribution NEE sampled from. */
 typedef struct CachePointVertex {
     uint32_t point;
     float near_total;
@@ -127,7 +137,8 @@ void cachepoints_vertex(const CachePoints *cp, const CachePointLights *lights, c
                         uint32_t hint, CachePointVertex *v, float *near_w);
 /* Render-time selection (§3.3): near lights exact, far bins blended by n, visibility
  * weights, uniform floor epsilon; a cluster entry descends the light tree with u_descend.
- * *slot receives the visibility slot to count the attempt in (UINT32_MAX: none). */
+ * *slot receives the visibility slot cachepoints_record counts the outcome in
+ * (UINT32_MAX: none). */
 uint32_t cachepoints_select(const CachePoints *cp, const CachePointLights *lights, const float x[3],
                             const float *n, const CachePointVertex *v, const float *near_w, float u, float u_descend,
                             float *pmf, uint32_t *slot);
@@ -137,23 +148,29 @@ float cachepoints_pmf(const CachePoints *cp, const CachePointLights *lights, con
 /* The cache point a vertex at x uses (the nearest; ties: lowest index). */
 uint32_t cachepoints_nearest(const CachePoints *cp, const float x[3]);
 
-/* Visibility learning (§3.2), atomic: one call per selection, once its outcome is known,
- * in the slot cachepoints_select reported: an attempt (H_total), and with success != 0 also
- * a success (H_success: the shadow ray got through with a useful contribution). Counting
- * both at the shadow ray's end touches the counters once. UINT32_MAX is ignored (the
- * light is in none of the point's lists). */
-void cachepoints_record(CachePoints *cp, uint32_t slot, int success);
+/* Visibility learning (§3.2.1), atomic: one call per selection, once its outcome is known,
+ * in the slot cachepoints_select reported. It counts an attempt (H_total) and adds
+ * `visibility` to H_success: the fraction of the shadow ray that got through with a useful
+ * contribution, in [0, 1] (clamped; NaN counts 0): 0 or 1 for surfaces, a transmittance
+ * through participating media. Fractions are kept in steps of 1/256 (round to nearest), so
+ * results do not depend on the order of the calls. Counting both at the outcome touches
+ * the counters once. UINT32_MAX is ignored (the light is in none of the point's lists). */
+void cachepoints_record(CachePoints *cp, uint32_t slot, float visibility);
 /* A hint to fetch a slot's counters ahead of cachepoints_record (e.g. before tracing the
  * shadow rays whose outcome it will record); no effect on results. */
 void cachepoints_prefetch_counters(const CachePoints *cp, uint32_t slot);
 /* The slot of (point, light) (tests): UINT32_MAX when no entry of the point holds it. */
 uint32_t cachepoints_slot(const CachePoints *cp, uint32_t point, uint32_t light);
-/* At the iteration barrier: Eqs. 5-6 then the visibility blur (§3.2.2), out of place. */
+/* At the iteration barrier: Eqs. 5-6 then the visibility blur (§3.2.2), out of place. A
+ * slot past 2^23 attempts has both counters halved here (a deterministic rescale that
+ * keeps R), so the counters never overflow while a slot gets fewer than 2^23 records per
+ * iteration. */
 void cachepoints_update_visibility(CachePoints *cp);
 /* The visibility weight W' currently used for (point, light): that of the entry holding the
  * light (a cluster's with the cut build); 1 when no entry holds it. */
 float cachepoints_visibility(const CachePoints *cp, uint32_t point, uint32_t light);
-/* Eq. 5-6 on raw counters (exposed for the anchor-value test). */
-float cachepoints_visibility_weight(uint32_t successes, uint32_t attempts, float r_min);
+/* Eqs. 5-6: W for `successes` (the summed visibility of the attempts) out of `attempts`
+ * (exposed for the anchor-value tests). */
+float cachepoints_visibility_weight(float successes, uint32_t attempts, float r_min);
 
 #endif

@@ -1,5 +1,6 @@
-/* cachepoints/internal.h (private): the CachePoints structure shared by the build (build.c)
- * and the render-time side (lookup.c: visibility learning and selection).
+/* cachepoints/internal.h (private): the CachePoints structure shared by the build (build.c
+ * and its steps, build_internal.h) and the render-time side (lookup.c: visibility learning
+ * and selection).
  *
  * Entries are addressed by *keys*. With the linear build (the paper's) a key is a light
  * index. With the cut build a key is a node of the scene's light tree (a depth-first binary
@@ -16,18 +17,29 @@
 #include "cachepoints.h"
 #include "kdtree.h"
 
-#define CP_MIN_POINTS 10
+#define CP_MIN_POINTS 10 /* §3.1.1: fewer, and the caller selects per vertex instead */
 #define CP_FAR_BINS 7
 #define CP_OMNI_BIN 6
 #define CP_NONE UINT32_MAX
 
 #define CP_BIN_STRIDE 8 /* 7 bins padded to 32 bytes */
 
-/* H_total and H_success of a slot (Eqs. 5-6), adjacent: NEE counts the attempt and the
- * shadow ray the success on the same line. */
+/* H_total and H_success of a slot (§3.2.1, Eq. 5), adjacent: cachepoints_record adds the
+ * attempt and its success with one touch of one cache line, once the shadow ray's outcome
+ * is known. total counts attempts. success sums their visibility (the fraction of the
+ * shadow ray that got through: 0 or 1 on surfaces) in fixed point, CP_VIS_ONE per fully
+ * visible attempt: integer atomics add in any order to the same sum, so learning does not
+ * depend on the thread count, and 0/1 outcomes give exactly the integer counts of Eq. 5.
+ * Overflow: success <= CP_VIS_ONE x total; at each barrier a slot whose total exceeds
+ * CP_VIS_RESCALE has both halved (total rounded up, success down, so the invariant holds),
+ * which keeps R and bounds success by 2^31 + CP_VIS_ONE x the records of one iteration: no
+ * overflow while a slot gets fewer than 2^23 records between two barriers. */
 typedef struct VisCounter {
     uint32_t total, success;
 } VisCounter;
+
+#define CP_VIS_ONE 256u           /* a fully visible attempt in success: 8 fractional bits */
+#define CP_VIS_RESCALE (1u << 23) /* a total above this is halved at the barrier */
 
 typedef struct FarEntry {
     uint32_t key;
@@ -59,7 +71,7 @@ struct CachePoints {
     float *far_bin_total;      /* CP_BIN_STRIDE per point */
     /* visibility (§3.2): one slot per key of the near and far lists, sorted by key */
     uint32_t *vis_off, *vis_key;
-    VisCounter *vis_count;     /* atomics; a slot's two counters share a cache line */
+    VisCounter *vis_count;     /* atomics (see VisCounter); a slot's two counters share a cache line */
     float *w_blurred;              /* W' (Eq. 6, then the §3.2.2 blur) used at render time */
     uint8_t *vis_low;              /* per point: a slot has W < 1 (this barrier) */
     uint8_t *vis_active;           /* per point: some W' != 1 (its tables are not the W = 1 ones) */
@@ -102,7 +114,7 @@ static inline float *cp_cdf(const CachePoints *cp, uint32_t p, int bin, uint32_t
 /* lookup.c: builds the per-point render tables (near_vis, far_cdf) from w_blurred, for every
  * point (all != 0) or for those marked in tables_dirty. */
 void cp_rebuild_tables(CachePoints *cp, int all);
-/* build.c: the parallel-for of the params, or a serial loop. */
+/* build.c: the parallel-for of the params, or a serial loop (the build and the barrier). */
 void cp_run_parallel(const CachePointParams *p, size_t n, size_t grain, void (*fn)(void *, size_t, size_t, int),
                      void *ctx);
 

@@ -258,37 +258,46 @@ static void kd_heap_consider(KdKnn *r, const KdNode *nd) {
     if (r->n == r->k) r->bound = kd_hdist(r, 0);
 }
 
-/* One traversal for both modes: near child first, then the far child only if the cell's
- * offset from q can still beat the bound; off[] is restored on the way out. */
+/* The walk shared by every query, instantiated per query type (a macro rather than a
+ * function taking the consider step, so that each instance is a direct recursive function
+ * with its consider step inlined: the render-time 1-NN query pays for no indirection).
+ * State is a struct with nodes, axes, q[3], off[3] and bound (the distance a cell must not
+ * exceed to be visited); consider(r, node) offers one point and may lower r->bound.
+ * Depth-first, near child first, then the splitting point, then the far child only if
+ * q's offset to the far cell (off[], restored on the way out) does not exceed the bound. */
+#define KD_DEFINE_WALK(name, State, consider)                                                        \
+    static void name(State *r, size_t lo, size_t hi) {                                              \
+        if (hi - lo > KD_LEAF) {                                                                    \
+            size_t mid = lo + (hi - lo) / 2;                                                        \
+            const KdNode *m = &r->nodes[mid];                                                       \
+            int ax = r->axes[mid];                                                                  \
+            float diff = r->q[ax] - m->p[ax];                                                       \
+            size_t flo, fhi;                                                                        \
+            if (diff < 0) {                                                                         \
+                name(r, lo, mid);                                                                   \
+                flo = mid + 1, fhi = hi;                                                            \
+            } else {                                                                                \
+                name(r, mid + 1, hi);                                                               \
+                flo = lo, fhi = mid;                                                                \
+            }                                                                                       \
+            consider(r, m);                                                                         \
+            float old = r->off[ax];                                                                 \
+            r->off[ax] = diff;                                                                      \
+            float rd = r->off[0] * r->off[0] + r->off[1] * r->off[1] + r->off[2] * r->off[2];       \
+            if (!(rd > r->bound)) name(r, flo, fhi);                                                \
+            r->off[ax] = old;                                                                       \
+            return;                                                                                 \
+        }                                                                                           \
+        for (size_t i = lo; i < hi; ++i) consider(r, &r->nodes[i]);                                 \
+    }
+
+/* kNN: one instance for both modes (the mode test is one predictable branch per point). */
 static inline void kd_consider(KdKnn *r, const KdNode *nd) {
     if (r->heap) kd_heap_consider(r, nd);
     else kd_sorted_consider(r, nd);
 }
 
-static void kd_knn_rec(KdKnn *r, size_t lo, size_t hi) {
-    if (hi - lo > KD_LEAF) {
-        size_t mid = lo + (hi - lo) / 2;
-        const KdNode *m = &r->nodes[mid];
-        int ax = r->axes[mid];
-        float diff = r->q[ax] - m->p[ax];
-        size_t flo, fhi;
-        if (diff < 0) {
-            kd_knn_rec(r, lo, mid);
-            flo = mid + 1, fhi = hi;
-        } else {
-            kd_knn_rec(r, mid + 1, hi);
-            flo = lo, fhi = mid;
-        }
-        kd_consider(r, m);
-        float old = r->off[ax];
-        r->off[ax] = diff;
-        float rd = r->off[0] * r->off[0] + r->off[1] * r->off[1] + r->off[2] * r->off[2];
-        if (!(rd > r->bound)) kd_knn_rec(r, flo, fhi);
-        r->off[ax] = old;
-        return;
-    }
-    for (size_t i = lo; i < hi; ++i) kd_consider(r, &r->nodes[i]);
-}
+KD_DEFINE_WALK(kd_knn_rec, KdKnn, kd_consider)
 
 uint32_t kdtree_knn(const KdTree *tree, const float q[3], uint32_t k, float radius2, uint32_t exclude,
                     uint32_t *indices, float *dist2) {
@@ -333,42 +342,19 @@ typedef struct KdNear {
     const uint8_t *axes;
     float q[3];
     float off[3];
-    float bd;
-    uint32_t bi;
+    float bound;         /* the best distance so far */
+    uint32_t best;       /* its index */
 } KdNear;
 
 static inline void kd_near_consider(KdNear *r, const KdNode *nd) {
     float d = kd_dist2(nd->p, r->q);
-    if (d < r->bd || (d == r->bd && nd->idx < r->bi)) {
-        r->bd = d;
-        r->bi = nd->idx;
+    if (d < r->bound || (d == r->bound && nd->idx < r->best)) {
+        r->bound = d;
+        r->best = nd->idx;
     }
 }
 
-static void kd_near_rec(KdNear *r, size_t lo, size_t hi) {
-    if (hi - lo > KD_LEAF) { /* far child: one recursion, off[] restored after */
-        size_t mid = lo + (hi - lo) / 2;
-        const KdNode *m = &r->nodes[mid];
-        int ax = r->axes[mid];
-        float diff = r->q[ax] - m->p[ax];
-        size_t flo, fhi;
-        if (diff < 0) {
-            kd_near_rec(r, lo, mid);
-            flo = mid + 1, fhi = hi;
-        } else {
-            kd_near_rec(r, mid + 1, hi);
-            flo = lo, fhi = mid;
-        }
-        kd_near_consider(r, m);
-        float old = r->off[ax];
-        r->off[ax] = diff;
-        float rd = r->off[0] * r->off[0] + r->off[1] * r->off[1] + r->off[2] * r->off[2];
-        if (!(rd > r->bd)) kd_near_rec(r, flo, fhi);
-        r->off[ax] = old;
-        return;
-    }
-    for (size_t i = lo; i < hi; ++i) kd_near_consider(r, &r->nodes[i]);
-}
+KD_DEFINE_WALK(kd_near_rec, KdNear, kd_near_consider)
 
 int kdtree_build_clearance(KdTree *tree) {
     if (!tree->count) return 0;
@@ -393,16 +379,16 @@ uint32_t kdtree_nearest(const KdTree *tree, const float q[3], float *dist2) {
 
 uint32_t kdtree_nearest_hint(const KdTree *tree, const float q[3], uint32_t hint, float *dist2) {
     KdNear r = {.nodes = tree ? tree->nodes : NULL, .axes = tree ? tree->axes : NULL,
-                .q = {q[0], q[1], q[2]}, .bd = INFINITY, .bi = UINT32_MAX};
+                .q = {q[0], q[1], q[2]}, .bound = INFINITY, .best = UINT32_MAX};
     if (tree && hint < tree->count) { /* an upper bound that prunes; the answer is unchanged */
         float d = kd_dist2(tree->points + 3 * (size_t)hint, r.q);
         if (tree->clear2 && d < tree->clear2[hint]) { /* inside the hint's clearance: it is the nearest */
             if (dist2) *dist2 = d;
             return hint;
         }
-        if (d <= INFINITY) { r.bd = d; r.bi = hint; } /* (never a NaN point: those are never returned) */
+        if (d <= INFINITY) { r.bound = d; r.best = hint; } /* (never a NaN point: those are never returned) */
     }
     if (tree && tree->count) kd_near_rec(&r, 0, tree->count);
-    if (dist2) *dist2 = r.bd;
-    return r.bi;
+    if (dist2) *dist2 = r.bound;
+    return r.best;
 }

@@ -1,5 +1,5 @@
 /* cachepoints/lookup.c: online visibility learning (§3.2) and render-time light selection
- * (§3.3) over the structure build.c produces (internal.h). */
+ * (§3.3) over the structure the build produces (internal.h). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -8,8 +8,8 @@
 
 /* ---------------------------------------------------------------- visibility (§3.2) */
 
-float cachepoints_visibility_weight(uint32_t successes, uint32_t attempts, float r_min) {
-    float r = ((float)successes + 1.0f) / ((float)attempts + 1.0f); /* Eq. 5 */
+float cachepoints_visibility_weight(float successes, uint32_t attempts, float r_min) {
+    float r = (successes + 1.0f) / ((float)attempts + 1.0f); /* Eq. 5 */
     return r <= r_min ? (r / r_min) * (r / r_min) : 1.0f;           /* Eq. 6: never 0 */
 }
 
@@ -43,11 +43,14 @@ uint32_t cachepoints_slot(const CachePoints *cp, uint32_t point, uint32_t light)
     return near ? cp->near_slot[at] : cp->far_slot[at];
 }
 
-void cachepoints_record(CachePoints *cp, uint32_t slot, int success) {
-    if (!cp || slot >= cp->vis_off[cp->n]) return; /* only listed lights have counters (spec §4.1) */
+void cachepoints_record(CachePoints *cp, uint32_t slot, float visibility) {
+    /* a light no entry of the point holds (picked by the uniform floor) has no counters */
+    if (!cp || slot >= cp->vis_off[cp->n]) return;
     VisCounter *h = &cp->vis_count[slot];
+    float v = visibility > 0.0f ? (visibility < 1.0f ? visibility : 1.0f) : 0.0f; /* NaN: 0 */
+    uint32_t success = (uint32_t)lrintf(v * (float)CP_VIS_ONE);
     __atomic_fetch_add(&h->total, 1u, __ATOMIC_RELAXED);
-    if (success) __atomic_fetch_add(&h->success, 1u, __ATOMIC_RELAXED);
+    if (success) __atomic_fetch_add(&h->success, success, __ATOMIC_RELAXED);
 }
 
 void cachepoints_prefetch_counters(const CachePoints *cp, uint32_t slot) {
@@ -61,41 +64,53 @@ float cachepoints_visibility(const CachePoints *cp, uint32_t point, uint32_t lig
 
 typedef struct VisCtx { CachePoints *cp; uint32_t max_slots; int failed; } VisCtx;
 
-/* Eq. 6 of a slot; W = 1 without a division while too few attempts were made for R to
- * reach R_min (R >= 1 / (attempts + 1)). */
+/* Eqs. 5-6 of a slot (H_success back from fixed point: exact, as a float holds 256 k
+ * exactly when it holds k); W = 1 without a division while too few attempts were made for
+ * R to reach R_min (R >= 1 / (attempts + 1)). */
 static inline float slot_weight(const CachePoints *cp, uint32_t s) {
     uint32_t t = cp->vis_count[s].total;
     if ((float)t * cp->params.r_min + cp->params.r_min < 0.999f) return 1.0f;
-    return cachepoints_visibility_weight(cp->vis_count[s].success, t, cp->params.r_min);
+    return cachepoints_visibility_weight((float)cp->vis_count[s].success / (float)CP_VIS_ONE, t, cp->params.r_min);
 }
 
+/* Per point: rescales the counters that passed CP_VIS_RESCALE attempts (see internal.h),
+ * then flags the point if a slot has W < 1. */
 static void vis_low_range(void *vctx, size_t b, size_t e, int thread) {
     (void)thread;
     CachePoints *cp = ((VisCtx *)vctx)->cp;
     for (size_t p = b; p < e; ++p) {
         uint8_t low = 0;
-        for (uint32_t s = cp->vis_off[p]; s < cp->vis_off[p + 1] && !low; ++s) low = slot_weight(cp, s) < 1.0f;
+        for (uint32_t s = cp->vis_off[p]; s < cp->vis_off[p + 1]; ++s) {
+            VisCounter *h = &cp->vis_count[s];
+            if (h->total > CP_VIS_RESCALE) {
+                h->total = (h->total + 1) / 2;
+                h->success /= 2;
+            }
+            if (!low) low = slot_weight(cp, s) < 1.0f;
+        }
         cp->vis_low[p] = low;
     }
 }
 
 /* §3.2.2: W'(p,e) = w_p W(p,e) + sum over neighbours n holding key e of w_n W(n,e), with W
- * from Eqs. 5-6 on the counters; with vis_blur_renorm the sum is divided by the weights of
- * the points that hold e, so a fully visible light keeps W' = 1 however few neighbours
- * list it. Each neighbour's sorted slot list is merged against p's in one linear walk.
- * With renorm, a point whose neighbourhood has W = 1 everywhere has W' = 1 everywhere: it
- * is skipped (reset to 1 if it was not), so early barriers cost next to nothing. */
+ * from Eqs. 5-6 on the counters and the normalised Eq. 4 weights of the far-bin blur.
+ * Deviation from the paper: the sum is divided by the weights of the points that hold e
+ * (p and the neighbours listing it). As printed, a neighbour without e adds 0, so a light
+ * few neighbours list (typically a near light) would sink towards w_p <= 1/2 even when
+ * fully visible; renormalised, a fully visible light keeps W' = 1. Hence also: a point
+ * whose neighbourhood has W = 1 everywhere has W' = 1 everywhere, and is skipped (reset to
+ * 1 if it was not), so early barriers cost next to nothing. Each neighbour's sorted slot
+ * list is merged against p's in one linear walk. */
 static void vis_blur_range(void *vctx, size_t b, size_t e, int thread) {
     (void)thread;
     VisCtx *c = vctx;
     CachePoints *cp = c->cp;
     uint32_t K = cp->params.blur_neighbours;
-    int renorm = cp->params.vis_blur_renorm;
     float *wsum = malloc(((size_t)c->max_slots + 1) * sizeof(float));
     if (!wsum) { c->failed = 1; return; }
     for (size_t p = b; p < e; ++p) {
         uint32_t s0 = cp->vis_off[p], s1 = cp->vis_off[p + 1];
-        int need = !renorm || cp->vis_low[p];
+        int need = cp->vis_low[p];
         for (uint32_t j = 0; j < K && !need; ++j) {
             uint32_t nb = cp->nbr[p * K + j];
             need = nb != CP_NONE && cp->vis_low[nb];
@@ -116,7 +131,7 @@ static void vis_blur_range(void *vctx, size_t b, size_t e, int thread) {
             uint32_t nb = cp->nbr[p * K + j];
             if (nb == CP_NONE) continue;
             float w = cp->nbr_w[p * K + j];
-            int trivial = renorm && !cp->vis_low[nb]; /* every W of nb is 1 */
+            int trivial = !cp->vis_low[nb]; /* every W of nb is 1 */
             uint32_t a = s0, q = cp->vis_off[nb], q1 = cp->vis_off[nb + 1];
             while (a < s1 && q < q1) {
                 uint32_t ka = cp->vis_key[a], kq = cp->vis_key[q];
@@ -129,15 +144,16 @@ static void vis_blur_range(void *vctx, size_t b, size_t e, int thread) {
                 }
             }
         }
-        if (renorm)
-            for (uint32_t s = s0; s < s1; ++s) cp->w_blurred[s] /= wsum[s - s0];
+        for (uint32_t s = s0; s < s1; ++s) cp->w_blurred[s] /= wsum[s - s0];
     }
     free(wsum);
 }
 
 typedef struct TableCtx { CachePoints *cp; int all; } TableCtx;
 
-/* Per point: W' of each near entry, and per bin the running sums of value x W'. */
+/* Per point: W' of each near entry, and per bin the running sums of value x W'. The paper
+ * builds the CDFs at lookup (§3.1.3, §3.3); they depend only on the point and W', so they
+ * are built here once per barrier, for the points whose W' changed. */
 static void tables_range(void *vctx, size_t b, size_t e, int thread) {
     (void)thread;
     TableCtx *c = vctx;
@@ -183,8 +199,10 @@ void cachepoints_update_visibility(CachePoints *cp) {
 
 /* ---------------------------------------------------------------- selection (§3.3) */
 
-/* Far bins are blended by b_i(n) = max(0, n.a_i)^2, which sums to 1 for a unit normal
- * (spec §5.3); without a normal (volumes, transmissive surfaces) only the fluence bin. */
+/* §3.3 blends the cardinal bins by the similarity of each bin's axis a_i to the normal, with
+ * weights summing to 1, without giving the function: b_i(n) = max(0, n.a_i)^2 sums to
+ * |n|^2 = 1 for a unit normal. Without a normal (volumes, and here also transmissive
+ * surfaces, whose lights may lie behind them) only the fluence bin. */
 static void bin_blend(const float *n, float b[CP_FAR_BINS]) {
     for (int i = 0; i < CP_FAR_BINS; ++i) b[i] = 0.0f;
     if (!n) { b[CP_OMNI_BIN] = 1.0f; return; }

@@ -283,7 +283,7 @@ static float cp_pmf(const void *state, const LightSampleContext *ctx, uint32_t l
 }
 
 static void cp_record(void *state, uint32_t outcome, float visibility) {
-    cachepoints_record(((CachePointSampler *)state)->cp, outcome, visibility > 0.0f);
+    cachepoints_record(((CachePointSampler *)state)->cp, outcome, visibility);
 }
 
 static void cp_prefetch_outcome(const void *state, uint32_t outcome) {
@@ -322,7 +322,8 @@ static const LightSamplerOps CACHEPOINT_OPS = {
 
 /* ---------------------------------------------------------------- build */
 
-/* Fills s->cp (NULL when fewer than 10 points exist). 0 ok, -1 out of memory. */
+/* Fills s->cp (NULL when fewer than 10 points exist). 0 ok, -1 out of memory, -2 invalid
+ * cache point parameters. */
 static int build(CachePointSampler *s, const Scene *scene, ThreadPool *pool, const CandelaOptions *o) {
     const Lights *ls = s->lights;
     s->centroid = malloc((size_t)ls->count * 3 * sizeof(float));
@@ -374,7 +375,7 @@ static int build(CachePointSampler *s, const Scene *scene, ThreadPool *pool, con
                 !params.build_cut && ls->count > 20000 ? "; the linear build visits every light for every point: this will be slow" : "");
     int rc = cachepoints_build(&s->cp, cand.xyz, cand.count, &s->view, &cc, &params, &s->stats);
     free(cand.xyz);
-    return rc < 0 ? -1 : 0;
+    return rc < 0 ? rc : 0; /* -1 out of memory, -2 invalid parameters */
 }
 
 int light_sampler_cachepoints_create(LightSampler *ls, const Lights *lights, const Scene *scene, ThreadPool *pool,
@@ -385,7 +386,13 @@ int light_sampler_cachepoints_create(LightSampler *ls, const Lights *lights, con
         CachePointSampler *s = calloc(1, sizeof *s);
         if (!s) goto oom;
         s->lights = lights;
-        if (build(s, scene, pool, o) != 0) { cp_destroy(s); goto oom; }
+        int rc_build = build(s, scene, pool, o);
+        if (rc_build != 0) {
+            cp_destroy(s);
+            if (rc_build == -1) goto oom;
+            snprintf(err, CANDELA_ERR_LEN, "%s: invalid cache point parameters", o->scene_path);
+            return -1;
+        }
         s->build_seconds = clock_seconds() - t0;
         if (s->cp) {
             *ls = (LightSampler){&CACHEPOINT_OPS, s, lights->count};

@@ -1,16 +1,18 @@
 /* The cachepoints module on its own, with synthetic point lights and two directional
  * lights, for both builds (linear: the paper's; cut: far entries are clusters of a light
  * tree, here a synthetic balanced tree whose cluster estimate is the exact sum and whose
- * descent is proportional to it): Eq. 5-6 anchor values, build determinism (serial vs a
- * parallel-for that runs chunks in reverse order), PMFs that sum to one, select/pmf
- * agreement and selection frequencies, and visibility learning pushing down a light that
- * is never visible. */
+ * descent is proportional to it): Eqs. 5-6 anchor values, the build's return codes, build
+ * determinism (serial vs a parallel-for that runs chunks in reverse order), PMFs that sum
+ * to one, select/pmf agreement and selection frequencies, visibility learning pushing down
+ * a light that is never visible, and fractional visibility outcomes (fixed-point counters,
+ * exact for 0/1 outcomes, and their rescale). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cachepoints.h"
 #include "check.h"
+#include "internal.h" /* the visibility counters, for the fixed-point and rescale checks */
 #include "stats.h"
 
 static uint64_t sm_state;
@@ -146,6 +148,83 @@ static void random_vertex(float x[3], float nrm[3], const float **n, int q) {
     *n = q % 3 == 0 ? NULL : nrm;
 }
 
+/* Eqs. 5-6 as they were computed from integer counters before fractional outcomes. */
+static float integer_weight(uint32_t successes, uint32_t attempts, float r_min) {
+    float r = ((float)successes + 1.0f) / ((float)attempts + 1.0f);
+    return r <= r_min ? (r / r_min) * (r / r_min) : 1.0f;
+}
+
+static int cmp_u32(const void *a, const void *b) {
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Every distinct visibility slot of every point receives `count` records of `vis`, so that
+ * all points holding a light agree and the visibility blur leaves W' = W (up to rounding). */
+static void record_everywhere(CachePoints *cp, int count, float vis) {
+    uint32_t slots[NL];
+    for (uint32_t p = 0; p < cachepoints_count(cp); ++p) {
+        uint32_t m = 0;
+        for (uint32_t l = 0; l < NL; ++l) {
+            uint32_t s = cachepoints_slot(cp, p, l);
+            if (s != UINT32_MAX) slots[m++] = s;
+        }
+        qsort(slots, m, sizeof *slots, cmp_u32);
+        for (uint32_t k = 0; k < m; ++k)
+            if (k == 0 || slots[k] != slots[k - 1])
+                for (int t = 0; t < count; ++t) cachepoints_record(cp, slots[k], vis);
+    }
+}
+
+/* Fractional outcomes (a transmittance) in fixed point: 100 attempts at visibility 0.02 add
+ * 100 x lrint(0.02 x 256) / 256 = 1.953 successes; 0/1 outcomes give exactly the integer
+ * counts; the barrier's rescale halves a slot past 2^23 attempts and keeps W. */
+static void fractional_visibility(const CachePointLights *L, const float *cand, uint32_t nc, const CachePointParams *P,
+                                  const char *mode) {
+    CachePointCamera cam = {{5.0f, 5.0f, 40.0f}, 2.0f * 0.4f / 64.0f, 0.0f};
+    CachePoints *f = NULL, *z = NULL;
+    int rf = cachepoints_build(&f, cand, nc, L, &cam, P, NULL), rz = cachepoints_build(&z, cand, nc, L, &cam, P, NULL);
+    CHECK(rf == 0 && rz == 0, "%s: build %d %d", mode, rf, rz);
+    if (rf || rz) { cachepoints_free(f); cachepoints_free(z); return; }
+    const float x0[3] = {5, 5, 5};
+    uint32_t p0 = cachepoints_nearest(f, x0), l0 = 0;
+    while (l0 < NL && cachepoints_slot(f, p0, l0) == UINT32_MAX) ++l0;
+    CHECK(l0 < NL, "%s: no light has a slot at x0", mode);
+    if (l0 == NL) { cachepoints_free(f); cachepoints_free(z); return; }
+    uint32_t s0 = cachepoints_slot(f, p0, l0);
+
+    record_everywhere(f, 100, 0.02f);
+    CHECK(f->vis_count[s0].total == 100 && f->vis_count[s0].success == 500, "%s: 100 x 0.02 counted %u / %u (fixed point)",
+          mode, f->vis_count[s0].success, f->vis_count[s0].total);
+    cachepoints_update_visibility(f);
+    float wf = cachepoints_visibility(f, p0, l0), expect = cachepoints_visibility_weight(500.0f / 256.0f, 100, 0.04f);
+    CHECK(fabsf(wf - expect) < 1e-5f, "%s: W' after 100 x 0.02 = %g, expected %g", mode, wf, expect);
+    CHECK(wf < 0.6f && wf > integer_weight(1, 100, 0.04f) && wf < integer_weight(2, 100, 0.04f),
+          "%s: 100 x 0.02 lies between 1 and 2 visible of 100: W' = %g", mode, wf);
+
+    record_everywhere(z, 2, 1.0f);
+    record_everywhere(z, 98, 0.0f);
+    CHECK(z->vis_count[s0].total == 100 && z->vis_count[s0].success == 2 * 256, "%s: 2 of 100 counted %u / %u", mode,
+          z->vis_count[s0].success, z->vis_count[s0].total);
+    cachepoints_update_visibility(z);
+    float wz = cachepoints_visibility(z, p0, l0);
+    CHECK(fabsf(wz - integer_weight(2, 100, 0.04f)) < 1e-5f, "%s: W' after 2 of 100 = %g, expected %g", mode, wz,
+          integer_weight(2, 100, 0.04f));
+
+    /* rescale: total past 2^23 halves both (total rounded up) at the barrier */
+    uint32_t t = (1u << 23) + 3, sc = (uint32_t)(0.02 * 256.0 * t);
+    z->vis_count[s0].total = t;
+    z->vis_count[s0].success = sc;
+    float before = cachepoints_visibility_weight((float)sc / 256.0f, t, 0.04f);
+    cachepoints_update_visibility(z);
+    CHECK(z->vis_count[s0].total == (t + 1) / 2 && z->vis_count[s0].success == sc / 2, "%s: rescaled to %u / %u", mode,
+          z->vis_count[s0].success, z->vis_count[s0].total);
+    float after = cachepoints_visibility_weight((float)z->vis_count[s0].success / 256.0f, z->vis_count[s0].total, 0.04f);
+    CHECK(fabsf(after - before) < 1e-4f * before && before < 0.3f, "%s: the rescale keeps W (%g -> %g)", mode, before, after);
+    cachepoints_free(f);
+    cachepoints_free(z);
+}
+
 static void run(const CachePointLights *L, const float *cand, uint32_t nc, int cut) {
     const char *mode = cut ? "cut" : "linear";
     CachePointCamera cam = {{5.0f, 5.0f, 40.0f}, 2.0f * 0.4f / 64.0f, 0.0f};
@@ -160,8 +239,8 @@ static void run(const CachePointLights *L, const float *cand, uint32_t nc, int c
     int rb = cachepoints_build(&b, cand, nc, L, &cam, &P, &sb);
     CHECK(ra == 0 && rb == 0, "%s: build %d %d", mode, ra, rb);
     if (ra || rb) return;
-    fprintf(stderr, "%s: candidates %u -> pass 1 %u -> final %u points, %.3f s, %zu bytes; per point %.1f near, %.1f far (%.1f clusters)\n",
-            mode, sa.candidates, sa.after_pass1, sa.final_points, sa.seconds, sa.bytes, sa.mean_near, sa.mean_far,
+    fprintf(stderr, "%s: candidates %u -> pass 1 %u -> final %u points, %zu bytes; per point %.1f near, %.1f far (%.1f clusters)\n",
+            mode, sa.candidates, sa.after_pass1, sa.final_points, sa.bytes, sa.mean_near, sa.mean_far,
             sa.mean_far_clusters);
     CHECK(sa.final_points > 10 && sa.final_points < sa.after_pass1 && sa.after_pass1 <= sa.candidates,
           "%s: merging: %u -> %u -> %u", mode, sa.candidates, sa.after_pass1, sa.final_points);
@@ -250,7 +329,7 @@ static void run(const CachePointLights *L, const float *cand, uint32_t nc, int c
         for (uint32_t l = 0; l < NL; ++l) {
             uint32_t s = cachepoints_slot(a, p, l);
             for (int t = 0; t < 99; ++t) {
-                cachepoints_record(a, s, l != best);
+                cachepoints_record(a, s, l != best ? 1.0f : 0.0f);
             }
         }
     cachepoints_update_visibility(a);
@@ -269,16 +348,80 @@ static void run(const CachePointLights *L, const float *cand, uint32_t nc, int c
     CHECK(fabs(sum - 1.0) < 1e-4, "%s: pmf after learning sums to %.7f", mode, sum);
     cachepoints_free(a);
     cachepoints_free(b);
+    P.parallel_for = NULL;
+    fractional_visibility(L, cand, nc, &P, mode);
+}
+
+/* Return codes: -2 for parameters the build cannot run with, 1 for too few points or no
+ * lights, and *out == NULL whenever the build does not return 0. */
+static void build_errors(const CachePointLights *L, const float *cand, uint32_t nc) {
+    CachePointCamera cam = {{5.0f, 5.0f, 40.0f}, 2.0f * 0.4f / 64.0f, 0.0f};
+    CachePointParams P;
+    CachePoints *cp;
+    int rc;
+#define EXPECT_BUILD(want, what, lights, count)                                                      \
+    do {                                                                                             \
+        cp = (CachePoints *)&P; /* must be reset to NULL */                                          \
+        rc = cachepoints_build(&cp, cand, count, lights, &cam, &P, NULL);                           \
+        CHECK(rc == (want) && cp == NULL, "%s: build returned %d (expected %d), out %p", what, rc, want, (void *)cp); \
+        cachepoints_default_params(&P);                                                              \
+    } while (0)
+    cachepoints_default_params(&P);
+    P.knn = 65;
+    EXPECT_BUILD(-2, "knn 65", L, nc);
+    P.blur_neighbours = 65;
+    EXPECT_BUILD(-2, "blur_neighbours 65", L, nc);
+    P.epsilon = 1.5f;
+    EXPECT_BUILD(-2, "epsilon 1.5", L, nc);
+    P.epsilon = NAN;
+    EXPECT_BUILD(-2, "epsilon NaN", L, nc);
+    CachePointLights no_tree = *L;
+    no_tree.tree = NULL;
+    P.build_cut = 1;
+    EXPECT_BUILD(-2, "cut build without a tree", &no_tree, nc);
+    P.build_cut = 1;
+    P.cut_size = 0;
+    EXPECT_BUILD(-2, "cut_size 0", L, nc);
+    CachePointTree bad = *L->tree;
+    bad.descend_pmf = NULL;
+    CachePointLights bad_lights = *L;
+    bad_lights.tree = &bad;
+    P.build_cut = 1;
+    EXPECT_BUILD(-2, "cut build without descend_pmf", &bad_lights, nc);
+    static uint32_t bad_second[MAXNODES];
+    memcpy(bad_second, second, sizeof bad_second);
+    bad_second[0] = 0; /* the root's second child before the root: not depth-first */
+    bad = *L->tree;
+    bad.second_child = bad_second;
+    P.build_cut = 1;
+    EXPECT_BUILD(-2, "malformed tree", &bad_lights, nc);
+    P.knn = 65; /* invalid parameters are reported before the fallback cases */
+    EXPECT_BUILD(-2, "knn 65 with 5 candidates", L, 5);
+    EXPECT_BUILD(1, "5 candidates", L, 5);
+    CachePointLights none = *L;
+    none.count = 0;
+    EXPECT_BUILD(1, "no lights", &none, nc);
+    P.build_cut = 1;
+    EXPECT_BUILD(1, "no lights, cut build", &none, nc);
+#undef EXPECT_BUILD
 }
 
 int main(void) {
-    /* Eq. 5-6 anchors (spec §4.1) */
+    /* Eqs. 5-6 anchors (§3.2.1, R_min = 0.04): with no success, W = 1 up to 24 attempts
+     * (R = 1/25 = R_min), then 625 / (attempts + 1)^2 */
     CHECK(cachepoints_visibility_weight(0, 24, 0.04f) == 1.0f, "W(0,24) = %g", cachepoints_visibility_weight(0, 24, 0.04f));
     CHECK(cachepoints_visibility_weight(0, 25, 0.04f) < 1.0f, "W(0,25) must be below 1");
     CHECK(fabsf(cachepoints_visibility_weight(0, 49, 0.04f) - 0.25f) < 1e-6f, "W(0,49) = %g", cachepoints_visibility_weight(0, 49, 0.04f));
     CHECK(fabsf(cachepoints_visibility_weight(0, 99, 0.04f) - 0.0625f) < 1e-6f, "W(0,99) = %g", cachepoints_visibility_weight(0, 99, 0.04f));
     CHECK(cachepoints_visibility_weight(0, 4000000000u, 0.04f) > 0.0f, "W never reaches 0");
     CHECK(cachepoints_visibility_weight(10, 20, 0.04f) == 1.0f, "visible light keeps W = 1");
+    int differ = 0; /* integer successes give exactly the values of the integer-counter formula */
+    for (uint32_t t = 0; t <= 400; ++t)
+        for (uint32_t k = 0; k <= t; ++k) differ += cachepoints_visibility_weight((float)(256 * k) / 256.0f, t, 0.04f) != integer_weight(k, t, 0.04f);
+    CHECK(differ == 0, "%d integer counts give W different from the integer formula", differ);
+    CHECK(cachepoints_visibility_weight(1.5f, 100, 0.04f) < cachepoints_visibility_weight(2.0f, 100, 0.04f) &&
+          cachepoints_visibility_weight(1.5f, 100, 0.04f) > cachepoints_visibility_weight(1.0f, 100, 0.04f),
+          "fractional successes lie between their integer neighbours");
 
     sm_state = 42;
     for (int l = 0; l < NPOINT; ++l) {
@@ -301,6 +444,7 @@ int main(void) {
         for (int k = 0; k < 3; ++k) cand[3 * i + k] = (float)(rnd() * 10.0);
     CachePointTree T = {node_count, second, leaf_light, light_leaf, tree_bounds, tree_estimate7, tree_descend, tree_descend_pmf};
     CachePointLights L = {NL, light_pos, light_inf, point_estimate7, point_estimate, NULL, &T};
+    build_errors(&L, cand, NC);
     run(&L, cand, NC, 0);
     run(&L, cand, NC, 1);
     return test_exit();

@@ -1,0 +1,251 @@
+/* cachepoints/merge.c: from candidates to the final cache points (§3.1.1-§3.1.4): the
+ * spatial sort that gives every candidate its index, merge pass 1 (§3.1.2: spatially
+ * close points), then merge pass 2 (§3.1.4: neighbours with similar light distributions,
+ * Eqs. 2-3, within the radius r_p it defines).
+ *
+ * Both passes keep the lowest index of a neighbourhood and delete the rest. Applied to
+ * every point at once (the paper's parallel loop read literally), overlapping neighbourhoods
+ * cascade: in 1-D with spacing 1 and radius 1.5 every point but index 0 is deleted, and a
+ * 6,000-candidate test scene kept a single point. The paper's radius of 1e-5 hides this
+ * (neighbourhoods never overlap), but it also merges only coincident points, which cannot
+ * give the paper's own 388,888 -> 48,364 points of Fig. 3; we merge within pixel-sized
+ * radii (pass 1: one pixel's footprint; pass 2: r_p, at least 3 pixels), where they do
+ * overlap. So we use the sequential reading: in index order, a point still alive deletes
+ * the neighbours with a higher index inside its radius. Survivors are then
+ * radius-separated, the result is the same where neighbourhoods do not overlap, and it is
+ * deterministic by construction. The kNN queries (the expensive part) run in parallel into
+ * a neighbour table first. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "build_internal.h"
+
+/* r_px: the world size of one pixel at x (§3.1.4's floor is 3 r_px) */
+static float pixel_footprint(const CachePointCamera *c, const float *x) {
+    if (c->pixel_angle > 0.0f) return sqrtf(cp_dist2(x, c->position)) * c->pixel_angle;
+    return c->pixel_size;
+}
+
+/* ---------------------------------------------------------------- spatial sort (§3.1.1) */
+
+static uint64_t spread21(uint64_t x) {
+    x &= 0x1fffff;
+    x = (x | x << 32) & 0x1f00000000ffffull;
+    x = (x | x << 16) & 0x1f0000ff0000ffull;
+    x = (x | x << 8) & 0x100f00f00f00f00full;
+    x = (x | x << 4) & 0x10c30c30c30c30c3ull;
+    x = (x | x << 2) & 0x1249249249249249ull;
+    return x;
+}
+
+typedef struct SortItem { uint64_t key; uint32_t index; } SortItem;
+
+static int cmp_sort_item(const void *a, const void *b) {
+    const SortItem *x = a, *y = b;
+    if (x->key != y->key) return x->key < y->key ? -1 : 1;
+    return x->index < y->index ? -1 : (x->index > y->index);
+}
+
+float *cp_spatial_sort(const float *pts, uint32_t n, float *scene_scale) {
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (uint32_t i = 0; i < n; ++i)
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = fminf(lo[k], pts[3 * i + k]);
+            hi[k] = fmaxf(hi[k], pts[3 * i + k]);
+        }
+    float s = sqrtf((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) + (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    *scene_scale = s > 0.0f ? s : 1.0f;
+    SortItem *items = malloc((size_t)n * sizeof *items);
+    float *out = malloc((size_t)n * 3 * sizeof(float));
+    if (!items || !out) { free(items); free(out); return NULL; }
+    for (uint32_t i = 0; i < n; ++i) {
+        uint64_t code = 0;
+        for (int k = 0; k < 3; ++k) {
+            float ext = hi[k] - lo[k];
+            float t = ext > 0.0f ? (pts[3 * i + k] - lo[k]) / ext : 0.0f;
+            uint64_t q = (uint64_t)(fminf(fmaxf(t, 0.0f), 1.0f) * 2097151.0f);
+            code |= spread21(q) << k;
+        }
+        items[i].key = code;
+        items[i].index = i;
+    }
+    qsort(items, n, sizeof *items, cmp_sort_item);
+    for (uint32_t i = 0; i < n; ++i) memcpy(out + 3 * i, pts + 3 * (size_t)items[i].index, 3 * sizeof(float));
+    free(items);
+    return out;
+}
+
+/* Keeps the points whose deleted flag is 0, in order (and their extra value, if any). */
+static uint32_t compact(float *pts, float *extra, const uint8_t *deleted, uint32_t n) {
+    uint32_t m = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+        if (deleted[i]) continue;
+        memmove(pts + 3 * (size_t)m, pts + 3 * (size_t)i, 3 * sizeof(float));
+        if (extra) extra[m] = extra[i];
+        ++m;
+    }
+    return m;
+}
+
+/* ---------------------------------------------------------------- the merge of both passes */
+
+typedef struct NeighbourCtx {
+    const float *pts;
+    const KdTree *kd;
+    uint32_t knn;
+    const float *radius;               /* per point, or NULL: use the camera footprint */
+    const CachePointCamera *camera;
+    uint32_t *nbr;                     /* knn per point, UINT32_MAX padded */
+} NeighbourCtx;
+
+static void neighbour_range(void *vctx, size_t b, size_t e, int thread) {
+    (void)thread;
+    NeighbourCtx *c = vctx;
+    for (size_t i = b; i < e; ++i) {
+        const float *x = c->pts + 3 * i;
+        float r = c->radius ? c->radius[i] : pixel_footprint(c->camera, x);
+        uint32_t *out = c->nbr + i * c->knn;
+        uint32_t k = kdtree_knn(c->kd, x, c->knn, r * r, (uint32_t)i, out, NULL);
+        for (uint32_t j = k; j < c->knn; ++j) out[j] = UINT32_MAX;
+    }
+}
+
+static int greedy_merge(const CachePointParams *P, const float *pts, const KdTree *kd, uint32_t n,
+                        const float *radius, const CachePointCamera *camera, uint8_t *deleted) {
+    uint32_t *nbr = malloc((size_t)n * P->knn * sizeof *nbr);
+    if (!nbr) return -1;
+    NeighbourCtx c = {pts, kd, P->knn, radius, camera, nbr};
+    cp_run_parallel(P, n, 512, neighbour_range, &c);
+    for (uint32_t i = 0; i < n; ++i) {
+        if (deleted[i]) continue;
+        for (uint32_t j = 0; j < P->knn; ++j) {
+            uint32_t q = nbr[(size_t)i * P->knn + j];
+            if (q != UINT32_MAX && q > i) deleted[q] = 1;
+        }
+    }
+    free(nbr);
+    return 0;
+}
+
+/* ---------------------------------------------------------------- merge pass 1 (§3.1.2) */
+
+int cp_merge_pass1(const CachePointParams *P, const CachePointCamera *camera, float *pts, uint32_t n,
+                   uint32_t *survivors) {
+    KdTree kd;
+    *survivors = 0;
+    uint8_t *deleted = calloc(n, 1);
+    if (!deleted || kdtree_build(&kd, pts, n) != 0) { free(deleted); return -1; }
+    int failed = greedy_merge(P, pts, &kd, n, NULL, camera, deleted) != 0;
+    kdtree_free(&kd);
+    if (!failed) *survivors = compact(pts, NULL, deleted, n);
+    free(deleted);
+    return failed ? -1 : 0;
+}
+
+/* ---------------------------------------------------------------- merge pass 2 (§3.1.4) */
+
+int cp_omni_build(const Dist *d, OmniDist *o) {
+    uint32_t n = d->near_count + d->far_count;
+    o->key = malloc((n ? n : 1) * sizeof(uint32_t));
+    o->p = malloc((n ? n : 1) * sizeof(float));
+    if (!o->key || !o->p) return -1;
+    uint32_t a = 0, b = 0, m = 0;
+    double total = 0.0;
+    while (a < d->near_count || b < d->far_count) {
+        uint32_t ka = a < d->near_count ? d->near_key[a] : CP_NONE;
+        uint32_t kb = b < d->far_count ? d->far[b].key : CP_NONE;
+        float v;
+        uint32_t k;
+        if (ka <= kb) { k = ka; v = d->near_fluence[a++]; if (ka == kb) ++b; }
+        else { k = kb; v = d->far[b++].value[CP_OMNI_BIN]; }
+        if (!(v > 0.0f)) continue;
+        o->key[m] = k; o->p[m] = v; total += v; ++m;
+    }
+    for (uint32_t i = 0; i < m; ++i) o->p[i] = (float)(o->p[i] / total);
+    o->count = m;
+    return 0;
+}
+
+/* M (Eq. 2) with the similarity S of each shared light (Eq. 3) as its weighted size */
+static float similarity(const OmniDist *A, const OmniDist *B) {
+    if (A->count + B->count == 0) return 1.0f;
+    uint32_t a = 0, b = 0;
+    double s = 0.0;
+    while (a < A->count && b < B->count) {
+        if (A->key[a] < B->key[b]) ++a;
+        else if (A->key[a] > B->key[b]) ++b;
+        else {
+            double pa = A->p[a], pb = B->p[b];
+            s += pa + pb > 0.0 ? 1.0 - fabs(pb - pa) / (pa + pb) : 1.0;
+            ++a; ++b;
+        }
+    }
+    return (float)(2.0 * s / (double)(A->count + B->count));
+}
+
+/* The two kNN passes of merge pass 2 over the same neighbours. First (omni == NULL) r0, the
+ * mean distance to the kNN: §3.1.4's initial guess of r_p, which Eq. 1 already needs for
+ * the omni distributions before §3.1.4 defines r_p (no neighbours: 1% of the scene's size).
+ * Then M_avg over the omni distributions (Eq. 2) and r_p. */
+typedef struct Pass2Ctx {
+    const float *pts;
+    const KdTree *kd;
+    const CachePointCamera *camera;
+    const OmniDist *omni;      /* NULL: the r0 pass */
+    uint32_t knn;
+    float r0_fallback;
+    float *r0;
+    float *radius;
+} Pass2Ctx;
+
+static void pass2_range(void *vctx, size_t b, size_t e, int thread) {
+    (void)thread;
+    Pass2Ctx *c = vctx;
+    uint32_t nb[64];
+    float d2[64];
+    for (size_t i = b; i < e; ++i) {
+        const float *x = c->pts + 3 * i;
+        uint32_t k = kdtree_knn(c->kd, x, c->knn, INFINITY, (uint32_t)i, nb, d2);
+        if (!c->omni) {
+            float s = 0.0f;
+            for (uint32_t j = 0; j < k; ++j) s += sqrtf(d2[j]);
+            c->r0[i] = k ? s / (float)k : c->r0_fallback;
+            continue;
+        }
+        float msum = 0.0f;
+        for (uint32_t j = 0; j < k; ++j) msum += similarity(&c->omni[i], &c->omni[nb[j]]);
+        float mavg = k ? msum / (float)k : 1.0f, r0 = c->r0[i];
+        /* r_p = r0 M_avg, limited to 25% of r0 and to at least 3 pixels (§3.1.4) */
+        c->radius[i] = fmaxf(fmaxf(r0 * mavg, 0.25f * r0), 3.0f * pixel_footprint(c->camera, x));
+    }
+}
+
+int cp_merge_pass2(const CachePoints *keys, const CachePointLights *L, const CachePointCamera *camera,
+                   const CachePointParams *P, float *pts, uint32_t n, float scene_scale, Dist *dist, float *radius,
+                   uint32_t *survivors) {
+    *survivors = 0;
+    float *r0 = malloc(n * sizeof(float));
+    OmniDist *omni = calloc(n, sizeof *omni);
+    uint8_t *deleted = calloc(n, 1);
+    KdTree kd;
+    int failed = !r0 || !omni || !deleted || kdtree_build(&kd, pts, n) != 0;
+    if (!failed) {
+        Pass2Ctx p2 = {pts, &kd, camera, NULL, P->knn, 0.01f * scene_scale, r0, radius};
+        cp_run_parallel(P, n, 512, pass2_range, &p2);
+        DistCtx oc = {pts, r0, L, P, keys, dist, omni, 0};
+        failed = cp_build_distributions(&oc, n) != 0;
+        if (!failed) {
+            p2.omni = omni;
+            cp_run_parallel(P, n, 256, pass2_range, &p2);
+            failed = greedy_merge(P, pts, &kd, n, radius, camera, deleted) != 0;
+        }
+        kdtree_free(&kd);
+    }
+    for (uint32_t i = 0; omni && i < n; ++i) { free(omni[i].key); free(omni[i].p); }
+    free(omni);
+    if (!failed) *survivors = compact(pts, radius, deleted, n);
+    free(deleted);
+    free(r0);
+    return failed ? -1 : 0;
+}
