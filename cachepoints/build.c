@@ -282,10 +282,9 @@ int cachepoints_build(CachePoints **out, const float *cand, uint32_t num_candida
         if (isfinite(cand[3 * i]) && isfinite(cand[3 * i + 1]) && isfinite(cand[3 * i + 2]))
             memcpy(in + 3 * (size_t)nc++, cand + 3 * (size_t)i, 3 * sizeof(float));
     if (nc < CP_MIN_POINTS) { free(in); cachepoints_free(cp); return 1; }
-    float scene_scale;
-    cp->pos = cp_spatial_sort(in, nc, &scene_scale);
-    free(in);
-    if (!cp->pos) { cachepoints_free(cp); return -1; }
+    /* the candidates come in the caller's (spatial) order, which the merge passes follow */
+    float scene_scale = cp_scene_scale(in, nc);
+    cp->pos = in;
 
     uint32_t n1;
     int failed = cp_merge_pass1(P, camera, cp->pos, nc, &n1) != 0;

@@ -109,9 +109,8 @@ uint32_t cp_bin_keep(const CachePointParams *P, ValueIndex *vi, uint32_t n, doub
 
 /* ---------------------------------------------------------------- merge.c (§3.1.1-§3.1.4) */
 
-/* §3.1.1: the points sorted by a 63-bit Morton code, ties by input order (NULL: out of
- * memory); *scene_scale receives the diagonal of their bounding box (1 if degenerate). */
-float *cp_spatial_sort(const float *pts, uint32_t n, float *scene_scale);
+/* The diagonal of the points' bounding box (1 if degenerate). */
+float cp_scene_scale(const float *pts, uint32_t n);
 /* Merge pass 1 (§3.1.2) over pts[0, n), compacted in place; *survivors receives the count. */
 int cp_merge_pass1(const CachePointParams *P, const CachePointCamera *camera, float *pts, uint32_t n,
                    uint32_t *survivors);

@@ -95,8 +95,11 @@ typedef struct CachePointStats {
     double mean_far_clusters;     /* cut build: far entries per point that are clusters */
 } CachePointStats;
 
-/* Builds from candidate positions (3 floats each, in generation order: the spatial sort
- * breaks ties by it). Returns
+/* Builds from candidate positions (3 floats each; non-finite ones are dropped) in the order
+ * given, which should be spatially coherent (§3.1.1 sorts them along a space-filling curve;
+ * the renderer uses a 63-bit Morton code): the merge passes keep the lowest index of a
+ * neighbourhood, so the order decides which of two close candidates survives, and any
+ * deterministic order gives a deterministic build. Returns
  *    0  ok, *out is the cache points;
  *    1  fewer than 10 points (§3.1.1: the caller falls back to per-vertex optimal
  *       selection), or no lights at all (nothing to select: no points are needed);

@@ -27,27 +27,8 @@ static float pixel_footprint(const CachePointCamera *c, const float *x) {
     return c->pixel_size;
 }
 
-/* ---------------------------------------------------------------- spatial sort (§3.1.1) */
-
-static uint64_t spread21(uint64_t x) {
-    x &= 0x1fffff;
-    x = (x | x << 32) & 0x1f00000000ffffull;
-    x = (x | x << 16) & 0x1f0000ff0000ffull;
-    x = (x | x << 8) & 0x100f00f00f00f00full;
-    x = (x | x << 4) & 0x10c30c30c30c30c3ull;
-    x = (x | x << 2) & 0x1249249249249249ull;
-    return x;
-}
-
-typedef struct SortItem { uint64_t key; uint32_t index; } SortItem;
-
-static int cmp_sort_item(const void *a, const void *b) {
-    const SortItem *x = a, *y = b;
-    if (x->key != y->key) return x->key < y->key ? -1 : 1;
-    return x->index < y->index ? -1 : (x->index > y->index);
-}
-
-float *cp_spatial_sort(const float *pts, uint32_t n, float *scene_scale) {
+/* The diagonal of the points' bounding box (1 if degenerate): the scale of the merge radii. */
+float cp_scene_scale(const float *pts, uint32_t n) {
     float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (uint32_t i = 0; i < n; ++i)
         for (int k = 0; k < 3; ++k) {
@@ -55,25 +36,7 @@ float *cp_spatial_sort(const float *pts, uint32_t n, float *scene_scale) {
             hi[k] = fmaxf(hi[k], pts[3 * i + k]);
         }
     float s = sqrtf((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) + (hi[2] - lo[2]) * (hi[2] - lo[2]));
-    *scene_scale = s > 0.0f ? s : 1.0f;
-    SortItem *items = malloc((size_t)n * sizeof *items);
-    float *out = malloc((size_t)n * 3 * sizeof(float));
-    if (!items || !out) { free(items); free(out); return NULL; }
-    for (uint32_t i = 0; i < n; ++i) {
-        uint64_t code = 0;
-        for (int k = 0; k < 3; ++k) {
-            float ext = hi[k] - lo[k];
-            float t = ext > 0.0f ? (pts[3 * i + k] - lo[k]) / ext : 0.0f;
-            uint64_t q = (uint64_t)(fminf(fmaxf(t, 0.0f), 1.0f) * 2097151.0f);
-            code |= spread21(q) << k;
-        }
-        items[i].key = code;
-        items[i].index = i;
-    }
-    qsort(items, n, sizeof *items, cmp_sort_item);
-    for (uint32_t i = 0; i < n; ++i) memcpy(out + 3 * i, pts + 3 * (size_t)items[i].index, 3 * sizeof(float));
-    free(items);
-    return out;
+    return s > 0.0f ? s : 1.0f;
 }
 
 /* Keeps the points whose deleted flag is 0, in order (and their extra value, if any). */

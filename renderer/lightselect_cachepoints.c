@@ -17,6 +17,7 @@
 #include "rng.h"
 #include "sampling.h"
 #include "scene.h"
+#include "sort.h"
 #include "threads.h"
 
 #define BBOX_CANDIDATES 100000u
@@ -239,6 +240,42 @@ static int pilot_candidates(const Scene *scene, uint64_t seed, Candidates *c) {
     return 0;
 }
 
+/* §3.1.1: candidates in the order of a 63-bit Morton code over the bounds of the finite ones,
+ * ties in generation order (a stable sort), so the merge passes walk them coherently. */
+static int sort_candidates(Candidates *c) {
+    uint32_t n = c->count;
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (uint32_t i = 0; i < n; ++i) {
+        const float *p = c->xyz + 3 * (size_t)i;
+        if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) continue; /* dropped by the build */
+        for (int k = 0; k < 3; ++k) { lo[k] = fminf(lo[k], p[k]); hi[k] = fmaxf(hi[k], p[k]); }
+    }
+    uint64_t *keys = malloc(((size_t)n + 1) * sizeof *keys), *keys_tmp = malloc(((size_t)n + 1) * sizeof *keys_tmp);
+    uint32_t *order = malloc(((size_t)n + 1) * sizeof *order), *order_tmp = malloc(((size_t)n + 1) * sizeof *order_tmp);
+    float *sorted = malloc(((size_t)n + 1) * 3 * sizeof *sorted);
+    int rc = keys && keys_tmp && order && order_tmp && sorted ? 0 : -1;
+    if (rc == 0) {
+        for (uint32_t i = 0; i < n; ++i) {
+            uint64_t code = 0;
+            for (int k = 0; k < 3; ++k) {
+                float ext = hi[k] - lo[k];
+                float t = ext > 0.0f ? (c->xyz[3 * (size_t)i + k] - lo[k]) / ext : 0.0f;
+                code |= morton_spread21((uint64_t)(fminf(fmaxf(t, 0.0f), 1.0f) * 2097151.0f)) << k;
+            }
+            keys[i] = code;
+            order[i] = i;
+        }
+        radix_sort_pairs(order, keys, n, keys_tmp, order_tmp);
+        for (uint32_t i = 0; i < n; ++i) memcpy(sorted + 3 * (size_t)i, c->xyz + 3 * (size_t)order[i], 3 * sizeof(float));
+        free(c->xyz);
+        c->xyz = sorted;
+        c->capacity = n;
+        sorted = NULL;
+    }
+    free(keys); free(keys_tmp); free(order); free(order_tmp); free(sorted);
+    return rc;
+}
+
 /* ---------------------------------------------------------------- the protocol */
 
 /* The cache point vertex of a context: from its token when prepared, else looked up. */
@@ -351,7 +388,8 @@ static int build(CachePointSampler *s, const Scene *scene, ThreadPool *pool, con
     if (!o->cachepoint_build_linear && setup_tree_view(s) != 0) return -1;
 
     Candidates cand = {0};
-    if (bbox_candidates(scene, o->seed, &cand) != 0 || pilot_candidates(scene, o->seed, &cand) != 0) {
+    if (bbox_candidates(scene, o->seed, &cand) != 0 || pilot_candidates(scene, o->seed, &cand) != 0 ||
+        sort_candidates(&cand) != 0) {
         free(cand.xyz);
         return -1;
     }
