@@ -292,19 +292,14 @@ static void run(const CachePointLights *L, const float *cand, uint32_t nc, int c
             if (l >= NL || pmf != cachepoints_pmf(a, L, x, n, &va, l) || slot != cachepoints_slot(a, va.point, l)) ++mismatch;
             else hist[l]++;
         }
-        double chi2 = 0.0, pooled_o = 0.0, pooled_e = 0.0;
-        int dof = -1;
+        static double obs[NL], expv[NL];
         for (uint32_t l = 0; l < NL; ++l) {
-            double e = S * (double)cachepoints_pmf(a, L, x, n, &va, l);
-            if (e < 5.0) { pooled_o += hist[l]; pooled_e += e; continue; }
-            chi2 += (hist[l] - e) * (hist[l] - e) / e;
-            ++dof;
+            obs[l] = hist[l];
+            expv[l] = S * (double)cachepoints_pmf(a, L, x, n, &va, l);
         }
-        if (pooled_e > 5.0) { chi2 += (pooled_o - pooled_e) * (pooled_o - pooled_e) / pooled_e; ++dof; }
-        if (dof > 0) {
-            double limit = dof * pow(1.0 - 2.0 / (9.0 * dof) + 4.5 * sqrt(2.0 / (9.0 * dof)), 3.0);
-            CHECK(chi2 < limit, "%s: selection chi2 %.1f > %.1f (dof %d)", mode, chi2, limit, dof);
-        }
+        int dof;
+        double chi2, pv = chi2_pvalue(obs, expv, NL, &dof, &chi2);
+        CHECK(dof <= 0 || pv > 1e-5, "%s: selection chi2 %.1f (dof %d), p = %.2g", mode, chi2, dof, pv);
     }
     CHECK(mismatch == 0, "%s: %d selections disagree with cachepoints_pmf / cachepoints_slot", mode, mismatch);
     CHECK(differ == 0, "%s: %d pmfs differ between the serial and parallel builds", mode, differ);

@@ -10,7 +10,6 @@
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
-#include <time.h>
 
 static uint64_t sm_state;
 
@@ -24,12 +23,6 @@ static uint64_t sm_next(void) { /* splitmix64 */
 static float rnd01(void) { return (float)(sm_next() >> 40) * 0x1p-24f; }
 static float rnd(float a, float b) { return a + (b - a) * rnd01(); }
 static uint32_t rndu(uint32_t n) { return (uint32_t)(((sm_next() >> 32) * n) >> 32); }
-
-static double now_s(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 /* The documented distance formula (kdtree.h). */
 static float dist2(const float *p, const float *q) {
@@ -309,9 +302,9 @@ static void timings(void) {
     float *p = alloc_pts(n);
     for (uint32_t i = 0; i < 3 * n; ++i) p[i] = rnd(-10, 10);
     KdTree t;
-    double t0 = now_s();
+    double t0 = test_seconds();
     int rc = kdtree_build(&t, p, n);
-    double t1 = now_s();
+    double t1 = test_seconds();
     CHECK(rc == 0, "1.1M build");
     if (rc) {
         free(p);
@@ -320,23 +313,23 @@ static void timings(void) {
     uint32_t nq = 100000, idx[20];
     float d[20];
     uint64_t sum = 0;
-    double t2 = now_s();
+    double t2 = test_seconds();
     for (uint32_t i = 0; i < nq; ++i) {
         uint32_t pi = (uint32_t)(((uint64_t)i * 2654435761u) % n);
         sum += kdtree_knn(&t, &p[3 * (size_t)pi], 20, INFINITY, pi, idx, d);
     }
-    double t3 = now_s();
+    double t3 = test_seconds();
     CHECK(sum == (uint64_t)nq * 20, "knn(20) counts");
     kdtree_free(&t);
 
     uint32_t n2 = 100000, nq2 = 500000;
     CHECK(kdtree_build(&t, p, n2) == 0, "100k build");
-    double t4 = now_s();
+    double t4 = test_seconds();
     for (uint32_t i = 0; i < nq2; ++i) {
         float q[3] = {rnd(-10, 10), rnd(-10, 10), rnd(-10, 10)};
         sum += kdtree_nearest(&t, q, NULL);
     }
-    double t5 = now_s();
+    double t5 = test_seconds();
     kdtree_free(&t);
     fprintf(stderr, "timing: build 1.1M points %.3f s; 100k knn(20) on 1.1M %.3f s (%.2f us/query); "
                     "1-NN on 100k points %.3f us/query (%llu)\n",
