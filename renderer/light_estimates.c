@@ -16,7 +16,8 @@
 
 #define AREA_ESTIMATE_SAMPLES 16
 
-/* b_i(n) = max(0, n.a_i)^2 over the 6 cardinal axes sums to 1 for a unit n (spec §5.3). */
+/* b_i(n) = max(0, n.a_i)^2 over the 6 cardinal axes sums to 1 for a unit n, so the six
+ * planes blend into the irradiance on any plane without changing the total. */
 static float env_irradiance_estimate(const Lights *ls, vec3 n) {
     if (v3_is_black(n)) return ls->env_estimate[6];
     float w[6] = {sqr(maxf(n.x, 0.0f)), sqr(maxf(-n.x, 0.0f)), sqr(maxf(n.y, 0.0f)),
@@ -81,7 +82,7 @@ float light_contribution_estimate(const Lights *ls, const Light *l, vec3 p, vec3
     case LIGHT_ENVIRONMENT:
         return env_irradiance_estimate(ls, n);
     case LIGHT_AREA: {
-        /* (A/16) sum L cos_l max(0, n.w) / r^2 over the 16 stratified points (spec §3.4) */
+        /* (A/16) sum L cos_l max(0, n.w) / r^2 over the 16 stratified points */
         vec3 dirs[AREA_ESTIMATE_SAMPLES];
         float contrib[AREA_ESTIMATE_SAMPLES];
         int count = area_estimate_samples(l, p, dirs, contrib);

@@ -21,7 +21,7 @@
 #include "threads.h"
 
 #define BBOX_CANDIDATES 100000u
-#define PILOT_GRID 256u           /* 65,536 stratified pilot paths (spec §3.1 proposes 512^2) */
+#define PILOT_GRID 256u           /* 65,536 stratified pilot paths (§3.1.1 leaves the count open) */
 #define PILOT_KEEP 0.5f
 #define PILOT_CAP 1000000u
 #define CANDIDATE_SEED_SALT 0xcac4e9017ull
@@ -157,7 +157,7 @@ static int push(Candidates *c, vec3 p) {
 
 /* 100,000 points in the instances' world boxes in proportion to (padded) volume; budget split
  * by largest remainder in instance order; positions from the counter-based RNG keyed by
- * (seed, instance, k), so they never depend on threads (spec §3.1). */
+ * (seed, instance, k), so they never depend on threads (§3.1.1). */
 static int bbox_candidates(const Scene *scene, uint64_t seed, Candidates *c) {
     uint32_t n = scene->io.num_instances;
     if (n == 0) return 0;
@@ -173,7 +173,7 @@ static int bbox_candidates(const Scene *scene, uint64_t seed, Candidates *c) {
         instance_bounds(scene, i, &lo[i], &hi[i]);
         if (!(lo[i].x <= hi[i].x)) continue;
         vec3 ext = v3_sub(hi[i], lo[i]);
-        /* flat objects get a minimum thickness so they receive points (spec §3.1) */
+        /* flat objects get a minimum thickness so they receive points */
         vol[i] = (double)maxf(ext.x, pad) * maxf(ext.y, pad) * maxf(ext.z, pad);
         total += vol[i];
     }
@@ -209,7 +209,7 @@ static int bbox_candidates(const Scene *scene, uint64_t seed, Candidates *c) {
 }
 
 /* Pilot paths (§3.1.1): a stratified grid of camera rays, their first hit and one cosine
- * bounce; each vertex kept with probability 1/2 (spec §3.1 proposal, fewer paths). */
+ * bounce; each vertex kept with probability 1/2 (fewer paths than §3.1.1 uses, half kept: the merge passes thin them anyway). */
 static int pilot_candidates(const Scene *scene, uint64_t seed, Candidates *c) {
     const Camera *cam = &scene->camera;
     uint32_t kept = 0;

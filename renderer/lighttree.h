@@ -21,7 +21,8 @@
  * light_sample_li() call that contributes nothing.
  *
  * The same structure serves as the inner tree of an emissive mesh (light_tree_build_triangles,
- * cache-points spec §5.5): its "lights" are the mesh's triangles (power = area x luminance,
+ * the cache points paper, §2 and §5.2.2: an emissive mesh is one light whose triangles a light
+ * hierarchy picks): its "lights" are the mesh's triangles (power = area x luminance,
  * x2 when two-sided; bounds = the triangle's box; normal cone = the triangle's normal, or the
  * whole sphere when two-sided; theta_e = pi/2), with no infinite entries, so
  * light_tree_select / light_tree_pmf pick a triangle index and give its probability. */

@@ -148,7 +148,7 @@ static void check_strategy_occl(const char *path, CandelaLightSampler strategy, 
             if (i >= ls->count || pmf != light_sampler_pmf(&sampler, &ctx, i)) ++mismatch;
             else hist[i]++;
         }
-        CHECK(mismatch == 0, "%d selections disagree with light_select_pmf", mismatch);
+        CHECK(mismatch == 0, "%d selections disagree with light_sampler_pmf", mismatch);
         double *obs = malloc(ls->count * sizeof *obs), *expv = malloc(ls->count * sizeof *expv);
         for (uint32_t i = 0; i < ls->count; ++i) {
             obs[i] = hist[i];
