@@ -160,6 +160,34 @@ int io_write_exr(const char *path, int width, int height, const IoExrChannel *ch
 int io_read_exr_channel(const char *path, const char *channel, int *width, int *height,
                         float **data, char err[IO_ERR_LEN]);
 
+/* ---------------------------------------------------------------- volumes (OpenVDB) */
+
+/* One float grid of a VDB file, converted to NanoVDB so that C reads it with PNanoVDB.h
+ * (`#define PNANOVDB_C`, `#include <nanovdb/PNanoVDB.h>`): buffer holds exactly one NanoVDB
+ * float grid. Index space has voxel centres at integer coordinates; index_to_world is the
+ * VDB's own (affine) transform. */
+typedef struct IoVolumeGrid {
+    char name[64];
+    void *buffer;                /* NanoVDB grid buffer, 32-byte aligned; owned */
+    uint64_t size;               /* bytes */
+    float index_to_world[16];    /* column-major 4x4 (glTF layout m[col*4 + row]) */
+    int32_t index_min[3], index_max[3]; /* bounding box of the active voxels, inclusive */
+    float value_min, value_max;  /* range of the finite active values */
+    uint64_t active_voxels;
+    uint64_t nonfinite_voxels;   /* active voxels that are NaN or infinite */
+} IoVolumeGrid;
+
+/* Reads the float grid `grid_name` of a .vdb file. Fails with a one-line "FILE: problem" for
+ * a missing, unreadable, corrupt or truncated file, a missing grid (the message lists the
+ * grids there are), a grid that is not a float grid, a non-affine transform, an empty grid
+ * or absurd bounds. */
+int io_load_vdb_grid(const char *path, const char *grid_name, IoVolumeGrid *grid, char err[IO_ERR_LEN]);
+/* A grid from dense values (tests and generators): values[x + nx * (y + ny * z)] for index
+ * (x, y, z) in [0, n), zero values inactive; index_to_world as above. */
+int io_volume_grid_from_dense(const float *values, int nx, int ny, int nz, const float index_to_world[16],
+                              const char *name, IoVolumeGrid *grid, char err[IO_ERR_LEN]);
+void io_volume_grid_free(IoVolumeGrid *grid);
+
 #ifdef __cplusplus
 }
 #endif

@@ -2,6 +2,9 @@
  * assets folder (argv[1]; skipped when absent), and malformed inputs made at test time in a
  * temporary directory: each must fail cleanly with a one-line "PATH: problem" message. */
 #include "check.h"
+
+#define PNANOVDB_C
+#include <nanovdb/PNanoVDB.h>
 #include "io.h"
 
 #include <math.h>
@@ -705,6 +708,101 @@ static void test_assets(const char *dir) {
     }
 }
 
+/* ---------------------------------------------------------------- VDB (io/vdb.cpp) */
+
+/* The value of index (x, y, z) read back from the NanoVDB buffer with PNanoVDB, as C code
+ * reads it. */
+static float nanovdb_value(const IoVolumeGrid *g, int x, int y, int z) {
+    pnanovdb_buf_t buf = pnanovdb_make_buf((uint32_t *)g->buffer, g->size / 4);
+    pnanovdb_grid_handle_t grid = {pnanovdb_address_null()};
+    pnanovdb_root_handle_t root = pnanovdb_tree_get_root(buf, pnanovdb_grid_get_tree(buf, grid));
+    pnanovdb_readaccessor_t acc;
+    pnanovdb_readaccessor_init(&acc, root);
+    pnanovdb_coord_t ijk = {x, y, z};
+    return pnanovdb_read_float(buf, pnanovdb_readaccessor_get_value_address(PNANOVDB_GRID_TYPE_FLOAT, buf, &acc, &ijk));
+}
+
+static void expect_vdb_failure(const char *path, const char *grid, const char *what, const char *needle) {
+    IoVolumeGrid g;
+    char err[IO_ERR_LEN] = "";
+    int rc = io_load_vdb_grid(path, grid, &g, err);
+    CHECK(rc != 0, "%s: loaded", what);
+    if (rc == 0) { io_volume_grid_free(&g); return; }
+    check_err(err, path, what);
+    CHECK(!needle || strstr(err, needle), "%s: error '%s' does not say '%s'", what, err, needle);
+    CHECK(g.buffer == NULL && g.size == 0, "%s: output not cleared", what);
+}
+
+static void test_vdb_generated(void) {
+    /* dense -> NanoVDB -> PNanoVDB lookups give the values back */
+    enum { NX = 7, NY = 5, NZ = 3 };
+    float v[NX * NY * NZ];
+    for (int i = 0; i < NX * NY * NZ; ++i) v[i] = (float)(i % 11) * 0.25f;
+    float m[16] = {0.5f, 0, 0, 0, 0, 0.5f, 0, 0, 0, 0, 0.5f, 0, 1.0f, 2.0f, 3.0f, 1.0f};
+    IoVolumeGrid g;
+    char err[IO_ERR_LEN] = "";
+    int rc = io_volume_grid_from_dense(v, NX, NY, NZ, m, "density", &g, err);
+    CHECK(rc == 0, "from dense: %s", err);
+    if (rc == 0) {
+        int bad = 0;
+        for (int z = 0; z < NZ; ++z)
+            for (int y = 0; y < NY; ++y)
+                for (int x = 0; x < NX; ++x) bad += nanovdb_value(&g, x, y, z) != v[x + NX * (y + NY * z)];
+        CHECK(bad == 0, "%d values differ after the NanoVDB round trip", bad);
+        CHECK(nanovdb_value(&g, -5, 40, 2) == 0.0f, "outside the grid: background 0");
+        CHECK(g.value_max == 2.5f && g.value_min == 0.25f, "value range %g..%g", g.value_min, g.value_max);
+        CHECK(g.index_to_world[12] == 1.0f && g.index_to_world[0] == 0.5f && g.index_to_world[14] == 3.0f,
+              "transform lost");
+        CHECK(strcmp(g.name, "density") == 0, "name '%s'", g.name);
+        io_volume_grid_free(&g);
+    }
+    float zero[8] = {0};
+    rc = io_volume_grid_from_dense(zero, 2, 2, 2, m, "empty", &g, err);
+    CHECK(rc != 0 && strstr(err, "empty"), "an all-zero grid: rc %d '%s'", rc, err);
+
+    /* bad files */
+    expect_vdb_failure(tmp_path("missing.vdb"), "density", "missing vdb", "no such file");
+    const char *text = tmp_path("text.vdb");
+    write_bytes(text, "this is not a vdb\n", 18);
+    expect_vdb_failure(text, "density", "text as vdb", "VDB");
+    expect_vdb_failure(tmpdir, "density", "directory as vdb", "regular file");
+}
+
+static void test_vdb_assets(const char *dir) {
+    char path[1024];
+    snprintf(path, sizeof path, "%s/vdb/cloud.vdb", dir);
+    if (!file_exists(path)) return;
+    IoVolumeGrid g;
+    char err[IO_ERR_LEN] = "";
+    int rc = io_load_vdb_grid(path, "density", &g, err);
+    CHECK(rc == 0, "cloud.vdb: %s", err);
+    if (rc == 0) {
+        /* 96^3 noisy sphere in a 1 m box: values 0.02..1, voxel size 1/96 */
+        CHECK(g.value_min >= 0.0f && g.value_max <= 1.0f && g.value_max > 0.5f, "cloud values %g..%g", g.value_min,
+              g.value_max);
+        CHECK(fabsf(g.index_to_world[0] - 1.0f / 96.0f) < 1e-6f, "voxel size %g", g.index_to_world[0]);
+        CHECK(g.index_max[0] - g.index_min[0] < 96 && g.active_voxels > 1000, "bounds / voxels");
+        CHECK(g.nonfinite_voxels == 0, "non-finite voxels %llu", (unsigned long long)g.nonfinite_voxels);
+        int cx = (g.index_min[0] + g.index_max[0]) / 2, cy = (g.index_min[1] + g.index_max[1]) / 2,
+            cz = (g.index_min[2] + g.index_max[2]) / 2;
+        CHECK(nanovdb_value(&g, cx, cy, cz) > 0.0f, "the cloud's centre is empty");
+        io_volume_grid_free(&g);
+    }
+    expect_vdb_failure(path, "temperature", "missing grid", "grids: density");
+    /* truncated copies fail cleanly (never a crash) */
+    size_t n;
+    unsigned char *bytes = read_bytes(path, &n);
+    if (bytes) {
+        const size_t cuts[3] = {40, n / 3, n - 100};
+        for (int i = 0; i < 3; ++i) {
+            const char *cut = tmp_path(i == 0 ? "cut0.vdb" : i == 1 ? "cut1.vdb" : "cut2.vdb");
+            write_bytes(cut, bytes, cuts[i]);
+            expect_vdb_failure(cut, "density", "truncated vdb", NULL);
+        }
+        free(bytes);
+    }
+}
+
 int main(int argc, char **argv) {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/candela-test-io-XXXXXX");
     if (!mkdtemp(tmpdir)) {
@@ -714,6 +812,7 @@ int main(int argc, char **argv) {
     test_exr();
     test_png();
     test_generated_gltf();
+    test_vdb_generated();
 
     char probe[1024];
     int have_assets = 0;
@@ -721,7 +820,10 @@ int main(int argc, char **argv) {
         snprintf(probe, sizeof probe, "%s/gltf/cornell_lights.gltf", argv[1]);
         have_assets = file_exists(probe);
     }
-    if (have_assets) test_assets(argv[1]);
+    if (have_assets) {
+        test_assets(argv[1]);
+        test_vdb_assets(argv[1]);
+    }
 
     for (int i = num_created - 1; i >= 0; --i) unlink(created[i]);
     rmdir(tmpdir);
