@@ -1,0 +1,160 @@
+/* volumes/volumes.h: participating media and the null-collision estimators over them.
+ *
+ * A Medium is a homogeneous medium (inside a closed mesh: constant coefficients, unbounded
+ * here; the caller clips rays to the mesh) or a VDB volume (a density grid, optionally an
+ * emission or a temperature grid, placed in the world by the glTF node and the grids' own
+ * index-to-world transform). Several media may overlap along a ray (a fire volume inside a
+ * mist volume inside a foggy room): a MediaView lists those of one ray segment and every
+ * estimator works on their sum.
+ *
+ * Null-collision theory (the cache points paper §4.1, Eq. 7): a piecewise-constant majorant
+ * sigma_maj >= sigma_t along the ray (the max over RGB, from a coarse majorant grid walked
+ * with a DDA; free flights restart at each cell boundary, which is exact for exponential
+ * distances) turns the heterogeneous medium into a homogeneous one plus null particles.
+ *   - media_sample_event: spectral tracking (Kutz et al. 2017) of one free flight: returns a
+ *     real scattering event (with the throughput factor to apply and the medium whose phase
+ *     function scatters), or the end of the segment (passed through), or absorption. At every
+ *     collision it also gathers the emission sigma_a L_e / sigma_maj times the current weight
+ *     (an unbiased collision estimator of the emission integral), and the majorant grid holds
+ *     max(sigma_t, min(sigma_a L_e, cap)) where media emit, so emissive regions of low
+ *     extinction are sampled densely (the paper's §4.3, Algorithm 1; the cap keeps about one
+ *     expected collision per voxel).
+ *   - media_transmittance: ratio tracking (Novák et al. 2014) for shadow rays, RGB.
+ * Every walk is bounded: at most VOLUME_MAX_COLLISIONS collisions per call (counted in the
+ * stats when hit, so a bad input can never hang a render).
+ *
+ * Random numbers come from the caller (VolumeRng), so the module holds no generator state
+ * and results never depend on threads. Units: metres, 1/m, radiance in W/(m^2 sr). */
+#ifndef CANDELA_VOLUMES_H
+#define CANDELA_VOLUMES_H
+
+#include <stdint.h>
+
+#include "io.h"
+
+#define VOLUME_MAX_OVERLAP 4          /* media one ray segment may be in at once */
+#define VOLUME_MAX_COLLISIONS 100000  /* per tracker call (a walk never hangs) */
+#define VOLUME_MAX_SIGMA_T 1e6f       /* extinction clamp (1/m): larger densities are clamped */
+
+typedef struct VolumeRng {
+    float (*next)(void *state);  /* uniform in [0, 1) */
+    void *state;
+} VolumeRng;
+
+typedef enum { MEDIUM_HOMOGENEOUS = 0, MEDIUM_GRID = 1 } MediumKind;
+
+/* A float grid placed in the world (a view of an IoVolumeGrid's NanoVDB buffer). */
+typedef struct VolumeGrid {
+    const void *buffer;          /* NanoVDB float grid (PNanoVDB reads it); NULL: no grid */
+    uint64_t size;
+    float world_to_index[16];    /* column-major; voxel centres at integer index coordinates */
+    int32_t index_min[3], index_max[3];
+} VolumeGrid;
+
+/* The majorant grid: per coarse cell (VOLUME_MAJORANT_CELL^3 voxels of the density grid) the
+ * max of sigma_t over RGB in the cell and its trilinear footprint, with the emission term
+ * folded in (see above). Cells are addressed in the density grid's index space. */
+#define VOLUME_MAJORANT_CELL 8
+typedef struct MajorantGrid {
+    int32_t origin[3];           /* index of cell (0,0,0)'s first voxel */
+    int32_t dims[3];             /* cells per axis */
+    float *sigma_maj;            /* dims[0] * dims[1] * dims[2], x fastest */
+} MajorantGrid;
+
+typedef struct Medium {
+    MediumKind kind;
+    float g;                     /* Henyey-Greenstein anisotropy, (-1, 1) */
+    /* homogeneous */
+    float sigma_a[3], sigma_s[3];
+    /* grid: sigma_t = density_scale x density, sigma_s = albedo x sigma_t, sigma_a = the rest;
+     * emitted radiance = emission_scale x emission x emission_color, or the blackbody of the
+     * temperature grid (kelvin) times emission_scale when only a temperature grid is given */
+    float density_scale, albedo[3];
+    float emission_scale, emission_color[3];
+    VolumeGrid density, emission, temperature;
+    float world_min[3], world_max[3];  /* world bounds of the active density (homogeneous: infinite) */
+    float world_to_index[16];          /* of the density grid (for the majorant DDA) */
+    MajorantGrid majorant;
+    int emissive;
+} Medium;
+
+/* A homogeneous medium. 0 ok; -1 with a one-line message (negative or non-finite
+ * coefficients, |g| >= 1). */
+int medium_init_homogeneous(Medium *m, const float sigma_a[3], const float sigma_s[3], float g, char err[IO_ERR_LEN]);
+/* What a VDB volume is made of (the glTF node's candela_volume extras, loaded by io/). */
+typedef struct VolumeDesc {
+    const IoVolumeGrid *density;                 /* required */
+    const IoVolumeGrid *emission, *temperature;  /* optional (NULL) */
+    float node_to_world[16];                     /* column-major; world = node x grid index_to_world */
+    float density_scale, albedo[3], anisotropy;
+    float emission_scale, emission_color[3];
+} VolumeDesc;
+
+/* A VDB volume (the grids keep owning their buffers and must outlive the medium). Negative
+ * and non-finite densities count as 0 and extinctions above VOLUME_MAX_SIGMA_T are clamped
+ * (documented clamping, never an error); builds the majorant grid. 0 ok; -1 with a one-line
+ * message (out of memory, a singular transform, invalid parameters). */
+int medium_init_vdb(Medium *m, const VolumeDesc *desc, char err[IO_ERR_LEN]);
+void medium_free(Medium *m);
+
+/* Coefficients at a point: absorption, scattering (1/m) and emitted radiance L_e (the
+ * source term of Eq. 7 is sigma_a L_e). */
+typedef struct MediumCoefficients {
+    float sigma_a[3], sigma_s[3];
+    float emission[3];
+} MediumCoefficients;
+
+void medium_eval(const Medium *m, const float p[3], MediumCoefficients *c);
+
+/* The media of one ray segment. */
+typedef struct MediaView {
+    const Medium *media[VOLUME_MAX_OVERLAP];
+    int count;
+} MediaView;
+
+/* The interval [*t0, *t1] of o + t d (d need not be unit) inside the medium's bounds, clipped
+ * to [tmin, tmax]; 0 when empty. Homogeneous media return [tmin, tmax]. */
+int medium_clip_ray(const Medium *m, const float o[3], const float d[3], float tmin, float tmax, float *t0, float *t1);
+
+/* Statistics a tracker adds to (the renderer reports them). */
+typedef struct VolumeStats {
+    uint64_t collisions;         /* majorant collisions evaluated */
+    uint64_t capped_walks;       /* calls stopped at VOLUME_MAX_COLLISIONS */
+} VolumeStats;
+
+enum { VOLUME_EVENT_PASSED = 0, VOLUME_EVENT_SCATTER = 1, VOLUME_EVENT_ABSORBED = 2 };
+
+typedef struct VolumeEvent {
+    int type;
+    float t;             /* scatter: the distance along the ray */
+    int medium;          /* scatter: index in the view of the medium whose phase function applies */
+    float weight[3];     /* throughput factor to apply (scatter: up to and including the
+                          * scattering coefficient's; passed: over the whole segment) */
+    float emitted[3];    /* emission gathered on the way, already weighted (add beta x this) */
+} VolumeEvent;
+
+/* One free flight along o + t d (d unit) over [tmin, tmax] through the view's media
+ * (spectral tracking, Kutz et al. 2017, with the throughput-weighted probabilities that make
+ * chromatic media unbiased; `beta` is the path throughput the probabilities weigh with). */
+void media_sample_event(const MediaView *v, const float o[3], const float d[3], float tmin, float tmax,
+                        const float beta[3], VolumeRng *rng, VolumeEvent *ev, VolumeStats *stats);
+
+/* Transmittance (RGB) of o + t d (d unit) over [tmin, tmax] by ratio tracking; the estimate
+ * is unbiased. */
+void media_transmittance(const MediaView *v, const float o[3], const float d[3], float tmin, float tmax,
+                         VolumeRng *rng, float T[3], VolumeStats *stats);
+
+/* ---------------------------------------------------------------- phase function */
+
+/* Henyey-Greenstein phase function; wo and wi both point away from the scattering point,
+ * so forward scattering (g > 0) favours wi = -wo. Its pdf is the function itself. */
+float hg_phase(float g, const float wo[3], const float wi[3]);
+/* Samples wi (unit) with pdf = hg_phase(g, wo, wi); returns the pdf. */
+float hg_sample(float g, const float wo[3], float u1, float u2, float wi[3]);
+
+/* Blackbody radiance of a temperature (kelvin) as linear Rec.709 RGB, normalised so that the
+ * luminance is 1 at every temperature (emission_scale sets the brightness); 0 below 500 K.
+ * Documented in README.md. */
+void blackbody_rgb(float kelvin, float rgb[3]);
+
+#endif
