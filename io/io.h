@@ -187,6 +187,11 @@ int io_load_vdb_grid(const char *path, const char *grid_name, IoVolumeGrid *grid
 int io_volume_grid_from_dense(const float *values, int nx, int ny, int nz, const float index_to_world[16],
                               const char *name, IoVolumeGrid *grid, char err[IO_ERR_LEN]);
 void io_volume_grid_free(IoVolumeGrid *grid);
+/* Writes a .vdb file of num_grids float grids (names[g], dense values[g] laid out as above,
+ * zero values inactive, one shared index_to_world), through a temporary name and a rename
+ * (tests and generators). */
+int io_write_vdb_dense(const char *path, const char *const *names, const float *const *values, int num_grids,
+                       int nx, int ny, int nz, const float index_to_world[16], char err[IO_ERR_LEN]);
 
 #ifdef __cplusplus
 }

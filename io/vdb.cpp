@@ -10,11 +10,13 @@
 #include <nanovdb/util/OpenToNanoVDB.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <mutex>
 #include <string>
 #include <sys/stat.h>
+#include <unistd.h>
 
 namespace {
 
@@ -146,28 +148,70 @@ extern "C" int io_load_vdb_grid(const char *path, const char *grid_name, IoVolum
     return 1;
 }
 
+namespace {
+
+openvdb::FloatGrid::Ptr dense_grid(const float *values, int nx, int ny, int nz, const float index_to_world[16],
+                                   const char *name) {
+    openvdb::FloatGrid::Ptr grid = openvdb::FloatGrid::create(0.0f);
+    grid->setName(name);
+    grid->setGridClass(openvdb::GRID_FOG_VOLUME);
+    openvdb::math::Mat4d m;
+    for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) m[i][j] = index_to_world[i * 4 + j];
+    grid->setTransform(openvdb::math::Transform::createLinearTransform(m));
+    auto acc = grid->getAccessor();
+    for (int z = 0; z < nz; ++z)
+        for (int y = 0; y < ny; ++y)
+            for (int x = 0; x < nx; ++x) {
+                float v = values[(size_t)x + (size_t)nx * ((size_t)y + (size_t)ny * (size_t)z)];
+                if (v != 0.0f) acc.setValue(openvdb::Coord(x, y, z), v);
+            }
+    return grid;
+}
+
+bool dense_size_ok(int nx, int ny, int nz) {
+    return nx > 0 && ny > 0 && nz > 0 && nx <= kMaxGridExtent && ny <= kMaxGridExtent && nz <= kMaxGridExtent;
+}
+
+}  // namespace
+
+extern "C" int io_write_vdb_dense(const char *path, const char *const *names, const float *const *values, int num_grids,
+                                  int nx, int ny, int nz, const float index_to_world[16], char err[IO_ERR_LEN]) {
+    if (!dense_size_ok(nx, ny, nz) || num_grids < 1) {
+        candela_io::set_err(err, path, "invalid dense grid size");
+        return 1;
+    }
+    std::string tmp = std::string(path) + ".tmp-" + std::to_string((long)getpid());
+    try {
+        openvdb_init_once();
+        openvdb::GridPtrVec grids;
+        for (int g = 0; g < num_grids; ++g) grids.push_back(dense_grid(values[g], nx, ny, nz, index_to_world, names[g]));
+        openvdb::io::File file(tmp);
+        file.write(grids);
+        file.close();
+        if (std::rename(tmp.c_str(), path) != 0) {
+            std::remove(tmp.c_str());
+            candela_io::set_err(err, path, "cannot rename the written file into place");
+            return 1;
+        }
+        return 0;
+    } catch (const std::exception &e) {
+        std::remove(tmp.c_str());
+        candela_io::set_err(err, path, std::string("cannot write: ") + e.what());
+    }
+    return 1;
+}
+
 extern "C" int io_volume_grid_from_dense(const float *values, int nx, int ny, int nz, const float index_to_world[16],
                                          const char *name, IoVolumeGrid *out, char err[IO_ERR_LEN]) {
     std::memset(out, 0, sizeof *out);
-    if (nx <= 0 || ny <= 0 || nz <= 0 || nx > kMaxGridExtent || ny > kMaxGridExtent || nz > kMaxGridExtent) {
+    if (!dense_size_ok(nx, ny, nz)) {
         candela_io::set_err(err, name, "invalid dense grid size");
         return 1;
     }
     try {
         openvdb_init_once();
-        openvdb::FloatGrid::Ptr grid = openvdb::FloatGrid::create(0.0f);
-        grid->setName(name);
-        openvdb::math::Mat4d m;
-        for (int i = 0; i < 4; ++i)
-            for (int j = 0; j < 4; ++j) m[i][j] = index_to_world[i * 4 + j];
-        grid->setTransform(openvdb::math::Transform::createLinearTransform(m));
-        auto acc = grid->getAccessor();
-        for (int z = 0; z < nz; ++z)
-            for (int y = 0; y < ny; ++y)
-                for (int x = 0; x < nx; ++x) {
-                    float v = values[(size_t)x + (size_t)nx * ((size_t)y + (size_t)ny * (size_t)z)];
-                    if (v != 0.0f) acc.setValue(openvdb::Coord(x, y, z), v);
-                }
+        openvdb::FloatGrid::Ptr grid = dense_grid(values, nx, ny, nz, index_to_world, name);
         std::string problem;
         if (!describe(*grid, out, &problem) || !to_nanovdb(*grid, out, &problem)) {
             candela_io::set_err(err, name, problem);

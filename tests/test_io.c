@@ -756,6 +756,29 @@ static void test_vdb_generated(void) {
         CHECK(strcmp(g.name, "density") == 0, "name '%s'", g.name);
         io_volume_grid_free(&g);
     }
+    /* write a two-grid .vdb and read both grids back */
+    {
+        float w[NX * NY * NZ];
+        for (int i = 0; i < NX * NY * NZ; ++i) w[i] = 1.0f + (float)(i % 5);
+        const char *names[2] = {"density", "emission"};
+        const float *vals[2] = {v, w};
+        const char *vdb = tmp_path("written.vdb");
+        rc = io_write_vdb_dense(vdb, names, vals, 2, NX, NY, NZ, m, err);
+        CHECK(rc == 0, "write vdb: %s", err);
+        for (int gi = 0; gi < 2 && rc == 0; ++gi) {
+            IoVolumeGrid r;
+            int lr = io_load_vdb_grid(vdb, names[gi], &r, err);
+            CHECK(lr == 0, "read back %s: %s", names[gi], err);
+            if (lr != 0) continue;
+            int bad = 0;
+            for (int z = 0; z < NZ; ++z)
+                for (int y = 0; y < NY; ++y)
+                    for (int x = 0; x < NX; ++x) bad += nanovdb_value(&r, x, y, z) != vals[gi][x + NX * (y + NY * z)];
+            CHECK(bad == 0, "%s: %d values differ after a write and read", names[gi], bad);
+            CHECK(r.index_to_world[13] == 2.0f, "transform lost in the file");
+            io_volume_grid_free(&r);
+        }
+    }
     float zero[8] = {0};
     rc = io_volume_grid_from_dense(zero, 2, 2, 2, m, "empty", &g, err);
     CHECK(rc != 0 && strstr(err, "empty"), "an all-zero grid: rc %d '%s'", rc, err);
