@@ -287,13 +287,16 @@ void medium_majorant_begin(const Medium *m, const float o[3], const float d[3], 
         int32_t ci = c < 0.0f ? 0 : c >= (float)mg->dims[k] ? mg->dims[k] - 1 : (int32_t)c;
         it->cell[k] = ci;
         it->index += ci * stride[k];
+        it->index_step[k] = 0;
         float dk = it->d_index[k];
         if (dk > 0.0f) {
             it->step[k] = 1;
+            it->index_step[k] = stride[k];
             it->t_next[k] = t0 + ((float)(mg->origin[k] + 8 * (ci + 1)) - it->o_index[k]) / dk;
             it->t_delta[k] = 8.0f / dk;
         } else if (dk < 0.0f) {
             it->step[k] = -1;
+            it->index_step[k] = -stride[k];
             it->t_next[k] = t0 + ((float)(mg->origin[k] + 8 * ci) - it->o_index[k]) / dk;
             it->t_delta[k] = -8.0f / dk;
         } else {
@@ -309,38 +312,47 @@ static inline float piece_majorant(const MajorantIterator *it) {
     return it->phase == PH_GRID ? it->cells[it->index] : it->phase == PH_HOMOG ? it->sigma : 0.0f;
 }
 
-/* Ends the current piece: moves it->t to its end and the iterator to the next piece. Every
- * call in PH_GRID either steps to a neighbouring cell along one axis (monotonically) or
- * leaves the grid, so a walk takes at most dims[0] + dims[1] + dims[2] steps. */
-static inline void piece_advance(MajorantIterator *it) {
-    switch (it->phase) {
-    case PH_LEAD:
-        it->t = it->t_grid0;
-        it->phase = PH_GRID;
-        return;
-    case PH_GRID: {
-        int a = it->t_next[0] < it->t_next[1] ? (it->t_next[0] < it->t_next[2] ? 0 : 2)
-                                              : (it->t_next[1] < it->t_next[2] ? 1 : 2);
-        float e = it->t_next[a];
-        if (!(e < it->t_grid1)) {
-            it->t = it->t_grid1;
-            it->phase = it->t < it->t_end ? PH_TAIL : PH_DONE;
-            return;
+/* The axis of the smallest t_next without branches (Amanatides & Woo's comparison table):
+ * which plane comes next is what a branch predictor cannot guess. */
+static inline int next_axis(const float tn[3]) {
+    static const uint8_t axis[8] = {2, 1, 2, 1, 2, 2, 0, 0};
+    return axis[((tn[0] < tn[1]) << 2) | ((tn[0] < tn[2]) << 1) | (tn[1] < tn[2])];
+}
+
+/* In PH_GRID: steps through the cells while their majorant equals the current one, then
+ * leaves it->t at the end of the run. Every step moves to a neighbouring cell along one axis
+ * (monotonically per axis) or leaves the grid, so a walk takes at most dims[0] + dims[1] +
+ * dims[2] steps. */
+static inline void grid_run(MajorantIterator *it, float maj) {
+    /* the state in locals: cells (float *) may alias the iterator's floats as far as the
+     * compiler knows, which would keep every field in memory across the loop */
+    const float *cells = it->cells;
+    float tn[3] = {it->t_next[0], it->t_next[1], it->t_next[2]};
+    int32_t cell[3] = {it->cell[0], it->cell[1], it->cell[2]}, index = it->index;
+    float t = it->t, t_grid1 = it->t_grid1;
+    for (;;) {
+        int a = next_axis(tn);
+        float e = tn[a];
+        if (!(e < t_grid1)) {
+            t = t_grid1;
+            it->phase = t < it->t_end ? PH_TAIL : PH_DONE;
+            break;
         }
-        it->t = vmaxf(e, it->t);
-        it->cell[a] += it->step[a];
-        if ((uint32_t)it->cell[a] >= (uint32_t)it->dims[a]) { /* left the box early (rounding) */
-            it->phase = it->t < it->t_end ? PH_TAIL : PH_DONE;
-            return;
+        t = vmaxf(e, t);
+        cell[a] += it->step[a];
+        if ((uint32_t)cell[a] >= (uint32_t)it->dims[a]) { /* left the box early (rounding) */
+            it->phase = t < it->t_end ? PH_TAIL : PH_DONE;
+            break;
         }
-        it->index += it->step[a] * (a == 0 ? 1 : a == 1 ? it->dims[0] : it->dims[0] * it->dims[1]);
-        it->t_next[a] += it->t_delta[a];
-        return;
+        index += it->index_step[a];
+        tn[a] += it->t_delta[a];
+        if (cells[index] != maj) break;
     }
-    default: /* PH_TAIL, PH_HOMOG */
-        it->t = it->t_end;
-        it->phase = PH_DONE;
-        return;
+    it->t = t;
+    it->index = index;
+    for (int k = 0; k < 3; ++k) {
+        it->t_next[k] = tn[k];
+        it->cell[k] = cell[k];
     }
 }
 
@@ -348,8 +360,22 @@ int medium_majorant_next(MajorantIterator *it, float *t0, float *t1, float *sigm
     while (it->phase != PH_DONE) {
         float a = it->t, maj = piece_majorant(it);
         /* neighbouring pieces of equal majorant are one segment (empty space, uniform media) */
-        do piece_advance(it);
-        while (it->phase != PH_DONE && piece_majorant(it) == maj);
+        for (;;) {
+            switch (it->phase) {
+            case PH_LEAD:
+                it->t = it->t_grid0;
+                it->phase = PH_GRID;
+                break;
+            case PH_GRID:
+                grid_run(it, maj);
+                break;
+            default: /* PH_TAIL, PH_HOMOG */
+                it->t = it->t_end;
+                it->phase = PH_DONE;
+                break;
+            }
+            if (it->phase == PH_DONE || piece_majorant(it) != maj) break;
+        }
         if (it->t > a) {
             *t0 = a;
             *t1 = it->t;

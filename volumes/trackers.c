@@ -4,8 +4,8 @@
  * piecewise-constant segments; on a sub-interval where several media are present the
  * combined majorant is the sum of theirs (the sum of majorants bounds the sum of
  * extinctions). Free flights are sampled with the combined majorant and restart at every
- * boundary of any medium's segment, which is exact because exponential distances are
- * memoryless (the cache points paper §4.1, Eq. 7: sigma_maj = sigma_a + sigma_s + sigma_n).
+ * boundary of any medium's segment (carrying the residual optical depth over, see
+ * sample_depth), which is exact because exponential distances are memoryless (the cache points paper §4.1, Eq. 7: sigma_maj = sigma_a + sigma_s + sigma_n).
  * Nothing here allocates: a walk's state (iterators, NanoVDB accessors) lives on the stack. */
 #include <string.h>
 
@@ -112,10 +112,26 @@ static void walk_eval(Walk *w, float t, float sa[3], float ss[3], float lane_ss[
     }
 }
 
-/* An exponential free flight: -ln(1 - u) / maj, with 1 - u in (0, 1] (a u of 1 from a bad
- * generator gives an infinite step, which ends the interval). */
-static inline float free_flight(VolumeRng *rng, float maj) {
-    return -logf(1.0f - rng->next(rng->state)) / maj;
+/* Free flights. The optical depth to the next collision of the majorant process is
+ * Exp(1): -ln(1 - u), with 1 - u in (0, 1] (a u of 1 from a bad generator gives an infinite
+ * depth, which passes everything). Within a sub-interval of constant majorant the flight is
+ * depth / maj; at the sub-interval's end the depth left over carries into the next one
+ * (minus maj x length). By memorylessness this is the same process as restarting the
+ * exponential at every boundary, without a random number and a log per boundary (a ray
+ * through a cloud crosses ~10 majorant cells for a few collisions). */
+static inline float sample_depth(VolumeRng *rng) { return -logf(1.0f - rng->next(rng->state)); }
+
+/* Advances the walk to the next collision inside [walk.t, end) of majorant maj: 1 with
+ * walk->t at the collision, or 0 with walk->t = end and *depth reduced by what was crossed. */
+static inline int next_collision(Walk *w, float end, float maj, float *depth) {
+    float tn = w->t + *depth / maj;
+    if (tn < end) {
+        w->t = tn;
+        return 1;
+    }
+    *depth = vmaxf(*depth - maj * (end - w->t), 0.0f);
+    w->t = end;
+    return 0;
 }
 
 /* ---------------------------------------------------------------- spectral tracking */
@@ -131,19 +147,14 @@ void media_sample_event(const MediaView *v, const float o[3], const float d[3], 
     uint64_t collisions = 0;
     Walk walk;
     walk_begin(&walk, v, o, d, tmin, tmax);
-    float end, maj;
+    float end, maj, depth = sample_depth(rng);
     while (walk_interval(&walk, &end, &maj)) {
         if (!(maj > 0.0f)) {
             walk.t = end;
             continue;
         }
-        for (;;) {
-            float tn = walk.t + free_flight(rng, maj);
-            if (!(tn < end)) { /* restart at the boundary (memoryless) */
-                walk.t = end;
-                break;
-            }
-            walk.t = tn;
+        while (next_collision(&walk, end, maj, &depth)) {
+            float tn = walk.t;
             if (collisions == VOLUME_MAX_COLLISIONS) {
                 /* the bias of last resort: a walk that would not end is cut (counted) */
                 if (stats) ++stats->capped_walks;
@@ -231,6 +242,7 @@ void media_sample_event(const MediaView *v, const float o[3], const float d[3], 
             /* null collision: w *= sigma_n / (maj P_n) */
             float f = sum / (pn * maj);
             for (int k = 0; k < 3; ++k) w[k] *= sn[k] * f;
+            depth = sample_depth(rng);
         }
     }
 done:
@@ -255,20 +267,15 @@ void media_transmittance(const MediaView *v, const float o[3], const float d[3],
     uint64_t collisions = 0;
     Walk walk;
     walk_begin(&walk, v, o, d, tmin, tmax);
-    float end, maj;
+    float end, maj, depth = sample_depth(rng);
     while (walk_interval(&walk, &end, &maj)) {
         if (!(maj > 0.0f)) {
             walk.t = end;
             continue;
         }
         float inv_maj = 1.0f / maj;
-        for (;;) {
-            float tn = walk.t + free_flight(rng, maj);
-            if (!(tn < end)) {
-                walk.t = end;
-                break;
-            }
-            walk.t = tn;
+        while (next_collision(&walk, end, maj, &depth)) {
+            float tn = walk.t;
             if (collisions == VOLUME_MAX_COLLISIONS) {
                 if (stats) ++stats->capped_walks;
                 T[0] = T[1] = T[2] = 0.0f;
@@ -287,6 +294,7 @@ void media_transmittance(const MediaView *v, const float o[3], const float d[3],
                 float inv = 1.0f / mx;
                 for (int k = 0; k < 3; ++k) T[k] *= inv;
             }
+            depth = sample_depth(rng);
         }
     }
 done:

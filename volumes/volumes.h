@@ -129,6 +129,7 @@ typedef struct MajorantIterator {
     const float *cells;              /* MajorantGrid.sigma_maj (grid media) */
     int32_t dims[3], cell[3], step[3];
     int32_t index;                   /* linear index of the current cell */
+    int32_t index_step[3];           /* what a step along each axis adds to index */
     int32_t phase;                   /* what the next piece is (majorant.c) */
     float t, t_end;                  /* the next segment starts at t; the clipped interval ends at t_end */
     float t_grid0, t_grid1;          /* the part of [t, t_end] inside the majorant grid's box */
@@ -153,16 +154,20 @@ enum { VOLUME_EVENT_PASSED = 0, VOLUME_EVENT_SCATTER = 1, VOLUME_EVENT_ABSORBED 
 
 typedef struct VolumeEvent {
     int type;
-    float t;             /* scatter: the distance along the ray */
-    int medium;          /* scatter: index in the view of the medium whose phase function applies */
+    float t;             /* scatter: the distance along the ray (passed: tmax) */
+    int medium;          /* scatter: index in the view of the medium whose phase function applies
+                          * (otherwise -1) */
     float weight[3];     /* throughput factor to apply (scatter: up to and including the
-                          * scattering coefficient's; passed: over the whole segment) */
-    float emitted[3];    /* emission gathered on the way, already weighted (add beta x this) */
+                          * scattering coefficient's; passed: over the whole segment;
+                          * absorbed: 0) */
+    float emitted[3];    /* emission gathered on the way, already weighted (add beta x this);
+                          * valid for every outcome, absorption included */
 } VolumeEvent;
 
 /* One free flight along o + t d (d unit) over [tmin, tmax] through the view's media
  * (spectral tracking, Kutz et al. 2017, with the throughput-weighted probabilities that make
- * chromatic media unbiased; `beta` is the path throughput the probabilities weigh with). */
+ * chromatic media unbiased; `beta` is the path throughput the probabilities weigh with, NULL
+ * for (1, 1, 1)). stats may be NULL (also for media_transmittance). */
 void media_sample_event(const MediaView *v, const float o[3], const float d[3], float tmin, float tmax,
                         const float beta[3], VolumeRng *rng, VolumeEvent *ev, VolumeStats *stats);
 
