@@ -9,6 +9,8 @@
  *   - the majorant: over random grids, transforms and rays, no point of a segment exceeds
  *     its majorant and the segments tile the clipped interval exactly;
  *   - emission gathered by spectral tracking against L_e sigma_a / sigma_t (1 - exp(-sigma_t d));
+ *   - two overlapping media (merged majorants): transmittance, and the scattering events
+ *     split between the media with unbiased weights per channel;
  *   - Henyey-Greenstein (integral, chi-square, sample pdf = phase), the blackbody colour, and
  *     bad input (one-line errors, NaN / negative / huge densities never hang).
  * Monte Carlo checks allow 5 standard errors of the sample mean (estimated from the sample
@@ -540,7 +542,7 @@ static void test_majorant(void) {
                     if (!(t1 > t0) || !(maj >= 0.0f) || !isfinite(maj)) ++tiling_errors;
                     prev = t1;
                     ++n;
-                    for (int j = 0; j < 6; ++j) {
+                    for (int j = 0; j < 16; ++j) {
                         float t = j == 0 ? t0 : j == 1 ? t1 : t0 + (float)urand(&r) * (t1 - t0);
                         float p[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
                         float sig = sigma_t_at(&m, p);
@@ -727,6 +729,98 @@ static void test_emission(void) {
     io_volume_grid_free(&gt);
     free(vals);
     free(temp);
+}
+
+/* ---------------------------------------------------------------- overlapping media */
+
+/* A chromatic homogeneous medium and a constant grid in one view: the merged majorant walk
+ * gives the product of the transmittances, and the scattering events split between the
+ * media with the right weights: E[w_c 1(scatter in medium i)] = integral of
+ * T_c(t) sigma_s,i,c(t) dt, per medium and channel. */
+static double overlap_grid_field(double x) { /* the grid's trilinear field along the test ray */
+    double u = 32.0 * x;
+    return u <= -1.0 ? 0.0 : u < 0.0 ? u + 1.0 : u <= 31.0 ? 1.0 : u < 32.0 ? 32.0 - u : 0.0;
+}
+
+static void test_overlap(void) {
+    enum { N = 32 };
+    float *vals = malloc(sizeof(float) * N * N * N);
+    for (int i = 0; i < N * N * N; ++i) vals[i] = 1.0f;
+    float i2w[16];
+    scale_translate(i2w, 1.0f / N, 0.0f, 0.0f, 0.0f);
+    IoVolumeGrid g;
+    char err[IO_ERR_LEN] = "";
+    if (make_grid(vals, N, N, N, i2w, "density", &g)) {
+        free(vals);
+        return;
+    }
+    const float sa[3] = {0.1f, 0.3f, 0.6f}, ss[3] = {0.4f, 0.3f, 0.2f};
+    const float gscale = 3.0f, galb = 0.6f;
+    Medium h, gm;
+    CHECK(medium_init_homogeneous(&h, sa, ss, 0.3f, err) == 0, "%s", err);
+    VolumeDesc desc = grid_desc(&g, gscale, galb);
+    CHECK(medium_init_vdb(&gm, &desc, err) == 0, "%s", err);
+    MediaView v = {{&gm, &h}, 2};
+    const float o[3] = {-0.5f, 0.5f, 0.5f}, d[3] = {1.0f, 0.0f, 0.0f};
+    const double tmax = 2.0;
+    /* references by quadrature along the ray */
+    enum { Q = 200000 };
+    double T_end[3], scat[2][3] = {{0}};
+    {
+        double tau_g = 0.0, dt = tmax / Q;
+        for (int i = 0; i < Q; ++i) {
+            double t = (i + 0.5) * dt, sg = gscale * overlap_grid_field(o[0] + t);
+            double tg_mid = tau_g + 0.5 * sg * dt; /* grid optical depth at the midpoint */
+            for (int k = 0; k < 3; ++k) {
+                double T = exp(-(sa[k] + ss[k]) * t - tg_mid);
+                scat[0][k] += T * galb * sg * dt;
+                scat[1][k] += T * ss[k] * dt;
+            }
+            tau_g += sg * dt;
+        }
+        for (int k = 0; k < 3; ++k) T_end[k] = exp(-(sa[k] + ss[k]) * tmax - tau_g);
+    }
+    Acc rt[3];
+    VolumeStats st = {0};
+    ratio_estimate(&v, o, d, 0.0f, (float)tmax, 40000, 71, rt, &st);
+    Acc pass[3], sc[2][3];
+    memset(pass, 0, sizeof pass);
+    memset(sc, 0, sizeof sc);
+    TestRng r;
+    VolumeRng rng = make_rng(&r, 72);
+    const float beta[3] = {0.5f, 1.0f, 1.5f};
+    int bad_medium = 0;
+    for (int i = 0; i < 200000; ++i) {
+        VolumeEvent ev;
+        media_sample_event(&v, o, d, 0.0f, (float)tmax, beta, &rng, &ev, &st);
+        bad_medium += ev.type == VOLUME_EVENT_SCATTER && (ev.medium < 0 || ev.medium > 1);
+        for (int k = 0; k < 3; ++k) {
+            acc_add(&pass[k], ev.type == VOLUME_EVENT_PASSED ? ev.weight[k] : 0.0);
+            for (int mi = 0; mi < 2; ++mi)
+                acc_add(&sc[mi][k], ev.type == VOLUME_EVENT_SCATTER && ev.medium == mi ? ev.weight[k] : 0.0);
+        }
+    }
+    CHECK(bad_medium == 0, "%d scatter events name no medium of the view", bad_medium);
+    for (int k = 0; k < 3; ++k) {
+        CHECK(acc_ok(&rt[k], T_end[k]), "overlap ratio tracking ch %d: %g +- %g vs %g", k, acc_mean(&rt[k]),
+              acc_se(&rt[k]), T_end[k]);
+        CHECK(acc_ok(&pass[k], T_end[k]), "overlap pass weight ch %d: %g +- %g vs %g", k, acc_mean(&pass[k]),
+              acc_se(&pass[k]), T_end[k]);
+        for (int mi = 0; mi < 2; ++mi)
+            CHECK(acc_ok(&sc[mi][k], scat[mi][k]), "overlap scatter in medium %d ch %d: %g +- %g vs %g", mi, k,
+                  acc_mean(&sc[mi][k]), acc_se(&sc[mi][k]), scat[mi][k]);
+    }
+    printf("overlap: T ratio (%.4f %.4f %.4f) delta (%.4f %.4f %.4f) exact (%.4f %.4f %.4f)\n", acc_mean(&rt[0]),
+           acc_mean(&rt[1]), acc_mean(&rt[2]), acc_mean(&pass[0]), acc_mean(&pass[1]), acc_mean(&pass[2]), T_end[0],
+           T_end[1], T_end[2]);
+    for (int mi = 0; mi < 2; ++mi)
+        printf("  scatter in %s: (%.4f %.4f %.4f) exact (%.4f %.4f %.4f)\n", mi ? "homogeneous" : "grid",
+               acc_mean(&sc[mi][0]), acc_mean(&sc[mi][1]), acc_mean(&sc[mi][2]), scat[mi][0], scat[mi][1], scat[mi][2]);
+    CHECK(st.capped_walks == 0, "capped walks");
+    medium_free(&h);
+    medium_free(&gm);
+    io_volume_grid_free(&g);
+    free(vals);
 }
 
 /* ---------------------------------------------------------------- Henyey-Greenstein */
@@ -1010,6 +1104,7 @@ int main(int argc, char **argv) {
     test_heterogeneous();
     test_majorant();
     test_emission();
+    test_overlap();
     if (argc > 1) test_slab_asset(argv[1]);
     printf("volumes: %.1f s\n", test_seconds() - t0);
     return test_exit();
