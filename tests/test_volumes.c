@@ -627,6 +627,20 @@ static void test_majorant(void) {
             while (medium_majorant_next(&it, &t0, &t1, &maj) && n < 1000) ++n;
             CHECK((n > 0) == cases[i].expect, "%s: %d segments", cases[i].what, n);
         }
+        /* a far origin (t ~ 2e4): the same transmittance as from near by (tau = 1:
+         * 4 voxels of density 1 across, 0.25 m each, ramps included) */
+        {
+            MediaView view = {{&m}, 1};
+            const float near_o[3] = {-1.0f, 0.5f, 0.5f}, far_o[3] = {-2e4f, 0.5f, 0.5f};
+            Acc an[3], af[3];
+            VolumeStats st2 = {0};
+            ratio_estimate(&view, near_o, good_d, 0.0f, INFINITY, 20000, 61, an, &st2);
+            ratio_estimate(&view, far_o, good_d, 0.0f, INFINITY, 20000, 62, af, &st2);
+            CHECK(acc_ok(&an[0], exp(-1.0)) && acc_ok(&af[0], exp(-1.0)), "far origin: T %g +- %g, near %g +- %g, exact %g",
+                  acc_mean(&af[0]), acc_se(&af[0]), acc_mean(&an[0]), acc_se(&an[0]), exp(-1.0));
+            printf("far origin (t ~ 2e4): T %.4f +- %.4f, near %.4f +- %.4f, exact %.4f\n", acc_mean(&af[0]),
+                   acc_se(&af[0]), acc_mean(&an[0]), acc_se(&an[0]), exp(-1.0));
+        }
         /* the trackers on NaN rays return at once */
         MediaView view = {{&m}, 1};
         TestRng rr;
@@ -666,16 +680,26 @@ static void test_emission(void) {
     const float sigma = 2.0f;
     float bb[3];
     blackbody_rgb(3000.0f, bb);
-    for (int variant = 0; variant < 3; ++variant) {
+    /* an emission grid of its own resolution and placement: 16^3 voxels of 1/16 m over
+     * the same box, constant 1 */
+    enum { NE = 16 };
+    float *evals = malloc(sizeof(float) * NE * NE * NE), ei2w[16];
+    for (int i = 0; i < NE * NE * NE; ++i) evals[i] = 1.0f;
+    scale_translate(ei2w, 1.0f / NE, 0.0f, 0.0f, 0.0f);
+    IoVolumeGrid ge;
+    int have_ge = make_grid(evals, NE, NE, NE, ei2w, "emission", &ge) == 0;
+    free(evals);
+    for (int variant = 0; variant < 4; ++variant) {
         /* 0: emission grid, pure absorber; 1: temperature grid, pure absorber; 2: emission
-         * grid, albedo 0.5 (scattering ends the walk too) */
+         * grid, albedo 0.5 (scattering ends the walk too); 3: 0 with the coarser emission grid */
+        if (variant == 3 && !have_ge) break;
         VolumeDesc desc = grid_desc(&g, sigma, variant == 2 ? 0.5f : 0.0f);
         desc.emission_scale = 5.0f;
         const float color[3] = {1.0f, 0.5f, 0.25f};
         if (variant == 1) {
             desc.temperature = &gt;
         } else {
-            desc.emission = &g; /* constant 1 */
+            desc.emission = variant == 3 ? &ge : &g; /* constant 1 */
             memcpy(desc.emission_color, color, sizeof color);
         }
         Medium m;
@@ -717,7 +741,11 @@ static void test_emission(void) {
             }
             printf("emission %s d %.1f: (%.4f %.4f %.4f) +- (%.4f %.4f %.4f), exact (%.4f %.4f %.4f); %.1f "
                    "collisions per walk\n",
-                   variant == 0 ? "grid absorber" : variant == 1 ? "blackbody absorber" : "grid albedo 0.5", dist[i],
+                   variant == 0   ? "grid absorber"
+                   : variant == 1 ? "blackbody absorber"
+                   : variant == 2 ? "grid albedo 0.5"
+                                  : "coarser emission grid",
+                   dist[i],
                    acc_mean(&acc[0]), acc_mean(&acc[1]), acc_mean(&acc[2]), acc_se(&acc[0]), acc_se(&acc[1]),
                    acc_se(&acc[2]), le[0] * sa / sigma * (1.0 - exp(-sigma * dist[i])),
                    le[1] * sa / sigma * (1.0 - exp(-sigma * dist[i])), le[2] * sa / sigma * (1.0 - exp(-sigma * dist[i])),
@@ -727,6 +755,7 @@ static void test_emission(void) {
     }
     io_volume_grid_free(&g);
     io_volume_grid_free(&gt);
+    if (have_ge) io_volume_grid_free(&ge);
     free(vals);
     free(temp);
 }

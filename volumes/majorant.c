@@ -39,44 +39,43 @@ static size_t block_index(const BlockTable *b, int32_t x, int32_t y, int32_t z) 
     return ((size_t)x + (size_t)b->dims[0] * ((size_t)y + (size_t)b->dims[1] * (size_t)z)) * (size_t)b->nvals;
 }
 
-/* Scans blocks [origin, origin + 8 dims) of a grid. A block is a leaf (512 values from its
- * table) or lies in a tile / the background (one value). */
-static int block_table_build(BlockTable *b, const VolumeGrid *g, const int32_t origin[3], const int32_t dims[3],
-                             int nvals) {
+static int block_table_alloc(BlockTable *b, const int32_t origin[3], const int32_t dims[3], int32_t layers, int nvals) {
     memcpy(b->origin, origin, sizeof b->origin);
     memcpy(b->dims, dims, sizeof b->dims);
     b->nvals = nvals;
-    size_t n = (size_t)dims[0] * (size_t)dims[1] * (size_t)dims[2] * (size_t)nvals;
-    b->v = malloc(n * sizeof(float));
-    if (!b->v) return -1;
-    GridReader r;
-    grid_reader_init(&r, g);
-    for (int32_t bz = 0; bz < dims[2]; ++bz)
-        for (int32_t by = 0; by < dims[1]; ++by)
-            for (int32_t bx = 0; bx < dims[0]; ++bx) {
-                float *out = b->v + block_index(b, bx, by, bz);
-                uint32_t level;
-                float tile = grid_voxel_level(&r, origin[0] + 8 * bx, origin[1] + 8 * by, origin[2] + 8 * bz, &level);
-                if (level != 0) {
-                    for (int k = 0; k < nvals; ++k) out[k] = tile;
-                    continue;
-                }
-                pnanovdb_leaf_handle_t leaf = r.acc.leaf; /* the lookup above cached it */
-                float mx[BLK_FACES] = {0};
-                for (uint32_t i = 0; i < 512; ++i) {
-                    float v = vol_clean(pnanovdb_read_float(
-                        r.buf, pnanovdb_leaf_get_table_address(PNANOVDB_GRID_TYPE_FLOAT, r.buf, leaf, i)));
-                    mx[0] = vmaxf(mx[0], v);
-                    if (nvals == 1) continue;
-                    uint32_t l[3] = {i >> 6, (i >> 3) & 7, i & 7}; /* NanoVDB leaf order: x slowest */
-                    for (int a = 0; a < 3; ++a) {
-                        if (l[a] <= 1) mx[1 + 2 * a] = vmaxf(mx[1 + 2 * a], v);
-                        if (l[a] >= 6) mx[2 + 2 * a] = vmaxf(mx[2 + 2 * a], v);
-                    }
-                }
-                for (int k = 0; k < nvals; ++k) out[k] = mx[k];
+    b->v = malloc((size_t)dims[0] * (size_t)dims[1] * (size_t)layers * (size_t)nvals * sizeof(float));
+    return b->v ? 0 : -1;
+}
+
+/* Fills the z layer bz of blocks (voxels origin + 8 (x, y, bz) ...) into the table's layer
+ * `slot`. A block is a leaf (512 values from its table) or lies in a tile / the background
+ * (one value). */
+static void block_layer_fill(BlockTable *b, GridReader *r, int32_t bz, int32_t slot) {
+    for (int32_t by = 0; by < b->dims[1]; ++by)
+        for (int32_t bx = 0; bx < b->dims[0]; ++bx) {
+            float *out = b->v + block_index(b, bx, by, slot);
+            uint32_t level;
+            float tile =
+                grid_voxel_level(r, b->origin[0] + 8 * bx, b->origin[1] + 8 * by, b->origin[2] + 8 * bz, &level);
+            if (level != 0) {
+                for (int k = 0; k < b->nvals; ++k) out[k] = tile;
+                continue;
             }
-    return 0;
+            pnanovdb_leaf_handle_t leaf = r->acc.leaf; /* the lookup above cached it */
+            float mx[BLK_FACES] = {0};
+            for (uint32_t i = 0; i < 512; ++i) {
+                float v = vol_clean(pnanovdb_read_float(
+                    r->buf, pnanovdb_leaf_get_table_address(PNANOVDB_GRID_TYPE_FLOAT, r->buf, leaf, i)));
+                mx[0] = vmaxf(mx[0], v);
+                if (b->nvals == 1) continue;
+                uint32_t l[3] = {i >> 6, (i >> 3) & 7, i & 7}; /* NanoVDB leaf order: x slowest */
+                for (int a = 0; a < 3; ++a) {
+                    if (l[a] <= 1) mx[1 + 2 * a] = vmaxf(mx[1 + 2 * a], v);
+                    if (l[a] >= 6) mx[2 + 2 * a] = vmaxf(mx[2 + 2 * a], v);
+                }
+            }
+            for (int k = 0; k < b->nvals; ++k) out[k] = mx[k];
+        }
 }
 
 /* Max over the block table's blocks overlapping voxels [lo, hi] (inclusive); blocks outside
@@ -126,7 +125,9 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, char err[I
         ring_origin[k] = mg->origin[k] - 8;
         ring_dims[k] = mg->dims[k] + 2;
     }
-    int fail = !mg->sigma_maj || block_table_build(&dens, g, ring_origin, ring_dims, BLK_FACES);
+    /* only three z layers of density blocks are alive at a time (a layer of cells needs the
+     * layers below, at and above it): the temporary memory is a slab, not the volume */
+    int fail = !mg->sigma_maj || block_table_alloc(&dens, ring_origin, ring_dims, 3, BLK_FACES);
 
     /* The emission (or temperature) grid's block maxima over its own index space. */
     const VolumeGrid *ag = m->emission.buffer ? &m->emission : &m->temperature;
@@ -137,7 +138,12 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, char err[I
             o[k] = 8 * c0;
             d[k] = c1 - c0 + 1;
         }
-        fail = (int64_t)d[0] * d[1] * d[2] > ((int64_t)1 << 28) || block_table_build(&aux, ag, o, d, 1);
+        fail = (int64_t)d[0] * d[1] * d[2] > ((int64_t)1 << 28) || block_table_alloc(&aux, o, d, d[2], 1);
+        if (!fail) {
+            GridReader r;
+            grid_reader_init(&r, ag);
+            for (int32_t bz = 0; bz < d[2]; ++bz) block_layer_fill(&aux, &r, bz, bz);
+        }
     }
     if (fail) {
         free(dens.v);
@@ -159,7 +165,11 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, char err[I
     }
     float emit_cap = voxel_size > 0.0f ? 1.0f / voxel_size : 0.0f; /* c_vox / voxel_size, c_vox = 1 */
 
-    for (int32_t cz = 0; cz < mg->dims[2]; ++cz)
+    GridReader reader;
+    grid_reader_init(&reader, g);
+    for (int32_t bz = 0; bz < 2; ++bz) block_layer_fill(&dens, &reader, bz, bz);
+    for (int32_t cz = 0; cz < mg->dims[2]; ++cz) {
+        block_layer_fill(&dens, &reader, cz + 2, (cz + 2) % 3);
         for (int32_t cy = 0; cy < mg->dims[1]; ++cy)
             for (int32_t cx = 0; cx < mg->dims[0]; ++cx) {
                 int32_t c[3] = {cx, cy, cz};
@@ -168,7 +178,7 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, char err[I
                     for (int dy = -1; dy <= 1; ++dy)
                         for (int dx = -1; dx <= 1; ++dx) {
                             int dd[3] = {dx, dy, dz};
-                            const float *nb = dens.v + block_index(&dens, cx + 1 + dx, cy + 1 + dy, cz + 1 + dz);
+                            const float *nb = dens.v + block_index(&dens, cx + 1 + dx, cy + 1 + dy, (cz + 1 + dz) % 3);
                             float v = nb[BLK_ALL];
                             /* a neighbour contributes its faces towards the cell; a diagonal
                              * one an edge or corner, bounded by the smallest of its faces */
@@ -205,6 +215,7 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, char err[I
                 }
                 mg->sigma_maj[cx + mg->dims[0] * (cy + mg->dims[1] * cz)] = maj * VOL_MAJORANT_SLACK;
             }
+    }
     free(dens.v);
     free(aux.v);
     return 0;
