@@ -529,7 +529,8 @@ static void test_majorant(void) {
                 if (d[0] == 0.0f && d[1] == 0.0f && d[2] == 0.0f) d[2] = 1.0f;
                 float s = (float)(0.1 + 10.0 * urand(&r)); /* d not unit */
                 for (int k = 0; k < 3; ++k) d[k] *= s;
-                float tmin = ray % 3 == 0 ? -INFINITY : (float)(urand(&r) * 0.5), tmax = ray % 4 == 0 ? INFINITY : (float)(urand(&r) * 4.0);
+                float tmin = ray % 3 == 0 ? -INFINITY : (float)(urand(&r) * 0.5);
+                float tmax = ray % 4 == 0 ? INFINITY : (float)(urand(&r) * 4.0);
                 float c0, c1;
                 int hit = medium_clip_ray(&m, o, d, tmin, tmax, &c0, &c1);
                 MajorantIterator it;
@@ -1090,8 +1091,8 @@ static void test_bad_input(void) {
               (unsigned long long)st.collisions);
         const float huge[3] = {1e30f, 1e30f, 1e30f};
         CHECK(medium_init_homogeneous(&m, huge, ss, 0.0f, err) == 0, "%s", err);
-        CHECK(fabsf(m.sigma_a[0] - VOLUME_MAX_SIGMA_T) <= 1e-6f * VOLUME_MAX_SIGMA_T, "homogeneous extinction not clamped: %g",
-              m.sigma_a[0]);
+        CHECK(fabsf(m.sigma_a[0] - VOLUME_MAX_SIGMA_T) <= 1e-6f * VOLUME_MAX_SIGMA_T,
+              "homogeneous extinction not clamped: %g", m.sigma_a[0]);
         medium_free(&m);
     }
 }

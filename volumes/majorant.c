@@ -195,7 +195,8 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, char err[I
                         double p[3], w[3];
                         for (int k = 0; k < 3; ++k)
                             p[k] = mg->origin[k] + 8.0 * c[k] + ((corner >> k & 1) ? 10.0 : -2.0);
-                        for (int r = 0; r < 3; ++r) w[r] = i2w[r] * p[0] + i2w[4 + r] * p[1] + i2w[8 + r] * p[2] + i2w[12 + r];
+                        for (int r = 0; r < 3; ++r)
+                            w[r] = i2w[r] * p[0] + i2w[4 + r] * p[1] + i2w[8 + r] * p[2] + i2w[12 + r];
                         for (int r = 0; r < 3; ++r) {
                             const float *a = ag->world_to_index;
                             double q = a[r] * w[0] + a[4 + r] * w[1] + a[8 + r] * w[2] + a[12 + r];

@@ -247,7 +247,8 @@ int medium_init_vdb(Medium *m, const VolumeDesc *desc, char err[IO_ERR_LEN]) {
     char name[96];
     snprintf(name, sizeof name, "volume '%s'", desc->density->name);
     float scale = desc->density_scale, escale = desc->emission_scale;
-    if (check_range(&scale, 1, FLT_MAX, name, "density_scale", err) || check_range(desc->albedo, 3, 1.0f, name, "albedo", err) ||
+    if (check_range(&scale, 1, FLT_MAX, name, "density_scale", err) ||
+        check_range(desc->albedo, 3, 1.0f, name, "albedo", err) ||
         check_g(desc->anisotropy, name, err) || check_range(&escale, 1, FLT_MAX, name, "emission_scale", err) ||
         check_range(desc->emission_color, 3, FLT_MAX, name, "emission_color", err))
         return -1;

@@ -5,7 +5,8 @@
  * combined majorant is the sum of theirs (the sum of majorants bounds the sum of
  * extinctions). Free flights are sampled with the combined majorant and restart at every
  * boundary of any medium's segment (carrying the residual optical depth over, see
- * sample_depth), which is exact because exponential distances are memoryless (the cache points paper §4.1, Eq. 7: sigma_maj = sigma_a + sigma_s + sigma_n).
+ * sample_depth), which is exact because exponential distances are memoryless (the cache
+ * points paper §4.1, Eq. 7: sigma_maj = sigma_a + sigma_s + sigma_n).
  * Nothing here allocates: a walk's state (iterators, NanoVDB accessors) lives on the stack. */
 #include <string.h>
 
