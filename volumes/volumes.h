@@ -116,6 +116,34 @@ typedef struct MediaView {
  * to [tmin, tmax]; 0 when empty. Homogeneous media return [tmin, tmax]. */
 int medium_clip_ray(const Medium *m, const float o[3], const float d[3], float tmin, float tmax, float *t0, float *t1);
 
+/* The majorant segments of one medium along o + t d: contiguous intervals [t0, t1] covering
+ * exactly medium_clip_ray's interval, each with a constant sigma_maj >= sigma_t (max over RGB)
+ * at every point of it (0 where the ray crosses empty cells or misses the grid's box).
+ * Homogeneous media: one segment with sigma_maj = max over RGB of sigma_a + sigma_s. Grids: a
+ * 3-D DDA (Amanatides & Woo 1987) over the majorant cells in the density grid's index space
+ * (the transform is affine, so t is the same there); neighbouring cells of equal majorant
+ * are merged into one segment. d need not be unit; a NaN or infinite o or d, a NaN tmin or
+ * tmax and an empty interval give no segment. The struct lives on the caller's stack; its
+ * fields are the module's. */
+typedef struct MajorantIterator {
+    const float *cells;              /* MajorantGrid.sigma_maj (grid media) */
+    int32_t dims[3], cell[3], step[3];
+    int32_t index;                   /* linear index of the current cell */
+    int32_t index_step[3];           /* what a step along each axis adds to index */
+    int32_t phase;                   /* what the next piece is (majorant.c) */
+    float t, t_end;                  /* the next segment starts at t; the clipped interval ends at t_end */
+    float t_grid0, t_grid1;          /* the part of [t, t_end] inside the majorant grid's box */
+    float t_next[3], t_delta[3];     /* DDA: t of the current cell's exit plane, t per cell, per axis */
+    float sigma;                     /* homogeneous: the constant majorant */
+    float t_base;                    /* the ray in the density grid's index space is */
+    float o_index[3], d_index[3];    /* o_index + (t - t_base) d_index (re-based at the clip entry) */
+} MajorantIterator;
+
+void medium_majorant_begin(const Medium *m, const float o[3], const float d[3], float tmin, float tmax,
+                           MajorantIterator *it);
+/* The next segment; 0 when there is none left. */
+int medium_majorant_next(MajorantIterator *it, float *t0, float *t1, float *sigma_maj);
+
 /* Statistics a tracker adds to (the renderer reports them). */
 typedef struct VolumeStats {
     uint64_t collisions;         /* majorant collisions evaluated */
@@ -126,16 +154,20 @@ enum { VOLUME_EVENT_PASSED = 0, VOLUME_EVENT_SCATTER = 1, VOLUME_EVENT_ABSORBED 
 
 typedef struct VolumeEvent {
     int type;
-    float t;             /* scatter: the distance along the ray */
-    int medium;          /* scatter: index in the view of the medium whose phase function applies */
+    float t;             /* scatter: the distance along the ray (passed: tmax) */
+    int medium;          /* scatter: index in the view of the medium whose phase function applies
+                          * (otherwise -1) */
     float weight[3];     /* throughput factor to apply (scatter: up to and including the
-                          * scattering coefficient's; passed: over the whole segment) */
-    float emitted[3];    /* emission gathered on the way, already weighted (add beta x this) */
+                          * scattering coefficient's; passed: over the whole segment;
+                          * absorbed: 0) */
+    float emitted[3];    /* emission gathered on the way, already weighted (add beta x this);
+                          * valid for every outcome, absorption included */
 } VolumeEvent;
 
 /* One free flight along o + t d (d unit) over [tmin, tmax] through the view's media
  * (spectral tracking, Kutz et al. 2017, with the throughput-weighted probabilities that make
- * chromatic media unbiased; `beta` is the path throughput the probabilities weigh with). */
+ * chromatic media unbiased; `beta` is the path throughput the probabilities weigh with, NULL
+ * for (1, 1, 1)). stats may be NULL (also for media_transmittance). */
 void media_sample_event(const MediaView *v, const float o[3], const float d[3], float tmin, float tmax,
                         const float beta[3], VolumeRng *rng, VolumeEvent *ev, VolumeStats *stats);
 

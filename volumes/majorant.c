@@ -1,0 +1,399 @@
+/* volumes/majorant.c: the majorant grid of a VDB medium and the DDA over it.
+ *
+ * Null-collision tracking (the cache points paper §4.1, Eq. 7) needs sigma_maj >= sigma_t
+ * along the ray; the tighter it is, the fewer null collisions. A coarse grid of
+ * VOLUME_MAJORANT_CELL^3-voxel cells, each bounding its cell's trilinear field, gives a
+ * piecewise-constant majorant; free flights restart at each cell boundary, which is exact for
+ * exponential distances (memorylessness). Where the medium emits, the cell also carries the
+ * emission term of §4.3 (Algorithm 1) as fixed in the spec (§7.4):
+ *     sigma_maj = max(sigma_t,max, min(kappa lum(sigma_a L_e)_max, c_vox / voxel_size)),
+ * kappa = c_vox = 1: emissive regions of low extinction get collisions (each gathers
+ * emission), at most about one expected per voxel from the emission term.
+ *
+ * Cells are aligned with NanoVDB's 8^3 leaves (VOLUME_MAJORANT_CELL == 8), so a cell's
+ * voxels are one leaf's value table or one tile value: the build reads every stored value
+ * once, never a whole dense box. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "internal.h"
+
+_Static_assert(VOLUME_MAJORANT_CELL == 8, "cells are NanoVDB leaves (8^3)");
+
+static inline int32_t floor_div8(int32_t v) { return v >= 0 ? v / 8 : -((-v + 7) / 8); }
+
+/* ---------------------------------------------------------------- block maxima */
+
+/* Per 8^3 block of a grid (leaf-aligned): the max of its clean values, and of its six
+ * two-voxel-thick faces (x lo = local x in {0, 1}, x hi = {6, 7}, then y, z). */
+enum { BLK_ALL = 0, BLK_FACES = 7 };
+typedef struct BlockTable {
+    int32_t origin[3]; /* first voxel of block (0,0,0), a multiple of 8 */
+    int32_t dims[3];
+    int nvals;         /* 1 (block max only) or BLK_FACES */
+    float *v;          /* nvals per block, x fastest */
+} BlockTable;
+
+static size_t block_index(const BlockTable *b, int32_t x, int32_t y, int32_t z) {
+    return ((size_t)x + (size_t)b->dims[0] * ((size_t)y + (size_t)b->dims[1] * (size_t)z)) * (size_t)b->nvals;
+}
+
+static int block_table_alloc(BlockTable *b, const int32_t origin[3], const int32_t dims[3], int32_t layers, int nvals) {
+    memcpy(b->origin, origin, sizeof b->origin);
+    memcpy(b->dims, dims, sizeof b->dims);
+    b->nvals = nvals;
+    b->v = malloc((size_t)dims[0] * (size_t)dims[1] * (size_t)layers * (size_t)nvals * sizeof(float));
+    return b->v ? 0 : -1;
+}
+
+/* Fills the z layer bz of blocks (voxels origin + 8 (x, y, bz) ...) into the table's layer
+ * `slot`. A block is a leaf (512 values from its table) or lies in a tile / the background
+ * (one value). */
+static void block_layer_fill(BlockTable *b, GridReader *r, int32_t bz, int32_t slot) {
+    for (int32_t by = 0; by < b->dims[1]; ++by)
+        for (int32_t bx = 0; bx < b->dims[0]; ++bx) {
+            float *out = b->v + block_index(b, bx, by, slot);
+            uint32_t level;
+            float tile =
+                grid_voxel_level(r, b->origin[0] + 8 * bx, b->origin[1] + 8 * by, b->origin[2] + 8 * bz, &level);
+            if (level != 0) {
+                for (int k = 0; k < b->nvals; ++k) out[k] = tile;
+                continue;
+            }
+            pnanovdb_leaf_handle_t leaf = r->acc.leaf; /* the lookup above cached it */
+            float mx[BLK_FACES] = {0};
+            for (uint32_t i = 0; i < 512; ++i) {
+                float v = vol_clean(pnanovdb_read_float(
+                    r->buf, pnanovdb_leaf_get_table_address(PNANOVDB_GRID_TYPE_FLOAT, r->buf, leaf, i)));
+                mx[0] = vmaxf(mx[0], v);
+                if (b->nvals == 1) continue;
+                uint32_t l[3] = {i >> 6, (i >> 3) & 7, i & 7}; /* NanoVDB leaf order: x slowest */
+                for (int a = 0; a < 3; ++a) {
+                    if (l[a] <= 1) mx[1 + 2 * a] = vmaxf(mx[1 + 2 * a], v);
+                    if (l[a] >= 6) mx[2 + 2 * a] = vmaxf(mx[2 + 2 * a], v);
+                }
+            }
+            for (int k = 0; k < b->nvals; ++k) out[k] = mx[k];
+        }
+}
+
+/* Max over the block table's blocks overlapping voxels [lo, hi] (inclusive); blocks outside
+ * the table hold nothing (the field is 0 beyond the active box's margin, which the table
+ * covers). */
+static float block_table_max(const BlockTable *b, const int64_t lo[3], const int64_t hi[3]) {
+    int32_t b0[3], b1[3];
+    for (int k = 0; k < 3; ++k) {
+        int64_t l = lo[k] - b->origin[k], h = hi[k] - b->origin[k];
+        if (h < 0 || l >= 8 * (int64_t)b->dims[k]) return 0.0f;
+        b0[k] = l < 0 ? 0 : (int32_t)(l / 8);
+        b1[k] = h >= 8 * (int64_t)b->dims[k] ? b->dims[k] - 1 : (int32_t)(h / 8);
+    }
+    float mx = 0.0f;
+    for (int32_t z = b0[2]; z <= b1[2]; ++z)
+        for (int32_t y = b0[1]; y <= b1[1]; ++y)
+            for (int32_t x = b0[0]; x <= b1[0]; ++x) mx = vmaxf(mx, b->v[block_index(b, x, y, z)]);
+    return mx;
+}
+
+/* ---------------------------------------------------------------- build */
+
+int majorant_build(Medium *m, const double i2w[16], float voxel_size, char err[IO_ERR_LEN], const char *name) {
+    MajorantGrid *mg = &m->majorant;
+    const VolumeGrid *g = &m->density;
+    /* Cells cover voxels index_min - 2 .. index_max + 2: the trilinear field is 0 beyond
+     * index_min - 1 .. index_max + 1, and the extra voxel keeps rounding on the safe side. */
+    int64_t ncells = 1;
+    for (int k = 0; k < 3; ++k) {
+        int32_t c0 = floor_div8(g->index_min[k] - 2), c1 = floor_div8(g->index_max[k] + 2);
+        mg->origin[k] = 8 * c0;
+        mg->dims[k] = c1 - c0 + 1;
+        ncells *= mg->dims[k];
+    }
+    if (ncells > ((int64_t)1 << 28)) {
+        if (err) snprintf(err, IO_ERR_LEN, "%s: too large for a majorant grid (%lld cells)", name, (long long)ncells);
+        return -1;
+    }
+    mg->sigma_maj = malloc((size_t)ncells * sizeof(float));
+
+    /* Density block maxima with a ring of one block around the cells: a cell's majorant
+     * bounds its voxels and the two-voxel shell around them, i.e. the trilinear footprint of
+     * the cell (its voxels and the next one up) with a voxel of slack on both sides. */
+    BlockTable dens = {0}, aux = {0};
+    int32_t ring_origin[3], ring_dims[3];
+    for (int k = 0; k < 3; ++k) {
+        ring_origin[k] = mg->origin[k] - 8;
+        ring_dims[k] = mg->dims[k] + 2;
+    }
+    /* only three z layers of density blocks are alive at a time (a layer of cells needs the
+     * layers below, at and above it): the temporary memory is a slab, not the volume */
+    int fail = !mg->sigma_maj || block_table_alloc(&dens, ring_origin, ring_dims, 3, BLK_FACES);
+
+    /* The emission (or temperature) grid's block maxima over its own index space. */
+    const VolumeGrid *ag = m->emission.buffer ? &m->emission : &m->temperature;
+    if (!fail && m->emissive) {
+        int32_t o[3], d[3];
+        for (int k = 0; k < 3; ++k) {
+            int32_t c0 = floor_div8(ag->index_min[k] - 2), c1 = floor_div8(ag->index_max[k] + 2);
+            o[k] = 8 * c0;
+            d[k] = c1 - c0 + 1;
+        }
+        fail = (int64_t)d[0] * d[1] * d[2] > ((int64_t)1 << 28) || block_table_alloc(&aux, o, d, d[2], 1);
+        if (!fail) {
+            GridReader r;
+            grid_reader_init(&r, ag);
+            for (int32_t bz = 0; bz < d[2]; ++bz) block_layer_fill(&aux, &r, bz, bz);
+        }
+    }
+    if (fail) {
+        free(dens.v);
+        free(aux.v);
+        free(mg->sigma_maj);
+        mg->sigma_maj = NULL;
+        if (err) snprintf(err, IO_ERR_LEN, "%s: out of memory building the majorant grid", name);
+        return -1;
+    }
+
+    /* lum(sigma_a L_e) <= sigma_t x emission_scale x (this) x aux value: the emission grid's
+     * lum((1 - albedo) colour); for a blackbody (luminance 1, non-negative RGB) the largest
+     * 1 - albedo. */
+    float emit_factor = 0.0f;
+    if (m->emissive) {
+        float absorb[3];
+        for (int k = 0; k < 3; ++k) absorb[k] = (1.0f - m->albedo[k]) * (m->emission.buffer ? m->emission_color[k] : 1.0f);
+        emit_factor = m->emission_scale * (m->emission.buffer ? vlum(absorb) : vmax3(absorb));
+    }
+    float emit_cap = voxel_size > 0.0f ? 1.0f / voxel_size : 0.0f; /* c_vox / voxel_size, c_vox = 1 */
+
+    GridReader reader;
+    grid_reader_init(&reader, g);
+    for (int32_t bz = 0; bz < 2; ++bz) block_layer_fill(&dens, &reader, bz, bz);
+    for (int32_t cz = 0; cz < mg->dims[2]; ++cz) {
+        block_layer_fill(&dens, &reader, cz + 2, (cz + 2) % 3);
+        for (int32_t cy = 0; cy < mg->dims[1]; ++cy)
+            for (int32_t cx = 0; cx < mg->dims[0]; ++cx) {
+                int32_t c[3] = {cx, cy, cz};
+                float dmax = 0.0f;
+                for (int dz = -1; dz <= 1; ++dz)
+                    for (int dy = -1; dy <= 1; ++dy)
+                        for (int dx = -1; dx <= 1; ++dx) {
+                            int dd[3] = {dx, dy, dz};
+                            const float *nb = dens.v + block_index(&dens, cx + 1 + dx, cy + 1 + dy, (cz + 1 + dz) % 3);
+                            float v = nb[BLK_ALL];
+                            /* a neighbour contributes its faces towards the cell; a diagonal
+                             * one an edge or corner, bounded by the smallest of its faces */
+                            for (int a = 0; a < 3; ++a)
+                                if (dd[a]) v = vminf(v, nb[1 + 2 * a + (dd[a] > 0 ? 0 : 1)]);
+                            dmax = vmaxf(dmax, v);
+                        }
+                float st = vminf(m->density_scale * dmax, VOLUME_MAX_SIGMA_T);
+                float maj = st;
+                if (m->emissive && st > 0.0f) {
+                    /* the cell's box (with its slack) in the aux grid's index space */
+                    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+                    for (int corner = 0; corner < 8; ++corner) {
+                        double p[3], w[3];
+                        for (int k = 0; k < 3; ++k)
+                            p[k] = mg->origin[k] + 8.0 * c[k] + ((corner >> k & 1) ? 10.0 : -2.0);
+                        for (int r = 0; r < 3; ++r)
+                            w[r] = i2w[r] * p[0] + i2w[4 + r] * p[1] + i2w[8 + r] * p[2] + i2w[12 + r];
+                        for (int r = 0; r < 3; ++r) {
+                            const float *a = ag->world_to_index;
+                            double q = a[r] * w[0] + a[4 + r] * w[1] + a[8 + r] * w[2] + a[12 + r];
+                            lo[r] = fmin(lo[r], q);
+                            hi[r] = fmax(hi[r], q);
+                        }
+                    }
+                    int64_t vlo[3], vhi[3];
+                    for (int k = 0; k < 3; ++k) {
+                        vlo[k] = (int64_t)fmax(floor(lo[k]) - 1.0, -4e9);
+                        vhi[k] = (int64_t)fmin(floor(hi[k]) + 2.0, 4e9);
+                    }
+                    float amax = block_table_max(&aux, vlo, vhi);
+                    float e = m->emission.buffer ? amax : (amax >= BLACKBODY_MIN_KELVIN ? 1.0f : 0.0f);
+                    float term = st * emit_factor * e; /* kappa = 1 */
+                    maj = vmaxf(st, vminf(term, emit_cap));
+                }
+                mg->sigma_maj[cx + mg->dims[0] * (cy + mg->dims[1] * cz)] = maj * VOL_MAJORANT_SLACK;
+            }
+    }
+    free(dens.v);
+    free(aux.v);
+    return 0;
+}
+
+/* ---------------------------------------------------------------- DDA */
+
+/* What the iterator's next piece is: before the grid's box (majorant 0), a cell, after the
+ * box (0), the homogeneous medium's one segment, or nothing. */
+enum { PH_DONE = 0, PH_LEAD, PH_GRID, PH_TAIL, PH_HOMOG };
+
+static int finite3(const float v[3]) { return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]); }
+
+void medium_majorant_begin(const Medium *m, const float o[3], const float d[3], float tmin, float tmax,
+                           MajorantIterator *it) {
+    it->phase = PH_DONE;
+    float t0, t1;
+    if (!medium_clip_ray(m, o, d, tmin, tmax, &t0, &t1)) return;
+    it->t = t0;
+    it->t_end = t1;
+    if (m->kind == MEDIUM_HOMOGENEOUS) {
+        float st[3] = {m->sigma_a[0] + m->sigma_s[0], m->sigma_a[1] + m->sigma_s[1], m->sigma_a[2] + m->sigma_s[2]};
+        it->sigma = vmax3(st);
+        it->phase = PH_HOMOG;
+        return;
+    }
+    const MajorantGrid *mg = &m->majorant;
+    /* The ray in index space, re-based at the clip entry in double: far origins and huge t
+     * keep their precision where it matters (near the grid). */
+    const float *w = m->world_to_index;
+    double e[3];
+    for (int k = 0; k < 3; ++k) e[k] = (double)o[k] + (double)t0 * (double)d[k];
+    for (int r = 0; r < 3; ++r) {
+        it->o_index[r] = (float)(w[r] * e[0] + w[4 + r] * e[1] + w[8 + r] * e[2] + w[12 + r]);
+        it->d_index[r] = (float)((double)w[r] * d[0] + (double)w[4 + r] * d[1] + (double)w[8 + r] * d[2]);
+    }
+    it->t_base = t0;
+    it->cells = mg->sigma_maj;
+    memcpy(it->dims, mg->dims, sizeof it->dims);
+    it->phase = PH_TAIL; /* until the ray is known to cross the box: one empty segment */
+    if (!finite3(it->o_index) || !finite3(it->d_index)) return;
+
+    /* The part of [t0, t1] where the field can be non-zero: the open box (index_min - 1,
+     * index_max + 1) of the trilinear support, inside the cells' box; outside it the majorant
+     * is 0. The world bounds (half a voxel looser, and axis-aligned in the world) would
+     * otherwise lend the border cells' majorant to empty space. The box is widened by 1/64
+     * voxel plus ~32 ulps of the coordinates involved (the index box, and the world origin in
+     * index units, which measures how far from the world origin the grid sits), so that a
+     * point evaluated from its world position (rounded differently) is never inside the
+     * support but in a 0 segment. */
+    float g0 = t0, g1 = t1;
+    float far = vmaxf(fabsf(w[12]), vmaxf(fabsf(w[13]), fabsf(w[14])));
+    for (int k = 0; k < 3; ++k) {
+        float imin = (float)m->density.index_min[k], imax = (float)m->density.index_max[k];
+        float slack = 1.0f / 64.0f + 4e-6f * (vmaxf(fabsf(imin), fabsf(imax)) + far);
+        float lo = imin - 1.0f - slack, hi = imax + 1.0f + slack;
+        if (it->d_index[k] == 0.0f) {
+            if (!(it->o_index[k] >= lo && it->o_index[k] <= hi)) return;
+            continue;
+        }
+        float ta = t0 + (lo - it->o_index[k]) / it->d_index[k], tb = t0 + (hi - it->o_index[k]) / it->d_index[k];
+        if (ta > tb) {
+            float s = ta;
+            ta = tb;
+            tb = s;
+        }
+        g0 = vmaxf(g0, ta);
+        g1 = vminf(g1, tb);
+    }
+    if (!(g0 < g1)) return;
+    it->t_grid0 = g0;
+    it->t_grid1 = g1;
+    /* The entry cell (clamped: the entry point lies on the box's surface up to rounding; a
+     * cell off by one there is left at once through a zero-length piece). */
+    int32_t stride[3] = {1, mg->dims[0], mg->dims[0] * mg->dims[1]};
+    it->index = 0;
+    for (int k = 0; k < 3; ++k) {
+        float p = it->o_index[k] + (g0 - t0) * it->d_index[k];
+        float c = floorf((p - (float)mg->origin[k]) * (1.0f / 8.0f));
+        int32_t ci = c < 0.0f ? 0 : c >= (float)mg->dims[k] ? mg->dims[k] - 1 : (int32_t)c;
+        it->cell[k] = ci;
+        it->index += ci * stride[k];
+        it->index_step[k] = 0;
+        float dk = it->d_index[k];
+        if (dk > 0.0f) {
+            it->step[k] = 1;
+            it->index_step[k] = stride[k];
+            it->t_next[k] = t0 + ((float)(mg->origin[k] + 8 * (ci + 1)) - it->o_index[k]) / dk;
+            it->t_delta[k] = 8.0f / dk;
+        } else if (dk < 0.0f) {
+            it->step[k] = -1;
+            it->index_step[k] = -stride[k];
+            it->t_next[k] = t0 + ((float)(mg->origin[k] + 8 * ci) - it->o_index[k]) / dk;
+            it->t_delta[k] = -8.0f / dk;
+        } else {
+            it->step[k] = 0;
+            it->t_next[k] = INFINITY;
+            it->t_delta[k] = INFINITY;
+        }
+    }
+    it->phase = t0 < g0 ? PH_LEAD : PH_GRID;
+}
+
+static inline float piece_majorant(const MajorantIterator *it) {
+    return it->phase == PH_GRID ? it->cells[it->index] : it->phase == PH_HOMOG ? it->sigma : 0.0f;
+}
+
+/* The axis of the smallest t_next without branches (Amanatides & Woo's comparison table):
+ * which plane comes next is what a branch predictor cannot guess. */
+static inline int next_axis(const float tn[3]) {
+    static const uint8_t axis[8] = {2, 1, 2, 1, 2, 2, 0, 0};
+    return axis[((tn[0] < tn[1]) << 2) | ((tn[0] < tn[2]) << 1) | (tn[1] < tn[2])];
+}
+
+/* In PH_GRID: steps through the cells while their majorant equals the current one, then
+ * leaves it->t at the end of the run. Every step moves to a neighbouring cell along one axis
+ * (monotonically per axis) or leaves the grid, so a walk takes at most dims[0] + dims[1] +
+ * dims[2] steps. */
+static inline void grid_run(MajorantIterator *it, float maj) {
+    /* the state in locals: cells (float *) may alias the iterator's floats as far as the
+     * compiler knows, which would keep every field in memory across the loop */
+    const float *cells = it->cells;
+    float tn[3] = {it->t_next[0], it->t_next[1], it->t_next[2]};
+    int32_t cell[3] = {it->cell[0], it->cell[1], it->cell[2]}, index = it->index;
+    float t = it->t, t_grid1 = it->t_grid1;
+    for (;;) {
+        int a = next_axis(tn);
+        float e = tn[a];
+        if (!(e < t_grid1)) {
+            t = t_grid1;
+            it->phase = t < it->t_end ? PH_TAIL : PH_DONE;
+            break;
+        }
+        t = vmaxf(e, t);
+        cell[a] += it->step[a];
+        if ((uint32_t)cell[a] >= (uint32_t)it->dims[a]) { /* left the box early (rounding) */
+            it->phase = t < it->t_end ? PH_TAIL : PH_DONE;
+            break;
+        }
+        index += it->index_step[a];
+        tn[a] += it->t_delta[a];
+        if (cells[index] != maj) break;
+    }
+    it->t = t;
+    it->index = index;
+    for (int k = 0; k < 3; ++k) {
+        it->t_next[k] = tn[k];
+        it->cell[k] = cell[k];
+    }
+}
+
+int medium_majorant_next(MajorantIterator *it, float *t0, float *t1, float *sigma_maj) {
+    while (it->phase != PH_DONE) {
+        float a = it->t, maj = piece_majorant(it);
+        /* neighbouring pieces of equal majorant are one segment (empty space, uniform media) */
+        for (;;) {
+            switch (it->phase) {
+            case PH_LEAD:
+                it->t = it->t_grid0;
+                it->phase = PH_GRID;
+                break;
+            case PH_GRID:
+                grid_run(it, maj);
+                break;
+            default: /* PH_TAIL, PH_HOMOG */
+                it->t = it->t_end;
+                it->phase = PH_DONE;
+                break;
+            }
+            if (it->phase == PH_DONE || piece_majorant(it) != maj) break;
+        }
+        if (it->t > a) {
+            *t0 = a;
+            *t1 = it->t;
+            *sigma_maj = maj;
+            return 1;
+        }
+    }
+    return 0;
+}
