@@ -74,7 +74,7 @@ import make_scenes as ms  # noqa: E402  (glTF writer, geometry, EXR writer)
 
 
 def _hash01(ix, iy, iz, seed):
-    """Uniform [0, 1) per integer lattice point (int64 arrays): murmur3's finaliser."""
+    """Uniform [0, 1) per integer lattice point (int64 arrays, broadcast): murmur3's finaliser."""
     m = np.uint64(0xFFFFFFFF)
     h = ((ix.astype(np.uint64) * np.uint64(0x8DA6B343)) ^ (iy.astype(np.uint64) * np.uint64(0xD8163841))
          ^ (iz.astype(np.uint64) * np.uint64(0xCB1AB31F)) ^ np.uint64((seed * 0x9E3779B9) & 0xFFFFFFFF)) & m
@@ -86,28 +86,28 @@ def _hash01(ix, iy, iz, seed):
     return h.astype(np.float64) * (1.0 / 4294967296.0)
 
 
-def value_noise(x, y, z, seed):
-    """Smooth (quintic-interpolated) value noise in [0, 1), lattice spacing 1."""
-    fx, fy, fz = np.floor(x), np.floor(y), np.floor(z)
-    ix, iy, iz = fx.astype(np.int64), fy.astype(np.int64), fz.astype(np.int64)
-    tx, ty, tz = x - fx, y - fy, z - fz
-    tx, ty, tz = [t * t * t * (t * (t * 6 - 15) + 10) for t in (tx, ty, tz)]
-    out = np.zeros_like(x)
-    for dz in (0, 1):
-        wz = tz if dz else 1 - tz
-        for dy in (0, 1):
-            wy = ty if dy else 1 - ty
-            for dx in (0, 1):
-                wx = tx if dx else 1 - tx
-                out += wx * wy * wz * _hash01(ix + dx, iy + dy, iz + dz, seed)
-    return out
+def value_noise(xs, ys, zs, seed):
+    """Smooth (quintic-interpolated) value noise in [0, 1), lattice spacing 1, on the grid
+    xs x ys x zs (1-D coordinate arrays; the result has shape (len(xs), len(ys), len(zs))).
+    The lattice values under the grid are hashed once, then interpolated one axis at a time."""
+    def axis(t):
+        f = np.floor(t)
+        u = t - f
+        return f.astype(np.int64), u * u * u * (u * (u * 6 - 15) + 10)
+    (ix, ux), (iy, uy), (iz, uz) = axis(xs), axis(ys), axis(zs)
+    lx, ly, lz = [np.arange(i.min(), i.max() + 2, dtype=np.int64) for i in (ix, iy, iz)]
+    lattice = _hash01(lx[:, None, None], ly[None, :, None], lz[None, None, :], seed)
+    ix, iy, iz = ix - lx[0], iy - ly[0], iz - lz[0]
+    a = lattice[ix] + (lattice[ix + 1] - lattice[ix]) * ux[:, None, None]
+    b = a[:, iy] + (a[:, iy + 1] - a[:, iy]) * uy[None, :, None]
+    return b[:, :, iz] + (b[:, :, iz + 1] - b[:, :, iz]) * uz[None, None, :]
 
 
-def fbm(x, y, z, seed, octaves=5, freq=1.0, gain=0.5):
-    """Fractal sum of value noise, normalised to [0, 1)."""
-    total, amp, norm = np.zeros_like(x), 1.0, 0.0
+def fbm(xs, ys, zs, seed, octaves=5, freq=1.0, gain=0.5):
+    """Fractal sum of value noise on the grid xs x ys x zs (1-D arrays), normalised to [0, 1)."""
+    total, amp, norm = 0.0, 1.0, 0.0
     for o in range(octaves):
-        total += amp * value_noise(x * freq, y * freq, z * freq, seed + 101 * o)
+        total = total + amp * value_noise(xs * freq, ys * freq, zs * freq, seed + 101 * o)
         norm += amp
         amp *= gain
         freq *= 2.0
@@ -129,10 +129,13 @@ class Box:
     def __init__(self, dims, vs, origin):
         self.dims, self.vs, self.origin = dims, vs, origin
 
+    def axes(self):
+        """Voxel-centre coordinates along x, y and z (three 1-D arrays)."""
+        return [self.origin[a] + self.vs * np.arange(self.dims[a], dtype=np.float64) for a in range(3)]
+
     def coords(self):
         """World-space voxel centres as three (nx, ny, nz) arrays (x, y, z)."""
-        axes = [self.origin[a] + self.vs * np.arange(self.dims[a], dtype=np.float64) for a in range(3)]
-        return np.meshgrid(axes[0], axes[1], axes[2], indexing='ij')
+        return np.meshgrid(*self.axes(), indexing='ij')
 
     def transform(self):
         vs, (ox, oy, oz) = self.vs, self.origin
@@ -170,11 +173,12 @@ def plume_centre(y):
 def smoke_plume(out):
     box = Box((64, 128, 64), 1.0 / 48, (-31.5 / 48, 0.5 / 48, -31.5 / 48))
     x, y, z = box.coords()
+    ax, ay, az = box.axes()
     h = y / PLUME_HEIGHT                                 # 0 at the source, 1 at the top
     cx, cz = plume_centre(y)
     radius = 0.06 + 0.38 * h ** 0.85
     d = np.sqrt((x - cx) ** 2 + (z - cz) ** 2) / radius
-    n = fbm(x * 3.0, (y - 0.15) * 2.2, z * 3.0, seed=11, octaves=5)   # stretched upward
+    n = fbm(ax * 3.0, (ay - 0.15) * 2.2, az * 3.0, seed=11, octaves=5)   # stretched upward
     shape = np.exp(-2.5 * d * d) * (1.0 - smoothstep(0.65, 1.0, h)) * smoothstep(0.0, 0.04, h)
     dens = np.clip(shape * (0.35 + 1.1 * n) * (1.15 - 0.6 * h), 0.0, 1.0)
     write_vdb(out, 'smoke_plume.vdb', [make_grid('density', dens, box, cutoff=0.01)])
@@ -183,8 +187,9 @@ def smoke_plume(out):
 def fireball(out):
     box = Box((64, 64, 64), 1.0 / 64, (-31.5 / 64,) * 3)
     x, y, z = box.coords()
-    n1 = fbm(x * 4.0, y * 4.0 - 0.7, z * 4.0, seed=23, octaves=4)
-    n2 = fbm(x * 7.0 + 3.1, y * 7.0, z * 7.0, seed=29, octaves=3)
+    ax, ay, az = box.axes()
+    n1 = fbm(ax * 4.0, ay * 4.0 - 0.7, az * 4.0, seed=23, octaves=4)
+    n2 = fbm(ax * 7.0 + 3.1, ay * 7.0, az * 7.0, seed=29, octaves=3)
     # radius 0.36 m, stretched upward, surface displaced by noise (stays inside the box): r < 1 inside
     r = np.sqrt(x * x + (y / 1.1) ** 2 + z * z) / 0.36 + 0.35 * (n1 - 0.5)
     inside = r < 1.0
@@ -203,7 +208,8 @@ def fireball(out):
 def mist(out):
     box = Box((96, 48, 96), 1.0 / 8, (-47.5 / 8, 0.5 / 8, -47.5 / 8))
     x, y, z = box.coords()
-    n = fbm(x * 0.35, y * 0.5, z * 0.35, seed=37, octaves=4)
+    ax, ay, az = box.axes()
+    n = fbm(ax * 0.35, ay * 0.5, az * 0.35, seed=37, octaves=4)
     ground = 1.0 - 0.45 * (y / 6.0)                     # a little thicker near the ground
     dens = 0.02 + 0.08 * np.clip((n - 0.25) * 2.0 * ground, 0.0, 1.0)
     write_vdb(out, 'mist.vdb', [make_grid('density', dens, box)])
@@ -219,9 +225,10 @@ def dense_cloud(out):
     for (bx, by, bz), br in blobs:
         sdf = np.minimum(sdf, np.sqrt((x - bx) ** 2 + (y - by) ** 2 + (z - bz) ** 2) - br)
     sdf = np.maximum(sdf, -(y + 0.45))                  # flat base at y = -0.45
-    n = fbm(x * 3.0, y * 3.0, z * 3.0, seed=53, octaves=5)
+    ax, ay, az = box.axes()
+    n = fbm(ax * 3.0, ay * 3.0, az * 3.0, seed=53, octaves=5)
     d = sdf + 0.22 * (n - 0.5)                           # billowy surface
-    dens = smoothstep(0.0, 0.12, -d) * (0.75 + 0.25 * fbm(x * 8.0, y * 8.0, z * 8.0, seed=59, octaves=3))
+    dens = smoothstep(0.0, 0.12, -d) * (0.75 + 0.25 * fbm(ax * 8.0, ay * 8.0, az * 8.0, seed=59, octaves=3))
     dens = np.clip(dens, 0.0, 1.0)
     write_vdb(out, 'dense_cloud.vdb', [make_grid('density', dens, box, cutoff=0.002)])
 
