@@ -165,6 +165,55 @@ void numbers(const tinygltf::Value &o, const char *key, float *dst, size_t n) {
     for (size_t i = 0; i < n; ++i) dst[i] = float(v->Get(int(i)).GetNumberAsDouble());
 }
 
+// A finite (in float) number at o[key], or def when the key is absent; fails otherwise.
+double finite_number(const tinygltf::Value &o, const char *key, double def, const std::string &what) {
+    const tinygltf::Value *v = member(o, key);
+    if (!v) return def;
+    if (!v->IsNumber()) fail(what + "." + key + " must be a number");
+    const double d = v->GetNumberAsDouble();
+    if (!std::isfinite(d) || !std::isfinite(float(d))) fail(what + "." + key + " must be a finite number");
+    return d;
+}
+
+// Three finite (in float) numbers at o[key] into dst; dst untouched when the key is absent.
+void finite_vec3(const tinygltf::Value &o, const char *key, float dst[3], const std::string &what) {
+    const tinygltf::Value *v = member(o, key);
+    if (!v) return;
+    bool ok = v->IsArray() && v->ArrayLen() == 3;
+    for (int i = 0; ok && i < 3; ++i) {
+        const tinygltf::Value &e = v->Get(i);
+        ok = e.IsNumber() && std::isfinite(e.GetNumberAsDouble()) && std::isfinite(float(e.GetNumberAsDouble()));
+    }
+    if (!ok) fail(what + "." + key + " must be an array of 3 finite numbers");
+    for (int i = 0; i < 3; ++i) dst[i] = float(v->Get(i).GetNumberAsDouble());
+}
+
+// tinygltf drops empty objects, empty arrays and nulls from extras. For the keys whose mere
+// presence matters (candela_medium: {} is a medium with the defaults; candela_volume: {}
+// lacks its uri), look at the original JSON text of the extras object (stored by tinygltf,
+// compact, as nlohmann dumps it): the first character of the value of top-level member
+// `key`, or 0 when there is no such member.
+char raw_member_start(const std::string &json, const char *key) {
+    const std::string quoted = std::string("\"") + key + "\"";
+    int depth = 0;
+    for (size_t i = 0; i < json.size(); ++i) {
+        const char c = json[i];
+        if (c == '"') {
+            size_t j = i + 1;
+            while (j < json.size() && json[j] != '"') j += json[j] == '\\' ? 2 : 1;
+            if (j >= json.size()) return 0;
+            if (depth == 1 && json.compare(i, j + 1 - i, quoted) == 0 && j + 1 < json.size() && json[j + 1] == ':')
+                return j + 2 < json.size() ? json[j + 2] : 0;
+            i = j;
+        } else if (c == '{' || c == '[') {
+            ++depth;
+        } else if (c == '}' || c == ']') {
+            --depth;
+        }
+    }
+    return 0;
+}
+
 const tinygltf::Value *extension(const tinygltf::ExtensionMap &ext, const char *name) {
     auto it = ext.find(name);
     return it == ext.end() ? nullptr : &it->second;
@@ -309,6 +358,7 @@ class Loader {
     std::vector<IoImage> images_;
     std::vector<IoLight> lights_;
     std::vector<IoCamera> cameras_;
+    std::vector<IoVolume> volumes_;
     std::map<std::pair<std::string, int>, int32_t> image_cache_;
 
     // Warnings are held until the load succeeds: a failed load prints only its one error line.
@@ -322,6 +372,13 @@ class Loader {
         prims_.clear();
         for (IoImage &im : images_) io_image_free(&im);
         images_.clear();
+        for (IoVolume &v : volumes_) free_volume(&v);
+        volumes_.clear();
+    }
+    static void free_volume(IoVolume *v) {
+        io_volume_grid_free(&v->density);
+        io_volume_grid_free(&v->emission);
+        io_volume_grid_free(&v->temperature);
     }
     static void free_prim(IoPrimitive *p) {
         std::free(p->positions);
@@ -344,7 +401,10 @@ class Loader {
     template <class Info>
     IoTextureRef texture_ref(const Info &info, bool srgb, const std::string &what);
     void convert_materials();
+    void material_medium(const tinygltf::Material &src, const std::string &what, IoMaterial *d);
     void flatten_nodes();
+    void load_volume(const tinygltf::Node &node, const std::string &what, const Mat4 &world);
+    void load_grid(const std::string &vdb, const std::string &grid, const std::string &what, IoVolumeGrid *out);
     void environment(IoScene *out);
     void transfer(IoScene *out);
 };
@@ -357,6 +417,7 @@ void Loader::parse() {
 
     tinygltf::TinyGLTF tg;
     tg.SetImageLoader(&keep_image_bytes, nullptr);
+    tg.SetStoreOriginalJSONForExtrasAndExtensions(true);  // for raw_member_start
     tinygltf::FsCallbacks fs = {&fs_file_exists, &tinygltf::ExpandFilePath,
                                 &tinygltf::ReadWholeFile, &tinygltf::WriteWholeFile, &dir_};
     tg.SetFsCallbacks(fs);
@@ -417,7 +478,7 @@ void Loader::parse() {
 void Loader::check_required_extensions() {
     static const char *supported[] = {
         "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_specular",
-        "KHR_materials_transmission", "KHR_materials_ior", "KHR_texture_transform"};
+        "KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_volume", "KHR_texture_transform"};
     for (const std::string &e : m_.extensionsRequired) {
         bool ok = false;
         for (const char *s : supported) ok = ok || e == s;
@@ -766,7 +827,59 @@ void Loader::convert_materials() {
             texture_ref(pbr.metallicRoughnessTexture, false, what + " metallicRoughnessTexture");
         d.normal_tex = texture_ref(src.normalTexture, false, what + " normalTexture");
         d.emissive_tex = texture_ref(src.emissiveTexture, true, what + " emissiveTexture");
+        material_medium(src, what, &d);
         materials_.push_back(d);
+    }
+}
+
+// The material's homogeneous medium: extras.candela_medium, else KHR_materials_volume (io.h).
+void Loader::material_medium(const tinygltf::Material &src, const std::string &what, IoMaterial *d) {
+    d->has_medium = 0;
+    for (int c = 0; c < 3; ++c) d->medium_sigma_a[c] = d->medium_sigma_s[c] = 0.0f;
+    d->medium_anisotropy = 0.0f;
+    const char raw = member(src.extras, "candela_medium") ? 0 : raw_member_start(src.extras_json_string, "candela_medium");
+    if (raw == '{') {  // an empty object: a medium with the defaults
+        d->has_medium = 1;
+        return;
+    }
+    if (raw == '[') fail(what + ": extras.candela_medium must be an object");
+    if (const tinygltf::Value *cm = member(src.extras, "candela_medium")) {
+        const std::string w = what + ": extras.candela_medium";
+        if (!cm->IsObject()) fail(w + " must be an object");
+        finite_vec3(*cm, "sigma_a", d->medium_sigma_a, w);
+        finite_vec3(*cm, "sigma_s", d->medium_sigma_s, w);
+        for (int c = 0; c < 3; ++c) {
+            if (d->medium_sigma_a[c] < 0.0f) fail(w + ".sigma_a must not be negative");
+            if (d->medium_sigma_s[c] < 0.0f) fail(w + ".sigma_s must not be negative");
+        }
+        const double g = finite_number(*cm, "anisotropy", 0.0, w);
+        if (!(g > -1.0 && g < 1.0)) fail(w + strf(".anisotropy %g is outside (-1, 1)", g));
+        d->medium_anisotropy = float(g);
+        for (const std::string &k : cm->Keys())
+            if (k != "sigma_a" && k != "sigma_s" && k != "anisotropy") warn(w + ": unknown key '" + k + "' ignored");
+        d->has_medium = 1;
+        return;
+    }
+    const tinygltf::Value *kv = extension(src.extensions, "KHR_materials_volume");
+    if (!kv) return;
+    const std::string w = what + ": KHR_materials_volume";
+    if (!kv->IsObject()) fail(w + " must be an object");
+    double dist = INFINITY;
+    if (const tinygltf::Value *v = member(*kv, "attenuationDistance")) {
+        if (!v->IsNumber() || !(v->GetNumberAsDouble() > 0.0))
+            fail(w + ".attenuationDistance must be a number > 0");
+        dist = v->GetNumberAsDouble();
+    }
+    float color[3] = {1.0f, 1.0f, 1.0f};
+    finite_vec3(*kv, "attenuationColor", color, w);
+    for (int c = 0; c < 3; ++c)
+        if (!(color[c] > 0.0f && color[c] <= 1.0f)) fail(w + ".attenuationColor components must be in (0, 1]");
+    if (!std::isfinite(dist) || !std::isfinite(float(dist))) return;  // thin-walled: no medium
+    for (int c = 0; c < 3; ++c) {
+        const double sa = -std::log(double(color[c])) / dist;
+        if (!std::isfinite(float(sa))) fail(w + ": attenuation gives a non-finite absorption coefficient");
+        d->medium_sigma_a[c] = float(sa);
+        if (d->medium_sigma_a[c] > 0.0f) d->has_medium = 1;
     }
 }
 
@@ -874,6 +987,12 @@ void Loader::flatten_nodes() {
             for (int k = 0; k < 16; ++k) c.xform[k] = float(world.m[k]);
             cameras_.push_back(c);
         }
+        if (member(node.extras, "candela_volume")) {
+            load_volume(node, what, world);
+        } else if (const char raw = raw_member_start(node.extras_json_string, "candela_volume"); raw == '{' || raw == '[') {
+            fail(what + (raw == '{' ? ": extras.candela_volume has no \"uri\" (the VDB file, required)"
+                                    : ": extras.candela_volume must be an object"));
+        }
         if (const tinygltf::Value *lp = extension(node.extensions, "KHR_lights_punctual")) {
             const tinygltf::Value *li = member(*lp, "light");
             if (!li || !li->IsNumber()) fail(what + ": KHR_lights_punctual without a light index");
@@ -910,6 +1029,74 @@ void Loader::flatten_nodes() {
         }
         for (size_t k = node.children.size(); k-- > 0;) stack.push_back({node.children[k], world});
     }
+}
+
+// One grid of a candela_volume: io_load_vdb_grid's message ("VDB: problem") passed through.
+void Loader::load_grid(const std::string &vdb, const std::string &grid, const std::string &what,
+                       IoVolumeGrid *out) {
+    char err[IO_ERR_LEN] = "";
+    if (io_load_vdb_grid(vdb.c_str(), grid.c_str(), out, err) != 0) fail(what + ": " + err);
+}
+
+// A node's extras.candela_volume (io.h, IoVolume): validate every value, then load the grids.
+void Loader::load_volume(const tinygltf::Node &node, const std::string &what, const Mat4 &world) {
+    const tinygltf::Value &cv = *member(node.extras, "candela_volume");
+    const std::string w = what + ": extras.candela_volume";
+    if (!cv.IsObject()) fail(w + " must be an object");
+    IoVolume v{};
+    copy_name(v.name, node.name);
+    for (int k = 0; k < 16; ++k) {
+        v.xform[k] = float(world.m[k]);
+        if (!std::isfinite(v.xform[k])) fail(what + ": non-finite transform on a node with a volume");
+    }
+    static const char *known[] = {"uri", "density_grid", "density_scale", "albedo", "anisotropy",
+                                  "emission_grid", "emission_scale", "emission_color", "temperature_grid"};
+    for (const std::string &k : cv.Keys()) {
+        bool ok = false;
+        for (const char *kn : known) ok = ok || k == kn;
+        if (!ok) warn(w + ": unknown key '" + k + "' ignored");
+    }
+    const tinygltf::Value *uri = member(cv, "uri");
+    if (!uri) fail(w + " has no \"uri\" (the VDB file, required)");
+    if (!uri->IsString() || uri->Get<std::string>().empty()) fail(w + ".uri must be a non-empty string");
+    const std::string file = join_path(dir_, url_decode(uri->Get<std::string>()));
+    if (file.size() >= sizeof v.path) fail(w + ".uri is too long");
+    std::memcpy(v.path, file.c_str(), file.size() + 1);
+
+    auto grid_name = [&](const char *key, const char *def) {
+        const tinygltf::Value *g = member(cv, key);
+        if (!g) return std::string(def);
+        if (!g->IsString() || g->Get<std::string>().empty())
+            fail(w + "." + key + " must be a non-empty string (a grid name, or \"none\")");
+        return g->Get<std::string>();
+    };
+    const std::string density = grid_name("density_grid", "density");
+    const std::string emission = grid_name("emission_grid", "none");
+    const std::string temperature = grid_name("temperature_grid", "none");
+    if (density == "none") fail(w + ".density_grid cannot be \"none\" (a volume needs a density grid)");
+
+    v.density_scale = float(finite_number(cv, "density_scale", 4.0, w));
+    if (v.density_scale < 0.0f) fail(w + ".density_scale must not be negative");
+    v.albedo[0] = v.albedo[1] = v.albedo[2] = 0.8f;
+    finite_vec3(cv, "albedo", v.albedo, w);
+    for (int c = 0; c < 3; ++c)
+        if (!(v.albedo[c] >= 0.0f && v.albedo[c] <= 1.0f)) fail(w + ".albedo components must be in [0, 1]");
+    const double g = finite_number(cv, "anisotropy", 0.0, w);
+    if (!(g > -1.0 && g < 1.0)) fail(w + strf(".anisotropy %g is outside (-1, 1)", g));
+    v.anisotropy = float(g);
+    v.emission_scale = float(finite_number(cv, "emission_scale", 1.0, w));
+    if (v.emission_scale < 0.0f) fail(w + ".emission_scale must not be negative");
+    v.emission_color[0] = v.emission_color[1] = v.emission_color[2] = 1.0f;
+    finite_vec3(cv, "emission_color", v.emission_color, w);
+    for (int c = 0; c < 3; ++c)
+        if (v.emission_color[c] < 0.0f) fail(w + ".emission_color must not be negative");
+
+    // The grids last. From here on the volume is in volumes_, so a failure frees what loaded.
+    volumes_.push_back(v);
+    IoVolume &dst = volumes_.back();
+    load_grid(file, density, w, &dst.density);
+    if (emission != "none") load_grid(file, emission, w, &dst.emission);
+    if (temperature != "none") load_grid(file, temperature, w, &dst.temperature);
 }
 
 void Loader::environment(IoScene *out) {
@@ -951,9 +1138,11 @@ void Loader::transfer(IoScene *out) {
         s.images = c_array(images_);
         s.lights = c_array(lights_);
         s.cameras = c_array(cameras_);
+        s.volumes = c_array(volumes_);
     } catch (...) {
         std::free(s.primitives); std::free(s.meshes); std::free(s.instances);
         std::free(s.materials); std::free(s.images); std::free(s.lights); std::free(s.cameras);
+        std::free(s.volumes);
         throw;
     }
     out->primitives = s.primitives; out->num_primitives = uint32_t(prims_.size());
@@ -963,11 +1152,13 @@ void Loader::transfer(IoScene *out) {
     out->images = s.images;         out->num_images = uint32_t(images_.size());
     out->lights = s.lights;         out->num_lights = uint32_t(lights_.size());
     out->cameras = s.cameras;       out->num_cameras = uint32_t(cameras_.size());
+    out->volumes = s.volumes;       out->num_volumes = uint32_t(volumes_.size());
     out->num_warnings = warnings_;
     for (const std::string &w : pending_warnings_)
         std::fprintf(stderr, "%s: warning: %s\n", path_.c_str(), w.c_str());
     prims_.clear();  // ownership of their arrays moved to *out
     images_.clear();
+    volumes_.clear();
 }
 
 void Loader::run(IoScene *out) {
@@ -1027,6 +1218,11 @@ extern "C" void io_scene_free(IoScene *scene) {
         std::free(p->indices);
     }
     for (uint32_t i = 0; scene->images && i < scene->num_images; ++i) std::free(scene->images[i].rgba);
+    for (uint32_t i = 0; scene->volumes && i < scene->num_volumes; ++i) {
+        io_volume_grid_free(&scene->volumes[i].density);
+        io_volume_grid_free(&scene->volumes[i].emission);
+        io_volume_grid_free(&scene->volumes[i].temperature);
+    }
     std::free(scene->primitives);
     std::free(scene->meshes);
     std::free(scene->instances);
@@ -1034,5 +1230,6 @@ extern "C" void io_scene_free(IoScene *scene) {
     std::free(scene->images);
     std::free(scene->lights);
     std::free(scene->cameras);
+    std::free(scene->volumes);
     std::memset(scene, 0, sizeof *scene);
 }

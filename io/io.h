@@ -59,6 +59,28 @@ typedef struct IoMaterial {
     int32_t double_sided;
     int32_t alpha_mode;             /* IO_ALPHA_* (BLEND is treated as MASK by the renderer) */
     float alpha_cutoff;             /* default 0.5 */
+    /* A homogeneous participating medium filling the inside of every closed mesh with this
+     * material (units 1/m; linear RGB). From the material's
+     *   "extras": {"candela_medium": {"sigma_a": [r, g, b], "sigma_s": [r, g, b], "anisotropy": g}}
+     * (each key optional: defaults 0,0,0 / 0,0,0 / 0); has_medium = 1 whenever candela_medium
+     * is an object, even an empty one or with all coefficients 0 ("candela_medium": null is
+     * absent; an optional key that is null or [] reads as its default). Otherwise from KHR_materials_volume:
+     * attenuationDistance d (default +inf) and attenuationColor c (default 1,1,1) give
+     * sigma_a = -ln(c) / d per channel (0 when d is infinite), sigma_s = 0, anisotropy 0, and
+     * has_medium = 1 only when some sigma_a > 0 (an infinite distance is a thin-walled no-op);
+     * thicknessFactor / thicknessTexture are ignored. candela_medium wins when both are there
+     * (KHR_materials_volume is then not read at all). Without either: has_medium = 0 and all
+     * zero. Load fails (one line naming the file and the material) for a candela_medium that is
+     * not an object, coefficients that are not 3 finite numbers >= 0, an anisotropy that is not
+     * a finite number in (-1, 1), an attenuationDistance that is not a number > 0, or an
+     * attenuationColor that is not 3 numbers in (0, 1]; unknown candela_medium keys give a
+     * warning. The medium mesh is an invisible
+     * boundary unless the material is transmissive (transmission > 0), then a dielectric one
+     * (README.md, "Participating media"). */
+    int32_t has_medium;
+    float medium_sigma_a[3];        /* absorption coefficient, 1/m */
+    float medium_sigma_s[3];        /* scattering coefficient, 1/m */
+    float medium_anisotropy;        /* Henyey-Greenstein g, in (-1, 1) */
 } IoMaterial;
 
 /* One glTF mesh primitive, triangulated (TRIANGLES, TRIANGLE_STRIP, TRIANGLE_FAN), in the
@@ -116,6 +138,57 @@ typedef struct IoCamera {
     float xform[16];    /* camera-to-world, column-major; camera looks down its local -Z, +Y up */
 } IoCamera;
 
+/* One float grid of a VDB file, converted to NanoVDB so that C reads it with PNanoVDB.h
+ * (`#define PNANOVDB_C`, `#include <nanovdb/PNanoVDB.h>`): buffer holds exactly one NanoVDB
+ * float grid. Index space has voxel centres at integer coordinates; index_to_world is the
+ * VDB's own (affine) transform. */
+typedef struct IoVolumeGrid {
+    char name[64];
+    void *buffer;                /* NanoVDB grid buffer, 32-byte aligned; owned */
+    uint64_t size;               /* bytes */
+    float index_to_world[16];    /* column-major 4x4 (glTF layout m[col*4 + row]) */
+    int32_t index_min[3], index_max[3]; /* bounding box of the active voxels, inclusive */
+    float value_min, value_max;  /* range of the finite active values */
+    uint64_t active_voxels;
+    uint64_t nonfinite_voxels;   /* active voxels that are NaN or infinite */
+} IoVolumeGrid;
+
+/* A VDB volume placed by a glTF node: the node's
+ *   "extras": {"candela_volume": {"uri": "cloud.vdb", "density_grid": "density",
+ *       "density_scale": 4.0, "albedo": [0.8, 0.8, 0.8], "anisotropy": 0.0,
+ *       "emission_grid": "none", "emission_scale": 1.0, "emission_color": [1, 1, 1],
+ *       "temperature_grid": "none"}}
+ * uri is required (resolved relative to the glTF file's folder, percent-decoded like image
+ * URIs; an absolute path is kept). Every other key is optional with the default shown.
+ * A grid name "none" loads no grid (the default of emission_grid and temperature_grid);
+ * density_grid cannot be "none". A node may carry both a mesh and a volume (both load);
+ * volumes are listed in the order of the node walk (depth first, scene roots in order), and
+ * only nodes of the loaded scene count. "candela_volume": null is no volume; an optional key
+ * that is null or [] reads as its default.
+ * Load fails with one line naming the glTF file (and the VDB file when it is the problem:
+ * io_load_vdb_grid's message is passed through) for: candela_volume not an object, a missing
+ * or empty uri, a grid name that is not a non-empty string, a missing or unreadable VDB file,
+ * a missing grid, a value that is not a number (finite as a float) or an array of 3 of them,
+ * density_scale < 0, emission_scale < 0, an emission_color component < 0, an albedo component
+ * outside [0, 1], an anisotropy outside the open interval (-1, 1) (|g| = 1 is a degenerate
+ * phase function). Unknown keys give a warning. The grid's values are NOT checked here:
+ * negative or non-finite voxels are the renderer's business (each grid reports value_min and
+ * nonfinite_voxels). What the renderer makes of it: README.md, "Participating media". */
+typedef struct IoVolume {
+    char name[64];               /* the node's name */
+    float xform[16];             /* the node's world matrix (parents included), column-major
+                                  * like IoInstance.xform; world = xform x grid.index_to_world */
+    char path[1024];             /* the resolved uri */
+    float density_scale;         /* default 4 */
+    float albedo[3];             /* default 0.8, 0.8, 0.8; each in [0, 1] */
+    float anisotropy;            /* Henyey-Greenstein g, default 0, in (-1, 1) */
+    float emission_scale;        /* default 1 */
+    float emission_color[3];     /* default 1, 1, 1 */
+    IoVolumeGrid density;        /* always loaded */
+    IoVolumeGrid emission;       /* buffer NULL unless emission_grid names a grid */
+    IoVolumeGrid temperature;    /* buffer NULL unless temperature_grid names a grid (kelvin) */
+} IoVolume;
+
 typedef struct IoScene {
     IoPrimitive *primitives; uint32_t num_primitives;
     IoMesh *meshes;          uint32_t num_meshes;
@@ -128,6 +201,7 @@ typedef struct IoScene {
      * to the glTF file; env_path[0] == 0 when absent. */
     char env_path[1024];
     float env_strength;
+    IoVolume *volumes;       uint32_t num_volumes; /* nodes with extras.candela_volume */
     uint32_t num_warnings;   /* warnings printed to stderr while loading (e.g. morph targets ignored) */
 } IoScene;
 
@@ -161,21 +235,7 @@ int io_read_exr_channel(const char *path, const char *channel, int *width, int *
                         float **data, char err[IO_ERR_LEN]);
 
 /* ---------------------------------------------------------------- volumes (OpenVDB) */
-
-/* One float grid of a VDB file, converted to NanoVDB so that C reads it with PNanoVDB.h
- * (`#define PNANOVDB_C`, `#include <nanovdb/PNanoVDB.h>`): buffer holds exactly one NanoVDB
- * float grid. Index space has voxel centres at integer coordinates; index_to_world is the
- * VDB's own (affine) transform. */
-typedef struct IoVolumeGrid {
-    char name[64];
-    void *buffer;                /* NanoVDB grid buffer, 32-byte aligned; owned */
-    uint64_t size;               /* bytes */
-    float index_to_world[16];    /* column-major 4x4 (glTF layout m[col*4 + row]) */
-    int32_t index_min[3], index_max[3]; /* bounding box of the active voxels, inclusive */
-    float value_min, value_max;  /* range of the finite active values */
-    uint64_t active_voxels;
-    uint64_t nonfinite_voxels;   /* active voxels that are NaN or infinite */
-} IoVolumeGrid;
+/* IoVolumeGrid is defined above, with IoVolume. */
 
 /* Reads the float grid `grid_name` of a .vdb file. Fails with a one-line "FILE: problem" for
  * a missing, unreadable, corrupt or truncated file, a missing grid (the message lists the
@@ -183,7 +243,7 @@ typedef struct IoVolumeGrid {
  * or absurd bounds. */
 int io_load_vdb_grid(const char *path, const char *grid_name, IoVolumeGrid *grid, char err[IO_ERR_LEN]);
 /* A grid from dense values (tests and generators): values[x + nx * (y + ny * z)] for index
- * (x, y, z) in [0, n), zero values inactive; index_to_world as above. */
+ * (x, y, z) in [0, n), zero values inactive; index_to_world as in IoVolumeGrid. */
 int io_volume_grid_from_dense(const float *values, int nx, int ny, int nz, const float index_to_world[16],
                               const char *name, IoVolumeGrid *grid, char err[IO_ERR_LEN]);
 void io_volume_grid_free(IoVolumeGrid *grid);

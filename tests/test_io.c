@@ -1,6 +1,10 @@
 /* tests/test_io.c: io/ module. EXR and PNG round trips, real glTF/GLB files from the shared
  * assets folder (argv[1]; skipped when absent), and malformed inputs made at test time in a
- * temporary directory: each must fail cleanly with a one-line "PATH: problem" message. */
+ * temporary directory: each must fail cleanly with a one-line "PATH: problem" message.
+ * Participating media in glTF (io.h IoVolume, IoMaterial.has_medium): candela_medium and
+ * KHR_materials_volume numbers and every bad value always; candela_volume nodes that load
+ * VDB grids use the shared assets' vdb/cloud.vdb and vdb/slab.vdb by absolute path (or a
+ * copy next to the generated glTF for relative uris) and are skipped when those are absent. */
 #include "check.h"
 
 #define PNANOVDB_C
@@ -8,6 +12,7 @@
 #include "io.h"
 
 #include <math.h>
+#include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -82,7 +87,8 @@ static void check_err(const char *err, const char *path, const char *what) {
 
 static int scene_is_zero(const IoScene *s) {
     return !s->primitives && !s->meshes && !s->instances && !s->materials && !s->images &&
-           !s->lights && !s->cameras && s->num_primitives == 0 && s->num_images == 0;
+           !s->lights && !s->cameras && !s->volumes && s->num_primitives == 0 && s->num_images == 0 &&
+           s->num_volumes == 0;
 }
 
 static void expect_gltf_failure(const char *path, const char *what) {
@@ -826,6 +832,383 @@ static void test_vdb_assets(const char *dir) {
     }
 }
 
+/* ---------------------------------------------------------------- participating media (glTF extras) */
+
+/* Write a printf-formatted file. */
+#if defined(__GNUC__)
+__attribute__((format(printf, 2, 3)))
+#endif
+static void write_fmt(const char *path, const char *fmt, ...) {
+    static char text[32768];
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(text, sizeof text, fmt, ap);
+    va_end(ap);
+    if (n < 0 || (size_t)n >= sizeof text) {
+        fprintf(stderr, "write_fmt: %s too long\n", path);
+        exit(1);
+    }
+    write_bytes(path, text, (size_t)n);
+}
+
+/* expect_gltf_failure, and the message also contains every non-NULL needle. */
+static void expect_failure_saying(const char *path, const char *what, const char *needle1, const char *needle2) {
+    IoScene s;
+    char err[IO_ERR_LEN] = "";
+    expect_gltf_failure(path, what);
+    if (io_load_gltf(path, &s, err) == 0) {
+        io_scene_free(&s);
+        return;
+    }
+    CHECK(!needle1 || strstr(err, needle1), "%s: error '%s' does not say '%s'", what, err, needle1);
+    CHECK(!needle2 || strstr(err, needle2), "%s: error '%s' does not say '%s'", what, err, needle2);
+}
+
+static int vec3_is(const float v[3], float a, float b, float c) { return v[0] == a && v[1] == b && v[2] == c; }
+
+/* A glTF with one material, given as a JSON object. */
+static void write_material_gltf(const char *path, const char *material) {
+    write_fmt(path, "{\"asset\":{\"version\":\"2.0\"},\"materials\":[%s]}", material);
+}
+
+static void test_material_media(void) {
+    char err[IO_ERR_LEN] = "";
+    IoScene s;
+    const char *p = tmp_path("media.gltf");
+    write_fmt(p,
+              "{\"asset\":{\"version\":\"2.0\"},\"extensionsUsed\":[\"KHR_materials_volume\"],"
+              "\"extensionsRequired\":[\"KHR_materials_volume\"],\"materials\":["
+              "{\"name\":\"plain\"},"
+              "{\"name\":\"fog\",\"extras\":{\"candela_medium\":{\"sigma_a\":[0.1,0.2,0.3],"
+              "\"sigma_s\":[1,2,3.5],\"anisotropy\":-0.25}}},"
+              "{\"name\":\"empty\",\"extras\":{\"candela_medium\":{}}},"
+              "{\"name\":\"khr\",\"extensions\":{\"KHR_materials_volume\":{\"thicknessFactor\":1,"
+              "\"attenuationDistance\":2,\"attenuationColor\":[0.5,0.25,1]}}},"
+              "{\"name\":\"khr_thin\",\"extensions\":{\"KHR_materials_volume\":{\"attenuationColor\":[0.5,0.5,0.5]}}},"
+              "{\"name\":\"khr_white\",\"extensions\":{\"KHR_materials_volume\":{\"attenuationDistance\":3}}},"
+              "{\"name\":\"both\",\"extras\":{\"candela_medium\":{\"sigma_s\":[0.5,0.5,0.5]}},"
+              "\"extensions\":{\"KHR_materials_volume\":{\"attenuationDistance\":1,\"attenuationColor\":[0.1,0.1,0.1]}}}"
+              "]}");
+    int rc = io_load_gltf(p, &s, err);
+    CHECK(rc == 0, "media materials: %s", err);
+    if (rc == 0 && s.num_materials == 7) {
+        const IoMaterial *m = s.materials;
+        CHECK(m[0].has_medium == 0 && vec3_is(m[0].medium_sigma_a, 0, 0, 0) && vec3_is(m[0].medium_sigma_s, 0, 0, 0) &&
+                  m[0].medium_anisotropy == 0.0f,
+              "no medium by default");
+        CHECK(m[1].has_medium == 1 && vec3_is(m[1].medium_sigma_a, 0.1f, 0.2f, 0.3f) &&
+                  vec3_is(m[1].medium_sigma_s, 1.0f, 2.0f, 3.5f) && m[1].medium_anisotropy == -0.25f,
+              "candela_medium read: has %d sigma_a %g %g %g sigma_s %g %g %g g %g", m[1].has_medium,
+              m[1].medium_sigma_a[0], m[1].medium_sigma_a[1], m[1].medium_sigma_a[2], m[1].medium_sigma_s[0],
+              m[1].medium_sigma_s[1], m[1].medium_sigma_s[2], m[1].medium_anisotropy);
+        CHECK(m[2].has_medium == 1 && vec3_is(m[2].medium_sigma_a, 0, 0, 0) && vec3_is(m[2].medium_sigma_s, 0, 0, 0) &&
+                  m[2].medium_anisotropy == 0.0f,
+              "empty candela_medium: a medium with the defaults");
+        /* sigma_a = -ln(c) / d */
+        CHECK(m[3].has_medium == 1 && fabsf(m[3].medium_sigma_a[0] - 0.34657359f) < 1e-6f &&
+                  fabsf(m[3].medium_sigma_a[1] - 0.69314718f) < 1e-6f && m[3].medium_sigma_a[2] == 0.0f &&
+                  vec3_is(m[3].medium_sigma_s, 0, 0, 0) && m[3].medium_anisotropy == 0.0f,
+              "KHR_materials_volume mapping: %g %g %g", m[3].medium_sigma_a[0], m[3].medium_sigma_a[1],
+              m[3].medium_sigma_a[2]);
+        CHECK(m[4].has_medium == 0 && vec3_is(m[4].medium_sigma_a, 0, 0, 0), "infinite distance: thin-walled");
+        CHECK(m[5].has_medium == 0 && vec3_is(m[5].medium_sigma_a, 0, 0, 0), "white attenuation: no medium");
+        CHECK(m[6].has_medium == 1 && vec3_is(m[6].medium_sigma_a, 0, 0, 0) && vec3_is(m[6].medium_sigma_s, 0.5f, 0.5f, 0.5f),
+              "candela_medium wins over KHR_materials_volume");
+        CHECK(s.num_warnings == 0, "warnings %u", s.num_warnings);
+    } else {
+        CHECK(rc != 0, "materials %u", s.num_materials);
+    }
+    if (rc == 0) io_scene_free(&s);
+
+    /* null reads as absent */
+    write_material_gltf(p, "{\"name\":\"nil\",\"extras\":{\"candela_medium\":null,\"other\":{}}}");
+    rc = io_load_gltf(p, &s, err);
+    CHECK(rc == 0 && s.materials[0].has_medium == 0, "null candela_medium: rc %d '%s'", rc, err);
+    if (rc == 0) io_scene_free(&s);
+    /* the key inside a string or a nested object is not the key */
+    write_material_gltf(p, "{\"name\":\"nested\",\"extras\":{\"x\":{\"candela_medium\":{}},"
+                           "\"y\":\"\\\"candela_medium\\\":{}\"}}");
+    rc = io_load_gltf(p, &s, err);
+    CHECK(rc == 0 && s.materials[0].has_medium == 0, "nested candela_medium: rc %d '%s'", rc, err);
+    if (rc == 0) io_scene_free(&s);
+
+    /* an unknown key is a warning, not an error */
+    write_material_gltf(p, "{\"name\":\"typo\",\"extras\":{\"candela_medium\":{\"sigma_t\":[1,1,1]}}}");
+    rc = io_load_gltf(p, &s, err);
+    CHECK(rc == 0 && s.num_warnings == 1 && s.materials[0].has_medium == 1, "unknown medium key: rc %d '%s'", rc, err);
+    if (rc == 0) io_scene_free(&s);
+
+    static const struct {
+        const char *material, *needle;
+    } bad[] = {
+        {"{\"name\":\"bad\",\"extras\":{\"candela_medium\":5}}", "must be an object"},
+        {"{\"name\":\"bad\",\"extras\":{\"candela_medium\":[]}}", "must be an object"},
+        {"{\"name\":\"bad\",\"extras\":{\"candela_medium\":{\"sigma_a\":[-0.1,0,0]}}}", "sigma_a must not be negative"},
+        {"{\"name\":\"bad\",\"extras\":{\"candela_medium\":{\"sigma_s\":[0,0,-2]}}}", "sigma_s must not be negative"},
+        {"{\"name\":\"bad\",\"extras\":{\"candela_medium\":{\"sigma_s\":[1,2]}}}", "sigma_s must be an array of 3"},
+        {"{\"name\":\"bad\",\"extras\":{\"candela_medium\":{\"sigma_a\":[\"1\",2,3]}}}", "sigma_a must be an array of 3 finite"},
+        {"{\"name\":\"bad\",\"extras\":{\"candela_medium\":{\"sigma_a\":0.5}}}", "sigma_a must be an array of 3"},
+        {"{\"name\":\"bad\",\"extras\":{\"candela_medium\":{\"sigma_a\":[1e39,0,0]}}}", "finite"},
+        {"{\"name\":\"bad\",\"extras\":{\"candela_medium\":{\"sigma_s\":[1e999,0,0]}}}", NULL},
+        {"{\"name\":\"bad\",\"extras\":{\"candela_medium\":{\"anisotropy\":1}}}", "anisotropy 1 is outside (-1, 1)"},
+        {"{\"name\":\"bad\",\"extras\":{\"candela_medium\":{\"anisotropy\":-1}}}", "outside (-1, 1)"},
+        {"{\"name\":\"bad\",\"extras\":{\"candela_medium\":{\"anisotropy\":\"0.3\"}}}", "anisotropy must be a number"},
+        {"{\"name\":\"bad\",\"extensions\":{\"KHR_materials_volume\":{\"attenuationDistance\":0}}}", "attenuationDistance must be a number > 0"},
+        {"{\"name\":\"bad\",\"extensions\":{\"KHR_materials_volume\":{\"attenuationDistance\":-2}}}", "attenuationDistance"},
+        {"{\"name\":\"bad\",\"extensions\":{\"KHR_materials_volume\":{\"attenuationDistance\":\"far\"}}}", "attenuationDistance"},
+        {"{\"name\":\"bad\",\"extensions\":{\"KHR_materials_volume\":{\"attenuationDistance\":1,\"attenuationColor\":[0,1,1]}}}", "attenuationColor components must be in (0, 1]"},
+        {"{\"name\":\"bad\",\"extensions\":{\"KHR_materials_volume\":{\"attenuationColor\":[1.5,1,1]}}}", "attenuationColor"},
+        {"{\"name\":\"bad\",\"extensions\":{\"KHR_materials_volume\":{\"attenuationDistance\":1e-300,\"attenuationColor\":[0.5,1,1]}}}", "non-finite absorption"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; ++i) {
+        char what[64];
+        snprintf(what, sizeof what, "bad medium %zu", i);
+        write_material_gltf(p, bad[i].material);
+        expect_failure_saying(p, what, bad[i].needle, bad[i].needle ? "material 'bad'" : NULL);
+    }
+}
+
+/* A glTF whose only node carries extras.candela_volume = volume (a JSON object). */
+static void write_volume_gltf(const char *path, const char *volume) {
+    write_fmt(path,
+              "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],"
+              "\"nodes\":[{\"name\":\"vol\",\"extras\":{\"candela_volume\":%s}}]}",
+              volume);
+}
+
+/* Bad candela_volume values: found before any VDB file is opened (the uri names a file that
+ * does not exist), so these need no assets. */
+static void test_volume_inputs(void) {
+    const char *p = tmp_path("volume-bad.gltf");
+    static const struct {
+        const char *volume, *needle;
+    } bad[] = {
+        {"\"cloud.vdb\"", "extras.candela_volume must be an object"},
+        {"{}", "no \"uri\""},
+        {"[]", "extras.candela_volume must be an object"},
+        {"[1]", "extras.candela_volume must be an object"},
+        {"{\"density_grid\":\"density\"}", "no \"uri\""},
+        {"{\"uri\":3}", "uri must be a non-empty string"},
+        {"{\"uri\":\"\"}", "uri must be a non-empty string"},
+        {"{\"uri\":\"nothing.vdb\",\"density_scale\":\"4\"}", "density_scale must be a number"},
+        {"{\"uri\":\"nothing.vdb\",\"density_scale\":1e39}", "density_scale must be a finite number"},
+        {"{\"uri\":\"nothing.vdb\",\"density_scale\":1e999}", NULL},
+        {"{\"uri\":\"nothing.vdb\",\"density_scale\":-1}", "density_scale must not be negative"},
+        {"{\"uri\":\"nothing.vdb\",\"emission_scale\":-0.5}", "emission_scale must not be negative"},
+        {"{\"uri\":\"nothing.vdb\",\"emission_scale\":[1]}", "emission_scale must be a number"},
+        {"{\"uri\":\"nothing.vdb\",\"albedo\":[1.2,0.5,0.5]}", "albedo components must be in [0, 1]"},
+        {"{\"uri\":\"nothing.vdb\",\"albedo\":[0.5,-0.1,0.5]}", "albedo components must be in [0, 1]"},
+        {"{\"uri\":\"nothing.vdb\",\"albedo\":[0.5,0.5]}", "albedo must be an array of 3 finite numbers"},
+        {"{\"uri\":\"nothing.vdb\",\"albedo\":0.5}", "albedo must be an array of 3 finite numbers"},
+        {"{\"uri\":\"nothing.vdb\",\"albedo\":[0.5,null,0.5]}", "albedo must be an array of 3"},
+        {"{\"uri\":\"nothing.vdb\",\"anisotropy\":1}", "anisotropy 1 is outside (-1, 1)"},
+        {"{\"uri\":\"nothing.vdb\",\"anisotropy\":-1}", "anisotropy -1 is outside (-1, 1)"},
+        {"{\"uri\":\"nothing.vdb\",\"anisotropy\":1.5}", "outside (-1, 1)"},
+        {"{\"uri\":\"nothing.vdb\",\"anisotropy\":\"0\"}", "anisotropy must be a number"},
+        {"{\"uri\":\"nothing.vdb\",\"emission_color\":[1,-1,1]}", "emission_color must not be negative"},
+        {"{\"uri\":\"nothing.vdb\",\"emission_color\":[1,1e39,1]}", "emission_color must be an array of 3 finite"},
+        {"{\"uri\":\"nothing.vdb\",\"density_grid\":7}", "density_grid must be a non-empty string"},
+        {"{\"uri\":\"nothing.vdb\",\"density_grid\":\"none\"}", "density_grid cannot be \"none\""},
+        {"{\"uri\":\"nothing.vdb\",\"emission_grid\":\"\"}", "emission_grid must be a non-empty string"},
+        {"{\"uri\":\"nothing.vdb\",\"temperature_grid\":false}", "temperature_grid must be a non-empty string"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; ++i) {
+        char what[64];
+        snprintf(what, sizeof what, "bad volume %zu", i);
+        write_volume_gltf(p, bad[i].volume);
+        expect_failure_saying(p, what, bad[i].needle, bad[i].needle ? "node 0 ('vol')" : NULL);
+    }
+    /* null: no volume */
+    write_volume_gltf(p, "null");
+    IoScene s;
+    char err[IO_ERR_LEN] = "";
+    int rc = io_load_gltf(p, &s, err);
+    CHECK(rc == 0 && s.num_volumes == 0 && s.volumes == NULL, "null candela_volume: rc %d '%s'", rc, err);
+    if (rc == 0) io_scene_free(&s);
+    /* the VDB file is missing: the message names both files */
+    char missing[600];
+    snprintf(missing, sizeof missing, "%s/nothing.vdb", tmpdir);
+    write_volume_gltf(p, "{\"uri\":\"nothing.vdb\"}");
+    expect_failure_saying(p, "missing vdb", missing, "no such file");
+}
+
+static int read_volume_scene(const char *path, IoScene *s, const char *what) {
+    char err[IO_ERR_LEN] = "";
+    int rc = io_load_gltf(path, s, err);
+    CHECK(rc == 0, "%s: %s", what, err);
+    return rc == 0;
+}
+
+static void copy_file(const char *from, const char *to) {
+    size_t n = 0;
+    unsigned char *b = read_bytes(from, &n);
+    if (!b) {
+        fprintf(stderr, "cannot read %s\n", from);
+        exit(1);
+    }
+    write_bytes(to, b, n);
+    free(b);
+}
+
+static void test_volume_assets(const char *dir) {
+    char cloud[1024], slab[1024];
+    snprintf(cloud, sizeof cloud, "%s/vdb/cloud.vdb", dir);
+    snprintf(slab, sizeof slab, "%s/vdb/slab.vdb", dir);
+    if (!file_exists(cloud) || !file_exists(slab)) {
+        fprintf(stderr, "note: %s or slab.vdb absent: glTF volume loading not tested\n", cloud);
+        return;
+    }
+    char err[IO_ERR_LEN] = "";
+    IoScene s;
+    const char *p = tmp_path("volume.gltf");
+    char vol[2048];
+
+    /* defaults; the density grid is exactly what io_load_vdb_grid reads */
+    snprintf(vol, sizeof vol, "{\"uri\":\"%s\"}", cloud);
+    write_volume_gltf(p, vol);
+    if (read_volume_scene(p, &s, "volume defaults")) {
+        CHECK(s.num_volumes == 1 && s.volumes, "volumes %u", s.num_volumes);
+        if (s.num_volumes == 1) {
+            const IoVolume *v = &s.volumes[0];
+            CHECK(strcmp(v->name, "vol") == 0, "volume name '%s'", v->name);
+            CHECK(strcmp(v->path, cloud) == 0, "absolute uri kept: '%s'", v->path);
+            CHECK(v->density_scale == 4.0f && vec3_is(v->albedo, 0.8f, 0.8f, 0.8f) && v->anisotropy == 0.0f &&
+                      v->emission_scale == 1.0f && vec3_is(v->emission_color, 1, 1, 1),
+                  "volume defaults: scale %g albedo %g %g %g g %g emission %g", v->density_scale, v->albedo[0],
+                  v->albedo[1], v->albedo[2], v->anisotropy, v->emission_scale);
+            CHECK(v->emission.buffer == NULL && v->temperature.buffer == NULL && v->emission.size == 0,
+                  "no emission or temperature grid unless named");
+            int ident = 1;
+            for (int k = 0; k < 16; ++k) ident &= v->xform[k] == ((k % 5 == 0) ? 1.0f : 0.0f);
+            CHECK(ident, "root node without a transform: identity");
+            IoVolumeGrid g;
+            if (io_load_vdb_grid(cloud, "density", &g, err) == 0) {
+                CHECK(v->density.buffer && v->density.size == g.size &&
+                          memcmp(v->density.buffer, g.buffer, g.size) == 0 && strcmp(v->density.name, "density") == 0 &&
+                          v->density.active_voxels == g.active_voxels &&
+                          memcmp(v->density.index_to_world, g.index_to_world, sizeof g.index_to_world) == 0,
+                      "density grid differs from io_load_vdb_grid's");
+                io_volume_grid_free(&g);
+            }
+        }
+        CHECK(s.num_warnings == 0, "warnings %u", s.num_warnings);
+        io_scene_free(&s);
+        CHECK(s.volumes == NULL && s.num_volumes == 0, "io_scene_free clears the volumes");
+    }
+
+    /* every key read (cloud.vdb has one grid, "density": it serves as emission and temperature) */
+    snprintf(vol, sizeof vol,
+             "{\"uri\":\"%s\",\"density_grid\":\"density\",\"density_scale\":20.5,\"albedo\":[0.1,0.2,0.3],"
+             "\"anisotropy\":-0.7,\"emission_grid\":\"density\",\"emission_scale\":3,"
+             "\"emission_color\":[0.9,0.5,0.25],\"temperature_grid\":\"density\",\"comment\":\"x\"}",
+             cloud);
+    write_volume_gltf(p, vol);
+    if (read_volume_scene(p, &s, "volume keys")) {
+        if (s.num_volumes == 1) {
+            const IoVolume *v = &s.volumes[0];
+            CHECK(v->density_scale == 20.5f && vec3_is(v->albedo, 0.1f, 0.2f, 0.3f) && v->anisotropy == -0.7f &&
+                      v->emission_scale == 3.0f && vec3_is(v->emission_color, 0.9f, 0.5f, 0.25f),
+                  "volume keys: scale %g albedo %g %g %g g %g emission %g colour %g %g %g", v->density_scale,
+                  v->albedo[0], v->albedo[1], v->albedo[2], v->anisotropy, v->emission_scale, v->emission_color[0],
+                  v->emission_color[1], v->emission_color[2]);
+            CHECK(v->density.buffer && v->emission.buffer && v->temperature.buffer &&
+                      v->emission.size == v->density.size && strcmp(v->emission.name, "density") == 0 &&
+                      strcmp(v->temperature.name, "density") == 0,
+                  "emission and temperature grids loaded");
+        } else {
+            CHECK(0, "volumes %u", s.num_volumes);
+        }
+        CHECK(s.num_warnings == 1, "unknown key 'comment': warnings %u", s.num_warnings);
+        io_scene_free(&s);
+    }
+    snprintf(vol, sizeof vol, "{\"uri\":\"%s\",\"emission_grid\":\"none\",\"temperature_grid\":\"none\"}", cloud);
+    write_volume_gltf(p, vol);
+    if (read_volume_scene(p, &s, "explicit none")) {
+        CHECK(s.num_volumes == 1 && s.volumes[0].emission.buffer == NULL && s.volumes[0].temperature.buffer == NULL,
+              "\"none\" loads no grid");
+        io_scene_free(&s);
+    }
+
+    /* uri relative to the glTF's folder (not the working directory), percent-decoded */
+    char sub[600], copy[700], want[700];
+    snprintf(sub, sizeof sub, "%s/vdb", tmpdir);
+    snprintf(copy, sizeof copy, "%s/slab.vdb", sub);
+    mkdir(sub, 0700);
+    copy_file(slab, copy);
+    for (int enc = 0; enc < 2; ++enc) {
+        write_volume_gltf(p, enc ? "{\"uri\":\"vdb/sl%61b.vdb\"}" : "{\"uri\":\"vdb/slab.vdb\"}");
+        snprintf(want, sizeof want, "%s/vdb/slab.vdb", tmpdir);
+        if (read_volume_scene(p, &s, enc ? "percent-encoded uri" : "relative uri")) {
+            CHECK(s.num_volumes == 1 && strcmp(s.volumes[0].path, want) == 0 && s.volumes[0].density.buffer,
+                  "relative uri resolved to '%s'", s.num_volumes ? s.volumes[0].path : "");
+            io_scene_free(&s);
+        }
+    }
+
+    /* nested nodes: parent T(1,2,3) S(2), child T(0,1,0) R_y(90 deg) with a mesh and a volume
+     * (both load); the volume's xform is the child's world matrix, the instance's too */
+    make_tri_bin(-1, 0);
+    char b64[128];
+    base64(tri_bin, 42, b64);
+    write_fmt(p,
+              "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],"
+              "\"nodes\":[{\"name\":\"parent\",\"translation\":[1,2,3],\"scale\":[2,2,2],\"children\":[1]},"
+              "{\"name\":\"child\",\"translation\":[0,1,0],\"rotation\":[0,0.70710678,0,0.70710678],\"mesh\":0,"
+              "\"extras\":{\"candela_volume\":{\"uri\":\"vdb/slab.vdb\"}}}],"
+              "\"meshes\":[{\"name\":\"tri\",\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1}]}],"
+              "\"buffers\":[{\"byteLength\":42,\"uri\":\"data:application/octet-stream;base64,%s\"}],"
+              "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":36},"
+              "{\"buffer\":0,\"byteOffset\":36,\"byteLength\":6}],"
+              "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"},"
+              "{\"bufferView\":1,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"}]}",
+              b64);
+    if (read_volume_scene(p, &s, "nested volume")) {
+        CHECK(s.num_volumes == 1 && s.num_instances == 1, "mesh and volume on one node: volumes %u instances %u",
+              s.num_volumes, s.num_instances);
+        if (s.num_volumes == 1 && s.num_instances == 1) {
+            const float *x = s.volumes[0].xform;
+            /* column 0 = 2 R_y(90) e_x = (0, 0, -2), column 1 = (0, 2, 0), column 2 = (2, 0, 0),
+             * translation = (1, 2, 3) + 2 (0, 1, 0) */
+            const float want_x[16] = {0, 0, -2, 0, 0, 2, 0, 0, 2, 0, 0, 0, 1, 4, 3, 1};
+            float maxd = 0.0f;
+            for (int k = 0; k < 16; ++k) maxd = fmaxf(maxd, fabsf(x[k] - want_x[k]));
+            CHECK(maxd < 1e-6f, "nested volume world matrix off by %g", maxd);
+            CHECK(memcmp(x, s.instances[0].xform, sizeof(float) * 16) == 0, "volume and instance matrices differ");
+            CHECK(strcmp(s.volumes[0].name, "child") == 0, "volume name '%s'", s.volumes[0].name);
+        }
+        io_scene_free(&s);
+    }
+
+    /* missing grids: io_load_vdb_grid's message, naming the VDB, inside the glTF's line */
+    static const char *missing_grid[3] = {"\"density_grid\":\"smoke\"", "\"emission_grid\":\"emission\"",
+                                          "\"temperature_grid\":\"temperature\""};
+    static const char *missing_name[3] = {"no grid named 'smoke' (grids: density)",
+                                          "no grid named 'emission' (grids: density)",
+                                          "no grid named 'temperature' (grids: density)"};
+    for (int i = 0; i < 3; ++i) {
+        snprintf(vol, sizeof vol, "{\"uri\":\"%s\",%s}", cloud, missing_grid[i]);
+        write_volume_gltf(p, vol);
+        char what[64];
+        snprintf(what, sizeof what, "missing grid %d", i);
+        expect_failure_saying(p, what, missing_name[i], cloud);
+    }
+    /* a second volume fails after a first one loaded: nothing leaks (ASan), scene zeroed */
+    write_fmt(p,
+              "{\"asset\":{\"version\":\"2.0\"},\"nodes\":[{\"name\":\"a\",\"extras\":{\"candela_volume\":"
+              "{\"uri\":\"%s\"}}},{\"name\":\"b\",\"extras\":{\"candela_volume\":{\"uri\":\"%s\","
+              "\"emission_grid\":\"fire\"}}}]}",
+              cloud, cloud);
+    expect_failure_saying(p, "second volume fails", "node 1 ('b')", "no grid named 'fire'");
+    /* a VDB that is not one */
+    write_bytes(tmp_path("fake.vdb"), "not a vdb at all\n", 17);
+    write_volume_gltf(p, "{\"uri\":\"fake.vdb\"}");
+    snprintf(want, sizeof want, "%s/fake.vdb", tmpdir);
+    expect_failure_saying(p, "fake vdb", want, "VDB");
+
+    unlink(copy);
+    rmdir(sub);
+}
+
 int main(int argc, char **argv) {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/candela-test-io-XXXXXX");
     if (!mkdtemp(tmpdir)) {
@@ -836,6 +1219,8 @@ int main(int argc, char **argv) {
     test_png();
     test_generated_gltf();
     test_vdb_generated();
+    test_material_media();
+    test_volume_inputs();
 
     char probe[1024];
     int have_assets = 0;
@@ -846,6 +1231,7 @@ int main(int argc, char **argv) {
     if (have_assets) {
         test_assets(argv[1]);
         test_vdb_assets(argv[1]);
+        test_volume_assets(argv[1]);
     }
 
     for (int i = num_created - 1; i >= 0; --i) unlink(created[i]);
