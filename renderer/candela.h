@@ -30,7 +30,8 @@ typedef struct CandelaOptions {
     int spp;                   /* samples per pixel in total */
     uint64_t seed;
     int threads;               /* 0: all cores */
-    int max_depth;             /* path vertices after the camera; 1 = direct light only */
+    int max_depth;             /* surface vertices of a path; 1 = direct light only */
+    int max_volume_bounces;    /* scattering events in media per path (0: default) */
     CandelaLightSampler light_sampler;
     CandelaLightUnits light_units;
     const char *env_path;      /* overrides the scene's extras; NULL: none */
@@ -54,7 +55,7 @@ int candela_light_sampler_parse(const char *name, CandelaLightSampler *s); /* 0 
 /* Wall-clock seconds per wavefront stage, summed over threads' shared wall time. */
 typedef struct CandelaStats {
     double time_load, time_build, time_total;
-    double time_generate, time_sort, time_trace, time_shade, time_shadow, time_film;
+    double time_generate, time_sort, time_trace, time_medium, time_shade, time_shadow, time_film;
     uint64_t rays_camera, rays_bounce, rays_shadow;
     uint64_t paths;
     int iterations;
@@ -64,7 +65,16 @@ typedef struct CandelaStats {
     uint32_t num_cachepoints, cachepoint_candidates;
     size_t cachepoint_bytes;
     double cachepoint_mean_near, cachepoint_mean_far, cachepoint_mean_clusters; /* entries per point */
+    uint32_t num_volumes;
+    uint64_t volume_collisions;   /* majorant collisions the media trackers evaluated */
+    uint64_t volume_capped_walks; /* tracker calls stopped at their collision cap (a bad medium) */
 } CandelaStats;
+
+/* Seconds spent in the wavefront's stages and the film (the render proper). */
+static inline double candela_stats_render_seconds(const CandelaStats *s) {
+    return s->time_generate + s->time_sort + s->time_trace + s->time_medium + s->time_shade + s->time_shadow +
+           s->time_film;
+}
 
 /* The film after the render: per-pixel mean and AOVs, top row first. */
 typedef struct CandelaImage {

@@ -5,8 +5,8 @@
  * slots per worker thread, and each thread runs every wave of its slice on its own queues
  * (arrays of slots). One wave advances every live path of the slice by one bounce:
  *
- *   stage_generate ─> rays ─sort_rays─> stage_intersect ─┬─> escaped ─> stage_escaped
- *        (once)        ^                                  └─> hits ─sort_hits─> stage_surface ─┐
+ *   stage_generate ─> rays ─sort_rays─> stage_intersect ─> stage_medium ─┬─> escaped ─> stage_escaped
+ *        (once)        ^                                                 └─> hits ─sort_hits─> stage_surface ─┐
  *                      │                                                   │                    │
  *                      └───────── continuation rays (the next wave) <──────┘    shadows <──────┘
  *                                                                                  │
@@ -17,10 +17,10 @@
  * hold paths of different depths. Queues are filled in queue order by one thread, so their
  * contents are a function of the input only, never of thread timing.
  *
- * Two seams: a medium stage (the volume integrator's walk: free-flight sampling between the
- * ray origin and its hit, scattering and NEE in the medium through the light-selection
- * protocol and the scattering interface, then back into the hit or escaped queue) plugs in
- * between stage_intersect and the hit/escaped stages; the radiance recorder sees every
+ * Two seams: the medium stage (the volume walk: free-flight sampling between the ray origin
+ * and its hit, scattering and NEE in the medium through the light-selection protocol and the
+ * scattering interface, then back into the hit or escaped queue) sits between
+ * stage_intersect and the hit/escaped stages; the radiance recorder sees every
  * contribution through path_add_radiance and every scattering event in stage_surface's
  * continuation, and trains at the barrier (a hook). */
 #ifndef CANDELA_INTEGRATOR_H
@@ -32,6 +32,7 @@
 #include "candela.h"
 #include "light_sampler.h"
 #include "lights.h"
+#include "media.h"
 #include "path_state.h"
 #include "scene.h"
 #include "threads.h"
@@ -66,6 +67,7 @@ typedef struct Integrator {
     const Scene *scene;
     const Lights *lights;
     const LightSampler *light_sampler;
+    const SceneMedia *media;
     PathState ps;
     /* queue storage for the whole batch; a slice uses its own [begin, end) part of each */
     uint32_t *queue_rays, *queue_hits, *queue_escaped, *queue_shadows;
@@ -86,7 +88,7 @@ typedef struct Integrator {
  * batch (the paths the caller set in batch_first / batch_count / sample_base) on the pool,
  * added to the film and the statistics, and the barrier hooks. */
 int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene, const Lights *lights,
-                    const LightSampler *sampler, uint32_t batch);
+                    const SceneMedia *media, const LightSampler *sampler, uint32_t batch);
 void integrator_free(Integrator *ig);
 void integrator_run_batch(Integrator *ig, ThreadPool *pool, CandelaStats *stats);
 void integrator_add_barrier_hook(Integrator *ig, void (*run)(void *user), void *user);
@@ -96,7 +98,7 @@ void integrator_barrier(Integrator *ig);
  * infinite tfar, shadow rays with theirs). */
 void ray_log_append(CandelaRayLog *log, const SceneRay *rays, const uint32_t *items, uint32_t n, int shadow);
 
-enum { STAGE_GENERATE, STAGE_SORT, STAGE_TRACE, STAGE_SHADE, STAGE_SHADOW, STAGE_COUNT };
+enum { STAGE_GENERATE, STAGE_SORT, STAGE_TRACE, STAGE_MEDIUM, STAGE_SHADE, STAGE_SHADOW, STAGE_COUNT };
 
 /* One thread's part of a batch: slots [begin, end) and its queues. */
 typedef struct Slice {
@@ -108,6 +110,7 @@ typedef struct Slice {
     uint32_t *items_tmp;
     double seconds[STAGE_COUNT];
     uint64_t bounce_rays, shadow_rays;
+    VolumeStats volume;                          /* the media trackers' counts */
 } Slice;
 
 /* ---------------------------------------------------------------- stages (stage_*.c) */
@@ -121,6 +124,10 @@ typedef struct Slice {
 void stage_generate(const Integrator *ig, Slice *s);
 /* Closest hits of the ray queue; splits it into the hit and escaped queues (queue order). */
 void stage_intersect(const Integrator *ig, Slice *s);
+/* Paths whose ray segment crosses media walk it depth-first (free flights, scattering with
+ * NEE and phase sampling, emission) with their own RNG sub-streams, and rejoin the hit or the
+ * escaped queue where the walk leaves the media, or end. */
+void stage_medium(const Integrator *ig, Slice *s);
 /* Escaped rays: the environment's radiance, MIS-weighted against the light sampler. */
 void stage_escaped(const Integrator *ig, Slice *s);
 /* Hits, in the sorted hit queue: emission found (MIS), next-event estimation (a shadow ray
@@ -156,6 +163,34 @@ static inline void path_write_aovs(const PathState *ps, uint32_t p, vec3 albedo,
     ps->aov_normal[p] = normal;
     ps->aov_depth[p] = depth;
 }
+
+/* Russian roulette on the throughput with refraction's radiance scaling removed: the path
+ * survives with probability 1 - q, q = 1 - max(beta) rr_scale clamped to [0, 0.95], and its
+ * throughput is divided by that. Returns 0 when the path is terminated. */
+#define RR_START_DEPTH 3 /* the first depth whose continuation is subject to the roulette, plus one */
+static inline int russian_roulette(vec3 *beta, float rr_scale, float u) {
+    float q = fmaxf(0.0f, 1.0f - v3_max_component(*beta) * rr_scale);
+    q = fminf(q, 0.95f);
+    if (u < q) return 0;
+    *beta = v3_scale(*beta, 1.0f / (1.0f - q));
+    return 1;
+}
+
+/* A scattering vertex hands on its MIS context (what a light found by the next ray is weighed
+ * with) and the path moves to the next depth. */
+static inline void path_scattered(const PathState *ps, uint32_t p, vec3 pos, const LightSampleContext *lc, float pdf,
+                                  int delta) {
+    ps->prev_pos[p] = pos;
+    ps->prev_normal[p] = lc->n;
+    ps->prev_light_vertex[p] = lc->vertex;
+    ps->prev_scatter_pdf[p] = pdf;
+    ps->prev_delta[p] = (uint8_t)delta;
+    ps->depth[p] = ps->depth[p] + 1;
+}
+
+/* stage_shadow.c: transmittance (RGB) of a shadow segment through the scene's media, with
+ * the path's shadow sub-stream of this depth (1 without media). */
+vec3 shadow_transmittance(const Integrator *ig, Slice *s, uint64_t key, uint32_t depth, vec3 o, vec3 d, float tmax);
 
 /* MIS weight of a technique with pdf a against one with pdf b (power heuristic, beta = 2). */
 static inline float power_heuristic(float a, float b) {

@@ -24,7 +24,8 @@ static const char *USAGE =
     "  --seed S                  random seed (default 0)\n"
     "  --res WxH                 resolution (default: 640 wide, camera aspect)\n"
     "  --threads N               worker threads (default: all cores)\n"
-    "  --max-depth N             maximum bounces; 1 = direct light only (default 8)\n"
+    "  --max-depth N             maximum surface bounces; 1 = direct light only (default 8)\n"
+    "  --max-volume-bounces N    maximum scattering events in media per path (default 256)\n"
     "  --light-sampler S         uniform | power | tree | optimal | cachepoints (default cachepoints)\n"
     "  --no-visibility           cache points without visibility learning\n"
     "  --cachepoint-build B      cut (default: far entries are light-tree clusters) | linear (the\n"
@@ -92,15 +93,15 @@ static int ensure_parent_dir(const char *path, int create) {
 
 static void print_stats(const CandelaStats *s) {
     uint64_t rays = s->rays_camera + s->rays_bounce + s->rays_shadow;
-    double render = s->time_generate + s->time_sort + s->time_trace + s->time_shade + s->time_shadow + s->time_film;
+    double render = candela_stats_render_seconds(s);
     fprintf(stderr,
-            "candela: %u triangles, %u instances, %u lights; %d iterations, %llu paths\n"
-            "  time: load %.3fs, setup %.3fs, render %.3fs (generate %.3f, sort %.3f, trace %.3f, shade %.3f,"
-            " shadow %.3f, film %.3f), total %.3fs\n"
+            "candela: %u triangles, %u instances, %u lights, %u volumes; %d iterations, %llu paths\n"
+            "  time: load %.3fs, setup %.3fs, render %.3fs (generate %.3f, sort %.3f, trace %.3f, medium %.3f,"
+            " shade %.3f, shadow %.3f, film %.3f), total %.3fs\n"
             "  rays: %llu camera, %llu bounce, %llu shadow; %.2f Mrays/s\n"
             "  peak memory: %.1f MiB\n",
-            s->num_triangles, s->num_instances, s->num_lights, s->iterations, (unsigned long long)s->paths,
-            s->time_load, s->time_build, render, s->time_generate, s->time_sort, s->time_trace, s->time_shade,
+            s->num_triangles, s->num_instances, s->num_lights, s->num_volumes, s->iterations, (unsigned long long)s->paths,
+            s->time_load, s->time_build, render, s->time_generate, s->time_sort, s->time_trace, s->time_medium, s->time_shade,
             s->time_shadow, s->time_film, s->time_total, (unsigned long long)s->rays_camera,
             (unsigned long long)s->rays_bounce, (unsigned long long)s->rays_shadow,
             render > 0 ? (double)rays / render * 1e-6 : 0.0, (double)s->peak_memory_bytes / (1024.0 * 1024.0));
@@ -111,6 +112,9 @@ static void print_stats(const CandelaStats *s) {
                 s->num_cachepoints, s->cachepoint_candidates, s->time_cachepoints,
                 (double)s->cachepoint_bytes / (1024.0 * 1024.0), s->cachepoint_mean_near, s->cachepoint_mean_far,
                 s->cachepoint_mean_clusters);
+    if (s->num_volumes)
+        fprintf(stderr, "  volumes: %llu majorant collisions%s\n", (unsigned long long)s->volume_collisions,
+                s->volume_capped_walks ? "; WARNING: some walks hit the collision cap (an extreme medium): the image is biased there" : "");
 }
 
 int main(int argc, char **argv) {
@@ -156,6 +160,7 @@ int main(int argc, char **argv) {
         else if (strcmp(a, "--seed") == 0) { o.seed = (uint64_t)parse_long(a, v, 0, LONG_MAX); ++i; }
         else if (strcmp(a, "--threads") == 0) { o.threads = (int)parse_long(a, v, 1, 1024); ++i; }
         else if (strcmp(a, "--max-depth") == 0) { o.max_depth = (int)parse_long(a, v, 0, 1024); ++i; }
+        else if (strcmp(a, "--max-volume-bounces") == 0) { o.max_volume_bounces = (int)parse_long(a, v, 0, 100000); ++i; }
         else if (strcmp(a, "--batch") == 0) { o.batch_size = (uint32_t)parse_long(a, v, 1, 1 << 22); ++i; }
         else if (strcmp(a, "--env-strength") == 0) { o.env_strength = parse_float(a, v, 0.0f, 1e9f); ++i; }
         else if (strcmp(a, "--env") == 0) { if (!v) die("missing value for ", a); o.env_path = v; ++i; }
@@ -266,8 +271,7 @@ int main(int argc, char **argv) {
             fprintf(stderr, "candela: %s\n", err);
             rc = 1;
         } else {
-            double render = stats.time_generate + stats.time_sort + stats.time_trace + stats.time_shade +
-                            stats.time_shadow + stats.time_film;
+            double render = candela_stats_render_seconds(&stats);
             double rr = (double)log.count / render, br = (double)log.count / replay;
             printf("scene            %s\n", o.scene_path);
             printf("rays             %zu (%llu camera, %llu bounce, %llu shadow)\n", log.count,

@@ -61,13 +61,13 @@ int candela_write_stats_json(const char *path, const CandelaOptions *o, const Ca
     FILE *f = fopen(tmp, "w");
     if (!f) { snprintf(err, CANDELA_ERR_LEN, "%s: cannot open for writing", path); return -1; }
     uint64_t rays = s->rays_camera + s->rays_bounce + s->rays_shadow;
-    double render = s->time_generate + s->time_sort + s->time_trace + s->time_shade + s->time_shadow + s->time_film;
+    double render = candela_stats_render_seconds(s);
     fprintf(f, "{\n  \"scene\": \"%s\",\n  \"spp\": %d,\n  \"seed\": %llu,\n  \"max_depth\": %d,\n",
             o->scene_path, o->spp, (unsigned long long)o->seed, o->max_depth);
     fprintf(f, "  \"light_sampler\": \"%s\",\n", candela_light_sampler_name(o->light_sampler));
     fprintf(f, "  \"time_seconds\": {\"load\": %.6f, \"build\": %.6f, \"generate\": %.6f, \"sort\": %.6f, "
-               "\"trace\": %.6f, \"shade\": %.6f, \"shadow\": %.6f, \"film\": %.6f, \"total\": %.6f},\n",
-            s->time_load, s->time_build, s->time_generate, s->time_sort, s->time_trace, s->time_shade,
+               "\"trace\": %.6f, \"medium\": %.6f, \"shade\": %.6f, \"shadow\": %.6f, \"film\": %.6f, \"total\": %.6f},\n",
+            s->time_load, s->time_build, s->time_generate, s->time_sort, s->time_trace, s->time_medium, s->time_shade,
             s->time_shadow, s->time_film, s->time_total);
     fprintf(f, "  \"rays\": {\"camera\": %llu, \"bounce\": %llu, \"shadow\": %llu, \"total\": %llu},\n",
             (unsigned long long)s->rays_camera, (unsigned long long)s->rays_bounce,
@@ -82,6 +82,8 @@ int candela_write_stats_json(const char *path, const CandelaOptions *o, const Ca
             o->cachepoint_build_linear ? "linear" : "cut", s->time_cachepoints, s->cachepoint_candidates,
             s->num_cachepoints, s->cachepoint_bytes, s->cachepoint_mean_near, s->cachepoint_mean_far,
             s->cachepoint_mean_clusters);
+    fprintf(f, "  \"volumes\": {\"count\": %u, \"collisions\": %llu, \"capped_walks\": %llu},\n", s->num_volumes,
+            (unsigned long long)s->volume_collisions, (unsigned long long)s->volume_capped_walks);
     fprintf(f, "  \"peak_memory_bytes\": %zu\n}\n", s->peak_memory_bytes);
     if (fclose(f) != 0 || rename(tmp, path) != 0) {
         remove(tmp);

@@ -7,10 +7,11 @@
  * where prefetch says whether surface shading, which visits slots in a random order (hits are
  * sorted by primitive), fetches the member ahead: R (read), W (written), N (not).
  *
- * Where what is coming plugs in: a medium (or medium stack) index for the volume integrator
- * and a radiance-recorder vertex handle (PVIndex) for path guiding are one member each in the
- * "path" group; a walk that draws an unbounded number of random numbers per bounce uses a
- * sub-stream keyed by (rng_key, depth) (rng.h: rng_stream), so it needs no member at all. */
+ * Where what is coming plugs in: a medium stack index for media inside closed meshes and a
+ * radiance-recorder vertex handle (PVIndex) for path guiding are one member each in the
+ * "path" group; the volume walk, which draws an unbounded number of random numbers per
+ * bounce, uses a sub-stream keyed by (rng_key, depth) (rng.h: rng_stream), so it needs no
+ * member at all. */
 #ifndef CANDELA_PATH_STATE_H
 #define CANDELA_PATH_STATE_H
 
@@ -25,6 +26,7 @@
     F(uint64_t, rng_key, R)         /* counter-based RNG key: (seed, pixel, sample) */           \
     F(uint32_t, pixel, N)           /* the film pixel the path belongs to */                     \
     F(uint32_t, depth, W)           /* the vertex the path shades next: 0 = the camera ray's hit */ \
+    F(uint32_t, volume_bounces, W)  /* how many of its vertices so far were in media */          \
     F(vec3, radiance, W)            /* accumulated L; written only through path_add_radiance */  \
     F(vec3, throughput, W)          /* beta: the path's weight so far */                         \
     F(float, rr_scale, W)           /* throughput factor for the Russian roulette decision only \
@@ -43,6 +45,7 @@
     F(SceneRay, shadow_ray, N)                                                                   \
     F(vec3, shadow_contrib, N)      /* the NEE contribution if the shadow ray gets through */    \
     F(uint32_t, shadow_outcome, N)  /* the light sampler's outcome token for the selection */    \
+    F(uint32_t, shadow_depth, N)    /* the depth of the vertex that cast it (its RNG sub-stream) */ \
     /* -- first-hit AOVs */                                                                      \
     F(vec3, aov_albedo, N)                                                                       \
     F(vec3, aov_normal, N)                                                                       \

@@ -1,6 +1,6 @@
 /* renderer/render.c: candela_render(), a render from file to film.
  *
- *   scene_load -> lights_build -> light_sampler_create (on the thread pool) -> for each
+ *   scene_load -> lights_build -> media_build -> light_sampler_create (on the thread pool) -> for each
  *   iteration (spp schedule 1, 1, 2, 4, 8, ... capped, summing to --spp): for each batch of
  *   paths, integrator_run_batch (waves, film) -> the iteration barrier (no ray in flight:
  *   the barrier hooks run, then progress is reported) -> film_resolve.
@@ -98,16 +98,18 @@ static int iteration_spp(int iteration, int max_iteration_spp, int remaining) {
 typedef struct Render {
     Scene scene;
     Lights lights;
+    SceneMedia media;
     LightSampler sampler;
     ThreadPool *pool;
     Integrator ig;
-    int have_scene, have_lights, have_sampler, have_integrator;
+    int have_scene, have_lights, have_media, have_sampler, have_integrator;
 } Render;
 
 static void render_free(Render *r) {
     if (r->have_integrator) integrator_free(&r->ig);
     if (r->have_sampler) light_sampler_free(&r->sampler);
     if (r->pool) threadpool_destroy(r->pool);
+    if (r->have_media) media_free(&r->media);
     if (r->have_lights) lights_free(&r->lights);
     if (r->have_scene) scene_free(&r->scene);
     free(r);
@@ -119,8 +121,8 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
     if (!stats) stats = &local_stats;
     memset(stats, 0, sizeof *stats);
     memset(image, 0, sizeof *image);
-    if (o->spp < 1 || o->max_depth < 0 || o->width < 0 || o->height < 0 || o->width > 16384 || o->height > 16384) {
-        snprintf(err, CANDELA_ERR_LEN, "%s: invalid render options (spp >= 1, 0 <= max depth, resolution <= 16384)",
+    if (o->spp < 1 || o->max_depth < 0 || o->max_volume_bounces < 0 || o->width < 0 || o->height < 0 || o->width > 16384 || o->height > 16384) {
+        snprintf(err, CANDELA_ERR_LEN, "%s: invalid render options (spp >= 1, 0 <= max depth and volume bounces, resolution <= 16384)",
                  o->scene_path ? o->scene_path : "candela");
         return -1;
     }
@@ -132,11 +134,14 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
     r->have_scene = 1;
     if (lights_build(&r->lights, &r->scene, o->light_units, err, CANDELA_ERR_LEN) != 0) { render_free(r); return -1; }
     r->have_lights = 1;
+    if (media_build(&r->media, &r->scene, o->scene_path, err) != 0) { render_free(r); return -1; }
+    r->have_media = 1;
     double t_loaded = clock_seconds();
     stats->time_load = t_loaded - t_start;
     stats->num_triangles = r->scene.num_triangles_total;
     stats->num_lights = r->lights.count;
     stats->num_instances = r->scene.io.num_instances;
+    stats->num_volumes = r->media.num_vdb;
 
     const Camera *cam = &r->scene.camera;
     uint32_t npixels = (uint32_t)cam->width * (uint32_t)cam->height;
@@ -149,7 +154,7 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
     if (light_sampler_create(&r->sampler, &r->lights, &r->scene, r->pool, o, err) != 0) { render_free(r); return -1; }
     r->have_sampler = 1;
     light_sampler_report(&r->sampler, stats);
-    if (integrator_init(&r->ig, o, &r->scene, &r->lights, &r->sampler, batch) != 0) {
+    if (integrator_init(&r->ig, o, &r->scene, &r->lights, &r->media, &r->sampler, batch) != 0) {
         snprintf(err, CANDELA_ERR_LEN, "%s: out of memory allocating %u paths", o->scene_path, batch);
         render_free(r);
         return -1;

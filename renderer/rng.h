@@ -66,7 +66,10 @@ typedef struct RngStream {
     uint32_t next;  /* the next dimension to draw */
 } RngStream;
 
-enum { RNG_STREAM_MEDIUM = 1 };
+enum {
+    RNG_STREAM_MEDIUM = 1,  /* the free flight towards the vertex of this depth */
+    RNG_STREAM_SHADOW = 2   /* the transmittance of this depth's NEE shadow ray */
+};
 
 static inline RngStream rng_stream(uint64_t path_key, uint32_t depth, uint32_t purpose) {
     uint64_t salt = ((uint64_t)depth << 32 | purpose) * 0x9e3779b97f4a7c15ull + 0x5851f42d4c957f2dull;

@@ -2,10 +2,10 @@
  *
  * Whatever scatters light at a vertex is a Scatter: sample a direction, evaluate the
  * function and its pdf for a given direction. Directions are world-space unit vectors
- * pointing away from the vertex. Today a Scatter is a surface BSDF (bsdf.h) in its shading
- * frame; a phase function (media) and a guided mixture (path guiding, one-sample MIS or RIS
- * over BSDF and guide) are further kinds behind the same three calls, so the stages that
- * sample directions, do NEE and weigh MIS never change when one is added.
+ * pointing away from the vertex. A Scatter is a surface BSDF (bsdf.h) in its shading frame or
+ * a medium's Henyey-Greenstein phase function (volumes.h); a guided mixture (path guiding,
+ * one-sample MIS or RIS over BSDF and guide) is a further kind behind the same three calls,
+ * so the stages that sample directions, do NEE and weigh MIS never change when one is added.
  *
  * Surfaces keep the BSDF-light geometry guard: a direction whose geometric and shading
  * hemispheres disagree is neither sampled nor evaluated (no light leaks through shading
@@ -17,7 +17,12 @@
 #include "scene.h"
 #include "vecmath.h"
 
+typedef enum { SCATTER_BSDF = 0, SCATTER_PHASE = 1 } ScatterKind;
+
 typedef struct Scatter {
+    ScatterKind kind;
+    float g;           /* phase: Henyey-Greenstein anisotropy */
+    vec3 wo_world;     /* phase: the outgoing direction (world) */
     Frame frame;       /* shading frame (n: the shading normal, turned towards wo unless the
                         * surface transmits) */
     vec3 ng;           /* geometric normal, turned like frame.n */
@@ -38,16 +43,20 @@ typedef struct ScatterSample {
 
 /* The BSDF of a surface hit seen from direction wo_world (unit, pointing away from the hit). */
 void scatter_init_surface(Scatter *s, const SurfaceHit *h, const BsdfParams *bsdf, vec3 wo_world);
+/* A medium's Henyey-Greenstein phase function at a scattering point seen from wo_world. */
+void scatter_init_phase(Scatter *s, float g, vec3 wo_world);
 /* 1 if a direction was sampled (u_lobe picks a lobe, u1 and u2 the direction in it). */
 int scatter_sample(const Scatter *s, float u_lobe, float u1, float u2, ScatterSample *out);
 /* f |cos| for direction wi (world), and the pdf scatter_sample has for it; zero when the
  * direction is not reachable (delta lobes, the geometry guard). */
 vec3 scatter_eval(const Scatter *s, vec3 wi, float *pdf);
 /* 1 if every lobe is a delta: no direction can be evaluated, so NEE is useless. */
-static inline int scatter_is_delta(const Scatter *s) { return bsdf_is_delta(&s->bsdf); }
+static inline int scatter_is_delta(const Scatter *s) { return s->kind == SCATTER_BSDF && bsdf_is_delta(&s->bsdf); }
 /* The normal of the light-selection context: the shading normal, or zero (an omnidirectional
  * receiver, as in a medium) for a surface that transmits light from both sides. */
-static inline vec3 scatter_light_normal(const Scatter *s) { return s->transmissive ? v3s(0.0f) : s->frame.n; }
+static inline vec3 scatter_light_normal(const Scatter *s) {
+    return s->kind == SCATTER_PHASE || s->transmissive ? v3s(0.0f) : s->frame.n;
+}
 /* The side of the surface a ray in direction d leaves from, for offsetting its origin. */
 static inline vec3 scatter_side_normal(const Scatter *s, vec3 d) {
     return v3_dot(d, s->ng) > 0.0f ? s->ng : v3_neg(s->ng);

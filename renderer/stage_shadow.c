@@ -1,12 +1,28 @@
 /* renderer/stage_shadow.c: the shadow rays of the wave's NEE. A ray that gets through adds its
- * pending contribution; either way its outcome (the fraction that reached the light: 0 or 1
- * through opaque geometry) goes back to the light sampler, which may learn from it (cache
- * points' visibility counters, §3.2.1). */
+ * pending contribution times the transmittance of the media it crosses; either way its
+ * outcome (the fraction that reached the light: the transmittance's average, 0 when
+ * occluded) goes back to the light sampler, which may learn from it. */
 #include "integrator.h"
+#include "rng.h"
+
+static float stream_next(void *state) { return rng_stream_next((RngStream *)state); }
+
+vec3 shadow_transmittance(const Integrator *ig, Slice *s, uint64_t key, uint32_t depth, vec3 o, vec3 d, float tmax) {
+    MediaView view;
+    media_view(ig->media, o, d, tmax, &view);
+    if (view.count == 0) return v3s(1.0f);
+    RngStream stream = rng_stream(key, depth, RNG_STREAM_SHADOW);
+    VolumeRng rng = {stream_next, &stream};
+    const float of[3] = {o.x, o.y, o.z}, df[3] = {d.x, d.y, d.z};
+    float T[3];
+    media_transmittance(&view, of, df, 0.0f, tmax, &rng, T, &s->volume);
+    return v3(T[0], T[1], T[2]);
+}
 
 void stage_shadow(const Integrator *ig, Slice *s) {
     const PathState *ps = &ig->ps;
     const LightSampler *sampler = ig->light_sampler;
+    int media = media_any(ig->media);
     uint8_t occluded[SCENE_RAY_PACKET];
     for (uint32_t b = 0; b < s->num_shadows; b += SCENE_RAY_PACKET) {
         uint32_t m = s->num_shadows - b < SCENE_RAY_PACKET ? s->num_shadows - b : SCENE_RAY_PACKET;
@@ -16,8 +32,16 @@ void stage_shadow(const Integrator *ig, Slice *s) {
         scene_occluded(ig->scene, ps->shadow_ray, items, m, occluded);
         for (uint32_t k = 0; k < m; ++k) {
             uint32_t p = items[k];
-            float visibility = occluded[k] ? 0.0f : 1.0f;
-            if (visibility > 0.0f) path_add_radiance(ps, p, v3_scale(ps->shadow_contrib[p], visibility), RADIANCE_DIRECT);
+            float visibility = 0.0f;
+            if (!occluded[k]) {
+                vec3 T = v3s(1.0f);
+                if (media) {
+                    const SceneRay *r = &ps->shadow_ray[p];
+                    T = shadow_transmittance(ig, s, ps->rng_key[p], ps->shadow_depth[p], r->org, r->dir, r->tfar);
+                }
+                visibility = media ? clampf(v3_average(T), 0.0f, 1.0f) : 1.0f;
+                path_add_radiance(ps, p, v3_mul(ps->shadow_contrib[p], T), RADIANCE_DIRECT);
+            }
             light_sampler_record(sampler, ps->shadow_outcome[p], visibility);
         }
     }

@@ -12,7 +12,6 @@
 #include "scatter.h"
 
 #define SHADE_PREFETCH 8
-#define RR_START_DEPTH 3 /* first depth whose continuation is subject to Russian roulette, minus one */
 
 /* Emission of the emitter the path hit, MIS-weighted against NEE's probability of sampling the
  * same point from the previous vertex. */
@@ -74,23 +73,13 @@ static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, con
                 ps->shadow_ray[p] = (SceneRay){o, 0.0f, dir, tfar};
                 ps->shadow_contrib[p] = contrib;
                 ps->shadow_outcome[p] = outcome;
+                ps->shadow_depth[p] = depth;
                 s->shadows[s->num_shadows++] = p;
                 return;
             }
         }
     }
     light_sampler_record(sampler, outcome, 0.0f); /* no shadow ray: nothing reached the light */
-}
-
-/* Russian roulette on the throughput with refraction's radiance scaling removed: the path
- * survives with probability 1 - q, q = 1 - max(beta) rr_scale clamped to [0, 0.95], and its
- * throughput is divided by that. Returns 0 when the path is terminated. */
-static int russian_roulette(vec3 *beta, float rr_scale, float u) {
-    float q = fmaxf(0.0f, 1.0f - v3_max_component(*beta) * rr_scale);
-    q = fminf(q, 0.95f);
-    if (u < q) return 0;
-    *beta = v3_scale(*beta, 1.0f / (1.0f - q));
-    return 1;
 }
 
 /* The continuation: a direction from the scattering function, the roulette, and the next
@@ -112,13 +101,8 @@ static void surface_continuation(const Integrator *ig, Slice *s, uint32_t p, con
         !russian_roulette(&beta, ps->rr_scale[p], rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_RR))))
         return;
     ps->throughput[p] = beta;
-    ps->prev_pos[p] = h->p;
-    ps->prev_normal[p] = lc->n;
-    ps->prev_light_vertex[p] = lc->vertex;
-    ps->prev_scatter_pdf[p] = ss.pdf;
-    ps->prev_delta[p] = (uint8_t)ss.delta;
+    path_scattered(ps, p, h->p, lc, ss.pdf, ss.delta);
     ps->ray[p] = (SceneRay){offset_ray_origin(h->p, scatter_side_normal(sc, ss.wi)), 0.0f, ss.wi, INFINITY};
-    ps->depth[p] = depth + 1;
     s->rays[s->num_rays++] = p;
 }
 
@@ -144,7 +128,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
         if (depth == 0) path_write_aovs(ps, p, m.bsdf.base_color, sc.frame.n, hit->t);
 
         surface_emission(ig, p, &h, wo);
-        if ((int)depth >= ig->opt->max_depth) continue;
+        if ((int)(depth - ps->volume_bounces[p]) >= ig->opt->max_depth) continue; /* surface vertices */
 
         /* light-selection context: transmissive surfaces receive light from both sides, so they
          * use the omnidirectional (fluence) estimates, as a point in a medium does */

@@ -35,6 +35,7 @@ static void run_wave(const Integrator *ig, Slice *s) {
     TIMED(s, STAGE_SORT, sort_rays(ig, s));
     log_queue(ig, ig->ps.ray, s->rays, s->num_rays);
     TIMED(s, STAGE_TRACE, stage_intersect(ig, s));
+    TIMED(s, STAGE_MEDIUM, stage_medium(ig, s));
     TIMED(s, STAGE_SHADE, stage_escaped(ig, s));
     TIMED(s, STAGE_SORT, sort_hits(ig, s));
     TIMED(s, STAGE_SHADE, stage_surface(ig, s)); /* refills the ray queue for the next wave */
@@ -78,10 +79,13 @@ void integrator_run_batch(Integrator *ig, ThreadPool *pool, CandelaStats *st) {
         st->time_generate += slices[k].seconds[STAGE_GENERATE] / n;
         st->time_sort += slices[k].seconds[STAGE_SORT] / n;
         st->time_trace += slices[k].seconds[STAGE_TRACE] / n;
+        st->time_medium += slices[k].seconds[STAGE_MEDIUM] / n;
         st->time_shade += slices[k].seconds[STAGE_SHADE] / n;
         st->time_shadow += slices[k].seconds[STAGE_SHADOW] / n;
         st->rays_bounce += slices[k].bounce_rays;
         st->rays_shadow += slices[k].shadow_rays;
+        st->volume_collisions += slices[k].volume.collisions;
+        st->volume_capped_walks += slices[k].volume.capped_walks;
     }
     st->paths += ig->batch_count;
     st->rays_camera += ig->batch_count;
@@ -100,11 +104,12 @@ void integrator_barrier(Integrator *ig) {
 }
 
 int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene, const Lights *lights,
-                    const LightSampler *sampler, uint32_t batch) {
+                    const SceneMedia *media, const LightSampler *sampler, uint32_t batch) {
     memset(ig, 0, sizeof *ig);
     ig->opt = o;
     ig->scene = scene;
     ig->lights = lights;
+    ig->media = media;
     ig->light_sampler = sampler;
     ig->npixels = (uint32_t)scene->camera.width * (uint32_t)scene->camera.height;
     pthread_mutex_init(&ig->ray_log_mutex, NULL);

@@ -1,0 +1,143 @@
+/* renderer/stage_medium.c: the volume walk.
+ *
+ * A path whose ray segment [0, hit.t] crosses media walks it depth-first, as production
+ * renderers do (hundreds of bounces in a cloud are cheap there; Hyperion bypasses its
+ * wavefront the same way): a free flight by spectral tracking through
+ * the segment's media (volumes.h) gathers emission through the radiance funnel and ends in
+ * one of three ways. It passes (the path goes on to its surface hit, or escapes), it is
+ * absorbed (the path ends), or it scatters: the vertex of this depth is in the medium, with
+ * next-event estimation through the light-selection protocol (fluence context: zero normal)
+ * and a shadow ray traced at once (occlusion, then the media's transmittance, which is also
+ * the visibility the light sampler records), then the phase function samples the next
+ * direction, the roulette applies, and the new ray's closest hit is traced at once; the walk
+ * repeats until the path leaves the media. Every free flight draws from the path's medium
+ * sub-stream of its depth, every NEE shadow ray from the shadow sub-stream, and everything a
+ * vertex decides (light, phase direction, roulette) from the bounce dimensions of its depth,
+ * exactly as a surface vertex does: the walk is deterministic whatever thread runs it. */
+#include <string.h>
+
+#include "integrator.h"
+#include "rng.h"
+#include "scatter.h"
+
+typedef enum { WALK_SURFACE, WALK_ESCAPED, WALK_ENDED } WalkEnd;
+
+static float stream_next(void *state) { return rng_stream_next((RngStream *)state); }
+
+/* NEE from a medium vertex: as at a surface, with the phase function and the shadow ray
+ * traced now (the walk is depth-first). */
+static void medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec3 x, const Scatter *sc,
+                                const LightSampleContext *lc) {
+    const PathState *ps = &ig->ps;
+    const LightSampler *sampler = ig->light_sampler;
+    uint64_t key = ps->rng_key[p];
+    uint32_t depth = ps->depth[p];
+    float pmf;
+    uint32_t outcome;
+    uint32_t li = light_sampler_select(sampler, lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_SELECT)),
+                                       rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_DESCEND)), &pmf,
+                                       &outcome);
+    LightLiSample ls;
+    float visibility = 0.0f;
+    if (pmf > 0.0f &&
+        light_sample_li(ig->lights, &ig->lights->lights[li], lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_U)),
+                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_V)),
+                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_W)), &ls)) {
+        float phase_pdf;
+        vec3 f = scatter_eval(sc, ls.wi, &phase_pdf);
+        float light_pdf = pmf * ls.pdf;
+        float w = ls.is_delta ? 1.0f : power_heuristic(light_pdf, phase_pdf);
+        vec3 contrib = v3_scale(v3_mul(v3_mul(ps->throughput[p], f), ls.radiance), w / light_pdf);
+        if (v3_is_finite(contrib) && !v3_is_black(contrib)) {
+            float tfar = isinf(ls.distance) ? INFINITY : ls.distance * (1.0f - 1e-3f);
+            s->shadow_rays++;
+            if (scene_visible1(ig->scene, (SceneRay){x, 0.0f, ls.wi, tfar})) {
+                vec3 T = shadow_transmittance(ig, s, key, depth, x, ls.wi, tfar);
+                visibility = clampf(v3_average(T), 0.0f, 1.0f);
+                path_add_radiance(ps, p, v3_mul(contrib, T), RADIANCE_DIRECT);
+            }
+        }
+    }
+    light_sampler_record(sampler, outcome, visibility);
+}
+
+static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t *hint, float *scratch) {
+    const PathState *ps = &ig->ps;
+    for (;;) {
+        SceneRay ray = ps->ray[p];
+        float tmax = ps->hit[p].t;
+        MediaView view;
+        media_view(ig->media, ray.org, ray.dir, tmax, &view);
+        if (view.count == 0) return isinf(tmax) ? WALK_ESCAPED : WALK_SURFACE;
+        uint32_t depth = ps->depth[p];
+        RngStream stream = rng_stream(ps->rng_key[p], depth, RNG_STREAM_MEDIUM);
+        VolumeRng rng = {stream_next, &stream};
+        vec3 beta = ps->throughput[p];
+        const float o[3] = {ray.org.x, ray.org.y, ray.org.z}, d[3] = {ray.dir.x, ray.dir.y, ray.dir.z};
+        const float b[3] = {beta.x, beta.y, beta.z};
+        VolumeEvent ev;
+        media_sample_event(&view, o, d, 0.0f, tmax, b, &rng, &ev, &s->volume);
+        vec3 emitted = v3_mul(beta, v3(ev.emitted[0], ev.emitted[1], ev.emitted[2]));
+        if (!v3_is_black(emitted) && v3_is_finite(emitted)) path_add_radiance(ps, p, emitted, RADIANCE_EMISSION);
+        if (ev.type == VOLUME_EVENT_ABSORBED) return WALK_ENDED;
+        beta = v3_mul(beta, v3(ev.weight[0], ev.weight[1], ev.weight[2]));
+        ps->throughput[p] = beta;
+        if (!v3_is_finite(beta) || v3_is_black(beta)) return WALK_ENDED;
+        if (ev.type == VOLUME_EVENT_PASSED) return isinf(tmax) ? WALK_ESCAPED : WALK_SURFACE;
+
+        /* a real scattering event: this depth's vertex is in the medium */
+        if ((int)ps->volume_bounces[p] >= ig->opt->max_volume_bounces) return WALK_ENDED;
+        ps->volume_bounces[p]++;
+        vec3 x = v3_madd(ray.org, ray.dir, ev.t);
+        Scatter sc;
+        scatter_init_phase(&sc, view.media[ev.medium]->g, v3_neg(ray.dir));
+        LightSampleContext lc = {x, v3s(0.0f), {0, 0.0f}, scratch};
+        light_sampler_prepare(ig->light_sampler, &lc, hint);
+        if (ig->lights->count > 0) medium_direct_light(ig, s, p, x, &sc, &lc);
+        uint64_t key = ps->rng_key[p];
+        ScatterSample ss;
+        if (!scatter_sample(&sc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_LOBE)),
+                            rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_U)),
+                            rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_V)), &ss))
+            return WALK_ENDED;
+        beta = v3_mul(beta, ss.weight);
+        if (depth + 1 >= RR_START_DEPTH &&
+            !russian_roulette(&beta, ps->rr_scale[p], rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_RR))))
+            return WALK_ENDED;
+        ps->throughput[p] = beta;
+        path_scattered(ps, p, x, &lc, ss.pdf, ss.delta);
+        /* the next segment: its closest hit now (depth-first), then walk it */
+        SceneRay next = {x, 0.0f, ss.wi, INFINITY};
+        ps->ray[p] = next;
+        SceneHit hit;
+        if (!scene_intersect1(ig->scene, next, &hit)) hit.t = INFINITY;
+        ps->hit[p] = hit;
+        s->bounce_rays++;
+    }
+}
+
+void stage_medium(const Integrator *ig, Slice *s) {
+    if (!media_any(ig->media)) return;
+    /* the walk may move a path between the hit and escaped queues: rebuild both, in a fixed
+     * order (the hits, then the escaped), into scratch that is free at this point of the wave */
+    uint32_t *hits = s->items_tmp, *escaped = s->shadows;
+    uint32_t num_hits = 0, num_escaped = 0;
+    uint32_t hint = UINT32_MAX;
+    float scratch[LIGHT_SAMPLER_SCRATCH];
+    for (int q = 0; q < 2; ++q) {
+        const uint32_t *queue = q == 0 ? s->hits : s->escaped;
+        uint32_t n = q == 0 ? s->num_hits : s->num_escaped;
+        for (uint32_t i = 0; i < n; ++i) {
+            uint32_t p = queue[i];
+            switch (medium_walk(ig, s, p, &hint, scratch)) {
+            case WALK_SURFACE: hits[num_hits++] = p; break;
+            case WALK_ESCAPED: escaped[num_escaped++] = p; break;
+            default: break;
+            }
+        }
+    }
+    memcpy(s->hits, hits, num_hits * sizeof *hits);
+    memcpy(s->escaped, escaped, num_escaped * sizeof *escaped);
+    s->num_hits = num_hits;
+    s->num_escaped = num_escaped;
+}
