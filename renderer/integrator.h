@@ -68,6 +68,7 @@ typedef struct Integrator {
     const Lights *lights;
     const LightSampler *light_sampler;
     const SceneMedia *media;
+    uint32_t camera_medium;   /* the mesh medium the camera is in (media.h) */
     PathState ps;
     /* queue storage for the whole batch; a slice uses its own [begin, end) part of each */
     uint32_t *queue_rays, *queue_hits, *queue_escaped, *queue_shadows;
@@ -188,9 +189,11 @@ static inline void path_scattered(const PathState *ps, uint32_t p, vec3 pos, con
     ps->depth[p] = ps->depth[p] + 1;
 }
 
-/* stage_shadow.c: transmittance (RGB) of a shadow segment through the scene's media, with
- * the path's shadow sub-stream of this depth (1 without media). */
-vec3 shadow_transmittance(const Integrator *ig, Slice *s, uint64_t key, uint32_t depth, vec3 o, vec3 d, float tmax);
+/* stage_shadow.c: transmittance (RGB) of a shadow segment starting in mesh medium
+ * `medium` through the scene's media, with the path's shadow sub-stream of this depth (1
+ * without media). */
+vec3 shadow_transmittance(const Integrator *ig, Slice *s, uint64_t key, uint32_t depth, uint32_t medium, vec3 o,
+                          vec3 d, float tmax);
 
 /* MIS weight of a technique with pdf a against one with pdf b (power heuristic, beta = 2). */
 static inline float power_heuristic(float a, float b) {

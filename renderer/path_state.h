@@ -7,9 +7,8 @@
  * where prefetch says whether surface shading, which visits slots in a random order (hits are
  * sorted by primitive), fetches the member ahead: R (read), W (written), N (not).
  *
- * Where what is coming plugs in: a medium stack index for media inside closed meshes and a
- * radiance-recorder vertex handle (PVIndex) for path guiding are one member each in the
- * "path" group; the volume walk, which draws an unbounded number of random numbers per
+ * Where what is coming plugs in: a radiance-recorder vertex handle (PVIndex) for path guiding
+ * is one member in the "path" group; the volume walk, which draws an unbounded number of random numbers per
  * bounce, uses a sub-stream keyed by (rng_key, depth) (rng.h: rng_stream), so it needs no
  * member at all. */
 #ifndef CANDELA_PATH_STATE_H
@@ -27,6 +26,8 @@
     F(uint32_t, pixel, N)           /* the film pixel the path belongs to */                     \
     F(uint32_t, depth, W)           /* the vertex the path shades next: 0 = the camera ray's hit */ \
     F(uint32_t, volume_bounces, W)  /* how many of its vertices so far were in media */          \
+    F(uint32_t, medium, W)          /* the mesh medium its ray travels in (media.h; 0: none) */  \
+    F(uint32_t, crossings, N)       /* invisible medium boundaries crossed (bounded) */          \
     F(vec3, radiance, W)            /* accumulated L; written only through path_add_radiance */  \
     F(vec3, throughput, W)          /* beta: the path's weight so far */                         \
     F(float, rr_scale, W)           /* throughput factor for the Russian roulette decision only \
@@ -46,6 +47,7 @@
     F(vec3, shadow_contrib, N)      /* the NEE contribution if the shadow ray gets through */    \
     F(uint32_t, shadow_outcome, N)  /* the light sampler's outcome token for the selection */    \
     F(uint32_t, shadow_depth, N)    /* the depth of the vertex that cast it (its RNG sub-stream) */ \
+    F(uint32_t, shadow_medium, N)   /* the mesh medium it starts in */                          \
     /* -- first-hit AOVs */                                                                      \
     F(vec3, aov_albedo, N)                                                                       \
     F(vec3, aov_normal, N)                                                                       \

@@ -37,6 +37,7 @@ int scatter_sample(const Scatter *s, float u_lobe, float u1, float u2, ScatterSa
         out->weight = v3s(1.0f); /* HG is sampled exactly: f / pdf = 1 */
         out->pdf = pdf;
         out->delta = 0;
+        out->transmitted = 0;
         out->rr_factor = 1.0f;
         return 1;
     }
@@ -49,6 +50,7 @@ int scatter_sample(const Scatter *s, float u_lobe, float u1, float u2, ScatterSa
     out->weight = v3_scale(bs.f, fabsf(bs.wi.z) / bs.pdf);
     out->pdf = bs.pdf;
     out->delta = (bs.flags & BSDF_DELTA) != 0;
+    out->transmitted = (bs.flags & BSDF_TRANSMISSION) != 0;
     out->rr_factor = 1.0f;
     if (bs.flags & BSDF_TRANSMISSION) {
         /* radiance is scaled by 1/eta^2 across refraction; the roulette looks through it */

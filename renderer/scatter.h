@@ -37,6 +37,7 @@ typedef struct ScatterSample {
     vec3 weight;      /* f |cos| / pdf: what the path throughput is multiplied by */
     float pdf;        /* pdf of the sampling technique (solid angle; a lobe pmf for deltas) */
     int delta;        /* the direction came from a delta lobe: no MIS, pdf is not a density */
+    int transmitted;  /* it crossed the surface (refraction) */
     float rr_factor;  /* factor for the Russian roulette throughput (1/eta^2 refraction
                        * scaling removed; a guided sampler's p_guide/p_bsdf will go here) */
 } ScatterSample;

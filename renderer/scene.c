@@ -380,6 +380,7 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
         sp->material = (mi >= 0 && (uint32_t)mi < io->num_materials) ? &io->materials[mi] : dm;
         sp->scene = scene;
         sp->alpha_masked = sp->material->alpha_mode != IO_ALPHA_OPAQUE;
+        sp->medium_boundary = sp->material->has_medium && !(sp->material->transmission > 0.0f);
     }
 
     char config[64];
@@ -413,6 +414,7 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
             memcpy(vb, p->positions, (size_t)p->num_vertices * 3 * sizeof(float));
             if (p->num_triangles) memcpy(ib, p->indices, (size_t)p->num_triangles * 3 * sizeof(unsigned));
             rtcSetGeometryUserData(g, sp);
+            rtcSetGeometryMask(g, sp->medium_boundary ? 2u : 1u); /* scene_rays.c */
             if (sp->alpha_masked) {
                 rtcSetGeometryIntersectFilterFunction(g, alpha_filter);
                 rtcSetGeometryOccludedFilterFunction(g, alpha_filter);

@@ -34,6 +34,9 @@ typedef struct ScenePrimitive {
     const IoMaterial *material;  /* never NULL (the default material stands in) */
     const struct Scene *scene;
     int alpha_masked;
+    /* the surface of a medium inside a closed mesh whose material does not transmit: invisible
+     * (rays cross it into or out of the medium; shadow rays ignore it) */
+    int medium_boundary;
 } ScenePrimitive;
 
 typedef struct SceneInstance {
@@ -128,12 +131,14 @@ typedef struct SceneHit {
 #define SCENE_RAY_PACKET 256
 void scene_intersect(const Scene *scene, const SceneRay *rays, const uint32_t *items, uint32_t n, SceneHit *hits,
                      int coherent);
-/* Occlusion of n rays (indexed as above): occluded[i] = 1 if anything lies on ray i within
- * [tnear, tfar]. */
+/* Occlusion of n rays (indexed as above): occluded[i] = 1 if anything but an invisible medium
+ * boundary lies on ray i within [tnear, tfar]. */
 void scene_occluded(const Scene *scene, const SceneRay *rays, const uint32_t *items, uint32_t n, uint8_t *occluded);
 /* One ray: 1 if it hit (and *hit holds the hit), 0 if it escaped. */
 int scene_intersect1(const Scene *scene, SceneRay ray, SceneHit *hit);
-/* One ray: 1 if nothing lies on it. */
+/* One ray against the invisible medium boundaries only (for the media a segment crosses). */
+int scene_intersect_boundary1(const Scene *scene, SceneRay ray, SceneHit *hit);
+/* One ray: 1 if nothing but invisible medium boundaries lies on it. */
 int scene_visible1(const Scene *scene, SceneRay ray);
 
 /* Offset a ray origin off the surface along n, scaled to the position's magnitude. */

@@ -3,13 +3,17 @@
  * statistics is one file. */
 #include "scene.h"
 
-static inline void fill_ray(struct RTCRay *r, const SceneRay *s, unsigned id) {
+/* Geometry masks (scene.c): ordinary surfaces 1, invisible medium boundaries 2. Closest-hit
+ * rays see both (a path crosses boundaries), occlusion rays only surfaces. */
+enum { MASK_SURFACES = 1u, MASK_BOUNDARIES = 2u, MASK_ALL = 0xffffffffu };
+
+static inline void fill_ray(struct RTCRay *r, const SceneRay *s, unsigned id, unsigned mask) {
     r->org_x = s->org.x; r->org_y = s->org.y; r->org_z = s->org.z;
     r->tnear = s->tnear;
     r->dir_x = s->dir.x; r->dir_y = s->dir.y; r->dir_z = s->dir.z;
     r->time = 0.0f;
     r->tfar = s->tfar;
-    r->mask = 0xffffffffu;
+    r->mask = mask;
     r->id = id;
     r->flags = 0;
 }
@@ -36,7 +40,7 @@ void scene_intersect(const Scene *scene, const SceneRay *rays, const uint32_t *i
     for (uint32_t s = 0; s < n; s += SCENE_RAY_PACKET) {
         unsigned m = n - s < SCENE_RAY_PACKET ? n - s : SCENE_RAY_PACKET;
         for (unsigned k = 0; k < m; ++k) {
-            fill_ray(&rh[k].ray, &rays[items ? items[s + k] : s + k], k);
+            fill_ray(&rh[k].ray, &rays[items ? items[s + k] : s + k], k, MASK_ALL);
             rh[k].hit.geomID = RTC_INVALID_GEOMETRY_ID;
             rh[k].hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
         }
@@ -51,17 +55,17 @@ void scene_occluded(const Scene *scene, const SceneRay *rays, const uint32_t *it
     rtcInitIntersectContext(&ictx);
     for (uint32_t s = 0; s < n; s += SCENE_RAY_PACKET) {
         unsigned m = n - s < SCENE_RAY_PACKET ? n - s : SCENE_RAY_PACKET;
-        for (unsigned k = 0; k < m; ++k) fill_ray(&r[k], &rays[items ? items[s + k] : s + k], k);
+        for (unsigned k = 0; k < m; ++k) fill_ray(&r[k], &rays[items ? items[s + k] : s + k], k, MASK_SURFACES);
         rtcOccluded1M(scene->top, &ictx, r, m, sizeof(struct RTCRay));
         for (unsigned k = 0; k < m; ++k) occluded[s + k] = !(r[k].tfar >= 0.0f); /* tfar = -inf when occluded */
     }
 }
 
-int scene_intersect1(const Scene *scene, SceneRay ray, SceneHit *hit) {
+static int intersect1(const Scene *scene, SceneRay ray, SceneHit *hit, unsigned mask) {
     struct RTCRayHit rh;
     struct RTCIntersectContext ictx;
     rtcInitIntersectContext(&ictx);
-    fill_ray(&rh.ray, &ray, 0);
+    fill_ray(&rh.ray, &ray, 0, mask);
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(scene->top, &ictx, &rh);
@@ -69,11 +73,17 @@ int scene_intersect1(const Scene *scene, SceneRay ray, SceneHit *hit) {
     return hit->t < INFINITY;
 }
 
+int scene_intersect1(const Scene *scene, SceneRay ray, SceneHit *hit) { return intersect1(scene, ray, hit, MASK_ALL); }
+
+int scene_intersect_boundary1(const Scene *scene, SceneRay ray, SceneHit *hit) {
+    return intersect1(scene, ray, hit, MASK_BOUNDARIES);
+}
+
 int scene_visible1(const Scene *scene, SceneRay ray) {
     struct RTCRay r;
     struct RTCIntersectContext ictx;
     rtcInitIntersectContext(&ictx);
-    fill_ray(&r, &ray, 0);
+    fill_ray(&r, &ray, 0, MASK_SURFACES);
     rtcOccluded1(scene->top, &ictx, &r);
     return r.tfar >= 0.0f;
 }

@@ -16,6 +16,8 @@ void stage_generate(const Integrator *ig, Slice *s) {
         ps->pixel[p] = pixel;
         ps->depth[p] = 0;
         ps->volume_bounces[p] = 0;
+        ps->medium[p] = ig->camera_medium;
+        ps->crossings[p] = 0;
         float fx = (float)(pixel % (uint32_t)cam->width) + rng_uniform(key, RNG_DIM_PIXEL_X);
         float fy = (float)(pixel / (uint32_t)cam->width) + rng_uniform(key, RNG_DIM_PIXEL_Y);
         vec3 o, d;

@@ -52,7 +52,7 @@ static void medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec3
             float tfar = isinf(ls.distance) ? INFINITY : ls.distance * (1.0f - 1e-3f);
             s->shadow_rays++;
             if (scene_visible1(ig->scene, (SceneRay){x, 0.0f, ls.wi, tfar})) {
-                vec3 T = shadow_transmittance(ig, s, key, depth, x, ls.wi, tfar);
+                vec3 T = shadow_transmittance(ig, s, key, depth, ps->medium[p], x, ls.wi, tfar);
                 visibility = clampf(v3_average(T), 0.0f, 1.0f);
                 path_add_radiance(ps, p, v3_mul(contrib, T), RADIANCE_DIRECT);
             }
@@ -67,7 +67,7 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         SceneRay ray = ps->ray[p];
         float tmax = ps->hit[p].t;
         MediaView view;
-        media_view(ig->media, ray.org, ray.dir, tmax, &view);
+        media_view(ig->media, ps->medium[p], ray.org, ray.dir, tmax, &view);
         if (view.count == 0) return isinf(tmax) ? WALK_ESCAPED : WALK_SURFACE;
         uint32_t depth = ps->depth[p];
         RngStream stream = rng_stream(ps->rng_key[p], depth, RNG_STREAM_MEDIUM);

@@ -7,16 +7,11 @@
 
 static float stream_next(void *state) { return rng_stream_next((RngStream *)state); }
 
-vec3 shadow_transmittance(const Integrator *ig, Slice *s, uint64_t key, uint32_t depth, vec3 o, vec3 d, float tmax) {
-    MediaView view;
-    media_view(ig->media, o, d, tmax, &view);
-    if (view.count == 0) return v3s(1.0f);
+vec3 shadow_transmittance(const Integrator *ig, Slice *s, uint64_t key, uint32_t depth, uint32_t medium, vec3 o,
+                          vec3 d, float tmax) {
     RngStream stream = rng_stream(key, depth, RNG_STREAM_SHADOW);
     VolumeRng rng = {stream_next, &stream};
-    const float of[3] = {o.x, o.y, o.z}, df[3] = {d.x, d.y, d.z};
-    float T[3];
-    media_transmittance(&view, of, df, 0.0f, tmax, &rng, T, &s->volume);
-    return v3(T[0], T[1], T[2]);
+    return media_transmittance_segment(ig->media, medium, o, d, tmax, &rng, &s->volume);
 }
 
 void stage_shadow(const Integrator *ig, Slice *s) {
@@ -37,7 +32,8 @@ void stage_shadow(const Integrator *ig, Slice *s) {
                 vec3 T = v3s(1.0f);
                 if (media) {
                     const SceneRay *r = &ps->shadow_ray[p];
-                    T = shadow_transmittance(ig, s, ps->rng_key[p], ps->shadow_depth[p], r->org, r->dir, r->tfar);
+                    T = shadow_transmittance(ig, s, ps->rng_key[p], ps->shadow_depth[p], ps->shadow_medium[p], r->org,
+                                             r->dir, r->tfar);
                 }
                 visibility = media ? clampf(v3_average(T), 0.0f, 1.0f) : 1.0f;
                 path_add_radiance(ps, p, v3_mul(ps->shadow_contrib[p], T), RADIANCE_DIRECT);

@@ -31,6 +31,32 @@ static void surface_emission(const Integrator *ig, uint32_t p, const SurfaceHit 
     path_add_radiance(ps, p, v3_scale(v3_mul(ps->throughput[p], le), w), RADIANCE_EMISSION);
 }
 
+/* The mesh medium on the side of the surface a ray in direction d leaves into: the surface's
+ * own medium when it is a transmissive medium boundary and d points inside, outside of it when
+ * d points out, else the medium the path is in. */
+static uint32_t side_medium(const Integrator *ig, uint32_t p, const SurfaceHit *h, vec3 d) {
+    uint32_t m = ig->media->num_homogeneous ? media_of_primitive(ig->media, h->instance, h->local_prim) : 0;
+    if (!m) return ig->ps.medium[p];
+    return v3_dot(d, h->ng) < 0.0f ? m : 0;
+}
+
+/* A hit on an invisible medium boundary: the path crosses it, into the mesh's medium or out
+ * of it, and goes on in the same direction at the same depth (no vertex). Returns 0 when the
+ * path has crossed too many boundaries (degenerate geometry) and ends. */
+#define MAX_CROSSINGS 256
+static int cross_boundary(const Integrator *ig, Slice *s, uint32_t p, const SceneHit *hit) {
+    const PathState *ps = &ig->ps;
+    if (++ps->crossings[p] > MAX_CROSSINGS) return 0;
+    SurfaceHit h;
+    scene_surface_hit(ig->scene, hit->instance, hit->local_prim, hit->triangle, hit->u, hit->v, &h);
+    vec3 d = ps->ray[p].dir;
+    int entering = v3_dot(d, h.ng) < 0.0f;
+    ps->medium[p] = entering ? media_of_primitive(ig->media, hit->instance, hit->local_prim) : 0;
+    ps->ray[p] = (SceneRay){offset_ray_origin(h.p, entering ? v3_neg(h.ng) : h.ng), 0.0f, d, INFINITY};
+    s->rays[s->num_rays++] = p;
+    return 1;
+}
+
 /* Next-event estimation from the vertex: one light from the light sampler, one point on it,
  * the MIS-weighted contribution pending on a shadow ray (queued when non-zero). The selection's
  * outcome goes back to the sampler: from the shadow stage when a ray is queued, from here
@@ -74,6 +100,7 @@ static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, con
                 ps->shadow_contrib[p] = contrib;
                 ps->shadow_outcome[p] = outcome;
                 ps->shadow_depth[p] = depth;
+                ps->shadow_medium[p] = side_medium(ig, p, h, ls.wi);
                 s->shadows[s->num_shadows++] = p;
                 return;
             }
@@ -101,6 +128,7 @@ static void surface_continuation(const Integrator *ig, Slice *s, uint32_t p, con
         !russian_roulette(&beta, ps->rr_scale[p], rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_RR))))
         return;
     ps->throughput[p] = beta;
+    if (ss.transmitted) ps->medium[p] = side_medium(ig, p, h, ss.wi);
     path_scattered(ps, p, h->p, lc, ss.pdf, ss.delta);
     ps->ray[p] = (SceneRay){offset_ray_origin(h->p, scatter_side_normal(sc, ss.wi)), 0.0f, ss.wi, INFINITY};
     s->rays[s->num_rays++] = p;
@@ -117,6 +145,11 @@ void stage_surface(const Integrator *ig, Slice *s) {
         if (i + SHADE_PREFETCH < s->num_hits) path_state_prefetch_shade(ps, s->hits[i + SHADE_PREFETCH]);
         uint32_t p = s->hits[i];
         const SceneHit *hit = &ps->hit[p];
+        if (scene->prims[scene->io.meshes[scene->instances[hit->instance].mesh].first_primitive + hit->local_prim]
+                .medium_boundary) {
+            cross_boundary(ig, s, p, hit);
+            continue;
+        }
         vec3 wo = v3_neg(ps->ray[p].dir);
         SurfaceHit h;
         scene_surface_hit(scene, hit->instance, hit->local_prim, hit->triangle, hit->u, hit->v, &h);

@@ -110,6 +110,7 @@ int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene,
     ig->scene = scene;
     ig->lights = lights;
     ig->media = media;
+    ig->camera_medium = media_at_point(media, xform_point(scene->camera.xform, v3s(0.0f)));
     ig->light_sampler = sampler;
     ig->npixels = (uint32_t)scene->camera.width * (uint32_t)scene->camera.height;
     pthread_mutex_init(&ig->ray_log_mutex, NULL);

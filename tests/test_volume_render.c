@@ -11,8 +11,12 @@
  *       quadrature of the trilinear density field along the camera ray and the light rays;
  *   (d) furnace: a non-absorbing box (albedo 1) under a constant environment: L = the
  *       environment's radiance, whatever the scattering (every bounce, NEE through media, MIS);
- *   (e) 1 and 2 threads give bit-identical images. */
+ *   (e) 1 and 2 threads give bit-identical images;
+ *   (f)-(h) media inside meshes (candela_medium, invisible boundaries): looking through an
+ *       absorbing cube, the camera inside it (found at the start), and a sun's shadow rays
+ *       through an absorbing slab onto a Lambert floor. */
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -95,6 +99,8 @@ static void write_gltf(const char *name, const char *volume_extras, const char *
 
 typedef struct Result { double mean, se; CandelaImage img; } Result;
 
+static int g_max_depth = 8;
+
 static Result render(const char *name, int spp, int max_volume_bounces, int threads) {
     char path[512];
     snprintf(path, sizeof path, "%s/%s", g_dir, name);
@@ -104,6 +110,7 @@ static Result render(const char *name, int spp, int max_volume_bounces, int thre
     o.width = o.height = 16;
     o.spp = spp;
     o.max_volume_bounces = max_volume_bounces;
+    o.max_depth = g_max_depth;
     o.threads = threads;
     o.quiet = 1;
     o.seed = 11;
@@ -122,6 +129,14 @@ static Result render(const char *name, int spp, int max_volume_bounces, int thre
     }
     r.mean = sum / (double)n;
     r.se = sqrt(var) / (double)n;
+    return r;
+}
+
+/* render with --max-depth (surface bounces) instead */
+static Result render_depth(const char *name, int spp, int max_depth) {
+    g_max_depth = max_depth;
+    Result r = render(name, spp, 256, 2);
+    g_max_depth = 8;
     return r;
 }
 
@@ -152,6 +167,105 @@ static double optical_depth(double sigma, const double a[3], const double b[3]) 
         tau += box_density(a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2]));
     }
     return sigma * tau * len / STEPS;
+}
+
+/* ---------------------------------------------------------------- media inside meshes */
+
+static void base64(const unsigned char *in, size_t n, char *out) {
+    static const char tbl[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    size_t o = 0;
+    for (size_t i = 0; i < n; i += 3) {
+        uint32_t v = (uint32_t)in[i] << 16 | (i + 1 < n ? (uint32_t)in[i + 1] << 8 : 0) | (i + 2 < n ? in[i + 2] : 0);
+        out[o++] = tbl[v >> 18 & 63];
+        out[o++] = tbl[v >> 12 & 63];
+        out[o++] = i + 1 < n ? tbl[v >> 6 & 63] : '=';
+        out[o++] = i + 2 < n ? tbl[v & 63] : '=';
+    }
+    out[o] = 0;
+}
+
+/* glTF with mesh 0 = a unit cube (outward winding), mesh 1 = a white Lambert floor square;
+ * `nodes` is the JSON of the node list (the camera is node 0), materials: 0 = the medium
+ * (candela_medium `medium`), 1 = white Lambert. */
+static void write_mesh_gltf(const char *name, const char *nodes, const char *scene_nodes, const char *medium,
+                            const char *env, const char *extensions) {
+    static const float cube[8][3] = {{-.5f, -.5f, -.5f}, {.5f, -.5f, -.5f}, {.5f, .5f, -.5f}, {-.5f, .5f, -.5f},
+                                     {-.5f, -.5f, .5f},  {.5f, -.5f, .5f},  {.5f, .5f, .5f},  {-.5f, .5f, .5f}};
+    static const uint16_t cube_idx[36] = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
+                                          3, 7, 6, 3, 6, 2, 0, 4, 7, 0, 7, 3, 1, 2, 6, 1, 6, 5};
+    static const float floor_v[4][3] = {{-4, 0, -4}, {4, 0, -4}, {4, 0, 4}, {-4, 0, 4}};
+    static const uint16_t floor_idx[6] = {0, 2, 1, 0, 3, 2};
+    unsigned char buf[96 + 72 + 48 + 12];
+    memcpy(buf, cube, 96);
+    memcpy(buf + 96, cube_idx, 72);
+    memcpy(buf + 168, floor_v, 48);
+    memcpy(buf + 216, floor_idx, 12);
+    char b64[400];
+    base64(buf, sizeof buf, b64);
+    char path[512];
+    snprintf(path, sizeof path, "%s/%s", g_dir, name);
+    FILE *f = fopen(path, "w");
+    if (!f) { CHECK(0, "cannot write %s", path); return; }
+    fprintf(f, "{\"asset\": {\"version\": \"2.0\"}, \"scene\": 0,%s\n", extensions ? extensions : "");
+    fprintf(f, "\"scenes\": [{\"nodes\": %s", scene_nodes);
+    if (env) fprintf(f, ", \"extras\": {\"candela_environment\": {\"uri\": \"%s\", \"strength\": 1.0}}", env);
+    fprintf(f, "}],\n\"nodes\": %s,\n", nodes);
+    fprintf(f, "\"cameras\": [{\"type\": \"orthographic\", \"orthographic\": {\"xmag\": 0.2, \"ymag\": 0.2, "
+               "\"znear\": 0.01, \"zfar\": 100}}],\n");
+    fprintf(f, "\"materials\": [{\"name\": \"medium\", \"extras\": {\"candela_medium\": %s}},\n"
+               "  {\"name\": \"white\", \"pbrMetallicRoughness\": {\"baseColorFactor\": [0.5, 0.5, 0.5, 1], "
+               "\"metallicFactor\": 0, \"roughnessFactor\": 1}, \"extensions\": {\"KHR_materials_specular\": "
+               "{\"specularFactor\": 0}}}],\n", medium);
+    fprintf(f, "\"extensionsUsed\": [\"KHR_materials_specular\", \"KHR_lights_punctual\"],\n");
+    fprintf(f, "\"meshes\": [{\"primitives\": [{\"attributes\": {\"POSITION\": 0}, \"indices\": 1, \"material\": 0}]},\n"
+               "  {\"primitives\": [{\"attributes\": {\"POSITION\": 2}, \"indices\": 3, \"material\": 1}]}],\n");
+    fprintf(f, "\"accessors\": [{\"bufferView\": 0, \"componentType\": 5126, \"count\": 8, \"type\": \"VEC3\", "
+               "\"min\": [-0.5, -0.5, -0.5], \"max\": [0.5, 0.5, 0.5]},\n"
+               "  {\"bufferView\": 1, \"componentType\": 5123, \"count\": 36, \"type\": \"SCALAR\"},\n"
+               "  {\"bufferView\": 2, \"componentType\": 5126, \"count\": 4, \"type\": \"VEC3\", "
+               "\"min\": [-4, 0, -4], \"max\": [4, 0, 4]},\n"
+               "  {\"bufferView\": 3, \"componentType\": 5123, \"count\": 6, \"type\": \"SCALAR\"}],\n");
+    fprintf(f, "\"bufferViews\": [{\"buffer\": 0, \"byteOffset\": 0, \"byteLength\": 96}, "
+               "{\"buffer\": 0, \"byteOffset\": 96, \"byteLength\": 72}, "
+               "{\"buffer\": 0, \"byteOffset\": 168, \"byteLength\": 48}, "
+               "{\"buffer\": 0, \"byteOffset\": 216, \"byteLength\": 12}],\n");
+    fprintf(f, "\"buffers\": [{\"byteLength\": %zu, \"uri\": \"data:application/octet-stream;base64,%s\"}]}\n",
+            sizeof buf, b64);
+    fclose(f);
+}
+
+static void test_mesh_media(void) {
+    const double sa = 1.2;
+    /* (f) looking through an absorbing fog cube (an invisible boundary) at a white sky: the
+     * camera at z = 3, orthographic rays down -Z cross 1 m of medium */
+    write_mesh_gltf("fog_cube.gltf",
+                    "[{\"name\": \"camera\", \"translation\": [0, 0, 3], \"camera\": 0}, {\"name\": \"cube\", \"mesh\": 0}]",
+                    "[0, 1]", "{\"sigma_a\": [1.2, 1.2, 1.2]}", "white.exr", NULL);
+    Result f = render("fog_cube.gltf", 256, 8, 2);
+    expect("(f) through a mesh medium", f, exp(-sa), 0.0);
+    candela_image_free(&f.img);
+    /* (g) the camera inside the cube, at z = 0.2: 0.7 m to the far face */
+    write_mesh_gltf("fog_inside.gltf",
+                    "[{\"name\": \"camera\", \"translation\": [0, 0, 0.2], \"camera\": 0}, {\"name\": \"cube\", \"mesh\": 0}]",
+                    "[0, 1]", "{\"sigma_a\": [1.2, 1.2, 1.2]}", "white.exr", NULL);
+    Result g = render("fog_inside.gltf", 256, 8, 2);
+    expect("(g) camera inside the medium", g, exp(-sa * 0.7), 0.0);
+    candela_image_free(&g.img);
+    /* (h) shadow rays through a mesh medium: a Lambert floor (albedo 0.5) under a sun shining
+     * straight down through a fog slab (the cube scaled to 6 x 1 x 6 m) and seen from straight
+     * above through it: L = albedo / pi x E x T_sun x T_view, T = exp(-sigma_a x 1 m) each way
+     * (--max-depth 1 keeps indirect light out) */
+    write_mesh_gltf("fog_sun.gltf",
+                    "[{\"name\": \"camera\", \"translation\": [0, 3, 0], \"rotation\": [-0.70710678, 0, 0, 0.70710678], "
+                    "\"camera\": 0}, {\"name\": \"cube\", \"mesh\": 0, \"translation\": [0, 1, 0], \"scale\": [6, 1, 6]}, "
+                    "{\"name\": \"floor\", \"mesh\": 1}, {\"name\": \"sun\", \"rotation\": [-0.70710678, 0, 0, 0.70710678], "
+                    "\"extensions\": {\"KHR_lights_punctual\": {\"light\": 0}}}]",
+                    "[0, 1, 2, 3]", "{\"sigma_a\": [0.7, 0.7, 0.7]}", "black.exr",
+                    "\n\"extensions\": {\"KHR_lights_punctual\": {\"lights\": [{\"type\": \"directional\", "
+                    "\"color\": [1, 1, 1], \"intensity\": 3.0}]}},");
+    Result h = render_depth("fog_sun.gltf", 256, 1);
+    expect("(h) shadow rays through a medium", h, 0.5 / M_PI * 3.0 * exp(-0.7) * exp(-0.7), 0.0);
+    candela_image_free(&h.img);
 }
 
 int main(void) {
@@ -228,6 +342,8 @@ int main(void) {
           "1 and 2 threads differ");
     candela_image_free(&d.img);
     candela_image_free(&d1.img);
+
+    test_mesh_media();
 
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", g_dir);
