@@ -73,8 +73,9 @@ int light_sampler_power_create(LightSampler *s, const Lights *lights) {
 
 /* ---------------------------------------------------------------- dispatch */
 
-int light_sampler_create(LightSampler *s, const Lights *lights, const struct Scene *scene, struct ThreadPool *pool,
-                         const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
+int light_sampler_create(LightSampler *s, const Lights *lights, const struct Scene *scene,
+                         const struct SceneMedia *media, struct ThreadPool *pool, const CandelaOptions *o,
+                         char err[CANDELA_ERR_LEN]) {
     int rc;
     switch (o->light_sampler) {
     case CANDELA_LIGHT_SAMPLER_POWER: rc = light_sampler_power_create(s, lights); break;
@@ -83,7 +84,7 @@ int light_sampler_create(LightSampler *s, const Lights *lights, const struct Sce
         rc = light_sampler_optimal_create(s, lights, scene, o->optimal_occlusion);
         break;
     case CANDELA_LIGHT_SAMPLER_CACHEPOINTS:
-        return light_sampler_cachepoints_create(s, lights, scene, pool, o, err); /* its own messages */
+        return light_sampler_cachepoints_create(s, lights, scene, media, pool, o, err); /* its own messages */
     default: rc = light_sampler_uniform_create(s, lights); break;
     }
     if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s: out of memory building the light sampler", o->scene_path);

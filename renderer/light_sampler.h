@@ -31,6 +31,7 @@
 #include "lights.h"
 
 struct Scene;
+struct SceneMedia;
 struct ThreadPool;
 
 #define LIGHT_OUTCOME_NONE UINT32_MAX
@@ -61,10 +62,11 @@ typedef struct LightSampler {
 } LightSampler;
 
 /* Builds the strategy o->light_sampler over the lights (the optimal strategy's occlusion rays
- * and the cache points' candidates use the scene; the cache point build runs on the pool).
- * 0 ok; -1 with a message in err. */
-int light_sampler_create(LightSampler *s, const Lights *lights, const struct Scene *scene, struct ThreadPool *pool,
-                         const CandelaOptions *o, char err[CANDELA_ERR_LEN]);
+ * and the cache points' candidates use the scene, and the media: points inside VDB volumes;
+ * the cache point build runs on the pool). 0 ok; -1 with a message in err. */
+int light_sampler_create(LightSampler *s, const Lights *lights, const struct Scene *scene,
+                         const struct SceneMedia *media, struct ThreadPool *pool, const CandelaOptions *o,
+                         char err[CANDELA_ERR_LEN]);
 void light_sampler_free(LightSampler *s);
 
 /* The strategies' constructors (light_sampler_create dispatches to them). */
@@ -73,7 +75,8 @@ int light_sampler_power_create(LightSampler *s, const Lights *lights);
 int light_sampler_tree_create(LightSampler *s, const Lights *lights);
 int light_sampler_optimal_create(LightSampler *s, const Lights *lights, const struct Scene *scene, int occlusion);
 int light_sampler_cachepoints_create(LightSampler *s, const Lights *lights, const struct Scene *scene,
-                                     struct ThreadPool *pool, const CandelaOptions *o, char err[CANDELA_ERR_LEN]);
+                                     const struct SceneMedia *media, struct ThreadPool *pool,
+                                     const CandelaOptions *o, char err[CANDELA_ERR_LEN]);
 
 static inline void light_sampler_prepare(const LightSampler *s, LightSampleContext *ctx, uint32_t *hint) {
     ctx->vertex = (LightVertex){0, 0.0f};

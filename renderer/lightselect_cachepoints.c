@@ -14,6 +14,7 @@
 #include "cachepoints.h"
 #include "clock.h"
 #include "light_sampler.h"
+#include "media.h"
 #include "rng.h"
 #include "sampling.h"
 #include "scene.h"
@@ -158,8 +159,9 @@ static int push(Candidates *c, vec3 p) {
 /* 100,000 points in the instances' world boxes in proportion to (padded) volume; budget split
  * by largest remainder in instance order; positions from the counter-based RNG keyed by
  * (seed, instance, k), so they never depend on threads (§3.1.1). */
-static int bbox_candidates(const Scene *scene, uint64_t seed, Candidates *c) {
-    uint32_t n = scene->io.num_instances;
+static int bbox_candidates(const Scene *scene, const SceneMedia *media, uint64_t seed, Candidates *c) {
+    /* the boxes: instances, then VDB volumes (a medium's vertices need points inside it) */
+    uint32_t ni = scene->io.num_instances, n = ni + (media ? media->num_vdb : 0);
     if (n == 0) return 0;
     vec3 *lo = malloc(n * sizeof *lo), *hi = malloc(n * sizeof *hi);
     double *vol = calloc(n, sizeof *vol);
@@ -169,9 +171,15 @@ static int bbox_candidates(const Scene *scene, uint64_t seed, Candidates *c) {
     float pad = 1e-3f * 2.0f * scene->radius;
     double total = 0.0;
     for (uint32_t i = 0; i < n; ++i) {
-        if (!instance_reflects(scene, i)) continue;
-        instance_bounds(scene, i, &lo[i], &hi[i]);
-        if (!(lo[i].x <= hi[i].x)) continue;
+        if (i < ni) {
+            if (!instance_reflects(scene, i)) continue;
+            instance_bounds(scene, i, &lo[i], &hi[i]);
+        } else {
+            const Medium *m = &media->vdb[i - ni];
+            lo[i] = v3(m->world_min[0], m->world_min[1], m->world_min[2]);
+            hi[i] = v3(m->world_max[0], m->world_max[1], m->world_max[2]);
+        }
+        if (!(lo[i].x <= hi[i].x) || !v3_is_finite(lo[i]) || !v3_is_finite(hi[i])) continue;
         vec3 ext = v3_sub(hi[i], lo[i]);
         /* flat objects get a minimum thickness so they receive points */
         vol[i] = (double)maxf(ext.x, pad) * maxf(ext.y, pad) * maxf(ext.z, pad);
@@ -361,7 +369,8 @@ static const LightSamplerOps CACHEPOINT_OPS = {
 
 /* Fills s->cp (NULL when fewer than 10 points exist). 0 ok, -1 out of memory, -2 invalid
  * cache point parameters. */
-static int build(CachePointSampler *s, const Scene *scene, ThreadPool *pool, const CandelaOptions *o) {
+static int build(CachePointSampler *s, const Scene *scene, const SceneMedia *media, ThreadPool *pool,
+                 const CandelaOptions *o) {
     const Lights *ls = s->lights;
     s->centroid = malloc((size_t)ls->count * 3 * sizeof(float));
     s->infinite = malloc(ls->count);
@@ -388,7 +397,7 @@ static int build(CachePointSampler *s, const Scene *scene, ThreadPool *pool, con
     if (!o->cachepoint_build_linear && setup_tree_view(s) != 0) return -1;
 
     Candidates cand = {0};
-    if (bbox_candidates(scene, o->seed, &cand) != 0 || pilot_candidates(scene, o->seed, &cand) != 0 ||
+    if (bbox_candidates(scene, media, o->seed, &cand) != 0 || pilot_candidates(scene, o->seed, &cand) != 0 ||
         sort_candidates(&cand) != 0) {
         free(cand.xyz);
         return -1;
@@ -416,15 +425,16 @@ static int build(CachePointSampler *s, const Scene *scene, ThreadPool *pool, con
     return rc < 0 ? rc : 0; /* -1 out of memory, -2 invalid parameters */
 }
 
-int light_sampler_cachepoints_create(LightSampler *ls, const Lights *lights, const Scene *scene, ThreadPool *pool,
-                                     const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
+int light_sampler_cachepoints_create(LightSampler *ls, const Lights *lights, const Scene *scene,
+                                     const SceneMedia *media, ThreadPool *pool, const CandelaOptions *o,
+                                     char err[CANDELA_ERR_LEN]) {
     int rc = 0;
     if (lights->count > 0) {
         double t0 = clock_seconds();
         CachePointSampler *s = calloc(1, sizeof *s);
         if (!s) goto oom;
         s->lights = lights;
-        int rc_build = build(s, scene, pool, o);
+        int rc_build = build(s, scene, media, pool, o);
         if (rc_build != 0) {
             cp_destroy(s);
             if (rc_build == -1) goto oom;

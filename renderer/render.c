@@ -151,7 +151,10 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
     if (batch > max_paths_per_iteration) batch = (uint32_t)max_paths_per_iteration;
     r->pool = threadpool_create(o->threads);
     if (!r->pool) { snprintf(err, CANDELA_ERR_LEN, "candela: out of memory"); render_free(r); return -1; }
-    if (light_sampler_create(&r->sampler, &r->lights, &r->scene, r->pool, o, err) != 0) { render_free(r); return -1; }
+    if (light_sampler_create(&r->sampler, &r->lights, &r->scene, &r->media, r->pool, o, err) != 0) {
+        render_free(r);
+        return -1;
+    }
     r->have_sampler = 1;
     light_sampler_report(&r->sampler, stats);
     if (integrator_init(&r->ig, o, &r->scene, &r->lights, &r->media, &r->sampler, batch) != 0) {

@@ -103,7 +103,7 @@ static void check_strategy_occl(const char *path, CandelaLightSampler strategy, 
     /* the strategy is driven through the light-selection protocol alone (light_sampler.h) */
     ThreadPool *pool = threadpool_create(2);
     LightSampler sampler;
-    rc = light_sampler_create(&sampler, &lights, &scene, pool, &o, err);
+    rc = light_sampler_create(&sampler, &lights, &scene, NULL, pool, &o, err);
     CHECK(rc == 0, "light sampler: %s", err);
     if (rc != 0) { lights_free(&lights); scene_free(&scene); threadpool_destroy(pool); return; }
     CHECK(strcmp(sampler.ops->name, candela_light_sampler_name(strategy)) == 0, "asked for %s, got %s (fell back?)",
