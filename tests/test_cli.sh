@@ -49,6 +49,32 @@ expect_error "empty gltf" "empty.gltf" -- render "$tmp/empty.gltf" "${common[@]}
 sed 's/"uri" *: *"data:[^"]*"/"uri": "missing.bin"/' "$scene" > "$tmp/missing_buffer.gltf"
 expect_error "missing buffer" "missing_buffer.gltf" -- render "$tmp/missing_buffer.gltf" "${common[@]}"
 
+# volumes: a node whose candela_volume names a missing, a truncated or a non-VDB file, or a
+# grid that is not there (the scene is point_plane.gltf plus one volume node)
+volume_scene() { # FILE URI [GRID]
+  python3 - "$scene" "$1" "$2" "${3:-density}" <<'PY'
+import json, sys
+src, dst, uri, grid = sys.argv[1:5]
+d = json.load(open(src))
+d["nodes"].append({"name": "vol", "extras": {"candela_volume": {"uri": uri, "density_grid": grid}}})
+d["scenes"][d.get("scene", 0)]["nodes"].append(len(d["nodes"]) - 1)
+json.dump(d, open(dst, "w"))
+PY
+}
+shared_vdb=$root/../shared/assets/vdb/cloud.vdb
+volume_scene "$tmp/vol_missing.gltf" "nope.vdb"
+expect_error "missing vdb" "nope.vdb" -- render "$tmp/vol_missing.gltf" "${common[@]}"
+head -c 100 /dev/urandom > "$tmp/garbage.vdb"
+volume_scene "$tmp/vol_garbage.gltf" "garbage.vdb"
+expect_error "garbage vdb" "garbage.vdb" -- render "$tmp/vol_garbage.gltf" "${common[@]}"
+if [ -f "$shared_vdb" ]; then
+  head -c 5000 "$shared_vdb" > "$tmp/cut.vdb"
+  volume_scene "$tmp/vol_cut.gltf" "cut.vdb"
+  expect_error "truncated vdb" "cut.vdb" -- render "$tmp/vol_cut.gltf" "${common[@]}"
+  volume_scene "$tmp/vol_grid.gltf" "$shared_vdb" "heat"
+  expect_error "missing grid" "no grid named 'heat'" -- render "$tmp/vol_grid.gltf" "${common[@]}"
+fi
+
 # each file in tests/bad/ is wrong in exactly one way (made by scenes/make_scenes.py)
 expect_error "nan positions" "non-finite vertex positions" -- render "$root/tests/bad/nan_positions.gltf" "${common[@]}"
 expect_error "index out of range" "out of range" -- render "$root/tests/bad/index_out_of_range.gltf" "${common[@]}"
