@@ -761,6 +761,205 @@ static void test_emission(void) {
     free(temp);
 }
 
+/* ---------------------------------------------------------------- emission sampling (§4.3) */
+
+/* A direction from equal-area coordinates: z = cos(theta) in [-1, 1], phi in [0, 2 pi). */
+static void eq_dir(double z, double phi, float d[3]) {
+    double r = sqrt(fmax(0.0, 1.0 - z * z));
+    d[0] = (float)(r * cos(phi));
+    d[1] = (float)(r * sin(phi));
+    d[2] = (float)z;
+}
+
+/* The integral of medium_emission_pdf over the sphere by the midpoint rule on an equal-area
+ * grid (nz x nphi cells of solid angle 4 pi / (nz nphi)). */
+static double pdf_sphere_integral(const Medium *m, const float o[3], int nz, int nphi) {
+    double sum = 0.0;
+    for (int i = 0; i < nz; ++i) {
+        double z = -1.0 + 2.0 * (i + 0.5) / nz;
+        for (int j = 0; j < nphi; ++j) {
+            float d[3];
+            eq_dir(z, 2.0 * PI_D * (j + 0.5) / nphi, d);
+            sum += medium_emission_pdf(m, o, d);
+        }
+    }
+    return sum * 4.0 * PI_D / ((double)nz * nphi);
+}
+
+/* The emitting test media: a smooth blob of density with an emission grid of another pattern
+ * (axis-aligned, then rotated with anisotropic voxels), and a temperature grid with a hot
+ * spot in a constant density. */
+enum { ES_NX = 20, ES_NY = 12, ES_NZ = 16, ES_NT = 24 };
+static int emission_test_medium(int which, Medium *m, IoVolumeGrid *g, IoVolumeGrid *ge) {
+    char err[IO_ERR_LEN] = "";
+    int nx = which == 2 ? ES_NT : ES_NX, ny = which == 2 ? ES_NT : ES_NY, nz = which == 2 ? ES_NT : ES_NZ;
+    size_t n = (size_t)nx * ny * nz;
+    float *dv = malloc(sizeof(float) * n), *ev = malloc(sizeof(float) * n), i2w[16];
+    for (int z = 0; z < nz; ++z)
+        for (int y = 0; y < ny; ++y)
+            for (int x = 0; x < nx; ++x) {
+                size_t i = (size_t)x + (size_t)nx * ((size_t)y + (size_t)ny * (size_t)z);
+                if (which == 2) {
+                    double r2 = (x - 16.0) * (x - 16.0) + (y - 8.0) * (y - 8.0) + (z - 12.0) * (z - 12.0);
+                    dv[i] = 1.0f;
+                    ev[i] = r2 < 30.0 ? (float)(3500.0 - 60.0 * r2) : 300.0f; /* kelvin */
+                } else {
+                    double bx = (x - 9.0) / 7.0, by = (y - 6.0) / 5.0, bz = (z - 7.0) / 6.0;
+                    double b = 1.0 - (bx * bx + by * by + bz * bz);
+                    dv[i] = b > 0.0 ? (float)(0.2 + 3.0 * b) : 0.0f;
+                    ev[i] = (x + 2 * y + 3 * z) % 7 == 0 ? 4.0f : x > 12 ? 1.0f : 0.0f;
+                }
+            }
+    if (which == 1) {
+        TestRng r = {77};
+        random_transform(&r, i2w, 1);
+    } else {
+        scale_translate(i2w, 0.05f, -0.5f, -0.3f, -0.4f);
+    }
+    int rc = make_grid(dv, nx, ny, nz, i2w, "density", g);
+    if (rc == 0 && (rc = make_grid(ev, nx, ny, nz, i2w, which == 2 ? "temperature" : "emission", ge)) != 0)
+        io_volume_grid_free(g);
+    free(dv);
+    free(ev);
+    if (rc) return -1;
+    VolumeDesc desc = grid_desc(g, 2.0f, 0.3f);
+    desc.emission_scale = 3.0f;
+    const float color[3] = {1.0f, 0.6f, 0.3f};
+    if (which == 2) {
+        desc.temperature = ge;
+    } else {
+        desc.emission = ge;
+        memcpy(desc.emission_color, color, sizeof color);
+    }
+    rc = medium_init_vdb(m, &desc, err);
+    CHECK(rc == 0, "emission medium %d: %s", which, err);
+    if (rc) {
+        io_volume_grid_free(g);
+        io_volume_grid_free(ge);
+    }
+    return rc;
+}
+
+static void test_emission_sampling(void) {
+    char err[IO_ERR_LEN] = "";
+    /* media that do not emit */
+    {
+        Medium h;
+        const float sa[3] = {1, 1, 1}, ss[3] = {1, 1, 1}, o[3] = {0, 0, 0}, d[3] = {0, 0, 1};
+        float p[3], c[3];
+        CHECK(medium_init_homogeneous(&h, sa, ss, 0.0f, err) == 0, "%s", err);
+        medium_emission_centroid(&h, c);
+        CHECK(medium_emission_power(&h) == 0.0f && medium_emission_sample(&h, 0.5f, 0.5f, 0.5f, 0.5f, p) == 0.0f &&
+                  medium_emission_pdf(&h, o, d) == 0.0f && c[0] == 0.0f,
+              "a homogeneous medium emits");
+        enum { N = 8 };
+        float vals[N * N * N], i2w[16];
+        for (int i = 0; i < N * N * N; ++i) vals[i] = 1.0f;
+        scale_translate(i2w, 0.1f, 0.0f, 0.0f, 0.0f);
+        IoVolumeGrid g;
+        if (make_grid(vals, N, N, N, i2w, "density", &g) == 0) {
+            VolumeDesc desc = grid_desc(&g, 1.0f, 0.0f);
+            Medium m;
+            CHECK(medium_init_vdb(&m, &desc, err) == 0, "%s", err);
+            CHECK(medium_emission_power(&m) == 0.0f && medium_emission_sample(&m, 0.5f, 0.5f, 0.5f, 0.5f, p) == 0.0f &&
+                      medium_emission_pdf(&m, o, d) == 0.0f,
+                  "a grid without emission emits");
+            medium_free(&m);
+            /* a constant emitting absorber: the power is sigma_a L_e x volume (voxel centres) up
+             * to the floors of the border cells (< 0.1 %), the centroid the voxels' centre */
+            desc.emission = &g;
+            desc.emission_scale = 2.0f;
+            CHECK(medium_init_vdb(&m, &desc, err) == 0, "%s", err);
+            double expect = 1.0 * 2.0 * 1.0 * (N * 0.1) * (N * 0.1) * (N * 0.1);
+            medium_emission_centroid(&m, c);
+            CHECK(fabs(medium_emission_power(&m) - expect) < 1e-3 * expect, "power %g vs %g",
+                  (double)medium_emission_power(&m), expect);
+            CHECK(fabsf(c[0] - 0.35f) < 1e-3f && fabsf(c[1] - 0.35f) < 1e-3f && fabsf(c[2] - 0.35f) < 1e-3f,
+                  "centroid (%g %g %g) vs 0.35", c[0], c[1], c[2]);
+            printf("emission power of a constant absorber %.5f (exact %.5f), centroid (%.4f %.4f %.4f) vs 0.35\n",
+                   (double)medium_emission_power(&m), expect, c[0], c[1], c[2]);
+            medium_free(&m);
+            io_volume_grid_free(&g);
+        }
+    }
+    for (int which = 0; which < 3; ++which) {
+        Medium m;
+        IoVolumeGrid g, ge;
+        if (emission_test_medium(which, &m, &g, &ge)) continue;
+        float cen[3];
+        medium_emission_centroid(&m, cen);
+        CHECK(medium_emission_power(&m) > 0.0f, "medium %d does not emit", which);
+        float ext[3];
+        for (int k = 0; k < 3; ++k) ext[k] = m.world_max[k] - m.world_min[k];
+        float ext_max = fmaxf(ext[0], fmaxf(ext[1], ext[2]));
+        /* origins: the centroid, near a corner inside, and two outside */
+        float origins[4][3];
+        for (int k = 0; k < 3; ++k) {
+            origins[0][k] = cen[k];
+            origins[1][k] = m.world_min[k] + 0.15f * ext[k];
+            origins[2][k] = cen[k] + (k == 0 ? 1.5f : 0.4f) * ext_max;
+            origins[3][k] = m.world_min[k] - (k == 1 ? 0.7f : 0.3f) * ext_max;
+        }
+        for (int oi = 0; oi < 4; ++oi) {
+            double integral = pdf_sphere_integral(&m, origins[oi], 500, 1000);
+            CHECK(fabs(integral - 1.0) < 3e-3, "medium %d origin %d: pdf integrates to %.6f", which, oi, integral);
+            printf("emission pdf medium %d origin %d (%s): integral over the sphere %.6f\n", which, oi,
+                   oi < 2 ? "inside" : "outside", integral);
+        }
+        /* the directions of sampled points against the pdf (chi-square), and the returned
+         * volume pdf against the cell's P_v / V_v being positive and the point in the bounds */
+        for (int oi = 0; oi < 4; oi += 2) {
+            enum { BZ = 24, BP = 48, SUB = 10, NS = 200000 };
+            static double obs[BZ * BP], expv[BZ * BP];
+            memset(obs, 0, sizeof obs);
+            const float *o = origins[oi];
+            TestRng r = {9000u + 10u * (uint64_t)which + (uint64_t)oi};
+            long outside = 0, zero_pdf = 0;
+            for (int s = 0; s < NS; ++s) {
+                float p[3];
+                float pv = medium_emission_sample(&m, (float)urand(&r), (float)urand(&r), (float)urand(&r),
+                                                  (float)urand(&r), p);
+                if (!(pv > 0.0f)) ++zero_pdf;
+                for (int k = 0; k < 3; ++k)
+                    if (!(p[k] >= m.world_min[k] - 1e-5f * ext_max && p[k] <= m.world_max[k] + 1e-5f * ext_max))
+                        ++outside;
+                float d[3] = {p[0] - o[0], p[1] - o[1], p[2] - o[2]};
+                normalize3(d);
+                double phi = atan2(d[1], d[0]);
+                if (phi < 0.0) phi += 2.0 * PI_D;
+                int bz = (int)((d[2] + 1.0) * 0.5 * BZ), bp = (int)(phi / (2.0 * PI_D) * BP);
+                bz = bz < 0 ? 0 : bz >= BZ ? BZ - 1 : bz;
+                bp = bp < 0 ? 0 : bp >= BP ? BP - 1 : bp;
+                obs[bz * BP + bp] += 1.0;
+            }
+            CHECK(outside == 0 && zero_pdf == 0, "medium %d: %ld samples outside, %ld with pdf 0", which, outside,
+                  zero_pdf);
+            double tot = 0.0;
+            for (int bz = 0; bz < BZ; ++bz)
+                for (int bp = 0; bp < BP; ++bp) {
+                    double e = 0.0;
+                    for (int i = 0; i < SUB; ++i)
+                        for (int j = 0; j < SUB; ++j) {
+                            float d[3];
+                            eq_dir(-1.0 + 2.0 * (bz + (i + 0.5) / SUB) / BZ, 2.0 * PI_D * (bp + (j + 0.5) / SUB) / BP, d);
+                            e += medium_emission_pdf(&m, o, d);
+                        }
+                    expv[bz * BP + bp] = e * 4.0 * PI_D / ((double)BZ * BP * SUB * SUB) * NS;
+                    tot += expv[bz * BP + bp];
+                }
+            int dof;
+            double stat, pval = chi2_pvalue(obs, expv, BZ * BP, &dof, &stat);
+            CHECK(pval > 1e-4, "medium %d origin %d: sampled directions vs pdf, chi2 %g dof %d p %g", which, oi, stat,
+                  dof, pval);
+            printf("emission sampling medium %d origin %d: chi2 %.1f dof %d p %.4f (expected total %.4f of %d)\n", which,
+                   oi, stat, dof, pval, tot / NS, NS);
+        }
+        medium_free(&m);
+        io_volume_grid_free(&g);
+        io_volume_grid_free(&ge);
+    }
+}
+
 /* ---------------------------------------------------------------- overlapping media */
 
 /* A chromatic homogeneous medium and a constant grid in one view: the merged majorant walk
@@ -1134,6 +1333,7 @@ int main(int argc, char **argv) {
     test_heterogeneous();
     test_majorant();
     test_emission();
+    test_emission_sampling();
     test_overlap();
     if (argc > 1) test_slab_asset(argv[1]);
     printf("volumes: %.1f s\n", test_seconds() - t0);

@@ -111,7 +111,16 @@ void blackbody_lookup(float kelvin, float rgb[3]);
 #define BLACKBODY_MIN_KELVIN 500.0f
 
 /* Builds m->majorant (majorant.c) from the density grid's index-to-world transform i2w
- * (node x grid, double); 0 ok, -1 out of memory or an absurd size (err). */
-int majorant_build(Medium *m, const double i2w[16], float voxel_size, char err[IO_ERR_LEN], const char *name);
+ * (node x grid, double); 0 ok, -1 out of memory or an absurd size (err). When the medium
+ * emits and emit_bound is not NULL, *emit_bound gets a malloc'd array (the caller frees it)
+ * with, per majorant cell, an upper bound of lum(sigma_a L_e) over the cell's trilinear
+ * footprint (the uncapped emission term; 0 where the cell cannot emit). */
+int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **emit_bound, char err[IO_ERR_LEN],
+                   const char *name);
+
+/* Builds m->emission_energy (emission.c) from the bound of majorant_build; 0 ok, -1 out of
+ * memory (err). */
+int emission_build(Medium *m, const double i2w[16], const float *bound, char err[IO_ERR_LEN], const char *name);
+void emission_free(Medium *m);
 
 #endif

@@ -98,8 +98,11 @@ static float block_table_max(const BlockTable *b, const int64_t lo[3], const int
 
 /* ---------------------------------------------------------------- build */
 
-int majorant_build(Medium *m, const double i2w[16], float voxel_size, char err[IO_ERR_LEN], const char *name) {
+int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **emit_bound, char err[IO_ERR_LEN],
+                   const char *name) {
     MajorantGrid *mg = &m->majorant;
+    float *bound = NULL;
+    if (emit_bound) *emit_bound = NULL;
     const VolumeGrid *g = &m->density;
     /* Cells cover voxels index_min - 2 .. index_max + 2: the trilinear field is 0 beyond
      * index_min - 1 .. index_max + 1, and the extra voxel keeps rounding on the safe side. */
@@ -128,6 +131,7 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, char err[I
     /* only three z layers of density blocks are alive at a time (a layer of cells needs the
      * layers below, at and above it): the temporary memory is a slab, not the volume */
     int fail = !mg->sigma_maj || block_table_alloc(&dens, ring_origin, ring_dims, 3, BLK_FACES);
+    if (!fail && m->emissive && emit_bound) fail = !(bound = calloc((size_t)ncells, sizeof(float)));
 
     /* The emission (or temperature) grid's block maxima over its own index space. */
     const VolumeGrid *ag = m->emission.buffer ? &m->emission : &m->temperature;
@@ -148,6 +152,7 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, char err[I
     if (fail) {
         free(dens.v);
         free(aux.v);
+        free(bound);
         free(mg->sigma_maj);
         mg->sigma_maj = NULL;
         if (err) snprintf(err, IO_ERR_LEN, "%s: out of memory building the majorant grid", name);
@@ -213,12 +218,14 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, char err[I
                     float e = m->emission.buffer ? amax : (amax >= BLACKBODY_MIN_KELVIN ? 1.0f : 0.0f);
                     float term = st * emit_factor * e; /* kappa = 1 */
                     maj = vmaxf(st, vminf(term, emit_cap));
+                    if (bound) bound[cx + mg->dims[0] * (cy + mg->dims[1] * cz)] = term;
                 }
                 mg->sigma_maj[cx + mg->dims[0] * (cy + mg->dims[1] * cz)] = maj * VOL_MAJORANT_SLACK;
             }
     }
     free(dens.v);
     free(aux.v);
+    if (emit_bound) *emit_bound = bound;
     return 0;
 }
 

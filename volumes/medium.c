@@ -292,7 +292,15 @@ int medium_init_vdb(Medium *m, const VolumeDesc *desc, char err[IO_ERR_LEN]) {
     double vs = INFINITY;
     for (int c = 0; c < 3; ++c)
         vs = fmin(vs, sqrt(i2w[c * 4] * i2w[c * 4] + i2w[c * 4 + 1] * i2w[c * 4 + 1] + i2w[c * 4 + 2] * i2w[c * 4 + 2]));
-    if (majorant_build(m, i2w, (float)vs, err, name)) {
+    float *bound = NULL;
+    if (majorant_build(m, i2w, (float)vs, &bound, err, name)) {
+        medium_free(m);
+        return -1;
+    }
+    /* the emission-energy grid (§4.3) from the majorant's per-cell emission bound */
+    int rc = emission_build(m, i2w, bound, err, name);
+    free(bound);
+    if (rc) {
         medium_free(m);
         return -1;
     }
@@ -302,5 +310,6 @@ int medium_init_vdb(Medium *m, const VolumeDesc *desc, char err[IO_ERR_LEN]) {
 void medium_free(Medium *m) {
     if (!m) return;
     free(m->majorant.sigma_maj);
+    emission_free(m);
     memset(m, 0, sizeof *m);
 }

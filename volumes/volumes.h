@@ -20,6 +20,10 @@
  *     extinction are sampled densely (the paper's §4.3, Algorithm 1; the cap keeps about one
  *     expected collision per voxel).
  *   - media_transmittance: ratio tracking (Novák et al. 2014) for shadow rays, RGB.
+ *   - medium_emission_sample / medium_emission_pdf: emissive media as lights (§4.3,
+ *     Algorithm 2, Eq. 11): points from an emission-energy grid, and the solid-angle density
+ *     of a direction by a DDA over its cells; medium_emission_power / _centroid for light
+ *     selection.
  * Every walk is bounded: at most VOLUME_MAX_COLLISIONS collisions per call (counted in the
  * stats when hit, so a bad input can never hang a render).
  *
@@ -61,6 +65,30 @@ typedef struct MajorantGrid {
     float *sigma_maj;            /* dims[0] * dims[1] * dims[2], x fastest */
 } MajorantGrid;
 
+/* The emission-energy grid of an emitting VDB medium (the cache points paper §4.3, "an
+ * emission-energy-distribution grid, which is just a coarser version of the volume", after
+ * Villemin & Hery 2013; the spec's §7.5): the majorant grid's cells (VOLUME_MAJORANT_CELL^3
+ * voxels of the density grid, the index-space boxes [origin + 8 c, origin + 8 (c + 1)]) with
+ * per cell the energy E_v = sum over the cell's voxel centres of lum(sigma_a L_e) x the world
+ * volume of a voxel, raised to at least 1e-2 x (an upper bound of lum(sigma_a L_e) over the
+ * cell's trilinear footprint) x the volume of a voxel, so every cell where the emission can be
+ * non-zero has E_v > 0 (complete support). A cell is picked with P_v = E_v / sum E, then a
+ * point uniformly in its sampled box: the cell's box clipped to the density's trilinear
+ * support (index_min - 1, index_max + 1), outside which sigma_a = 0 (a parallelepiped in the
+ * world, of volume V_v; the cells' full boxes reach up to 9 voxels beyond the active box).
+ * Built by medium_init_vdb when the medium emits; all zero (count 0) otherwise and for
+ * homogeneous media. Fields are the module's. */
+typedef struct EmissionEnergyGrid {
+    float *density;              /* per majorant cell (majorant layout): P_v / V_v (1/m^3) */
+    int32_t *cells;              /* linear indices of the cells with E_v > 0, ascending */
+    double *cdf;                 /* cdf[i] = sum of P over cells[0..i]; cdf[count - 1] = 1 */
+    int32_t count;
+    float index_to_world[16];    /* of the density grid (column-major) */
+    float power;                 /* sum of E_v; 0: the medium does not emit */
+    float centroid[3];           /* the energy centroid: the lum(sigma_a L_e)-weighted mean of the
+                                  * voxel centres (a floored cell counts at its box's centre) */
+} EmissionEnergyGrid;
+
 typedef struct Medium {
     MediumKind kind;
     float g;                     /* Henyey-Greenstein anisotropy, (-1, 1) */
@@ -76,6 +104,7 @@ typedef struct Medium {
     float world_to_index[16];          /* of the density grid (for the majorant DDA) */
     MajorantGrid majorant;
     int emissive;
+    EmissionEnergyGrid emission_energy;
 } Medium;
 
 /* A homogeneous medium. 0 ok; -1 with a one-line message (negative or non-finite
@@ -175,6 +204,36 @@ void media_sample_event(const MediaView *v, const float o[3], const float d[3], 
  * is unbiased. */
 void media_transmittance(const MediaView *v, const float o[3], const float d[3], float tmin, float tmax,
                          VolumeRng *rng, float T[3], VolumeStats *stats);
+
+/* ---------------------------------------------------------------- volumetric emission (§4.3) */
+
+/* The emitted power of the medium as the emission-energy grid holds it: the sum of E_v, i.e.
+ * the integral of lum(sigma_a L_e) over the volume (W/sr per unit of the emission scale:
+ * radiance x 1/m x m^3 = W/sr) estimated at voxel centres; 0 if it does not emit
+ * (homogeneous media never do). A light's power for light selection. */
+float medium_emission_power(const Medium *m);
+/* The energy centroid (world, m): the mean of the voxel centres weighted by lum(sigma_a L_e)
+ * x voxel volume (a cell raised to its floor counts at its sampled box's centre, with E_v);
+ * (0, 0, 0) if the medium does not emit. */
+void medium_emission_centroid(const Medium *m, float c[3]);
+
+/* A point p (world) of the medium's emission-energy grid (the paper's §4.3 / spec §7.5): u0
+ * picks a cell with probability P_v = E_v / sum E, u1..u3 (in [0, 1)) a uniform point in the
+ * cell's sampled box (world-space parallelepiped: the cell clipped to the density's support,
+ * see EmissionEnergyGrid).
+ * Returns the pdf per unit world volume, P_v / V_v (1/m^3); 0 (and p = 0) when the medium
+ * does not emit. Deterministic, no allocation. */
+float medium_emission_sample(const Medium *m, float u0, float u1, float u2, float u3, float p[3]);
+
+/* The solid-angle density (1/sr) of the direction d (unit) from o for the points of
+ * medium_emission_sample (d = normalize(p - o)): the paper's Algorithm 2 / Eq. 11, the
+ * Jacobian-transformed volume density p_w(d) = integral over t > 0 of p_x(o + t d) t^2 dt,
+ * i.e. a DDA (in double) over the emission-energy cells the ray o + t d crosses inside the
+ * density's support box, summing (P_v / V_v) (t1^3 - t0^3) / 3 over each cell's entry / exit
+ * [t0, t1]. Integrates to 1 over
+ * the sphere for any o (inside or outside the volume). 0 when the medium does not emit, for
+ * a non-finite o or d and for a ray that misses every emitting cell. */
+float medium_emission_pdf(const Medium *m, const float o[3], const float d[3]);
 
 /* ---------------------------------------------------------------- phase function */
 

@@ -1,0 +1,255 @@
+/* volumes/emission.c: volumetric emission sampling (the cache points paper §4.3, Algorithm 2,
+ * Eq. 11; the spec's §7.5): the emission-energy grid of an emitting VDB medium, point sampling
+ * from it, and the solid-angle pdf of a direction by a DDA over its cells.
+ *
+ * The grid reuses the majorant grid's cells (VOLUME_MAJORANT_CELL^3 voxels of the density
+ * grid, boxes [origin + 8 c, origin + 8 (c + 1)] in its index space). A point is drawn with
+ * the volume density p_x = P_v / V_v in cell v; seen from o, the direction density is the
+ * Jacobian transform p_w(d) = integral_0^inf p_x(o + t d) t^2 dt (dA = t^2 dw dt), which is
+ * piecewise sum P_v (t1^3 - t0^3) / 3 over the cells the ray crosses (Eq. 11). The transform
+ * is affine, so t along the ray is the same in index space as in the world. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "internal.h"
+
+/* The floor of E_v relative to the cell's bound (bound x the volume of one voxel): keeps every
+ * cell where the emission can be non-zero sampleable (complete support) at a negligible cost
+ * (cells whose voxel centres miss the emission: the trilinear fringe of the active box, a
+ * hot spot between two centres). */
+#define EMISSION_FLOOR 1e-2
+
+/* The part of cell c (index space) inside the density's trilinear support, the open box
+ * (index_min - 1, index_max + 1): where sigma_a, so sigma_a L_e, can be non-zero. Samples are
+ * drawn there only; its volume in voxels, 0 when the cell lies outside. */
+static double cell_box(const Medium *m, const int32_t c[3], double lo[3], double hi[3]) {
+    const MajorantGrid *mg = &m->majorant;
+    double vol = 1.0;
+    for (int k = 0; k < 3; ++k) {
+        double a = mg->origin[k] + 8.0 * c[k];
+        lo[k] = fmax(a, m->density.index_min[k] - 1.0);
+        hi[k] = fmin(a + 8.0, m->density.index_max[k] + 1.0);
+        vol *= fmax(hi[k] - lo[k], 0.0);
+    }
+    return vol;
+}
+
+int emission_build(Medium *m, const double i2w[16], const float *bound, char err[IO_ERR_LEN], const char *name) {
+    EmissionEnergyGrid *e = &m->emission_energy;
+    memset(e, 0, sizeof *e);
+    if (!m->emissive || !bound) return 0;
+    const MajorantGrid *mg = &m->majorant;
+    size_t ncells = (size_t)mg->dims[0] * (size_t)mg->dims[1] * (size_t)mg->dims[2];
+    const double *a = i2w;
+    double det = a[0] * (a[5] * a[10] - a[6] * a[9]) - a[4] * (a[1] * a[10] - a[2] * a[9]) +
+                 a[8] * (a[1] * a[6] - a[2] * a[5]);
+    double vvox = fabs(det);
+    for (int i = 0; i < 16; ++i) e->index_to_world[i] = (float)i2w[i];
+
+    double *energy = malloc(ncells * sizeof(double));
+    e->density = calloc(ncells, sizeof(float));
+    if (!energy || !e->density) goto oom;
+
+    GridReader dens, aux;
+    grid_reader_init(&dens, &m->density);
+    grid_reader_init(&aux, m->emission.buffer ? &m->emission : &m->temperature);
+    double total = 0.0, cen[3] = {0.0, 0.0, 0.0};
+    size_t count = 0;
+    for (int32_t cz = 0; cz < mg->dims[2]; ++cz)
+        for (int32_t cy = 0; cy < mg->dims[1]; ++cy)
+            for (int32_t cx = 0; cx < mg->dims[0]; ++cx) {
+                size_t ci = (size_t)cx + (size_t)mg->dims[0] * ((size_t)cy + (size_t)mg->dims[1] * (size_t)cz);
+                energy[ci] = 0.0;
+                if (!(bound[ci] > 0.0f)) continue;
+                int32_t base[3] = {mg->origin[0] + 8 * cx, mg->origin[1] + 8 * cy, mg->origin[2] + 8 * cz};
+                int32_t c[3] = {cx, cy, cz};
+                double blo[3], bhi[3], vcell = cell_box(m, c, blo, bhi) * vvox;
+                if (!(vcell > 0.0)) continue;
+                double sum = 0.0, vc[3] = {0.0, 0.0, 0.0};
+                for (int32_t z = 0; z < 8; ++z)
+                    for (int32_t y = 0; y < 8; ++y)
+                        for (int32_t x = 0; x < 8; ++x) {
+                            float pi[3] = {(float)(base[0] + x), (float)(base[1] + y), (float)(base[2] + z)};
+                            float st = grid_sigma_t(m, &dens, pi);
+                            if (!(st > 0.0f)) continue;
+                            float p[3], le[3], src[3];
+                            for (int r = 0; r < 3; ++r)
+                                p[r] = (float)(a[r] * pi[0] + a[4 + r] * pi[1] + a[8 + r] * pi[2] + a[12 + r]);
+                            grid_emission(m, &aux, p, le);
+                            for (int k = 0; k < 3; ++k) src[k] = (1.0f - m->albedo[k]) * st * le[k];
+                            double lv = vlum(src);
+                            sum += lv;
+                            for (int r = 0; r < 3; ++r) vc[r] += lv * p[r];
+                        }
+                double ev = sum * vvox, floor_e = EMISSION_FLOOR * (double)bound[ci] * vvox;
+                if (!(ev >= floor_e)) {
+                    /* the floor, centred on the sampled box */
+                    ev = floor_e;
+                    double q[3];
+                    for (int k = 0; k < 3; ++k) q[k] = 0.5 * (blo[k] + bhi[k]);
+                    for (int r = 0; r < 3; ++r) vc[r] = a[r] * q[0] + a[4 + r] * q[1] + a[8 + r] * q[2] + a[12 + r];
+                } else {
+                    for (int r = 0; r < 3; ++r) vc[r] /= sum;
+                }
+                if (!(ev > 0.0) || !isfinite(ev)) continue;
+                energy[ci] = ev;
+                total += ev;
+                for (int r = 0; r < 3; ++r) cen[r] += ev * vc[r];
+                ++count;
+            }
+    if (count == 0 || !(total > 0.0) || !isfinite(total)) { /* emits nothing */
+        free(energy);
+        free(e->density);
+        e->density = NULL;
+        return 0;
+    }
+    e->cells = malloc(count * sizeof(int32_t));
+    e->cdf = malloc(count * sizeof(double));
+    if (!e->cells || !e->cdf) goto oom;
+    double run = 0.0;
+    size_t j = 0;
+    for (size_t ci = 0; ci < ncells; ++ci) {
+        if (!(energy[ci] > 0.0)) continue;
+        double pv = energy[ci] / total, lo[3], hi[3];
+        int32_t c[3] = {(int32_t)(ci % (size_t)mg->dims[0]), (int32_t)(ci / (size_t)mg->dims[0] % (size_t)mg->dims[1]),
+                        (int32_t)(ci / ((size_t)mg->dims[0] * (size_t)mg->dims[1]))};
+        run += pv;
+        e->cells[j] = (int32_t)ci;
+        e->cdf[j] = run;
+        e->density[ci] = (float)(pv / (cell_box(m, c, lo, hi) * vvox));
+        ++j;
+    }
+    e->cdf[count - 1] = 1.0;
+    e->count = (int32_t)count;
+    e->power = (float)total;
+    for (int r = 0; r < 3; ++r) e->centroid[r] = (float)(cen[r] / total);
+    free(energy);
+    return 0;
+oom:
+    free(energy);
+    free(e->density);
+    free(e->cells);
+    free(e->cdf);
+    memset(e, 0, sizeof *e);
+    if (err) snprintf(err, IO_ERR_LEN, "%s: out of memory building the emission-energy grid", name);
+    return -1;
+}
+
+void emission_free(Medium *m) {
+    EmissionEnergyGrid *e = &m->emission_energy;
+    free(e->density);
+    free(e->cells);
+    free(e->cdf);
+    memset(e, 0, sizeof *e);
+}
+
+float medium_emission_power(const Medium *m) {
+    return m && m->kind == MEDIUM_GRID && m->emission_energy.count > 0 ? m->emission_energy.power : 0.0f;
+}
+
+void medium_emission_centroid(const Medium *m, float c[3]) {
+    int on = medium_emission_power(m) > 0.0f;
+    for (int k = 0; k < 3; ++k) c[k] = on ? m->emission_energy.centroid[k] : 0.0f;
+}
+
+static inline float unit_clamp(float u) { return u >= 0.0f ? (u < 1.0f ? u : 0x1.fffffep-1f) : 0.0f; }
+
+float medium_emission_sample(const Medium *m, float u0, float u1, float u2, float u3, float p[3]) {
+    if (!(medium_emission_power(m) > 0.0f)) {
+        p[0] = p[1] = p[2] = 0.0f;
+        return 0.0f;
+    }
+    const EmissionEnergyGrid *e = &m->emission_energy;
+    const MajorantGrid *mg = &m->majorant;
+    /* the first cell whose cdf exceeds u0: its probability step is positive */
+    double u = (double)unit_clamp(u0);
+    int32_t a = 0, b = e->count - 1;
+    while (a < b) {
+        int32_t mid = a + (b - a) / 2;
+        if (e->cdf[mid] > u) b = mid;
+        else a = mid + 1;
+    }
+    int32_t ci = e->cells[a];
+    int32_t c[3] = {ci % mg->dims[0], (ci / mg->dims[0]) % mg->dims[1], ci / (mg->dims[0] * mg->dims[1])};
+    float uu[3] = {unit_clamp(u1), unit_clamp(u2), unit_clamp(u3)}, pi[3];
+    double lo[3], hi[3];
+    cell_box(m, c, lo, hi);
+    for (int k = 0; k < 3; ++k) pi[k] = (float)(lo[k] + (hi[k] - lo[k]) * (double)uu[k]);
+    vol_xform_point(e->index_to_world, pi, p);
+    return e->density[ci];
+}
+
+float medium_emission_pdf(const Medium *m, const float o[3], const float d[3]) {
+    if (!(medium_emission_power(m) > 0.0f)) return 0.0f;
+    for (int k = 0; k < 3; ++k)
+        if (!isfinite(o[k]) || !isfinite(d[k])) return 0.0f;
+    const EmissionEnergyGrid *e = &m->emission_energy;
+    const MajorantGrid *mg = &m->majorant;
+    const float *w = m->world_to_index;
+    double oi[3], di[3];
+    for (int r = 0; r < 3; ++r) {
+        oi[r] = (double)w[r] * o[0] + (double)w[4 + r] * o[1] + (double)w[8 + r] * o[2] + (double)w[12 + r];
+        di[r] = (double)w[r] * d[0] + (double)w[4 + r] * d[1] + (double)w[8 + r] * d[2];
+    }
+    /* the density's trilinear support (inside the cells' box: the cells cover index_min - 2 ..
+     * index_max + 2), where the samples lie, in index space */
+    double t0 = 0.0, t1 = INFINITY;
+    for (int k = 0; k < 3; ++k) {
+        double lo = m->density.index_min[k] - 1.0, hi = m->density.index_max[k] + 1.0;
+        if (di[k] == 0.0) {
+            if (!(oi[k] >= lo && oi[k] <= hi)) return 0.0f;
+            continue;
+        }
+        double ta = (lo - oi[k]) / di[k], tb = (hi - oi[k]) / di[k];
+        if (ta > tb) {
+            double s = ta;
+            ta = tb;
+            tb = s;
+        }
+        t0 = fmax(t0, ta);
+        t1 = fmin(t1, tb);
+    }
+    if (!(t0 < t1)) return 0.0f;
+    /* Amanatides & Woo over the cells from the entry point (the entry cell clamped: the entry
+     * lies on the box's surface up to rounding) */
+    int32_t cell[3], step[3], stride[3] = {1, mg->dims[0], mg->dims[0] * mg->dims[1]};
+    double tn[3], td[3];
+    int64_t index = 0;
+    for (int k = 0; k < 3; ++k) {
+        double pk = oi[k] + t0 * di[k];
+        double c = floor((pk - mg->origin[k]) * 0.125);
+        int32_t ck = c < 0.0 ? 0 : c >= mg->dims[k] ? mg->dims[k] - 1 : (int32_t)c;
+        cell[k] = ck;
+        index += (int64_t)ck * stride[k];
+        if (di[k] > 0.0) {
+            step[k] = 1;
+            tn[k] = (mg->origin[k] + 8.0 * (ck + 1) - oi[k]) / di[k];
+            td[k] = 8.0 / di[k];
+        } else if (di[k] < 0.0) {
+            step[k] = -1;
+            tn[k] = (mg->origin[k] + 8.0 * ck - oi[k]) / di[k];
+            td[k] = -8.0 / di[k];
+        } else {
+            step[k] = 0;
+            tn[k] = INFINITY;
+            td[k] = INFINITY;
+        }
+    }
+    const float *dens = e->density;
+    double sum = 0.0, t = t0;
+    for (;;) {
+        int a = tn[0] < tn[1] ? (tn[0] < tn[2] ? 0 : 2) : (tn[1] < tn[2] ? 1 : 2);
+        double te = fmin(fmax(tn[a], t), t1);
+        float dv = dens[index];
+        /* t1^3 - t0^3 without cancellation */
+        if (dv > 0.0f) sum += (double)dv * (te - t) * (te * te + te * t + t * t) * (1.0 / 3.0);
+        if (!(te < t1)) break;
+        t = te;
+        cell[a] += step[a];
+        if ((uint32_t)cell[a] >= (uint32_t)mg->dims[a]) break;
+        index += (int64_t)step[a] * stride[a];
+        tn[a] += td[a];
+    }
+    return (float)sum;
+}
