@@ -960,6 +960,161 @@ static void test_emission_sampling(void) {
     }
 }
 
+/* Emission-optimised tracking (media_emission_line, §4.3 Algorithm 1): against the closed
+ * form L_e sigma_a / sigma_t,all (1 - exp(-sigma_t,all d)) for a constant emitting grid alone
+ * and inside a chromatic homogeneous absorber (the emitter second in the view); against the
+ * emission media_sample_event gathers on a heterogeneous grid, and emitted_by's split of it
+ * between two emitting media of one view (same means within 5 standard errors). */
+static void test_emission_line(void) {
+    char err[IO_ERR_LEN] = "";
+    enum { N = 32, NS = 40000 };
+    float *vals = malloc(sizeof(float) * N * N * N), i2w[16];
+    for (int i = 0; i < N * N * N; ++i) vals[i] = 1.0f;
+    scale_translate(i2w, 1.0f / N, 0.0f, 0.0f, 0.0f);
+    IoVolumeGrid g;
+    if (make_grid(vals, N, N, N, i2w, "density", &g)) {
+        free(vals);
+        return;
+    }
+    free(vals);
+    const float o[3] = {0.1f, 0.45f, 0.55f};
+    float d[3] = {1.0f, 0.2f, 0.1f};
+    normalize3(d);
+    const float sigma = 2.0f, color[3] = {1.0f, 0.5f, 0.25f};
+    const float hom_sa[3] = {0.5f, 1.0f, 2.0f}, hom_ss[3] = {0.0f, 0.0f, 0.0f};
+    Medium hom;
+    CHECK(medium_init_homogeneous(&hom, hom_sa, hom_ss, 0.0f, err) == 0, "%s", err);
+    for (int variant = 0; variant < 3; ++variant) {
+        /* 0: pure absorber; 1: albedo 0.5; 2: pure absorber inside the homogeneous absorber */
+        VolumeDesc desc = grid_desc(&g, sigma, variant == 1 ? 0.5f : 0.0f);
+        desc.emission = &g;
+        desc.emission_scale = 5.0f;
+        memcpy(desc.emission_color, color, sizeof color);
+        Medium m;
+        if (medium_init_vdb(&m, &desc, err)) {
+            CHECK(0, "%s", err);
+            continue;
+        }
+        MediaView v = {{&m}, 1};
+        int emitter = 0;
+        if (variant == 2) {
+            v.media[0] = &hom;
+            v.media[1] = &m;
+            v.count = 2;
+            emitter = 1;
+        }
+        float sa = sigma * (1.0f - desc.albedo[0]);
+        const double dist[2] = {0.2, 0.6};
+        for (int i = 0; i < 2; ++i) {
+            Acc acc[3];
+            memset(acc, 0, sizeof acc);
+            TestRng r;
+            VolumeRng rng = make_rng(&r, 700 + 10 * variant + i);
+            VolumeStats st = {0};
+            for (int s = 0; s < NS; ++s) {
+                float L[3];
+                media_emission_line(&v, emitter, o, d, 0.0f, (float)dist[i], &rng, L, &st);
+                for (int k = 0; k < 3; ++k) acc_add(&acc[k], L[k]);
+            }
+            double ex[3];
+            for (int k = 0; k < 3; ++k) {
+                double stall = sigma + (variant == 2 ? hom_sa[k] : 0.0);
+                ex[k] = 5.0 * color[k] * sa / stall * (1.0 - exp(-stall * dist[i]));
+                CHECK(acc_ok(&acc[k], ex[k]), "emission line variant %d d %g ch %d: %g +- %g vs %g", variant, dist[i], k,
+                      acc_mean(&acc[k]), acc_se(&acc[k]), ex[k]);
+            }
+            CHECK(st.capped_walks == 0, "capped walks");
+            printf("emission line %s d %.1f: (%.4f %.4f %.4f) +- (%.4f %.4f %.4f), exact (%.4f %.4f %.4f); %.1f "
+                   "collisions per walk\n",
+                   variant == 0 ? "grid absorber" : variant == 1 ? "grid albedo 0.5" : "grid in a chromatic absorber",
+                   dist[i], acc_mean(&acc[0]), acc_mean(&acc[1]), acc_mean(&acc[2]), acc_se(&acc[0]), acc_se(&acc[1]),
+                   acc_se(&acc[2]), ex[0], ex[1], ex[2], (double)st.collisions / NS);
+        }
+        /* an emitter index outside the view or not emissive gives 0 */
+        float L[3] = {1, 1, 1};
+        TestRng r;
+        VolumeRng rng = make_rng(&r, 1);
+        media_emission_line(&v, v.count, o, d, 0.0f, 0.5f, &rng, L, NULL);
+        CHECK(L[0] == 0.0f && L[1] == 0.0f && L[2] == 0.0f, "emitter out of the view");
+        if (variant == 2) {
+            media_emission_line(&v, 0, o, d, 0.0f, 0.5f, &rng, L, NULL);
+            CHECK(L[0] == 0.0f && L[1] == 0.0f && L[2] == 0.0f, "a homogeneous emitter");
+        }
+        medium_free(&m);
+    }
+    io_volume_grid_free(&g);
+
+    /* heterogeneous: two emitting media (the blob of emission_test_medium and its
+     * temperature-grid sibling, overlapping) and a scattering homogeneous medium in one
+     * view; each emitter's line estimate against media_sample_event's emitted_by, and the
+     * sum of emitted_by against emitted */
+    Medium a, b;
+    IoVolumeGrid ga, gea, gb, geb;
+    if (emission_test_medium(0, &a, &ga, &gea)) return;
+    if (emission_test_medium(2, &b, &gb, &geb)) {
+        medium_free(&a);
+        io_volume_grid_free(&ga);
+        io_volume_grid_free(&gea);
+        return;
+    }
+    const float fog_sa[3] = {0.1f, 0.2f, 0.3f}, fog_ss[3] = {0.8f, 0.6f, 0.4f};
+    Medium fog;
+    CHECK(medium_init_homogeneous(&fog, fog_sa, fog_ss, 0.3f, err) == 0, "%s", err);
+    MediaView v = {{&a, &fog, &b}, 3};
+    float ho[3] = {-0.6f, -0.1f, 0.05f}, hd[3] = {1.0f, 0.15f, -0.05f};
+    normalize3(hd);
+    const float beta[3] = {1.0f, 0.7f, 0.4f};
+    Acc line[2][3], by[2][3];
+    memset(line, 0, sizeof line);
+    memset(by, 0, sizeof by);
+    TestRng r1, r2;
+    VolumeRng rng1 = make_rng(&r1, 4711), rng2 = make_rng(&r2, 4712);
+    VolumeStats st_line = {0}, st_ev = {0};
+    double max_split_err = 0.0;
+    enum { NH = 100000 };
+    for (int s = 0; s < NH; ++s) {
+        VolumeEvent ev;
+        media_sample_event(&v, ho, hd, 0.0f, 2.0f, beta, &rng2, &ev, &st_ev);
+        for (int k = 0; k < 3; ++k) {
+            double sum = 0.0;
+            for (int i = 0; i < VOLUME_MAX_OVERLAP; ++i) sum += ev.emitted_by[i][k];
+            max_split_err = fmax(max_split_err, fabs(sum - ev.emitted[k]) / (1e-6 + fabs(ev.emitted[k])));
+            acc_add(&by[0][k], ev.emitted_by[0][k]);
+            acc_add(&by[1][k], ev.emitted_by[2][k]);
+        }
+        CHECK(ev.emitted_by[1][0] == 0.0f && ev.emitted_by[3][0] == 0.0f, "emission from a non-emitting medium");
+        for (int e = 0; e < 2; ++e) {
+            float L[3];
+            media_emission_line(&v, e == 0 ? 0 : 2, ho, hd, 0.0f, 2.0f, &rng1, L, &st_line);
+            for (int k = 0; k < 3; ++k) acc_add(&line[e][k], L[k]);
+        }
+    }
+    CHECK(max_split_err < 1e-4, "emitted_by sums to emitted up to %g", max_split_err);
+    for (int e = 0; e < 2; ++e) {
+        for (int k = 0; k < 3; ++k) {
+            double diff = acc_mean(&line[e][k]) - acc_mean(&by[e][k]);
+            double se = sqrt(acc_se(&line[e][k]) * acc_se(&line[e][k]) + acc_se(&by[e][k]) * acc_se(&by[e][k]));
+            CHECK(fabs(diff) <= NSE * se + 1e-7, "emitter %d ch %d: line %g +- %g vs spectral tracking %g +- %g", e, k,
+                  acc_mean(&line[e][k]), acc_se(&line[e][k]), acc_mean(&by[e][k]), acc_se(&by[e][k]));
+        }
+        printf("heterogeneous emitter %d: line (%.5f %.5f %.5f) +- (%.5f %.5f %.5f), spectral tracking emitted_by "
+               "(%.5f %.5f %.5f) +- (%.5f %.5f %.5f)\n",
+               e, acc_mean(&line[e][0]), acc_mean(&line[e][1]), acc_mean(&line[e][2]), acc_se(&line[e][0]),
+               acc_se(&line[e][1]), acc_se(&line[e][2]), acc_mean(&by[e][0]), acc_mean(&by[e][1]), acc_mean(&by[e][2]),
+               acc_se(&by[e][0]), acc_se(&by[e][1]), acc_se(&by[e][2]));
+    }
+    printf("heterogeneous: emitted_by sums to emitted within %.2g (relative); %.1f collisions per line walk, %.1f per "
+           "free flight\n",
+           max_split_err, (double)st_line.collisions / (2.0 * NH), (double)st_ev.collisions / NH);
+    CHECK(st_line.capped_walks == 0 && st_ev.capped_walks == 0, "capped walks");
+    medium_free(&a);
+    medium_free(&b);
+    io_volume_grid_free(&ga);
+    io_volume_grid_free(&gea);
+    io_volume_grid_free(&gb);
+    io_volume_grid_free(&geb);
+}
+
 /* ---------------------------------------------------------------- overlapping media */
 
 /* A chromatic homogeneous medium and a constant grid in one view: the merged majorant walk
@@ -1334,6 +1489,7 @@ int main(int argc, char **argv) {
     test_majorant();
     test_emission();
     test_emission_sampling();
+    test_emission_line();
     test_overlap();
     if (argc > 1) test_slab_asset(argv[1]);
     printf("volumes: %.1f s\n", test_seconds() - t0);

@@ -72,10 +72,14 @@ static inline int walk_interval(Walk *w, float *end, float *maj) {
 }
 
 /* The coefficients of the active lanes at a collision at t: sums, each lane's sigma_s, and
- * (when em != NULL) the emission source term sum_i sigma_a,i L_e,i. */
-static void walk_eval(Walk *w, float t, float sa[3], float ss[3], float lane_ss[][3], float em[3]) {
+ * (when em != NULL) the emission source term sum_i sigma_a,i L_e,i with each lane's term in
+ * lane_em (when not NULL; set for every lane, 0 where it does not emit here). */
+static void walk_eval(Walk *w, float t, float sa[3], float ss[3], float lane_ss[][3], float em[3],
+                      float lane_em[][3]) {
     for (int k = 0; k < 3; ++k) sa[k] = ss[k] = 0.0f;
     if (em) em[0] = em[1] = em[2] = 0.0f;
+    if (lane_em)
+        for (int i = 0; i < w->n; ++i) lane_em[i][0] = lane_em[i][1] = lane_em[i][2] = 0.0f;
     for (unsigned act = w->active; act; act &= act - 1) {
         int i = __builtin_ctz(act);
         Lane *l = &w->lane[i];
@@ -108,7 +112,11 @@ static void walk_eval(Walk *w, float t, float sa[3], float ss[3], float lane_ss[
         if (em && m->emissive && st > 0.0f) {
             float p[3] = {w->o[0] + t * w->d[0], w->o[1] + t * w->d[1], w->o[2] + t * w->d[2]}, le[3];
             grid_emission(m, &l->cache.aux, p, le);
-            for (int k = 0; k < 3; ++k) em[k] += (1.0f - m->albedo[k]) * st * le[k];
+            for (int k = 0; k < 3; ++k) {
+                float src = (1.0f - m->albedo[k]) * st * le[k];
+                em[k] += src;
+                if (lane_em) lane_em[i][k] = src;
+            }
         }
     }
 }
@@ -142,6 +150,7 @@ void media_sample_event(const MediaView *v, const float o[3], const float d[3], 
     float w[3] = {1.0f, 1.0f, 1.0f}, em[3] = {0.0f, 0.0f, 0.0f};
     const float one[3] = {1.0f, 1.0f, 1.0f};
     if (!beta) beta = one;
+    memset(ev->emitted_by, 0, sizeof ev->emitted_by);
     ev->type = VOLUME_EVENT_PASSED;
     ev->t = tmax;
     ev->medium = -1;
@@ -164,8 +173,8 @@ void media_sample_event(const MediaView *v, const float o[3], const float d[3], 
                 goto done;
             }
             ++collisions;
-            float sa[3], ss[3], lane_ss[VOLUME_MAX_OVERLAP][3], src[3], sn[3];
-            walk_eval(&walk, tn, sa, ss, lane_ss, src);
+            float sa[3], ss[3], lane_ss[VOLUME_MAX_OVERLAP][3], src[3], sn[3], lane_src[VOLUME_MAX_OVERLAP][3];
+            walk_eval(&walk, tn, sa, ss, lane_ss, src, lane_src);
             float inv_maj = 1.0f / maj;
             /* Emission, a collision estimator at every collision (Eq. 7's sigma_a L_e term
              * over the density maj exp(-maj t) of the collision; the spec's §7.4 Algorithm 1
@@ -176,6 +185,10 @@ void media_sample_event(const MediaView *v, const float o[3], const float d[3], 
                 em[k] += w[k] * src[k] * inv_maj;
                 sn[k] = vmaxf(maj - sa[k] - ss[k], 0.0f);
             }
+            /* the same estimate split by the medium it came from (emitted_by, for MIS) */
+            if (src[0] != 0.0f || src[1] != 0.0f || src[2] != 0.0f)
+                for (int i = 0; i < walk.n; ++i)
+                    for (int k = 0; k < 3; ++k) ev->emitted_by[i][k] += w[k] * lane_src[i][k] * inv_maj;
             /* Kutz et al. 2017 §5 (spectral tracking with history-aware probabilities): the
              * event probabilities are the averages over channels of the coefficients weighted
              * by the path throughput beta x w, so chromatic media stay unbiased per channel
@@ -284,7 +297,7 @@ void media_transmittance(const MediaView *v, const float o[3], const float d[3],
             }
             ++collisions;
             float sa[3], ss[3];
-            walk_eval(&walk, tn, sa, ss, NULL, NULL);
+            walk_eval(&walk, tn, sa, ss, NULL, NULL, NULL);
             for (int k = 0; k < 3; ++k) T[k] *= vmaxf(1.0f - (sa[k] + ss[k]) * inv_maj, 0.0f);
             float mx = vmax3(T);
             if (mx < RATIO_RR_THRESHOLD) {
@@ -294,6 +307,58 @@ void media_transmittance(const MediaView *v, const float o[3], const float d[3],
                 }
                 float inv = 1.0f / mx;
                 for (int k = 0; k < 3; ++k) T[k] *= inv;
+            }
+            depth = sample_depth(rng);
+        }
+    }
+done:
+    if (stats) stats->collisions += collisions;
+}
+
+/* ---------------------------------------------------------------- emission-optimised tracking */
+
+void media_emission_line(const MediaView *v, int emitter, const float o[3], const float d[3], float tmin, float tmax,
+                         VolumeRng *rng, float L[3], VolumeStats *stats) {
+    /* The cache points paper §4.3, Algorithm 1 (spec §7.4): the majorant process of the
+     * view's merged majorants (which carry the emission term), P_a = P_n = 1: every collision
+     * gathers w sigma_a,e L_e,e / sigma_maj (a collision estimator of the emission integral
+     * weighted by the ratio-tracking transmittance so far), then
+     * w *= sigma_n / sigma_maj = 1 - sigma_t / sigma_maj per channel (Novák et al. 2014).
+     * next_collision places the collision first and stops at the segment's end, so nothing
+     * beyond tmax is gathered (the spec's fix of the printed loop). */
+    L[0] = L[1] = L[2] = 0.0f;
+    int n = v ? (v->count < 0 ? 0 : v->count > VOLUME_MAX_OVERLAP ? VOLUME_MAX_OVERLAP : v->count) : 0;
+    if (emitter < 0 || emitter >= n || !v->media[emitter] || !v->media[emitter]->emissive) return;
+    float w[3] = {1.0f, 1.0f, 1.0f};
+    uint64_t collisions = 0;
+    Walk walk;
+    walk_begin(&walk, v, o, d, tmin, tmax);
+    float end, maj, depth = sample_depth(rng);
+    while (walk_interval(&walk, &end, &maj)) {
+        if (!(maj > 0.0f)) {
+            walk.t = end;
+            continue;
+        }
+        float inv_maj = 1.0f / maj;
+        while (next_collision(&walk, end, maj, &depth)) {
+            float tn = walk.t;
+            if (collisions == VOLUME_MAX_COLLISIONS) {
+                if (stats) ++stats->capped_walks;
+                goto done;
+            }
+            ++collisions;
+            float sa[3], ss[3], src[3], lane_src[VOLUME_MAX_OVERLAP][3];
+            walk_eval(&walk, tn, sa, ss, NULL, src, lane_src);
+            for (int k = 0; k < 3; ++k) {
+                L[k] += w[k] * lane_src[emitter][k] * inv_maj;
+                w[k] *= vmaxf(1.0f - (sa[k] + ss[k]) * inv_maj, 0.0f);
+            }
+            /* Russian roulette on the weight (unbiased), as in ratio tracking */
+            float mx = vmax3(w);
+            if (mx < RATIO_RR_THRESHOLD) {
+                if (!(mx > 0.0f) || rng->next(rng->state) >= mx) goto done;
+                float inv = 1.0f / mx;
+                for (int k = 0; k < 3; ++k) w[k] *= inv;
             }
             depth = sample_depth(rng);
         }

@@ -20,6 +20,9 @@
  *     extinction are sampled densely (the paper's §4.3, Algorithm 1; the cap keeps about one
  *     expected collision per voxel).
  *   - media_transmittance: ratio tracking (Novák et al. 2014) for shadow rays, RGB.
+ *   - media_emission_line: emission-optimised tracking (the paper's §4.3, Algorithm 1): one
+ *     medium's emission integral along a segment, attenuated by all media of the view, with
+ *     every collision gathering (P_a = P_n = 1).
  *   - medium_emission_sample / medium_emission_pdf: emissive media as lights (§4.3,
  *     Algorithm 2, Eq. 11): points from an emission-energy grid, and the solid-angle density
  *     of a direction by a DDA over its cells; medium_emission_power / _centroid for light
@@ -191,6 +194,11 @@ typedef struct VolumeEvent {
                           * absorbed: 0) */
     float emitted[3];    /* emission gathered on the way, already weighted (add beta x this);
                           * valid for every outcome, absorption included */
+    float emitted_by[VOLUME_MAX_OVERLAP][3]; /* emitted split by the view's medium it came from
+                          * (index in the view; 0 beyond the view's count): the same collision
+                          * estimates, one medium's sigma_a L_e each, so their sum is emitted up
+                          * to float rounding (emitted itself is summed as before). For MIS,
+                          * where each emissive medium is a light. */
 } VolumeEvent;
 
 /* One free flight along o + t d (d unit) over [tmin, tmax] through the view's media
@@ -234,6 +242,22 @@ float medium_emission_sample(const Medium *m, float u0, float u1, float u2, floa
  * the sphere for any o (inside or outside the volume). 0 when the medium does not emit, for
  * a non-finite o or d and for a ray that misses every emitting cell. */
 float medium_emission_pdf(const Medium *m, const float o[3], const float d[3]);
+
+/* The emission of one medium of the view, v->media[emitter], along o + t d (d unit) over
+ * [tmin, tmax], attenuated from o by ALL media of the view: L = integral over [tmin, tmax] of
+ * T(tmin, t) sigma_a,e(t) L_e,e(t) dt per channel (the radiance arriving at o + tmin d from
+ * the direction d, travelling along -d). Emission-optimised tracking (the paper's §4.3,
+ * Algorithm 1, with the spec's §7.4 fix: the collision is placed, and a walk past tmax
+ * stops, before anything is gathered) over the view's merged majorants (as
+ * media_sample_event, which carry the emission term): at every collision
+ * L += w sigma_a,e L_e,e / sigma_maj, then w *= 1 - sigma_t,all / sigma_maj per channel
+ * (P_a = P_n = 1: no absorption or scattering event is chosen, the walk always goes on); below
+ * max(w) = 0.1 Russian roulette (survive with probability max(w), divide by it), as ratio
+ * tracking. Unbiased. At most VOLUME_MAX_COLLISIONS collisions (stats->capped_walks; the
+ * gathered L is kept). L = 0 for an emitter outside the view or not emissive. stats may be
+ * NULL. No allocation. */
+void media_emission_line(const MediaView *v, int emitter, const float o[3], const float d[3], float tmin, float tmax,
+                         VolumeRng *rng, float L[3], VolumeStats *stats);
 
 /* ---------------------------------------------------------------- phase function */
 
