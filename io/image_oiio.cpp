@@ -18,6 +18,7 @@
 #include <memory>
 #include <new>
 #include <string>
+#include <sys/stat.h>
 #include <vector>
 
 namespace candela_io {
@@ -188,6 +189,16 @@ extern "C" int io_load_image(const char *path, int srgb, IoImage *image, char er
     std::memset(image, 0, sizeof *image);
     if (!path || !*path) {
         set_err(err, "(null)", "no path given");
+        return 1;
+    }
+    // a FIFO or a device (/dev/zero) would block or never end: only regular files are read
+    struct stat st;
+    if (::stat(path, &st) != 0) {
+        set_err(err, path, "cannot open: no such file");
+        return 1;
+    }
+    if (!S_ISREG(st.st_mode)) {
+        set_err(err, path, "not a regular file");
         return 1;
     }
     try {

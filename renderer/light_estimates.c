@@ -77,6 +77,11 @@ float light_contribution_estimate(const Lights *ls, const Light *l, vec3 p, vec3
         if (l->type == LIGHT_SPOT) I *= light_spot_falloff(l, v3_neg(w));
         return I * receiver_cos(n, w) / d2;
     }
+    case LIGHT_VOLUME: { /* a selection weight: the volume seen as a point at its emission centroid */
+        vec3 d = v3_sub(l->position, p);
+        float d2 = maxf(v3_dot(d, d), 1e-8f);
+        return v3_luminance(l->intensity) * receiver_cos(n, v3_scale(d, 1.0f / sqrtf(d2))) / d2;
+    }
     case LIGHT_DIRECTIONAL:
         return v3_luminance(l->intensity) * receiver_cos(n, v3_neg(l->direction));
     case LIGHT_ENVIRONMENT:
@@ -133,7 +138,8 @@ void light_contribution_estimate7(const Lights *ls, const Light *l, vec3 p, floa
         count = 1;
         break;
     case LIGHT_POINT:
-    case LIGHT_SPOT: {
+    case LIGHT_SPOT:
+    case LIGHT_VOLUME: {
         vec3 d = v3_sub(l->position, p);
         float d2 = v3_dot(d, d);
         if (!(d2 > 0.0f)) return;
@@ -163,7 +169,8 @@ void light_contribution_estimate7(const Lights *ls, const Light *l, vec3 p, floa
 float light_peak_intensity(const Light *l) {
     switch (l->type) {
     case LIGHT_POINT:
-    case LIGHT_SPOT: return v3_luminance(l->intensity);
+    case LIGHT_SPOT:
+    case LIGHT_VOLUME: return v3_luminance(l->intensity);
     case LIGHT_AREA: return v3_luminance(l->emission) * l->area; /* a flat emitter seen face on */
     default: return 0.0f;
     }

@@ -5,6 +5,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "media.h"
+#include "rng.h"
 #include "scene.h"
 
 /* Luminous efficacy used by Blender's glTF importer in its default ("standard") lighting
@@ -93,10 +95,12 @@ static float env_average_luminance(const Scene *scene) {
     return wsum > 0.0 ? (float)(sum / wsum) * scene->env_strength : 0.0f;
 }
 
-int lights_build(Lights *ls, const Scene *scene, CandelaLightUnits units, char *err, size_t err_len) {
+int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, CandelaLightUnits units, char *err,
+                 size_t err_len) {
     memset(ls, 0, sizeof *ls);
     ls->environment = -1;
     ls->scene = scene;
+    ls->media = media;
     uint32_t cap = 0;
     ls->of_primitive = malloc(((size_t)scene->num_instance_primitives + 1) * sizeof *ls->of_primitive);
     if (!ls->of_primitive) goto oom;
@@ -155,6 +159,31 @@ int lights_build(Lights *ls, const Scene *scene, CandelaLightUnits units, char *
             if (push_light(ls, &cap, &l) != 0) { light_area_free(&l); goto oom; }
         }
     }
+    /* emissive volumes (§4.3): one light each, sampled in proportion to their emission energy */
+    if (media && media->num_vdb > 0) {
+        ls->of_medium = malloc(media->num_vdb * sizeof *ls->of_medium);
+        if (!ls->of_medium) goto oom;
+        for (uint32_t i = 0; i < media->num_vdb; ++i) {
+            ls->of_medium[i] = -1;
+            const Medium *m = &media->vdb[i];
+            float intensity = medium_emission_power(m); /* integral of lum(sigma_a L_e): W/sr */
+            if (!m->emissive || !(intensity > 0.0f) || !isfinite(intensity)) continue;
+            Light l;
+            memset(&l, 0, sizeof l);
+            l.type = LIGHT_VOLUME;
+            l.medium = i;
+            float c[3];
+            medium_emission_centroid(m, c);
+            l.position = v3(c[0], c[1], c[2]);
+            l.intensity = v3s(intensity);
+            l.power = 4.0f * PI_F * intensity;
+            l.medium_mesh = media_at_point(media, l.position);
+            l.bounds_min = v3(m->world_min[0], m->world_min[1], m->world_min[2]);
+            l.bounds_max = v3(m->world_max[0], m->world_max[1], m->world_max[2]);
+            ls->of_medium[i] = (int32_t)ls->count;
+            if (push_light(ls, &cap, &l) != 0) goto oom;
+        }
+    }
     if (scene->env.width > 0) {
         const IoImage *im = &scene->env;
         float *f = malloc((size_t)im->width * (size_t)im->height * sizeof(float));
@@ -192,6 +221,7 @@ void lights_free(Lights *ls) {
     free(ls->lights);
     if (ls->environment >= 0) dist2d_free(&ls->env_distribution);
     free(ls->of_primitive);
+    free(ls->of_medium);
     memset(ls, 0, sizeof *ls);
     ls->environment = -1;
 }
@@ -244,6 +274,12 @@ float light_area_pdf_li(const Light *l, const LightSampleContext *ctx, uint32_t 
     return area_to_solid_angle(area_density(l, tree, triangle, tri_pmf), ctx->p, y, ny);
 }
 
+float light_volume_pdf_li(const Lights *ls, const Light *l, vec3 p, vec3 d) {
+    if (l->type != LIGHT_VOLUME || !ls->media) return 0.0f;
+    const float o[3] = {p.x, p.y, p.z}, w[3] = {d.x, d.y, d.z};
+    return medium_emission_pdf(&ls->media->vdb[l->medium], o, w);
+}
+
 float light_env_pdf_li(const Lights *ls, vec3 d) {
     if (ls->environment < 0) return 0.0f;
     vec2 uv = scene_env_dir_to_uv(d);
@@ -253,7 +289,7 @@ float light_env_pdf_li(const Lights *ls, vec3 d) {
 }
 
 int light_sample_li(const Lights *ls, const Light *l, const LightSampleContext *ctx, float u0, float u1, float u2,
-                    LightLiSample *s) {
+                    float u3, LightLiSample *s) {
     const Scene *scene = ls->scene;
     vec3 p = ctx->p;
     s->triangle = 0;
@@ -314,6 +350,42 @@ int light_sample_li(const Lights *ls, const Light *l, const LightSampleContext *
         }
         s->is_delta = 0;
         return s->pdf > 0.0f && isfinite(s->pdf) && !v3_is_black(s->radiance);
+    }
+    case LIGHT_VOLUME: {
+        const SceneMedia *media = ls->media;
+        const Medium *m = &media->vdb[l->medium];
+        float y[3];
+        float pdf_volume = medium_emission_sample(m, u0, u1, u2, u3, y);
+        vec3 d = v3_sub(v3(y[0], y[1], y[2]), p);
+        float len = v3_length(d);
+        if (!(pdf_volume > 0.0f) || !(len > 0.0f)) return 0;
+        vec3 wi = v3_scale(d, 1.0f / len);
+        const float o[3] = {p.x, p.y, p.z}, w[3] = {wi.x, wi.y, wi.z};
+        float t0, t1;
+        if (!medium_clip_ray(m, o, w, 0.0f, INFINITY, &t0, &t1)) return 0;
+        /* the line ends at the first surface inside the volume's span */
+        SceneHit hit;
+        if (scene_intersect1(scene, (SceneRay){p, t0, wi, t1}, &hit)) t1 = hit.t;
+        /* the line's tracker draws from a sub-stream keyed by this sample's own numbers, which
+         * are the path's: deterministic, and independent of them through the hash */
+        uint32_t b0, b1, b2, b3;
+        memcpy(&b0, &u0, 4); memcpy(&b1, &u1, 4); memcpy(&b2, &u2, 4); memcpy(&b3, &u3, 4);
+        RngStream stream = rng_stream(((uint64_t)b0 << 32 | b1) ^ ((uint64_t)b2 << 16 | (uint64_t)b3 << 40), 0,
+                                      RNG_STREAM_LIGHT_LINE);
+        VolumeRng rng = {rng_stream_next_cb, &stream};
+        MediaView view;
+        media_view(media, l->medium_mesh, p, wi, t1, &view);
+        int emitter = -1;
+        for (int k = 0; k < view.count; ++k) if (view.media[k] == m) emitter = k;
+        if (emitter < 0) return 0;
+        float L[3];
+        media_emission_line(&view, emitter, o, w, t0, t1, &rng, L, NULL);
+        s->wi = wi;
+        s->distance = t0; /* the shadow ray: occlusion and other media up to the volume */
+        s->radiance = v3(L[0], L[1], L[2]);
+        s->pdf = medium_emission_pdf(m, o, w);
+        s->is_delta = 0;
+        return s->pdf > 0.0f && isfinite(s->pdf) && !v3_is_black(s->radiance) && v3_is_finite(s->radiance);
     }
     case LIGHT_ENVIRONMENT: {
         float pdf_uv;

@@ -23,7 +23,7 @@
 
 struct Scene;
 
-typedef enum { LIGHT_POINT, LIGHT_SPOT, LIGHT_DIRECTIONAL, LIGHT_AREA, LIGHT_ENVIRONMENT } LightType;
+typedef enum { LIGHT_POINT, LIGHT_SPOT, LIGHT_DIRECTIONAL, LIGHT_AREA, LIGHT_ENVIRONMENT, LIGHT_VOLUME } LightType;
 
 typedef struct Light {
     LightType type;
@@ -40,6 +40,11 @@ typedef struct Light {
     int two_sided;            /* the material is double-sided: emits from both faces */
     float power;              /* estimate for the power sampler (luminance, W) */
     LightTree tri_tree;       /* inner tree over the triangles (node_count 0: area CDF only) */
+    /* volume (an emissive VDB medium, the cache points paper's §4.3 emission sampling):
+     * position = its emission centroid, intensity = its integral of sigma_a L_e (W/sr) */
+    uint32_t medium;          /* index into SceneMedia.vdb */
+    uint32_t medium_mesh;     /* the mesh medium around it (media.h; 0: none) */
+    vec3 bounds_min, bounds_max; /* its world bounds */
 } Light;
 
 /* Area lights with at most this many triangles pick them by area alone (no inner tree). */
@@ -75,12 +80,17 @@ typedef struct Lights {
     /* per instance primitive (SceneInstance.primitive_base + local primitive): the area light
      * it is, or -1: how a hit on an emitter finds its light for MIS */
     int32_t *of_primitive;
+    int32_t *of_medium;         /* per SceneMedia.vdb: the volume light it is, or -1 */
     const struct Scene *scene;  /* built from (environment image, emissive materials) */
+    const struct SceneMedia *media; /* emissive volumes (NULL: none are lights) */
 } Lights;
 
-/* Builds the lights of a loaded scene: punctual lights, emissive primitives, environment.
- * The scene must outlive the lights. 0 ok; -1 with a message in err. */
-int lights_build(Lights *lights, const struct Scene *scene, CandelaLightUnits units, char *err, size_t err_len);
+/* Builds the lights of a loaded scene: punctual lights, emissive primitives, environment, and
+ * with media != NULL every emissive VDB volume (emission sampling, §4.3). The scene and the
+ * media must outlive the lights. 0 ok; -1 with a message in err. */
+struct SceneMedia;
+int lights_build(Lights *lights, const struct Scene *scene, const struct SceneMedia *media, CandelaLightUnits units,
+                 char *err, size_t err_len);
 void lights_free(Lights *lights);
 
 /* The area light a hit on (instance, local primitive) belongs to, or -1. */
@@ -112,9 +122,15 @@ typedef struct LightLiSample {
 } LightLiSample;
 
 /* Samples a point on `light` as seen from ctx (ctx->n steers an area light's inner tree; use
- * the same context for light_area_pdf_li). */
+ * the same context for light_area_pdf_li). A volume light samples a point in proportion to
+ * the emission energy and returns the emission integrated along the whole line through the
+ * volume up to the first surface (Algorithm 1 line integration), with the solid-angle pdf of
+ * Eq. 11; its distance is where the line enters the volume (the shadow ray tests occlusion
+ * and other media up to there). */
 int light_sample_li(const Lights *ls, const Light *light, const LightSampleContext *ctx, float u0, float u1,
-                    float u2, LightLiSample *s);
+                    float u2, float u3, LightLiSample *s);
+/* Solid-angle pdf (given the light) of a volume light's direction d from p (Eq. 11). */
+float light_volume_pdf_li(const Lights *ls, const Light *light, vec3 p, vec3 d);
 /* Solid-angle pdf (given the light) of sampling the point y with normal ny on triangle
  * `triangle` of an area light from ctx: p_tri(triangle | ctx) / area(triangle) * d^2 / |cos|. */
 float light_area_pdf_li(const Light *light, const LightSampleContext *ctx, uint32_t triangle, vec3 y, vec3 ny);

@@ -30,6 +30,7 @@ static int light_visible(const Scene *scene, const Light *l, vec3 p, vec3 n) {
     switch (l->type) {
     case LIGHT_POINT:
     case LIGHT_SPOT:
+    case LIGHT_VOLUME: /* its emission centroid */
         target = l->position;
         break;
     case LIGHT_AREA: {

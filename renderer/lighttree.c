@@ -69,6 +69,11 @@ static int light_bounds(const Light *l, LB *b) {
         b->bmin = b->bmax = l->position;
         b->cos_o = -1.0f; /* theta_o = pi */
         break;
+    case LIGHT_VOLUME: /* emits in every direction from anywhere in its box */
+        b->bmin = l->bounds_min;
+        b->bmax = l->bounds_max;
+        b->cos_o = -1.0f;
+        break;
     case LIGHT_SPOT:
         b->bmin = b->bmax = l->position;
         b->w = v3_normalize(l->direction);

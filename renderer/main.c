@@ -26,6 +26,8 @@ static const char *USAGE =
     "  --threads N               worker threads (default: all cores)\n"
     "  --max-depth N             maximum surface bounces; 1 = direct light only (default 8)\n"
     "  --max-volume-bounces N    maximum scattering events in media per path (default 256)\n"
+    "  --volume-emission-sampling on|off  emissive volumes are lights too (NEE with line\n"
+    "                            integration, MIS with tracking; default on)\n"
     "  --light-sampler S         uniform | power | tree | optimal | cachepoints (default cachepoints)\n"
     "  --no-visibility           cache points without visibility learning\n"
     "  --cachepoint-build B      cut (default: far entries are light-tree clusters) | linear (the\n"
@@ -49,6 +51,10 @@ static const char *USAGE =
     "  --optimal-max-lights N    skip optimal above N lights (default 5000; 0 = never)\n"
     "  --timing-runs N           render each strategy N times (1-15, round-robin) and report the\n"
     "                            median time: robust timings on a busy machine (default 1)\n";
+
+/* The largest image: 16384 per side, 64 Mpixels in all (the film takes ~100 bytes per pixel). */
+#define MAX_RES_SIDE 16384
+#define MAX_RES_PIXELS (64 << 20)
 
 static void die(const char *msg, const char *arg) {
     fprintf(stderr, "candela: %s%s%s\n", msg, arg ? arg : "", arg ? "" : "");
@@ -161,6 +167,13 @@ int main(int argc, char **argv) {
         else if (strcmp(a, "--threads") == 0) { o.threads = (int)parse_long(a, v, 1, 1024); ++i; }
         else if (strcmp(a, "--max-depth") == 0) { o.max_depth = (int)parse_long(a, v, 0, 1024); ++i; }
         else if (strcmp(a, "--max-volume-bounces") == 0) { o.max_volume_bounces = (int)parse_long(a, v, 0, 100000); ++i; }
+        else if (strcmp(a, "--volume-emission-sampling") == 0) {
+            if (!v) die("missing value for ", a);
+            if (strcmp(v, "on") == 0) o.volume_emission_sampling = 1;
+            else if (strcmp(v, "off") == 0) o.volume_emission_sampling = 0;
+            else { fprintf(stderr, "candela: unknown value '%s' for --volume-emission-sampling (on, off)\n", v); return 2; }
+            ++i;
+        }
         else if (strcmp(a, "--batch") == 0) { o.batch_size = (uint32_t)parse_long(a, v, 1, 1 << 22); ++i; }
         else if (strcmp(a, "--env-strength") == 0) { o.env_strength = parse_float(a, v, 0.0f, 1e9f); ++i; }
         else if (strcmp(a, "--env") == 0) { if (!v) die("missing value for ", a); o.env_path = v; ++i; }
@@ -169,13 +182,22 @@ int main(int argc, char **argv) {
         else if (strcmp(a, "--quiet") == 0 || strcmp(a, "-q") == 0) o.quiet = 1;
         else if (strcmp(a, "--res") == 0) {
             if (!v) die("missing value for ", a);
-            int w = 0, h = 0;
-            char tail;
-            if (sscanf(v, "%dx%d%c", &w, &h, &tail) != 2 || w < 1 || h < 1 || w > 16384 || h > 16384) {
-                fprintf(stderr, "candela: invalid value '%s' for --res (expected WxH, 1..16384 each)\n", v);
+            /* strtol with range checks: sscanf's %d wrapped 4294967304 to 8 */
+            char *x = NULL, *end = NULL;
+            errno = 0;
+            long w = strtol(v, &x, 10), h = 0;
+            int good = errno == 0 && x != v && *x == 'x' && (w >= 1 && w <= MAX_RES_SIDE);
+            if (good) {
+                h = strtol(x + 1, &end, 10);
+                good = errno == 0 && end != x + 1 && *end == 0 && h >= 1 && h <= MAX_RES_SIDE &&
+                       (long long)w * h <= MAX_RES_PIXELS;
+            }
+            if (!good) {
+                fprintf(stderr, "candela: invalid value '%s' for --res (expected WxH, 1..%d each, at most %d megapixels)\n",
+                        v, MAX_RES_SIDE, MAX_RES_PIXELS >> 20);
                 return 2;
             }
-            o.width = w; o.height = h; ++i;
+            o.width = (int)w; o.height = (int)h; ++i;
         } else if (strcmp(a, "--light-sampler") == 0) {
             if (!v) die("missing value for ", a);
             if (candela_light_sampler_parse(v, &o.light_sampler) != 0) {
@@ -224,6 +246,16 @@ int main(int argc, char **argv) {
         png = png_buf;
     }
     if (no_png) png = NULL;
+    /* the EXR is the image: writing it under a .png name, or the preview over it, loses it */
+    const char *ext = strrchr(out, '.');
+    if (!compare && !bench && (!ext || strcmp(ext, ".exr") != 0)) {
+        fprintf(stderr, "candela: %s: the output must be an .exr file (the PNG preview goes to --png)\n", out);
+        return 2;
+    }
+    if (png && strcmp(png, out) == 0) {
+        fprintf(stderr, "candela: %s: --png names the EXR output itself\n", png);
+        return 2;
+    }
     if (!bench) {
         if (ensure_parent_dir(out, out == default_out) != 0) {
             fprintf(stderr, "candela: %s: output directory does not exist or is not writable\n", out);

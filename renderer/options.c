@@ -9,6 +9,7 @@ void candela_options_default(CandelaOptions *o) {
     o->seed = 0;
     o->max_depth = 8;
     o->max_volume_bounces = 256;
+    o->volume_emission_sampling = 1;
     o->light_sampler = CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
     o->light_units = CANDELA_LIGHT_UNITS_BLENDER;
     o->env_strength = 1.0f;

@@ -54,6 +54,17 @@ int candela_write_outputs(const CandelaImage *img, const char *exr_path, const c
     return 0;
 }
 
+/* A JSON string literal of s (quotes, backslashes and control characters escaped). */
+static void json_string(FILE *f, const char *s) {
+    fputc('"', f);
+    for (const unsigned char *c = (const unsigned char *)s; *c; ++c) {
+        if (*c == '"' || *c == '\\') fprintf(f, "\\%c", *c);
+        else if (*c < 0x20) fprintf(f, "\\u%04x", *c);
+        else fputc(*c, f);
+    }
+    fputc('"', f);
+}
+
 int candela_write_stats_json(const char *path, const CandelaOptions *o, const CandelaStats *s,
                              char err[CANDELA_ERR_LEN]) {
     char tmp[4096];
@@ -62,8 +73,10 @@ int candela_write_stats_json(const char *path, const CandelaOptions *o, const Ca
     if (!f) { snprintf(err, CANDELA_ERR_LEN, "%s: cannot open for writing", path); return -1; }
     uint64_t rays = s->rays_camera + s->rays_bounce + s->rays_shadow;
     double render = candela_stats_render_seconds(s);
-    fprintf(f, "{\n  \"scene\": \"%s\",\n  \"spp\": %d,\n  \"seed\": %llu,\n  \"max_depth\": %d,\n",
-            o->scene_path, o->spp, (unsigned long long)o->seed, o->max_depth);
+    fputs("{\n  \"scene\": ", f);
+    json_string(f, o->scene_path);
+    fprintf(f, ",\n  \"spp\": %d,\n  \"seed\": %llu,\n  \"max_depth\": %d,\n", o->spp, (unsigned long long)o->seed,
+            o->max_depth);
     fprintf(f, "  \"light_sampler\": \"%s\",\n", candela_light_sampler_name(o->light_sampler));
     fprintf(f, "  \"time_seconds\": {\"load\": %.6f, \"build\": %.6f, \"generate\": %.6f, \"sort\": %.6f, "
                "\"trace\": %.6f, \"medium\": %.6f, \"shade\": %.6f, \"shadow\": %.6f, \"film\": %.6f, \"total\": %.6f},\n",

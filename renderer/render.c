@@ -1,6 +1,6 @@
 /* renderer/render.c: candela_render(), a render from file to film.
  *
- *   scene_load -> lights_build -> media_build -> light_sampler_create (on the thread pool) -> for each
+ *   scene_load -> media_build -> lights_build -> light_sampler_create (on the thread pool) -> for each
  *   iteration (spp schedule 1, 1, 2, 4, 8, ... capped, summing to --spp): for each batch of
  *   paths, integrator_run_batch (waves, film) -> the iteration barrier (no ray in flight:
  *   the barrier hooks run, then progress is reported) -> film_resolve.
@@ -132,10 +132,14 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
     double t_start = clock_seconds();
     if (scene_load(&r->scene, o, err) != 0) { render_free(r); return -1; }
     r->have_scene = 1;
-    if (lights_build(&r->lights, &r->scene, o->light_units, err, CANDELA_ERR_LEN) != 0) { render_free(r); return -1; }
-    r->have_lights = 1;
     if (media_build(&r->media, &r->scene, o->scene_path, err) != 0) { render_free(r); return -1; }
     r->have_media = 1;
+    if (lights_build(&r->lights, &r->scene, o->volume_emission_sampling ? &r->media : NULL, o->light_units, err,
+                     CANDELA_ERR_LEN) != 0) {
+        render_free(r);
+        return -1;
+    }
+    r->have_lights = 1;
     double t_loaded = clock_seconds();
     stats->time_load = t_loaded - t_start;
     stats->num_triangles = r->scene.num_triangles_total;
@@ -158,7 +162,8 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
     r->have_sampler = 1;
     light_sampler_report(&r->sampler, stats);
     if (integrator_init(&r->ig, o, &r->scene, &r->lights, &r->media, &r->sampler, batch) != 0) {
-        snprintf(err, CANDELA_ERR_LEN, "%s: out of memory allocating %u paths", o->scene_path, batch);
+        snprintf(err, CANDELA_ERR_LEN, "%s: out of memory allocating the %dx%d film and %u paths in flight",
+                 o->scene_path, cam->width, cam->height, batch);
         render_free(r);
         return -1;
     }

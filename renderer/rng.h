@@ -49,6 +49,7 @@ enum {
     RNG_BOUNCE_BSDF_V = 6,
     RNG_BOUNCE_RR = 7,
     RNG_BOUNCE_LIGHT_DESCEND = 9, /* strategies that descend a tree below their first choice */
+    RNG_BOUNCE_LIGHT_X = 10,      /* a fourth light-sample dimension (volume lights) */
     RNG_BOUNCE_DIMS = 16
 };
 
@@ -68,7 +69,8 @@ typedef struct RngStream {
 
 enum {
     RNG_STREAM_MEDIUM = 1,  /* the free flight towards the vertex of this depth */
-    RNG_STREAM_SHADOW = 2   /* the transmittance of this depth's NEE shadow ray */
+    RNG_STREAM_SHADOW = 2,  /* the transmittance of this depth's NEE shadow ray */
+    RNG_STREAM_LIGHT_LINE = 3 /* a volume light's emission line (keyed by the light sample) */
 };
 
 static inline RngStream rng_stream(uint64_t path_key, uint32_t depth, uint32_t purpose) {
@@ -78,5 +80,7 @@ static inline RngStream rng_stream(uint64_t path_key, uint32_t depth, uint32_t p
 }
 
 static inline float rng_stream_next(RngStream *s) { return rng_uniform(s->key, s->next++); }
+/* The same as a callback (the volumes module's VolumeRng). */
+static inline float rng_stream_next_cb(void *stream) { return rng_stream_next((RngStream *)stream); }
 
 #endif

@@ -22,8 +22,6 @@
 
 typedef enum { WALK_SURFACE, WALK_ESCAPED, WALK_ENDED } WalkEnd;
 
-static float stream_next(void *state) { return rng_stream_next((RngStream *)state); }
-
 /* NEE from a medium vertex: as at a surface, with the phase function and the shadow ray
  * traced now (the walk is depth-first). */
 static void medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec3 x, const Scatter *sc,
@@ -42,7 +40,8 @@ static void medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec3
     if (pmf > 0.0f &&
         light_sample_li(ig->lights, &ig->lights->lights[li], lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_U)),
                         rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_V)),
-                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_W)), &ls)) {
+                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_W)),
+                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_X)), &ls)) {
         float phase_pdf;
         vec3 f = scatter_eval(sc, ls.wi, &phase_pdf);
         float light_pdf = pmf * ls.pdf;
@@ -61,6 +60,33 @@ static void medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec3
     light_sampler_record(sampler, outcome, visibility);
 }
 
+/* The emission a free flight gathered, per medium: from a volume that is also a light (emission
+ * sampling), MIS-weighted against NEE's probability of the same direction from the previous
+ * vertex (the line integral NEE estimates is the one this flight's collisions estimate). */
+static void add_volume_emission(const Integrator *ig, uint32_t p, const MediaView *view, const VolumeEvent *ev,
+                                SceneRay ray, vec3 beta) {
+    const PathState *ps = &ig->ps;
+    const Lights *lights = ig->lights;
+    for (int k = 0; k < view->count; ++k) {
+        vec3 e = v3(ev->emitted_by[k][0], ev->emitted_by[k][1], ev->emitted_by[k][2]);
+        if (v3_is_black(e)) continue;
+        float w = 1.0f;
+        const Medium *m = view->media[k];
+        const SceneMedia *media = ig->media;
+        if (lights->of_medium && m >= media->vdb && m < media->vdb + media->num_vdb && !ps->prev_delta[p]) {
+            int32_t light = lights->of_medium[m - media->vdb];
+            if (light >= 0) {
+                LightSampleContext lc = {ps->prev_pos[p], ps->prev_normal[p], ps->prev_light_vertex[p]};
+                float pl = light_sampler_pmf(ig->light_sampler, &lc, (uint32_t)light) *
+                           light_volume_pdf_li(lights, &lights->lights[light], ps->prev_pos[p], ray.dir);
+                w = power_heuristic(ps->prev_scatter_pdf[p], pl);
+            }
+        }
+        vec3 c = v3_scale(v3_mul(beta, e), w);
+        if (!v3_is_black(c) && v3_is_finite(c)) path_add_radiance(ps, p, c, RADIANCE_EMISSION);
+    }
+}
+
 static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t *hint, float *scratch) {
     const PathState *ps = &ig->ps;
     for (;;) {
@@ -71,14 +97,13 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         if (view.count == 0) return isinf(tmax) ? WALK_ESCAPED : WALK_SURFACE;
         uint32_t depth = ps->depth[p];
         RngStream stream = rng_stream(ps->rng_key[p], depth, RNG_STREAM_MEDIUM);
-        VolumeRng rng = {stream_next, &stream};
+        VolumeRng rng = {rng_stream_next_cb, &stream};
         vec3 beta = ps->throughput[p];
         const float o[3] = {ray.org.x, ray.org.y, ray.org.z}, d[3] = {ray.dir.x, ray.dir.y, ray.dir.z};
         const float b[3] = {beta.x, beta.y, beta.z};
         VolumeEvent ev;
         media_sample_event(&view, o, d, 0.0f, tmax, b, &rng, &ev, &s->volume);
-        vec3 emitted = v3_mul(beta, v3(ev.emitted[0], ev.emitted[1], ev.emitted[2]));
-        if (!v3_is_black(emitted) && v3_is_finite(emitted)) path_add_radiance(ps, p, emitted, RADIANCE_EMISSION);
+        add_volume_emission(ig, p, &view, &ev, ray, beta);
         if (ev.type == VOLUME_EVENT_ABSORBED) return WALK_ENDED;
         beta = v3_mul(beta, v3(ev.weight[0], ev.weight[1], ev.weight[2]));
         ps->throughput[p] = beta;

@@ -5,12 +5,10 @@
 #include "integrator.h"
 #include "rng.h"
 
-static float stream_next(void *state) { return rng_stream_next((RngStream *)state); }
-
 vec3 shadow_transmittance(const Integrator *ig, Slice *s, uint64_t key, uint32_t depth, uint32_t medium, vec3 o,
                           vec3 d, float tmax) {
     RngStream stream = rng_stream(key, depth, RNG_STREAM_SHADOW);
-    VolumeRng rng = {stream_next, &stream};
+    VolumeRng rng = {rng_stream_next_cb, &stream};
     return media_transmittance_segment(ig->media, medium, o, d, tmax, &rng, &s->volume);
 }
 

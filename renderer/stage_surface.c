@@ -76,7 +76,8 @@ static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, con
     if (pmf > 0.0f &&
         light_sample_li(ig->lights, &ig->lights->lights[li], lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_U)),
                         rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_V)),
-                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_W)), &ls)) {
+                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_W)),
+                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_X)), &ls)) {
         float scatter_pdf;
         vec3 f = scatter_eval(sc, ls.wi, &scatter_pdf);
         if (!v3_is_black(f)) {

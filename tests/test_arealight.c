@@ -127,7 +127,7 @@ static void check_pmf(const char *name, const Light *l, vec3 lo, vec3 hi) {
         }
         for (int s = 0; s < 200; ++s) {
             LightLiSample smp;
-            if (!light_sample_li(&f.lights, l, &ctx, (float)rnd(), (float)rnd(), (float)rnd(), &smp)) continue;
+            if (!light_sample_li(&f.lights, l, &ctx, (float)rnd(), (float)rnd(), (float)rnd(), 0.5f, &smp)) continue;
             ++samples;
             vec3 y = v3_madd(ctx.p, smp.wi, smp.distance);
             float pdf = light_area_pdf_li(l, &ctx, smp.triangle, y, tri_normal(l, smp.triangle));
@@ -152,7 +152,7 @@ static void irradiance(const Light *l, const LightSampleContext *ctx, int n, dou
     for (int i = 0; i < n; ++i) {
         LightLiSample smp;
         double x = 0.0;
-        if (light_sample_li(&f.lights, l, ctx, (float)rnd(), (float)rnd(), (float)rnd(), &smp)) {
+        if (light_sample_li(&f.lights, l, ctx, (float)rnd(), (float)rnd(), (float)rnd(), 0.5f, &smp)) {
             double c = ctx->n.x == 0.0f && ctx->n.y == 0.0f && ctx->n.z == 0.0f ? 1.0 : fmax(0.0, v3_dot(smp.wi, ctx->n));
             x = v3_luminance(smp.radiance) * c / smp.pdf;
         }

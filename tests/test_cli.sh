@@ -36,6 +36,26 @@ expect_error "unknown command" "unknown command" -- paint "$scene"
 expect_error "missing env" "nope.exr" -- render "$scene" --env "$tmp/nope.exr" "${common[@]}"
 expect_error "bad camera" "no camera named" -- render "$scene" --camera nosuchcam "${common[@]}"
 expect_error "no output dir" "not writable" -- render "$scene" -o "$tmp/missing/dir/out.exr" --quiet
+# hardening: a resolution that wrapped in sscanf, one too large for the film, the EXR written
+# under a .png name or overwritten by the preview, an environment that is a FIFO (blocked)
+expect_error "res overflow" "--res" -- render "$scene" --res 4294967304x8 -o "$tmp/out.exr" --quiet
+expect_error "res too large" "megapixels" -- render "$scene" --res 16384x16384 -o "$tmp/out.exr" --quiet
+expect_error "png as output" "must be an .exr" -- render "$scene" -o "$tmp/out.png" --res 16x16 --spp 1 --quiet
+expect_error "png over exr" "names the EXR" -- render "$scene" -o "$tmp/out.exr" --png "$tmp/out.exr" --res 16x16 --spp 1 --quiet
+mkfifo "$tmp/fifo.exr"
+expect_error "fifo env" "not a regular file" -- render "$scene" --env "$tmp/fifo.exr" "${common[@]}"
+rm -f "$tmp/fifo.exr"
+# statistics JSON stays valid JSON for a scene path with a quote and a backslash in it
+weird="$tmp/we\"i\\rd"
+mkdir -p "$weird"
+cp "$scene" "$weird/scene.gltf"
+if "$bin" render "$weird/scene.gltf" -o "$tmp/w.exr" --no-png --res 8x8 --spp 1 --quiet --stats-json "$tmp/stats.json" &&
+   python3 -c "import json,sys; d=json.load(open(sys.argv[1])); sys.exit(0 if d['scene'].endswith('we\"i\\\\rd/scene.gltf') else 1)" "$tmp/stats.json"; then
+  ok
+else
+  bad "stats json with a quote in the scene path is not valid JSON: $(cat "$tmp/stats.json" 2>/dev/null | head -3)"
+fi
+rm -f "$tmp/w.exr"
 
 # malformed scene files, made here
 head -c 200 "$scene" > "$tmp/truncated.gltf"

@@ -97,7 +97,7 @@ static void check_strategy_occl(const char *path, CandelaLightSampler strategy, 
     CHECK(rc == 0, "%s", err);
     if (rc != 0) return;
     Lights lights;
-    rc = lights_build(&lights, &scene, o.light_units, err, sizeof err);
+    rc = lights_build(&lights, &scene, NULL, o.light_units, err, sizeof err);
     CHECK(rc == 0, "%s", err);
     if (rc != 0) { scene_free(&scene); return; }
     /* the strategy is driven through the light-selection protocol alone (light_sampler.h) */
@@ -171,7 +171,7 @@ static void check_strategy_occl(const char *path, CandelaLightSampler strategy, 
         for (int s = 0; s < 50; ++s) {
             LightLiSample smp;
             if (!light_sample_li(ls, l, &pctx, rng_uniform(key, 5000 + 3 * s), rng_uniform(key, 5001 + 3 * s),
-                                 rng_uniform(key, 5002 + 3 * s), &smp))
+                                 rng_uniform(key, 5002 + 3 * s), 0.5f, &smp))
                 continue;
             CHECK(isfinite(smp.pdf) && smp.pdf > 0, "light %u: pdf %g", i, smp.pdf);
             if (l->type == LIGHT_ENVIRONMENT) {
