@@ -899,6 +899,32 @@ static void test_emission_sampling(void) {
         float cen[3];
         medium_emission_centroid(&m, cen);
         CHECK(medium_emission_power(&m) > 0.0f, "medium %d does not emit", which);
+        if (which == 0) { /* bad input: never a NaN, a point outside or a hang */
+            const float nan3[3] = {NAN, 0.0f, 0.0f}, inf3[3] = {0.0f, INFINITY, 0.0f}, dz[3] = {0.0f, 0.0f, 1.0f};
+            CHECK(medium_emission_pdf(&m, nan3, dz) == 0.0f && medium_emission_pdf(&m, cen, nan3) == 0.0f &&
+                      medium_emission_pdf(&m, inf3, dz) == 0.0f,
+                  "pdf of a non-finite ray");
+            const float us[4][4] = {{1.0f, 1.0f, 1.0f, 1.0f}, {-1.0f, -0.5f, 2.0f, 0.0f}, {NAN, NAN, NAN, NAN},
+                                    {0.0f, 0.0f, 0.0f, 0.0f}};
+            for (int i = 0; i < 4; ++i) {
+                float p[3];
+                float pv = medium_emission_sample(&m, us[i][0], us[i][1], us[i][2], us[i][3], p);
+                CHECK(pv > 0.0f && isfinite(pv) && p[0] >= m.world_min[0] && p[0] <= m.world_max[0] &&
+                          p[1] >= m.world_min[1] && p[1] <= m.world_max[1] && p[2] >= m.world_min[2] &&
+                          p[2] <= m.world_max[2],
+                      "sample for u set %d: pdf %g at (%g %g %g)", i, pv, p[0], p[1], p[2]);
+            }
+            MediaView v = {{&m}, 1};
+            TestRng r;
+            VolumeRng rng = make_rng(&r, 5);
+            float L[3];
+            media_emission_line(&v, 0, cen, dz, NAN, 1.0f, &rng, L, NULL);
+            CHECK(L[0] == 0.0f && L[1] == 0.0f && L[2] == 0.0f, "line over a NaN interval");
+            media_emission_line(&v, 0, nan3, dz, 0.0f, 1.0f, &rng, L, NULL);
+            CHECK(L[0] == 0.0f && L[1] == 0.0f && L[2] == 0.0f, "line from a NaN origin");
+            media_emission_line(&v, -1, cen, dz, 0.0f, 1.0f, &rng, L, NULL);
+            CHECK(L[0] == 0.0f && L[1] == 0.0f && L[2] == 0.0f, "line of emitter -1");
+        }
         float ext[3];
         for (int k = 0; k < 3; ++k) ext[k] = m.world_max[k] - m.world_min[k];
         float ext_max = fmaxf(ext[0], fmaxf(ext[1], ext[2]));
