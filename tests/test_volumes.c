@@ -787,8 +787,9 @@ static double pdf_sphere_integral(const Medium *m, const float o[3], int nz, int
 }
 
 /* The emitting test media: a smooth blob of density with an emission grid of another pattern
- * (axis-aligned, then rotated with anisotropic voxels), and a temperature grid with a hot
- * spot in a constant density. */
+ * (0: axis-aligned, 1: rotated with anisotropic voxels, 3: axis-aligned with an emission grid
+ * of half the resolution, i.e. another index space), and 2: a temperature grid with a hot spot
+ * in a constant density. */
 enum { ES_NX = 20, ES_NY = 12, ES_NZ = 16, ES_NT = 24 };
 static int emission_test_medium(int which, Medium *m, IoVolumeGrid *g, IoVolumeGrid *ge) {
     char err[IO_ERR_LEN] = "";
@@ -817,8 +818,17 @@ static int emission_test_medium(int which, Medium *m, IoVolumeGrid *g, IoVolumeG
         scale_translate(i2w, 0.05f, -0.5f, -0.3f, -0.4f);
     }
     int rc = make_grid(dv, nx, ny, nz, i2w, "density", g);
-    if (rc == 0 && (rc = make_grid(ev, nx, ny, nz, i2w, which == 2 ? "temperature" : "emission", ge)) != 0)
+    if (rc == 0 && which == 3) { /* half resolution: voxel (x, y, z) of the emission grid is ev's (2x, 2y, 2z) */
+        float ei2w[16];
+        scale_translate(ei2w, 0.1f, -0.5f, -0.3f, -0.4f);
+        for (int z = 0; z < nz / 2; ++z)
+            for (int y = 0; y < ny / 2; ++y)
+                for (int x = 0; x < nx / 2; ++x)
+                    ev[x + (nx / 2) * (y + (ny / 2) * z)] = ev[2 * x + nx * (2 * y + ny * 2 * z)];
+        if ((rc = make_grid(ev, nx / 2, ny / 2, nz / 2, ei2w, "emission", ge)) != 0) io_volume_grid_free(g);
+    } else if (rc == 0 && (rc = make_grid(ev, nx, ny, nz, i2w, which == 2 ? "temperature" : "emission", ge)) != 0) {
         io_volume_grid_free(g);
+    }
     free(dv);
     free(ev);
     if (rc) return -1;
@@ -882,22 +892,50 @@ static void test_emission_sampling(void) {
             io_volume_grid_free(&g);
         }
     }
-    for (int which = 0; which < 3; ++which) {
+    for (int which = 0; which < 4; ++which) {
         Medium m;
         IoVolumeGrid g, ge;
         if (emission_test_medium(which, &m, &g, &ge)) continue;
         float cen[3];
         medium_emission_centroid(&m, cen);
         CHECK(medium_emission_power(&m) > 0.0f, "medium %d does not emit", which);
+        if (which == 0) { /* bad input: never a NaN, a point outside or a hang */
+            const float nan3[3] = {NAN, 0.0f, 0.0f}, inf3[3] = {0.0f, INFINITY, 0.0f}, dz[3] = {0.0f, 0.0f, 1.0f};
+            CHECK(medium_emission_pdf(&m, nan3, dz) == 0.0f && medium_emission_pdf(&m, cen, nan3) == 0.0f &&
+                      medium_emission_pdf(&m, inf3, dz) == 0.0f,
+                  "pdf of a non-finite ray");
+            const float us[4][4] = {{1.0f, 1.0f, 1.0f, 1.0f}, {-1.0f, -0.5f, 2.0f, 0.0f}, {NAN, NAN, NAN, NAN},
+                                    {0.0f, 0.0f, 0.0f, 0.0f}};
+            for (int i = 0; i < 4; ++i) {
+                float p[3];
+                float pv = medium_emission_sample(&m, us[i][0], us[i][1], us[i][2], us[i][3], p);
+                CHECK(pv > 0.0f && isfinite(pv) && p[0] >= m.world_min[0] && p[0] <= m.world_max[0] &&
+                          p[1] >= m.world_min[1] && p[1] <= m.world_max[1] && p[2] >= m.world_min[2] &&
+                          p[2] <= m.world_max[2],
+                      "sample for u set %d: pdf %g at (%g %g %g)", i, pv, p[0], p[1], p[2]);
+            }
+            MediaView v = {{&m}, 1};
+            TestRng r;
+            VolumeRng rng = make_rng(&r, 5);
+            float L[3];
+            media_emission_line(&v, 0, cen, dz, NAN, 1.0f, &rng, L, NULL);
+            CHECK(L[0] == 0.0f && L[1] == 0.0f && L[2] == 0.0f, "line over a NaN interval");
+            media_emission_line(&v, 0, nan3, dz, 0.0f, 1.0f, &rng, L, NULL);
+            CHECK(L[0] == 0.0f && L[1] == 0.0f && L[2] == 0.0f, "line from a NaN origin");
+            media_emission_line(&v, -1, cen, dz, 0.0f, 1.0f, &rng, L, NULL);
+            CHECK(L[0] == 0.0f && L[1] == 0.0f && L[2] == 0.0f, "line of emitter -1");
+        }
         float ext[3];
         for (int k = 0; k < 3; ++k) ext[k] = m.world_max[k] - m.world_min[k];
         float ext_max = fmaxf(ext[0], fmaxf(ext[1], ext[2]));
-        /* origins: the centroid, near a corner inside, and two outside */
+        /* origins: the centroid, near a corner inside, and two outside (beyond the volume's
+         * slab on every axis: an origin level with a face sees that face edge-on, a support
+         * edge in a sliver of directions thinner than the chi-square's quadrature resolves) */
         float origins[4][3];
         for (int k = 0; k < 3; ++k) {
             origins[0][k] = cen[k];
             origins[1][k] = m.world_min[k] + 0.15f * ext[k];
-            origins[2][k] = cen[k] + (k == 0 ? 1.5f : 0.4f) * ext_max;
+            origins[2][k] = cen[k] + (k == 0 ? 1.5f : k == 1 ? 0.7f : 0.9f) * ext_max;
             origins[3][k] = m.world_min[k] - (k == 1 ? 0.7f : 0.3f) * ext_max;
         }
         for (int oi = 0; oi < 4; ++oi) {
@@ -909,7 +947,7 @@ static void test_emission_sampling(void) {
         /* the directions of sampled points against the pdf (chi-square), and the returned
          * volume pdf against the cell's P_v / V_v being positive and the point in the bounds */
         for (int oi = 0; oi < 4; oi += 2) {
-            enum { BZ = 24, BP = 48, SUB = 10, NS = 200000 };
+            enum { BZ = 24, BP = 48, SUB = 16, NS = 200000 };
             static double obs[BZ * BP], expv[BZ * BP];
             memset(obs, 0, sizeof obs);
             const float *o = origins[oi];

@@ -35,6 +35,18 @@ static double cell_box(const Medium *m, const int32_t c[3], double lo[3], double
     return vol;
 }
 
+/* L_e from an aux grid value (grid_emission's colour mapping). */
+static void aux_emission(const Medium *m, float v, float le[3]) {
+    if (m->emission.buffer) {
+        for (int k = 0; k < 3; ++k) le[k] = m->emission_scale * v * m->emission_color[k];
+    } else if (v >= BLACKBODY_MIN_KELVIN) {
+        blackbody_lookup(v, le);
+        for (int k = 0; k < 3; ++k) le[k] *= m->emission_scale;
+    } else {
+        le[0] = le[1] = le[2] = 0.0f;
+    }
+}
+
 int emission_build(Medium *m, const double i2w[16], const float *bound, char err[IO_ERR_LEN], const char *name) {
     EmissionEnergyGrid *e = &m->emission_energy;
     memset(e, 0, sizeof *e);
@@ -52,8 +64,12 @@ int emission_build(Medium *m, const double i2w[16], const float *bound, char err
     if (!energy || !e->density) goto oom;
 
     GridReader dens, aux;
+    const VolumeGrid *ag = m->emission.buffer ? &m->emission : &m->temperature;
     grid_reader_init(&dens, &m->density);
-    grid_reader_init(&aux, m->emission.buffer ? &m->emission : &m->temperature);
+    grid_reader_init(&aux, ag);
+    /* the aux grid in the density grid's index space (the usual VDB layout): its voxels are
+     * read directly instead of through the world and a trilinear lookup */
+    int same_space = memcmp(ag->world_to_index, m->density.world_to_index, sizeof ag->world_to_index) == 0;
     double total = 0.0, cen[3] = {0.0, 0.0, 0.0};
     size_t count = 0;
     for (int32_t cz = 0; cz < mg->dims[2]; ++cz)
@@ -67,16 +83,31 @@ int emission_build(Medium *m, const double i2w[16], const float *bound, char err
                 double blo[3], bhi[3], vcell = cell_box(m, c, blo, bhi) * vvox;
                 if (!(vcell > 0.0)) continue;
                 double sum = 0.0, vc[3] = {0.0, 0.0, 0.0};
-                for (int32_t z = 0; z < 8; ++z)
-                    for (int32_t y = 0; y < 8; ++y)
-                        for (int32_t x = 0; x < 8; ++x) {
-                            float pi[3] = {(float)(base[0] + x), (float)(base[1] + y), (float)(base[2] + z)};
-                            float st = grid_sigma_t(m, &dens, pi);
+                /* the cell's voxels inside the active box (the field is 0 at the centres of the
+                 * others); at a voxel centre the trilinear field is the voxel's value */
+                int32_t v0[3], v1[3];
+                for (int k = 0; k < 3; ++k) {
+                    v0[k] = base[k] > m->density.index_min[k] ? base[k] : m->density.index_min[k];
+                    v1[k] = base[k] + 7 < m->density.index_max[k] ? base[k] + 7 : m->density.index_max[k];
+                }
+                for (int32_t z = v0[2]; z <= v1[2]; ++z)
+                    for (int32_t y = v0[1]; y <= v1[1]; ++y)
+                        for (int32_t x = v0[0]; x <= v1[0]; ++x) {
+                            float st = vminf(m->density_scale * grid_voxel(&dens, x, y, z), VOLUME_MAX_SIGMA_T);
                             if (!(st > 0.0f)) continue;
-                            float p[3], le[3], src[3];
+                            float pi[3] = {(float)x, (float)y, (float)z}, p[3], le[3], src[3];
                             for (int r = 0; r < 3; ++r)
                                 p[r] = (float)(a[r] * pi[0] + a[4 + r] * pi[1] + a[8 + r] * pi[2] + a[12 + r]);
-                            grid_emission(m, &aux, p, le);
+                            if (same_space) { /* the aux voxel at the same centre */
+                                float av = x >= ag->index_min[0] && x <= ag->index_max[0] && y >= ag->index_min[1] &&
+                                                   y <= ag->index_max[1] && z >= ag->index_min[2] &&
+                                                   z <= ag->index_max[2]
+                                               ? grid_voxel(&aux, x, y, z)
+                                               : 0.0f;
+                                aux_emission(m, av, le);
+                            } else {
+                                grid_emission(m, &aux, p, le);
+                            }
                             for (int k = 0; k < 3; ++k) src[k] = (1.0f - m->albedo[k]) * st * le[k];
                             double lv = vlum(src);
                             sum += lv;

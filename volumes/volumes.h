@@ -238,9 +238,9 @@ float medium_emission_sample(const Medium *m, float u0, float u1, float u2, floa
  * Jacobian-transformed volume density p_w(d) = integral over t > 0 of p_x(o + t d) t^2 dt,
  * i.e. a DDA (in double) over the emission-energy cells the ray o + t d crosses inside the
  * density's support box, summing (P_v / V_v) (t1^3 - t0^3) / 3 over each cell's entry / exit
- * [t0, t1]. Integrates to 1 over
- * the sphere for any o (inside or outside the volume). 0 when the medium does not emit, for
- * a non-finite o or d and for a ray that misses every emitting cell. */
+ * [t0, t1]. Integrates to 1 over the sphere for any o (inside or outside the volume). 0 when
+ * the medium does not emit, for a non-finite o or d and for a ray that misses every emitting
+ * cell. */
 float medium_emission_pdf(const Medium *m, const float o[3], const float d[3]);
 
 /* The emission of one medium of the view, v->media[emitter], along o + t d (d unit) over
