@@ -33,6 +33,12 @@ What it does:
   4. writes PNGs with a common exposure: candela.png, cycles_sr<rate>.png, side-by-side
      compare.png (Candela | Cycles at the finest step | |difference| x 4) for looking at them.
 
+Voxel-centre convention: Candela (like OpenVDB) puts voxel centres at integer index coordinates;
+Blender 3.4's Cycles renders the same VDB shifted by about +half a voxel on each axis (measured
+with this script: the silhouettes differ by ~0.5 px in x and y, and the image means by ~1 %,
+until Candela's node is translated by +voxel/2 per axis, e.g. --translate 0.155208333
+-0.094791667 0.205208333 for cloud.vdb's 1/96 m voxels; the Cycles side keeps 0.15 -0.1 0.2).
+
 The Python on PATH may lack OpenImageIO (a pyenv interpreter): the script then re-runs itself
 with /usr/bin/python3 (Debian's python3-openimageio and python3-numpy).
 """
