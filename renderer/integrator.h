@@ -195,6 +195,15 @@ static inline void path_scattered(const PathState *ps, uint32_t p, vec3 pos, con
 vec3 shadow_transmittance(const Integrator *ig, Slice *s, uint64_t key, uint32_t depth, uint32_t medium, vec3 o,
                           vec3 d, float tmax);
 
+/* stage_surface.c: next-event estimation's sampling half, shared by surface and medium
+ * vertices: the light sampler picks a light (its outcome token in *outcome either way), the
+ * light is sampled and the scattering function evaluated, MIS-weighted with the power
+ * heuristic. Returns 1 with the pending contribution (before visibility) in *contrib when it
+ * is finite and non-zero. The vertex's bounce dimensions supply every random number. */
+struct Scatter;
+int direct_light_sample(const Integrator *ig, uint32_t p, const struct Scatter *sc, const LightSampleContext *lc,
+                        LightLiSample *ls, vec3 *contrib, uint32_t *outcome);
+
 /* MIS weight of a technique with pdf a against one with pdf b (power heuristic, beta = 2). */
 static inline float power_heuristic(float a, float b) {
     if (isinf(a)) return 1.0f;

@@ -22,42 +22,25 @@
 
 typedef enum { WALK_SURFACE, WALK_ESCAPED, WALK_ENDED } WalkEnd;
 
-/* NEE from a medium vertex: as at a surface, with the phase function and the shadow ray
- * traced now (the walk is depth-first). */
+/* NEE from a medium vertex: as at a surface (direct_light_sample), with the phase function and
+ * the shadow ray traced now (the walk is depth-first). */
 static void medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec3 x, const Scatter *sc,
                                 const LightSampleContext *lc) {
     const PathState *ps = &ig->ps;
-    const LightSampler *sampler = ig->light_sampler;
-    uint64_t key = ps->rng_key[p];
-    uint32_t depth = ps->depth[p];
-    float pmf;
-    uint32_t outcome;
-    uint32_t li = light_sampler_select(sampler, lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_SELECT)),
-                                       rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_DESCEND)), &pmf,
-                                       &outcome);
     LightLiSample ls;
+    vec3 contrib;
+    uint32_t outcome;
     float visibility = 0.0f;
-    if (pmf > 0.0f &&
-        light_sample_li(ig->lights, &ig->lights->lights[li], lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_U)),
-                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_V)),
-                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_W)),
-                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_X)), &ls)) {
-        float phase_pdf;
-        vec3 f = scatter_eval(sc, ls.wi, &phase_pdf);
-        float light_pdf = pmf * ls.pdf;
-        float w = ls.is_delta ? 1.0f : power_heuristic(light_pdf, phase_pdf);
-        vec3 contrib = v3_scale(v3_mul(v3_mul(ps->throughput[p], f), ls.radiance), w / light_pdf);
-        if (v3_is_finite(contrib) && !v3_is_black(contrib)) {
-            float tfar = isinf(ls.distance) ? INFINITY : ls.distance * (1.0f - 1e-3f);
-            s->shadow_rays++;
-            if (scene_visible1(ig->scene, (SceneRay){x, 0.0f, ls.wi, tfar})) {
-                vec3 T = shadow_transmittance(ig, s, key, depth, ps->medium[p], x, ls.wi, tfar);
-                visibility = clampf(v3_average(T), 0.0f, 1.0f);
-                path_add_radiance(ps, p, v3_mul(contrib, T), RADIANCE_DIRECT);
-            }
+    if (direct_light_sample(ig, p, sc, lc, &ls, &contrib, &outcome)) {
+        float tfar = isinf(ls.distance) ? INFINITY : ls.distance * (1.0f - 1e-3f);
+        s->shadow_rays++;
+        if (scene_visible1(ig->scene, (SceneRay){x, 0.0f, ls.wi, tfar})) {
+            vec3 T = shadow_transmittance(ig, s, ps->rng_key[p], ps->depth[p], ps->medium[p], x, ls.wi, tfar);
+            visibility = clampf(v3_average(T), 0.0f, 1.0f);
+            path_add_radiance(ps, p, v3_mul(contrib, T), RADIANCE_DIRECT);
         }
     }
-    light_sampler_record(sampler, outcome, visibility);
+    light_sampler_record(ig->light_sampler, outcome, visibility);
 }
 
 /* The emission a free flight gathered, per medium: from a volume that is also a light (emission

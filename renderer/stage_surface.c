@@ -57,57 +57,62 @@ static int cross_boundary(const Integrator *ig, Slice *s, uint32_t p, const Scen
     return 1;
 }
 
-/* Next-event estimation from the vertex: one light from the light sampler, one point on it,
- * the MIS-weighted contribution pending on a shadow ray (queued when non-zero). The selection's
- * outcome goes back to the sampler: from the shadow stage when a ray is queued, from here
- * (nothing got through) when not. */
-static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, const SurfaceHit *h,
-                                 const Scatter *sc, const LightSampleContext *lc) {
+int direct_light_sample(const Integrator *ig, uint32_t p, const Scatter *sc, const LightSampleContext *lc,
+                        LightLiSample *ls, vec3 *contrib, uint32_t *outcome) {
     const PathState *ps = &ig->ps;
-    const LightSampler *sampler = ig->light_sampler;
     uint64_t key = ps->rng_key[p];
     uint32_t depth = ps->depth[p];
     float pmf;
-    uint32_t outcome;
-    uint32_t li = light_sampler_select(sampler, lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_SELECT)),
-                                       rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_DESCEND)), &pmf,
-                                       &outcome);
+    uint32_t li = light_sampler_select(ig->light_sampler, lc,
+                                       rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_SELECT)),
+                                       rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_DESCEND)), &pmf, outcome);
+    if (!(pmf > 0.0f) ||
+        !light_sample_li(ig->lights, &ig->lights->lights[li], lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_U)),
+                         rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_V)),
+                         rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_W)),
+                         rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_X)), ls))
+        return 0;
+    float scatter_pdf;
+    vec3 f = scatter_eval(sc, ls->wi, &scatter_pdf);
+    if (v3_is_black(f)) return 0;
+    float light_pdf = pmf * ls->pdf;
+    float w = ls->is_delta ? 1.0f : power_heuristic(light_pdf, scatter_pdf);
+    *contrib = v3_scale(v3_mul(v3_mul(ps->throughput[p], f), ls->radiance), w / light_pdf);
+    return v3_is_finite(*contrib) && !v3_is_black(*contrib);
+}
+
+/* Next-event estimation from the vertex: the MIS-weighted contribution pending on a shadow ray
+ * (queued when non-zero). The selection's outcome goes back to the sampler: from the shadow
+ * stage when a ray is queued, from here (nothing got through) when not. */
+static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, const SurfaceHit *h,
+                                 const Scatter *sc, const LightSampleContext *lc) {
+    const PathState *ps = &ig->ps;
+    uint32_t depth = ps->depth[p];
     LightLiSample ls;
-    if (pmf > 0.0f &&
-        light_sample_li(ig->lights, &ig->lights->lights[li], lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_U)),
-                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_V)),
-                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_W)),
-                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_X)), &ls)) {
-        float scatter_pdf;
-        vec3 f = scatter_eval(sc, ls.wi, &scatter_pdf);
-        if (!v3_is_black(f)) {
-            float light_pdf = pmf * ls.pdf;
-            float w = ls.is_delta ? 1.0f : power_heuristic(light_pdf, scatter_pdf);
-            vec3 contrib = v3_scale(v3_mul(v3_mul(ps->throughput[p], f), ls.radiance), w / light_pdf);
-            if (v3_is_finite(contrib) && !v3_is_black(contrib)) {
-                vec3 o = offset_ray_origin(h->p, scatter_side_normal(sc, ls.wi));
-                vec3 dir = ls.wi;
-                float tfar = INFINITY;
-                if (!isinf(ls.distance)) {
-                    /* aim from the offset origin at the sampled point itself: keeping the
-                     * unoffset direction and length made the ray end behind nearby emitters
-                     * and darkened small scenes */
-                    vec3 to = v3_sub(v3_madd(h->p, ls.wi, ls.distance), o);
-                    float len = v3_length(to);
-                    if (len > 0.0f) { dir = v3_scale(to, 1.0f / len); tfar = len * (1.0f - 1e-3f); }
-                    else tfar = 0.0f;
-                }
-                ps->shadow_ray[p] = (SceneRay){o, 0.0f, dir, tfar};
-                ps->shadow_contrib[p] = contrib;
-                ps->shadow_outcome[p] = outcome;
-                ps->shadow_depth[p] = depth;
-                ps->shadow_medium[p] = side_medium(ig, p, h, ls.wi);
-                s->shadows[s->num_shadows++] = p;
-                return;
-            }
+    vec3 contrib;
+    uint32_t outcome;
+    if (direct_light_sample(ig, p, sc, lc, &ls, &contrib, &outcome)) {
+        vec3 o = offset_ray_origin(h->p, scatter_side_normal(sc, ls.wi));
+        vec3 dir = ls.wi;
+        float tfar = INFINITY;
+        if (!isinf(ls.distance)) {
+            /* aim from the offset origin at the sampled point itself: keeping the unoffset
+             * direction and length made the ray end behind nearby emitters and darkened small
+             * scenes */
+            vec3 to = v3_sub(v3_madd(h->p, ls.wi, ls.distance), o);
+            float len = v3_length(to);
+            if (len > 0.0f) { dir = v3_scale(to, 1.0f / len); tfar = len * (1.0f - 1e-3f); }
+            else tfar = 0.0f;
         }
+        ps->shadow_ray[p] = (SceneRay){o, 0.0f, dir, tfar};
+        ps->shadow_contrib[p] = contrib;
+        ps->shadow_outcome[p] = outcome;
+        ps->shadow_depth[p] = depth;
+        ps->shadow_medium[p] = side_medium(ig, p, h, ls.wi);
+        s->shadows[s->num_shadows++] = p;
+        return;
     }
-    light_sampler_record(sampler, outcome, 0.0f); /* no shadow ray: nothing reached the light */
+    light_sampler_record(ig->light_sampler, outcome, 0.0f); /* no shadow ray: nothing reached the light */
 }
 
 /* The continuation: a direction from the scattering function, the roulette, and the next
