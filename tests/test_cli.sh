@@ -88,9 +88,14 @@ head -c 100 /dev/urandom > "$tmp/garbage.vdb"
 volume_scene "$tmp/vol_garbage.gltf" "garbage.vdb"
 expect_error "garbage vdb" "garbage.vdb" -- render "$tmp/vol_garbage.gltf" "${common[@]}"
 if [ -f "$shared_vdb" ]; then
-  head -c 5000 "$shared_vdb" > "$tmp/cut.vdb"
-  volume_scene "$tmp/vol_cut.gltf" "cut.vdb"
-  expect_error "truncated vdb" "cut.vdb" -- render "$tmp/vol_cut.gltf" "${common[@]}"
+  # this cut makes OpenVDB's blosc reader ask for a 3.5 TB buffer: the release build gets
+  # std::bad_alloc and reports the file, but AddressSanitizer aborts on oversized requests
+  # instead of throwing (even with allocator_may_return_null), so only the release run checks it
+  if [ -z "${ASAN_OPTIONS:-}" ]; then
+    head -c 5000 "$shared_vdb" > "$tmp/cut.vdb"
+    volume_scene "$tmp/vol_cut.gltf" "cut.vdb"
+    expect_error "truncated vdb" "cut.vdb" -- render "$tmp/vol_cut.gltf" "${common[@]}"
+  fi
   volume_scene "$tmp/vol_grid.gltf" "$shared_vdb" "heat"
   expect_error "missing grid" "no grid named 'heat'" -- render "$tmp/vol_grid.gltf" "${common[@]}"
 fi
