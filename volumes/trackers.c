@@ -272,13 +272,15 @@ done:
 /* Below this max(T), Russian roulette: survive with probability max(T) and divide by it. */
 #define RATIO_RR_THRESHOLD 0.1f
 
-void media_transmittance(const MediaView *v, const float o[3], const float d[3], float tmin, float tmax,
-                         VolumeRng *rng, float T[3], VolumeStats *stats) {
-    /* Novák et al. 2014 §4 (ratio tracking): at every collision of the majorant process
-     * T *= sigma_n / sigma_maj = 1 - sigma_t / sigma_maj (per channel), an unbiased estimate
-     * of exp(-integral sigma_t) for each channel with the grey (max over RGB) majorant. */
-    T[0] = T[1] = T[2] = 1.0f;
-    uint64_t collisions = 0;
+/* The ratio-tracking walk both estimators below are: at every collision of the view's majorant
+ * process, with emitter >= 0, L += w sigma_a,e L_e,e / sigma_maj (the emission gathered so
+ * far), then w *= sigma_n / sigma_maj = 1 - sigma_t / sigma_maj per channel (Novák et al. 2014:
+ * w stays an unbiased estimate of the transmittance with the grey, max over RGB, majorant);
+ * below max(w) = RATIO_RR_THRESHOLD an unbiased Russian roulette (w = 0 when it ends the walk).
+ * next_collision places a collision before anything is gathered and stops at the segment's
+ * end, so nothing beyond tmax counts. Returns 0 when stopped by VOLUME_MAX_COLLISIONS. */
+static int ratio_walk(const MediaView *v, int emitter, const float o[3], const float d[3], float tmin, float tmax,
+                      VolumeRng *rng, float w[3], float L[3], uint64_t *collisions) {
     Walk walk;
     walk_begin(&walk, v, o, d, tmin, tmax);
     float end, maj, depth = sample_depth(rng);
@@ -290,28 +292,40 @@ void media_transmittance(const MediaView *v, const float o[3], const float d[3],
         float inv_maj = 1.0f / maj;
         while (next_collision(&walk, end, maj, &depth)) {
             float tn = walk.t;
-            if (collisions == VOLUME_MAX_COLLISIONS) {
-                if (stats) ++stats->capped_walks;
-                T[0] = T[1] = T[2] = 0.0f;
-                goto done;
+            if (*collisions == VOLUME_MAX_COLLISIONS) return 0;
+            ++*collisions;
+            float sa[3], ss[3], src[3], lane_src[VOLUME_MAX_OVERLAP][3];
+            if (emitter >= 0) {
+                walk_eval(&walk, tn, sa, ss, NULL, src, lane_src);
+                for (int k = 0; k < 3; ++k) L[k] += w[k] * lane_src[emitter][k] * inv_maj;
+            } else {
+                walk_eval(&walk, tn, sa, ss, NULL, NULL, NULL);
             }
-            ++collisions;
-            float sa[3], ss[3];
-            walk_eval(&walk, tn, sa, ss, NULL, NULL, NULL);
-            for (int k = 0; k < 3; ++k) T[k] *= vmaxf(1.0f - (sa[k] + ss[k]) * inv_maj, 0.0f);
-            float mx = vmax3(T);
+            for (int k = 0; k < 3; ++k) w[k] *= vmaxf(1.0f - (sa[k] + ss[k]) * inv_maj, 0.0f);
+            float mx = vmax3(w);
             if (mx < RATIO_RR_THRESHOLD) {
                 if (!(mx > 0.0f) || rng->next(rng->state) >= mx) {
-                    T[0] = T[1] = T[2] = 0.0f;
-                    goto done;
+                    w[0] = w[1] = w[2] = 0.0f;
+                    return 1;
                 }
                 float inv = 1.0f / mx;
-                for (int k = 0; k < 3; ++k) T[k] *= inv;
+                for (int k = 0; k < 3; ++k) w[k] *= inv;
             }
             depth = sample_depth(rng);
         }
     }
-done:
+    return 1;
+}
+
+void media_transmittance(const MediaView *v, const float o[3], const float d[3], float tmin, float tmax,
+                         VolumeRng *rng, float T[3], VolumeStats *stats) {
+    /* ratio tracking (Novák et al. 2014 §4): the walk's weight is the estimate */
+    T[0] = T[1] = T[2] = 1.0f;
+    uint64_t collisions = 0;
+    if (!ratio_walk(v, -1, o, d, tmin, tmax, rng, T, NULL, &collisions)) {
+        if (stats) ++stats->capped_walks;
+        T[0] = T[1] = T[2] = 0.0f;
+    }
     if (stats) stats->collisions += collisions;
 }
 
@@ -320,49 +334,14 @@ done:
 void media_emission_line(const MediaView *v, int emitter, const float o[3], const float d[3], float tmin, float tmax,
                          VolumeRng *rng, float L[3], VolumeStats *stats) {
     /* The cache points paper §4.3, Algorithm 1 (spec §7.4): the majorant process of the
-     * view's merged majorants (which carry the emission term), P_a = P_n = 1: every collision
-     * gathers w sigma_a,e L_e,e / sigma_maj (a collision estimator of the emission integral
-     * weighted by the ratio-tracking transmittance so far), then
-     * w *= sigma_n / sigma_maj = 1 - sigma_t / sigma_maj per channel (Novák et al. 2014).
-     * next_collision places the collision first and stops at the segment's end, so nothing
-     * beyond tmax is gathered (the spec's fix of the printed loop). */
+     * view's merged majorants (which carry the emission term) with P_a = P_n = 1: every
+     * collision gathers (a collision estimator of the emission integral weighted by the
+     * ratio-tracking transmittance so far), and no absorption or scattering event is chosen. */
     L[0] = L[1] = L[2] = 0.0f;
     int n = v ? (v->count < 0 ? 0 : v->count > VOLUME_MAX_OVERLAP ? VOLUME_MAX_OVERLAP : v->count) : 0;
     if (emitter < 0 || emitter >= n || !v->media[emitter] || !v->media[emitter]->emissive) return;
     float w[3] = {1.0f, 1.0f, 1.0f};
     uint64_t collisions = 0;
-    Walk walk;
-    walk_begin(&walk, v, o, d, tmin, tmax);
-    float end, maj, depth = sample_depth(rng);
-    while (walk_interval(&walk, &end, &maj)) {
-        if (!(maj > 0.0f)) {
-            walk.t = end;
-            continue;
-        }
-        float inv_maj = 1.0f / maj;
-        while (next_collision(&walk, end, maj, &depth)) {
-            float tn = walk.t;
-            if (collisions == VOLUME_MAX_COLLISIONS) {
-                if (stats) ++stats->capped_walks;
-                goto done;
-            }
-            ++collisions;
-            float sa[3], ss[3], src[3], lane_src[VOLUME_MAX_OVERLAP][3];
-            walk_eval(&walk, tn, sa, ss, NULL, src, lane_src);
-            for (int k = 0; k < 3; ++k) {
-                L[k] += w[k] * lane_src[emitter][k] * inv_maj;
-                w[k] *= vmaxf(1.0f - (sa[k] + ss[k]) * inv_maj, 0.0f);
-            }
-            /* Russian roulette on the weight (unbiased), as in ratio tracking */
-            float mx = vmax3(w);
-            if (mx < RATIO_RR_THRESHOLD) {
-                if (!(mx > 0.0f) || rng->next(rng->state) >= mx) goto done;
-                float inv = 1.0f / mx;
-                for (int k = 0; k < 3; ++k) w[k] *= inv;
-            }
-            depth = sample_depth(rng);
-        }
-    }
-done:
+    if (!ratio_walk(v, emitter, o, d, tmin, tmax, rng, w, L, &collisions) && stats) ++stats->capped_walks;
     if (stats) stats->collisions += collisions;
 }
