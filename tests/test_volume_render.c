@@ -16,7 +16,9 @@
  *       absorbing cube, the camera inside it (found at the start), and a sun's shadow rays
  *       through an absorbing slab onto a Lambert floor;
  *   (i) a floor lit by an emitting volume: emission sampling on and off agree, and on is less
- *       noisy. */
+ *       noisy; (j) the same on a heterogeneous, scattering emitter, and 1 vs 2 threads.
+ * CANDELA_KEEP_TEST_SCENES=1 keeps the written scenes (their folder is printed) for rendering
+ * them by hand. */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -266,6 +268,54 @@ static void test_emission_sampling(void) {
     candela_image_free(&off.img);
 }
 
+/* (j) the same on a heterogeneous emitter (a lumpy density with an emission field that does not
+ * follow it, albedo 0.6 so the volume also scatters its own light), and 1 vs 2 threads. */
+static void test_emission_sampling_heterogeneous(void) {
+    enum { M = 24 };
+    static float dens[M * M * M], emit[M * M * M];
+    for (int z = 0; z < M; ++z)
+        for (int y = 0; y < M; ++y)
+            for (int x = 0; x < M; ++x) {
+                float fx = (x + 0.5f) / M - 0.5f, fy = (y + 0.5f) / M - 0.5f, fz = (z + 0.5f) / M - 0.5f;
+                float r2 = fx * fx + fy * fy + fz * fz;
+                float lumps = 0.5f + 0.5f * sinf(17.0f * fx) * cosf(13.0f * fy + 2.0f * fz);
+                dens[x + M * (y + M * z)] = r2 < 0.2f ? lumps : 0.0f;
+                emit[x + M * (y + M * z)] = r2 < 0.05f ? 1.0f + 0.8f * sinf(23.0f * fz) : 0.0f; /* a hot core */
+            }
+    float m[16];
+    memset(m, 0, sizeof m);
+    m[0] = m[5] = m[10] = 1.0f / M;
+    m[12] = m[13] = m[14] = -0.5f + 0.5f / M;
+    m[15] = 1.0f;
+    const char *names[2] = {"density", "emission"};
+    const float *values[2] = {dens, emit};
+    char path[512], err[IO_ERR_LEN];
+    snprintf(path, sizeof path, "%s/lumpy.vdb", g_dir);
+    CHECK(io_write_vdb_dense(path, names, values, 2, M, M, M, m, err) == 0, "%s", err);
+    write_mesh_gltf("lumpy_floor.gltf",
+                    "[{\"name\": \"camera\", \"translation\": [0.9, 2.6, 0], \"rotation\": [-0.70710678, 0, 0, 0.70710678], "
+                    "\"camera\": 0}, {\"name\": \"floor\", \"mesh\": 1}, {\"name\": \"glow\", \"translation\": [0, 1.0, 0], "
+                    "\"extras\": {\"candela_volume\": {\"uri\": \"lumpy.vdb\", \"density_scale\": 6.0, \"albedo\": [0.6, 0.6, 0.6], "
+                    "\"anisotropy\": 0.3, \"emission_grid\": \"emission\", \"emission_scale\": 3.0}}}]",
+                    "[0, 1, 2]", "{}", "black.exr", NULL);
+    Result on = render("lumpy_floor.gltf", 256, 64, 2);
+    g_emission_sampling = 0;
+    Result off = render("lumpy_floor.gltf", 256, 64, 2);
+    g_emission_sampling = 1;
+    Result on1 = render("lumpy_floor.gltf", 256, 64, 1);
+    double tol = 5.0 * sqrt(on.se * on.se + off.se * off.se);
+    fprintf(stderr, "  (j) heterogeneous emitter: sampling on %.5f (SE %.5f), off %.5f (SE %.5f)\n", on.mean, on.se,
+            off.mean, off.se);
+    CHECK(on.mean > 0.005, "the floor is not lit by the volume: %g", on.mean);
+    CHECK(fabs(on.mean - off.mean) <= tol, "emission sampling changes the mean: %.5f vs %.5f (tolerance %.5f)", on.mean,
+          off.mean, tol);
+    CHECK(on.img.rgb && on1.img.rgb && memcmp(on.img.rgb, on1.img.rgb, 16 * 16 * 3 * sizeof(float)) == 0,
+          "1 and 2 threads differ");
+    candela_image_free(&on.img);
+    candela_image_free(&off.img);
+    candela_image_free(&on1.img);
+}
+
 static void test_mesh_media(void) {
     const double sa = 1.2;
     /* (f) looking through an absorbing fog cube (an invisible boundary) at a white sky: the
@@ -377,8 +427,10 @@ int main(void) {
 
     test_mesh_media();
     test_emission_sampling();
+    test_emission_sampling_heterogeneous();
 
     char cmd[600];
+    if (getenv("CANDELA_KEEP_TEST_SCENES")) { fprintf(stderr, "scenes kept in %s\n", g_dir); return test_exit(); }
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", g_dir);
     if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", g_dir);
     return test_exit();
