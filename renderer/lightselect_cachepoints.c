@@ -217,8 +217,9 @@ static int bbox_candidates(const Scene *scene, const SceneMedia *media, uint64_t
 }
 
 /* Pilot paths (§3.1.1): a stratified grid of camera rays, their first hit and one cosine
- * bounce; each vertex kept with probability 1/2 (fewer paths than §3.1.1 uses, half kept: the merge passes thin them anyway). */
-static int pilot_candidates(const Scene *scene, uint64_t seed, Candidates *c) {
+ * bounce, and where the camera ray crosses a VDB volume a point in it; each vertex kept with
+ * probability 1/2 (fewer paths than §3.1.1 uses, half kept: the merge passes thin them anyway). */
+static int pilot_candidates(const Scene *scene, const SceneMedia *media, uint64_t seed, Candidates *c) {
     const Camera *cam = &scene->camera;
     uint32_t kept = 0;
     for (uint32_t j = 0; j < PILOT_GRID; ++j) {
@@ -230,7 +231,22 @@ static int pilot_candidates(const Scene *scene, uint64_t seed, Candidates *c) {
             camera_generate_ray(cam, fx, fy, &o, &d);
             for (int bounce = 0; bounce < 2; ++bounce) {
                 SceneHit sh;
-                if (!scene_intersect1(scene, (SceneRay){o, 0.0f, d, INFINITY}, &sh)) break;
+                int hit = scene_intersect1(scene, (SceneRay){o, 0.0f, d, INFINITY}, &sh);
+                /* the camera ray's stretch through VDB media: a vertex uniformly in it (kept
+                 * with the same probability), so media get points along what the camera sees */
+                if (bounce == 0 && media && media->num_vdb > 0 && kept < PILOT_CAP &&
+                    rng_uniform(key, 10) < PILOT_KEEP) {
+                    MediaView view;
+                    media_view(media, 0, o, d, hit ? sh.t : INFINITY, &view);
+                    const float of[3] = {o.x, o.y, o.z}, df[3] = {d.x, d.y, d.z};
+                    float t0, t1;
+                    if (view.count > 0 &&
+                        medium_clip_ray(view.media[0], of, df, 0.0f, hit ? sh.t : INFINITY, &t0, &t1) && isfinite(t1)) {
+                        if (push(c, v3_madd(o, d, t0 + (t1 - t0) * rng_uniform(key, 11))) != 0) return -1;
+                        ++kept;
+                    }
+                }
+                if (!hit) break;
                 SurfaceHit h;
                 scene_surface_hit(scene, sh.instance, sh.local_prim, sh.triangle, sh.u, sh.v, &h);
                 if (rng_uniform(key, 2 + 4 * (uint32_t)bounce) < PILOT_KEEP && kept < PILOT_CAP) {
@@ -397,7 +413,7 @@ static int build(CachePointSampler *s, const Scene *scene, const SceneMedia *med
     if (!o->cachepoint_build_linear && setup_tree_view(s) != 0) return -1;
 
     Candidates cand = {0};
-    if (bbox_candidates(scene, media, o->seed, &cand) != 0 || pilot_candidates(scene, o->seed, &cand) != 0 ||
+    if (bbox_candidates(scene, media, o->seed, &cand) != 0 || pilot_candidates(scene, media, o->seed, &cand) != 0 ||
         sort_candidates(&cand) != 0) {
         free(cand.xyz);
         return -1;
