@@ -151,6 +151,38 @@ float cachepoints_pmf(const CachePoints *cp, const CachePointLights *lights, con
 /* The cache point a vertex at x uses (the nearest; ties: lowest index). */
 uint32_t cachepoints_nearest(const CachePoints *cp, const float x[3]);
 
+/* The cache point of x (as cachepoints_nearest; hint as for cachepoints_vertex) and its
+ * radius of influence r_p in *radius (may be NULL). */
+uint32_t cachepoints_nearest_hint(const CachePoints *cp, const float x[3], uint32_t hint, float *radius);
+
+/* Cache-point in-scattering sampling (§4.2): the scattering sample weight s(p, e) per (point,
+ * light), computed after the build (scatter.c). The caller supplies the medium and one light
+ * sample as callbacks (the module knows neither media nor cameras). */
+typedef struct CachePointScatter {
+    /* The scattering coefficient at y as a weight (luminance of mu_s, 1/m; 0 outside media)
+     * and in *g the Henyey-Greenstein anisotropy of the medium that scatters there. */
+    float (*medium)(const void *user, const float y[3], float *g);
+    /* One sample of light `light` seen from y (u: 4 uniforms in [0, 1)): the phase function
+     * rho_g(toward the camera, toward the light point) x the emitted radiance x the geometry
+     * term / the sample's pdf, unoccluded, luminance (0 when the sample fails). */
+    float (*light_sample)(const void *user, uint32_t light, const float y[3], float g, const float u[4]);
+    const void *user;
+    uint64_t seed;
+} CachePointScatter;
+/* Fills the weights: per near entry s(p, e) = the mean over 4 points y uniform in the ball of
+ * radius r_p of mu_s(y) x light_sample(e, y) (the spec's §7.2 proposal); per point the far
+ * lists' summed s, estimated with 8 draws of far entries from the fluence bin. Deterministic
+ * whatever the thread count (the build's parallel-for). 0 ok, -1 out of memory, -2 a missing
+ * callback. */
+int cachepoints_build_scatter(CachePoints *cp, const CachePointLights *lights, const CachePointScatter *sc);
+/* S_p = sum over lights of s(p, e): the near entries' plus the far estimate (0 before
+ * cachepoints_build_scatter). */
+float cachepoints_scatter_total(const CachePoints *cp, uint32_t point);
+/* s(p, e) of a near light of the point; -1 when e is not in its near list (tests). */
+float cachepoints_scatter_weight(const CachePoints *cp, uint32_t point, uint32_t light);
+/* The far lists' part of S_p (tests). */
+float cachepoints_scatter_far(const CachePoints *cp, uint32_t point);
+
 /* Visibility learning (§3.2.1), atomic: one call per selection, once its outcome is known,
  * in the slot cachepoints_select reported. It counts an attempt (H_total) and adds
  * `visibility` to H_success: the fraction of the shadow ray that got through with a useful

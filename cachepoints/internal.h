@@ -79,6 +79,9 @@ struct CachePoints {
     /* 16 nearest neighbours and normalised Eq. 4 weights, shared by both blurs */
     uint32_t *nbr;
     float *nbr_w, *self_w;
+    /* §4.2 scattering sample weights (scatter.c; NULL until cachepoints_build_scatter) */
+    float *scatter_near;       /* s(p, e) of each near entry */
+    float *scatter_far, *scatter_total; /* per point: the far lists' part, and near + far */
     CachePointParams params;
     CachePointStats stats;
     KdTree kd;

@@ -69,6 +69,7 @@ typedef struct Integrator {
     const LightSampler *light_sampler;
     const SceneMedia *media;
     uint32_t camera_medium;   /* the mesh medium the camera is in (media.h) */
+    int inscatter;            /* cache-point in-scattering sampling on camera segments (inscatter.c) */
     PathState ps;
     /* queue storage for the whole batch; a slice uses its own [begin, end) part of each */
     uint32_t *queue_rays, *queue_hits, *queue_escaped, *queue_shadows;
@@ -203,6 +204,29 @@ vec3 shadow_transmittance(const Integrator *ig, Slice *s, uint64_t key, uint32_t
 struct Scatter;
 int direct_light_sample(const Integrator *ig, uint32_t p, const struct Scatter *sc, const LightSampleContext *lc,
                         LightLiSample *ls, vec3 *contrib, uint32_t *outcome);
+/* The same with the throughput and the six uniforms (select, descend, the light's four) given
+ * (a technique with its own random numbers: in-scattering sampling). */
+int direct_light_sample_u(const Integrator *ig, vec3 beta, const struct Scatter *sc, const LightSampleContext *lc,
+                          const float u[6], LightLiSample *ls, vec3 *contrib, uint32_t *outcome);
+
+/* inscatter.c: in-scattering sampling along camera rays (the paper's §4.2, spec §7.2-7.3), for
+ * light samplers that provide scattering weights (light_sampler_inscatter_weight). A camera
+ * segment through media gets a distance table (stations at the sampler's weights along it);
+ * 1 when built, 0 when the segment has no finite medium interval. */
+int inscatter_table(const Integrator *ig, SceneRay ray, float tmax, const MediaView *view, uint32_t *hint,
+                    VolumeDistanceTable *tab);
+/* The technique's estimate: a distance from the table, ratio tracking to it, and NEE there
+ * (light selection through the protocol, a shadow ray with its transmittance), weighted by the
+ * balance heuristic against null-collision tracking (Eq. 10), added through the funnel. */
+void inscatter_estimate(const Integrator *ig, Slice *s, uint32_t p, SceneRay ray, const MediaView *view,
+                        const VolumeDistanceTable *tab, uint32_t *hint, float *scratch);
+/* The balance-heuristic weight of the null-collision technique's first scatter at t (its
+ * VolumeEvent's null_mis and sigma_s_mean) against the table's distance sampling. */
+static inline float inscatter_null_weight(const VolumeDistanceTable *tab, float t, float null_mis,
+                                          float sigma_s_mean) {
+    float r = null_mis * sigma_s_mean, pd = volume_distance_pdf(tab, t);
+    return r + pd > 0.0f ? r / (r + pd) : 1.0f;
+}
 
 /* MIS weight of a technique with pdf a against one with pdf b (power heuristic, beta = 2). */
 static inline float power_heuristic(float a, float b) {

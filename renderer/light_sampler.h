@@ -50,6 +50,10 @@ typedef struct LightSamplerOps {
     void (*record)(void *state, uint32_t outcome, float visibility);
     void (*prefetch_outcome)(const void *state, uint32_t outcome); /* a cache hint before tracing */
     void (*barrier)(void *state);
+    /* optional: cache-point in-scattering sampling (§4.2): the importance of in-scattering
+     * at x for distance sampling along camera rays (the summed scattering weights of x's
+     * cache point) and in *radius the distance over which it holds; hint as for prepare */
+    float (*inscatter_weight)(const void *state, const float x[3], uint32_t *hint, float *radius);
     /* optional: the strategy's build statistics */
     void (*report)(const void *state, CandelaStats *stats);
     void (*destroy)(void *state);
@@ -108,6 +112,12 @@ static inline void light_sampler_barrier(const LightSampler *s) {
 
 static inline int light_sampler_learns(const LightSampler *s) { return s->ops->record != NULL; }
 static inline int light_sampler_has_barrier(const LightSampler *s) { return s->ops->barrier != NULL; }
+
+static inline int light_sampler_has_inscatter(const LightSampler *s) { return s->ops->inscatter_weight != NULL; }
+static inline float light_sampler_inscatter_weight(const LightSampler *s, const float x[3], uint32_t *hint,
+                                                   float *radius) {
+    return s->ops->inscatter_weight(s->state, x, hint, radius);
+}
 
 static inline void light_sampler_report(const LightSampler *s, CandelaStats *stats) {
     if (s->ops->report) s->ops->report(s->state, stats);

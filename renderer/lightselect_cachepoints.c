@@ -40,6 +40,10 @@ typedef struct CachePointSampler {
     LightTree tree;
     CachePointTree tree_view;
     uint32_t *second, *leaf_light, *light_leaf;
+    /* §4.2 scattering weights: the media and the camera they are computed for */
+    const SceneMedia *media;
+    int camera_ortho;
+    vec3 camera_pos, camera_back; /* orthographic: the direction toward the camera */
 } CachePointSampler;
 
 static void cp_estimate7(const void *user, uint32_t light, const float x[3], float out[7]) {
@@ -300,6 +304,73 @@ static int sort_candidates(Candidates *c) {
     return rc;
 }
 
+/* ---------------------------------------------------------------- §4.2 scattering weights */
+
+/* mu_s at y (luminance) over the VDB media whose bounds hold y and the mesh medium around it,
+ * and the anisotropy of the one that scatters most. */
+static float cp_scatter_medium(const void *user, const float y[3], float *g) {
+    const CachePointSampler *s = user;
+    const SceneMedia *media = s->media;
+    float total = 0.0f, best = 0.0f;
+    *g = 0.0f;
+    for (uint32_t i = 0; i < media->num_vdb; ++i) {
+        const Medium *m = &media->vdb[i];
+        if (y[0] < m->world_min[0] || y[1] < m->world_min[1] || y[2] < m->world_min[2] || y[0] > m->world_max[0] ||
+            y[1] > m->world_max[1] || y[2] > m->world_max[2])
+            continue;
+        MediumCoefficients c;
+        medium_eval(m, y, &c);
+        float l = v3_luminance(v3(c.sigma_s[0], c.sigma_s[1], c.sigma_s[2]));
+        total += l;
+        if (l > best) { best = l; *g = m->g; }
+    }
+    if (media->num_homogeneous > 0) {
+        uint32_t mm = media_at_point(media, v3(y[0], y[1], y[2]));
+        if (mm > 0) {
+            const Medium *m = &media->homogeneous[mm - 1];
+            float l = v3_luminance(v3(m->sigma_s[0], m->sigma_s[1], m->sigma_s[2]));
+            total += l;
+            if (l > best) *g = m->g;
+        }
+    }
+    return total;
+}
+
+/* One light sample at y: phase x radiance / pdf toward the camera, unoccluded (luminance). */
+static float cp_scatter_light(const void *user, uint32_t light, const float y[3], float g, const float u[4]) {
+    const CachePointSampler *s = user;
+    vec3 p = v3(y[0], y[1], y[2]);
+    LightSampleContext ctx = {p, v3s(0.0f), {0, 0.0f}, NULL};
+    LightLiSample ls;
+    if (!light_sample_li(s->lights, &s->lights->lights[light], &ctx, u[0], u[1], u[2], u[3], &ls) || !(ls.pdf > 0.0f))
+        return 0.0f;
+    vec3 wo = s->camera_ortho ? s->camera_back : v3_normalize(v3_sub(s->camera_pos, p));
+    const float wof[3] = {wo.x, wo.y, wo.z}, wif[3] = {ls.wi.x, ls.wi.y, ls.wi.z};
+    return hg_phase(g, wof, wif) * v3_luminance(ls.radiance) / ls.pdf;
+}
+
+static int build_scatter_weights(CachePointSampler *s, const Scene *scene, const SceneMedia *media, uint64_t seed) {
+    const Camera *cam = &scene->camera;
+    s->media = media;
+    s->camera_ortho = cam->type != IO_CAMERA_PERSPECTIVE;
+    s->camera_pos = xform_point(cam->xform, v3s(0.0f));
+    vec3 o, d;
+    camera_generate_ray(cam, 0.5f * (float)cam->width, 0.5f * (float)cam->height, &o, &d);
+    s->camera_back = v3_neg(d);
+    CachePointScatter sc = {.medium = cp_scatter_medium, .light_sample = cp_scatter_light, .user = s,
+                            .seed = seed ^ (CANDIDATE_SEED_SALT + 2)};
+    return cachepoints_build_scatter(s->cp, &s->view, &sc);
+}
+
+static float cp_inscatter_weight(const void *state, const float x[3], uint32_t *hint, float *radius) {
+    const CachePointSampler *s = state;
+    uint32_t p = cachepoints_nearest_hint(s->cp, x, hint ? *hint : UINT32_MAX, radius);
+    if (hint) *hint = p;
+    return cachepoints_scatter_total(s->cp, p);
+}
+
+static const LightSamplerOps CACHEPOINT_INSCATTER_OPS;
+
 /* ---------------------------------------------------------------- the protocol */
 
 /* The cache point vertex of a context: from its token when prepared, else looked up. */
@@ -380,6 +451,11 @@ static void cp_destroy(void *state) {
 static const LightSamplerOps CACHEPOINT_OPS = {
     .name = "cachepoints", .prepare = cp_prepare, .select = cp_select, .pmf = cp_pmf, .record = cp_record,
     .prefetch_outcome = cp_prefetch_outcome, .barrier = cp_barrier, .report = cp_report, .destroy = cp_destroy};
+/* with the §4.2 scattering weights (scenes with media, in-scattering sampling not off) */
+static const LightSamplerOps CACHEPOINT_INSCATTER_OPS = {
+    .name = "cachepoints", .prepare = cp_prepare, .select = cp_select, .pmf = cp_pmf, .record = cp_record,
+    .prefetch_outcome = cp_prefetch_outcome, .barrier = cp_barrier, .report = cp_report, .destroy = cp_destroy,
+    .inscatter_weight = cp_inscatter_weight};
 
 /* ---------------------------------------------------------------- build */
 
@@ -457,9 +533,14 @@ int light_sampler_cachepoints_create(LightSampler *ls, const Lights *lights, con
             snprintf(err, CANDELA_ERR_LEN, "%s: invalid cache point parameters", o->scene_path);
             return -1;
         }
+        int inscatter = s->cp && media && media_any(media) && o->volume_inscatter_sampling != 0;
+        if (inscatter) {
+            int rc_scatter = build_scatter_weights(s, scene, media, o->seed);
+            if (rc_scatter != 0) { cp_destroy(s); goto oom; }
+        }
         s->build_seconds = clock_seconds() - t0;
         if (s->cp) {
-            *ls = (LightSampler){&CACHEPOINT_OPS, s, lights->count};
+            *ls = (LightSampler){inscatter ? &CACHEPOINT_INSCATTER_OPS : &CACHEPOINT_OPS, s, lights->count};
             return 0;
         }
         cp_destroy(s);

@@ -28,6 +28,8 @@ static const char *USAGE =
     "  --max-volume-bounces N    maximum scattering events in media per path (default 256)\n"
     "  --volume-emission-sampling on|off  emissive volumes are lights too (NEE with line\n"
     "                            integration, MIS with tracking; default on)\n"
+    "  --volume-cachepoint-scatter on|off  cache-point in-scattering sampling along camera\n"
+    "                            rays through media, MIS with tracking (cachepoints; default off)\n"
     "  --light-sampler S         uniform | power | tree | optimal | cachepoints (default cachepoints)\n"
     "  --no-visibility           cache points without visibility learning\n"
     "  --cachepoint-build B      cut (default: far entries are light-tree clusters) | linear (the\n"
@@ -174,6 +176,13 @@ int main(int argc, char **argv) {
             else { fprintf(stderr, "candela: unknown value '%s' for --volume-emission-sampling (on, off)\n", v); return 2; }
             ++i;
         }
+        else if (strcmp(a, "--volume-cachepoint-scatter") == 0) {
+            if (!v) die("missing value for ", a);
+            if (strcmp(v, "on") == 0) o.volume_inscatter_sampling = 1;
+            else if (strcmp(v, "off") == 0) o.volume_inscatter_sampling = 0;
+            else { fprintf(stderr, "candela: unknown value '%s' for --volume-cachepoint-scatter (on, off)\n", v); return 2; }
+            ++i;
+        }
         else if (strcmp(a, "--batch") == 0) { o.batch_size = (uint32_t)parse_long(a, v, 1, 1 << 22); ++i; }
         else if (strcmp(a, "--env-strength") == 0) { o.env_strength = parse_float(a, v, 0.0f, 1e9f); ++i; }
         else if (strcmp(a, "--env") == 0) { if (!v) die("missing value for ", a); o.env_path = v; ++i; }
@@ -250,6 +259,10 @@ int main(int argc, char **argv) {
     const char *ext = strrchr(out, '.');
     if (!compare && !bench && (!ext || strcmp(ext, ".exr") != 0)) {
         fprintf(stderr, "candela: %s: the output must be an .exr file (the PNG preview goes to --png)\n", out);
+        return 2;
+    }
+    if (o.volume_inscatter_sampling == 1 && o.light_sampler != CANDELA_LIGHT_SAMPLER_CACHEPOINTS) {
+        fprintf(stderr, "candela: --volume-cachepoint-scatter on needs --light-sampler cachepoints\n");
         return 2;
     }
     if (png && strcmp(png, out) == 0) {

@@ -25,7 +25,7 @@ typedef enum { WALK_SURFACE, WALK_ESCAPED, WALK_ENDED } WalkEnd;
 /* NEE from a medium vertex: as at a surface (direct_light_sample), with the phase function and
  * the shadow ray traced now (the walk is depth-first). */
 static void medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec3 x, const Scatter *sc,
-                                const LightSampleContext *lc) {
+                                const LightSampleContext *lc, float weight) {
     const PathState *ps = &ig->ps;
     LightLiSample ls;
     vec3 contrib;
@@ -37,7 +37,7 @@ static void medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec3
         if (scene_visible1(ig->scene, (SceneRay){x, 0.0f, ls.wi, tfar})) {
             vec3 T = shadow_transmittance(ig, s, ps->rng_key[p], ps->depth[p], ps->medium[p], x, ls.wi, tfar);
             visibility = clampf(v3_average(T), 0.0f, 1.0f);
-            path_add_radiance(ps, p, v3_mul(contrib, T), RADIANCE_DIRECT);
+            path_add_radiance(ps, p, v3_scale(v3_mul(contrib, T), weight), RADIANCE_DIRECT);
         }
     }
     light_sampler_record(ig->light_sampler, outcome, visibility);
@@ -79,7 +79,14 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         media_view(ig->media, ps->medium[p], ray.org, ray.dir, tmax, &view);
         if (view.count == 0) return isinf(tmax) ? WALK_ESCAPED : WALK_SURFACE;
         uint32_t depth = ps->depth[p];
-        RngStream stream = rng_stream(ps->rng_key[p], depth, RNG_STREAM_MEDIUM);
+        /* the camera ray's segments (the same depth until the first scatter, one per medium
+         * boundary crossed) also get cache-point in-scattering sampling when it is on */
+        VolumeDistanceTable table;
+        int inscatter = ig->inscatter && depth == 0 && ps->volume_bounces[p] == 0 &&
+                        inscatter_table(ig, ray, tmax, &view, hint, &table);
+        if (inscatter) inscatter_estimate(ig, s, p, ray, &view, &table, hint, scratch);
+        /* a sub-stream per segment: a boundary crossing keeps the depth, so it is keyed too */
+        RngStream stream = rng_stream(ps->rng_key[p], depth, RNG_STREAM_MEDIUM + (ps->crossings[p] << 8));
         VolumeRng rng = {rng_stream_next_cb, &stream};
         vec3 beta = ps->throughput[p];
         const float o[3] = {ray.org.x, ray.org.y, ray.org.z}, d[3] = {ray.dir.x, ray.dir.y, ray.dir.z};
@@ -101,7 +108,9 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         scatter_init_phase(&sc, view.media[ev.medium]->g, v3_neg(ray.dir));
         LightSampleContext lc = {x, v3s(0.0f), {0, 0.0f}, scratch};
         light_sampler_prepare(ig->light_sampler, &lc, hint);
-        if (ig->lights->count > 0) medium_direct_light(ig, s, p, x, &sc, &lc);
+        /* the null-collision technique's NEE, weighed against in-scattering sampling (Eq. 10) */
+        float w = inscatter ? inscatter_null_weight(&table, ev.t, ev.null_mis, ev.sigma_s_mean) : 1.0f;
+        if (ig->lights->count > 0) medium_direct_light(ig, s, p, x, &sc, &lc, w);
         uint64_t key = ps->rng_key[p];
         ScatterSample ss;
         if (!scatter_sample(&sc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_LOBE)),

@@ -57,28 +57,33 @@ static int cross_boundary(const Integrator *ig, Slice *s, uint32_t p, const Scen
     return 1;
 }
 
-int direct_light_sample(const Integrator *ig, uint32_t p, const Scatter *sc, const LightSampleContext *lc,
-                        LightLiSample *ls, vec3 *contrib, uint32_t *outcome) {
-    const PathState *ps = &ig->ps;
-    uint64_t key = ps->rng_key[p];
-    uint32_t depth = ps->depth[p];
+int direct_light_sample_u(const Integrator *ig, vec3 beta, const Scatter *sc, const LightSampleContext *lc,
+                          const float u[6], LightLiSample *ls, vec3 *contrib, uint32_t *outcome) {
     float pmf;
-    uint32_t li = light_sampler_select(ig->light_sampler, lc,
-                                       rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_SELECT)),
-                                       rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_DESCEND)), &pmf, outcome);
-    if (!(pmf > 0.0f) ||
-        !light_sample_li(ig->lights, &ig->lights->lights[li], lc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_U)),
-                         rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_V)),
-                         rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_W)),
-                         rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_X)), ls))
+    uint32_t li = light_sampler_select(ig->light_sampler, lc, u[0], u[1], &pmf, outcome);
+    if (!(pmf > 0.0f) || !light_sample_li(ig->lights, &ig->lights->lights[li], lc, u[2], u[3], u[4], u[5], ls))
         return 0;
     float scatter_pdf;
     vec3 f = scatter_eval(sc, ls->wi, &scatter_pdf);
     if (v3_is_black(f)) return 0;
     float light_pdf = pmf * ls->pdf;
     float w = ls->is_delta ? 1.0f : power_heuristic(light_pdf, scatter_pdf);
-    *contrib = v3_scale(v3_mul(v3_mul(ps->throughput[p], f), ls->radiance), w / light_pdf);
+    *contrib = v3_scale(v3_mul(v3_mul(beta, f), ls->radiance), w / light_pdf);
     return v3_is_finite(*contrib) && !v3_is_black(*contrib);
+}
+
+int direct_light_sample(const Integrator *ig, uint32_t p, const Scatter *sc, const LightSampleContext *lc,
+                        LightLiSample *ls, vec3 *contrib, uint32_t *outcome) {
+    const PathState *ps = &ig->ps;
+    uint64_t key = ps->rng_key[p];
+    uint32_t depth = ps->depth[p];
+    const float u[6] = {rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_SELECT)),
+                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_DESCEND)),
+                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_U)),
+                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_V)),
+                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_W)),
+                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_X))};
+    return direct_light_sample_u(ig, ps->throughput[p], sc, lc, u, ls, contrib, outcome);
 }
 
 /* Next-event estimation from the vertex: the MIS-weighted contribution pending on a shadow ray

@@ -112,6 +112,8 @@ int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene,
     ig->media = media;
     ig->camera_medium = media_at_point(media, xform_point(scene->camera.xform, v3s(0.0f)));
     ig->light_sampler = sampler;
+    ig->inscatter = o->volume_inscatter_sampling == 1 && media_any(media) && lights->count > 0 &&
+                    light_sampler_has_inscatter(sampler);
     ig->npixels = (uint32_t)scene->camera.width * (uint32_t)scene->camera.height;
     pthread_mutex_init(&ig->ray_log_mutex, NULL);
     size_t n = batch ? batch : 1;

@@ -154,6 +154,9 @@ void media_sample_event(const MediaView *v, const float o[3], const float d[3], 
     ev->type = VOLUME_EVENT_PASSED;
     ev->t = tmax;
     ev->medium = -1;
+    ev->null_mis = 1.0f;
+    ev->sigma_s_mean = 0.0f;
+    float null_mis = 1.0f;
     uint64_t collisions = 0;
     Walk walk;
     walk_begin(&walk, v, o, d, tmin, tmax);
@@ -251,11 +254,14 @@ void media_sample_event(const MediaView *v, const float o[3], const float d[3], 
                 ev->type = VOLUME_EVENT_SCATTER;
                 ev->t = tn;
                 ev->medium = pick;
+                ev->null_mis = null_mis;
+                ev->sigma_s_mean = (ss[0] + ss[1] + ss[2]) * (1.0f / 3.0f);
                 goto done;
             }
             /* null collision: w *= sigma_n / (maj P_n) */
             float f = sum / (pn * maj);
             for (int k = 0; k < 3; ++k) w[k] *= sn[k] * f;
+            null_mis *= (sn[0] + sn[1] + sn[2]) * (1.0f / 3.0f) * inv_maj;
             depth = sample_depth(rng);
         }
     }
@@ -280,7 +286,7 @@ done:
  * next_collision places a collision before anything is gathered and stops at the segment's
  * end, so nothing beyond tmax counts. Returns 0 when stopped by VOLUME_MAX_COLLISIONS. */
 static int ratio_walk(const MediaView *v, int emitter, const float o[3], const float d[3], float tmin, float tmax,
-                      VolumeRng *rng, float w[3], float L[3], uint64_t *collisions) {
+                      VolumeRng *rng, float w[3], float L[3], float *null_mis, uint64_t *collisions) {
     Walk walk;
     walk_begin(&walk, v, o, d, tmin, tmax);
     float end, maj, depth = sample_depth(rng);
@@ -301,7 +307,12 @@ static int ratio_walk(const MediaView *v, int emitter, const float o[3], const f
             } else {
                 walk_eval(&walk, tn, sa, ss, NULL, NULL, NULL);
             }
-            for (int k = 0; k < 3; ++k) w[k] *= vmaxf(1.0f - (sa[k] + ss[k]) * inv_maj, 0.0f);
+            float q[3];
+            for (int k = 0; k < 3; ++k) {
+                q[k] = vmaxf(1.0f - (sa[k] + ss[k]) * inv_maj, 0.0f);
+                w[k] *= q[k];
+            }
+            if (null_mis) *null_mis *= (q[0] + q[1] + q[2]) * (1.0f / 3.0f);
             float mx = vmax3(w);
             if (mx < RATIO_RR_THRESHOLD) {
                 if (!(mx > 0.0f) || rng->next(rng->state) >= mx) {
@@ -322,7 +333,19 @@ void media_transmittance(const MediaView *v, const float o[3], const float d[3],
     /* ratio tracking (Novák et al. 2014 §4): the walk's weight is the estimate */
     T[0] = T[1] = T[2] = 1.0f;
     uint64_t collisions = 0;
-    if (!ratio_walk(v, -1, o, d, tmin, tmax, rng, T, NULL, &collisions)) {
+    if (!ratio_walk(v, -1, o, d, tmin, tmax, rng, T, NULL, NULL, &collisions)) {
+        if (stats) ++stats->capped_walks;
+        T[0] = T[1] = T[2] = 0.0f;
+    }
+    if (stats) stats->collisions += collisions;
+}
+
+void media_ratio_track(const MediaView *v, const float o[3], const float d[3], float tmin, float tmax,
+                       VolumeRng *rng, float T[3], float *null_mis, VolumeStats *stats) {
+    T[0] = T[1] = T[2] = 1.0f;
+    *null_mis = 1.0f;
+    uint64_t collisions = 0;
+    if (!ratio_walk(v, -1, o, d, tmin, tmax, rng, T, NULL, null_mis, &collisions)) {
         if (stats) ++stats->capped_walks;
         T[0] = T[1] = T[2] = 0.0f;
     }
@@ -342,6 +365,6 @@ void media_emission_line(const MediaView *v, int emitter, const float o[3], cons
     if (emitter < 0 || emitter >= n || !v->media[emitter] || !v->media[emitter]->emissive) return;
     float w[3] = {1.0f, 1.0f, 1.0f};
     uint64_t collisions = 0;
-    if (!ratio_walk(v, emitter, o, d, tmin, tmax, rng, w, L, &collisions) && stats) ++stats->capped_walks;
+    if (!ratio_walk(v, emitter, o, d, tmin, tmax, rng, w, L, NULL, &collisions) && stats) ++stats->capped_walks;
     if (stats) stats->collisions += collisions;
 }

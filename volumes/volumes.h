@@ -199,6 +199,12 @@ typedef struct VolumeEvent {
                           * estimates, one medium's sigma_a L_e each, so their sum is emitted up
                           * to float rounding (emitted itself is summed as before). For MIS,
                           * where each emissive medium is a light. */
+    /* scatter: for MIS against distance sampling along the ray (the cache points paper §4.2,
+     * Eq. 10): null_mis is the product over the null collisions before the event of the mean
+     * over RGB of sigma_n / sigma_maj, sigma_s_mean the mean over RGB of the summed sigma_s at
+     * the event (1 and 0 for the other outcomes). media_ratio_track returns the same product
+     * over its collisions, so both techniques weigh a path with one function of its vertices. */
+    float null_mis, sigma_s_mean;
 } VolumeEvent;
 
 /* One free flight along o + t d (d unit) over [tmin, tmax] through the view's media
@@ -212,6 +218,38 @@ void media_sample_event(const MediaView *v, const float o[3], const float d[3], 
  * is unbiased. */
 void media_transmittance(const MediaView *v, const float o[3], const float d[3], float tmin, float tmax,
                          VolumeRng *rng, float T[3], VolumeStats *stats);
+
+/* Ratio tracking as media_transmittance (the same walk and estimate), also returning in
+ * *null_mis the product over its collisions of the mean over RGB of sigma_n / sigma_maj (see
+ * VolumeEvent.null_mis): the null-collision path's density ratio of Eq. 10 for a point sampled
+ * at tmax by another technique. */
+void media_ratio_track(const MediaView *v, const float o[3], const float d[3], float tmin, float tmax,
+                       VolumeRng *rng, float T[3], float *null_mis, VolumeStats *stats);
+
+/* ---------------------------------------------------------------- distance sampling (§4.2) */
+
+/* A density over distance t in [t0, t1] along a ray: the cache points paper's §4.2
+ * "piecewise-linear 1-D CDF over distance" from importance values S_i at stations t_i
+ * (ascending, the first at t0 and the last at t1; linear in between), mixed with a defensive
+ * uniform term so every point of the interval can be drawn (the spec's §7.2 proposal):
+ *   p(t) = (1 - delta) lin(t) / integral(lin) + delta / (t1 - t0).
+ * With no importance anywhere (all S_i = 0) p is uniform. At most VOLUME_DISTANCE_STATIONS. */
+#define VOLUME_DISTANCE_STATIONS 66
+typedef struct VolumeDistanceTable {
+    float t[VOLUME_DISTANCE_STATIONS], s[VOLUME_DISTANCE_STATIONS];
+    double cdf[VOLUME_DISTANCE_STATIONS]; /* cdf[i]: integral of lin over [t0, t_i] */
+    int n;
+    float delta;
+} VolumeDistanceTable;
+
+/* 0 ok; -1 for fewer than 2 stations, more than VOLUME_DISTANCE_STATIONS, a non-finite or
+ * decreasing t, t0 == t1, or a negative or non-finite S (then p is undefined: do not use). */
+int volume_distance_table_init(VolumeDistanceTable *tab, const float *t, const float *s, int n, float delta);
+/* A distance from two uniforms (u0 picks the component, u1 the point); returns it and its
+ * density in *pdf (1/m), exactly volume_distance_pdf at the returned t. */
+float volume_distance_sample(const VolumeDistanceTable *tab, float u0, float u1, float *pdf);
+/* The density at t (0 outside [t0, t1]). */
+float volume_distance_pdf(const VolumeDistanceTable *tab, float t);
 
 /* ---------------------------------------------------------------- volumetric emission (§4.3) */
 
