@@ -44,6 +44,11 @@ typedef struct CachePointSampler {
     const SceneMedia *media;
     int camera_ortho;
     vec3 camera_pos, camera_back; /* orthographic: the direction toward the camera */
+    /* the summed weights on a grid over the scattering points' bounds (see build_scatter_grid) */
+    float *scatter_grid;
+    int grid_dims[3];
+    vec3 grid_lo, grid_cell;
+    float grid_step;
 } CachePointSampler;
 
 static void cp_estimate7(const void *user, uint32_t light, const float x[3], float out[7]) {
@@ -349,7 +354,57 @@ static float cp_scatter_light(const void *user, uint32_t light, const float y[3]
     return hg_phase(g, wof, wif) * v3_luminance(ls.radiance) / ls.pdf;
 }
 
-static int build_scatter_weights(CachePointSampler *s, const Scene *scene, const SceneMedia *media, uint64_t seed) {
+/* The summed weights S_p looked up along every camera ray (up to 65 stations per ray, each a
+ * nearest-point query) cost more than the rest of the technique, so they are tabulated once:
+ * a grid of SCATTER_GRID^3 cells over the bounds of the points with S_p > 0 (padded by their
+ * radii) holding S of the point nearest each cell's centre. A station reads its cell (0
+ * outside the grid); the table along a ray is then a deterministic function of the ray, as
+ * the technique needs, at a few nanoseconds per station. */
+#define SCATTER_GRID 64
+
+typedef struct GridCtx { CachePointSampler *s; } GridCtx;
+
+static void scatter_grid_range(void *vctx, size_t b, size_t e, int thread) {
+    (void)thread;
+    CachePointSampler *s = ((GridCtx *)vctx)->s;
+    const int *dims = s->grid_dims;
+    uint32_t hint = UINT32_MAX;
+    for (size_t i = b; i < e; ++i) {
+        int x = (int)(i % (size_t)dims[0]), y = (int)(i / (size_t)dims[0] % (size_t)dims[1]),
+            z = (int)(i / ((size_t)dims[0] * dims[1]));
+        const float c[3] = {s->grid_lo.x + (x + 0.5f) * s->grid_cell.x, s->grid_lo.y + (y + 0.5f) * s->grid_cell.y,
+                            s->grid_lo.z + (z + 0.5f) * s->grid_cell.z};
+        hint = cachepoints_nearest_hint(s->cp, c, hint, NULL);
+        s->scatter_grid[i] = cachepoints_scatter_total(s->cp, hint);
+    }
+}
+
+static int build_scatter_grid(CachePointSampler *s, ThreadPool *pool) {
+    vec3 lo = v3s(INFINITY), hi = v3s(-INFINITY);
+    uint32_t n = cachepoints_count(s->cp);
+    for (uint32_t i = 0; i < n; ++i) {
+        if (!(cachepoints_scatter_total(s->cp, i) > 0.0f)) continue;
+        float p[3], r;
+        cachepoints_point(s->cp, i, p, &r);
+        lo = v3_min(lo, v3(p[0] - r, p[1] - r, p[2] - r));
+        hi = v3_max(hi, v3(p[0] + r, p[1] + r, p[2] + r));
+    }
+    if (!(lo.x <= hi.x) || !v3_is_finite(lo) || !v3_is_finite(hi)) return 0; /* nothing scatters: S = 0 */
+    vec3 ext = v3_max(v3_sub(hi, lo), v3s(1e-6f));
+    for (int k = 0; k < 3; ++k) s->grid_dims[k] = SCATTER_GRID;
+    s->grid_lo = lo;
+    s->grid_cell = v3_scale(ext, 1.0f / SCATTER_GRID);
+    s->grid_step = fminf(s->grid_cell.x, fminf(s->grid_cell.y, s->grid_cell.z));
+    size_t cells = (size_t)SCATTER_GRID * SCATTER_GRID * SCATTER_GRID;
+    s->scatter_grid = malloc(cells * sizeof(float));
+    if (!s->scatter_grid) return -1;
+    GridCtx ctx = {s};
+    threadpool_parallel_for(pool, cells, 4096, scatter_grid_range, &ctx);
+    return 0;
+}
+
+static int build_scatter_weights(CachePointSampler *s, const Scene *scene, const SceneMedia *media, ThreadPool *pool,
+                                 uint64_t seed) {
     const Camera *cam = &scene->camera;
     s->media = media;
     s->camera_ortho = cam->type != IO_CAMERA_PERSPECTIVE;
@@ -359,14 +414,23 @@ static int build_scatter_weights(CachePointSampler *s, const Scene *scene, const
     s->camera_back = v3_neg(d);
     CachePointScatter sc = {.medium = cp_scatter_medium, .light_sample = cp_scatter_light, .user = s,
                             .seed = seed ^ (CANDIDATE_SEED_SALT + 2)};
-    return cachepoints_build_scatter(s->cp, &s->view, &sc);
+    int rc = cachepoints_build_scatter(s->cp, &s->view, &sc);
+    return rc != 0 ? rc : build_scatter_grid(s, pool);
 }
 
 static float cp_inscatter_weight(const void *state, const float x[3], uint32_t *hint, float *radius) {
+    (void)hint;
     const CachePointSampler *s = state;
-    uint32_t p = cachepoints_nearest_hint(s->cp, x, hint ? *hint : UINT32_MAX, radius);
-    if (hint) *hint = p;
-    return cachepoints_scatter_total(s->cp, p);
+    *radius = s->grid_step;
+    if (!s->scatter_grid) return 0.0f;
+    int c[3];
+    const float lo[3] = {s->grid_lo.x, s->grid_lo.y, s->grid_lo.z}, cell[3] = {s->grid_cell.x, s->grid_cell.y, s->grid_cell.z};
+    for (int k = 0; k < 3; ++k) {
+        float f = (x[k] - lo[k]) / cell[k];
+        if (!(f >= 0.0f && f < (float)s->grid_dims[k])) return 0.0f;
+        c[k] = (int)f;
+    }
+    return s->scatter_grid[(size_t)c[0] + (size_t)s->grid_dims[0] * ((size_t)c[1] + (size_t)s->grid_dims[1] * c[2])];
 }
 
 static const LightSamplerOps CACHEPOINT_INSCATTER_OPS;
@@ -445,6 +509,7 @@ static void cp_destroy(void *state) {
     free(s->second);
     free(s->leaf_light);
     free(s->light_leaf);
+    free(s->scatter_grid);
     free(s);
 }
 
@@ -535,7 +600,7 @@ int light_sampler_cachepoints_create(LightSampler *ls, const Lights *lights, con
         }
         int inscatter = s->cp && media && media_any(media) && o->volume_inscatter_sampling != 0;
         if (inscatter) {
-            int rc_scatter = build_scatter_weights(s, scene, media, o->seed);
+            int rc_scatter = build_scatter_weights(s, scene, media, pool, o->seed);
             if (rc_scatter != 0) { cp_destroy(s); goto oom; }
         }
         s->build_seconds = clock_seconds() - t0;

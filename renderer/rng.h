@@ -72,7 +72,8 @@ enum {
     RNG_STREAM_SHADOW = 2,  /* the transmittance of this depth's NEE shadow ray */
     RNG_STREAM_LIGHT_LINE = 3, /* a volume light's emission line (keyed by the light sample) */
     RNG_STREAM_INSCATTER = 4,  /* in-scattering sampling on this depth's camera segment: distance, tracking, light */
-    RNG_STREAM_INSCATTER_SHADOW = 5 /* the transmittance of that technique's shadow ray */
+    RNG_STREAM_INSCATTER_SHADOW = 5, /* the transmittance of that technique's shadow ray */
+    RNG_STREAM_EMISSION_LINE = 6 /* the emission arriving along this depth's segment (Algorithm 1) */
 };
 
 static inline RngStream rng_stream(uint64_t path_key, uint32_t depth, uint32_t purpose) {

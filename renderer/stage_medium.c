@@ -43,19 +43,30 @@ static void medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec3
     light_sampler_record(ig->light_sampler, outcome, visibility);
 }
 
-/* The emission a free flight gathered, per medium: from a volume that is also a light (emission
- * sampling), MIS-weighted against NEE's probability of the same direction from the previous
- * vertex (the line integral NEE estimates is the one this flight's collisions estimate). */
-static void add_volume_emission(const Integrator *ig, uint32_t p, const MediaView *view, const VolumeEvent *ev,
-                                SceneRay ray, vec3 beta) {
+/* The emission arriving along the segment from each emissive medium of the view, MIS-weighted
+ * against NEE's probability of the same direction from the previous vertex when that medium
+ * is a light (emission sampling: the line integral NEE estimates is this one). The segment's
+ * emission is the line integral over [0, tmax] whatever the path does after it, so it is
+ * estimated by emission-optimised tracking along the whole segment (the paper's §4.3,
+ * Algorithm 1; the spec's §7.5: "a BSDF-sampled ray through the volume uses the same Alg. 1
+ * for radiance") with its own sub-stream, not by the collisions of the free flight (which
+ * stop at the first real event and were many times noisier on a fire seen directly). */
+static void add_volume_emission(const Integrator *ig, Slice *s, uint32_t p, const MediaView *view, SceneRay ray,
+                                float tmax, vec3 beta) {
     const PathState *ps = &ig->ps;
     const Lights *lights = ig->lights;
+    const SceneMedia *media = ig->media;
+    RngStream stream = rng_stream(ps->rng_key[p], ps->depth[p], RNG_STREAM_EMISSION_LINE + (ps->crossings[p] << 8));
+    VolumeRng rng = {rng_stream_next_cb, &stream};
+    const float o[3] = {ray.org.x, ray.org.y, ray.org.z}, d[3] = {ray.dir.x, ray.dir.y, ray.dir.z};
     for (int k = 0; k < view->count; ++k) {
-        vec3 e = v3(ev->emitted_by[k][0], ev->emitted_by[k][1], ev->emitted_by[k][2]);
+        const Medium *m = view->media[k];
+        if (!m->emissive) continue;
+        float L[3];
+        media_emission_line(view, k, o, d, 0.0f, tmax, &rng, L, &s->volume);
+        vec3 e = v3(L[0], L[1], L[2]);
         if (v3_is_black(e)) continue;
         float w = 1.0f;
-        const Medium *m = view->media[k];
-        const SceneMedia *media = ig->media;
         if (lights->of_medium && m >= media->vdb && m < media->vdb + media->num_vdb && !ps->prev_delta[p]) {
             int32_t light = lights->of_medium[m - media->vdb];
             if (light >= 0) {
@@ -92,8 +103,8 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         const float o[3] = {ray.org.x, ray.org.y, ray.org.z}, d[3] = {ray.dir.x, ray.dir.y, ray.dir.z};
         const float b[3] = {beta.x, beta.y, beta.z};
         VolumeEvent ev;
+        add_volume_emission(ig, s, p, &view, ray, tmax, beta);
         media_sample_event(&view, o, d, 0.0f, tmax, b, &rng, &ev, &s->volume);
-        add_volume_emission(ig, p, &view, &ev, ray, beta);
         if (ev.type == VOLUME_EVENT_ABSORBED) return WALK_ENDED;
         beta = v3_mul(beta, v3(ev.weight[0], ev.weight[1], ev.weight[2]));
         ps->throughput[p] = beta;

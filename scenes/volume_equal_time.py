@@ -7,7 +7,8 @@ in-scattering sampling (the full combination), all with the cache point light sa
     python3 scenes/volume_equal_time.py [--scenes build/scenes/volumes] [--res 160x120]
                                         [--seconds 4] [--ref-spp 2048] [--out DIR]
 
-For each scene: a reference (the full combination at --ref-spp, another seed), then per
+For each scene: a reference (plain tracking at --ref-spp, another seed: the estimator under
+test is never its own reference), then per
 configuration a short calibration render for the time per sample, and a render with as many
 samples as fit in --seconds (render time without scene loading: the cache point build, with
 its scattering weights, is counted). MSE is against the reference over RGB (oiiotool --diff),
@@ -40,7 +41,7 @@ def render(candela, scene, out, spp, seed, res, extra):
         sys.exit("render failed: %s\n%s" % (" ".join(cmd), r.stderr))
     with open(stats) as f:
         t = json.load(f)["time_seconds"]
-    return t["total"] - t["load"]
+    return t["total"] - t["load"], t["build"]
 
 
 def mse(a, b):
@@ -70,15 +71,16 @@ def main():
             sys.exit("%s: missing (run python3 scenes/make_volumes.py %s)" % (scene, a.scenes))
         ref = os.path.join(a.out, name + "_ref.exr")
         if not os.path.exists(ref):
-            render(a.candela, scene, ref, a.ref_spp, 99, a.res, CONFIGS[-1][1])
+            render(a.candela, scene, ref, a.ref_spp, 99, a.res, CONFIGS[0][1])
         base = None
         for label, extra in CONFIGS:
             tag = re.sub(r"[^a-z]+", "_", label).strip("_")
             cal = os.path.join(a.out, "%s_%s_cal.exr" % (name, tag))
-            t8 = render(a.candela, scene, cal, 8, 7, a.res, extra)
-            spp = max(1, int(a.seconds / max(t8 / 8.0, 1e-6)))
+            t8, build = render(a.candela, scene, cal, 8, 7, a.res, extra)
+            per_spp = max((t8 - build) / 8.0, 1e-6)
+            spp = max(1, int((a.seconds - build) / per_spp))
             out = os.path.join(a.out, "%s_%s.exr" % (name, tag))
-            t = render(a.candela, scene, out, spp, 5, a.res, extra)
+            t, _ = render(a.candela, scene, out, spp, 5, a.res, extra)
             e = mse(out, ref)
             ttuv = e * t
             base = base or ttuv
