@@ -69,7 +69,13 @@ typedef struct Integrator {
     const LightSampler *light_sampler;
     const SceneMedia *media;
     uint32_t camera_medium;   /* the mesh medium the camera is in (media.h) */
-    int inscatter;            /* cache-point in-scattering sampling on camera segments (inscatter.c) */
+    int inscatter;            /* in-scattering sampling on camera segments (inscatter.c) may run */
+    /* per medium (media_id): whether its camera segments use it (on: all; auto: decided after
+     * the probe, during which all do and the probe statistics are gathered) */
+    uint8_t *inscatter_on;
+    int inscatter_probe, probe_iterations;
+    struct InscatterProbe *probe; /* per medium */
+    double probe_cost, probe_paths;
     PathState ps;
     /* queue storage for the whole batch; a slice uses its own [begin, end) part of each */
     uint32_t *queue_rays, *queue_hits, *queue_escaped, *queue_shadows;
@@ -218,8 +224,25 @@ int inscatter_table(const Integrator *ig, SceneRay ray, float tmax, const MediaV
 /* The technique's estimate: a distance from the table, ratio tracking to it, and NEE there
  * (light selection through the protocol, a shadow ray with its transmittance), weighted by the
  * balance heuristic against null-collision tracking (Eq. 10), added through the funnel. */
-void inscatter_estimate(const Integrator *ig, Slice *s, uint32_t p, SceneRay ray, const MediaView *view,
-                        const VolumeDistanceTable *tab, uint32_t *hint, float *scratch);
+float inscatter_estimate(const Integrator *ig, Slice *s, uint32_t p, SceneRay ray, const MediaView *view,
+                         const VolumeDistanceTable *tab, uint32_t *hint, float *scratch, float *cost);
+/* Whether a camera segment through these media uses the technique (a function of the media
+ * and of the iteration's state only, so both techniques agree on it). */
+int inscatter_segment_on(const Integrator *ig, const MediaView *view);
+/* --volume-cachepoint-scatter on / auto: the per-medium state (0 ok, -1 out of memory); the
+ * probe's per-batch accounting (after the batch, in path order) and its barrier hook, which
+ * after INSCATTER_PROBE_ITERATIONS iterations keeps the technique for a medium only where the
+ * measured time-to-unit-variance of its pixels is lower with it. */
+int inscatter_init(Integrator *ig, int mode);
+void inscatter_free(Integrator *ig);
+void inscatter_probe_batch(Integrator *ig, const Slice *slices, uint32_t n);
+/* The probe's record of a camera segment's null-collision NEE (unweighted luminance c, and the
+ * weight it got). */
+static inline void inscatter_probe_null(const Integrator *ig, uint32_t p, float c, float w) {
+    if (!ig->inscatter_probe) return;
+    ig->ps.probe_null[p] += c;
+    ig->ps.probe_mis[p] += w * c;
+}
 /* The balance-heuristic weight of the null-collision technique's first scatter at t (its
  * VolumeEvent's null_mis and sigma_s_mean) against the table's distance sampling. */
 static inline float inscatter_null_weight(const VolumeDistanceTable *tab, float t, float null_mis,

@@ -33,6 +33,13 @@ int media_build(SceneMedia *media, const Scene *scene, const char *scene_path, c
 void media_free(SceneMedia *media);
 static inline int media_any(const SceneMedia *media) { return media->num_vdb + media->num_homogeneous > 0; }
 
+/* A medium's index among all of the scene's: VDB volumes first, then the mesh media. */
+static inline uint32_t media_count(const SceneMedia *media) { return media->num_vdb + media->num_homogeneous; }
+static inline uint32_t media_id(const SceneMedia *media, const Medium *m) {
+    return m >= media->vdb && m < media->vdb + media->num_vdb ? (uint32_t)(m - media->vdb)
+                                                              : media->num_vdb + (uint32_t)(m - media->homogeneous);
+}
+
 /* The mesh medium (index + 1, 0: none) inside the surface of a hit primitive. */
 uint32_t media_of_primitive(const SceneMedia *media, uint32_t instance, uint32_t local_prim);
 /* The mesh medium a point lies in, found by one ray against the invisible medium boundaries

@@ -24,23 +24,26 @@ typedef enum { WALK_SURFACE, WALK_ESCAPED, WALK_ENDED } WalkEnd;
 
 /* NEE from a medium vertex: as at a surface (direct_light_sample), with the phase function and
  * the shadow ray traced now (the walk is depth-first). */
-static void medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec3 x, const Scatter *sc,
-                                const LightSampleContext *lc, float weight) {
+static float medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec3 x, const Scatter *sc,
+                                 const LightSampleContext *lc, float weight) {
     const PathState *ps = &ig->ps;
     LightLiSample ls;
     vec3 contrib;
     uint32_t outcome;
-    float visibility = 0.0f;
+    float visibility = 0.0f, unweighted = 0.0f;
     if (direct_light_sample(ig, p, sc, lc, &ls, &contrib, &outcome)) {
         float tfar = isinf(ls.distance) ? INFINITY : ls.distance * (1.0f - 1e-3f);
         s->shadow_rays++;
         if (scene_visible1(ig->scene, (SceneRay){x, 0.0f, ls.wi, tfar})) {
             vec3 T = shadow_transmittance(ig, s, ps->rng_key[p], ps->depth[p], ps->medium[p], x, ls.wi, tfar);
             visibility = clampf(v3_average(T), 0.0f, 1.0f);
-            path_add_radiance(ps, p, v3_scale(v3_mul(contrib, T), weight), RADIANCE_DIRECT);
+            vec3 c = v3_mul(contrib, T);
+            path_add_radiance(ps, p, v3_scale(c, weight), RADIANCE_DIRECT);
+            unweighted = v3_luminance(c);
         }
     }
     light_sampler_record(ig->light_sampler, outcome, visibility);
+    return unweighted;
 }
 
 /* The emission arriving along the segment from each emissive medium of the view, MIS-weighted
@@ -94,8 +97,15 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
          * boundary crossed) also get cache-point in-scattering sampling when it is on */
         VolumeDistanceTable table;
         int inscatter = ig->inscatter && depth == 0 && ps->volume_bounces[p] == 0 &&
-                        inscatter_table(ig, ray, tmax, &view, hint, &table);
-        if (inscatter) inscatter_estimate(ig, s, p, ray, &view, &table, hint, scratch);
+                        inscatter_segment_on(ig, &view) && inscatter_table(ig, ray, tmax, &view, hint, &table);
+        if (inscatter) {
+            float cost, added = inscatter_estimate(ig, s, p, ray, &view, &table, hint, scratch, &cost);
+            if (ig->inscatter_probe) {
+                if (!ps->probe_medium[p]) ps->probe_medium[p] = media_id(ig->media, view.media[0]) + 1;
+                ps->probe_mis[p] += added;
+                ps->probe_cost[p] += cost;
+            }
+        }
         /* a sub-stream per segment: a boundary crossing keeps the depth, so it is keyed too */
         RngStream stream = rng_stream(ps->rng_key[p], depth, RNG_STREAM_MEDIUM + (ps->crossings[p] << 8));
         VolumeRng rng = {rng_stream_next_cb, &stream};
@@ -121,7 +131,10 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         light_sampler_prepare(ig->light_sampler, &lc, hint);
         /* the null-collision technique's NEE, weighed against in-scattering sampling (Eq. 10) */
         float w = inscatter ? inscatter_null_weight(&table, ev.t, ev.null_mis, ev.sigma_s_mean) : 1.0f;
-        if (ig->lights->count > 0) medium_direct_light(ig, s, p, x, &sc, &lc, w);
+        if (ig->lights->count > 0) {
+            float c = medium_direct_light(ig, s, p, x, &sc, &lc, w);
+            if (inscatter) inscatter_probe_null(ig, p, c, w);
+        }
         uint64_t key = ps->rng_key[p];
         ScatterSample ss;
         if (!scatter_sample(&sc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_LOBE)),

@@ -89,6 +89,7 @@ void integrator_run_batch(Integrator *ig, ThreadPool *pool, CandelaStats *st) {
     }
     st->paths += ig->batch_count;
     st->rays_camera += ig->batch_count;
+    inscatter_probe_batch(ig, slices, n);
     /* film: serial, in path order, so every pixel sums its samples in sample order */
     double t = clock_seconds();
     film_add_paths(&ig->film, &ig->ps, ig->batch_count);
@@ -112,7 +113,7 @@ int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene,
     ig->media = media;
     ig->camera_medium = media_at_point(media, xform_point(scene->camera.xform, v3s(0.0f)));
     ig->light_sampler = sampler;
-    ig->inscatter = o->volume_inscatter_sampling == 1 && media_any(media) && lights->count > 0 &&
+    ig->inscatter = o->volume_inscatter_sampling != 0 && media_any(media) && lights->count > 0 &&
                     light_sampler_has_inscatter(sampler);
     ig->npixels = (uint32_t)scene->camera.width * (uint32_t)scene->camera.height;
     pthread_mutex_init(&ig->ray_log_mutex, NULL);
@@ -127,6 +128,7 @@ int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene,
     int fail = !ig->queue_rays || !ig->queue_hits || !ig->queue_escaped || !ig->queue_shadows || !ig->sort_keys ||
                !ig->sort_keys_tmp || !ig->sort_items_tmp;
     fail = fail || path_state_alloc(&ig->ps, batch) != 0 || film_alloc(&ig->film, scene->camera.width, scene->camera.height) != 0;
+    fail = fail || inscatter_init(ig, ig->inscatter ? o->volume_inscatter_sampling : 0) != 0;
     if (fail) { integrator_free(ig); return -1; }
     return 0;
 }
@@ -136,6 +138,7 @@ void integrator_free(Integrator *ig) {
     free(ig->queue_rays); free(ig->queue_hits); free(ig->queue_escaped); free(ig->queue_shadows);
     free(ig->sort_keys); free(ig->sort_keys_tmp); free(ig->sort_items_tmp);
     film_free(&ig->film);
+    inscatter_free(ig);
     pthread_mutex_destroy(&ig->ray_log_mutex);
     memset(ig, 0, sizeof *ig);
 }
