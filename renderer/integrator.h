@@ -229,7 +229,7 @@ float inscatter_estimate(const Integrator *ig, Slice *s, uint32_t p, SceneRay ra
 /* Whether a camera segment through these media uses the technique (a function of the media
  * and of the iteration's state only, so both techniques agree on it). */
 int inscatter_segment_on(const Integrator *ig, const MediaView *view);
-/* --volume-cachepoint-scatter on / auto: the per-medium state (0 ok, -1 out of memory); the
+/* In-scattering sampling on / auto: the per-medium state (0 ok, -1 out of memory); the
  * probe's per-batch accounting (after the batch, in path order) and its barrier hook, which
  * after INSCATTER_PROBE_ITERATIONS iterations keeps the technique for a medium only where the
  * measured time-to-unit-variance of its pixels is lower with it. */

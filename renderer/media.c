@@ -88,6 +88,7 @@ uint32_t media_at_point(const SceneMedia *media, vec3 p) {
 
 void media_view(const SceneMedia *media, uint32_t mesh_medium, vec3 o, vec3 d, float tmax, MediaView *view) {
     view->count = 0;
+    view->decomposition = 1;
     if (mesh_medium) view->media[view->count++] = &media->homogeneous[mesh_medium - 1];
     const float of[3] = {o.x, o.y, o.z}, df[3] = {d.x, d.y, d.z};
     for (uint32_t i = 0; i < media->num_vdb && view->count < VOLUME_MAX_OVERLAP; ++i) {

@@ -48,7 +48,7 @@
     F(uint32_t, shadow_outcome, N)  /* the light sampler's outcome token for the selection */    \
     F(uint32_t, shadow_depth, N)    /* the depth of the vertex that cast it (its RNG sub-stream) */ \
     F(uint32_t, shadow_medium, N)   /* the mesh medium it starts in */                          \
-    /* -- the probe of --volume-cachepoint-scatter auto (inscatter.c), first iterations only */  \
+    /* -- the probe of in-scattering sampling auto (inscatter.c), first iterations only */     \
     F(uint32_t, probe_medium, N)    /* the medium (media_id + 1) of its first camera segment   \
                                      * that ran in-scattering sampling; 0: none */              \
     F(float, probe_null, N)         /* that NEE by tracking alone, unweighted (luminance) */     \

@@ -106,6 +106,10 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
                 ps->probe_cost[p] += cost;
             }
         }
+        /* decomposition tracking where it applies, except on a segment whose first scatter is
+         * MIS-weighted against in-scattering sampling (Eq. 10 weighs the null vertices of one
+         * undivided majorant in both techniques) */
+        view.decomposition = !inscatter;
         /* a sub-stream per segment: a boundary crossing keeps the depth, so it is keyed too */
         RngStream stream = rng_stream(ps->rng_key[p], depth, RNG_STREAM_MEDIUM + (ps->crossings[p] << 8));
         VolumeRng rng = {rng_stream_next_cb, &stream};

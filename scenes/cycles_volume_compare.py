@@ -17,7 +17,8 @@ What it does:
      ../shared/tools/cycles_render.py (--lighting-mode SPEC: the importer's default, which is
      what Candela's `blender` units follow; the same VDB added with --vdb, --vdb-translate = the
      node translation: the tool maps glTF to Blender axes itself; --max-depth = --bounces, all
-     bounce kinds), same resolution, box 1-pixel filter on both, black world;
+     bounce kinds), same resolution, box 1-pixel filter on both, black world (--world S: a
+     constant sky of radiance S in both, through scenes/cycles_world.py on the Cycles side);
      Cycles once per --step-rates value (Cycles 3.4 ray-marches heterogeneous volumes, so its
      answer depends on the step: step = voxel size x step rate, but at most
      volume_max_steps = 1024 steps per ray segment, which the tool leaves at Blender's default:
@@ -102,6 +103,9 @@ def parse_args():
     ap.add_argument('--seed', type=int, default=1, help='Candela seed')
     ap.add_argument('--exposure', type=float, default=None,
                     help='PNG exposure in stops (default: Candela 99.5th percentile at 0.9)')
+    ap.add_argument('--world', type=float, default=0.0,
+                    help='constant environment radiance (0: black world): Candela --env of a constant '
+                         'EXR with --env-strength, Cycles a Background of that strength (scenes/cycles_world.py)')
     ap.add_argument('--skip-cycles', action='store_true', help='reuse the Cycles EXRs already in --out')
     ap.add_argument('--skip-candela', action='store_true', help='reuse the Candela EXR already in --out')
     return ap.parse_args()
@@ -197,10 +201,19 @@ def main():
     # ------------------------------------------------------------------ Candela
     c_exr = os.path.join(a.out, 'candela.exr')
     c_json = os.path.join(a.out, 'candela_stats.json')
+    env = []
+    if a.world > 0.0:
+        sky = os.path.join(a.out, 'sky_constant.exr')
+        spec = oiio.ImageSpec(64, 32, 3, oiio.FLOAT)
+        out = oiio.ImageOutput.create(sky)
+        out.open(sky, spec)
+        out.write_image(np.ones((32, 64, 3), dtype=np.float32))
+        out.close()
+        env = ['--env', sky, '--env-strength', '%.9g' % a.world]
     if not a.skip_candela:
         run([a.candela, 'render', gltf, '--res', res, '--spp', str(a.spp), '--max-depth', '8',
              '--max-volume-bounces', str(a.bounces), '--seed', str(a.seed), '--threads', str(a.threads),
-             '--light-units', 'blender', '--no-png', '--stats-json', c_json, '-o', c_exr],
+             '--light-units', 'blender', '--no-png', '--stats-json', c_json, '-o', c_exr] + env,
             os.path.join(a.out, 'candela.log'))
     ch = read_exr(c_exr)
     c_img = rgb(ch)
@@ -224,7 +237,9 @@ def main():
             exr = os.path.join(a.out, 'cycles_sr%g_seed%d.exr' % (rate, seed))
             log = os.path.join(a.out, 'cycles_sr%g_seed%d.log' % (rate, seed))
             if not a.skip_cycles:
-                cmd = [a.blender, '-b', '--factory-startup', '-noaudio', '--python', a.tool, '--',
+                tool = [a.tool, '--'] if a.world <= 0.0 else [
+                    os.path.join(HERE, 'cycles_world.py'), '--', '--world-strength', '%.9g' % a.world, '--cycles-tool', a.tool]
+                cmd = [a.blender, '-b', '--factory-startup', '-noaudio', '--python'] + tool + [
                        '--input', gltf, '--output', exr, '--width', str(a.res), '--height', str(a.res),
                        '--spp', str(a.cycles_spp), '--max-depth', str(a.bounces), '--threads', str(a.threads),
                        '--seed', str(seed), '--lighting-mode', 'SPEC',

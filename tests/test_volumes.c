@@ -230,6 +230,53 @@ static void test_beer_lambert(void) {
             CHECK(maj >= 3.0f && maj <= 3.0f * 1.001f, "constant grid: majorant %g, sigma_t 3", maj);
         }
         CHECK(nseg == 1, "constant grid: %d segments over a uniform region (merged: 1)", nseg);
+
+        /* decomposition tracking (Kutz et al. 2017 §4): a chromatic homogeneous medium (the
+         * control component) overlapping the grid; with and without it, the transmittance of
+         * the absorbing pair and the scattered weight E[w 1{scatter}] = sigma_s / sigma_t (1 -
+         * exp(-sigma_t d)) of the scattering pair match the closed forms per channel */
+        Medium hh, hha;
+        const float hsa[3] = {0.4f, 0.8f, 1.2f}, hss[3] = {0.6f, 0.4f, 0.2f}, hsa_only[3] = {1.0f, 1.2f, 1.4f}, z3[3] = {0};
+        CHECK(medium_init_homogeneous(&hh, hsa, hss, 0.0f, err) == 0, "%s", err);
+        CHECK(medium_init_homogeneous(&hha, hsa_only, z3, 0.0f, err) == 0, "%s", err);
+        const double dd = 0.5;
+        uint64_t grid_lookups[2] = {0, 0};
+        for (int dec = 0; dec < 2; ++dec) {
+            MediaView pa = {{&hha, &ga}, 2, dec}, ps = {{&hh, &gm}, 2, dec};
+            Acc dl[3], sw[3];
+            VolumeStats dst = {0};
+            delta_estimate(&pa, go, gd, 0.0f, (float)dd, 40000, 51 + dec, dl, &dst);
+            grid_lookups[dec] = dst.grid_collisions;
+            CHECK(dst.collisions > 0, "no collisions");
+            if (dec) /* control collisions (rate 1.4 of 4.4) skip the grid */
+                CHECK(dst.grid_collisions < 0.8 * dst.collisions, "decomposition: %llu of %llu collisions looked up the grid",
+                      (unsigned long long)dst.grid_collisions, (unsigned long long)dst.collisions);
+            else
+                CHECK(dst.grid_collisions == dst.collisions, "spectral tracking skipped grid lookups");
+            TestRng r;
+            VolumeRng rng = make_rng(&r, 61 + dec);
+            memset(sw, 0, sizeof sw);
+            const float one[3] = {1.0f, 1.0f, 1.0f};
+            for (int i = 0; i < 40000; ++i) {
+                VolumeEvent ev;
+                media_sample_event(&ps, go, gd, 0.0f, (float)dd, one, &rng, &ev, &st);
+                for (int k = 0; k < 3; ++k) acc_add(&sw[k], ev.type == VOLUME_EVENT_SCATTER ? ev.weight[k] : 0.0);
+            }
+            for (int k = 0; k < 3; ++k) {
+                double tex = exp(-(hsa_only[k] + 3.0) * dd);
+                double st_k = hsa[k] + hss[k] + 3.0, ss_k = hss[k] + 0.6 * 3.0;
+                double sex = ss_k / st_k * (1.0 - exp(-st_k * dd));
+                CHECK(acc_ok(&dl[k], tex), "%s tracking, homogeneous + grid, ch %d: T %g +- %g vs %g",
+                      dec ? "decomposition" : "spectral", k, acc_mean(&dl[k]), acc_se(&dl[k]), tex);
+                CHECK(acc_ok(&sw[k], sex), "%s tracking, homogeneous + grid, ch %d: scattered %g +- %g vs %g",
+                      dec ? "decomposition" : "spectral", k, acc_mean(&sw[k]), acc_se(&sw[k]), sex);
+            }
+            printf("%s tracking, homogeneous + grid: T (%.4f %.4f %.4f) scattered (%.4f %.4f %.4f), grid lookups %llu\n",
+                   dec ? "decomposition" : "spectral", acc_mean(&dl[0]), acc_mean(&dl[1]), acc_mean(&dl[2]),
+                   acc_mean(&sw[0]), acc_mean(&sw[1]), acc_mean(&sw[2]), (unsigned long long)grid_lookups[dec]);
+        }
+        medium_free(&hh);
+        medium_free(&hha);
         medium_free(&gm);
         medium_free(&ga);
         io_volume_grid_free(&g);
@@ -1516,8 +1563,54 @@ static void test_slab_asset(const char *dir) {
     io_volume_grid_free(&g);
 }
 
+/* ---------------------------------------------------------------- distance table (§4.2) */
+
+/* The piecewise-linear distance density of in-scattering sampling: it integrates to 1, the
+ * samples follow it (chi-square over fine bins), each sample's pdf is the density at it, an
+ * all-zero table is uniform, and bad tables are refused. */
+static void test_distance_table(void) {
+    const float t[6] = {1.0f, 1.5f, 1.7f, 3.0f, 3.0f, 5.0f}, s[6] = {0.0f, 4.0f, 1.0f, 0.5f, 2.0f, 0.0f};
+    VolumeDistanceTable tab;
+    CHECK(volume_distance_table_init(&tab, t, s, 6, 0.1f) == 0, "a valid table was refused");
+    enum { NB = 80, NS = 400000, STEPS = 200000 };
+    double integral = 0.0;
+    for (int i = 0; i < STEPS; ++i) integral += volume_distance_pdf(&tab, 1.0f + 4.0f * (i + 0.5f) / STEPS) * 4.0 / STEPS;
+    CHECK(fabs(integral - 1.0) < 1e-3, "the distance density integrates to %g", integral);
+    CHECK(volume_distance_pdf(&tab, 0.99f) == 0.0f && volume_distance_pdf(&tab, 5.01f) == 0.0f,
+          "density outside [t0, t1]");
+    double obs[NB] = {0}, expv[NB];
+    TestRng r;
+    VolumeRng rng = make_rng(&r, 5);
+    int bad_pdf = 0;
+    for (int i = 0; i < NS; ++i) {
+        float pdf, x = volume_distance_sample(&tab, rng.next(rng.state), rng.next(rng.state), &pdf);
+        bad_pdf += !(x >= 1.0f && x <= 5.0f) || fabsf(pdf - volume_distance_pdf(&tab, x)) > 1e-6f * fmaxf(pdf, 1.0f);
+        int b = (int)((x - 1.0f) / 4.0f * NB);
+        obs[b < 0 ? 0 : b >= NB ? NB - 1 : b] += 1.0;
+    }
+    for (int b = 0; b < NB; ++b) {
+        double e = 0.0;
+        for (int k = 0; k < 100; ++k) e += volume_distance_pdf(&tab, 1.0f + 4.0f * (b + (k + 0.5f) / 100.0f) / NB) * 4.0 / NB / 100.0;
+        expv[b] = NS * e;
+    }
+    int dof;
+    double stat, p = chi2_pvalue(obs, expv, NB, &dof, &stat);
+    printf("distance table: integral %.5f, chi2 %.1f dof %d p %.3f\n", integral, stat, dof, p);
+    CHECK(p > 1e-3, "distance samples: chi2 %g dof %d p %g", stat, dof, p);
+    CHECK(bad_pdf == 0, "%d samples outside [t0, t1] or with a pdf other than the density's", bad_pdf);
+    const float zero[3] = {0.0f, 0.0f, 0.0f}, t3[3] = {2.0f, 3.0f, 4.0f};
+    CHECK(volume_distance_table_init(&tab, t3, zero, 3, 0.1f) == 0 && fabsf(volume_distance_pdf(&tab, 2.5f) - 0.5f) < 1e-6f,
+          "an all-zero table is not uniform");
+    const float bad_t[3] = {2.0f, 1.0f, 4.0f}, neg[3] = {1.0f, -1.0f, 1.0f}, same[2] = {2.0f, 2.0f};
+    CHECK(volume_distance_table_init(&tab, bad_t, t3, 3, 0.1f) != 0, "decreasing stations accepted");
+    CHECK(volume_distance_table_init(&tab, t3, neg, 3, 0.1f) != 0, "a negative weight accepted");
+    CHECK(volume_distance_table_init(&tab, same, t3, 2, 0.1f) != 0, "an empty interval accepted");
+    CHECK(volume_distance_table_init(&tab, t3, t3, 1, 0.1f) != 0, "one station accepted");
+}
+
 int main(int argc, char **argv) {
     double t0 = test_seconds();
+    test_distance_table();
     test_bad_input();
     test_hg();
     test_blackbody();

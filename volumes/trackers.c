@@ -158,6 +158,7 @@ void media_sample_event(const MediaView *v, const float o[3], const float d[3], 
     ev->sigma_s_mean = 0.0f;
     float null_mis = 1.0f;
     uint64_t collisions = 0;
+    int decompose = v && v->decomposition;
     Walk walk;
     walk_begin(&walk, v, o, d, tmin, tmax);
     float end, maj, depth = sample_depth(rng);
@@ -177,6 +178,30 @@ void media_sample_event(const MediaView *v, const float o[3], const float d[3], 
             }
             ++collisions;
             float sa[3], ss[3], lane_ss[VOLUME_MAX_OVERLAP][3], src[3], sn[3], lane_src[VOLUME_MAX_OVERLAP][3];
+            /* Decomposition tracking (Kutz et al. 2017 §4): where homogeneous media (a control
+             * component of constant coefficients) overlap grid media (the residual), the
+             * collision belongs to the control with probability maj_c / maj and then needs no
+             * grid lookup; each component's collision decides among its own coefficients, with
+             * its own majorant (the null coefficient splits into the components' parts, so the
+             * weights below stay those of spectral tracking with maj -> maj_component). */
+            unsigned all = walk.active;
+            float maj_full = maj;
+            if (decompose && __builtin_popcount(all) > 1) {
+                unsigned control = 0;
+                float maj_c = 0.0f;
+                for (unsigned act = all; act; act &= act - 1) {
+                    int i = __builtin_ctz(act);
+                    if (walk.lane[i].m->kind == MEDIUM_HOMOGENEOUS) { control |= 1u << i; maj_c += walk.lane[i].maj; }
+                }
+                if (control && control != all) {
+                    int to_control = rng->next(rng->state) * maj < maj_c;
+                    maj = to_control ? maj_c : vmaxf(maj - maj_c, 1e-30f);
+                    walk.active = to_control ? control : all & ~control;
+                }
+            }
+            if (stats)
+                for (unsigned act = walk.active; act; act &= act - 1)
+                    if (walk.lane[__builtin_ctz(act)].m->kind != MEDIUM_HOMOGENEOUS) { ++stats->grid_collisions; break; }
             walk_eval(&walk, tn, sa, ss, lane_ss, src, lane_src);
             float inv_maj = 1.0f / maj;
             /* Emission, a collision estimator at every collision (Eq. 7's sigma_a L_e term
@@ -262,6 +287,8 @@ void media_sample_event(const MediaView *v, const float o[3], const float d[3], 
             float f = sum / (pn * maj);
             for (int k = 0; k < 3; ++k) w[k] *= sn[k] * f;
             null_mis *= (sn[0] + sn[1] + sn[2]) * (1.0f / 3.0f) * inv_maj;
+            maj = maj_full;
+            walk.active = all;
             depth = sample_depth(rng);
         }
     }

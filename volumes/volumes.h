@@ -142,6 +142,10 @@ void medium_eval(const Medium *m, const float p[3], MediumCoefficients *c);
 typedef struct MediaView {
     const Medium *media[VOLUME_MAX_OVERLAP];
     int count;
+    /* media_sample_event: 1 = decomposition tracking where homogeneous and grid media overlap
+     * (Kutz et al. 2017 §4: a collision of the homogeneous control component needs no grid
+     * lookup); 0 = spectral tracking of the sum (the same estimate in expectation) */
+    int decomposition;
 } MediaView;
 
 /* The interval [*t0, *t1] of o + t d (d need not be unit) inside the medium's bounds, clipped
@@ -180,6 +184,8 @@ int medium_majorant_next(MajorantIterator *it, float *t0, float *t1, float *sigm
 typedef struct VolumeStats {
     uint64_t collisions;         /* majorant collisions evaluated */
     uint64_t capped_walks;       /* calls stopped at VOLUME_MAX_COLLISIONS */
+    uint64_t grid_collisions;    /* media_sample_event: collisions that looked up a grid medium
+                                  * (decomposition tracking's control collisions do not) */
 } VolumeStats;
 
 enum { VOLUME_EVENT_PASSED = 0, VOLUME_EVENT_SCATTER = 1, VOLUME_EVENT_ABSORBED = 2 };
