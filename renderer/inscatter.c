@@ -14,10 +14,6 @@
  * x mean(sigma_s(x_k)) / p_select(x_k), the same function of the vertices in both (the
  * trackers report the product). The phase-sampled continuation and everything after the first
  * scatter stay with the null-collision walk. */
-#include <stdio.h>
-#include <stdlib.h>
-#include <string.h>
-
 #include "integrator.h"
 #include "rng.h"
 #include "scatter.h"
@@ -112,13 +108,14 @@ float inscatter_estimate(const Integrator *ig, Slice *s, uint32_t p, SceneRay ra
     /* NEE at x_k: the light sampler's fluence context, the phase function, a shadow ray */
     Scatter sc;
     scatter_init_phase(&sc, view->media[pick]->g, v3_neg(ray.dir));
-    LightSampleContext lc = {x, v3s(0.0f), {0, 0.0f}, scratch};
+    LightSampleContext lc = {x, v3s(0.0f), {0, 0.0f}, scratch, &s->volume};
     light_sampler_prepare(ig->light_sampler, &lc, hint);
     LightLiSample ls;
     vec3 contrib;
     uint32_t outcome;
     float visibility = 0.0f, added = 0.0f;
-    if (direct_light_sample_u(ig, beta, &sc, &lc, u_light, &ls, &contrib, &outcome)) {
+    int sampled = direct_light_sample_u(ig, beta, &sc, &lc, u_light, &ls, &contrib, &outcome);
+    if (sampled) {
         float tfar = isinf(ls.distance) ? INFINITY : ls.distance * (1.0f - 1e-3f);
         s->shadow_rays++;
         *cost += 1.0f;
@@ -134,120 +131,38 @@ float inscatter_estimate(const Integrator *ig, Slice *s, uint32_t p, SceneRay ra
             added = v3_luminance(c);
         }
     }
+    emission_probe_nee(ig, p, ls.light, added, ls.cost + (sampled ? 1.0f : 0.0f));
     light_sampler_record(ig->light_sampler, outcome, visibility);
     return added;
 }
 
-/* ---------------------------------------------------------------- auto (the paper's §5.2.3 wish) */
+/* ---------------------------------------------------------------- auto (auto_probe.c) */
 
-/* The paper's renderer leaves these features off by default because they raise the cost per
- * sample (§5.2.3) and names an automatic choice as wanted. auto measures, per medium, during
- * the first INSCATTER_PROBE_ITERATIONS iterations (2 spp) with the technique on everywhere:
- * over the paths whose camera ray crossed the medium, the variance of the path's radiance
- * (luminance), of the camera segment's NEE by tracking alone (unweighted: what it is without
- * the technique) and by both (MIS-weighted), the technique's cost per path and the cost of a
- * path (rays + collisions / 10: deterministic counts, not clocks, so the choice and the image
- * never depend on timing or threads). The rest of the pixel's variance is V_path - V_both, so
- * the technique stays on where
- *     (V_rest + V_both) C  <  (V_rest + V_tracking) (C - C_technique),
- * i.e. where it lowers the time-to-unit-variance estimate. Sums run in path order. */
-#define INSCATTER_PROBE_ITERATIONS 3 /* 1 + 1 + 2 spp: the first sets the clamp, the others measure */
-#define INSCATTER_PROBE_CLAMP 16.0   /* x the first iteration's mean path radiance */
-
-/* Near a point light inside a thin medium both techniques' NEE has a 1/r^2 tail, and a few
- * paths of the probe decide its sample variances: the decision then is a coin toss. The
- * statistics are taken over values clamped at 16x the mean radiance of the medium's paths in
- * the first probe iteration, which measures what each technique does for the bulk of the
- * pixels (the clamp is only in the decision, never in the image). */
-typedef struct InscatterProbe {
-    double n, null_sum, null_sum2, mis_sum, mis_sum2, path_sum, path_sum2, cost;
-    double first_n, first_sum, clamp;
-} InscatterProbe;
-
+/* A segment uses the technique while probing, or when one of its media chose it. */
 int inscatter_segment_on(const Integrator *ig, const MediaView *view) {
-    if (ig->inscatter_probe) return 1;
+    if (ig->inscatter_auto.active) return 1;
     for (int i = 0; i < view->count; ++i)
-        if (ig->inscatter_on[media_id(ig->media, view->media[i])]) return 1;
+        if (ig->inscatter_auto.on[media_id(ig->media, view->media[i])]) return 1;
     return 0;
-}
-
-static double variance(double n, double sum, double sum2) {
-    return n > 1.0 ? fmax((sum2 - sum * sum / n) / (n - 1.0), 0.0) : 0.0;
 }
 
 static void inscatter_auto_barrier(void *user) {
     Integrator *ig = user;
-    if (!ig->inscatter_probe) return;
-    if (++ig->probe_iterations == 1) { /* the clamp from the first iteration */
-        for (uint32_t m = 0; m < media_count(ig->media); ++m) {
-            InscatterProbe *P = &ig->probe[m];
-            P->clamp = P->first_n > 0.0 ? INSCATTER_PROBE_CLAMP * P->first_sum / P->first_n : 0.0;
-        }
-        return;
-    }
-    if (ig->probe_iterations < INSCATTER_PROBE_ITERATIONS) return;
-    ig->inscatter_probe = 0;
-    double C = ig->probe_paths > 0.0 ? ig->probe_cost / ig->probe_paths : 0.0;
-    for (uint32_t m = 0; m < media_count(ig->media); ++m) {
-        const InscatterProbe *P = &ig->probe[m];
-        if (P->n < 2.0) { ig->inscatter_on[m] = 0; continue; } /* no camera ray crossed it */
-        double v_path = variance(P->n, P->path_sum, P->path_sum2);
-        double v_both = variance(P->n, P->mis_sum, P->mis_sum2);
-        double v_track = variance(P->n, P->null_sum, P->null_sum2);
-        double v_rest = fmax(v_path - v_both, 0.0), c_tech = P->cost / P->n;
-        double ttuv_on = (v_rest + v_both) * C, ttuv_off = (v_rest + v_track) * fmax(C - c_tech, 1e-9);
-        ig->inscatter_on[m] = ttuv_on < ttuv_off;
-        if (!ig->opt->quiet)
-            fprintf(stderr, "candela: --volume-cachepoint-scatter auto: medium %u %s (estimated time to unit variance x%.2f)\n",
-                    m, ig->inscatter_on[m] ? "on" : "off", ttuv_off > 0.0 ? ttuv_on / ttuv_off : 1.0);
-    }
+    auto_probe_barrier(&ig->inscatter_auto, ig->opt->quiet);
 }
 
+/* The probe attributes a path to the medium of its first camera segment that ran the technique
+ * (the view's first medium); `on` is that segment's NEE by both techniques (MIS-weighted),
+ * `off` the walk's own NEE unweighted: what the pixel gets without the technique. */
 void inscatter_probe_batch(Integrator *ig, const Slice *slices, uint32_t n) {
-    if (!ig->inscatter_probe) return;
     const PathState *ps = &ig->ps;
-    int first = ig->probe_iterations == 0;
-    for (uint32_t k = 0; k < n; ++k)
-        ig->probe_cost += (double)(slices[k].bounce_rays + slices[k].shadow_rays) + 0.1 * (double)slices[k].volume.collisions;
-    ig->probe_cost += ig->batch_count; /* the camera rays */
-    ig->probe_paths += ig->batch_count;
-    for (uint32_t p = 0; p < ig->batch_count; ++p) {
-        if (!ps->probe_medium[p]) continue;
-        InscatterProbe *P = &ig->probe[ps->probe_medium[p] - 1];
-        double L = v3_luminance(ps->radiance[p]), a = ps->probe_null[p], b = ps->probe_mis[p];
-        if (!isfinite(L) || !isfinite(a) || !isfinite(b)) continue;
-        if (first) {
-            P->first_n += 1.0;
-            P->first_sum += L;
-            continue;
-        }
-        L = fmin(L, P->clamp);
-        a = fmin(a, P->clamp);
-        b = fmin(b, P->clamp);
-        P->n += 1.0;
-        P->path_sum += L; P->path_sum2 += L * L;
-        P->null_sum += a; P->null_sum2 += a * a;
-        P->mis_sum += b; P->mis_sum2 += b * b;
-        P->cost += ps->probe_cost[p];
-    }
+    auto_probe_batch(&ig->inscatter_auto, ig, slices, n, ps->probe_medium, ps->probe_mis, ps->probe_null,
+                     ps->probe_cost);
 }
 
 int inscatter_init(Integrator *ig, int mode) {
-    uint32_t n = media_count(ig->media);
-    ig->inscatter_on = calloc(n + 1, 1);
-    ig->probe = calloc(n + 1, sizeof *ig->probe);
-    if (!ig->inscatter_on || !ig->probe) return -1;
-    if (mode == 1) memset(ig->inscatter_on, 1, n);
-    if (mode == 2) {
-        ig->inscatter_probe = 1;
-        integrator_add_barrier_hook(ig, inscatter_auto_barrier, ig);
-    }
-    return 0;
-}
-
-void inscatter_free(Integrator *ig) {
-    free(ig->inscatter_on);
-    free(ig->probe);
-    ig->inscatter_on = NULL;
-    ig->probe = NULL;
+    int rc = auto_probe_init(&ig->inscatter_auto, "--volume-cachepoint-scatter", media_count(ig->media), ig->npixels,
+                             mode);
+    if (rc == 0 && mode == 2) integrator_add_barrier_hook(ig, inscatter_auto_barrier, ig);
+    return rc;
 }

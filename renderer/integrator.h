@@ -62,6 +62,19 @@ typedef struct BarrierHook {
 } BarrierHook;
 #define MAX_BARRIER_HOOKS 8
 
+/* auto_probe.c: the measurement behind the `auto` choices of the volume estimators. */
+#define AUTO_PROBE_ITERATIONS 3 /* 1 + 1 + 2 spp */
+typedef struct AutoProbe {
+    const char *flag;      /* the CLI flag, for the message */
+    uint32_t num_media;
+    uint8_t *on;           /* per medium (media_id): the feature is used */
+    int active, iterations;
+    double cost, paths;    /* all probe paths: counted cost */
+    double pairs, path_d2; /* consecutive sample pairs of a pixel; their summed squared differences */
+    struct ProbeMedium *media;
+    float (*prev)[4];      /* per pixel: its last probe sample (L, on, off, medium + 1) */
+} AutoProbe;
+
 typedef struct Integrator {
     const CandelaOptions *opt;
     const Scene *scene;
@@ -70,12 +83,9 @@ typedef struct Integrator {
     const SceneMedia *media;
     uint32_t camera_medium;   /* the mesh medium the camera is in (media.h) */
     int inscatter;            /* in-scattering sampling on camera segments (inscatter.c) may run */
-    /* per medium (media_id): whether its camera segments use it (on: all; auto: decided after
-     * the probe, during which all do and the probe statistics are gathered) */
-    uint8_t *inscatter_on;
-    int inscatter_probe, probe_iterations;
-    struct InscatterProbe *probe; /* per medium */
-    double probe_cost, probe_paths;
+    /* per medium (media_id): whether its camera segments use in-scattering sampling, and whether
+     * NEE samples its emission (on: all; auto: decided after a probe, auto_probe.c) */
+    AutoProbe inscatter_auto, emission_auto;
     PathState ps;
     /* queue storage for the whole batch; a slice uses its own [begin, end) part of each */
     uint32_t *queue_rays, *queue_hits, *queue_escaped, *queue_shadows;
@@ -229,17 +239,65 @@ float inscatter_estimate(const Integrator *ig, Slice *s, uint32_t p, SceneRay ra
 /* Whether a camera segment through these media uses the technique (a function of the media
  * and of the iteration's state only, so both techniques agree on it). */
 int inscatter_segment_on(const Integrator *ig, const MediaView *view);
-/* In-scattering sampling on / auto: the per-medium state (0 ok, -1 out of memory); the
- * probe's per-batch accounting (after the batch, in path order) and its barrier hook, which
- * after INSCATTER_PROBE_ITERATIONS iterations keeps the technique for a medium only where the
- * measured time-to-unit-variance of its pixels is lower with it. */
+/* In-scattering sampling's per-medium state (mode 0 off, 1 on, 2 auto) and its probe's
+ * accounting after each batch: per path, the camera segment's NEE with and without the
+ * technique. 0 ok, -1 out of memory. */
 int inscatter_init(Integrator *ig, int mode);
-void inscatter_free(Integrator *ig);
 void inscatter_probe_batch(Integrator *ig, const Slice *slices, uint32_t n);
+
+int auto_probe_init(AutoProbe *ap, const char *flag, uint32_t num_media, uint32_t npixels, int mode);
+void auto_probe_free(AutoProbe *ap);
+/* After a batch, in path order: per path the medium it is attributed to (media_id + 1, 0:
+ * none), the feature's share of its radiance as rendered and without the feature, its cost. */
+void auto_probe_batch(AutoProbe *ap, const Integrator *ig, const Slice *slices, uint32_t n, const uint32_t *medium,
+                      const float *on, const float *off, const float *cost);
+/* At each barrier; decides after AUTO_PROBE_ITERATIONS. */
+void auto_probe_barrier(AutoProbe *ap, int quiet);
+
+/* The auto choices' rule (both probes): with V_path the variance of the paths' radiance
+ * measured with the feature on, V_on / V_off that of the feature's share of it with and
+ * without the feature, C the mean cost of a path and c_feature what the feature adds to it,
+ * keep the feature when (V_path - V_on + V_on) C < (V_path - V_on + V_off) (C - c_feature):
+ * when it lowers the estimated time to unit variance. Returns that TTUV ratio (on / off). */
+static inline double estimator_ttuv_ratio(double v_path, double v_on, double v_off, double C, double c_feature) {
+    double v_rest = fmax(v_path - v_on, 0.0);
+    double on = (v_rest + v_on) * C, off = (v_rest + v_off) * fmax(C - c_feature, 1e-9);
+    return off > 0.0 ? on / off : (on > 0.0 ? INFINITY : 1.0);
+}
+static inline double sample_variance(double n, double sum, double sum2) {
+    return n > 1.0 ? fmax((sum2 - sum * sum / n) / (n - 1.0), 0.0) : 0.0;
+}
+
+/* emission_auto.c: --volume-emission-sampling on / auto, as in-scattering sampling above: all
+ * emissive volumes sample their emission by NEE during the probe (4 spp), then only those where
+ * the estimated time to unit variance is lower with it. 0 ok, -1 out of memory. */
+int emission_auto_init(Integrator *ig, int mode);
+void emission_probe_batch(Integrator *ig, const Slice *slices, uint32_t n);
+/* The probe's record of a contribution of an emissive medium's emission to path p: `on` what
+ * the path added (MIS-weighted NEE or tracking), `off` what tracking alone would add, cost. */
+static inline void emission_probe_add(const Integrator *ig, uint32_t p, uint32_t medium_id, float on, float off,
+                                      float cost) {
+    const PathState *ps = &ig->ps;
+    if (!ig->emission_auto.active) return;
+    if (!ps->probe_em_medium[p]) ps->probe_em_medium[p] = medium_id + 1;
+    if (ps->probe_em_medium[p] != medium_id + 1) return; /* one medium per path */
+    ps->probe_em_on[p] += on;
+    ps->probe_em_off[p] += off;
+    ps->probe_em_cost[p] += cost;
+}
+
+/* ... of an NEE toward `light` (counted when it is an emissive volume): its contribution c
+ * (luminance, 0 when blocked) and cost. */
+static inline void emission_probe_nee(const Integrator *ig, uint32_t p, uint32_t light, float c, float cost) {
+    if (!ig->emission_auto.active || light >= ig->lights->count) return;
+    const Light *l = &ig->lights->lights[light];
+    if (l->type == LIGHT_VOLUME) emission_probe_add(ig, p, l->medium, c, 0.0f, cost);
+}
+
 /* The probe's record of a camera segment's null-collision NEE (unweighted luminance c, and the
  * weight it got). */
 static inline void inscatter_probe_null(const Integrator *ig, uint32_t p, float c, float w) {
-    if (!ig->inscatter_probe) return;
+    if (!ig->inscatter_auto.active) return;
     ig->ps.probe_null[p] += c;
     ig->ps.probe_mis[p] += w * c;
 }

@@ -69,6 +69,8 @@ typedef struct LightSampleContext {
     /* LIGHT_SAMPLER_SCRATCH floats the strategy may fill in prepare and reuse in select for
      * this vertex only (e.g. cache points' near-light weights); NULL: none */
     float *scratch;
+    /* where a volume light's line integral counts its collisions (NULL: nowhere) */
+    struct VolumeStats *stats;
 } LightSampleContext;
 
 typedef struct Lights {
@@ -119,6 +121,9 @@ typedef struct LightLiSample {
     float pdf;        /* solid-angle pdf given the light (1 for delta lights) */
     int is_delta;
     uint32_t triangle; /* area lights: the sampled triangle (for light_area_pdf_li) */
+    uint32_t light;    /* the light's index (set by next-event estimation's selection) */
+    float cost;        /* NEE's counted cost beyond a shadow ray: a volume light's line integral and
+                        * pdf (the auto choices' cost model; set by direct_light_sample_u) */
 } LightLiSample;
 
 /* Samples a point on `light` as seen from ctx (ctx->n steers an area light's inner tree; use

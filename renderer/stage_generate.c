@@ -20,6 +20,8 @@ void stage_generate(const Integrator *ig, Slice *s) {
         ps->crossings[p] = 0;
         ps->probe_medium[p] = 0;
         ps->probe_null[p] = ps->probe_mis[p] = ps->probe_cost[p] = 0.0f;
+        ps->probe_em_medium[p] = 0;
+        ps->probe_em_on[p] = ps->probe_em_off[p] = ps->probe_em_cost[p] = 0.0f;
         float fx = (float)(pixel % (uint32_t)cam->width) + rng_uniform(key, RNG_DIM_PIXEL_X);
         float fy = (float)(pixel / (uint32_t)cam->width) + rng_uniform(key, RNG_DIM_PIXEL_Y);
         vec3 o, d;

@@ -31,7 +31,8 @@ static float medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec
     vec3 contrib;
     uint32_t outcome;
     float visibility = 0.0f, unweighted = 0.0f;
-    if (direct_light_sample(ig, p, sc, lc, &ls, &contrib, &outcome)) {
+    int sampled = direct_light_sample(ig, p, sc, lc, &ls, &contrib, &outcome);
+    if (sampled) {
         float tfar = isinf(ls.distance) ? INFINITY : ls.distance * (1.0f - 1e-3f);
         s->shadow_rays++;
         if (scene_visible1(ig->scene, (SceneRay){x, 0.0f, ls.wi, tfar})) {
@@ -42,6 +43,7 @@ static float medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec
             unweighted = v3_luminance(c);
         }
     }
+    emission_probe_nee(ig, p, ls.light, unweighted * weight, ls.cost + (sampled ? 1.0f : 0.0f));
     light_sampler_record(ig->light_sampler, outcome, visibility);
     return unweighted;
 }
@@ -70,7 +72,9 @@ static void add_volume_emission(const Integrator *ig, Slice *s, uint32_t p, cons
         vec3 e = v3(L[0], L[1], L[2]);
         if (v3_is_black(e)) continue;
         float w = 1.0f;
-        if (lights->of_medium && m >= media->vdb && m < media->vdb + media->num_vdb && !ps->prev_delta[p]) {
+        uint32_t id = media_id(media, m);
+        if (lights->of_medium && m >= media->vdb && m < media->vdb + media->num_vdb && !ps->prev_delta[p] &&
+            ig->emission_auto.on[id]) {
             int32_t light = lights->of_medium[m - media->vdb];
             if (light >= 0) {
                 LightSampleContext lc = {ps->prev_pos[p], ps->prev_normal[p], ps->prev_light_vertex[p]};
@@ -80,7 +84,10 @@ static void add_volume_emission(const Integrator *ig, Slice *s, uint32_t p, cons
             }
         }
         vec3 c = v3_scale(v3_mul(beta, e), w);
-        if (!v3_is_black(c) && v3_is_finite(c)) path_add_radiance(ps, p, c, RADIANCE_EMISSION);
+        if (!v3_is_black(c) && v3_is_finite(c)) {
+            path_add_radiance(ps, p, c, RADIANCE_EMISSION);
+            emission_probe_add(ig, p, id, v3_luminance(c), v3_luminance(v3_mul(beta, e)), w != 1.0f ? 1.0f : 0.0f);
+        }
     }
 }
 
@@ -100,7 +107,7 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
                         inscatter_segment_on(ig, &view) && inscatter_table(ig, ray, tmax, &view, hint, &table);
         if (inscatter) {
             float cost, added = inscatter_estimate(ig, s, p, ray, &view, &table, hint, scratch, &cost);
-            if (ig->inscatter_probe) {
+            if (ig->inscatter_auto.active) {
                 if (!ps->probe_medium[p]) ps->probe_medium[p] = media_id(ig->media, view.media[0]) + 1;
                 ps->probe_mis[p] += added;
                 ps->probe_cost[p] += cost;
@@ -131,7 +138,7 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         vec3 x = v3_madd(ray.org, ray.dir, ev.t);
         Scatter sc;
         scatter_init_phase(&sc, view.media[ev.medium]->g, v3_neg(ray.dir));
-        LightSampleContext lc = {x, v3s(0.0f), {0, 0.0f}, scratch};
+        LightSampleContext lc = {x, v3s(0.0f), {0, 0.0f}, scratch, &s->volume};
         light_sampler_prepare(ig->light_sampler, &lc, hint);
         /* the null-collision technique's NEE, weighed against in-scattering sampling (Eq. 10) */
         float w = inscatter ? inscatter_null_weight(&table, ev.t, ev.null_mis, ev.sigma_s_mean) : 1.0f;

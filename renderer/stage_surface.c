@@ -61,8 +61,18 @@ int direct_light_sample_u(const Integrator *ig, vec3 beta, const Scatter *sc, co
                           const float u[6], LightLiSample *ls, vec3 *contrib, uint32_t *outcome) {
     float pmf;
     uint32_t li = light_sampler_select(ig->light_sampler, lc, u[0], u[1], &pmf, outcome);
-    if (!(pmf > 0.0f) || !light_sample_li(ig->lights, &ig->lights->lights[li], lc, u[2], u[3], u[4], u[5], ls))
-        return 0;
+    ls->light = pmf > 0.0f ? li : UINT32_MAX;
+    ls->cost = 0.0f;
+    if (!(pmf > 0.0f)) return 0;
+    const Light *light = &ig->lights->lights[li];
+    /* an emissive volume whose emission sampling is off (auto): found by tracking alone */
+    if (light->type == LIGHT_VOLUME && !ig->emission_auto.on[light->medium]) return 0;
+    uint64_t collisions = lc->stats ? lc->stats->collisions : 0;
+    int ok = light_sample_li(ig->lights, light, lc, u[2], u[3], u[4], u[5], ls);
+    /* a volume light: the line's end (a ray), the pdf's DDA (about a ray), its collisions */
+    if (light->type == LIGHT_VOLUME)
+        ls->cost = 2.0f + (lc->stats ? 0.1f * (float)(lc->stats->collisions - collisions) : 0.0f);
+    if (!ok) return 0;
     float scatter_pdf;
     vec3 f = scatter_eval(sc, ls->wi, &scatter_pdf);
     if (v3_is_black(f)) return 0;
@@ -96,7 +106,9 @@ static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, con
     LightLiSample ls;
     vec3 contrib;
     uint32_t outcome;
-    if (direct_light_sample(ig, p, sc, lc, &ls, &contrib, &outcome)) {
+    int sampled = direct_light_sample(ig, p, sc, lc, &ls, &contrib, &outcome);
+    emission_probe_nee(ig, p, ls.light, 0.0f, ls.cost + (sampled ? 1.0f : 0.0f)); /* the shadow ray's part comes later */
+    if (sampled) {
         vec3 o = offset_ray_origin(h->p, scatter_side_normal(sc, ls.wi));
         vec3 dir = ls.wi;
         float tfar = INFINITY;
@@ -114,6 +126,7 @@ static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, con
         ps->shadow_outcome[p] = outcome;
         ps->shadow_depth[p] = depth;
         ps->shadow_medium[p] = side_medium(ig, p, h, ls.wi);
+        ps->shadow_light[p] = ls.light;
         s->shadows[s->num_shadows++] = p;
         return;
     }
@@ -176,7 +189,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
 
         /* light-selection context: transmissive surfaces receive light from both sides, so they
          * use the omnidirectional (fluence) estimates, as a point in a medium does */
-        LightSampleContext lc = {h.p, scatter_light_normal(&sc), {0, 0.0f}, scratch};
+        LightSampleContext lc = {h.p, scatter_light_normal(&sc), {0, 0.0f}, scratch, &s->volume};
         int delta = scatter_is_delta(&sc);
         if (!delta) light_sampler_prepare(ig->light_sampler, &lc, &hint); /* once per vertex */
         if (!delta && ig->lights->count > 0) surface_direct_light(ig, s, p, &h, &sc, &lc);

@@ -90,6 +90,7 @@ void integrator_run_batch(Integrator *ig, ThreadPool *pool, CandelaStats *st) {
     st->paths += ig->batch_count;
     st->rays_camera += ig->batch_count;
     inscatter_probe_batch(ig, slices, n);
+    emission_probe_batch(ig, slices, n);
     /* film: serial, in path order, so every pixel sums its samples in sample order */
     double t = clock_seconds();
     film_add_paths(&ig->film, &ig->ps, ig->batch_count);
@@ -129,6 +130,7 @@ int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene,
                !ig->sort_keys_tmp || !ig->sort_items_tmp;
     fail = fail || path_state_alloc(&ig->ps, batch) != 0 || film_alloc(&ig->film, scene->camera.width, scene->camera.height) != 0;
     fail = fail || inscatter_init(ig, ig->inscatter ? o->volume_inscatter_sampling : 0) != 0;
+    fail = fail || emission_auto_init(ig, lights->count > 0 ? o->volume_emission_sampling : 0) != 0;
     if (fail) { integrator_free(ig); return -1; }
     return 0;
 }
@@ -138,7 +140,8 @@ void integrator_free(Integrator *ig) {
     free(ig->queue_rays); free(ig->queue_hits); free(ig->queue_escaped); free(ig->queue_shadows);
     free(ig->sort_keys); free(ig->sort_keys_tmp); free(ig->sort_items_tmp);
     film_free(&ig->film);
-    inscatter_free(ig);
+    auto_probe_free(&ig->inscatter_auto);
+    auto_probe_free(&ig->emission_auto);
     pthread_mutex_destroy(&ig->ray_log_mutex);
     memset(ig, 0, sizeof *ig);
 }

@@ -37,8 +37,8 @@ What it does:
 Voxel-centre convention: Candela (like OpenVDB) puts voxel centres at integer index coordinates;
 Blender 3.4's Cycles renders the same VDB shifted by about +half a voxel on each axis (measured
 with this script: the silhouettes differ by ~0.5 px in x and y, and the image means by ~1 %,
-until Candela's node is translated by +voxel/2 per axis, e.g. --translate 0.155208333
--0.094791667 0.205208333 for cloud.vdb's 1/96 m voxels; the Cycles side keeps 0.15 -0.1 0.2).
+until Candela's node is translated by +voxel/2 per axis: --candela-shift 0.005208333 0.005208333
+0.005208333 for cloud.vdb's 1/96 m voxels (the Cycles side keeps --translate)).
 
 The Python on PATH may lack OpenImageIO (a pyenv interpreter): the script then re-runs itself
 with /usr/bin/python3 (Debian's python3-openimageio and python3-numpy).
@@ -84,6 +84,9 @@ def parse_args():
     ap.add_argument('--g', type=float, default=0.0, help='Henyey-Greenstein anisotropy (> 0: forward)')
     ap.add_argument('--translate', type=float, nargs=3, default=[0.15, -0.1, 0.2],
                     help='volume node translation, glTF coordinates (Y-up, m)')
+    ap.add_argument('--candela-shift', type=float, nargs=3, default=[0.0, 0.0, 0.0],
+                    help='extra translation of the Candela node only (the voxel-centre convention: '
+                         '+voxel/2 per axis puts it where Cycles draws the VDB)')
     ap.add_argument('--camera-pos', type=float, nargs=3, default=[0.0, 0.0, 3.0],
                     help='camera position; it looks down -Z (glTF default orientation)')
     ap.add_argument('--yfov', type=float, default=0.5, help='vertical field of view, radians')
@@ -124,7 +127,7 @@ def write_gltf(path, a):
         'nodes': [
             {'name': 'camera', 'camera': 0, 'translation': a.camera_pos},
             {'name': 'point', 'translation': a.light_pos, 'extensions': {'KHR_lights_punctual': {'light': 0}}},
-            {'name': 'cloud', 'translation': a.translate,
+            {'name': 'cloud', 'translation': [t + d for t, d in zip(a.translate, a.candela_shift)],
              'extras': {'candela_volume': {'uri': os.path.abspath(a.vdb), 'density_scale': a.density_scale,
                                            'albedo': [a.albedo] * 3, 'anisotropy': a.g}}},
         ],

@@ -42,6 +42,12 @@ expect_error "res overflow" "--res" -- render "$scene" --res 4294967304x8 -o "$t
 expect_error "res too large" "megapixels" -- render "$scene" --res 16384x16384 -o "$tmp/out.exr" --quiet
 expect_error "png as output" "must be an .exr" -- render "$scene" -o "$tmp/out.png" --res 16x16 --spp 1 --quiet
 expect_error "png over exr" "names the EXR" -- render "$scene" -o "$tmp/out.exr" --png "$tmp/out.exr" --res 16x16 --spp 1 --quiet
+# the volume estimator flags take on / off / auto; in-scattering sampling needs cache points
+expect_error "bad emission flag" "--volume-emission-sampling" -- render "$scene" --volume-emission-sampling maybe "${common[@]}"
+expect_error "bad scatter flag" "--volume-cachepoint-scatter" -- render "$scene" --volume-cachepoint-scatter yes "${common[@]}"
+expect_error "scatter needs cache points" "needs --light-sampler cachepoints" -- render "$scene" --volume-cachepoint-scatter on --light-sampler power "${common[@]}"
+if "$bin" render "$scene" --volume-cachepoint-scatter auto --volume-emission-sampling auto -o "$tmp/auto.exr" --no-png --res 8x8 --spp 2 --quiet; then ok; else bad "the auto values are refused"; fi
+rm -f "$tmp/auto.exr"
 mkfifo "$tmp/fifo.exr"
 expect_error "fifo env" "not a regular file" -- render "$scene" --env "$tmp/fifo.exr" "${common[@]}"
 rm -f "$tmp/fifo.exr"

@@ -340,10 +340,24 @@ static void test_emission_sampling_heterogeneous(void) {
     CHECK(combo[3].img.rgb && combo1.img.rgb && memcmp(combo[3].img.rgb, combo1.img.rgb, 16 * 16 * 3 * sizeof(float)) == 0,
           "in-scattering sampling on a heterogeneous volume: 1 and 2 threads differ");
     candela_image_free(&combo1.img);
+    /* both auto choices: the same image in expectation, and bit-identical for 1 and 2 threads
+     * (the choices are made from counts in path order, never from clocks) */
+    g_inscatter = 2;
+    g_emission_sampling = 2;
+    Result au2 = render("lumpy_through.gltf", 256, 64, 2), au1 = render("lumpy_through.gltf", 256, 64, 1);
+    CHECK(au2.img.rgb && au1.img.rgb && memcmp(au2.img.rgb, au1.img.rgb, 16 * 16 * 3 * sizeof(float)) == 0,
+          "auto choices: 1 and 2 threads differ");
+    candela_image_free(&au1.img);
     g_inscatter = 0;
     g_emission_sampling = 1;
     g_sampler = CANDELA_LIGHT_SAMPLER_POWER;
     Result ref = render("lumpy_through.gltf", 1024, 64, 2);
+    {
+        double ta = 5.0 * sqrt(au2.se * au2.se + ref.se * ref.se);
+        fprintf(stderr, "  (l) cache points, both auto: %.5f (SE %.5f) vs %.5f\n", au2.mean, au2.se, ref.mean);
+        CHECK(fabs(au2.mean - ref.mean) <= ta, "auto choices: %.5f vs %.5f (tolerance %.5f)", au2.mean, ref.mean, ta);
+        candela_image_free(&au2.img);
+    }
     for (int c = 0; c < 4; ++c) {
         double tc = 5.0 * sqrt(combo[c].se * combo[c].se + ref.se * ref.se);
         fprintf(stderr, "  (l) cache points, in-scattering %s, emission sampling %s: %.5f (SE %.5f) vs %.5f\n",
