@@ -138,6 +138,11 @@ typedef struct CachePointVertex {
  * cachepoints_select then reuses instead of evaluating the near lights again. */
 void cachepoints_vertex(const CachePoints *cp, const CachePointLights *lights, const float x[3], const float *n,
                         uint32_t hint, CachePointVertex *v, float *near_w);
+/* The vertex at x using cache point `point` if x lies within its radius of influence (§3.3:
+ * a medium walk keeps its previous point while it stays inside it; no search), else as
+ * cachepoints_vertex. */
+void cachepoints_vertex_reuse(const CachePoints *cp, const CachePointLights *lights, const float x[3], const float *n,
+                              uint32_t point, CachePointVertex *v, float *near_w);
 /* Render-time selection (§3.3): near lights exact, far bins blended by n, visibility
  * weights, uniform floor epsilon; a cluster entry descends the light tree with u_descend.
  * *slot receives the visibility slot cachepoints_record counts the outcome in

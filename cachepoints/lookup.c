@@ -251,9 +251,8 @@ uint32_t cachepoints_nearest(const CachePoints *cp, const float x[3]) {
     return kdtree_nearest(&cp->kd, x, NULL);
 }
 
-void cachepoints_vertex(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
-                        uint32_t hint, CachePointVertex *v, float *near_w) {
-    v->point = kdtree_nearest_hint(&cp->kd, x, hint, NULL);
+static void vertex_near(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
+                        CachePointVertex *v, float *near_w) {
     float t = 0.0f;
     uint32_t k0 = cp->near_off[v->point];
     for (uint32_t k = k0; k < cp->near_off[v->point + 1]; ++k) {
@@ -262,6 +261,26 @@ void cachepoints_vertex(const CachePoints *cp, const CachePointLights *L, const 
         t += w;
     }
     v->near_total = t;
+}
+
+void cachepoints_vertex(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
+                        uint32_t hint, CachePointVertex *v, float *near_w) {
+    v->point = kdtree_nearest_hint(&cp->kd, x, hint, NULL);
+    vertex_near(cp, L, x, n, v, near_w);
+}
+
+void cachepoints_vertex_reuse(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
+                              uint32_t point, CachePointVertex *v, float *near_w) {
+    if (point < cp->n) {
+        const float *c = cp->pos + 3 * (size_t)point;
+        float d2 = (x[0] - c[0]) * (x[0] - c[0]) + (x[1] - c[1]) * (x[1] - c[1]) + (x[2] - c[2]) * (x[2] - c[2]);
+        if (d2 <= cp->radius[point] * cp->radius[point]) {
+            v->point = point;
+            vertex_near(cp, L, x, n, v, near_w);
+            return;
+        }
+    }
+    cachepoints_vertex(cp, L, x, n, point < cp->n ? point : UINT32_MAX, v, near_w);
 }
 
 /* Weight of `light` at the vertex (0 when no entry holds it): near exact, or the far entry's

@@ -71,6 +71,10 @@ typedef struct LightSampleContext {
     float *scratch;
     /* where a volume light's line integral counts its collisions (NULL: nowhere) */
     struct VolumeStats *stats;
+    /* the same path's previous vertex's token when that vertex was in the same medium walk
+     * (zero: none): a strategy may reuse its state while the vertex stays close (cache points
+     * reuse the previous point inside its radius, §3.3) */
+    LightVertex previous;
 } LightSampleContext;
 
 typedef struct Lights {

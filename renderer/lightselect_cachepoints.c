@@ -451,8 +451,12 @@ static void cp_prepare(const void *state, LightSampleContext *ctx, uint32_t *hin
     const CachePointSampler *s = state;
     float x[3] = {ctx->p.x, ctx->p.y, ctx->p.z}, n[3] = {ctx->n.x, ctx->n.y, ctx->n.z};
     CachePointVertex v;
-    cachepoints_vertex(s->cp, &s->view, x, v3_is_black(ctx->n) ? NULL : n, hint ? *hint : UINT32_MAX, &v,
-                       ctx->scratch);
+    if (ctx->previous.word) /* a medium walk's next vertex: keep its point while inside it (§3.3) */
+        cachepoints_vertex_reuse(s->cp, &s->view, x, v3_is_black(ctx->n) ? NULL : n, ctx->previous.word - 1u, &v,
+                                 ctx->scratch);
+    else
+        cachepoints_vertex(s->cp, &s->view, x, v3_is_black(ctx->n) ? NULL : n, hint ? *hint : UINT32_MAX, &v,
+                           ctx->scratch);
     if (hint) *hint = v.point;
     ctx->vertex = (LightVertex){v.point + 1u, v.near_total};
 }

@@ -93,6 +93,7 @@ static void add_volume_emission(const Integrator *ig, Slice *s, uint32_t p, cons
 
 static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t *hint, float *scratch) {
     const PathState *ps = &ig->ps;
+    LightVertex walk_previous = {0, 0.0f}; /* the light sampler's token of this walk's last vertex */
     for (;;) {
         SceneRay ray = ps->ray[p];
         float tmax = ps->hit[p].t;
@@ -138,8 +139,9 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         vec3 x = v3_madd(ray.org, ray.dir, ev.t);
         Scatter sc;
         scatter_init_phase(&sc, view.media[ev.medium]->g, v3_neg(ray.dir));
-        LightSampleContext lc = {x, v3s(0.0f), {0, 0.0f}, scratch, &s->volume};
+        LightSampleContext lc = {x, v3s(0.0f), {0, 0.0f}, scratch, &s->volume, walk_previous};
         light_sampler_prepare(ig->light_sampler, &lc, hint);
+        walk_previous = lc.vertex;
         /* the null-collision technique's NEE, weighed against in-scattering sampling (Eq. 10) */
         float w = inscatter ? inscatter_null_weight(&table, ev.t, ev.null_mis, ev.sigma_s_mean) : 1.0f;
         if (ig->lights->count > 0) {

@@ -30,7 +30,7 @@ CONFIGS = [
     ("tracking", ["--volume-emission-sampling", "off", "--volume-cachepoint-scatter", "off"]),
     ("+emission sampling", ["--volume-emission-sampling", "on", "--volume-cachepoint-scatter", "off"]),
     ("+in-scattering (full)", ["--volume-emission-sampling", "on", "--volume-cachepoint-scatter", "on"]),
-    ("+in-scattering auto", ["--volume-emission-sampling", "on", "--volume-cachepoint-scatter", "auto"]),
+    ("both auto", ["--volume-emission-sampling", "auto", "--volume-cachepoint-scatter", "auto"]),
 ]
 REFERENCE = CONFIGS[2][1]
 

@@ -225,6 +225,62 @@ static void fractional_visibility(const CachePointLights *L, const float *cand, 
     cachepoints_free(z);
 }
 
+/* §4.2 scattering weights with simple callbacks: mu_s = 2 above z = 5, 0 below; every light
+ * sample returns the light's intensity (so s(p, e) / I_e is the same for every near light of a
+ * point: 2 x the fraction of its 4 ball points above z = 5). */
+static float scatter_medium(const void *user, const float y[3], float *g) {
+    (void)user;
+    *g = 0.0f;
+    return y[2] > 5.0f ? 2.0f : 0.0f;
+}
+static float scatter_light(const void *user, uint32_t light, const float y[3], float g, const float u[4]) {
+    (void)user; (void)y; (void)g; (void)u;
+    return light_I[light];
+}
+
+static void check_scatter(CachePoints *a, CachePoints *b, const CachePointLights *L, const char *mode) {
+    CachePointScatter sc = {scatter_medium, scatter_light, NULL, 77};
+    CHECK(cachepoints_build_scatter(a, L, &sc) == 0 && cachepoints_build_scatter(b, L, &sc) == 0,
+          "%s: scatter weights", mode);
+    int bad_ratio = 0, bad_total = 0, differ = 0, some = 0;
+    for (uint32_t i = 0; i < cachepoints_count(a); ++i) {
+        float ratio = -1.0f, near_sum = 0.0f;
+        for (uint32_t l = 0; l < NL; ++l) {
+            float w = cachepoints_scatter_weight(a, i, l);
+            if (w < 0.0f) continue; /* not a near light of the point */
+            float r = w / light_I[l];
+            int allowed = 0;
+            for (int k = 0; k <= 4; ++k) allowed |= fabsf(r - 0.5f * (float)k) < 1e-4f;
+            if (!allowed || (ratio >= 0.0f && fabsf(r - ratio) > 1e-4f)) ++bad_ratio;
+            ratio = r;
+            near_sum += w;
+        }
+        float far = cachepoints_scatter_far(a, i), total = cachepoints_scatter_total(a, i);
+        if (!(far >= 0.0f) || fabsf(total - (near_sum + far)) > 1e-3f * fmaxf(total, 1.0f)) ++bad_total;
+        differ += total != cachepoints_scatter_total(b, i);
+        some += total > 0.0f;
+    }
+    CHECK(bad_ratio == 0, "%s: %d near scattering weights are not I_e x 2 x (the share of the ball points in the medium)",
+          mode, bad_ratio);
+    CHECK(bad_total == 0, "%s: %d points whose S_p is not near + far", mode, bad_total);
+    CHECK(differ == 0, "%s: scattering weights depend on the parallel-for order (%d points)", mode, differ);
+    CHECK(some > 0 && some < (int)cachepoints_count(a), "%s: %d of %u points have scattering weight", mode, some,
+          cachepoints_count(a));
+    /* §3.3 reuse: a vertex inside a point's radius keeps that point, outside it gets the nearest */
+    int bad_reuse = 0;
+    for (uint32_t i = 0; i < cachepoints_count(a); i += 7) {
+        float c[3], r;
+        cachepoints_point(a, i, c, &r);
+        float inside[3] = {c[0] + 0.9f * r, c[1], c[2]}, outside[3] = {c[0] + 3.0f * r + 1.0f, c[1], c[2]};
+        CachePointVertex v;
+        cachepoints_vertex_reuse(a, L, inside, NULL, i, &v, NULL);
+        bad_reuse += v.point != i;
+        cachepoints_vertex_reuse(a, L, outside, NULL, i, &v, NULL);
+        bad_reuse += v.point != cachepoints_nearest(a, outside);
+    }
+    CHECK(bad_reuse == 0, "%s: %d vertices reused the wrong point", mode, bad_reuse);
+}
+
 static void run(const CachePointLights *L, const float *cand, uint32_t nc, int cut) {
     const char *mode = cut ? "cut" : "linear";
     CachePointCamera cam = {{5.0f, 5.0f, 40.0f}, 2.0f * 0.4f / 64.0f, 0.0f};
@@ -255,6 +311,7 @@ static void run(const CachePointLights *L, const float *cand, uint32_t nc, int c
     }
     CHECK(cachepoints_count(a) == cachepoints_count(b), "%s: point counts differ: %u vs %u", mode, cachepoints_count(a),
           cachepoints_count(b));
+    if (cachepoints_count(a) == cachepoints_count(b)) check_scatter(a, b, L, mode);
     int same = cachepoints_count(a) == cachepoints_count(b);
     for (uint32_t i = 0; same && i < cachepoints_count(a); ++i) {
         float pa[3], pb[3], r1, r2;
