@@ -154,6 +154,37 @@ double number_or(const tinygltf::Value &o, const char *key, double def) {
     return (v && v->IsNumber()) ? v->GetNumberAsDouble() : def;
 }
 
+// An index from a JSON number: -1 unless it is a whole number in [0, 2^31) (a cast of 1e10 to
+// int is undefined behaviour).
+static int index_value(const tinygltf::Value &v) {
+    if (!v.IsNumber()) return -1;
+    const double d = v.GetNumberAsDouble();
+    return d >= 0.0 && d < 2147483648.0 && d == std::floor(d) ? int(d) : -1;
+}
+
+// The deepest nesting of arrays and objects in a JSON text (strings skipped): tinygltf's
+// parser recurses once per level, so a file nesting hundreds of thousands of levels
+// overflowed the stack. Documented limit: JSON_MAX_DEPTH.
+static constexpr int JSON_MAX_DEPTH = 512;
+static int json_depth(const unsigned char *p, size_t n) {
+    int depth = 0, deepest = 0;
+    bool in_string = false;
+    for (size_t i = 0; i < n; ++i) {
+        const unsigned char c = p[i];
+        if (in_string) {
+            if (c == '\\') ++i;
+            else if (c == '"') in_string = false;
+        } else if (c == '"') {
+            in_string = true;
+        } else if (c == '[' || c == '{') {
+            if (++depth > deepest) deepest = depth;
+        } else if (c == ']' || c == '}') {
+            --depth;
+        }
+    }
+    return deepest;
+}
+
 // Fill n numbers from array member key, if present and well-formed.
 void numbers(const tinygltf::Value &o, const char *key, float *dst, size_t n) {
     const tinygltf::Value *v = member(o, key);
@@ -446,8 +477,12 @@ void Loader::parse() {
                 if (bin_at + 8 + uint64_t(u32(size_t(bin_at))) > length)
                     fail("invalid GLB: BIN chunk exceeds the file");
             }
+            if (json_depth(bytes.data() + 20, json_len) > JSON_MAX_DEPTH)
+                fail(strf("JSON nests deeper than %d levels", JSON_MAX_DEPTH));
             ok = tg.LoadBinaryFromMemory(&m_, &err, &warn_s, bytes.data(), length, dir_);
         } else {
+            if (json_depth(bytes.data(), bytes.size()) > JSON_MAX_DEPTH)
+                fail(strf("JSON nests deeper than %d levels", JSON_MAX_DEPTH));
             ok = tg.LoadASCIIFromString(&m_, &err, &warn_s, reinterpret_cast<const char *>(bytes.data()),
                                         static_cast<unsigned int>(bytes.size()), dir_);
         }
@@ -748,7 +783,7 @@ IoTextureRef Loader::texture_ref(const Info &info, bool srgb, const std::string 
         numbers(*tt, "scale", r.scale, 2);
         r.rotation = float(number_or(*tt, "rotation", 0.0));
         if (const tinygltf::Value *tc = member(*tt, "texCoord"); tc && tc->IsNumber())
-            r.texcoord = tc->GetNumberAsInt();
+            r.texcoord = index_value(*tc) >= 0 ? index_value(*tc) : 0;
     }
     if (r.texcoord != 0 && !warned_texcoord_) {
         warned_texcoord_ = true;
@@ -771,7 +806,7 @@ IoTextureRef Loader::texture_ref(const Info &info, bool srgb, const std::string 
     if (source < 0) {
         if (const tinygltf::Value *webp = extension(tex.extensions, "EXT_texture_webp")) {
             if (const tinygltf::Value *s = member(*webp, "source"); s && s->IsNumber())
-                source = s->GetNumberAsInt();
+                source = index_value(*s);
         }
     }
     if (source < 0) {
@@ -813,6 +848,14 @@ void Loader::convert_materials() {
 
         if (const tinygltf::Value *e = extension(src.extensions, "KHR_materials_emissive_strength"))
             d.emissive_strength = float(number_or(*e, "emissiveStrength", 1.0));
+        /* an emission beyond IO_MAX_EMISSION overflowed to infinity in float and rendered a
+         * black image with exit 0: refuse it, naming the material */
+        for (int c = 0; c < 3; ++c) {
+            const double e = double(d.emissive[c]) * double(d.emissive_strength);
+            if (!std::isfinite(e) || std::fabs(e) > IO_MAX_EMISSION || !std::isfinite(d.emissive_strength))
+                fail(strf("%s: emission out of range (emissiveFactor x emissiveStrength = %g; the limit is %g)",
+                          what.c_str(), e, IO_MAX_EMISSION));
+        }
         if (const tinygltf::Value *e = extension(src.extensions, "KHR_materials_specular")) {
             d.specular = float(number_or(*e, "specularFactor", 1.0));
             numbers(*e, "specularColorFactor", d.specular_color, 3);
@@ -954,6 +997,23 @@ void Loader::flatten_nodes() {
             local.m[14] = t[2];
         }
         const Mat4 world = mul(it.parent, local);
+        /* Transform sanity where the data enters (Debian's Embree asserts on invalid rays, and
+         * a 1e30 scale hung the cache point build): every entry finite and within
+         * IO_MAX_COORDINATE (documented in README.md), or the load fails naming the node. */
+        bool finite = true;
+        double largest = 0.0;
+        for (double e : world.m) {
+            finite = finite && std::isfinite(e);
+            largest = std::max(largest, std::fabs(e));
+        }
+        const bool places = node.mesh >= 0 || node.camera >= 0 || extension(node.extensions, "KHR_lights_punctual") ||
+                            member(node.extras, "candela_volume");
+        if (places && (!finite || largest > IO_MAX_COORDINATE))
+            fail(strf("%s: transform out of range (an entry is %s; the limit is %g)", what.c_str(),
+                      finite ? strf("%g", largest).c_str() : "not finite", IO_MAX_COORDINATE));
+        const double *a = world.m;
+        const double det = a[0] * (a[5] * a[10] - a[9] * a[6]) - a[4] * (a[1] * a[10] - a[9] * a[2]) +
+                           a[8] * (a[1] * a[6] - a[5] * a[2]);
 
         if (node.mesh >= 0) {
             if (size_t(node.mesh) >= m_.meshes.size())
@@ -961,7 +1021,12 @@ void Loader::flatten_nodes() {
             IoInstance inst{};
             inst.mesh = uint32_t(node.mesh);
             for (int k = 0; k < 16; ++k) inst.xform[k] = float(world.m[k]);
-            instances_.push_back(inst);
+            /* a zero scale hides an object (animation does this): skip it rather than give
+             * Embree a transform it cannot invert */
+            if (!(std::fabs(det) > 1e-30 * std::max(largest * largest * largest, 1e-300)))
+                warn(what + ": singular transform (a zero scale): the mesh is not rendered");
+            else
+                instances_.push_back(inst);
         } else if (node.mesh < -1) {
             fail(strf("%s: mesh %d out of range", what.c_str(), node.mesh));
         }
@@ -985,6 +1050,7 @@ void Loader::flatten_nodes() {
                 c.zfar = float(cam.perspective.zfar);
             }
             for (int k = 0; k < 16; ++k) c.xform[k] = float(world.m[k]);
+            if (!(std::fabs(det) > 0.0)) fail(what + ": singular camera transform (a zero scale)");
             cameras_.push_back(c);
         }
         if (member(node.extras, "candela_volume")) {
@@ -996,9 +1062,10 @@ void Loader::flatten_nodes() {
         if (const tinygltf::Value *lp = extension(node.extensions, "KHR_lights_punctual")) {
             const tinygltf::Value *li = member(*lp, "light");
             if (!li || !li->IsNumber()) fail(what + ": KHR_lights_punctual without a light index");
-            const int l = li->GetNumberAsInt();
+            const int l = index_value(*li);
             if (l < 0 || size_t(l) >= m_.lights.size())
-                fail(strf("%s: light %d out of range", what.c_str(), l));
+                fail(strf("%s: light %.17g out of range (%zu lights)", what.c_str(), li->GetNumberAsDouble(),
+                          m_.lights.size()));
             const tinygltf::Light &src = m_.lights[size_t(l)];
             IoLight d{};
             copy_name(d.name, src.name.empty() ? node.name : src.name);
@@ -1012,6 +1079,12 @@ void Loader::flatten_nodes() {
                 fail(strf("%s: light %d has unknown type '%s'", what.c_str(), l, src.type.c_str()));
             for (int c = 0; c < 3; ++c) d.color[c] = src.color.size() == 3 ? float(src.color[size_t(c)]) : 1.0f;
             d.intensity = float(src.intensity);
+            for (int c = 0; c < 3; ++c) {
+                const double e = double(src.intensity) * double(d.color[c]);
+                if (!std::isfinite(e) || std::fabs(e) > IO_MAX_EMISSION || !std::isfinite(d.intensity))
+                    fail(strf("%s: light intensity out of range (intensity x colour = %g; the limit is %g)",
+                              what.c_str(), e, IO_MAX_EMISSION));
+            }
             d.range = float(src.range);
             d.inner_cone_angle = float(src.spot.innerConeAngle);
             d.outer_cone_angle = float(src.spot.outerConeAngle);

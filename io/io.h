@@ -17,6 +17,12 @@ extern "C" {
 #endif
 
 #define IO_ERR_LEN 512
+/* The largest magnitude of a node's world transform entry (and so of a coordinate it places):
+ * beyond it float rays lose all precision. Documented in README.md. */
+#define IO_MAX_COORDINATE 1e12
+/* The largest emitted radiance (emissiveFactor x emissiveStrength, W/(m^2 sr)) and light
+ * intensity a scene may give: products with it stay finite in float. */
+#define IO_MAX_EMISSION 1e20
 
 /* One image in linear float RGBA, rows top to bottom (row 0 is the top of the picture). */
 typedef struct IoImage {

@@ -476,9 +476,24 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
             scene_free(scene);
             return -1;
         }
-        size_t n = (size_t)scene->env.width * (size_t)scene->env.height * 4;
-        for (size_t i = 0; i < n; ++i)
-            if (!isfinite(scene->env.rgba[i]) || scene->env.rgba[i] < 0.0f) scene->env.rgba[i] = 0.0f;
+        size_t n = (size_t)scene->env.width * (size_t)scene->env.height * 4, bad = 0;
+        float largest = 0.0f;
+        for (size_t i = 0; i < n; ++i) {
+            if (!isfinite(scene->env.rgba[i]) || scene->env.rgba[i] < 0.0f) {
+                scene->env.rgba[i] = 0.0f;
+                ++bad;
+            }
+            if (i % 4 != 3) largest = fmaxf(largest, scene->env.rgba[i]);
+        }
+        /* radiance beyond IO_MAX_EMISSION overflows products in float (a black image, exit 0) */
+        if ((double)largest * scene->env_strength > IO_MAX_EMISSION) {
+            snprintf(err, CANDELA_ERR_LEN, "%.400s: environment radiance out of range (%g x strength %g; the limit is %g)",
+                     env_path, (double)largest, (double)scene->env_strength, IO_MAX_EMISSION);
+            scene_free(scene);
+            return -1;
+        }
+        if (bad && !o->quiet)
+            fprintf(stderr, "%s: warning: %zu non-finite or negative environment values set to 0\n", env_path, bad);
     }
     return 0;
 }

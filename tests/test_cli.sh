@@ -75,6 +75,42 @@ expect_error "empty gltf" "empty.gltf" -- render "$tmp/empty.gltf" "${common[@]}
 sed 's/"uri" *: *"data:[^"]*"/"uri": "missing.bin"/' "$scene" > "$tmp/missing_buffer.gltf"
 expect_error "missing buffer" "missing_buffer.gltf" -- render "$tmp/missing_buffer.gltf" "${common[@]}"
 
+# hostile scenes (issue 13): each is point_plane.gltf changed in one way
+hostile() { # FILE CHANGE: a Python statement over the glTF dict d
+  python3 - "$scene" "$1" "$2" <<'PY'
+import json, sys
+src, dst, change = sys.argv[1:4]
+d = json.load(open(src))
+mesh = [n for n in d["nodes"] if "mesh" in n]
+cam = [n for n in d["nodes"] if "camera" in n]
+light_node = [n for n in d["nodes"] if "KHR_lights_punctual" in n.get("extensions", {})]
+exec(change)
+json.dump(d, open(dst, "w"))
+PY
+}
+hostile "$tmp/light_index.gltf" 'light_node[0]["extensions"]["KHR_lights_punctual"]["light"] = 1e10'
+expect_error "light index 1e10" "light 10000000000 out of range" -- render "$tmp/light_index.gltf" "${common[@]}"
+hostile "$tmp/scale_huge.gltf" 'mesh[0]["scale"] = [1e30, 1e30, 1e30]'
+expect_error "scale 1e30" "transform out of range" -- render "$tmp/scale_huge.gltf" "${common[@]}"
+hostile "$tmp/cam_far.gltf" 'cam[0]["translation"] = [1e38, 0, 0]'
+expect_error "camera at 1e38" "transform out of range" -- render "$tmp/cam_far.gltf" "${common[@]}"
+hostile "$tmp/cam_flat.gltf" 'cam[0]["scale"] = [1, 0, 1]'
+expect_error "singular camera" "singular camera transform" -- render "$tmp/cam_flat.gltf" "${common[@]}"
+hostile "$tmp/emission_inf.gltf" 'd["materials"][0]["emissiveFactor"] = [1, 1, 1]; d["materials"][0].setdefault("extensions", {})["KHR_materials_emissive_strength"] = {"emissiveStrength": 1e39}'
+expect_error "emission 1e39" "emission out of range" -- render "$tmp/emission_inf.gltf" "${common[@]}"
+hostile "$tmp/light_inf.gltf" 'd["extensions"]["KHR_lights_punctual"]["lights"][0]["intensity"] = 1e39'
+expect_error "light intensity 1e39" "light intensity out of range" -- render "$tmp/light_inf.gltf" "${common[@]}"
+python3 -c 'import sys; t = open(sys.argv[1]).read(); open(sys.argv[2], "w").write(t.replace("\"asset\"", "\"extras\": " + "[" * 200000 + "]" * 200000 + ", \"asset\"", 1))' "$scene" "$tmp/deep.gltf"
+expect_error "JSON 200000 levels deep" "nests deeper than" -- render "$tmp/deep.gltf" "${common[@]}"
+# a zero scale hides a mesh (animation does this): a warning, and the render goes on
+hostile "$tmp/scale0.gltf" 'mesh[0]["scale"] = [0, 1, 1]'
+if "$bin" render "$tmp/scale0.gltf" -o "$tmp/s0.exr" --no-png --res 8x8 --spp 1 2>"$tmp/s0.err" && grep -q "singular transform" "$tmp/s0.err"; then
+  ok
+else
+  bad "a zero-scale mesh: $(cat "$tmp/s0.err")"
+fi
+rm -f "$tmp/s0.exr"
+
 # volumes: a node whose candela_volume names a missing, a truncated or a non-VDB file, or a
 # grid that is not there (the scene is point_plane.gltf plus one volume node)
 volume_scene() { # FILE URI [GRID]
