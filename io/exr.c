@@ -9,6 +9,7 @@
 #include <openexr.h>
 
 #include <errno.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -118,6 +119,7 @@ int io_write_exr(const char *path, int width, int height, const IoExrChannel *ch
         return 1;
     }
     snprintf(tmp, tmplen, "%s.tmp-%ld", path, (long)getpid());
+    io_temp_begin(tmp);
 
     exr_last_msg[0] = 0;
     exr_context_initializer_t init = exr_init();
@@ -192,9 +194,11 @@ int io_write_exr(const char *path, int width, int height, const IoExrChannel *ch
     if (rename(tmp, path) != 0) {
         exr_set_err(err, path, "cannot rename %s: %s", tmp, strerror(errno));
         remove(tmp);
+        io_temp_end();
         free(tmp);
         return 1;
     }
+    io_temp_end();
     free(tmp);
     return 0;
 
@@ -203,6 +207,7 @@ fail:
     if (have_enc) exr_encoding_destroy(ctxt, &enc);
     if (ctxt) exr_finish(&ctxt);
     remove(tmp);
+    io_temp_end();
     free(tmp);
     free(sorted);
     return 1;
@@ -384,4 +389,25 @@ fail:
     if (raw && raw != (uint8_t *)out) free(raw);
     free(out);
     return 1;
+}
+
+/* ---------------------------------------------------------------- the active temporary file */
+
+/* The one piece of process-wide mutable state in io/: a signal handler must be able to find
+ * the file to remove without locks or allocation. */
+static char active_temp[4096];
+static volatile sig_atomic_t active_temp_set;
+
+void io_temp_begin(const char *tmp_path) {
+    active_temp_set = 0;
+    size_t n = strlen(tmp_path);
+    if (n >= sizeof active_temp) return; /* not registered: too long (the write still works) */
+    memcpy(active_temp, tmp_path, n + 1);
+    active_temp_set = 1;
+}
+
+void io_temp_end(void) { active_temp_set = 0; }
+
+void io_remove_active_temp(void) {
+    if (active_temp_set) unlink(active_temp);
 }

@@ -237,6 +237,10 @@ extern "C" int io_write_png(const char *path, int width, int height, const float
         return 1;
     }
     std::string tmp = std::string(path) + ".tmp-" + std::to_string((long)getpid());
+    io_temp_begin(tmp.c_str());
+    struct TempEnd {
+        ~TempEnd() { io_temp_end(); }
+    } temp_end;
     try {
         const size_t n = size_t(width) * size_t(height) * 3;
         std::vector<unsigned char> px(n);

@@ -17,6 +17,14 @@ extern "C" {
 #endif
 
 #define IO_ERR_LEN 512
+
+/* The temporary file being written (writers write PATH.tmp-PID, then rename it): registered
+ * while it exists so that a signal handler can remove it with io_remove_active_temp (which is
+ * async-signal-safe): an interrupted write leaves no file behind. One writer at a time (the
+ * program writes its outputs one after another). */
+void io_temp_begin(const char *tmp_path);
+void io_temp_end(void);
+void io_remove_active_temp(void);
 /* The largest magnitude of a node's world transform entry (and so of a coordinate it places):
  * beyond it float rays lose all precision. Documented in README.md. */
 #define IO_MAX_COORDINATE 1e12

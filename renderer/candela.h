@@ -6,6 +6,7 @@
 #define CANDELA_H
 
 #include <stddef.h>
+#include <signal.h>
 #include <stdint.h>
 
 #define CANDELA_ERR_LEN 512
@@ -50,6 +51,9 @@ typedef struct CandelaOptions {
     int cachepoint_build_linear;  /* 1: the paper's build (every light at every point); 0: a cut
                                    * through the light tree (the default) */
     uint32_t cachepoint_cut_size; /* cut build: far entries per point; 0: default */
+    /* set non-zero (e.g. from a signal handler) to stop at the next iteration barrier: the
+     * image of the iterations done is returned and CandelaStats.interrupted set. NULL: never. */
+    const volatile sig_atomic_t *stop;
 } CandelaOptions;
 
 void candela_options_default(CandelaOptions *o);
@@ -64,6 +68,8 @@ typedef struct CandelaStats {
     uint64_t rays_camera, rays_bounce, rays_shadow;
     uint64_t paths;
     int iterations;
+    int spp_done;                 /* samples per pixel rendered (less than spp when interrupted) */
+    int interrupted;              /* stopped at a barrier by CandelaOptions.stop */
     size_t peak_memory_bytes;
     uint32_t num_triangles, num_lights, num_instances;
     double time_cachepoints;       /* cache point build (inside time_build) */

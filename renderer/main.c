@@ -1,5 +1,6 @@
 /* renderer/main.c: the `candela` command line. */
 #include <errno.h>
+#include <signal.h>
 #include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -8,6 +9,7 @@
 #include <unistd.h>
 
 #include "candela.h"
+#include "io.h"
 
 static const char *USAGE =
     "usage: candela render SCENE.gltf|SCENE.glb [options]\n"
@@ -20,6 +22,9 @@ static const char *USAGE =
     "                            default out/<scene name>.exr\n"
     "  --png FILE.png            preview PNG path (default: the EXR path with .png)\n"
     "  --no-png                  do not write the PNG preview\n"
+    "  --save-partial            on Ctrl-C / SIGTERM, stop at the next iteration and write the\n"
+    "                            image so far as NAME.partial.exr (exit 130); a second signal\n"
+    "                            exits at once\n"
     "  --spp N                   samples per pixel (default 16)\n"
     "  --seed S                  random seed (default 0)\n"
     "  --res WxH                 resolution (default: 640 wide, camera aspect)\n"
@@ -61,6 +66,36 @@ static const char *USAGE =
 /* The largest image: 16384 per side, 64 Mpixels in all (the film takes ~100 bytes per pixel). */
 #define MAX_RES_SIDE 16384
 #define MAX_RES_PIXELS (64 << 20)
+
+/* Interruption (SIGINT, SIGTERM): the first asks the render to stop at the next iteration
+ * barrier (CandelaOptions.stop); a second removes the output being written, if any, and exits
+ * at once. A signal handler can only touch sig_atomic_t state, so this flag is the program's
+ * one global. */
+static volatile sig_atomic_t interrupts;
+
+static void on_interrupt(int sig) {
+    (void)sig;
+    if (interrupts++ > 0) {
+        io_remove_active_temp();
+        _exit(130);
+    }
+}
+
+static void install_interrupt_handlers(void) {
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_interrupt;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+}
+
+/* NAME.exr -> NAME.partial.exr (NAME.partial when there is no extension). */
+static void partial_name(const char *path, char out[PATH_MAX]) {
+    const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
+    if (!dot || (slash && dot < slash)) snprintf(out, PATH_MAX, "%s.partial", path);
+    else snprintf(out, PATH_MAX, "%.*s.partial%s", (int)(dot - path), path, dot);
+}
 
 static void die(const char *msg, const char *arg) {
     fprintf(stderr, "candela: %s%s%s\n", msg, arg ? arg : "", arg ? "" : "");
@@ -143,7 +178,7 @@ int main(int argc, char **argv) {
     CandelaOptions o;
     candela_options_default(&o);
     const char *out = NULL, *png = NULL, *stats_json = NULL;
-    int no_png = 0;
+    int no_png = 0, save_partial = 0;
     CandelaCompareOptions co = {"uniform,power,tree,optimal,cachepoints,cachepoints-novis", 0, NULL, NULL, 5000};
     for (int i = 2; i < argc; ++i) {
         const char *a = argv[i];
@@ -151,6 +186,7 @@ int main(int argc, char **argv) {
         if (strcmp(a, "-o") == 0 || strcmp(a, "--output") == 0) { if (!v) die("missing value for ", a); out = v; ++i; }
         else if (strcmp(a, "--png") == 0) { if (!v) die("missing value for ", a); png = v; ++i; }
         else if (strcmp(a, "--no-png") == 0) no_png = 1;
+        else if (strcmp(a, "--save-partial") == 0) save_partial = 1;
         else if (strcmp(a, "--optimal-occlusion") == 0) o.optimal_occlusion = 1;
         else if (strcmp(a, "--no-visibility") == 0) o.cachepoint_no_visibility = 1;
         else if (strcmp(a, "--cachepoint-retruncate") == 0) o.cachepoint_retruncate = 1;
@@ -307,6 +343,8 @@ int main(int argc, char **argv) {
     CandelaImage image;
     CandelaStats stats;
     CandelaRayLog log = {0};
+    install_interrupt_handlers();
+    o.stop = &interrupts;
     if (candela_render(&o, &image, &stats, bench ? &log : NULL, err) != 0) {
         fprintf(stderr, "candela: %s\n", err);
         return 1;
@@ -337,15 +375,35 @@ int main(int argc, char **argv) {
         }
         candela_ray_log_free(&log);
     } else {
+        char out_partial[PATH_MAX], png_partial[PATH_MAX];
+        if (stats.interrupted) {
+            /* never a file that looks complete: the image so far only under a .partial name */
+            if (!save_partial) {
+                fprintf(stderr, "candela: interrupted after %d of %d spp; nothing written (--save-partial keeps the image so far)\n",
+                        stats.spp_done, o.spp);
+                candela_image_free(&image);
+                return 130;
+            }
+            partial_name(out, out_partial);
+            out = out_partial;
+            if (png) {
+                partial_name(png, png_partial);
+                png = png_partial;
+            }
+        }
         if (candela_write_outputs(&image, out, png, err) != 0) {
             fprintf(stderr, "candela: %s\n", err);
             rc = 1;
+        } else if (stats.interrupted) {
+            fprintf(stderr, "candela: interrupted after %d of %d spp; wrote %s%s%s\n", stats.spp_done, o.spp, out,
+                    png ? " and " : "", png ? png : "");
+            rc = 130;
         } else if (!o.quiet) {
             fprintf(stderr, "candela: wrote %s%s%s\n", out, png ? " and " : "", png ? png : "");
         }
     }
     if (rc == 0 && !o.quiet) print_stats(&stats);
-    if (rc == 0 && stats_json && candela_write_stats_json(stats_json, &o, &stats, err) != 0) {
+    if ((rc == 0 || rc == 130) && stats_json && candela_write_stats_json(stats_json, &o, &stats, err) != 0) {
         fprintf(stderr, "candela: %s\n", err);
         rc = 1;
     }

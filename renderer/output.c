@@ -71,6 +71,7 @@ int candela_write_stats_json(const char *path, const CandelaOptions *o, const Ca
     snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
     FILE *f = fopen(tmp, "w");
     if (!f) { snprintf(err, CANDELA_ERR_LEN, "%s: cannot open for writing", path); return -1; }
+    io_temp_begin(tmp);
     uint64_t rays = s->rays_camera + s->rays_bounce + s->rays_shadow;
     double render = candela_stats_render_seconds(s);
     fputs("{\n  \"scene\": ", f);
@@ -100,9 +101,11 @@ int candela_write_stats_json(const char *path, const CandelaOptions *o, const Ca
     fprintf(f, "  \"peak_memory_bytes\": %zu\n}\n", s->peak_memory_bytes);
     if (fclose(f) != 0 || rename(tmp, path) != 0) {
         remove(tmp);
+        io_temp_end();
         snprintf(err, CANDELA_ERR_LEN, "%s: cannot write", path);
         return -1;
     }
+    io_temp_end();
     return 0;
 }
 

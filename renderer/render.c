@@ -191,7 +191,14 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
         spp_done += spp_i;
         integrator_barrier(ig); /* no ray in flight: learned state changes here */
         stats->iterations = iteration + 1;
+        stats->spp_done = spp_done;
         report_progress(&progress, done_paths, total_paths, done_paths == total_paths);
+        /* an interruption takes effect here, between iterations: the image of the iterations
+         * done is a complete, deterministic render of spp_done samples */
+        if (o->stop && *o->stop && spp_done < o->spp) {
+            stats->interrupted = 1;
+            break;
+        }
     }
     stats->time_total = clock_seconds() - t_start;
     int rc = film_resolve(&ig->film, image);

@@ -190,5 +190,25 @@ expect_error "compare bad strategy" "unknown strategy 'best'" -- compare "$det" 
 expect_error "compare bad reference size" "reference is 24x16" -- compare "$det" --strategies tree --spp 1 --res 8x8 --reference "$cmpd/reference.exr" --out-dir "$tmp/cmp4" --quiet
 expect_error "compare bad timing runs" "--timing-runs" -- compare "$det" --timing-runs 0 --out-dir "$tmp/cmp5" --quiet
 
+# interruption: SIGINT stops at the next iteration and writes nothing (exit 130); SIGTERM with
+# --save-partial writes the image so far under .partial names only; SIGKILL leaves no file with
+# the final name; never a temporary file left by a signal the program can catch
+long=(--res 32x32 --spp 1000000 --quiet)
+interrupt_run() { # SIGNAL OUT [FLAGS...]
+  local sig=$1 out=$2; shift 2
+  "$bin" render "$scene" -o "$out" "${long[@]}" "$@" 2>"$tmp/sig.err" & local pid=$!
+  sleep 2; kill "-$sig" "$pid"; wait "$pid"; echo $?
+}
+rc=$(interrupt_run INT "$tmp/int.exr")
+[ "$rc" = 130 ] && [ ! -e "$tmp/int.exr" ] && [ ! -e "$tmp/int.png" ] && grep -q "interrupted after" "$tmp/sig.err" && ok \
+  || bad "SIGINT: exit $rc, $(ls "$tmp" | grep '^int' | tr '\n' ' ') $(cat "$tmp/sig.err")"
+rc=$(interrupt_run TERM "$tmp/term.exr" --save-partial)
+if [ "$rc" = 130 ] && [ ! -e "$tmp/term.exr" ] && [ -s "$tmp/term.partial.exr" ] && [ -s "$tmp/term.partial.png" ] &&
+   [ "$(head -c 4 "$tmp/term.partial.exr" | od -An -tx1 | tr -d ' ')" = 762f3101 ]; then ok
+else bad "SIGTERM --save-partial: exit $rc, $(ls "$tmp" | grep '^term' | tr '\n' ' ') $(cat "$tmp/sig.err")"; fi
+rc=$(interrupt_run KILL "$tmp/kill.exr")
+[ ! -e "$tmp/kill.exr" ] && [ ! -e "$tmp/kill.png" ] && ok || bad "SIGKILL left a finished-looking file"
+ls "$tmp" | grep -q -e '^int.*tmp-' -e '^term.*tmp-' && bad "a caught signal left a temporary file" || ok
+
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]
