@@ -15,6 +15,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 /* The OpenEXR error callback has no user pointer usable with the default file streams, so the
@@ -64,13 +65,61 @@ static int cmp_channel(const void *a, const void *b) {
     return strcmp(((const SortedChannel *)a)->name, ((const SortedChannel *)b)->name);
 }
 
-int io_write_exr(const char *path, int width, int height, const IoExrChannel *channels,
+int io_output_path(const char *path, char resolved[IO_PATH_MAX], char err[IO_ERR_LEN]) {
+    char cur[IO_PATH_MAX];
+    if (snprintf(cur, sizeof cur, "%s", path) >= (int)sizeof cur) {
+        exr_set_err(err, path, "path too long");
+        return 1;
+    }
+    for (int hops = 0; hops < 40; ++hops) {
+        struct stat st;
+        if (lstat(cur, &st) != 0) break; /* a new file: written here */
+        if (S_ISLNK(st.st_mode)) {
+            char target[IO_PATH_MAX];
+            ssize_t n = readlink(cur, target, sizeof target - 1);
+            if (n < 0 || n >= (ssize_t)sizeof target - 1) {
+                exr_set_err(err, path, "cannot read the symbolic link");
+                return 1;
+            }
+            target[n] = 0;
+            if (target[0] == '/') {
+                memcpy(cur, target, (size_t)n + 1);
+            } else { /* relative to the link's folder */
+                char *slash = strrchr(cur, '/');
+                size_t dir = slash ? (size_t)(slash - cur) + 1 : 0;
+                if (dir + (size_t)n + 1 > sizeof cur) {
+                    exr_set_err(err, path, "path too long");
+                    return 1;
+                }
+                memcpy(cur + dir, target, (size_t)n + 1);
+            }
+            continue;
+        }
+        if (!S_ISREG(st.st_mode)) {
+            exr_set_err(err, path, "not a regular file (a directory, device or FIFO): not replaced");
+            return 1;
+        }
+        break;
+    }
+    struct stat st;
+    if (lstat(cur, &st) == 0 && S_ISLNK(st.st_mode)) {
+        exr_set_err(err, path, "too many levels of symbolic links");
+        return 1;
+    }
+    memcpy(resolved, cur, strlen(cur) + 1);
+    return 0;
+}
+
+int io_write_exr(const char *path_arg, int width, int height, const IoExrChannel *channels,
                  int num_channels, char err[IO_ERR_LEN]) {
     if (err) err[0] = 0;
-    if (!path || !*path) {
+    if (!path_arg || !*path_arg) {
         exr_set_err(err, "(null)", "no path given");
         return 1;
     }
+    /* a symbolic link gets the image written to its target (the temp file beside it) */
+    char path[IO_PATH_MAX];
+    if (io_output_path(path_arg, path, err) != 0) return 1;
     if (width <= 0 || height <= 0 || (int64_t)width * height > ((int64_t)1 << 31)) {
         exr_set_err(err, path, "invalid image size %dx%d", width, height);
         return 1;

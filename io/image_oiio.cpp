@@ -225,13 +225,15 @@ extern "C" void io_image_free(IoImage *image) {
     std::memset(image, 0, sizeof *image);
 }
 
-extern "C" int io_write_png(const char *path, int width, int height, const float *rgb,
+extern "C" int io_write_png(const char *path_arg, int width, int height, const float *rgb,
                             char err[IO_ERR_LEN]) {
     if (err) err[0] = 0;
-    if (!path || !*path) {
+    if (!path_arg || !*path_arg) {
         set_err(err, "(null)", "no path given");
         return 1;
     }
+    char path[IO_PATH_MAX];
+    if (io_output_path(path_arg, path, err) != 0) return 1;
     if (width <= 0 || height <= 0 || !rgb || (long long)width * height > (1LL << 31) / 3) {
         set_err(err, path, "invalid image size or no pixels");
         return 1;

@@ -23,6 +23,11 @@ extern "C" {
  * async-signal-safe): an interrupted write leaves no file behind. One writer at a time (the
  * program writes its outputs one after another). */
 void io_temp_begin(const char *tmp_path);
+/* Where a writer puts PATH: a symbolic link is followed to its target (so a link into a shared
+ * render folder gets the image, not replaced by a regular file), an existing directory, device
+ * or FIFO is refused with a one-line error. 0 ok. */
+#define IO_PATH_MAX 4096
+int io_output_path(const char *path, char resolved[IO_PATH_MAX], char err[IO_ERR_LEN]);
 void io_temp_end(void);
 void io_remove_active_temp(void);
 /* The largest magnitude of a node's world transform entry (and so of a coordinate it places):

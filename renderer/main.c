@@ -320,6 +320,14 @@ int main(int argc, char **argv) {
             fprintf(stderr, "candela: %s: output directory does not exist or is not writable\n", png);
             return 1;
         }
+        /* an output that is a device, FIFO or directory is refused before rendering, not after */
+        char resolved[IO_PATH_MAX], ioerr[IO_ERR_LEN];
+        const char *outputs[3] = {out, png, stats_json};
+        for (int k = 0; k < 3; ++k)
+            if (outputs[k] && io_output_path(outputs[k], resolved, ioerr) != 0) {
+                fprintf(stderr, "candela: %s\n", ioerr);
+                return 1;
+            }
     }
 
     char err[CANDELA_ERR_LEN];

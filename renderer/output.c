@@ -65,12 +65,17 @@ static void json_string(FILE *f, const char *s) {
     fputc('"', f);
 }
 
-int candela_write_stats_json(const char *path, const CandelaOptions *o, const CandelaStats *s,
+int candela_write_stats_json(const char *path_arg, const CandelaOptions *o, const CandelaStats *s,
                              char err[CANDELA_ERR_LEN]) {
-    char tmp[4096];
+    char path[IO_PATH_MAX], ioerr[IO_ERR_LEN];
+    if (io_output_path(path_arg, path, ioerr) != 0) {
+        snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
+        return -1;
+    }
+    char tmp[IO_PATH_MAX + 32];
     snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
     FILE *f = fopen(tmp, "w");
-    if (!f) { snprintf(err, CANDELA_ERR_LEN, "%s: cannot open for writing", path); return -1; }
+    if (!f) { snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot open for writing", path); return -1; }
     io_temp_begin(tmp);
     uint64_t rays = s->rays_camera + s->rays_bounce + s->rays_shadow;
     double render = candela_stats_render_seconds(s);
@@ -102,7 +107,7 @@ int candela_write_stats_json(const char *path, const CandelaOptions *o, const Ca
     if (fclose(f) != 0 || rename(tmp, path) != 0) {
         remove(tmp);
         io_temp_end();
-        snprintf(err, CANDELA_ERR_LEN, "%s: cannot write", path);
+        snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot write", path);
         return -1;
     }
     io_temp_end();

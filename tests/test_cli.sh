@@ -190,6 +190,16 @@ expect_error "compare bad strategy" "unknown strategy 'best'" -- compare "$det" 
 expect_error "compare bad reference size" "reference is 24x16" -- compare "$det" --strategies tree --spp 1 --res 8x8 --reference "$cmpd/reference.exr" --out-dir "$tmp/cmp4" --quiet
 expect_error "compare bad timing runs" "--timing-runs" -- compare "$det" --timing-runs 0 --out-dir "$tmp/cmp5" --quiet
 
+# an output that is a symbolic link gets the image at its target (the link stays); a FIFO (or
+# device) under the output name is refused before rendering
+mkdir -p "$tmp/shared"
+ln -s shared/target.exr "$tmp/link.exr"
+if "$bin" render "$scene" -o "$tmp/link.exr" --no-png --res 8x8 --spp 1 --quiet && [ -L "$tmp/link.exr" ] &&
+   [ -s "$tmp/shared/target.exr" ]; then ok; else bad "output through a symbolic link: $(ls -la "$tmp" "$tmp/shared")"; fi
+mkfifo "$tmp/fifo_out.exr"
+expect_error "output is a FIFO" "not a regular file" -- render "$scene" -o "$tmp/fifo_out.exr" --no-png --res 8x8 --spp 1 --quiet
+rm -f "$tmp/fifo_out.exr"
+
 # interruption: SIGINT stops at the next iteration and writes nothing (exit 130); SIGTERM with
 # --save-partial writes the image so far under .partial names only; SIGKILL leaves no file with
 # the final name; never a temporary file left by a signal the program can catch
