@@ -1,0 +1,13 @@
+/* tests/fuzz/fuzz_gltf.c: libFuzzer over the glTF / GLB loader (io_load_gltf): tinygltf's
+ * parser, the GLB container checks, accessors, materials, lights, cameras and Candela's extras.
+ * Inputs starting with "glTF" are GLB, the others .gltf (JSON). */
+#include "fuzz_common.h"
+#include "io.h"
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
+    const char *path = fuzz_write_input(size >= 4 && memcmp(data, "glTF", 4) == 0 ? "in.glb" : "in.gltf", data, size);
+    IoScene scene;
+    char err[IO_ERR_LEN];
+    if (io_load_gltf(path, &scene, err) == 0) io_scene_free(&scene);
+    return 0;
+}
