@@ -122,15 +122,33 @@ bool read_whole_file(const std::string &path, std::vector<unsigned char> *out, s
     return true;
 }
 
-// tinygltf FileExists callback: only files under the glTF's own directory (tinygltf would
-// otherwise also look in the current working directory).
+// The file-reference policy (README "Scene input"): a scene may reference files anywhere,
+// relative to its own folder (production scenes use ../textures/), unless a confinement
+// folder is given (`--confine-to DIR`, for farms rendering uploaded scenes): then every file
+// it references must resolve (symbolic links and .. followed, by realpath) inside DIR.
+bool inside_folder(const std::string &file, const std::string &folder_real) {
+    if (folder_real.empty()) return true;
+    char *r = ::realpath(file.c_str(), nullptr);
+    if (!r) return false;
+    const std::string real(r);
+    std::free(r);
+    return real.compare(0, folder_real.size() + 1, folder_real + "/") == 0;
+}
+
+struct FsUser {
+    std::string dir, confine;
+};
+
+// tinygltf FileExists callback: a buffer file is looked up only under the glTF's own folder
+// path (tinygltf would otherwise also search the current working directory) and, with a
+// confinement folder, only when it resolves inside it.
 bool fs_file_exists(const std::string &abs_filename, void *user) {
-    const std::string &dir = *static_cast<const std::string *>(user);
-    if (!dir.empty()) {
-        std::string prefix = dir.back() == '/' ? dir : dir + "/";
+    const FsUser &fs = *static_cast<const FsUser *>(user);
+    if (!fs.dir.empty()) {
+        std::string prefix = fs.dir.back() == '/' ? fs.dir : fs.dir + "/";
         if (abs_filename.compare(0, prefix.size(), prefix) != 0) return false;
     }
-    return is_regular_file(abs_filename);
+    return is_regular_file(abs_filename) && inside_folder(abs_filename, fs.confine);
 }
 
 // tinygltf image callback: decode nothing. Keep the bytes of data: URI images (tinygltf
@@ -367,7 +385,8 @@ const char *type_name(int t) {
 
 class Loader {
   public:
-    explicit Loader(const std::string &path) : path_(path), dir_(dir_of(path)) {}
+    Loader(const std::string &path, const std::string &confine)
+        : path_(path), dir_(dir_of(path)), fs_user_{dir_of(path), confine} {}
     ~Loader() { release_all(); }
     Loader(const Loader &) = delete;
     Loader &operator=(const Loader &) = delete;
@@ -376,7 +395,15 @@ class Loader {
 
   private:
     std::string path_, dir_;
+    FsUser fs_user_;
     tinygltf::Model m_;
+    // A file the scene references, relative to its folder; refused outside the confinement.
+    std::string referenced(const std::string &uri, const std::string &what) {
+        const std::string file = join_path(dir_, uri);
+        if (!fs_user_.confine.empty() && is_regular_file(file) && !inside_folder(file, fs_user_.confine))
+            fail(what + ": '" + uri + "' is outside " + fs_user_.confine + " (--confine-to)");
+        return file;
+    }
     uint32_t warnings_ = 0;
     bool warned_morph_ = false;
     bool warned_texcoord_ = false;
@@ -450,7 +477,7 @@ void Loader::parse() {
     tg.SetImageLoader(&keep_image_bytes, nullptr);
     tg.SetStoreOriginalJSONForExtrasAndExtensions(true);  // for raw_member_start
     tinygltf::FsCallbacks fs = {&fs_file_exists, &tinygltf::ExpandFilePath,
-                                &tinygltf::ReadWholeFile, &tinygltf::WriteWholeFile, &dir_};
+                                &tinygltf::ReadWholeFile, &tinygltf::WriteWholeFile, &fs_user_};
     tg.SetFsCallbacks(fs);
 
     std::string err, warn_s;
@@ -506,6 +533,8 @@ void Loader::parse() {
         std::string msg = candela_io::one_line(err);
         if (msg.empty()) msg = candela_io::one_line(warn_s);
         if (msg.empty()) msg = "tinygltf could not parse the file";
+        if (!fs_user_.confine.empty() && msg.find("File not found") != std::string::npos)
+            msg += " (or outside " + fs_user_.confine + ": --confine-to)";
         fail(msg);
     }
 }
@@ -739,7 +768,7 @@ int32_t Loader::image_for(int gi, bool srgb, const std::string &what) {
         fail(strf("%s: image %d out of range", what.c_str(), gi));
     const tinygltf::Image &im = m_.images[size_t(gi)];
     const bool from_file = im.bufferView < 0 && !im.uri.empty();
-    const std::string file = from_file ? join_path(dir_, url_decode(im.uri)) : std::string();
+    const std::string file = from_file ? referenced(url_decode(im.uri), what) : std::string();
     const std::string key = from_file ? file : strf("#%d", gi);
     auto it = image_cache_.find({key, srgb ? 1 : 0});
     if (it != image_cache_.end()) return it->second;
@@ -1132,7 +1161,7 @@ void Loader::load_volume(const tinygltf::Node &node, const std::string &what, co
     const tinygltf::Value *uri = member(cv, "uri");
     if (!uri) fail(w + " has no \"uri\" (the VDB file, required)");
     if (!uri->IsString() || uri->Get<std::string>().empty()) fail(w + ".uri must be a non-empty string");
-    const std::string file = join_path(dir_, url_decode(uri->Get<std::string>()));
+    const std::string file = referenced(url_decode(uri->Get<std::string>()), w);
     if (file.size() >= sizeof v.path) fail(w + ".uri is too long");
     std::memcpy(v.path, file.c_str(), file.size() + 1);
 
@@ -1185,7 +1214,7 @@ void Loader::environment(IoScene *out) {
         fail("extras.candela_environment needs a string \"uri\"");
     const tinygltf::Value *strength = member(*env, "strength");
     if (strength && !strength->IsNumber()) fail("extras.candela_environment.strength must be a number");
-    const std::string p = join_path(dir_, uri->Get<std::string>());
+    const std::string p = referenced(uri->Get<std::string>(), "extras.candela_environment");
     if (p.size() >= sizeof out->env_path) fail("extras.candela_environment.uri is too long");
     std::memcpy(out->env_path, p.c_str(), p.size() + 1);
     out->env_strength = strength ? float(strength->GetNumberAsDouble()) : 1.0f;
@@ -1251,6 +1280,11 @@ void Loader::run(IoScene *out) {
 }  // namespace
 
 extern "C" int io_load_gltf(const char *path, IoScene *scene, char err[IO_ERR_LEN]) {
+    return io_load_gltf_confined(path, nullptr, scene, err);
+}
+
+extern "C" int io_load_gltf_confined(const char *path, const char *confine_dir, IoScene *scene,
+                                     char err[IO_ERR_LEN]) {
     if (err) err[0] = 0;
     if (!scene) {
         set_err(err, path ? path : "(null)", "no output scene");
@@ -1261,9 +1295,22 @@ extern "C" int io_load_gltf(const char *path, IoScene *scene, char err[IO_ERR_LE
         set_err(err, "(null)", "no path given");
         return 1;
     }
-    std::string problem;
+    std::string problem, confine;
+    if (confine_dir && *confine_dir) {
+        char *r = ::realpath(confine_dir, nullptr);
+        if (!r) {
+            set_err(err, confine_dir, "confinement folder (--confine-to) not found");
+            return 1;
+        }
+        confine = r;
+        std::free(r);
+        if (!inside_folder(path, confine)) {
+            set_err(err, path, "is outside " + confine + " (--confine-to)");
+            return 1;
+        }
+    }
     try {
-        Loader loader(path);
+        Loader loader(path, confine);
         loader.run(scene);
         return 0;
     } catch (const LoadError &e) {

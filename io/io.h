@@ -227,6 +227,10 @@ typedef struct IoScene {
 /* Load a .gltf or .glb (decided by content, not extension). Validates everything the renderer
  * relies on: accessor bounds and types, index ranges, finite positions, image sizes. */
 int io_load_gltf(const char *path, IoScene *scene, char err[IO_ERR_LEN]);
+/* The same, with every file the scene references (buffers, images, VDBs, its environment) and
+ * the scene itself required to resolve (realpath) inside confine_dir (NULL: no confinement;
+ * the default policy lets a scene reference files anywhere relative to its folder). */
+int io_load_gltf_confined(const char *path, const char *confine_dir, IoScene *scene, char err[IO_ERR_LEN]);
 void io_scene_free(IoScene *scene);
 
 /* Read any image OpenImageIO reads (EXR, HDR, PNG, ...) as linear float RGBA. 8/16-bit

@@ -54,6 +54,9 @@ typedef struct CandelaOptions {
     /* set non-zero (e.g. from a signal handler) to stop at the next iteration barrier: the
      * image of the iterations done is returned and CandelaStats.interrupted set. NULL: never. */
     const volatile sig_atomic_t *stop;
+    /* every file the scene references, and the scene, must lie inside this folder (NULL: the
+     * default policy, files anywhere relative to the scene) */
+    const char *confine_dir;
 } CandelaOptions;
 
 void candela_options_default(CandelaOptions *o);

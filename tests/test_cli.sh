@@ -190,6 +190,25 @@ expect_error "compare bad strategy" "unknown strategy 'best'" -- compare "$det" 
 expect_error "compare bad reference size" "reference is 24x16" -- compare "$det" --strategies tree --spp 1 --res 8x8 --reference "$cmpd/reference.exr" --out-dir "$tmp/cmp4" --quiet
 expect_error "compare bad timing runs" "--timing-runs" -- compare "$det" --timing-runs 0 --out-dir "$tmp/cmp5" --quiet
 
+# file references: anywhere relative to the scene by default (../textures/ works); with
+# --confine-to DIR only inside DIR (a buffer URI climbing to /etc/passwd is refused either way:
+# it is not a buffer of that size, and outside DIR)
+mkdir -p "$tmp/conf/scenes" "$tmp/conf/bin"
+python3 - "$scene" "$tmp/conf" <<'PY'
+import base64, json, sys
+d = json.load(open(sys.argv[1])); root = sys.argv[2]
+uri = d["buffers"][0]["uri"]
+open(root + "/bin/plane.bin", "wb").write(base64.b64decode(uri.split(",", 1)[1]))
+d["buffers"][0]["uri"] = "../bin/plane.bin"
+json.dump(d, open(root + "/scenes/up.gltf", "w"))
+PY
+"$bin" render "$tmp/conf/scenes/up.gltf" -o "$tmp/up.exr" --no-png --res 8x8 --spp 1 --quiet && ok || bad "a ../ buffer is refused by default"
+"$bin" render "$tmp/conf/scenes/up.gltf" -o "$tmp/up.exr" --no-png --res 8x8 --spp 1 --quiet --confine-to "$tmp/conf" && ok \
+  || bad "a ../ buffer inside --confine-to is refused"
+rm -f "$tmp/up.exr"
+expect_error "buffer outside --confine-to" "confine-to" -- render "$tmp/conf/scenes/up.gltf" --confine-to "$tmp/conf/scenes" "${common[@]}"
+expect_error "scene outside --confine-to" "confine-to" -- render "$scene" --confine-to "$tmp/conf" "${common[@]}"
+
 # an output that is a symbolic link gets the image at its target (the link stays); a FIFO (or
 # device) under the output name is refused before rendering
 mkdir -p "$tmp/shared"
