@@ -104,7 +104,7 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         /* the camera ray's segments (the same depth until the first scatter, one per medium
          * boundary crossed) also get cache-point in-scattering sampling when it is on */
         VolumeDistanceTable table;
-        int inscatter = ig->inscatter && depth == 0 && ps->volume_bounces[p] == 0 &&
+        int inscatter = ig->inscatter && depth == 0 && ps->volume_bounces[p] == 0 && ig->opt->max_volume_bounces > 0 &&
                         inscatter_segment_on(ig, &view) && inscatter_table(ig, ray, tmax, &view, hint, &table);
         if (inscatter) {
             float cost, added = inscatter_estimate(ig, s, p, ray, &view, &table, hint, scratch, &cost);
