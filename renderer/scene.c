@@ -365,6 +365,18 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
     dm->ior = 1.5f; dm->alpha_cutoff = 0.5f;
 
     const IoScene *io = &scene->io;
+    /* primitives x instances index the per-instance light and medium tables in 32 bits:
+     * refuse a scene that would overflow them (README "Limits") */
+    uint64_t instance_primitives = 0;
+    for (uint32_t i = 0; i < io->num_instances; ++i)
+        instance_primitives += io->meshes[io->instances[i].mesh].num_primitives;
+    if (instance_primitives > SCENE_MAX_INSTANCE_PRIMITIVES) {
+        char what[64];
+        snprintf(what, sizeof what, "%llu", (unsigned long long)instance_primitives);
+        set_error(err, "%s: too many instanced primitives (%s; the limit is 2^31 - 1)", o->scene_path, what);
+        scene_free(scene);
+        return -1;
+    }
     scene->prims = calloc(io->num_primitives ? io->num_primitives : 1, sizeof *scene->prims);
     scene->instances = calloc(io->num_instances ? io->num_instances : 1, sizeof *scene->instances);
     scene->mesh_scenes = calloc(io->num_meshes ? io->num_meshes : 1, sizeof *scene->mesh_scenes);

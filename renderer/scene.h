@@ -19,6 +19,8 @@
 #include "io.h"
 #include "vecmath.h"
 
+#define SCENE_MAX_INSTANCE_PRIMITIVES 2147483647u /* the light table's int32 indices */
+
 typedef struct Camera {
     int type;              /* IO_CAMERA_* */
     float xform[16];       /* camera-to-world */
@@ -56,7 +58,8 @@ typedef struct Scene {
     RTCScene *mesh_scenes;     /* io.num_meshes */
     ScenePrimitive *prims;     /* io.num_primitives */
     SceneInstance *instances;  /* io.num_instances */
-    uint32_t num_instance_primitives; /* sum over instances of their mesh's primitives */
+    uint32_t num_instance_primitives; /* sum over instances of their mesh's primitives
+                                       * (at most SCENE_MAX_INSTANCE_PRIMITIVES) */
     uint32_t num_triangles_total;
     vec3 bounds_min, bounds_max;
     vec3 center;

@@ -102,6 +102,27 @@ hostile "$tmp/light_inf.gltf" 'd["extensions"]["KHR_lights_punctual"]["lights"][
 expect_error "light intensity 1e39" "light intensity out of range" -- render "$tmp/light_inf.gltf" "${common[@]}"
 python3 -c 'import sys; t = open(sys.argv[1]).read(); open(sys.argv[2], "w").write(t.replace("\"asset\"", "\"extras\": " + "[" * 200000 + "]" * 200000 + ", \"asset\"", 1))' "$scene" "$tmp/deep.gltf"
 expect_error "JSON 200000 levels deep" "nests deeper than" -- render "$tmp/deep.gltf" "${common[@]}"
+# 65536 instances of a mesh with 32769 primitives: more instanced primitives than the light
+# table's 32-bit indices hold, refused before anything is allocated per instance (item 4)
+python3 - "$tmp/many.gltf" <<'PY'
+import base64, json, struct, sys
+buf = struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0) + struct.pack("<3H", 0, 1, 2) + b"\0\0"
+d = {"asset": {"version": "2.0"}, "scene": 0,
+     "buffers": [{"byteLength": len(buf), "uri": "data:application/octet-stream;base64," + base64.b64encode(buf).decode()}],
+     "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 6}],
+     "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+                   {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}],
+     "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}] * 32769}],
+     "nodes": [{"mesh": 0}] * 65536, "scenes": [{"nodes": list(range(65536))}]}
+json.dump(d, open(sys.argv[1], "w"), separators=(",", ":"))
+PY
+expect_error "instanced primitives overflow" "too many instanced primitives" -- render "$tmp/many.gltf" "${common[@]}"
+rm -f "$tmp/many.gltf"
+# a scene whose environment URI names a FIFO: refused, not blocked on (item 5)
+mkfifo "$tmp/env_fifo.exr"
+hostile "$tmp/env_fifo.gltf" 'd.setdefault("extras", {})["candela_environment"] = {"uri": "env_fifo.exr"}'
+expect_error "scene environment is a FIFO" "not a regular file" -- render "$tmp/env_fifo.gltf" "${common[@]}"
+rm -f "$tmp/env_fifo.exr"
 # a zero scale hides a mesh (animation does this): a warning, and the render goes on
 hostile "$tmp/scale0.gltf" 'mesh[0]["scale"] = [0, 1, 1]'
 if "$bin" render "$tmp/scale0.gltf" -o "$tmp/s0.exr" --no-png --res 8x8 --spp 1 2>"$tmp/s0.err" && grep -q "singular transform" "$tmp/s0.err"; then

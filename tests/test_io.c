@@ -1209,6 +1209,32 @@ static void test_volume_assets(const char *dir) {
     rmdir(sub);
 }
 
+/* Reader errors name their own file only: a sequence of bad images (an OpenImageIO error once
+ * leaked into the next file's message, issue 13 item 13). */
+static void test_image_errors_do_not_leak(void) {
+    static const unsigned char png_sig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+    const char *names[3] = {"bad_a.png", "bad_b.png", "bad_c.jpg"};
+    for (int i = 0; i < 3; ++i) {
+        FILE *f = fopen(tmp_path(names[i]), "wb");
+        if (!f) { CHECK(0, "cannot write %s", names[i]); return; }
+        if (i == 1) fwrite(png_sig, 1, sizeof png_sig, f); /* a truncated PNG */
+        else for (int k = 0; k < 200; ++k) fputc((k * 131 + i) & 0xff, f);
+        fclose(f);
+    }
+    for (int round = 0; round < 2; ++round)
+        for (int i = 0; i < 3; ++i) {
+            IoImage img;
+            char err[IO_ERR_LEN] = "";
+            int rc = io_load_image(tmp_path(names[i]), 0, &img, err);
+            CHECK(rc != 0, "%s loaded", names[i]);
+            if (rc == 0) { io_image_free(&img); continue; }
+            CHECK(strstr(err, names[i]) != NULL, "the error does not name %s: %s", names[i], err);
+            for (int j = 0; j < 3; ++j)
+                CHECK(j == i || strstr(err, names[j]) == NULL, "the error for %s names %s: %s", names[i], names[j], err);
+            CHECK(strchr(err, '\n') == NULL, "a multi-line error: %s", err);
+        }
+}
+
 int main(int argc, char **argv) {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/candela-test-io-XXXXXX");
     if (!mkdtemp(tmpdir)) {
@@ -1217,6 +1243,7 @@ int main(int argc, char **argv) {
     }
     test_exr();
     test_png();
+    test_image_errors_do_not_leak();
     test_generated_gltf();
     test_vdb_generated();
     test_material_media();
