@@ -385,8 +385,8 @@ const char *type_name(int t) {
 
 class Loader {
   public:
-    Loader(const std::string &path, const std::string &confine)
-        : path_(path), dir_(dir_of(path)), fs_user_{dir_of(path), confine} {}
+    Loader(const std::string &path, const std::string &confine, uint64_t texture_budget)
+        : path_(path), dir_(dir_of(path)), fs_user_{dir_of(path), confine}, texture_budget_(texture_budget) {}
     ~Loader() { release_all(); }
     Loader(const Loader &) = delete;
     Loader &operator=(const Loader &) = delete;
@@ -396,6 +396,13 @@ class Loader {
   private:
     std::string path_, dir_;
     FsUser fs_user_;
+    uint64_t texture_budget_ = 0, texture_used_ = 0; // decoded texel bytes (budget 0: none)
+    // What the texture budget has left for the next image (0 means no limit, so an exhausted
+    // budget reports 1 byte).
+    uint64_t texture_left() const {
+        if (!texture_budget_) return 0;
+        return texture_used_ < texture_budget_ ? texture_budget_ - texture_used_ : 1;
+    }
     tinygltf::Model m_;
     // A file the scene references, relative to its folder; refused outside the confinement.
     std::string referenced(const std::string &uri, const std::string &what) {
@@ -779,18 +786,19 @@ int32_t Loader::image_for(int gi, bool srgb, const std::string &what) {
     bool ok;
     if (from_file) {
         if (!is_regular_file(file)) fail(label + " not found (" + file + ")");
-        ok = candela_io::decode_image(file, nullptr, 0, srgb, &img, &problem);
+        ok = candela_io::decode_image(file, nullptr, 0, srgb, texture_left(), &img, &problem);
         if (!ok) problem = file + ": " + problem;
     } else if (im.bufferView >= 0) {
         size_t len = m_.bufferViews.size() > size_t(im.bufferView)
                          ? m_.bufferViews[size_t(im.bufferView)].byteLength : 0;
         const unsigned char *p = view_span(im.bufferView, 0, len, label, nullptr);
-        ok = candela_io::decode_image(label, p, len, srgb, &img, &problem);
+        ok = candela_io::decode_image(label, p, len, srgb, texture_left(), &img, &problem);
     } else {
         if (im.image.empty()) fail(label + " has no data");
-        ok = candela_io::decode_image(label, im.image.data(), im.image.size(), srgb, &img, &problem);
+        ok = candela_io::decode_image(label, im.image.data(), im.image.size(), srgb, texture_left(), &img, &problem);
     }
     if (!ok) fail(label + ": " + problem);
+    texture_used_ += uint64_t(img.width) * uint64_t(img.height) * 4u * sizeof(float);
     images_.push_back(img);
     const int32_t index = int32_t(images_.size() - 1);
     image_cache_[{key, srgb ? 1 : 0}] = index;
@@ -1280,11 +1288,11 @@ void Loader::run(IoScene *out) {
 }  // namespace
 
 extern "C" int io_load_gltf(const char *path, IoScene *scene, char err[IO_ERR_LEN]) {
-    return io_load_gltf_confined(path, nullptr, scene, err);
+    return io_load_gltf_opts(path, nullptr, scene, err);
 }
 
-extern "C" int io_load_gltf_confined(const char *path, const char *confine_dir, IoScene *scene,
-                                     char err[IO_ERR_LEN]) {
+extern "C" int io_load_gltf_opts(const char *path, const IoLoadOptions *opts, IoScene *scene, char err[IO_ERR_LEN]) {
+    const char *confine_dir = opts ? opts->confine_dir : nullptr;
     if (err) err[0] = 0;
     if (!scene) {
         set_err(err, path ? path : "(null)", "no output scene");
@@ -1310,7 +1318,7 @@ extern "C" int io_load_gltf_confined(const char *path, const char *confine_dir, 
         }
     }
     try {
-        Loader loader(path, confine);
+        Loader loader(path, confine, opts ? opts->texture_budget_bytes : 0);
         loader.run(scene);
         return 0;
     } catch (const LoadError &e) {

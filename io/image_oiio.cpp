@@ -75,7 +75,7 @@ static const char *sniff_extension(const unsigned char *p, size_t n) {
     return "bin";
 }
 
-bool decode_image(const std::string &path, const void *mem, size_t mem_size, bool srgb,
+bool decode_image(const std::string &path, const void *mem, size_t mem_size, bool srgb, uint64_t max_bytes,
                   IoImage *out, std::string *problem) {
     OIIO::ImageSpec config;
     // glTF (and PNG) alpha is straight; keep it so (OIIO premultiplies by default).
@@ -111,6 +111,13 @@ bool decode_image(const std::string &path, const void *mem, size_t mem_size, boo
     if (w > kMaxImageSide || h > kMaxImageSide || w * h > kMaxImagePixels) {
         *problem = "image too large (" + std::to_string(w) + "x" + std::to_string(h) +
                    "; limit " + std::to_string(kMaxImageSide) + " per side, 2^28 pixels)";
+        return false;
+    }
+    const uint64_t bytes = uint64_t(w) * uint64_t(h) * 4u * sizeof(float);
+    if (max_bytes && bytes > max_bytes) {
+        *problem = "image of " + std::to_string(w) + "x" + std::to_string(h) + " needs " +
+                   std::to_string(bytes >> 20) + " MiB; the texture budget has " + std::to_string(max_bytes >> 20) +
+                   " MiB left (--texture-budget-mb)";
         return false;
     }
     const int nc_file = spec.nchannels;
@@ -203,7 +210,7 @@ extern "C" int io_load_image(const char *path, int srgb, IoImage *image, char er
     }
     try {
         std::string problem;
-        if (!candela_io::decode_image(path, nullptr, 0, srgb != 0, image, &problem)) {
+        if (!candela_io::decode_image(path, nullptr, 0, srgb != 0, 0, image, &problem)) {
             set_err(err, path, problem);
             return 1;
         }

@@ -227,10 +227,17 @@ typedef struct IoScene {
 /* Load a .gltf or .glb (decided by content, not extension). Validates everything the renderer
  * relies on: accessor bounds and types, index ranges, finite positions, image sizes. */
 int io_load_gltf(const char *path, IoScene *scene, char err[IO_ERR_LEN]);
-/* The same, with every file the scene references (buffers, images, VDBs, its environment) and
- * the scene itself required to resolve (realpath) inside confine_dir (NULL: no confinement;
- * the default policy lets a scene reference files anywhere relative to its folder). */
-int io_load_gltf_confined(const char *path, const char *confine_dir, IoScene *scene, char err[IO_ERR_LEN]);
+/* The same with options (NULL: the defaults, as io_load_gltf). */
+typedef struct IoLoadOptions {
+    /* every file the scene references (buffers, images, VDBs, its environment) and the scene
+     * itself must resolve (realpath) inside this folder (NULL: no confinement; the default
+     * policy lets a scene reference files anywhere relative to its folder) */
+    const char *confine_dir;
+    /* the decoded textures' total size (RGBA float texels), checked before each image is
+     * decoded (0: no limit) */
+    uint64_t texture_budget_bytes;
+} IoLoadOptions;
+int io_load_gltf_opts(const char *path, const IoLoadOptions *opts, IoScene *scene, char err[IO_ERR_LEN]);
 void io_scene_free(IoScene *scene);
 
 /* Read any image OpenImageIO reads (EXR, HDR, PNG, ...) as linear float RGBA. 8/16-bit

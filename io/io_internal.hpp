@@ -19,7 +19,9 @@ constexpr long long kMaxImagePixels = 1LL << 28;
 // name whose extension hints at the format). srgb != 0: decode the sRGB EOTF on RGB for
 // integer sources. On failure returns false with a one-line description in `problem`
 // (without any file-name prefix; the caller adds it). `out` is untouched on failure.
-bool decode_image(const std::string &path, const void *mem, size_t mem_size, bool srgb,
+// max_bytes: refuse (before decoding) an image whose decoded RGBA float texels would exceed it
+// (0: no limit).
+bool decode_image(const std::string &path, const void *mem, size_t mem_size, bool srgb, uint64_t max_bytes,
                   IoImage *out, std::string *problem);
 
 // Replace every run of CR/LF in s by "; " and trim trailing separators and spaces.

@@ -57,6 +57,7 @@ typedef struct CandelaOptions {
     /* every file the scene references, and the scene, must lie inside this folder (NULL: the
      * default policy, files anywhere relative to the scene) */
     const char *confine_dir;
+    uint32_t texture_budget_mb; /* decoded textures in total (RGBA float); 0: no limit */
 } CandelaOptions;
 
 void candela_options_default(CandelaOptions *o);

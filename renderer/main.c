@@ -23,6 +23,7 @@ static const char *USAGE =
     "  --png FILE.png            preview PNG path (default: the EXR path with .png)\n"
     "  --no-png                  do not write the PNG preview\n"
     "  --confine-to DIR          refuse a scene, or any file it references, outside DIR\n"
+    "  --texture-budget-mb N     decoded textures in total, RGBA float (default 8192; 0: none)\n"
     "  --save-partial            on Ctrl-C / SIGTERM, stop at the next iteration and write the\n"
     "                            image so far as NAME.partial.exr (exit 130); a second signal\n"
     "                            exits at once\n"
@@ -189,6 +190,7 @@ int main(int argc, char **argv) {
         else if (strcmp(a, "--no-png") == 0) no_png = 1;
         else if (strcmp(a, "--save-partial") == 0) save_partial = 1;
         else if (strcmp(a, "--confine-to") == 0) { if (!v) die("missing value for ", a); o.confine_dir = v; ++i; }
+        else if (strcmp(a, "--texture-budget-mb") == 0) { o.texture_budget_mb = (uint32_t)parse_long(a, v, 0, 1 << 24); ++i; }
         else if (strcmp(a, "--optimal-occlusion") == 0) o.optimal_occlusion = 1;
         else if (strcmp(a, "--no-visibility") == 0) o.cachepoint_no_visibility = 1;
         else if (strcmp(a, "--cachepoint-retruncate") == 0) o.cachepoint_retruncate = 1;

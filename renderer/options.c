@@ -11,6 +11,7 @@ void candela_options_default(CandelaOptions *o) {
     o->max_volume_bounces = 256;
     o->volume_emission_sampling = 2;  /* auto (scenes/volume_equal_time.py: never measurably worse) */
     o->volume_inscatter_sampling = 2; /* auto */
+    o->texture_budget_mb = 8192;      /* 8 GiB of decoded texels (README "Limits") */
     o->light_sampler = CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
     o->light_units = CANDELA_LIGHT_UNITS_BLENDER;
     o->env_strength = 1.0f;

@@ -351,7 +351,8 @@ static int setup_camera(Scene *scene, const CandelaOptions *o, char err[CANDELA_
 int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
     memset(scene, 0, sizeof *scene);
     char ioerr[IO_ERR_LEN];
-    if (io_load_gltf_confined(o->scene_path, o->confine_dir, &scene->io, ioerr) != 0) {
+    IoLoadOptions lo = {o->confine_dir, (uint64_t)o->texture_budget_mb << 20};
+    if (io_load_gltf_opts(o->scene_path, &lo, &scene->io, ioerr) != 0) {
         snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
         return -1;
     }

@@ -123,6 +123,15 @@ mkfifo "$tmp/env_fifo.exr"
 hostile "$tmp/env_fifo.gltf" 'd.setdefault("extras", {})["candela_environment"] = {"uri": "env_fifo.exr"}'
 expect_error "scene environment is a FIFO" "not a regular file" -- render "$tmp/env_fifo.gltf" "${common[@]}"
 rm -f "$tmp/env_fifo.exr"
+# the texture budget: a 1024^2 texture (16 MiB decoded) under --texture-budget-mb 1 is refused,
+# naming it, before it is decoded; under the default budget it loads (items 6, 17)
+if command -v oiiotool >/dev/null; then
+  oiiotool --pattern constant:color=0.5,0.5,0.5 1024x1024 3 -d uint8 -o "$tmp/tex1k.png" 2>/dev/null
+  hostile "$tmp/textured.gltf" 'd["images"] = [{"uri": "tex1k.png"}]; d["textures"] = [{"source": 0}]; d["materials"][0].setdefault("pbrMetallicRoughness", {})["baseColorTexture"] = {"index": 0}'
+  expect_error "texture over budget" "texture budget" -- render "$tmp/textured.gltf" --texture-budget-mb 1 "${common[@]}"
+  "$bin" render "$tmp/textured.gltf" -o "$tmp/tx.exr" --no-png --res 8x8 --spp 1 --quiet && ok || bad "a 1024^2 texture under the default budget"
+  rm -f "$tmp/tx.exr"
+fi
 # a zero scale hides a mesh (animation does this): a warning, and the render goes on
 hostile "$tmp/scale0.gltf" 'mesh[0]["scale"] = [0, 1, 1]'
 if "$bin" render "$tmp/scale0.gltf" -o "$tmp/s0.exr" --no-png --res 8x8 --spp 1 2>"$tmp/s0.err" && grep -q "singular transform" "$tmp/s0.err"; then
