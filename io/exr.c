@@ -9,6 +9,7 @@
 #include <openexr.h>
 
 #include <errno.h>
+#include <fcntl.h>
 #include <signal.h>
 #include <stdarg.h>
 #include <stdint.h>
@@ -240,6 +241,18 @@ int io_write_exr(const char *path_arg, int width, int height, const IoExrChannel
     if (rv != EXR_ERR_SUCCESS) goto fail;
     free(sorted);
     sorted = NULL;
+    /* on disk before the rename makes it the image (a crash then never leaves an empty file
+     * under the final name) */
+    int fd = open(tmp, O_RDONLY);
+    if (fd < 0 || fsync(fd) != 0) {
+        exr_set_err(err, path, "cannot sync %s: %s", tmp, strerror(errno));
+        if (fd >= 0) close(fd);
+        remove(tmp);
+        io_temp_end();
+        free(tmp);
+        return 1;
+    }
+    close(fd);
     if (rename(tmp, path) != 0) {
         exr_set_err(err, path, "cannot rename %s: %s", tmp, strerror(errno));
         remove(tmp);

@@ -259,28 +259,45 @@ extern "C" int io_write_png(const char *path_arg, int width, int height, const f
             if (v > 1.0f) v = 1.0f;
             px[i] = (unsigned char)(v * 255.0f + 0.5f);
         }
+        // Encoded in memory, then written with every write, flush, sync and close checked:
+        // OpenImageIO's PNG writer reported success on a full disk and a truncated file was
+        // renamed into place (issue 13 item 10).
         auto out = OIIO::ImageOutput::create("png");
         if (!out) {
             set_err(err, path, "cannot open: " + OIIO::geterror());
             return 1;
         }
+        std::vector<unsigned char> bytes;
+        OIIO::Filesystem::IOVecOutput vec(bytes);
+        void *proxy = &vec;
         OIIO::ImageSpec spec(width, height, 3, OIIO::TypeDesc::UINT8);
-        if (!out->open(tmp, spec)) {
-            std::string e = out->geterror();
-            std::remove(tmp.c_str());
-            set_err(err, path, "cannot open: " + e);
-            return 1;
-        }
-        bool ok = out->write_image(OIIO::TypeDesc::UINT8, px.data());
+        spec.attribute("oiio:ioproxy", OIIO::TypeDesc::PTR, &proxy);
+        bool ok = out->open("memory.png", spec) && out->write_image(OIIO::TypeDesc::UINT8, px.data());
         std::string e = ok ? std::string() : out->geterror();
         if (!out->close() && ok) {
             ok = false;
             e = out->geterror();
         }
         out.reset();
-        if (!ok) {
+        if (!ok || bytes.empty()) {
+            set_err(err, path, "cannot encode: " + (e.empty() ? std::string("no data") : e));
+            return 1;
+        }
+        FILE *f = std::fopen(tmp.c_str(), "wb");
+        if (!f) {
+            set_err(err, path, std::string("cannot open for writing: ") + std::strerror(errno));
+            return 1;
+        }
+        bool written = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size() && std::fflush(f) == 0 &&
+                       ::fsync(fileno(f)) == 0;
+        int saved = errno;
+        if (std::fclose(f) != 0 && written) {
+            written = false;
+            saved = errno;
+        }
+        if (!written) {
             std::remove(tmp.c_str());
-            set_err(err, path, "cannot write: " + e);
+            set_err(err, path, std::string("cannot write: ") + std::strerror(saved));
             return 1;
         }
         if (std::rename(tmp.c_str(), path) != 0) {

@@ -104,7 +104,8 @@ int candela_write_stats_json(const char *path_arg, const CandelaOptions *o, cons
     fprintf(f, "  \"volumes\": {\"count\": %u, \"collisions\": %llu, \"capped_walks\": %llu},\n", s->num_volumes,
             (unsigned long long)s->volume_collisions, (unsigned long long)s->volume_capped_walks);
     fprintf(f, "  \"peak_memory_bytes\": %zu\n}\n", s->peak_memory_bytes);
-    if (fclose(f) != 0 || rename(tmp, path) != 0) {
+    int synced = fflush(f) == 0 && fsync(fileno(f)) == 0;
+    if (fclose(f) != 0 || !synced || rename(tmp, path) != 0) {
         remove(tmp);
         io_temp_end();
         snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot write", path);

@@ -249,6 +249,23 @@ mkfifo "$tmp/fifo_out.exr"
 expect_error "output is a FIFO" "not a regular file" -- render "$scene" -o "$tmp/fifo_out.exr" --no-png --res 8x8 --spp 1 --quiet
 rm -f "$tmp/fifo_out.exr"
 
+# a full disk (a small tmpfs, where this test may mount one): the PNG preview that does not fit
+# fails with the reason and leaves no file under its name (item 10); skipped without mount rights
+mkdir -p "$tmp/tfs"
+if mount -t tmpfs -o size=256k tmpfs "$tmp/tfs" 2>/dev/null; then
+  "$bin" render "$scene" -o "$tmp/ref.exr" --png "$tmp/ref.png" --res 48x48 --spp 2 --quiet
+  avail=$(df -B1 --output=avail "$tmp/tfs" | tail -1)
+  fill=$((avail - $(stat -c %s "$tmp/ref.exr") - 4096 - $(stat -c %s "$tmp/ref.png") / 2))
+  head -c "$fill" /dev/zero > "$tmp/tfs/fill" 2>/dev/null
+  "$bin" render "$scene" -o "$tmp/tfs/o.exr" --png "$tmp/tfs/o.png" --res 48x48 --spp 2 --quiet 2>"$tmp/full.err"; rc=$?
+  if [ "$rc" -ne 0 ] && [ ! -e "$tmp/tfs/o.png" ] && grep -q "No space left" "$tmp/full.err" &&
+     ! ls "$tmp/tfs" | grep -q tmp-; then ok
+  else bad "full disk: exit $rc, $(ls "$tmp/tfs" | tr '\n' ' ') $(cat "$tmp/full.err")"; fi
+  umount "$tmp/tfs"
+else
+  echo "full-disk check skipped: cannot mount a tmpfs here"
+fi
+
 # interruption: SIGINT stops at the next iteration and writes nothing (exit 130); SIGTERM with
 # --save-partial writes the image so far under .partial names only; SIGKILL leaves no file with
 # the final name; never a temporary file left by a signal the program can catch
