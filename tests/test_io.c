@@ -1212,13 +1212,14 @@ static void test_volume_assets(const char *dir) {
 /* Reader errors name their own file only: a sequence of bad images (an OpenImageIO error once
  * leaked into the next file's message, issue 13 item 13). */
 static void test_image_errors_do_not_leak(void) {
-    static const unsigned char png_sig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-    const char *names[3] = {"bad_a.png", "bad_b.png", "bad_c.jpg"};
+    /* (not a truncated PNG: OpenImageIO 2.4 leaks a string when libpng longjmps out of it,
+     * which LeakSanitizer reports; tests/fuzz keeps that input) */
+    const char *names[3] = {"bad_a.png", "bad_b.exr", "bad_c.jpg"};
     for (int i = 0; i < 3; ++i) {
         FILE *f = fopen(tmp_path(names[i]), "wb");
         if (!f) { CHECK(0, "cannot write %s", names[i]); return; }
-        if (i == 1) fwrite(png_sig, 1, sizeof png_sig, f); /* a truncated PNG */
-        else for (int k = 0; k < 200; ++k) fputc((k * 131 + i) & 0xff, f);
+        if (i == 1) fputs("v/1\001", f); /* an EXR magic number, then garbage */
+        for (int k = 0; k < 200; ++k) fputc((k * 131 + i) & 0xff, f);
         fclose(f);
     }
     for (int round = 0; round < 2; ++round)
