@@ -19,6 +19,13 @@ typedef enum {
     CANDELA_LIGHT_SAMPLER_CACHEPOINTS = 4 /* cache points (Li et al. 2024), cachepoints/ */
 } CandelaLightSampler;
 
+/* --guiding: directional sampling at surfaces (and media) from the learned guiding field */
+typedef enum {
+    CANDELA_GUIDING_OFF = 0,
+    CANDELA_GUIDING_MIS = 1, /* one-sample MIS of the BSDF and the guide, alpha = 0.5 (ch. 1 §3.2) */
+    CANDELA_GUIDING_RIS = 2  /* RIS with one BSDF and one guide candidate (ch. 1 §3.3) */
+} CandelaGuiding;
+
 typedef enum {
     CANDELA_LIGHT_UNITS_BLENDER = 0, /* point/spot W/sr = cd/683, sun W/m^2 = lux/683 */
     CANDELA_LIGHT_UNITS_RAW = 1      /* intensities are already radiometric */
@@ -58,6 +65,10 @@ typedef struct CandelaOptions {
      * default policy, files anywhere relative to the scene) */
     const char *confine_dir;
     uint32_t texture_budget_mb; /* decoded textures in total (RGBA float); 0: no limit */
+    CandelaGuiding guiding;
+    int aov_recorder_debug;     /* --aov recorder-debug: the recorder's primary samples rebuild the image */
+    uint32_t recorder_mb;       /* the radiance recorder's vertex storage bound; 0: default (256) */
+    int recorder_budget;        /* vertices per path before skipping (path and vertex); 0: none; -1: default (4) */
 } CandelaOptions;
 
 void candela_options_default(CandelaOptions *o);
@@ -83,6 +94,11 @@ typedef struct CandelaStats {
     uint32_t num_volumes;
     uint64_t volume_collisions;   /* majorant collisions the media trackers evaluated */
     uint64_t volume_capped_walks; /* tracker calls stopped at their collision cap (a bad medium) */
+    /* the radiance recorder (when guiding or its debug AOV is on) */
+    size_t recorder_peak_bytes, recorder_bound_bytes;
+    uint32_t recorder_peak_vertices;
+    uint64_t recorder_vertices, recorder_samples, recorder_refused, recorder_paths;
+    float recorder_path_skip;     /* the last iteration's path skipping probability */
 } CandelaStats;
 
 /* Seconds spent in the wavefront's stages and the film (the render proper). */
@@ -99,6 +115,9 @@ typedef struct CandelaImage {
     float *albedo;    /* 3 per pixel, first-hit albedo */
     float *normal;    /* 3 per pixel, first-hit shading normal (world) */
     float *depth;     /* 1 per pixel, first-hit distance along the camera ray (inf: miss) */
+    float *recorder_debug; /* 3 per pixel with --aov recorder-debug (else NULL): the recorder's
+                            * primary training samples times their throughput, plus what the
+                            * camera ray found itself; converges to rgb */
 } CandelaImage;
 
 /* Every ray a render traced, for the bare-Embree replay of `candela bench`. */

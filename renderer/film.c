@@ -25,6 +25,7 @@ int film_alloc(Film *f, int w, int h) {
 
 void film_free(Film *f) {
     free(f->sum); free(f->sum2); free(f->albedo); free(f->normal); free(f->depth); free(f->hits); free(f->count);
+    free(f->recorder);
     memset(f, 0, sizeof *f);
 }
 
@@ -40,6 +41,10 @@ void film_add_paths(Film *f, const PathState *ps, uint32_t count) {
         f->sum2[3 * px + 1] += (double)L.y * L.y;
         f->sum2[3 * px + 2] += (double)L.z * L.z;
         f->count[px]++;
+        if (f->recorder) {
+            vec3 d = ps->aov_recorder[i];
+            if (v3_is_finite(d)) add3(f->recorder + 3 * (size_t)px, d);
+        }
         if (isfinite(ps->aov_depth[i])) {
             add3(f->albedo + 3 * (size_t)px, ps->aov_albedo[i]);
             add3(f->normal + 3 * (size_t)px, ps->aov_normal[i]);
@@ -74,10 +79,16 @@ int film_resolve(const Film *f, CandelaImage *img) {
         }
         img->depth[i] = f->hits[i] ? (float)(f->depth[i] / f->hits[i]) : INFINITY;
     }
+    if (f->recorder) {
+        img->recorder_debug = malloc(3 * n * sizeof(float));
+        if (!img->recorder_debug) { candela_image_free(img); return -1; }
+        for (size_t i = 0; i < 3 * n; ++i)
+            img->recorder_debug[i] = f->count[i / 3] ? (float)(f->recorder[i] / f->count[i / 3]) : 0.0f;
+    }
     return 0;
 }
 
 void candela_image_free(CandelaImage *img) {
-    free(img->rgb); free(img->variance); free(img->albedo); free(img->normal); free(img->depth);
+    free(img->rgb); free(img->variance); free(img->albedo); free(img->normal); free(img->depth); free(img->recorder_debug);
     memset(img, 0, sizeof *img);
 }

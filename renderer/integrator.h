@@ -30,6 +30,7 @@
 #include <stdint.h>
 
 #include "candela.h"
+#include "guiding.h"
 #include "light_sampler.h"
 #include "lights.h"
 #include "media.h"
@@ -44,6 +45,7 @@ typedef struct Film {
     double *albedo, *normal; /* 3 per pixel: sums over the paths whose camera ray hit */
     double *depth;           /* per pixel: sum of first-hit distances */
     uint32_t *hits, *count;  /* per pixel: camera rays that hit; samples */
+    double *recorder;        /* 3 per pixel (--aov recorder-debug; else NULL): sums of the recorder's splats */
 } Film;
 
 int film_alloc(Film *f, int width, int height);
@@ -75,6 +77,22 @@ typedef struct AutoProbe {
     float (*prev)[4];      /* per pixel: its last probe sample (L, on, off, medium + 1) */
 } AutoProbe;
 
+#define MAX_SLICES 256
+
+/* record.c: the radiance recorder's state in the integrator (off: recorder NULL). */
+typedef struct RecordState {
+    Recorder *recorder;
+    int debug_aov;
+    uint32_t budget;        /* vertices per path before skipping; 0: no skipping */
+    float path_skip;        /* this iteration's probability that a camera ray is not recorded */
+    float min_distance;     /* a child closer than this to its parent continues the parent */
+    RecorderSamples samples[MAX_SLICES]; /* per slice, during a batch */
+    RecorderSamples batch;  /* the batch's samples, sorted by path */
+    uint64_t iteration_paths, iteration_samples;
+    uint64_t total_vertices, total_paths, total_samples, refused;
+    int dropped;            /* a sample buffer ran out of memory (samples lost; the image is not affected) */
+} RecordState;
+
 typedef struct Integrator {
     const CandelaOptions *opt;
     const Scene *scene;
@@ -96,6 +114,7 @@ typedef struct Integrator {
     uint64_t batch_first, sample_base;
     uint32_t batch_count, npixels;
     Film film;
+    RecordState record;
     BarrierHook hooks[MAX_BARRIER_HOOKS];
     int num_hooks;
     CandelaRayLog *ray_log;   /* bench: every traced ray (NULL: not recorded) */
@@ -129,6 +148,8 @@ typedef struct Slice {
     double seconds[STAGE_COUNT];
     uint64_t bounce_rays, shadow_rays;
     VolumeStats volume;                          /* the media trackers' counts */
+    RecorderCache record_cache;                  /* the recorder's free indices of this thread */
+    RecorderSamples *record_samples;             /* where this slice's training samples go */
 } Slice;
 
 /* ---------------------------------------------------------------- stages (stage_*.c) */
@@ -168,11 +189,39 @@ typedef enum {
     RADIANCE_DIRECT       /* next-event estimation through an unoccluded shadow ray */
 } RadianceSource;
 
+/* record.c: the radiance recorder's side of the wavefront (see there). */
+int record_init(Integrator *ig);
+void record_free(Integrator *ig);
+/* A camera ray: its vertex is the camera; path skipping is decided here. */
+void record_camera(const Integrator *ig, uint32_t p, uint64_t path);
+/* A child vertex of `parent` for a ray leaving pos in dir with throughput tp, or the parent
+ * continued (too close: `segment` is the distance from the parent's origin; past the budget). */
+uint32_t record_child(const Integrator *ig, Slice *s, uint32_t p, uint32_t parent, vec3 pos, vec3 dir, vec3 tp,
+                      float pdf, uint32_t flags, float segment);
+/* The holder of vertex pv in path p lets go (records and backpropagates at zero). */
+void record_done(const Integrator *ig, Slice *s, uint32_t p, uint32_t pv);
+void record_radiance(const Integrator *ig, uint32_t p, vec3 c, RadianceSource source);
+/* After a batch: flush the threads' caches, merge and sort the samples (RecordState.batch). */
+void record_batch_end(Integrator *ig, Slice *slices, uint32_t n);
+/* At the iteration barrier: the next iteration's path skipping, the counts. */
+void record_barrier(Integrator *ig);
+void record_report(const Integrator *ig, CandelaStats *st);
+
 /* Every addition to a path's radiance goes through here (throughput and MIS weight already
- * applied): the one place a radiance recorder observes the contributions of a path. */
-static inline void path_add_radiance(const PathState *ps, uint32_t p, vec3 contribution, RadianceSource source) {
-    (void)source;
-    ps->radiance[p] = v3_add(ps->radiance[p], contribution);
+ * applied): the one place the radiance recorder observes the contributions of a path. An
+ * emitter or the environment found by the path's ray goes to that ray's vertex, a shadow
+ * ray's contribution to the NEE vertex. */
+static inline void path_add_radiance(const Integrator *ig, uint32_t p, vec3 contribution, RadianceSource source) {
+    ig->ps.radiance[p] = v3_add(ig->ps.radiance[p], contribution);
+    if (ig->record.recorder) record_radiance(ig, p, contribution, source);
+}
+
+/* The path ends: its ray's vertex is released. */
+static inline void path_end(const Integrator *ig, Slice *s, uint32_t p) {
+    if (ig->record.recorder) {
+        record_done(ig, s, p, ig->ps.pv[p]);
+        ig->ps.pv[p] = PV_CAMERA;
+    }
 }
 
 /* The first-hit AOVs of a path (written once, at depth 0). */

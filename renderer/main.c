@@ -41,6 +41,11 @@ static const char *USAGE =
     "                            camera rays through media, MIS with tracking (cachepoints);\n"
     "                            auto: per medium, kept where it measurably lowers the\n"
     "                            time to unit variance in the first 4 spp (default auto)\n"
+    "  --aov recorder-debug      add recorder_debug.RGB to the EXR: the radiance recorder's primary\n"
+    "                            training samples times their throughput (converges to RGB)\n"
+    "  --recorder-budget N       recorded vertices per path before path/vertex skipping (default 4;\n"
+    "                            0: record every vertex)\n"
+    "  --recorder-mb N           radiance recorder storage bound in MiB (default 256)\n"
     "  --light-sampler S         uniform | power | tree | optimal | cachepoints (default cachepoints)\n"
     "  --no-visibility           cache points without visibility learning\n"
     "  --cachepoint-build B      cut (default: far entries are light-tree clusters) | linear (the\n"
@@ -161,6 +166,15 @@ static void print_stats(const CandelaStats *s) {
                 s->num_cachepoints, s->cachepoint_candidates, s->time_cachepoints,
                 (double)s->cachepoint_bytes / (1024.0 * 1024.0), s->cachepoint_mean_near, s->cachepoint_mean_far,
                 s->cachepoint_mean_clusters);
+    if (s->recorder_bound_bytes)
+        fprintf(stderr,
+                "  radiance recorder: %llu vertices for %llu recorded paths (%.2f per path), %llu samples, peak %u live "
+                "vertices, %.1f MiB of %.1f MiB bound%s\n",
+                (unsigned long long)s->recorder_vertices, (unsigned long long)s->recorder_paths,
+                s->recorder_paths ? (double)s->recorder_vertices / (double)s->recorder_paths : 0.0,
+                (unsigned long long)s->recorder_samples, s->recorder_peak_vertices,
+                (double)s->recorder_peak_bytes / (1024.0 * 1024.0), (double)s->recorder_bound_bytes / (1024.0 * 1024.0),
+                s->recorder_refused ? "; full at times (rays carried their parent on)" : "");
     if (s->num_volumes)
         fprintf(stderr, "  volumes: %llu majorant collisions%s\n", (unsigned long long)s->volume_collisions,
                 s->volume_capped_walks ? "; WARNING: some walks hit the collision cap (an extreme medium): the image is biased there" : "");
@@ -229,6 +243,14 @@ int main(int argc, char **argv) {
             else { fprintf(stderr, "candela: unknown value '%s' for --volume-cachepoint-scatter (on, off, auto)\n", v); return 2; }
             ++i;
         }
+        else if (strcmp(a, "--aov") == 0) {
+            if (!v) die("missing value for ", a);
+            if (strcmp(v, "recorder-debug") == 0) o.aov_recorder_debug = 1;
+            else { fprintf(stderr, "candela: unknown AOV '%s' (recorder-debug)\n", v); return 2; }
+            ++i;
+        }
+        else if (strcmp(a, "--recorder-budget") == 0) { o.recorder_budget = (int)parse_long(a, v, 0, 1 << 20); ++i; }
+        else if (strcmp(a, "--recorder-mb") == 0) { o.recorder_mb = (uint32_t)parse_long(a, v, 1, 1 << 20); ++i; }
         else if (strcmp(a, "--batch") == 0) { o.batch_size = (uint32_t)parse_long(a, v, 1, 1 << 22); ++i; }
         else if (strcmp(a, "--env-strength") == 0) { o.env_strength = parse_float(a, v, 0.0f, 1e9f); ++i; }
         else if (strcmp(a, "--env") == 0) { if (!v) die("missing value for ", a); o.env_path = v; ++i; }

@@ -15,6 +15,8 @@ void candela_options_default(CandelaOptions *o) {
     o->light_sampler = CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
     o->light_units = CANDELA_LIGHT_UNITS_BLENDER;
     o->env_strength = 1.0f;
+    o->guiding = CANDELA_GUIDING_OFF;
+    o->recorder_budget = -1;          /* the seed's soft budget of 4 vertices per path */
 }
 
 static const char *const LIGHT_SAMPLER_NAMES[] = {"uniform", "power", "tree", "optimal", "cachepoints"};

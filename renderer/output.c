@@ -18,7 +18,8 @@ static float srgb_encode(float x) {
 int candela_write_outputs(const CandelaImage *img, const char *exr_path, const char *png_path,
                           char err[CANDELA_ERR_LEN]) {
     size_t n = (size_t)img->width * (size_t)img->height;
-    float *planes = malloc(14 * n * sizeof(float));
+    int nch = img->recorder_debug ? 17 : 14;
+    float *planes = malloc((size_t)nch * n * sizeof(float));
     if (!planes) { snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", exr_path); return -1; }
     /* planar copies: R G B A albedo.RGB N.XYZ Z variance.RGB */
     for (size_t i = 0; i < n; ++i) {
@@ -30,16 +31,19 @@ int candela_write_outputs(const CandelaImage *img, const char *exr_path, const c
         }
         planes[3 * n + i] = 1.0f;
         planes[10 * n + i] = img->depth[i];
+        if (img->recorder_debug)
+            for (int k = 0; k < 3; ++k) planes[(14 + k) * n + i] = img->recorder_debug[3 * i + k];
     }
-    IoExrChannel ch[14] = {
+    IoExrChannel ch[17] = {
         {"R", planes}, {"G", planes + n}, {"B", planes + 2 * n}, {"A", planes + 3 * n},
         {"albedo.R", planes + 4 * n}, {"albedo.G", planes + 5 * n}, {"albedo.B", planes + 6 * n},
         {"N.X", planes + 7 * n}, {"N.Y", planes + 8 * n}, {"N.Z", planes + 9 * n},
         {"Z", planes + 10 * n},
         {"variance.R", planes + 11 * n}, {"variance.G", planes + 12 * n}, {"variance.B", planes + 13 * n},
+        {"recorder_debug.R", planes + 14 * n}, {"recorder_debug.G", planes + 15 * n}, {"recorder_debug.B", planes + 16 * n},
     };
     char ioerr[IO_ERR_LEN];
-    int rc = io_write_exr(exr_path, img->width, img->height, ch, 14, ioerr);
+    int rc = io_write_exr(exr_path, img->width, img->height, ch, nch, ioerr);
     free(planes);
     if (rc != 0) { snprintf(err, CANDELA_ERR_LEN, "%s", ioerr); return -1; }
     if (png_path) {
@@ -103,6 +107,12 @@ int candela_write_stats_json(const char *path_arg, const CandelaOptions *o, cons
             s->cachepoint_mean_clusters);
     fprintf(f, "  \"volumes\": {\"count\": %u, \"collisions\": %llu, \"capped_walks\": %llu},\n", s->num_volumes,
             (unsigned long long)s->volume_collisions, (unsigned long long)s->volume_capped_walks);
+    fprintf(f,
+            "  \"recorder\": {\"peak_bytes\": %zu, \"bound_bytes\": %zu, \"peak_vertices\": %u, \"vertices\": %llu, "
+            "\"samples\": %llu, \"refused\": %llu, \"paths\": %llu, \"path_skip\": %.4f},\n",
+            s->recorder_peak_bytes, s->recorder_bound_bytes, s->recorder_peak_vertices,
+            (unsigned long long)s->recorder_vertices, (unsigned long long)s->recorder_samples,
+            (unsigned long long)s->recorder_refused, (unsigned long long)s->recorder_paths, s->recorder_path_skip);
     fprintf(f, "  \"peak_memory_bytes\": %zu\n}\n", s->peak_memory_bytes);
     int synced = fflush(f) == 0 && fsync(fileno(f)) == 0;
     if (fclose(f) != 0 || !synced || rename(tmp, path) != 0) {

@@ -32,6 +32,8 @@
     F(vec3, throughput, W)          /* beta: the path's weight so far */                         \
     F(float, rr_scale, W)           /* throughput factor for the Russian roulette decision only \
                                      * (removes refraction's eta^2 radiance scaling) */          \
+    F(uint32_t, pv, W)              /* the radiance recorder's vertex of the ray (PVIndex) */    \
+    F(uint8_t, record_skip, N)      /* the recorder skips this path (path skipping) */          \
     /* -- ray: what this wave traces */                                                          \
     F(SceneRay, ray, R)                                                                          \
     /* -- hit: the closest hit of the ray (t = INFINITY: escaped) */                             \
@@ -49,6 +51,7 @@
     F(uint32_t, shadow_depth, N)    /* the depth of the vertex that cast it (its RNG sub-stream) */ \
     F(uint32_t, shadow_medium, N)   /* the mesh medium it starts in */                          \
     F(uint32_t, shadow_light, N)    /* the light it aims at */                                   \
+    F(uint32_t, shadow_pv, N)       /* the recorder's vertex of the shadow ray (PVIndex) */      \
     /* -- the probe of in-scattering sampling auto (inscatter.c), first iterations only */     \
     F(uint32_t, probe_medium, N)    /* the medium (media_id + 1) of its first camera segment   \
                                      * that ran in-scattering sampling; 0: none */              \
@@ -63,7 +66,8 @@
     /* -- first-hit AOVs */                                                                      \
     F(vec3, aov_albedo, N)                                                                       \
     F(vec3, aov_normal, N)                                                                       \
-    F(float, aov_depth, N)          /* first-hit distance; INFINITY: the camera ray escaped */
+    F(float, aov_depth, N)          /* first-hit distance; INFINITY: the camera ray escaped */   \
+    F(vec3, aov_recorder, N)        /* --aov recorder-debug: this path's splat */
 
 typedef struct PathState {
     uint32_t capacity;

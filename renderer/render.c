@@ -201,6 +201,7 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
         }
     }
     stats->time_total = clock_seconds() - t_start;
+    record_report(ig, stats);
     int rc = film_resolve(&ig->film, image);
     if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s: out of memory resolving the film", o->scene_path);
     stats->peak_memory_bytes = peak_rss_bytes();

@@ -6,12 +6,12 @@
 void stage_escaped(const Integrator *ig, Slice *s) {
     const PathState *ps = &ig->ps;
     const Lights *lights = ig->lights;
-    if (lights->environment < 0) return;
     for (uint32_t i = 0; i < s->num_escaped; ++i) {
         uint32_t p = s->escaped[i];
+        if (lights->environment < 0) { path_end(ig, s, p); continue; }
         vec3 d = ps->ray[p].dir;
         vec3 le = scene_env_radiance(ig->scene, d);
-        if (v3_is_black(le)) continue;
+        if (v3_is_black(le)) { path_end(ig, s, p); continue; }
         float w = 1.0f;
         if (!ps->prev_delta[p]) {
             LightSampleContext lc = {ps->prev_pos[p], ps->prev_normal[p], ps->prev_light_vertex[p]};
@@ -19,6 +19,7 @@ void stage_escaped(const Integrator *ig, Slice *s) {
                        light_env_pdf_li(lights, d);
             w = power_heuristic(ps->prev_scatter_pdf[p], pl);
         }
-        path_add_radiance(ps, p, v3_scale(v3_mul(ps->throughput[p], le), w), RADIANCE_ENVIRONMENT);
+        path_add_radiance(ig, p, v3_scale(v3_mul(ps->throughput[p], le), w), RADIANCE_ENVIRONMENT);
+        path_end(ig, s, p);
     }
 }

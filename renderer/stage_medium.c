@@ -25,7 +25,7 @@ typedef enum { WALK_SURFACE, WALK_ESCAPED, WALK_ENDED } WalkEnd;
 /* NEE from a medium vertex: as at a surface (direct_light_sample), with the phase function and
  * the shadow ray traced now (the walk is depth-first). */
 static float medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec3 x, const Scatter *sc,
-                                 const LightSampleContext *lc, float weight) {
+                                 const LightSampleContext *lc, float weight, float segment) {
     const PathState *ps = &ig->ps;
     LightLiSample ls;
     vec3 contrib;
@@ -35,12 +35,22 @@ static float medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec
     if (sampled) {
         float tfar = isinf(ls.distance) ? INFINITY : ls.distance * (1.0f - 1e-3f);
         s->shadow_rays++;
+        if (ig->record.recorder) { /* the NEE vertex, released below once its ray is traced */
+            vec3 tp = v3_scale(contrib, weight);
+            tp = v3(ls.radiance.x > 0.0f ? tp.x / ls.radiance.x : 0.0f, ls.radiance.y > 0.0f ? tp.y / ls.radiance.y : 0.0f,
+                    ls.radiance.z > 0.0f ? tp.z / ls.radiance.z : 0.0f);
+            ps->shadow_pv[p] = record_child(ig, s, p, ps->pv[p], x, ls.wi, tp, ls.pdf, PV_FLAG_NEE | PV_FLAG_VOLUME, segment);
+        }
         if (scene_visible1(ig->scene, (SceneRay){x, 0.0f, ls.wi, tfar})) {
             vec3 T = shadow_transmittance(ig, s, ps->rng_key[p], ps->depth[p], ps->medium[p], x, ls.wi, tfar);
             visibility = clampf(v3_average(T), 0.0f, 1.0f);
             vec3 c = v3_mul(contrib, T);
-            path_add_radiance(ps, p, v3_scale(c, weight), RADIANCE_DIRECT);
+            path_add_radiance(ig, p, v3_scale(c, weight), RADIANCE_DIRECT);
             unweighted = v3_luminance(c);
+        }
+        if (ig->record.recorder) {
+            record_done(ig, s, p, ps->shadow_pv[p]);
+            ps->shadow_pv[p] = PV_CAMERA;
         }
     }
     emission_probe_nee(ig, p, ls.light, unweighted * weight, ls.cost + (sampled ? 1.0f : 0.0f));
@@ -85,7 +95,7 @@ static void add_volume_emission(const Integrator *ig, Slice *s, uint32_t p, cons
         }
         vec3 c = v3_scale(v3_mul(beta, e), w);
         if (!v3_is_black(c) && v3_is_finite(c)) {
-            path_add_radiance(ps, p, c, RADIANCE_EMISSION);
+            path_add_radiance(ig, p, c, RADIANCE_EMISSION);
             emission_probe_add(ig, p, id, v3_luminance(c), v3_luminance(v3_mul(beta, e)), w != 1.0f ? 1.0f : 0.0f);
         }
     }
@@ -145,7 +155,7 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         /* the null-collision technique's NEE, weighed against in-scattering sampling (Eq. 10) */
         float w = inscatter ? inscatter_null_weight(&table, ev.t, ev.null_mis, ev.sigma_s_mean) : 1.0f;
         if (ig->lights->count > 0) {
-            float c = medium_direct_light(ig, s, p, x, &sc, &lc, w);
+            float c = medium_direct_light(ig, s, p, x, &sc, &lc, w, ev.t);
             if (inscatter) inscatter_probe_null(ig, p, c, w);
         }
         uint64_t key = ps->rng_key[p];
@@ -159,6 +169,11 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
             !russian_roulette(&beta, ps->rr_scale[p], rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_RR))))
             return WALK_ENDED;
         ps->throughput[p] = beta;
+        if (ig->record.recorder) { /* the continuation's vertex; the scattering event is done with the incoming one */
+            uint32_t incoming = ps->pv[p];
+            ps->pv[p] = record_child(ig, s, p, incoming, x, ss.wi, beta, ss.pdf, PV_FLAG_VOLUME, ev.t);
+            record_done(ig, s, p, incoming);
+        }
         path_scattered(ps, p, x, &lc, ss.pdf, ss.delta);
         /* the next segment: its closest hit now (depth-first), then walk it */
         SceneRay next = {x, 0.0f, ss.wi, INFINITY};
@@ -186,7 +201,7 @@ void stage_medium(const Integrator *ig, Slice *s) {
             switch (medium_walk(ig, s, p, &hint, scratch)) {
             case WALK_SURFACE: hits[num_hits++] = p; break;
             case WALK_ESCAPED: escaped[num_escaped++] = p; break;
-            default: break;
+            default: path_end(ig, s, p); break;
             }
         }
     }

@@ -35,10 +35,14 @@ void stage_shadow(const Integrator *ig, Slice *s) {
                 }
                 visibility = media ? clampf(v3_average(T), 0.0f, 1.0f) : 1.0f;
                 vec3 c = v3_mul(ps->shadow_contrib[p], T);
-                path_add_radiance(ps, p, c, RADIANCE_DIRECT);
+                path_add_radiance(ig, p, c, RADIANCE_DIRECT);
                 if (ig->emission_auto.active) emission_probe_nee(ig, p, ps->shadow_light[p], v3_luminance(c), 0.0f);
             }
             light_sampler_record(sampler, ps->shadow_outcome[p], visibility);
+            if (ig->record.recorder) {
+                record_done(ig, s, p, ps->shadow_pv[p]);
+                ps->shadow_pv[p] = PV_CAMERA;
+            }
         }
     }
 }

@@ -28,7 +28,7 @@ static void surface_emission(const Integrator *ig, uint32_t p, const SurfaceHit 
                    light_area_pdf_li(&ig->lights->lights[light], &lc, h->triangle, h->p, h->ng);
         w = power_heuristic(ps->prev_scatter_pdf[p], pl);
     }
-    path_add_radiance(ps, p, v3_scale(v3_mul(ps->throughput[p], le), w), RADIANCE_EMISSION);
+    path_add_radiance(ig, p, v3_scale(v3_mul(ps->throughput[p], le), w), RADIANCE_EMISSION);
 }
 
 /* The mesh medium on the side of the surface a ray in direction d leaves into: the surface's
@@ -99,6 +99,13 @@ int direct_light_sample(const Integrator *ig, uint32_t p, const Scatter *sc, con
 /* Next-event estimation from the vertex: the MIS-weighted contribution pending on a shadow ray
  * (queued when non-zero). The selection's outcome goes back to the sampler: from the shadow
  * stage when a ray is queued, from here (nothing got through) when not. */
+/* The throughput of an NEE ray, for its recorder vertex: the contribution per unit of the
+ * light's radiance (so its sample is the radiance that arrived). */
+static vec3 nee_throughput(vec3 contrib, vec3 radiance) {
+    return v3(radiance.x > 0.0f ? contrib.x / radiance.x : 0.0f, radiance.y > 0.0f ? contrib.y / radiance.y : 0.0f,
+              radiance.z > 0.0f ? contrib.z / radiance.z : 0.0f);
+}
+
 static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, const SurfaceHit *h,
                                  const Scatter *sc, const LightSampleContext *lc) {
     const PathState *ps = &ig->ps;
@@ -127,6 +134,9 @@ static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, con
         ps->shadow_depth[p] = depth;
         ps->shadow_medium[p] = side_medium(ig, p, h, ls.wi);
         ps->shadow_light[p] = ls.light;
+        if (ig->record.recorder)
+            ps->shadow_pv[p] = record_child(ig, s, p, ps->pv[p], h->p, ls.wi, nee_throughput(contrib, ls.radiance), ls.pdf,
+                                            PV_FLAG_NEE, ps->hit[p].t);
         s->shadows[s->num_shadows++] = p;
         return;
     }
@@ -134,8 +144,9 @@ static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, con
 }
 
 /* The continuation: a direction from the scattering function, the roulette, and the next
- * wave's ray with the MIS context of this vertex. */
-static void surface_continuation(const Integrator *ig, Slice *s, uint32_t p, const SurfaceHit *h,
+ * wave's ray with the MIS context of this vertex (and its recorder vertex, a child of the
+ * incoming ray's). Returns 1 when the path goes on. */
+static int surface_continuation(const Integrator *ig, Slice *s, uint32_t p, const SurfaceHit *h,
                                  const Scatter *sc, const LightSampleContext *lc) {
     const PathState *ps = &ig->ps;
     uint64_t key = ps->rng_key[p];
@@ -144,18 +155,22 @@ static void surface_continuation(const Integrator *ig, Slice *s, uint32_t p, con
     if (!scatter_sample(sc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_LOBE)),
                         rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_U)),
                         rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_V)), &ss))
-        return;
+        return 0;
     vec3 beta = v3_mul(ps->throughput[p], ss.weight);
     ps->rr_scale[p] *= ss.rr_factor;
-    if (!v3_is_finite(beta) || v3_is_black(beta)) return;
+    if (!v3_is_finite(beta) || v3_is_black(beta)) return 0;
     if (depth + 1 >= RR_START_DEPTH &&
         !russian_roulette(&beta, ps->rr_scale[p], rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_RR))))
-        return;
+        return 0;
     ps->throughput[p] = beta;
     if (ss.transmitted) ps->medium[p] = side_medium(ig, p, h, ss.wi);
+    if (ig->record.recorder)
+        ps->pv[p] = record_child(ig, s, p, ps->pv[p], h->p, ss.wi, beta, ss.pdf, ss.delta ? PV_FLAG_DELTA : 0u,
+                                 ps->hit[p].t);
     path_scattered(ps, p, h->p, lc, ss.pdf, ss.delta);
     ps->ray[p] = (SceneRay){offset_ray_origin(h->p, scatter_side_normal(sc, ss.wi)), 0.0f, ss.wi, INFINITY};
     s->rays[s->num_rays++] = p;
+    return 1;
 }
 
 void stage_surface(const Integrator *ig, Slice *s) {
@@ -171,7 +186,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
         const SceneHit *hit = &ps->hit[p];
         if (scene->prims[scene->io.meshes[scene->instances[hit->instance].mesh].first_primitive + hit->local_prim]
                 .medium_boundary) {
-            cross_boundary(ig, s, p, hit);
+            if (!cross_boundary(ig, s, p, hit)) path_end(ig, s, p);
             continue;
         }
         vec3 wo = v3_neg(ps->ray[p].dir);
@@ -185,7 +200,11 @@ void stage_surface(const Integrator *ig, Slice *s) {
         if (depth == 0) path_write_aovs(ps, p, m.bsdf.base_color, sc.frame.n, hit->t);
 
         surface_emission(ig, p, &h, wo);
-        if ((int)(depth - ps->volume_bounces[p]) >= ig->opt->max_depth) continue; /* surface vertices */
+        if ((int)(depth - ps->volume_bounces[p]) >= ig->opt->max_depth) { /* surface vertices */
+            path_end(ig, s, p);
+            continue;
+        }
+        uint32_t incoming = ps->pv[p]; /* the recorder vertex of the ray that found this hit */
 
         /* light-selection context: transmissive surfaces receive light from both sides, so they
          * use the omnidirectional (fluence) estimates, as a point in a medium does */
@@ -193,6 +212,10 @@ void stage_surface(const Integrator *ig, Slice *s) {
         int delta = scatter_is_delta(&sc);
         if (!delta) light_sampler_prepare(ig->light_sampler, &lc, &hint); /* once per vertex */
         if (!delta && ig->lights->count > 0) surface_direct_light(ig, s, p, &h, &sc, &lc);
-        surface_continuation(ig, s, p, &h, &sc, &lc);
+        int continued = surface_continuation(ig, s, p, &h, &sc, &lc);
+        if (ig->record.recorder) { /* the scattering event is done with the incoming vertex */
+            if (!continued) ps->pv[p] = PV_CAMERA;
+            record_done(ig, s, p, incoming);
+        }
     }
 }

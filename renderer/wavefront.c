@@ -12,7 +12,7 @@
 #include "clock.h"
 #include "integrator.h"
 
-#define MAX_SLICES 256
+
 
 /* Stage timing and ray logging wrap the stages; neither changes what a stage computes. */
 #define TIMED(slice, stage, call)                                     \
@@ -70,7 +70,7 @@ void integrator_run_batch(Integrator *ig, ThreadPool *pool, CandelaStats *st) {
         slices[k] = (Slice){.begin = b, .end = e, .rays = ig->queue_rays + b, .hits = ig->queue_hits + b,
                             .escaped = ig->queue_escaped + b, .shadows = ig->queue_shadows + b,
                             .keys = ig->sort_keys + b, .keys_tmp = ig->sort_keys_tmp + b,
-                            .items_tmp = ig->sort_items_tmp + b};
+                            .items_tmp = ig->sort_items_tmp + b, .record_samples = &ig->record.samples[k]};
     }
     SliceCtx c = {ig, slices};
     threadpool_parallel_for(pool, n, 1, slice_range, &c);
@@ -89,6 +89,7 @@ void integrator_run_batch(Integrator *ig, ThreadPool *pool, CandelaStats *st) {
     }
     st->paths += ig->batch_count;
     st->rays_camera += ig->batch_count;
+    if (ig->record.recorder) record_batch_end(ig, slices, n);
     inscatter_probe_batch(ig, slices, n);
     emission_probe_batch(ig, slices, n);
     /* film: serial, in path order, so every pixel sums its samples in sample order */
@@ -102,6 +103,7 @@ void integrator_add_barrier_hook(Integrator *ig, void (*run)(void *user), void *
 }
 
 void integrator_barrier(Integrator *ig) {
+    record_barrier(ig);
     for (int i = 0; i < ig->num_hooks; ++i) ig->hooks[i].run(ig->hooks[i].user);
 }
 
@@ -131,6 +133,11 @@ int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene,
     fail = fail || path_state_alloc(&ig->ps, batch) != 0 || film_alloc(&ig->film, scene->camera.width, scene->camera.height) != 0;
     fail = fail || inscatter_init(ig, ig->inscatter ? o->volume_inscatter_sampling : 0) != 0;
     fail = fail || emission_auto_init(ig, lights->count > 0 ? o->volume_emission_sampling : 0) != 0;
+    fail = fail || record_init(ig) != 0;
+    if (!fail && ig->record.debug_aov) {
+        ig->film.recorder = calloc(3 * (size_t)ig->npixels, sizeof(double));
+        fail = !ig->film.recorder;
+    }
     if (fail) { integrator_free(ig); return -1; }
     return 0;
 }
@@ -142,6 +149,7 @@ void integrator_free(Integrator *ig) {
     film_free(&ig->film);
     auto_probe_free(&ig->inscatter_auto);
     auto_probe_free(&ig->emission_auto);
+    record_free(ig);
     pthread_mutex_destroy(&ig->ray_log_mutex);
     memset(ig, 0, sizeof *ig);
 }

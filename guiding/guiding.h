@@ -1,0 +1,170 @@
+/* guiding/guiding.h: the radiance recorder and the path-guiding field (C17, no renderer types).
+ *
+ * Two parts, used by the renderer's integrator:
+ *
+ * 1. The radiance recorder (path-guiding-in-production.txt ch. 2 §3; digest §1.2): path
+ *    vertices in blocks of RECORDER_BLOCK_SIZE, addressed by a 32-bit PVIndex = block *
+ *    RECORDER_BLOCK_SIZE + slot that a ray carries. A vertex is created for each ray leaving a
+ *    scattering point (continuation and NEE), collects the emission its subtree finds, and when
+ *    its reference count reaches zero records one training sample L = emission / throughput,
+ *    hands its emission to its parent and is freed (cascading iteratively to the camera).
+ *    The operations on one path's vertices must come from one thread in a deterministic order
+ *    (the wavefront gives every path to one slice); allocation is shared and thread-safe through
+ *    a per-thread RecorderCache. Training samples go to the caller's per-thread buffer.
+ *
+ * 2. The guiding field: Practical Path Guiding (Müller et al. 2017) written here: a spatial
+ *    binary tree over the scene bounds whose leaves hold a directional quadtree pair (sampling:
+ *    learned up to the previous update; building: accumulating now) over the cylindrical
+ *    equal-area mapping (u, v) = ((cos theta + 1) / 2, phi / 2 pi). Training and updates are
+ *    single-threaded and deterministic in the order of the samples given; lookups, sampling and
+ *    pdfs only read the sampling trees (any number of threads, between updates). */
+#ifndef CANDELA_GUIDING_H
+#define CANDELA_GUIDING_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+/* ------------------------------------------------------------------ radiance recorder */
+
+#define RECORDER_BLOCK_SIZE 4096u
+#define PV_CAMERA 0xFFFFFFFFu  /* no vertex: the camera (as a parent), or a ray with no vertex */
+#define PV_SKIPPED 0xFFFFFFFEu /* a skipped path: never allocates, its children are skipped */
+static inline int pv_is_vertex(uint32_t pv) { return pv < PV_SKIPPED; }
+
+enum {
+    PV_FLAG_NEE = 1,         /* the vertex's ray is a next-event (shadow) ray */
+    PV_FLAG_VOLUME = 2,      /* its origin is a scattering point in a medium */
+    PV_FLAG_DELTA = 4,       /* its direction came from a delta lobe (not trainable) */
+    PV_FLAG_GUIDABLE = 8     /* the scattering function at its origin is guided (rough enough) */
+};
+
+/* What a new vertex knows: its ray and the throughput of that ray (camera to the vertex, times
+ * the sampling weight of its direction), the pdfs of its direction. */
+typedef struct RecorderVertexInit {
+    float pos[3], dir[3];
+    float throughput[3];
+    float pdf;        /* the technique that sampled the direction (solid angle) */
+    float bsdf_pdf;   /* the scattering function's own pdf of it */
+    float guide_pdf;  /* the guide's pdf of it (0: not guided) */
+    uint32_t flags;   /* PV_FLAG_* */
+    uint32_t pixel;
+    uint64_t path;    /* the path's index in the render: the sort key of its samples */
+} RecorderVertexInit;
+
+/* One training sample: the incident radiance estimate at pos from dir. */
+typedef struct RecorderSample {
+    float pos[3], dir[3];
+    float radiance[3];   /* L = emission / throughput (0 where the throughput is 0) */
+    float debug[3];      /* L x throughput, for the recorder-debug AOV (primary vertices) */
+    float pdf, bsdf_pdf, guide_pdf;
+    uint32_t flags;      /* PV_FLAG_*, plus RECORDER_SAMPLE_PRIMARY */
+    uint32_t pixel;
+    uint64_t path;
+} RecorderSample;
+#define RECORDER_SAMPLE_PRIMARY 0x100u /* the vertex's parent is the camera */
+
+/* A growable per-thread buffer of samples (the caller owns it; recorder_samples_free). */
+typedef struct RecorderSamples {
+    RecorderSample *items;
+    size_t count, capacity;
+    int failed; /* an append ran out of memory (the sample was dropped) */
+} RecorderSamples;
+void recorder_samples_clear(RecorderSamples *s);
+void recorder_samples_free(RecorderSamples *s);
+/* Stable sort by path index: the order of samples a thread count never changes. */
+int recorder_samples_sort(RecorderSamples *s);
+
+#define RECORDER_CACHE_SIZE 64
+typedef struct RecorderCache {
+    uint32_t free[RECORDER_CACHE_SIZE];
+    uint32_t count;
+    uint64_t created, refused; /* counts, added to the recorder's at recorder_flush_cache */
+} RecorderCache;
+
+typedef struct Recorder Recorder;
+
+/* A recorder holding at most max_vertices live vertices (rounded up to whole blocks; blocks
+ * are allocated when first needed). NULL: out of memory. */
+Recorder *recorder_create(uint32_t max_vertices);
+void recorder_free(Recorder *r);
+/* A child of `parent` (PV_CAMERA for a ray leaving the camera's first hit) with reference
+ * count 1; the parent's count goes up by one. PV_SKIPPED when the parent is skipped. When the
+ * recorder is full (counted in recorder_stats) the parent is continued and returned instead,
+ * so the new ray's emission still reaches the ancestors. */
+uint32_t recorder_new_child(Recorder *r, RecorderCache *cache, uint32_t parent, const RecorderVertexInit *init);
+/* Emission (throughput-weighted, as added to the image) reaching the vertex's ray. */
+void recorder_add_emission(Recorder *r, uint32_t pv, const float e[3]);
+/* Another ray carries the same vertex on (e.g. a child too close to its parent): +1. */
+void recorder_continue(Recorder *r, uint32_t pv);
+/* One holder is done with the vertex: -1; at zero, records, backpropagates, frees (and
+ * cascades up the parents). Samples are appended to `out`. */
+void recorder_done(Recorder *r, RecorderCache *cache, uint32_t pv, RecorderSamples *out);
+/* Returns a thread's cached free indices to the shared queue (call at the end of a batch). */
+void recorder_flush_cache(Recorder *r, RecorderCache *cache);
+
+typedef struct RecorderStats {
+    uint64_t vertices_created;  /* since the last recorder_reset_counts */
+    uint64_t vertices_refused;  /* children refused because the recorder was full */
+    uint32_t live;              /* vertices allocated now */
+    uint32_t peak_live;         /* the most ever allocated at once */
+    size_t bytes;               /* memory of the blocks allocated now */
+    size_t peak_bytes;          /* the most ever (blocks are never returned before recorder_free) */
+    size_t bound_bytes;         /* the most it can ever hold */
+} RecorderStats;
+void recorder_stats(const Recorder *r, RecorderStats *st);
+void recorder_reset_counts(Recorder *r);
+/* Every vertex freed and every index back in the free queue exactly once (a test's check). */
+int recorder_consistent(const Recorder *r);
+
+/* ------------------------------------------------------------------ guiding field (PPG) */
+
+typedef struct GuideFieldParams {
+    float spatial_threshold;   /* c: a leaf splits when its samples exceed c sqrt(2^k) (12000) */
+    float flux_threshold;      /* rho: a quadtree node subdivides above this share of flux (0.01) */
+    int max_quadtree_depth;    /* 20 */
+    size_t max_bytes;          /* memory cap of the spatial tree and its quadtrees (0: 256 MiB) */
+} GuideFieldParams;
+void guide_field_params_default(GuideFieldParams *p);
+
+/* A training sample of the field: incident radiance (a scalar: luminance) at pos from the unit
+ * direction dir, sampled with solid-angle pdf `pdf` by the technique used (zero radiance
+ * samples count: they carry weight). */
+typedef struct GuideTrainingSample {
+    float pos[3], dir[3];
+    float radiance;
+    float pdf;
+} GuideTrainingSample;
+
+typedef struct GuideField GuideField;
+/* The spatial tree spans the cube around [lo, hi] (enlarged slightly). NULL: out of memory. */
+GuideField *guide_field_create(const float lo[3], const float hi[3], const GuideFieldParams *p);
+void guide_field_free(GuideField *f);
+/* Adds samples to the building quadtrees in the given order (deterministic). */
+void guide_field_record(GuideField *f, const GuideTrainingSample *s, size_t n);
+/* End of a training iteration k = 0, 1, ...: splits leaves past the sample threshold, rebuilds
+ * every building quadtree from its flux (subdivide above rho, prune below), makes them the
+ * sampling trees, and starts empty building trees. 0 ok, -1 out of memory (the field keeps
+ * its previous state). */
+int guide_field_update(GuideField *f);
+/* Updates done so far (0: nothing learned; sampling is uniform over the sphere). */
+int guide_field_iterations(const GuideField *f);
+size_t guide_field_bytes(const GuideField *f);
+uint32_t guide_field_num_leaves(const GuideField *f);
+
+/* The sampling distribution of the leaf containing pos (never NULL for a live field; a point
+ * outside the bounds gets the nearest leaf). Valid until the next guide_field_update. */
+typedef struct GuideDistribution GuideDistribution;
+const GuideDistribution *guide_field_lookup(const GuideField *f, const float pos[3]);
+/* A direction from the distribution with two uniforms; its solid-angle pdf in *pdf. */
+void guide_distribution_sample(const GuideDistribution *d, float u1, float u2, float dir[3], float *pdf);
+float guide_distribution_pdf(const GuideDistribution *d, const float dir[3]);
+/* The leaf's box (the spatial node's extent) and the samples it was built from. */
+void guide_distribution_bounds(const GuideDistribution *d, float lo[3], float hi[3]);
+/* The pdf over the (u, v) equal-area square on a w x h grid (row-major, v down the rows),
+ * in units of solid-angle pdf, for inspection. */
+void guide_distribution_image(const GuideDistribution *d, int w, int h, float *out);
+/* Writes the spatial tree's leaves as an ASCII PLY of boxes (8 vertices, 6 faces each). 0 ok;
+ * -1 with errno on failure. */
+int guide_field_write_ply(const GuideField *f, const char *path);
+
+#endif

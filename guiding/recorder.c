@@ -1,0 +1,279 @@
+/* guiding/recorder.c: the radiance recorder (path-guiding-in-production.txt ch. 2 §3.4).
+ *
+ * Vertices live in blocks of RECORDER_BLOCK_SIZE allocated on first need, up to a bound;
+ * free indices circulate through one FIFO queue under a mutex, which threads reach through a
+ * small per-thread cache so that most allocations and frees touch no lock. A vertex's fields
+ * are only touched by the thread that owns its path (the caller's contract), so they need no
+ * atomics; the mutex hand-over of indices orders the reuse of a slot by another thread. */
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "guiding.h"
+
+typedef struct RecorderVertex {
+    float pos[3], dir[3];
+    float throughput[3];
+    float emission[3];  /* §3.4.1: accumulated emission of the subtree (throughput-weighted) */
+    float pdf, bsdf_pdf, guide_pdf;
+    uint32_t parent;
+    uint32_t refcount;  /* 0: free */
+    uint32_t flags;
+    uint32_t pixel;
+    uint64_t path;
+} RecorderVertex;
+
+struct Recorder {
+    pthread_mutex_t lock;
+    RecorderVertex **blocks;
+    uint32_t num_blocks, max_blocks;
+    uint32_t *queue;               /* ring of free indices, capacity max_blocks * BLOCK_SIZE */
+    uint32_t queue_head, queue_count;
+    uint64_t created, refused;     /* under the lock (flushed from the caches' counts) */
+    atomic_uint live, peak_live;
+};
+
+#define BLOCK RECORDER_BLOCK_SIZE
+
+static RecorderVertex *vertex_at(const Recorder *r, uint32_t pv) { return &r->blocks[pv / BLOCK][pv % BLOCK]; }
+
+Recorder *recorder_create(uint32_t max_vertices) {
+    Recorder *r = calloc(1, sizeof *r);
+    if (!r) return NULL;
+    uint64_t blocks = ((uint64_t)max_vertices + BLOCK - 1) / BLOCK;
+    if (blocks == 0) blocks = 1;
+    if (blocks * BLOCK >= PV_SKIPPED) blocks = (PV_SKIPPED - 1) / BLOCK; /* indices stay below the sentinels */
+    r->max_blocks = (uint32_t)blocks;
+    r->blocks = calloc(r->max_blocks, sizeof *r->blocks);
+    r->queue = malloc((size_t)r->max_blocks * BLOCK * sizeof *r->queue);
+    if (!r->blocks || !r->queue || pthread_mutex_init(&r->lock, NULL) != 0) {
+        free(r->blocks);
+        free(r->queue);
+        free(r);
+        return NULL;
+    }
+    atomic_init(&r->live, 0);
+    atomic_init(&r->peak_live, 0);
+    return r;
+}
+
+void recorder_free(Recorder *r) {
+    if (!r) return;
+    for (uint32_t b = 0; b < r->num_blocks; ++b) free(r->blocks[b]);
+    free(r->blocks);
+    free(r->queue);
+    pthread_mutex_destroy(&r->lock);
+    free(r);
+}
+
+/* Under the lock: a new block's indices join the queue. 0 ok, -1 at the bound or out of memory. */
+static int grow_locked(Recorder *r) {
+    if (r->num_blocks >= r->max_blocks) return -1;
+    RecorderVertex *block = calloc(BLOCK, sizeof *block);
+    if (!block) return -1;
+    uint32_t b = r->num_blocks++;
+    r->blocks[b] = block;
+    uint32_t capacity = r->max_blocks * BLOCK;
+    for (uint32_t i = 0; i < BLOCK; ++i) {
+        r->queue[(r->queue_head + r->queue_count) % capacity] = b * BLOCK + i;
+        r->queue_count++;
+    }
+    return 0;
+}
+
+/* Refills half of a thread's cache from the queue (growing by a block if it is empty). */
+static void cache_refill(Recorder *r, RecorderCache *c) {
+    pthread_mutex_lock(&r->lock);
+    if (r->queue_count == 0) grow_locked(r);
+    uint32_t capacity = r->max_blocks * BLOCK;
+    while (c->count < RECORDER_CACHE_SIZE / 2 && r->queue_count > 0) {
+        c->free[c->count++] = r->queue[r->queue_head];
+        r->queue_head = (r->queue_head + 1) % capacity;
+        r->queue_count--;
+    }
+    pthread_mutex_unlock(&r->lock);
+}
+
+/* Returns the cache's indices beyond `keep` to the queue. */
+static void cache_spill(Recorder *r, RecorderCache *c, uint32_t keep) {
+    pthread_mutex_lock(&r->lock);
+    uint32_t capacity = r->max_blocks * BLOCK;
+    while (c->count > keep) {
+        r->queue[(r->queue_head + r->queue_count) % capacity] = c->free[--c->count];
+        r->queue_count++;
+    }
+    pthread_mutex_unlock(&r->lock);
+}
+
+void recorder_flush_cache(Recorder *r, RecorderCache *c) {
+    if (c->count) cache_spill(r, c, 0);
+    pthread_mutex_lock(&r->lock);
+    r->created += c->created;
+    r->refused += c->refused;
+    pthread_mutex_unlock(&r->lock);
+    c->created = c->refused = 0;
+}
+
+static void note_live(Recorder *r) {
+    unsigned live = atomic_fetch_add(&r->live, 1) + 1;
+    unsigned peak = atomic_load(&r->peak_live);
+    while (live > peak && !atomic_compare_exchange_weak(&r->peak_live, &peak, live)) {
+    }
+}
+
+void recorder_continue(Recorder *r, uint32_t pv) {
+    if (pv_is_vertex(pv)) vertex_at(r, pv)->refcount++;
+}
+
+uint32_t recorder_new_child(Recorder *r, RecorderCache *c, uint32_t parent, const RecorderVertexInit *init) {
+    if (parent == PV_SKIPPED) return PV_SKIPPED;
+    if (c->count == 0) cache_refill(r, c);
+    if (c->count == 0) {
+        /* §3.4.4: the recorder is full: the ray carries its parent on, so its emission still
+         * reaches the ancestors (the parent's sample then spans one more bounce) */
+        c->refused++;
+        recorder_continue(r, parent);
+        return parent;
+    }
+    uint32_t pv = c->free[--c->count];
+    RecorderVertex *v = vertex_at(r, pv);
+    memcpy(v->pos, init->pos, sizeof v->pos);
+    memcpy(v->dir, init->dir, sizeof v->dir);
+    memcpy(v->throughput, init->throughput, sizeof v->throughput);
+    v->emission[0] = v->emission[1] = v->emission[2] = 0.0f;
+    v->pdf = init->pdf;
+    v->bsdf_pdf = init->bsdf_pdf;
+    v->guide_pdf = init->guide_pdf;
+    v->parent = parent;
+    v->refcount = 1;
+    v->flags = init->flags;
+    v->pixel = init->pixel;
+    v->path = init->path;
+    if (pv_is_vertex(parent)) vertex_at(r, parent)->refcount++;
+    c->created++;
+    note_live(r);
+    return pv;
+}
+
+void recorder_add_emission(Recorder *r, uint32_t pv, const float e[3]) {
+    if (!pv_is_vertex(pv)) return;
+    RecorderVertex *v = vertex_at(r, pv);
+    for (int k = 0; k < 3; ++k) v->emission[k] += e[k];
+}
+
+static void samples_append(RecorderSamples *s, const RecorderVertex *v) {
+    if (s->count == s->capacity) {
+        size_t cap = s->capacity ? 2 * s->capacity : 1024;
+        RecorderSample *items = realloc(s->items, cap * sizeof *items);
+        if (!items) { s->failed = 1; return; }
+        s->items = items;
+        s->capacity = cap;
+    }
+    RecorderSample *o = &s->items[s->count++];
+    memcpy(o->pos, v->pos, sizeof o->pos);
+    memcpy(o->dir, v->dir, sizeof o->dir);
+    for (int k = 0; k < 3; ++k) {
+        /* §3.1: P_rad = P_em / P_tp per channel; a zero throughput channel carries nothing */
+        float tp = v->throughput[k];
+        o->radiance[k] = tp != 0.0f ? v->emission[k] / tp : 0.0f;
+        o->debug[k] = o->radiance[k] * tp;
+    }
+    o->pdf = v->pdf;
+    o->bsdf_pdf = v->bsdf_pdf;
+    o->guide_pdf = v->guide_pdf;
+    o->flags = v->flags | (v->parent == PV_CAMERA ? RECORDER_SAMPLE_PRIMARY : 0u);
+    o->pixel = v->pixel;
+    o->path = v->path;
+}
+
+void recorder_done(Recorder *r, RecorderCache *c, uint32_t pv, RecorderSamples *out) {
+    /* §3.4.3 backprop, iteratively: a vertex whose count reaches zero records its one sample,
+     * hands its emission to its parent, is freed, and the parent loses a holder */
+    while (pv_is_vertex(pv)) {
+        RecorderVertex *v = vertex_at(r, pv);
+        if (v->refcount == 0) return; /* a caller's double release: ignore (recorder_consistent reports leaks) */
+        if (--v->refcount > 0) return;
+        samples_append(out, v);
+        uint32_t parent = v->parent;
+        if (pv_is_vertex(parent)) {
+            RecorderVertex *pa = vertex_at(r, parent);
+            for (int k = 0; k < 3; ++k) pa->emission[k] += v->emission[k];
+        }
+        if (c->count == RECORDER_CACHE_SIZE) cache_spill(r, c, RECORDER_CACHE_SIZE / 2);
+        c->free[c->count++] = pv;
+        atomic_fetch_sub(&r->live, 1);
+        pv = parent;
+    }
+}
+
+void recorder_stats(const Recorder *r, RecorderStats *st) {
+    Recorder *m = (Recorder *)r; /* the lock only */
+    pthread_mutex_lock(&m->lock);
+    st->vertices_created = r->created;
+    st->vertices_refused = r->refused;
+    st->bytes = (size_t)r->num_blocks * BLOCK * sizeof(RecorderVertex) + (size_t)r->max_blocks * BLOCK * sizeof(uint32_t);
+    st->peak_bytes = st->bytes; /* blocks are kept until recorder_free */
+    st->bound_bytes = (size_t)r->max_blocks * BLOCK * (sizeof(RecorderVertex) + sizeof(uint32_t));
+    pthread_mutex_unlock(&m->lock);
+    st->live = atomic_load(&m->live);
+    st->peak_live = atomic_load(&m->peak_live);
+}
+
+void recorder_reset_counts(Recorder *r) {
+    pthread_mutex_lock(&r->lock);
+    r->created = r->refused = 0;
+    pthread_mutex_unlock(&r->lock);
+}
+
+int recorder_consistent(const Recorder *r) {
+    uint32_t n = r->num_blocks * BLOCK;
+    if (atomic_load(&((Recorder *)r)->live) != 0 || r->queue_count != n) return 0;
+    uint8_t *seen = calloc(n ? n : 1, 1);
+    if (!seen) return 0;
+    uint32_t capacity = r->max_blocks * BLOCK;
+    int ok = 1;
+    for (uint32_t i = 0; i < r->queue_count && ok; ++i) {
+        uint32_t pv = r->queue[(r->queue_head + i) % capacity];
+        if (pv >= n || seen[pv] || vertex_at(r, pv)->refcount != 0) ok = 0;
+        else seen[pv] = 1;
+    }
+    free(seen);
+    return ok;
+}
+
+void recorder_samples_clear(RecorderSamples *s) {
+    s->count = 0;
+    s->failed = 0;
+}
+
+void recorder_samples_free(RecorderSamples *s) {
+    free(s->items);
+    s->items = NULL;
+    s->count = s->capacity = 0;
+}
+
+int recorder_samples_sort(RecorderSamples *s) {
+    /* a stable merge sort by path index: a path's samples keep their (deterministic) order */
+    size_t n = s->count;
+    if (n < 2) return 0;
+    RecorderSample *tmp = malloc(n * sizeof *tmp);
+    if (!tmp) return -1;
+    RecorderSample *src = s->items, *dst = tmp;
+    for (size_t width = 1; width < n; width *= 2) {
+        for (size_t lo = 0; lo < n; lo += 2 * width) {
+            size_t mid = lo + width < n ? lo + width : n, hi = lo + 2 * width < n ? lo + 2 * width : n;
+            size_t i = lo, j = mid, k = lo;
+            while (i < mid && j < hi) dst[k++] = src[j].path < src[i].path ? src[j++] : src[i++];
+            while (i < mid) dst[k++] = src[i++];
+            while (j < hi) dst[k++] = src[j++];
+        }
+        RecorderSample *t = src;
+        src = dst;
+        dst = t;
+    }
+    if (src != s->items) memcpy(s->items, src, n * sizeof *tmp);
+    free(tmp);
+    return 0;
+}

@@ -1,0 +1,187 @@
+/* renderer/record.c: the radiance recorder in the wavefront (guiding/guiding.h; the seed's
+ * ch. 2 §3.4, the digest's §1.2-1.3).
+ *
+ * Every ray of a path carries a PVIndex in the path state: `pv` for the ray the path traces
+ * (its vertex collects what that ray finds: emission, the environment, volume emission along
+ * it), `shadow_pv` for the NEE shadow ray pending in the same slot. A scattering event (a
+ * surface or medium vertex) creates children for its NEE and continuation rays and then
+ * releases the incoming ray's vertex (record_done); a path that ends releases its ray's vertex
+ * where it ends. The camera ray's vertex is PV_CAMERA: what it finds directly (emission seen
+ * by the camera, in-scattering along the camera segment) belongs to no vertex.
+ *
+ * Memory control (§3.4.4, §5.1): path skipping decided per camera ray from the previous
+ * iteration's mean vertices per recorded path against a budget (4: skip = 1 - budget x
+ * paths / vertices), a vertex past the budget recorded with probability 1/4 (else the ray
+ * continues its parent, so the emission still reaches the ancestors), a child closer than a
+ * minimum distance to its parent continues the parent, and the recorder's bound
+ * (--recorder-mb). All decisions hash the path's RNG key: the recorded samples, hence what
+ * guiding learns, never depend on the thread count. Samples go to per-slice buffers, are sorted
+ * by path after the batch (recorder_samples_sort: stable, so a path keeps its order), and
+ * handed on in that order. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "integrator.h"
+#include "rng.h"
+
+#define RECORD_BUDGET_DEFAULT 4         /* vertices per path (the seed's soft budget) */
+#define RECORD_DEEP_PROBABILITY 0.25f   /* a vertex past the budget is recorded with this (§5.1.3) */
+#define RECORD_MIN_DISTANCE_REL 1e-4f   /* of the scene's diagonal: closer children continue the parent */
+
+static float hash_uniform(uint64_t key, uint64_t salt) {
+    return (float)(rng_mix64(key ^ rng_mix64(salt + 0x5265636f72646572ull)) >> 40) * 0x1.0p-24f;
+}
+
+int record_init(Integrator *ig) {
+    const CandelaOptions *o = ig->opt;
+    RecordState *rs = &ig->record;
+    memset(rs, 0, sizeof *rs);
+    int need = o->aov_recorder_debug || o->guiding != CANDELA_GUIDING_OFF;
+    if (!need) return 0;
+    size_t mb = o->recorder_mb ? o->recorder_mb : 256;
+    uint64_t vertices = (uint64_t)mb * 1024u * 1024u / 100u; /* ~100 bytes per vertex with its queue entry */
+    if (vertices > 0xF0000000ull) vertices = 0xF0000000ull;
+    rs->recorder = recorder_create((uint32_t)vertices);
+    if (!rs->recorder) return -1;
+    rs->debug_aov = o->aov_recorder_debug;
+    rs->budget = o->recorder_budget >= 0 ? (uint32_t)o->recorder_budget : RECORD_BUDGET_DEFAULT;
+    rs->path_skip = 0.0f;
+    vec3 ext = v3_sub(ig->scene->bounds_max, ig->scene->bounds_min);
+    float diag = v3_length(ext);
+    rs->min_distance = isfinite(diag) ? RECORD_MIN_DISTANCE_REL * diag : 0.0f;
+    return 0;
+}
+
+void record_free(Integrator *ig) {
+    RecordState *rs = &ig->record;
+    for (int k = 0; k < MAX_SLICES; ++k) recorder_samples_free(&rs->samples[k]);
+    recorder_samples_free(&rs->batch);
+    recorder_free(rs->recorder);
+    rs->recorder = NULL;
+}
+
+void record_camera(const Integrator *ig, uint32_t p, uint64_t path) {
+    const PathState *ps = &ig->ps;
+    ps->pv[p] = PV_CAMERA;
+    ps->shadow_pv[p] = PV_CAMERA;
+    ps->aov_recorder[p] = v3s(0.0f);
+    const RecordState *rs = &ig->record;
+    ps->record_skip[p] = rs->recorder && rs->path_skip > 0.0f && hash_uniform(ps->rng_key[p], 1) < rs->path_skip;
+    (void)path;
+}
+
+uint32_t record_child(const Integrator *ig, Slice *s, uint32_t p, uint32_t parent, vec3 pos, vec3 dir, vec3 tp,
+                      float pdf, uint32_t flags, float segment) {
+    const RecordState *rs = &ig->record;
+    const PathState *ps = &ig->ps;
+    if (parent == PV_SKIPPED || (parent == PV_CAMERA && ps->record_skip[p])) return PV_SKIPPED;
+    uint32_t depth = ps->depth[p];
+    /* §3.4.4: a child too close to its parent (dense media), or past the budget and not drawn
+     * for recording (§5.1.3), continues its parent; the camera's children always start a vertex */
+    if (parent != PV_CAMERA) {
+        int keep = segment >= rs->min_distance;
+        if (keep && rs->budget > 0 && depth >= rs->budget)
+            keep = hash_uniform(ps->rng_key[p], 2 + 2 * (uint64_t)depth + ((flags & PV_FLAG_NEE) ? 1 : 0)) <
+                   RECORD_DEEP_PROBABILITY;
+        if (!keep) {
+            recorder_continue(rs->recorder, parent);
+            return parent;
+        }
+    }
+    RecorderVertexInit init = {{pos.x, pos.y, pos.z}, {dir.x, dir.y, dir.z}, {tp.x, tp.y, tp.z}, pdf, pdf, 0.0f,
+                               flags, ps->pixel[p],
+                               (ig->sample_base + (ig->batch_first + p) / ig->npixels) * ig->npixels + ps->pixel[p]};
+    return recorder_new_child(rs->recorder, &s->record_cache, parent, &init);
+}
+
+void record_done(const Integrator *ig, Slice *s, uint32_t p, uint32_t pv) {
+    if (!pv_is_vertex(pv)) return;
+    const RecordState *rs = &ig->record;
+    RecorderSamples *out = s->record_samples;
+    size_t before = out->count;
+    recorder_done(rs->recorder, &s->record_cache, pv, out);
+    if (!rs->debug_aov) return;
+    /* §4.1: the primary vertices' samples times their throughput rebuild the image (divided by
+     * the probability the path was recorded) */
+    const PathState *ps = &ig->ps;
+    float inv = 1.0f / (1.0f - rs->path_skip);
+    for (size_t i = before; i < out->count; ++i) {
+        const RecorderSample *smp = &out->items[i];
+        if (!(smp->flags & RECORDER_SAMPLE_PRIMARY)) continue;
+        ps->aov_recorder[p] = v3_add(ps->aov_recorder[p], v3_scale(v3(smp->debug[0], smp->debug[1], smp->debug[2]), inv));
+    }
+}
+
+void record_radiance(const Integrator *ig, uint32_t p, vec3 c, RadianceSource source) {
+    const PathState *ps = &ig->ps;
+    uint32_t target = source == RADIANCE_DIRECT ? ps->shadow_pv[p] : ps->pv[p];
+    if (target == PV_CAMERA) {
+        /* found by the camera ray itself, or by no recorded vertex: exact in the debug AOV */
+        ps->aov_recorder[p] = v3_add(ps->aov_recorder[p], c);
+        return;
+    }
+    const float e[3] = {c.x, c.y, c.z};
+    recorder_add_emission(ig->record.recorder, target, e);
+}
+
+void record_batch_end(Integrator *ig, Slice *slices, uint32_t n) {
+    RecordState *rs = &ig->record;
+    RecorderSamples *all = &rs->batch;
+    recorder_samples_clear(all);
+    size_t total = 0;
+    for (uint32_t k = 0; k < n; ++k) {
+        recorder_flush_cache(rs->recorder, &slices[k].record_cache);
+        total += rs->samples[k].count;
+        if (rs->samples[k].failed) rs->dropped = 1;
+    }
+    if (total > all->capacity) {
+        RecorderSample *items = realloc(all->items, total * sizeof *items);
+        if (!items) { rs->dropped = 1; total = 0; }
+        else { all->items = items; all->capacity = total; }
+    }
+    for (uint32_t k = 0; k < n && total; ++k) {
+        memcpy(all->items + all->count, rs->samples[k].items, rs->samples[k].count * sizeof *all->items);
+        all->count += rs->samples[k].count;
+    }
+    for (uint32_t k = 0; k < n; ++k) recorder_samples_clear(&rs->samples[k]);
+    if (recorder_samples_sort(all) != 0) rs->dropped = 1;
+    /* recorded paths of the batch, for the next iteration's path skipping */
+    uint32_t recorded = 0;
+    for (uint32_t p = 0; p < ig->batch_count; ++p) recorded += !ig->ps.record_skip[p];
+    rs->iteration_paths += recorded;
+    rs->iteration_samples += all->count;
+}
+
+void record_barrier(Integrator *ig) {
+    RecordState *rs = &ig->record;
+    if (!rs->recorder) return;
+    RecorderStats st;
+    recorder_stats(rs->recorder, &st);
+    /* §3.4.4: skip = 1 - budget x paths / vertices of the iteration just done */
+    if (rs->budget > 0 && st.vertices_created > 0) {
+        double skip = 1.0 - (double)rs->budget * (double)rs->iteration_paths / (double)st.vertices_created;
+        rs->path_skip = skip > 0.0 ? (float)fmin(skip, 0.9) : 0.0f;
+    }
+    rs->total_vertices += st.vertices_created;
+    rs->total_paths += rs->iteration_paths;
+    rs->total_samples += rs->iteration_samples;
+    rs->refused += st.vertices_refused;
+    recorder_reset_counts(rs->recorder);
+    rs->iteration_paths = rs->iteration_samples = 0;
+}
+
+void record_report(const Integrator *ig, CandelaStats *st) {
+    const RecordState *rs = &ig->record;
+    if (!rs->recorder) return;
+    RecorderStats rst;
+    recorder_stats(rs->recorder, &rst);
+    st->recorder_peak_bytes = rst.peak_bytes;
+    st->recorder_bound_bytes = rst.bound_bytes;
+    st->recorder_peak_vertices = rst.peak_live;
+    st->recorder_vertices = rs->total_vertices;
+    st->recorder_samples = rs->total_samples;
+    st->recorder_refused = rs->refused;
+    st->recorder_paths = rs->total_paths;
+    st->recorder_path_skip = rs->path_skip;
+}
