@@ -79,6 +79,7 @@ typedef struct RecorderCache {
     uint32_t free[RECORDER_CACHE_SIZE];
     uint32_t count;
     uint64_t created, refused; /* counts, added to the recorder's at recorder_flush_cache */
+    int64_t live, peak;        /* this thread's live vertices (its paths' vertices are its own) */
 } RecorderCache;
 
 typedef struct Recorder Recorder;
@@ -99,14 +100,27 @@ void recorder_continue(Recorder *r, uint32_t pv);
 /* One holder is done with the vertex: -1; at zero, records, backpropagates, frees (and
  * cascades up the parents). Samples are appended to `out`. */
 void recorder_done(Recorder *r, RecorderCache *cache, uint32_t pv, RecorderSamples *out);
-/* Returns a thread's cached free indices to the shared queue (call at the end of a batch). */
+/* A hint: fetch the vertex into the cache ahead of its use (the wavefront touches a vertex
+ * once per wave, long after the last time). */
+void recorder_prefetch(const Recorder *r, uint32_t pv);
+/* The same for the vertex's parent (read from the vertex: prefetch that first). */
+void recorder_prefetch_parent(const Recorder *r, uint32_t pv);
+/* Returns a thread's cached free indices to the shared queue (call at the end of a batch, for
+ * every thread's cache, then recorder_end_batch). */
 void recorder_flush_cache(Recorder *r, RecorderCache *cache);
+/* The batch's peak of live vertices (the sum of the threads' peaks: a bound) joins the stats. */
+void recorder_end_batch(Recorder *r);
+/* Which samples recorder_done appends (the others are backpropagated all the same): all
+ * (0, the default), or those of primary vertices (parent: the camera) and/or trainable ones
+ * (neither NEE nor delta). Writing samples nobody reads was a third of the recorder's cost. */
+enum { RECORDER_KEEP_PRIMARY = 1, RECORDER_KEEP_TRAINABLE = 2 };
+void recorder_set_filter(Recorder *r, uint32_t keep);
 
 typedef struct RecorderStats {
     uint64_t vertices_created;  /* since the last recorder_reset_counts */
     uint64_t vertices_refused;  /* children refused because the recorder was full */
-    uint32_t live;              /* vertices allocated now */
-    uint32_t peak_live;         /* the most ever allocated at once */
+    uint32_t peak_live;         /* the most ever allocated at once (the sum of the threads' peaks
+                                 * over a batch, so a bound) */
     size_t bytes;               /* memory of the blocks allocated now */
     size_t peak_bytes;          /* the most ever (blocks are never returned before recorder_free) */
     size_t bound_bytes;         /* the most it can ever hold */
@@ -141,11 +155,11 @@ GuideField *guide_field_create(const float lo[3], const float hi[3], const Guide
 void guide_field_free(GuideField *f);
 /* Adds samples to the building quadtrees in the given order (deterministic). */
 void guide_field_record(GuideField *f, const GuideTrainingSample *s, size_t n);
-/* End of a training iteration k = 0, 1, ...: splits leaves past the sample threshold, rebuilds
- * every building quadtree from its flux (subdivide above rho, prune below), makes them the
- * sampling trees, and starts empty building trees. 0 ok, -1 out of memory (the field keeps
- * its previous state). */
-int guide_field_update(GuideField *f);
+/* End of a training iteration of `iteration_spp` samples per pixel (PPG's 2^k): splits leaves
+ * past the sample threshold c sqrt(iteration_spp), rebuilds every building quadtree from its
+ * flux (subdivide above rho, prune below), makes them the sampling trees, and starts empty
+ * building trees. 0 ok, -1 out of memory (the field keeps its previous state). */
+int guide_field_update(GuideField *f, float iteration_spp);
 /* Updates done so far (0: nothing learned; sampling is uniform over the sphere). */
 int guide_field_iterations(const GuideField *f);
 size_t guide_field_bytes(const GuideField *f);
@@ -158,8 +172,9 @@ const GuideDistribution *guide_field_lookup(const GuideField *f, const float pos
 /* A direction from the distribution with two uniforms; its solid-angle pdf in *pdf. */
 void guide_distribution_sample(const GuideDistribution *d, float u1, float u2, float dir[3], float *pdf);
 float guide_distribution_pdf(const GuideDistribution *d, const float dir[3]);
-/* The leaf's box (the spatial node's extent) and the samples it was built from. */
+/* The leaf's box (the spatial node's extent), and the samples its sampling tree learned from. */
 void guide_distribution_bounds(const GuideDistribution *d, float lo[3], float hi[3]);
+double guide_distribution_samples(const GuideDistribution *d);
 /* The pdf over the (u, v) equal-area square on a w x h grid (row-major, v down the rows),
  * in units of solid-angle pdf, for inspection. */
 void guide_distribution_image(const GuideDistribution *d, int w, int h, float *out);

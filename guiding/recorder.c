@@ -7,14 +7,17 @@
  * atomics; the mutex hand-over of indices orders the reuse of a slot by another thread. */
 #include <math.h>
 #include <pthread.h>
-#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "guiding.h"
 
+/* 128 bytes, on cache-line boundaries: indices circulate between threads, and two threads'
+ * vertices on one line made the recorder three times as expensive on two threads as on one
+ * (false sharing). */
 typedef struct RecorderVertex {
-    float pos[3], dir[3];
+    _Alignas(64) float pos[3];
+    float dir[3];
     float throughput[3];
     float emission[3];  /* §3.4.1: accumulated emission of the subtree (throughput-weighted) */
     float pdf, bsdf_pdf, guide_pdf;
@@ -24,6 +27,7 @@ typedef struct RecorderVertex {
     uint32_t pixel;
     uint64_t path;
 } RecorderVertex;
+_Static_assert(sizeof(RecorderVertex) == 128, "a vertex is two cache lines");
 
 struct Recorder {
     pthread_mutex_t lock;
@@ -32,7 +36,10 @@ struct Recorder {
     uint32_t *queue;               /* ring of free indices, capacity max_blocks * BLOCK_SIZE */
     uint32_t queue_head, queue_count;
     uint64_t created, refused;     /* under the lock (flushed from the caches' counts) */
-    atomic_uint live, peak_live;
+    int64_t live;                  /* vertices allocated and not freed, as of the last flushes */
+    int64_t batch_peak;
+    uint32_t peak_live;
+    uint32_t filter;               /* RECORDER_KEEP_* (0: every sample) */
 };
 
 #define BLOCK RECORDER_BLOCK_SIZE
@@ -54,8 +61,6 @@ Recorder *recorder_create(uint32_t max_vertices) {
         free(r);
         return NULL;
     }
-    atomic_init(&r->live, 0);
-    atomic_init(&r->peak_live, 0);
     return r;
 }
 
@@ -71,8 +76,9 @@ void recorder_free(Recorder *r) {
 /* Under the lock: a new block's indices join the queue. 0 ok, -1 at the bound or out of memory. */
 static int grow_locked(Recorder *r) {
     if (r->num_blocks >= r->max_blocks) return -1;
-    RecorderVertex *block = calloc(BLOCK, sizeof *block);
+    RecorderVertex *block = aligned_alloc(64, BLOCK * sizeof *block);
     if (!block) return -1;
+    memset(block, 0, BLOCK * sizeof *block);
     uint32_t b = r->num_blocks++;
     r->blocks[b] = block;
     uint32_t capacity = r->max_blocks * BLOCK;
@@ -112,15 +118,33 @@ void recorder_flush_cache(Recorder *r, RecorderCache *c) {
     pthread_mutex_lock(&r->lock);
     r->created += c->created;
     r->refused += c->refused;
+    r->batch_peak += c->peak;
+    r->live += c->live;
     pthread_mutex_unlock(&r->lock);
     c->created = c->refused = 0;
+    c->peak = c->live; /* what it still holds */
+    c->live = 0;
 }
 
-static void note_live(Recorder *r) {
-    unsigned live = atomic_fetch_add(&r->live, 1) + 1;
-    unsigned peak = atomic_load(&r->peak_live);
-    while (live > peak && !atomic_compare_exchange_weak(&r->peak_live, &peak, live)) {
+void recorder_end_batch(Recorder *r) {
+    pthread_mutex_lock(&r->lock);
+    if (r->batch_peak > (int64_t)r->peak_live) r->peak_live = (uint32_t)(r->batch_peak < UINT32_MAX ? r->batch_peak : UINT32_MAX);
+    r->batch_peak = 0;
+    pthread_mutex_unlock(&r->lock);
+}
+
+void recorder_set_filter(Recorder *r, uint32_t keep) { r->filter = keep; }
+
+void recorder_prefetch(const Recorder *r, uint32_t pv) {
+    if (pv_is_vertex(pv)) {
+        const char *v = (const char *)vertex_at(r, pv);
+        __builtin_prefetch(v, 1);
+        __builtin_prefetch(v + 64, 1);
     }
+}
+
+void recorder_prefetch_parent(const Recorder *r, uint32_t pv) {
+    if (pv_is_vertex(pv)) recorder_prefetch(r, vertex_at(r, pv)->parent);
 }
 
 void recorder_continue(Recorder *r, uint32_t pv) {
@@ -153,7 +177,7 @@ uint32_t recorder_new_child(Recorder *r, RecorderCache *c, uint32_t parent, cons
     v->path = init->path;
     if (pv_is_vertex(parent)) vertex_at(r, parent)->refcount++;
     c->created++;
-    note_live(r);
+    if (++c->live > c->peak) c->peak = c->live;
     return pv;
 }
 
@@ -195,7 +219,10 @@ void recorder_done(Recorder *r, RecorderCache *c, uint32_t pv, RecorderSamples *
         RecorderVertex *v = vertex_at(r, pv);
         if (v->refcount == 0) return; /* a caller's double release: ignore (recorder_consistent reports leaks) */
         if (--v->refcount > 0) return;
-        samples_append(out, v);
+        uint32_t keep = r->filter;
+        if (!keep || ((keep & RECORDER_KEEP_PRIMARY) && v->parent == PV_CAMERA) ||
+            ((keep & RECORDER_KEEP_TRAINABLE) && !(v->flags & (PV_FLAG_NEE | PV_FLAG_DELTA))))
+            samples_append(out, v);
         uint32_t parent = v->parent;
         if (pv_is_vertex(parent)) {
             RecorderVertex *pa = vertex_at(r, parent);
@@ -203,7 +230,7 @@ void recorder_done(Recorder *r, RecorderCache *c, uint32_t pv, RecorderSamples *
         }
         if (c->count == RECORDER_CACHE_SIZE) cache_spill(r, c, RECORDER_CACHE_SIZE / 2);
         c->free[c->count++] = pv;
-        atomic_fetch_sub(&r->live, 1);
+        c->live--; /* below zero only for a vertex another thread made: the sum stays right */
         pv = parent;
     }
 }
@@ -216,9 +243,8 @@ void recorder_stats(const Recorder *r, RecorderStats *st) {
     st->bytes = (size_t)r->num_blocks * BLOCK * sizeof(RecorderVertex) + (size_t)r->max_blocks * BLOCK * sizeof(uint32_t);
     st->peak_bytes = st->bytes; /* blocks are kept until recorder_free */
     st->bound_bytes = (size_t)r->max_blocks * BLOCK * (sizeof(RecorderVertex) + sizeof(uint32_t));
+    st->peak_live = r->peak_live;
     pthread_mutex_unlock(&m->lock);
-    st->live = atomic_load(&m->live);
-    st->peak_live = atomic_load(&m->peak_live);
 }
 
 void recorder_reset_counts(Recorder *r) {
@@ -229,7 +255,7 @@ void recorder_reset_counts(Recorder *r) {
 
 int recorder_consistent(const Recorder *r) {
     uint32_t n = r->num_blocks * BLOCK;
-    if (atomic_load(&((Recorder *)r)->live) != 0 || r->queue_count != n) return 0;
+    if (r->live != 0 || r->queue_count != n) return 0;
     uint8_t *seen = calloc(n ? n : 1, 1);
     if (!seen) return 0;
     uint32_t capacity = r->max_blocks * BLOCK;

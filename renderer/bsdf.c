@@ -391,6 +391,14 @@ int bsdf_sample(const BsdfParams *p, vec3 wo, float u_lobe, float u1, float u2, 
     return 1;
 }
 
+int bsdf_guidable(const BsdfParams *p) {
+    Prep q;
+    prepare(p, &q);
+    if (q.t > 0.0f && q.glass_delta) return 0; /* a delta lobe, which a guide never samples */
+    /* the seed's ch. 1 §3.1: the roughest lobe above 0.05 (a diffuse base is the roughest) */
+    return (1.0f - q.m) * (1.0f - q.t) > 0.0f || sane01(p->roughness, 1.0f) > BSDF_GUIDE_MIN_ROUGHNESS;
+}
+
 int bsdf_is_delta(const BsdfParams *p) {
     Prep q;
     prepare(p, &q);

@@ -56,6 +56,10 @@ vec3 bsdf_eval_pdf(const BsdfParams *p, vec3 wo, vec3 wi, float *pdf);
 /* 1 if every lobe of p is a delta (smooth glass with metallic 0 and transmission 1): NEE is
  * useless there and the renderer skips it. */
 int bsdf_is_delta(const BsdfParams *p);
+/* 1 if path guiding may sample directions here: no delta lobe, and some lobe rougher than
+ * BSDF_GUIDE_MIN_ROUGHNESS (perceptual; a diffuse lobe counts as fully rough). */
+#define BSDF_GUIDE_MIN_ROUGHNESS 0.05f
+int bsdf_guidable(const BsdfParams *p);
 /* 1 if p has a transmission lobe (the frame must not be flipped to face wo). */
 int bsdf_has_transmission(const BsdfParams *p);
 

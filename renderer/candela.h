@@ -66,6 +66,10 @@ typedef struct CandelaOptions {
     const char *confine_dir;
     uint32_t texture_budget_mb; /* decoded textures in total (RGBA float); 0: no limit */
     CandelaGuiding guiding;
+    const char *guide_dump_prefix; /* candela guide-dump: write the learned field at guide_dump_at */
+    float guide_dump_at[3];
+    float guide_spatial_threshold; /* PPG's c: a leaf splits past c sqrt(spp of the iteration); 0: default */
+    int guide_training_spp;     /* guiding trains on this many spp, then only renders; 0: default (spp / 4, at least 22) */
     int aov_recorder_debug;     /* --aov recorder-debug: the recorder's primary samples rebuild the image */
     uint32_t recorder_mb;       /* the radiance recorder's vertex storage bound; 0: default (256) */
     int recorder_budget;        /* vertices per path before skipping (path and vertex); 0: none; -1: default (4) */
@@ -99,6 +103,12 @@ typedef struct CandelaStats {
     uint32_t recorder_peak_vertices;
     uint64_t recorder_vertices, recorder_samples, recorder_refused, recorder_paths;
     float recorder_path_skip;     /* the last iteration's path skipping probability */
+    /* path guiding */
+    int guide_updates, guide_dropped;
+    double guide_train_seconds;   /* recording samples into the fields and updating them */
+    uint64_t guide_samples;
+    uint32_t guide_leaves;
+    size_t guide_bytes;
 } CandelaStats;
 
 /* Seconds spent in the wavefront's stages and the film (the render proper). */

@@ -82,16 +82,35 @@ typedef struct AutoProbe {
 /* record.c: the radiance recorder's state in the integrator (off: recorder NULL). */
 typedef struct RecordState {
     Recorder *recorder;
+    int active;             /* rays carry vertices in this iteration (guiding trains, or the AOV) */
+    int training_spp;       /* guiding alone: recording stops once this many spp trained */
     int debug_aov;
     uint32_t budget;        /* vertices per path before skipping; 0: no skipping */
     float path_skip;        /* this iteration's probability that a camera ray is not recorded */
     float min_distance;     /* a child closer than this to its parent continues the parent */
-    RecorderSamples samples[MAX_SLICES]; /* per slice, during a batch */
+    struct { _Alignas(64) RecorderSamples s; } samples[MAX_SLICES]; /* per slice, during a batch (one cache line each) */
     RecorderSamples batch;  /* the batch's samples, sorted by path */
     uint64_t iteration_paths, iteration_samples;
     uint64_t total_vertices, total_paths, total_samples, refused;
     int dropped;            /* a sample buffer ran out of memory (samples lost; the image is not affected) */
 } RecordState;
+
+/* guide.c: path guiding's state (off: surface NULL). */
+typedef struct GuideState {
+    GuideField *surface, *volume; /* trained from surface and medium vertices */
+    int mode;                     /* ScatterGuideMode (scatter.h) */
+    int active;                   /* guided sampling in this iteration (after the training spp) */
+    int updates;
+    double train_seconds;         /* recording into and updating the fields */
+    uint64_t samples_trained;
+    GuideTrainingSample *train;   /* scratch */
+    size_t train_capacity;
+    GuideTrainingSample *last;    /* guide-dump: the surface samples of the iteration being trained */
+    size_t last_count, last_capacity;
+    int dropped;                  /* a batch's training or an update ran out of memory */
+    int keep_last;                /* guide-dump asked: keep `last` */
+    int pending;                  /* samples were recorded since the last update */
+} GuideState;
 
 typedef struct Integrator {
     const CandelaOptions *opt;
@@ -115,6 +134,8 @@ typedef struct Integrator {
     uint32_t batch_count, npixels;
     Film film;
     RecordState record;
+    GuideState guide;
+    int iteration_spp, spp_done;  /* the iteration being rendered (render.c), for the barrier hooks */
     BarrierHook hooks[MAX_BARRIER_HOOKS];
     int num_hooks;
     CandelaRayLog *ray_log;   /* bench: every traced ray (NULL: not recorded) */
@@ -139,7 +160,7 @@ enum { STAGE_GENERATE, STAGE_SORT, STAGE_TRACE, STAGE_MEDIUM, STAGE_SHADE, STAGE
 
 /* One thread's part of a batch: slots [begin, end) and its queues. */
 typedef struct Slice {
-    uint32_t begin, end;
+    _Alignas(64) uint32_t begin, end; /* slices of different threads never share a cache line */
     uint32_t wave;                                 /* 0: the camera rays */
     uint32_t *rays, *hits, *escaped, *shadows;    /* queues (slot indices) */
     uint32_t num_rays, num_hits, num_escaped, num_shadows;
@@ -197,7 +218,7 @@ void record_camera(const Integrator *ig, uint32_t p, uint64_t path);
 /* A child vertex of `parent` for a ray leaving pos in dir with throughput tp, or the parent
  * continued (too close: `segment` is the distance from the parent's origin; past the budget). */
 uint32_t record_child(const Integrator *ig, Slice *s, uint32_t p, uint32_t parent, vec3 pos, vec3 dir, vec3 tp,
-                      float pdf, uint32_t flags, float segment);
+                      float pdf, float scatter_pdf, float guide_pdf, uint32_t flags, float segment);
 /* The holder of vertex pv in path p lets go (records and backpropagates at zero). */
 void record_done(const Integrator *ig, Slice *s, uint32_t p, uint32_t pv);
 void record_radiance(const Integrator *ig, uint32_t p, vec3 c, RadianceSource source);
@@ -207,18 +228,31 @@ void record_batch_end(Integrator *ig, Slice *slices, uint32_t n);
 void record_barrier(Integrator *ig);
 void record_report(const Integrator *ig, CandelaStats *st);
 
+/* guide.c: path guiding (see there). */
+int guide_init(Integrator *ig);
+void guide_free(Integrator *ig);
+/* The learned distribution at p (surface or medium field); NULL while guiding is not active. */
+const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, int volume);
+void guide_train_batch(Integrator *ig);
+void guide_barrier(Integrator *ig);
+void guide_report(const Integrator *ig, CandelaStats *st);
+/* candela guide-dump: the learned distribution at the point (PREFIX.guide.exr/.png), a
+ * histogram of the last iteration's training directions in its leaf (PREFIX.hist.exr/.png) and
+ * the spatial leaves (PREFIX.leaves.ply). 0 ok, -1 with a message. */
+int guide_dump(const Integrator *ig, const float at[3], const char *prefix, char err[CANDELA_ERR_LEN]);
+
 /* Every addition to a path's radiance goes through here (throughput and MIS weight already
  * applied): the one place the radiance recorder observes the contributions of a path. An
  * emitter or the environment found by the path's ray goes to that ray's vertex, a shadow
  * ray's contribution to the NEE vertex. */
 static inline void path_add_radiance(const Integrator *ig, uint32_t p, vec3 contribution, RadianceSource source) {
     ig->ps.radiance[p] = v3_add(ig->ps.radiance[p], contribution);
-    if (ig->record.recorder) record_radiance(ig, p, contribution, source);
+    if (ig->record.active) record_radiance(ig, p, contribution, source);
 }
 
 /* The path ends: its ray's vertex is released. */
 static inline void path_end(const Integrator *ig, Slice *s, uint32_t p) {
-    if (ig->record.recorder) {
+    if (ig->record.active) {
         record_done(ig, s, p, ig->ps.pv[p]);
         ig->ps.pv[p] = PV_CAMERA;
     }
@@ -235,8 +269,8 @@ static inline void path_write_aovs(const PathState *ps, uint32_t p, vec3 albedo,
  * survives with probability 1 - q, q = 1 - max(beta) rr_scale clamped to [0, 0.95], and its
  * throughput is divided by that. Returns 0 when the path is terminated. */
 #define RR_START_DEPTH 3 /* the first depth whose continuation is subject to the roulette, plus one */
-static inline int russian_roulette(vec3 *beta, float rr_scale, float u) {
-    float q = fmaxf(0.0f, 1.0f - v3_max_component(*beta) * rr_scale);
+static inline int russian_roulette(vec3 *beta, double rr_scale, float u) {
+    float q = fmaxf(0.0f, 1.0f - v3_max_component(*beta) * (float)rr_scale);
     q = fminf(q, 0.95f);
     if (u < q) return 0;
     *beta = v3_scale(*beta, 1.0f / (1.0f - q));

@@ -2,6 +2,7 @@
 #include <errno.h>
 #include <signal.h>
 #include <limits.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -14,6 +15,11 @@
 static const char *USAGE =
     "usage: candela render SCENE.gltf|SCENE.glb [options]\n"
     "       candela bench SCENE [options]   render, then replay the same rays through bare Embree\n"
+    "       candela guide-dump SCENE --at X,Y,Z [options]   render with guiding (mis unless --guiding\n"
+    "                            ris), then write the learned directional pdf at the point\n"
+    "                            (OUT.guide.exr/.png over (u, v) = ((cos theta + 1)/2, phi/2pi)), the\n"
+    "                            final iteration's training directions in its leaf (OUT.hist.*)\n"
+    "                            and the spatial tree's leaves (OUT.leaves.ply), OUT = -o without .exr\n"
     "       candela compare SCENE [options] every light sampler at equal spp vs a reference\n"
     "       candela --help | --version\n"
     "\n"
@@ -41,6 +47,14 @@ static const char *USAGE =
     "                            camera rays through media, MIS with tracking (cachepoints);\n"
     "                            auto: per medium, kept where it measurably lowers the\n"
     "                            time to unit variance in the first 4 spp (default auto)\n"
+"  --guiding off|mis|ris     path guiding (default off): mis = one-sample MIS of the BSDF or\n"
+    "                            phase function and the learned guide (alpha 0.5); ris = resampling\n"
+    "                            of one candidate of each. Trains during the first 8 spp, then\n"
+    "                            guides (iterations 1 x 8, then 2, 4, 8, 16, 16, ...)\n"
+"  --guide-training-spp N    guiding learns from the first N spp, then renders with what it\n"
+    "                            learned (default: a quarter of --spp, at least 22)\n"
+    "  --guide-spatial-threshold C  a guiding leaf splits past C sqrt(spp of the iteration)\n"
+    "                            training samples (default 12000, Mueller et al. 2017)\n"
     "  --aov recorder-debug      add recorder_debug.RGB to the EXR: the radiance recorder's primary\n"
     "                            training samples times their throughput (converges to RGB)\n"
     "  --recorder-budget N       recorded vertices per path before path/vertex skipping (default 4;\n"
@@ -175,6 +189,13 @@ static void print_stats(const CandelaStats *s) {
                 (unsigned long long)s->recorder_samples, s->recorder_peak_vertices,
                 (double)s->recorder_peak_bytes / (1024.0 * 1024.0), (double)s->recorder_bound_bytes / (1024.0 * 1024.0),
                 s->recorder_refused ? "; full at times (rays carried their parent on)" : "");
+    if (s->guide_updates)
+        fprintf(stderr, "  guiding: %d updates, %llu training samples, %u leaves, %.1f MiB, training %.3fs (%.4fs per "
+                        "update)%s\n",
+                s->guide_updates, (unsigned long long)s->guide_samples, s->guide_leaves,
+                (double)s->guide_bytes / (1024.0 * 1024.0), s->guide_train_seconds,
+                s->guide_train_seconds / s->guide_updates,
+                s->guide_dropped ? "; WARNING: out of memory, some training was lost" : "");
     if (s->num_volumes)
         fprintf(stderr, "  volumes: %llu majorant collisions%s\n", (unsigned long long)s->volume_collisions,
                 s->volume_capped_walks ? "; WARNING: some walks hit the collision cap (an extreme medium): the image is biased there" : "");
@@ -184,8 +205,10 @@ int main(int argc, char **argv) {
     if (argc < 2) { fputs(USAGE, stderr); return 2; }
     if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0) { fputs(USAGE, stdout); return 0; }
     if (strcmp(argv[1], "--version") == 0) { printf("candela %s\n", CANDELA_VERSION); return 0; }
-    int bench = 0, compare = 0;
+    int bench = 0, compare = 0, dump = 0, have_at = 0;
+    char dump_prefix[PATH_MAX];
     if (strcmp(argv[1], "bench") == 0) bench = 1;
+    else if (strcmp(argv[1], "guide-dump") == 0) dump = 1;
     else if (strcmp(argv[1], "compare") == 0) compare = 1;
     else if (strcmp(argv[1], "render") != 0) {
         fprintf(stderr, "candela: unknown command '%s' (see candela --help)\n", argv[1]);
@@ -243,6 +266,31 @@ int main(int argc, char **argv) {
             else { fprintf(stderr, "candela: unknown value '%s' for --volume-cachepoint-scatter (on, off, auto)\n", v); return 2; }
             ++i;
         }
+        else if (strcmp(a, "--guiding") == 0) {
+            if (!v) die("missing value for ", a);
+            if (strcmp(v, "off") == 0) o.guiding = CANDELA_GUIDING_OFF;
+            else if (strcmp(v, "mis") == 0) o.guiding = CANDELA_GUIDING_MIS;
+            else if (strcmp(v, "ris") == 0) o.guiding = CANDELA_GUIDING_RIS;
+            else { fprintf(stderr, "candela: unknown value '%s' for --guiding (off, mis, ris)\n", v); return 2; }
+            ++i;
+        }
+        else if (dump && strcmp(a, "--at") == 0) {
+            if (!v) die("missing value for ", a);
+            char *end;
+            const char *c = v;
+            for (int k = 0; k < 3; ++k) {
+                o.guide_dump_at[k] = strtof(c, &end);
+                if (end == c || !isfinite(o.guide_dump_at[k]) || (k < 2 && *end != ',') || (k == 2 && *end)) {
+                    fprintf(stderr, "candela: --at wants X,Y,Z (three finite numbers), not '%s'\n", v);
+                    return 2;
+                }
+                c = end + 1;
+            }
+            have_at = 1;
+            ++i;
+        }
+        else if (strcmp(a, "--guide-training-spp") == 0) { o.guide_training_spp = (int)parse_long(a, v, 1, 1 << 20); ++i; }
+        else if (strcmp(a, "--guide-spatial-threshold") == 0) { o.guide_spatial_threshold = parse_float(a, v, 1.0f, 1e9f); ++i; }
         else if (strcmp(a, "--aov") == 0) {
             if (!v) die("missing value for ", a);
             if (strcmp(v, "recorder-debug") == 0) o.aov_recorder_debug = 1;
@@ -328,6 +376,14 @@ int main(int argc, char **argv) {
     if (!compare && !bench && (!ext || strcmp(ext, ".exr") != 0)) {
         fprintf(stderr, "candela: %s: the output must be an .exr file (the PNG preview goes to --png)\n", out);
         return 2;
+    }
+    if (dump) {
+        if (!have_at) { fprintf(stderr, "candela: guide-dump needs --at X,Y,Z\n"); return 2; }
+        if (o.guiding == CANDELA_GUIDING_OFF) o.guiding = CANDELA_GUIDING_MIS;
+        snprintf(dump_prefix, sizeof dump_prefix, "%s", out);
+        char *dot = strrchr(dump_prefix, '.');
+        if (dot && strcmp(dot, ".exr") == 0) *dot = 0;
+        o.guide_dump_prefix = dump_prefix;
     }
     if (o.volume_inscatter_sampling == 1 && o.light_sampler != CANDELA_LIGHT_SAMPLER_CACHEPOINTS) {
         fprintf(stderr, "candela: --volume-cachepoint-scatter on needs --light-sampler cachepoints\n");

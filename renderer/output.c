@@ -113,6 +113,11 @@ int candela_write_stats_json(const char *path_arg, const CandelaOptions *o, cons
             s->recorder_peak_bytes, s->recorder_bound_bytes, s->recorder_peak_vertices,
             (unsigned long long)s->recorder_vertices, (unsigned long long)s->recorder_samples,
             (unsigned long long)s->recorder_refused, (unsigned long long)s->recorder_paths, s->recorder_path_skip);
+    fprintf(f,
+            "  \"guiding\": {\"mode\": \"%s\", \"updates\": %d, \"samples\": %llu, \"leaves\": %u, \"bytes\": %zu, "
+            "\"train_seconds\": %.6f},\n",
+            o->guiding == CANDELA_GUIDING_MIS ? "mis" : o->guiding == CANDELA_GUIDING_RIS ? "ris" : "off", s->guide_updates,
+            (unsigned long long)s->guide_samples, s->guide_leaves, s->guide_bytes, s->guide_train_seconds);
     fprintf(f, "  \"peak_memory_bytes\": %zu\n}\n", s->peak_memory_bytes);
     int synced = fflush(f) == 0 && fsync(fileno(f)) == 0;
     if (fclose(f) != 0 || !synced || rename(tmp, path) != 0) {

@@ -30,8 +30,9 @@
     F(uint32_t, crossings, N)       /* invisible medium boundaries crossed (bounded) */          \
     F(vec3, radiance, W)            /* accumulated L; written only through path_add_radiance */  \
     F(vec3, throughput, W)          /* beta: the path's weight so far */                         \
-    F(float, rr_scale, W)           /* throughput factor for the Russian roulette decision only \
-                                     * (removes refraction's eta^2 radiance scaling) */          \
+    F(double, rr_scale, W)          /* throughput factor for the Russian roulette decision only \
+                                     * (removes refraction's eta^2 radiance scaling and guided   \
+                                     * sampling's p_guide / p_bsdf: double, ch. 1 §4.1.1) */     \
     F(uint32_t, pv, W)              /* the radiance recorder's vertex of the ray (PVIndex) */    \
     F(uint8_t, record_skip, N)      /* the recorder skips this path (path skipping) */          \
     /* -- ray: what this wave traces */                                                          \

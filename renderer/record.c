@@ -40,11 +40,18 @@ int record_init(Integrator *ig) {
     int need = o->aov_recorder_debug || o->guiding != CANDELA_GUIDING_OFF;
     if (!need) return 0;
     size_t mb = o->recorder_mb ? o->recorder_mb : 256;
-    uint64_t vertices = (uint64_t)mb * 1024u * 1024u / 100u; /* ~100 bytes per vertex with its queue entry */
+    uint64_t vertices = (uint64_t)mb * 1024u * 1024u / 132u; /* 128 bytes per vertex and its queue entry */
     if (vertices > 0xF0000000ull) vertices = 0xF0000000ull;
     rs->recorder = recorder_create((uint32_t)vertices);
     if (!rs->recorder) return -1;
     rs->debug_aov = o->aov_recorder_debug;
+    rs->active = 1;
+    /* guiding trains on the first quarter of the samples (at least its 8 + 2 + 4 + 8 spp), then
+     * renders with the fields as learned: the recorder's cost is not paid on the rest */
+    rs->training_spp = o->guide_training_spp > 0 ? o->guide_training_spp : (o->spp / 4 > 22 ? o->spp / 4 : 22);
+    /* only the samples something reads: the AOV's primary ones, guiding's trainable ones */
+    recorder_set_filter(rs->recorder, (rs->debug_aov ? RECORDER_KEEP_PRIMARY : 0u) |
+                                          (o->guiding != CANDELA_GUIDING_OFF ? RECORDER_KEEP_TRAINABLE : 0u));
     rs->budget = o->recorder_budget >= 0 ? (uint32_t)o->recorder_budget : RECORD_BUDGET_DEFAULT;
     rs->path_skip = 0.0f;
     vec3 ext = v3_sub(ig->scene->bounds_max, ig->scene->bounds_min);
@@ -55,7 +62,7 @@ int record_init(Integrator *ig) {
 
 void record_free(Integrator *ig) {
     RecordState *rs = &ig->record;
-    for (int k = 0; k < MAX_SLICES; ++k) recorder_samples_free(&rs->samples[k]);
+    for (int k = 0; k < MAX_SLICES; ++k) recorder_samples_free(&rs->samples[k].s);
     recorder_samples_free(&rs->batch);
     recorder_free(rs->recorder);
     rs->recorder = NULL;
@@ -67,12 +74,12 @@ void record_camera(const Integrator *ig, uint32_t p, uint64_t path) {
     ps->shadow_pv[p] = PV_CAMERA;
     ps->aov_recorder[p] = v3s(0.0f);
     const RecordState *rs = &ig->record;
-    ps->record_skip[p] = rs->recorder && rs->path_skip > 0.0f && hash_uniform(ps->rng_key[p], 1) < rs->path_skip;
+    ps->record_skip[p] = rs->active && rs->path_skip > 0.0f && hash_uniform(ps->rng_key[p], 1) < rs->path_skip;
     (void)path;
 }
 
 uint32_t record_child(const Integrator *ig, Slice *s, uint32_t p, uint32_t parent, vec3 pos, vec3 dir, vec3 tp,
-                      float pdf, uint32_t flags, float segment) {
+                      float pdf, float scatter_pdf, float guide_pdf, uint32_t flags, float segment) {
     const RecordState *rs = &ig->record;
     const PathState *ps = &ig->ps;
     if (parent == PV_SKIPPED || (parent == PV_CAMERA && ps->record_skip[p])) return PV_SKIPPED;
@@ -89,7 +96,7 @@ uint32_t record_child(const Integrator *ig, Slice *s, uint32_t p, uint32_t paren
             return parent;
         }
     }
-    RecorderVertexInit init = {{pos.x, pos.y, pos.z}, {dir.x, dir.y, dir.z}, {tp.x, tp.y, tp.z}, pdf, pdf, 0.0f,
+    RecorderVertexInit init = {{pos.x, pos.y, pos.z}, {dir.x, dir.y, dir.z}, {tp.x, tp.y, tp.z}, pdf, scatter_pdf, guide_pdf,
                                flags, ps->pixel[p],
                                (ig->sample_base + (ig->batch_first + p) / ig->npixels) * ig->npixels + ps->pixel[p]};
     return recorder_new_child(rs->recorder, &s->record_cache, parent, &init);
@@ -130,10 +137,11 @@ void record_batch_end(Integrator *ig, Slice *slices, uint32_t n) {
     RecorderSamples *all = &rs->batch;
     recorder_samples_clear(all);
     size_t total = 0;
+    for (uint32_t k = 0; k < n; ++k) recorder_flush_cache(rs->recorder, &slices[k].record_cache);
+    recorder_end_batch(rs->recorder);
     for (uint32_t k = 0; k < n; ++k) {
-        recorder_flush_cache(rs->recorder, &slices[k].record_cache);
-        total += rs->samples[k].count;
-        if (rs->samples[k].failed) rs->dropped = 1;
+        total += rs->samples[k].s.count;
+        if (rs->samples[k].s.failed) rs->dropped = 1;
     }
     if (total > all->capacity) {
         RecorderSample *items = realloc(all->items, total * sizeof *items);
@@ -141,10 +149,10 @@ void record_batch_end(Integrator *ig, Slice *slices, uint32_t n) {
         else { all->items = items; all->capacity = total; }
     }
     for (uint32_t k = 0; k < n && total; ++k) {
-        memcpy(all->items + all->count, rs->samples[k].items, rs->samples[k].count * sizeof *all->items);
-        all->count += rs->samples[k].count;
+        memcpy(all->items + all->count, rs->samples[k].s.items, rs->samples[k].s.count * sizeof *all->items);
+        all->count += rs->samples[k].s.count;
     }
-    for (uint32_t k = 0; k < n; ++k) recorder_samples_clear(&rs->samples[k]);
+    for (uint32_t k = 0; k < n; ++k) recorder_samples_clear(&rs->samples[k].s);
     if (recorder_samples_sort(all) != 0) rs->dropped = 1;
     /* recorded paths of the batch, for the next iteration's path skipping */
     uint32_t recorded = 0;
@@ -169,6 +177,10 @@ void record_barrier(Integrator *ig) {
     rs->refused += st.vertices_refused;
     recorder_reset_counts(rs->recorder);
     rs->iteration_paths = rs->iteration_samples = 0;
+    if (rs->active && !rs->debug_aov && ig->spp_done >= rs->training_spp) {
+        rs->active = 0; /* no ray carries a vertex from here on */
+        recorder_samples_clear(&rs->batch);
+    }
 }
 
 void record_report(const Integrator *ig, CandelaStats *st) {

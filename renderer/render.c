@@ -22,6 +22,7 @@
 #define DEFAULT_BATCH_SIZE (1u << 14) /* fits the path state in L2: shading gathers by slot */
 #define MAX_BATCH_SIZE (1u << 22)
 #define DEFAULT_MAX_ITERATION_SPP 64
+#define GUIDED_MAX_ITERATION_SPP 16
 
 /* ---------------------------------------------------------------- progress */
 
@@ -88,9 +89,11 @@ static void light_sampler_barrier_hook(void *sampler) { light_sampler_barrier(sa
 
 /* Samples per pixel of iteration i: 1, 1, 2, 4, 8, ... capped, and never past the total. (The
  * shift is bounded: at iteration 32 an unbounded 1 << 31 overflowed and the schedule ran
- * backwards.) */
-static int iteration_spp(int iteration, int max_iteration_spp, int remaining) {
-    int spp = iteration < 2 ? 1 : (iteration - 1 >= 30 ? max_iteration_spp : 1 << (iteration - 1));
+ * backwards.) Guided (ch. 2 §5.2): 8 x 1 spp while guiding trains, then 2, 4, 8, ... capped. */
+static int iteration_spp(int iteration, int max_iteration_spp, int remaining, int guided) {
+    int first = guided ? 8 : 2; /* the iterations of 1 spp */
+    int k = iteration - first + 1;
+    int spp = iteration < first ? 1 : (k >= 30 ? max_iteration_spp : 1 << k);
     if (spp > max_iteration_spp) spp = max_iteration_spp;
     return spp < remaining ? spp : remaining;
 }
@@ -175,10 +178,14 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
 
     Progress progress = {o->quiet, isatty(2), clock_seconds(), 0.0}; /* the first report comes at once */
     int max_iter_spp = o->max_iteration_spp > 0 ? o->max_iteration_spp : DEFAULT_MAX_ITERATION_SPP;
+    int guided = o->guiding != CANDELA_GUIDING_OFF;
+    /* guided: smaller iterations, so the fields update often (ch. 2 §5.2: a smaller maximum) */
+    if (guided && o->max_iteration_spp <= 0) max_iter_spp = GUIDED_MAX_ITERATION_SPP;
     uint64_t total_paths = (uint64_t)npixels * (uint64_t)o->spp, done_paths = 0;
     int spp_done = 0, iteration = 0;
     for (; spp_done < o->spp; ++iteration) {
-        int spp_i = iteration_spp(iteration, max_iter_spp, o->spp - spp_done);
+        int spp_i = iteration_spp(iteration, max_iter_spp, o->spp - spp_done, guided);
+        ig->iteration_spp = spp_i;
         ig->sample_base = (uint64_t)spp_done;
         uint64_t iter_paths = (uint64_t)npixels * (uint64_t)spp_i;
         for (uint64_t first = 0; first < iter_paths; first += batch) {
@@ -189,6 +196,7 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
             report_progress(&progress, done_paths, total_paths, 0);
         }
         spp_done += spp_i;
+        ig->spp_done = spp_done;
         integrator_barrier(ig); /* no ray in flight: learned state changes here */
         stats->iterations = iteration + 1;
         stats->spp_done = spp_done;
@@ -202,6 +210,11 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
     }
     stats->time_total = clock_seconds() - t_start;
     record_report(ig, stats);
+    guide_report(ig, stats);
+    if (o->guide_dump_prefix && guide_dump(ig, o->guide_dump_at, o->guide_dump_prefix, err) != 0) {
+        render_free(r);
+        return -1;
+    }
     int rc = film_resolve(&ig->film, image);
     if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s: out of memory resolving the film", o->scene_path);
     stats->peak_memory_bytes = peak_rss_bytes();

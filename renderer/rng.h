@@ -50,6 +50,9 @@ enum {
     RNG_BOUNCE_RR = 7,
     RNG_BOUNCE_LIGHT_DESCEND = 9, /* strategies that descend a tree below their first choice */
     RNG_BOUNCE_LIGHT_X = 10,      /* a fourth light-sample dimension (volume lights) */
+    RNG_BOUNCE_GUIDE_U = 11,      /* path guiding: the guide's direction, */
+    RNG_BOUNCE_GUIDE_V = 12,
+    RNG_BOUNCE_GUIDE_CHOICE = 13, /* and the choice between the function's and the guide's */
     RNG_BOUNCE_DIMS = 16
 };
 

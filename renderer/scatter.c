@@ -1,9 +1,13 @@
 /* renderer/scatter.c: the scattering interface (scatter.h) over the surface BSDF. */
 #include "scatter.h"
 
+#include <math.h>
+
 #include "volumes.h"
 
 void scatter_init_surface(Scatter *s, const SurfaceHit *h, const BsdfParams *bsdf, vec3 wo_world) {
+    s->guide = NULL;
+    s->guide_mode = SCATTER_GUIDE_NONE;
     s->kind = SCATTER_BSDF;
     s->bsdf = *bsdf;
     s->transmissive = bsdf_has_transmission(bsdf);
@@ -21,6 +25,8 @@ void scatter_init_surface(Scatter *s, const SurfaceHit *h, const BsdfParams *bsd
 }
 
 void scatter_init_phase(Scatter *s, float g, vec3 wo_world) {
+    s->guide = NULL;
+    s->guide_mode = SCATTER_GUIDE_NONE;
     s->kind = SCATTER_PHASE;
     s->g = g;
     s->wo_world = wo_world;
@@ -39,6 +45,8 @@ int scatter_sample(const Scatter *s, float u_lobe, float u1, float u2, ScatterSa
         out->delta = 0;
         out->transmitted = 0;
         out->rr_factor = 1.0f;
+        out->scatter_pdf = pdf;
+        out->guide_pdf = 0.0f;
         return 1;
     }
     BsdfSample bs;
@@ -57,10 +65,13 @@ int scatter_sample(const Scatter *s, float u_lobe, float u1, float u2, ScatterSa
         float eta = s->bsdf.ior;
         out->rr_factor = s->wo_outside ? eta * eta : 1.0f / (eta * eta);
     }
+    out->scatter_pdf = bs.pdf;
+    out->guide_pdf = 0.0f;
     return 1;
 }
 
-vec3 scatter_eval(const Scatter *s, vec3 wi, float *pdf) {
+/* The function alone: f |cos| and its own pdf. */
+static vec3 function_eval(const Scatter *s, vec3 wi, float *pdf) {
     if (s->kind == SCATTER_PHASE) {
         float wo[3] = {s->wo_world.x, s->wo_world.y, s->wo_world.z}, w[3] = {wi.x, wi.y, wi.z};
         float p = hg_phase(s->g, wo, w);
@@ -72,4 +83,108 @@ vec3 scatter_eval(const Scatter *s, vec3 wi, float *pdf) {
     *pdf = 0.0f;
     if (!(side_g * wi_l.z > 0.0f)) return v3s(0.0f);
     return v3_scale(bsdf_eval_pdf(&s->bsdf, s->wo, wi_l, pdf), fabsf(wi_l.z));
+}
+
+void scatter_set_guide(Scatter *s, const GuideDistribution *d, ScatterGuideMode mode) {
+    s->guide = NULL;
+    s->guide_mode = SCATTER_GUIDE_NONE;
+    if (!d || mode == SCATTER_GUIDE_NONE) return;
+    if (s->kind == SCATTER_PHASE ? !(fabsf(s->g) < SCATTER_PHASE_GUIDE_MAX_G) : !bsdf_guidable(&s->bsdf)) return;
+    s->guide = d;
+    s->guide_mode = mode;
+}
+
+static float guide_pdf_of(const Scatter *s, vec3 wi) {
+    const float d[3] = {wi.x, wi.y, wi.z};
+    return guide_distribution_pdf(s->guide, d);
+}
+
+vec3 scatter_eval(const Scatter *s, vec3 wi, float *pdf) {
+    vec3 f = function_eval(s, wi, pdf);
+    if (s->guide && !v3_is_black(f)) /* the pdf every MIS weight uses (scatter.h) */
+        *pdf = SCATTER_GUIDE_ALPHA * *pdf + (1.0f - SCATTER_GUIDE_ALPHA) * guide_pdf_of(s, wi);
+    return f;
+}
+
+/* The roulette factor that brings a guided weight back to the function's own sampling weight
+ * (ch. 1 §4.1.1, Eqs. 17-19): f|cos|/p_function over the weight used (luminance). */
+static float guided_rr_factor(vec3 f, float p_function, vec3 weight) {
+    float lw = v3_luminance(weight), lf = v3_luminance(f);
+    return p_function > 0.0f && lw > 0.0f ? (lf / p_function) / lw : 1.0f;
+}
+
+int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out) {
+    if (!s->guide) return scatter_sample(s, u[0], u[1], u[2], out);
+    const float alpha = SCATTER_GUIDE_ALPHA;
+    vec3 fsel; /* f |cos| of the chosen direction */
+    if (s->guide_mode == SCATTER_GUIDE_MIS) {
+        /* one-sample MIS (Eq. 4-6): the function's sample with probability alpha, else the guide's */
+        vec3 wi, f;
+        float p_f, p_g;
+        if (u[5] < alpha) {
+            ScatterSample fs;
+            if (!scatter_sample(s, u[0], u[1], u[2], &fs)) return 0;
+            wi = fs.wi;
+            p_f = fs.scatter_pdf;
+            f = v3_scale(fs.weight, p_f); /* f |cos| */
+            p_g = guide_pdf_of(s, wi);
+        } else {
+            float d[3];
+            guide_distribution_sample(s->guide, u[3], u[4], d, &p_g);
+            wi = v3(d[0], d[1], d[2]);
+            f = function_eval(s, wi, &p_f);
+            if (v3_is_black(f)) return 0; /* the guide proposed a direction the function rejects */
+        }
+        float pdf = alpha * p_f + (1.0f - alpha) * p_g;
+        if (!(pdf > 0.0f)) return 0;
+        fsel = f;
+        out->wi = wi;
+        out->weight = v3_scale(f, 1.0f / pdf);
+        out->pdf = pdf;
+        out->scatter_pdf = p_f;
+        out->guide_pdf = p_g;
+    } else {
+        /* RIS with one candidate of each (Eqs. 8-14): target t = f|cos| (alpha/4pi + (1 - alpha) g) */
+        vec3 wc[2], fc[2];
+        float pf[2] = {0, 0}, pg[2] = {0, 0}, w[2] = {0, 0}, t[2] = {0, 0};
+        ScatterSample fs;
+        if (scatter_sample(s, u[0], u[1], u[2], &fs)) {
+            wc[0] = fs.wi;
+            pf[0] = fs.scatter_pdf;
+            fc[0] = v3_scale(fs.weight, pf[0]);
+            pg[0] = guide_pdf_of(s, wc[0]);
+        } else fc[0] = v3s(0.0f);
+        float d[3];
+        guide_distribution_sample(s->guide, u[3], u[4], d, &pg[1]);
+        wc[1] = v3(d[0], d[1], d[2]);
+        fc[1] = function_eval(s, wc[1], &pf[1]);
+        for (int k = 0; k < 2; ++k) {
+            float p = 0.5f * pf[k] + 0.5f * pg[k];
+            t[k] = v3_luminance(fc[k]) * (alpha * (float)(0.25 / M_PI) + (1.0f - alpha) * pg[k]);
+            w[k] = p > 0.0f && t[k] > 0.0f ? t[k] / p : 0.0f;
+        }
+        float sum = w[0] + w[1];
+        if (!(sum > 0.0f) || !isfinite(sum)) return 0;
+        int j = u[5] * sum < w[0] ? 0 : 1;
+        if (w[j] == 0.0f) j = 1 - j;
+        fsel = fc[j];
+        out->wi = wc[j];
+        out->weight = v3_scale(fc[j], 0.5f * sum / t[j]);
+        out->pdf = 0.5f * pf[j] + 0.5f * pg[j]; /* the candidate pdf, as in every MIS weight (§3.3.1) */
+        out->scatter_pdf = pf[j];
+        out->guide_pdf = pg[j];
+    }
+    out->delta = 0;
+    out->rr_factor = guided_rr_factor(fsel, out->scatter_pdf, out->weight);
+    out->transmitted = 0;
+    if (s->kind == SCATTER_BSDF) {
+        /* the local z is wo's side for opaque surfaces and outside for transmissive ones */
+        vec3 wi_l = frame_to_local(&s->frame, out->wi);
+        out->transmitted = (wi_l.z > 0.0f) != (s->wo.z > 0.0f);
+        if (out->transmitted) {
+            float eta = s->bsdf.ior;
+            out->rr_factor *= s->wo_outside ? eta * eta : 1.0f / (eta * eta);
+        }
+    }
+    return v3_is_finite(out->weight);
 }

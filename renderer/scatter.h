@@ -14,10 +14,18 @@
 #define CANDELA_SCATTER_H
 
 #include "bsdf.h"
+#include "guiding.h"
 #include "scene.h"
 #include "vecmath.h"
 
 typedef enum { SCATTER_BSDF = 0, SCATTER_PHASE = 1 } ScatterKind;
+
+/* How a guided Scatter combines its function with the guide (path-guiding-in-production.txt
+ * ch. 1 §3.2-3.3). Both evaluate the same pdf for MIS, 1/2 p_scatter + 1/2 p_guide: the
+ * mixture's for one-sample MIS, the candidates' for RIS (used consistently, §3.3.1). */
+typedef enum { SCATTER_GUIDE_NONE = 0, SCATTER_GUIDE_MIS = 1, SCATTER_GUIDE_RIS = 2 } ScatterGuideMode;
+#define SCATTER_GUIDE_ALPHA 0.5f      /* the scattering function's share (defensive, §3.2) */
+#define SCATTER_PHASE_GUIDE_MAX_G 0.95f /* |g| above this: the phase function alone (§3.1) */
 
 typedef struct Scatter {
     ScatterKind kind;
@@ -30,6 +38,8 @@ typedef struct Scatter {
     BsdfParams bsdf;
     int transmissive;  /* has a transmission lobe: receives light from both sides */
     int wo_outside;    /* wo is on the geometric normal's side (refraction enters the surface) */
+    const GuideDistribution *guide; /* the learned incident radiance here (NULL: not guided) */
+    ScatterGuideMode guide_mode;
 } Scatter;
 
 typedef struct ScatterSample {
@@ -38,16 +48,26 @@ typedef struct ScatterSample {
     float pdf;        /* pdf of the sampling technique (solid angle; a lobe pmf for deltas) */
     int delta;        /* the direction came from a delta lobe: no MIS, pdf is not a density */
     int transmitted;  /* it crossed the surface (refraction) */
-    float rr_factor;  /* factor for the Russian roulette throughput (1/eta^2 refraction
-                       * scaling removed; a guided sampler's p_guide/p_bsdf will go here) */
+    float rr_factor;  /* factor for the Russian roulette throughput: 1/eta^2 refraction
+                       * scaling removed, and a guided sample's weight brought back to what
+                       * sampling the function alone gives (p_guide / p_bsdf, ch. 1 §4.1.1) */
+    float scatter_pdf; /* the scattering function's own pdf of wi (= pdf unguided) */
+    float guide_pdf;   /* the guide's pdf of wi (0: unguided) */
 } ScatterSample;
 
 /* The BSDF of a surface hit seen from direction wo_world (unit, pointing away from the hit). */
 void scatter_init_surface(Scatter *s, const SurfaceHit *h, const BsdfParams *bsdf, vec3 wo_world);
 /* A medium's Henyey-Greenstein phase function at a scattering point seen from wo_world. */
 void scatter_init_phase(Scatter *s, float g, vec3 wo_world);
-/* 1 if a direction was sampled (u_lobe picks a lobe, u1 and u2 the direction in it). */
+/* 1 if a direction was sampled (u_lobe picks a lobe, u1 and u2 the direction in it). Never
+ * guided. */
 int scatter_sample(const Scatter *s, float u_lobe, float u1, float u2, ScatterSample *out);
+/* The same with the guide when there is one: u[0..2] as above, u[3], u[4] the guide's
+ * direction, u[5] the choice between the two (MIS) or between the candidates (RIS). */
+int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out);
+/* Guides the scatter with d (NULL: not guided) when guiding may help there: surfaces with a
+ * lobe rougher than 0.05 and no delta lobe, media with |g| < 0.95 (ch. 1 §3.1). */
+void scatter_set_guide(Scatter *s, const GuideDistribution *d, ScatterGuideMode mode);
 /* f |cos| for direction wi (world), and the pdf scatter_sample has for it; zero when the
  * direction is not reachable (delta lobes, the geometry guard). */
 vec3 scatter_eval(const Scatter *s, vec3 wi, float *pdf);

@@ -35,11 +35,12 @@ static float medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec
     if (sampled) {
         float tfar = isinf(ls.distance) ? INFINITY : ls.distance * (1.0f - 1e-3f);
         s->shadow_rays++;
-        if (ig->record.recorder) { /* the NEE vertex, released below once its ray is traced */
+        if (ig->record.active) { /* the NEE vertex, released below once its ray is traced */
             vec3 tp = v3_scale(contrib, weight);
             tp = v3(ls.radiance.x > 0.0f ? tp.x / ls.radiance.x : 0.0f, ls.radiance.y > 0.0f ? tp.y / ls.radiance.y : 0.0f,
                     ls.radiance.z > 0.0f ? tp.z / ls.radiance.z : 0.0f);
-            ps->shadow_pv[p] = record_child(ig, s, p, ps->pv[p], x, ls.wi, tp, ls.pdf, PV_FLAG_NEE | PV_FLAG_VOLUME, segment);
+            ps->shadow_pv[p] =
+                record_child(ig, s, p, ps->pv[p], x, ls.wi, tp, ls.pdf, ls.pdf, 0.0f, PV_FLAG_NEE | PV_FLAG_VOLUME, segment);
         }
         if (scene_visible1(ig->scene, (SceneRay){x, 0.0f, ls.wi, tfar})) {
             vec3 T = shadow_transmittance(ig, s, ps->rng_key[p], ps->depth[p], ps->medium[p], x, ls.wi, tfar);
@@ -48,7 +49,7 @@ static float medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec
             path_add_radiance(ig, p, v3_scale(c, weight), RADIANCE_DIRECT);
             unweighted = v3_luminance(c);
         }
-        if (ig->record.recorder) {
+        if (ig->record.active) {
             record_done(ig, s, p, ps->shadow_pv[p]);
             ps->shadow_pv[p] = PV_CAMERA;
         }
@@ -149,6 +150,7 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         vec3 x = v3_madd(ray.org, ray.dir, ev.t);
         Scatter sc;
         scatter_init_phase(&sc, view.media[ev.medium]->g, v3_neg(ray.dir));
+        if (ig->guide.active) scatter_set_guide(&sc, guide_lookup(ig, x, 1), (ScatterGuideMode)ig->guide.mode);
         LightSampleContext lc = {x, v3s(0.0f), {0, 0.0f}, scratch, &s->volume, walk_previous};
         light_sampler_prepare(ig->light_sampler, &lc, hint);
         walk_previous = lc.vertex;
@@ -160,18 +162,23 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         }
         uint64_t key = ps->rng_key[p];
         ScatterSample ss;
-        if (!scatter_sample(&sc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_LOBE)),
+        const float u[6] = {rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_LOBE)),
                             rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_U)),
-                            rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_V)), &ss))
-            return WALK_ENDED;
+                            rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_V)),
+                            sc.guide ? rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_GUIDE_U)) : 0.0f,
+                            sc.guide ? rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_GUIDE_V)) : 0.0f,
+                            sc.guide ? rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_GUIDE_CHOICE)) : 0.0f};
+        if (!scatter_sample_guided(&sc, u, &ss)) return WALK_ENDED;
         beta = v3_mul(beta, ss.weight);
+        ps->rr_scale[p] *= ss.rr_factor;
         if (depth + 1 >= RR_START_DEPTH &&
             !russian_roulette(&beta, ps->rr_scale[p], rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_RR))))
             return WALK_ENDED;
         ps->throughput[p] = beta;
-        if (ig->record.recorder) { /* the continuation's vertex; the scattering event is done with the incoming one */
+        if (ig->record.active) { /* the continuation's vertex; the scattering event is done with the incoming one */
             uint32_t incoming = ps->pv[p];
-            ps->pv[p] = record_child(ig, s, p, incoming, x, ss.wi, beta, ss.pdf, PV_FLAG_VOLUME, ev.t);
+            ps->pv[p] = record_child(ig, s, p, incoming, x, ss.wi, beta, ss.pdf, ss.scatter_pdf, ss.guide_pdf, PV_FLAG_VOLUME,
+                                     ev.t);
             record_done(ig, s, p, incoming);
         }
         path_scattered(ps, p, x, &lc, ss.pdf, ss.delta);

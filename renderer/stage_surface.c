@@ -134,9 +134,9 @@ static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, con
         ps->shadow_depth[p] = depth;
         ps->shadow_medium[p] = side_medium(ig, p, h, ls.wi);
         ps->shadow_light[p] = ls.light;
-        if (ig->record.recorder)
+        if (ig->record.active)
             ps->shadow_pv[p] = record_child(ig, s, p, ps->pv[p], h->p, ls.wi, nee_throughput(contrib, ls.radiance), ls.pdf,
-                                            PV_FLAG_NEE, ps->hit[p].t);
+                                            ls.pdf, 0.0f, PV_FLAG_NEE, ps->hit[p].t);
         s->shadows[s->num_shadows++] = p;
         return;
     }
@@ -152,9 +152,13 @@ static int surface_continuation(const Integrator *ig, Slice *s, uint32_t p, cons
     uint64_t key = ps->rng_key[p];
     uint32_t depth = ps->depth[p];
     ScatterSample ss;
-    if (!scatter_sample(sc, rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_LOBE)),
-                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_U)),
-                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_V)), &ss))
+    if (!scatter_sample_guided(sc, (const float[6]){rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_LOBE)),
+                                                    rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_U)),
+                                                    rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_V)),
+                                                    sc->guide ? rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_GUIDE_U)) : 0.0f,
+                                                    sc->guide ? rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_GUIDE_V)) : 0.0f,
+                                                    sc->guide ? rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_GUIDE_CHOICE)) : 0.0f},
+                               &ss))
         return 0;
     vec3 beta = v3_mul(ps->throughput[p], ss.weight);
     ps->rr_scale[p] *= ss.rr_factor;
@@ -164,9 +168,9 @@ static int surface_continuation(const Integrator *ig, Slice *s, uint32_t p, cons
         return 0;
     ps->throughput[p] = beta;
     if (ss.transmitted) ps->medium[p] = side_medium(ig, p, h, ss.wi);
-    if (ig->record.recorder)
-        ps->pv[p] = record_child(ig, s, p, ps->pv[p], h->p, ss.wi, beta, ss.pdf, ss.delta ? PV_FLAG_DELTA : 0u,
-                                 ps->hit[p].t);
+    if (ig->record.active)
+        ps->pv[p] = record_child(ig, s, p, ps->pv[p], h->p, ss.wi, beta, ss.pdf, ss.scatter_pdf, ss.guide_pdf,
+                                 ss.delta ? PV_FLAG_DELTA : 0u, ps->hit[p].t);
     path_scattered(ps, p, h->p, lc, ss.pdf, ss.delta);
     ps->ray[p] = (SceneRay){offset_ray_origin(h->p, scatter_side_normal(sc, ss.wi)), 0.0f, ss.wi, INFINITY};
     s->rays[s->num_rays++] = p;
@@ -182,6 +186,9 @@ void stage_surface(const Integrator *ig, Slice *s) {
     s->num_rays = 0; /* the ray queue was consumed by stage_intersect: it now collects the next wave */
     for (uint32_t i = 0; i < s->num_hits; ++i) {
         if (i + SHADE_PREFETCH < s->num_hits) path_state_prefetch_shade(ps, s->hits[i + SHADE_PREFETCH]);
+        /* the recorder vertex the hit's ray carries (its pv was fetched a few hits earlier) */
+        if (ig->record.active && i + SHADE_PREFETCH / 2 < s->num_hits)
+            recorder_prefetch(ig->record.recorder, ps->pv[s->hits[i + SHADE_PREFETCH / 2]]);
         uint32_t p = s->hits[i];
         const SceneHit *hit = &ps->hit[p];
         if (scene->prims[scene->io.meshes[scene->instances[hit->instance].mesh].first_primitive + hit->local_prim]
@@ -196,6 +203,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
         scene_material_at(scene, &h, &m);
         Scatter sc;
         scatter_init_surface(&sc, &h, &m.bsdf, wo);
+        if (ig->guide.active) scatter_set_guide(&sc, guide_lookup(ig, h.p, 0), (ScatterGuideMode)ig->guide.mode);
         uint32_t depth = ps->depth[p];
         if (depth == 0) path_write_aovs(ps, p, m.bsdf.base_color, sc.frame.n, hit->t);
 
@@ -213,7 +221,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
         if (!delta) light_sampler_prepare(ig->light_sampler, &lc, &hint); /* once per vertex */
         if (!delta && ig->lights->count > 0) surface_direct_light(ig, s, p, &h, &sc, &lc);
         int continued = surface_continuation(ig, s, p, &h, &sc, &lc);
-        if (ig->record.recorder) { /* the scattering event is done with the incoming vertex */
+        if (ig->record.active) { /* the scattering event is done with the incoming vertex */
             if (!continued) ps->pv[p] = PV_CAMERA;
             record_done(ig, s, p, incoming);
         }

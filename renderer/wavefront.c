@@ -70,7 +70,7 @@ void integrator_run_batch(Integrator *ig, ThreadPool *pool, CandelaStats *st) {
         slices[k] = (Slice){.begin = b, .end = e, .rays = ig->queue_rays + b, .hits = ig->queue_hits + b,
                             .escaped = ig->queue_escaped + b, .shadows = ig->queue_shadows + b,
                             .keys = ig->sort_keys + b, .keys_tmp = ig->sort_keys_tmp + b,
-                            .items_tmp = ig->sort_items_tmp + b, .record_samples = &ig->record.samples[k]};
+                            .items_tmp = ig->sort_items_tmp + b, .record_samples = &ig->record.samples[k].s};
     }
     SliceCtx c = {ig, slices};
     threadpool_parallel_for(pool, n, 1, slice_range, &c);
@@ -89,7 +89,8 @@ void integrator_run_batch(Integrator *ig, ThreadPool *pool, CandelaStats *st) {
     }
     st->paths += ig->batch_count;
     st->rays_camera += ig->batch_count;
-    if (ig->record.recorder) record_batch_end(ig, slices, n);
+    if (ig->record.active) record_batch_end(ig, slices, n);
+    guide_train_batch(ig);
     inscatter_probe_batch(ig, slices, n);
     emission_probe_batch(ig, slices, n);
     /* film: serial, in path order, so every pixel sums its samples in sample order */
@@ -104,6 +105,7 @@ void integrator_add_barrier_hook(Integrator *ig, void (*run)(void *user), void *
 
 void integrator_barrier(Integrator *ig) {
     record_barrier(ig);
+    guide_barrier(ig);
     for (int i = 0; i < ig->num_hooks; ++i) ig->hooks[i].run(ig->hooks[i].user);
 }
 
@@ -133,7 +135,7 @@ int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene,
     fail = fail || path_state_alloc(&ig->ps, batch) != 0 || film_alloc(&ig->film, scene->camera.width, scene->camera.height) != 0;
     fail = fail || inscatter_init(ig, ig->inscatter ? o->volume_inscatter_sampling : 0) != 0;
     fail = fail || emission_auto_init(ig, lights->count > 0 ? o->volume_emission_sampling : 0) != 0;
-    fail = fail || record_init(ig) != 0;
+    fail = fail || record_init(ig) != 0 || guide_init(ig) != 0;
     if (!fail && ig->record.debug_aov) {
         ig->film.recorder = calloc(3 * (size_t)ig->npixels, sizeof(double));
         fail = !ig->film.recorder;
@@ -150,6 +152,7 @@ void integrator_free(Integrator *ig) {
     auto_probe_free(&ig->inscatter_auto);
     auto_probe_free(&ig->emission_auto);
     record_free(ig);
+    guide_free(ig);
     pthread_mutex_destroy(&ig->ray_log_mutex);
     memset(ig, 0, sizeof *ig);
 }

@@ -6,6 +6,7 @@ Every .gltf is self-contained (geometry in a base64 data: URI buffer). glTF 2.0,
 
 Outputs (paths relative to the repository root):
   scenes/default.gltf                 the demo room (Blender light units: cd, /683)
+  scenes/guiding_interior.gltf        a room lit through a small window (path-guiding benchmark)
   tests/scenes/furnace_sphere.gltf     closed emissive Lambert sphere, camera at the centre
   tests/scenes/point_plane.gltf        Lambert plane + point light (RAW units)
   tests/scenes/spot_plane.gltf         Lambert plane + spot light, all pixels in the inner cone
@@ -480,6 +481,40 @@ def default_scene():
     g.write(os.path.join(ROOT, 'scenes', 'default.gltf'))
 
 
+def guiding_interior():
+    """The path-guiding benchmark (issue 10): a closed 6 x 3 x 6 m room (x, z in [-3, 3], y in
+    [0, 3]) lit only through a 0.6 x 0.6 m window in the right wall (x = 3, y in [1.8, 2.4], z in
+    [-0.3, 0.3]) by a 200000 cd point light outside at (4.5, 3.5, 0), which puts a bright patch
+    on the floor around x = 0.75. Everything else is lit indirectly, mostly from that patch, which
+    a BSDF sample from a wall or the ceiling rarely finds: indirect-dominated, where guiding
+    should help. A rough metal panel and two boxes; the camera in the far corner."""
+    g = Gltf()
+    white = g.material('white_wall', base=(0.5, 0.5, 0.5), lambert=True)
+    floor_m = g.material('floor', base=(0.6, 0.55, 0.45), roughness=0.8)
+    box_m = g.material('box', base=(0.35, 0.45, 0.7), lambert=True)
+    metal = g.material('rough_metal', base=(0.9, 0.9, 0.92), metallic=1.0, roughness=0.35)
+    X, Y, Z = 3.0, 3.0, 3.0
+    wy0, wy1, wz0, wz1 = 1.9, 2.3, -0.2, 0.2
+    g.mesh('floor', 'floor', quad((-X, 0, -Z), (-X, 0, Z), (X, 0, Z), (X, 0, -Z)), floor_m)
+    g.mesh('ceiling', 'ceiling', quad((-X, Y, -Z), (X, Y, -Z), (X, Y, Z), (-X, Y, Z)), white)
+    g.mesh('back_wall', 'back', quad((-X, 0, -Z), (X, 0, -Z), (X, Y, -Z), (-X, Y, -Z)), white)
+    g.mesh('front_wall', 'front', quad((-X, 0, Z), (-X, Y, Z), (X, Y, Z), (X, 0, Z)), white)
+    g.mesh('left_wall', 'left', quad((-X, 0, -Z), (-X, Y, -Z), (-X, Y, Z), (-X, 0, Z)), white)
+    # the right wall (x = X, seen from -x) around the window: four quads
+    right = merge(quad((X, 0, -Z), (X, 0, Z), (X, wy0, Z), (X, wy0, -Z)),
+                  quad((X, wy1, -Z), (X, wy1, Z), (X, Y, Z), (X, Y, -Z)),
+                  quad((X, wy0, -Z), (X, wy0, wz0), (X, wy1, wz0), (X, wy1, -Z)),
+                  quad((X, wy0, wz1), (X, wy0, Z), (X, wy1, Z), (X, wy1, wz1)))
+    g.mesh('right_wall_window', 'right', right, white)
+    g.mesh('box_a', 'box_a', box(0.8, 0.8, 0.8), box_m, translation=(-1.2, 0.4, -1.5),
+           rotation=quat_axis_angle((0, 1, 0), math.radians(25)))
+    g.mesh('box_b', 'box_b', box(0.5, 1.4, 0.5), box_m, translation=(1.6, 0.7, -2.2))
+    g.mesh('metal_panel', 'panel', box(1.6, 1.2, 0.05), metal, translation=(-0.5, 1.2, -2.9))
+    g.light('sun_through_window', 'point', 200000.0, color=(1.0, 0.93, 0.82), translation=(4.5, 3.5, 0.0))
+    g.perspective('camera', (-2.6, 1.6, 2.6), (0.6, 0.9, -1.2), 70.0, aspect=4 / 3)
+    g.write(os.path.join(ROOT, 'scenes', 'guiding_interior.gltf'))
+
+
 def top_ortho(g, height=3.0, mag=1.0):
     """Orthographic camera above the origin looking straight down (image right = +x, up = -z),
     covering x, z in [-mag, mag]."""
@@ -767,6 +802,7 @@ def main():
     bench_scene()
     bad_inputs()
     default_scene()
+    guiding_interior()
     furnace_sphere()
     point_plane()
     masked_planes()

@@ -1,0 +1,779 @@
+/* guiding/sdtree.c: the guiding field of guiding.h, Practical Path Guiding's SD-tree
+ * (Müller, Gross, Novák 2017, "Practical Path Guiding for Efficient Light-Transport
+ * Simulation", §3), written from the paper's description.
+ *
+ * Layout.
+ * - The S-tree: a binary tree over a cube around the scene bounds, stored as a flat array of
+ *   SpatialNode. An interior node splits its box at the midpoint of axis depth % 3 (x, y, z
+ *   cycling, §3: the cube keeps the leaves close to cubical) and stores the split position, so
+ *   lookups reproduce exactly the boxes the update computed. Its two children are consecutive
+ *   entries. A leaf names its GuideDistribution in the leaves array.
+ * - The D-trees: per leaf a pair of quadtrees over the equal-area square (u, v) = ((cos theta
+ *   + 1) / 2, phi / 2 pi), cos theta = dir.z, phi = atan2(dir.y, dir.x) in [0, 2 pi). Equal
+ *   area means a density over the square is the solid-angle density times 4 pi. A tree is a
+ *   flat array of QuadNode (four quadrant sums, four child indices, 0 meaning "the quadrant is
+ *   a leaf"; the root is node 0 and never anybody's child), which copies with one memcpy.
+ *   Quadrant q = qx + 2 qy, qx = (u >= 1/2) (columns), qy = (v >= 1/2) (rows), in the node's
+ *   local coordinates. Every node of a tree is created after its parent, so child > parent.
+ *   `sampling` is what lookups read (learned at the last update; no nodes: uniform);
+ *   `building` accumulates the current iteration over the structure the last update chose.
+ *
+ * Update (§3, "adaptive spatial binary tree" and "adaptive directional quadtree").
+ *   1. Each leaf's building tree with samples and positive flux is rebuilt: a node's quadrant
+ *      is subdivided when its share of the tree's total flux exceeds rho, up to the maximum
+ *      depth; the rest stay leaves (what was finer is pruned). Where the old tree had no
+ *      finer node, the quadrant's flux is split evenly among the new children (no finer
+ *      information exists, and it keeps the density unchanged). The result, with flux, is the
+ *      new sampling tree; the new building tree is the same structure with zero sums. A leaf
+ *      without samples or flux keeps its trees (its building sums are zeroed).
+ *   2. A leaf with more than c sqrt(spp of the iteration; PPG's 2^k) samples splits; children inherit the parent's
+ *      D-trees with half the statistics, and split again while the halved count still exceeds
+ *      the threshold, so the leaf becomes a complete subtree. Splitting stops at the memory
+ *      cap, at SPATIAL_MAX_DEPTH and where float boxes would become degenerate. (The paper
+ *      splits first and rebuilds the children's copies; the halves scale the sums by a power
+ *      of two, which leaves every flux share bit-identical, so rebuilding once before copying
+ *      is the same result for less work.)
+ *   Everything the new state needs is allocated before anything is changed, so an
+ *   allocation failure returns -1 with the field exactly as it was; the commit cannot fail.
+ *   While an update runs the field holds both states (about twice its size).
+ *
+ * Deviations and choices (see also guiding.h):
+ * - The first building tree is not a bare root but the structure rho gives a uniform flux
+ *   (depth 4 at rho = 0.01): the first iteration already learns at 16 x 16 resolution
+ *   instead of four quadrants.
+ * - Training samples with non-finite position, direction, radiance or pdf, or pdf <= 0, or
+ *   a zero direction, are skipped entirely. Zero and negative radiance count as samples
+ *   (weight 1) but add no flux: a negative flux would make the quadrant sums unusable as
+ *   probabilities.
+ * - guide_distribution_sample returns guide_distribution_pdf of the direction it produced:
+ *   the float round trip (u, v) -> direction -> (u, v) can cross a cell boundary by a
+ *   rounding error, and MIS needs the two to agree exactly. In that measure-zero corner the
+ *   pdf may even be 0 (a direction at the edge of the support): callers treat pdf <= 0 as a
+ *   failed sample.
+ * - No spatial filtering (Müller 2019): a plain splat into the leaf containing the point. */
+#include "guiding.h"
+
+#include <errno.h>
+#include <float.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define GUIDE_PI 3.14159265358979323846
+#define GUIDE_INV_4PI (1.0 / (4.0 * GUIDE_PI))
+
+enum {
+    SPATIAL_MAX_DEPTH = 48,       /* a box 2^-16 of the cube's side per axis */
+    QUAD_MAX_DEPTH = 20,          /* cells of 2^-20: finer than float directions resolve */
+    QUAD_DEFAULT_DEPTH = 20,
+};
+#define LEAF_LIMIT (1u << 26)     /* keeps 8 * leaves (PLY vertex indices) within int */
+#define DEFAULT_MAX_BYTES ((size_t)256 << 20)
+#define DEFAULT_SPATIAL_THRESHOLD 12000.0f
+#define DEFAULT_FLUX_THRESHOLD 0.01f
+
+/* ------------------------------------------------------------------ types */
+
+typedef struct QuadNode {
+    double sum[4];      /* flux through each quadrant (the sum of its subtree) */
+    uint32_t child[4];  /* node index of the quadrant's subdivision; 0: the quadrant is a leaf */
+} QuadNode;
+
+typedef struct QuadTree {
+    QuadNode *nodes;    /* owned; NULL when count is 0 */
+    uint32_t count;     /* 0: no tree (a sampling tree without one is uniform) */
+} QuadTree;
+
+/* A spatial leaf: what a lookup returns. Readers only touch `sampling` and the box. */
+struct GuideDistribution {
+    QuadTree sampling;  /* learned at the last update (count 0: uniform) */
+    QuadTree building;  /* accumulating now */
+    double recorded;    /* samples recorded into `building` since the last update */
+    double learned;     /* samples `sampling` was learned from (statistical weight) */
+    float lo[3], hi[3]; /* the leaf's box */
+    uint32_t node;      /* its spatial node */
+};
+
+typedef struct SpatialNode {
+    float lo[3], hi[3]; /* the node's box */
+    float split;        /* interior: the split position on `axis` (points >= go right) */
+    uint32_t child;     /* interior: the first of the two consecutive children; 0: a leaf */
+    uint32_t leaf;      /* leaf: index into GuideField.leaves */
+    uint8_t axis, depth;
+} SpatialNode;
+
+struct GuideField {
+    GuideFieldParams params; /* sanitised */
+    SpatialNode *nodes;
+    uint32_t node_count;
+    GuideDistribution *leaves;
+    uint32_t leaf_count;
+    int iterations;
+};
+
+/* Scratch arrays of a quadtree rebuild (grown as needed, reused across the leaves). */
+typedef struct RebuildScratch {
+    QuadNode *nodes;
+    uint32_t *source;   /* the old tree's node behind each new node (NO_SOURCE: none) */
+    uint8_t *depth;     /* 1 for the root */
+    uint32_t capacity;
+} RebuildScratch;
+#define NO_SOURCE 0xFFFFFFFFu
+
+/* ------------------------------------------------------------------ parameters */
+
+void guide_field_params_default(GuideFieldParams *p) {
+    if (!p) return;
+    p->spatial_threshold = DEFAULT_SPATIAL_THRESHOLD;
+    p->flux_threshold = DEFAULT_FLUX_THRESHOLD;
+    p->max_quadtree_depth = QUAD_DEFAULT_DEPTH;
+    p->max_bytes = DEFAULT_MAX_BYTES;
+}
+
+/* Out-of-range values fall back to the defaults rather than building absurd trees (rho <= 0
+ * would subdivide every node to the maximum depth). */
+static GuideFieldParams params_sanitize(const GuideFieldParams *in) {
+    GuideFieldParams p;
+    guide_field_params_default(&p);
+    if (!in) return p;
+    if (in->spatial_threshold > 0 && isfinite(in->spatial_threshold)) p.spatial_threshold = in->spatial_threshold;
+    if (in->flux_threshold > 0 && isfinite(in->flux_threshold)) p.flux_threshold = in->flux_threshold;
+    if (in->max_quadtree_depth > 0)
+        p.max_quadtree_depth = in->max_quadtree_depth < QUAD_MAX_DEPTH ? in->max_quadtree_depth : QUAD_MAX_DEPTH;
+    if (in->max_bytes > 0) p.max_bytes = in->max_bytes;
+    return p;
+}
+
+/* ------------------------------------------------------------------ directions */
+
+static inline double clamp_unit_open(double x) { /* [0, 1): the sampling routines' domain */
+    if (!(x > 0)) return 0;
+    if (x >= 1) return 0x1.fffffffffffffp-1;
+    return x;
+}
+
+/* The cylindrical equal-area map (§3: "world-space cylindrical coordinates"). 0: no
+ * direction (zero length or non-finite). */
+static int dir_to_uv(const float dir[3], double *u, double *v) {
+    double x = dir[0], y = dir[1], z = dir[2];
+    double len = sqrt(x * x + y * y + z * z);
+    if (!(len > 0) || !isfinite(len)) return 0;
+    double cos_theta = z / len;
+    if (cos_theta > 1) cos_theta = 1;
+    if (cos_theta < -1) cos_theta = -1;
+    double phi = atan2(y, x);
+    if (phi < 0) phi += 2 * GUIDE_PI;
+    *u = clamp_unit_open(0.5 * (cos_theta + 1));
+    *v = clamp_unit_open(phi * (1 / (2 * GUIDE_PI)));
+    return 1;
+}
+
+static void uv_to_dir(double u, double v, float dir[3]) {
+    double cos_theta = 2 * u - 1;
+    double sin_theta = sqrt(fmax(0.0, 1 - cos_theta * cos_theta));
+    double phi = 2 * GUIDE_PI * v;
+    dir[0] = (float)(sin_theta * cos(phi));
+    dir[1] = (float)(sin_theta * sin(phi));
+    dir[2] = (float)cos_theta;
+}
+
+/* ------------------------------------------------------------------ quadtrees */
+
+static inline double node_total(const QuadNode *n) { return (n->sum[0] + n->sum[1]) + (n->sum[2] + n->sum[3]); }
+
+static void quadtree_free(QuadTree *t) {
+    free(t->nodes);
+    t->nodes = NULL;
+    t->count = 0;
+}
+
+static size_t quadtree_bytes(const QuadTree *t) { return (size_t)t->count * sizeof(QuadNode); }
+
+/* A copy with every sum multiplied by 2^exponent (exact: the shares stay bit-identical) or,
+ * with zero_sums, set to 0. -1: out of memory. An empty tree copies to an empty tree. */
+static int quadtree_copy(const QuadTree *src, int exponent, int zero_sums, QuadTree *out) {
+    out->nodes = NULL;
+    out->count = 0;
+    if (src->count == 0) return 0;
+    QuadNode *n = malloc((size_t)src->count * sizeof *n);
+    if (!n) return -1;
+    memcpy(n, src->nodes, (size_t)src->count * sizeof *n);
+    for (uint32_t i = 0; i < src->count; ++i)
+        for (int q = 0; q < 4; ++q) n[i].sum[q] = zero_sums ? 0.0 : ldexp(n[i].sum[q], exponent);
+    out->nodes = n;
+    out->count = src->count;
+    return 0;
+}
+
+static void quadtree_scale(QuadTree *t, int exponent) {
+    for (uint32_t i = 0; i < t->count; ++i)
+        for (int q = 0; q < 4; ++q) t->nodes[i].sum[q] = ldexp(t->nodes[i].sum[q], exponent);
+}
+
+static void quadtree_zero(QuadTree *t) {
+    for (uint32_t i = 0; i < t->count; ++i)
+        for (int q = 0; q < 4; ++q) t->nodes[i].sum[q] = 0;
+}
+
+/* Adds `value` to every level's quadrant sum along the descent to (u, v), so a node's sum is
+ * always its subtree's total and a rebuild can read the flux of any region at any level. */
+static void quadtree_add(QuadTree *t, double u, double v, double value) {
+    if (t->count == 0) return;
+    uint32_t i = 0;
+    for (;;) {
+        QuadNode *n = &t->nodes[i];
+        int qx = u >= 0.5, qy = v >= 0.5, q = qx + 2 * qy;
+        n->sum[q] += value;
+        if (!n->child[q]) return;
+        u = 2 * u - qx; /* exact in binary floating point */
+        v = 2 * v - qy;
+        i = n->child[q];
+    }
+}
+
+/* Density over the (u, v) square: the product over the visited levels of 4 s_q / total,
+ * the probability of the quadrant divided by its area (1/4). A node with no flux is uniform
+ * (factor 1), as is a missing tree. */
+static double quadtree_pdf_uv(const QuadTree *t, double u, double v) {
+    if (t->count == 0) return 1.0;
+    double pdf = 1.0;
+    uint32_t i = 0;
+    for (;;) {
+        const QuadNode *n = &t->nodes[i];
+        double total = node_total(n);
+        if (!(total > 0)) return pdf;
+        int qx = u >= 0.5, qy = v >= 0.5, q = qx + 2 * qy;
+        pdf *= 4 * n->sum[q] / total;
+        if (!n->child[q] || !(pdf > 0)) return pdf;
+        u = 2 * u - qx;
+        v = 2 * v - qy;
+        i = n->child[q];
+    }
+}
+
+/* Samples (u, v) from the tree (§3, "sampling"): descend choosing each quadrant with
+ * probability s_q / total, first the column (u half) then the row within it, reusing the
+ * uniforms by rescaling them into the chosen interval; then uniformly inside the leaf cell.
+ * The rescaling runs in double: each level consumes the bits of its decision, and a float
+ * would be left with nothing for the deeper levels. */
+static void quadtree_sample(const QuadTree *t, double u1, double u2, double *u, double *v) {
+    double ox = 0, oy = 0, size = 1;
+    if (t->count > 0) {
+        uint32_t i = 0;
+        for (;;) {
+            const QuadNode *n = &t->nodes[i];
+            double total = node_total(n);
+            if (!(total > 0)) break; /* uniform over the rest of this cell */
+            double p_left = (n->sum[0] + n->sum[2]) / total;
+            int qx;
+            if (u1 < p_left) {
+                qx = 0;
+                u1 = u1 / p_left;
+            } else {
+                qx = 1;
+                u1 = (u1 - p_left) / (1 - p_left); /* p_left < 1 here, since u1 < 1 */
+            }
+            double column = n->sum[qx] + n->sum[qx + 2];
+            double p_low = column > 0 ? n->sum[qx] / column : 0.5;
+            int qy;
+            if (u2 < p_low) {
+                qy = 0;
+                u2 = u2 / p_low;
+            } else {
+                qy = 1;
+                u2 = (u2 - p_low) / (1 - p_low);
+            }
+            u1 = clamp_unit_open(u1);
+            u2 = clamp_unit_open(u2);
+            size *= 0.5;
+            ox += qx * size;
+            oy += qy * size;
+            int q = qx + 2 * qy;
+            if (!n->child[q]) break;
+            i = n->child[q];
+        }
+    }
+    *u = clamp_unit_open(ox + size * u1);
+    *v = clamp_unit_open(oy + size * u2);
+}
+
+static int scratch_reserve(RebuildScratch *s, uint32_t need) {
+    if (need <= s->capacity) return 0;
+    uint32_t cap = s->capacity ? s->capacity : 256;
+    while (cap < need) cap = cap > UINT32_MAX / 2 ? UINT32_MAX : cap * 2;
+    QuadNode *n = realloc(s->nodes, (size_t)cap * sizeof *n);
+    if (!n) return -1;
+    s->nodes = n;
+    uint32_t *src = realloc(s->source, (size_t)cap * sizeof *src);
+    if (!src) return -1;
+    s->source = src;
+    uint8_t *d = realloc(s->depth, (size_t)cap);
+    if (!d) return -1;
+    s->depth = d;
+    s->capacity = cap;
+    return 0;
+}
+
+static void scratch_free(RebuildScratch *s) {
+    free(s->nodes);
+    free(s->source);
+    free(s->depth);
+    memset(s, 0, sizeof *s);
+}
+
+/* The adaptive directional quadtree (§3): a new tree whose quadrants are subdivided where
+ * their share of the total flux of `src` exceeds rho (and the depth allows), with the flux of
+ * `src` as sums. Nodes are created breadth first (the scratch array is the queue), so a node
+ * limit cuts the finest levels first. -1: out of memory (out untouched). */
+static int quadtree_rebuild(const QuadTree *src, double rho, int max_depth, uint32_t max_nodes,
+                            RebuildScratch *s, QuadTree *out) {
+    if (src->count == 0) return -1;
+    if (scratch_reserve(s, 1)) return -1;
+    s->nodes[0] = (QuadNode){{src->nodes[0].sum[0], src->nodes[0].sum[1], src->nodes[0].sum[2], src->nodes[0].sum[3]},
+                             {0, 0, 0, 0}};
+    s->source[0] = 0;
+    s->depth[0] = 1;
+    uint32_t count = 1;
+    double limit = rho * node_total(&src->nodes[0]);
+    for (uint32_t i = 0; i < count; ++i) {
+        for (int q = 0; q < 4; ++q) {
+            double flux = s->nodes[i].sum[q];
+            if (!(flux > limit) || s->depth[i] >= max_depth || count >= max_nodes) continue;
+            if (scratch_reserve(s, count + 1)) return -1;
+            uint32_t from = s->source[i] == NO_SOURCE ? 0 : src->nodes[s->source[i]].child[q];
+            QuadNode *c = &s->nodes[count];
+            if (from) {
+                *c = src->nodes[from];
+                c->child[0] = c->child[1] = c->child[2] = c->child[3] = 0;
+                s->source[count] = from;
+            } else {
+                double quarter = 0.25 * flux; /* no finer information: keep the density */
+                *c = (QuadNode){{quarter, quarter, quarter, quarter}, {0, 0, 0, 0}};
+                s->source[count] = NO_SOURCE;
+            }
+            s->depth[count] = (uint8_t)(s->depth[i] + 1);
+            s->nodes[i].child[q] = count;
+            ++count;
+        }
+    }
+    QuadNode *n = malloc((size_t)count * sizeof *n);
+    if (!n) return -1;
+    memcpy(n, s->nodes, (size_t)count * sizeof *n);
+    out->nodes = n;
+    out->count = count;
+    return 0;
+}
+
+/* The building structure a uniform flux gives: where an untrained leaf starts. */
+static int quadtree_initial(const GuideFieldParams *p, uint32_t max_nodes, RebuildScratch *s, QuadTree *out) {
+    QuadNode root = {{1, 1, 1, 1}, {0, 0, 0, 0}};
+    QuadTree uniform = {&root, 1};
+    if (quadtree_rebuild(&uniform, p->flux_threshold, p->max_quadtree_depth, max_nodes, s, out)) return -1;
+    quadtree_zero(out);
+    return 0;
+}
+
+/* The most nodes one tree may have: a sampling and a building copy within the memory cap. */
+static uint32_t quadtree_node_limit(const GuideFieldParams *p) {
+    size_t n = p->max_bytes / (2 * sizeof(QuadNode));
+    if (n < 1) n = 1;
+    if (n > UINT32_MAX / 2) n = UINT32_MAX / 2;
+    return (uint32_t)n;
+}
+
+/* ------------------------------------------------------------------ field */
+
+static size_t leaf_tree_bytes(const GuideDistribution *l) {
+    return quadtree_bytes(&l->sampling) + quadtree_bytes(&l->building);
+}
+
+size_t guide_field_bytes(const GuideField *f) {
+    if (!f) return 0;
+    size_t b = sizeof *f + (size_t)f->node_count * sizeof(SpatialNode) + (size_t)f->leaf_count * sizeof(GuideDistribution);
+    for (uint32_t i = 0; i < f->leaf_count; ++i) b += leaf_tree_bytes(&f->leaves[i]);
+    return b;
+}
+
+uint32_t guide_field_num_leaves(const GuideField *f) { return f ? f->leaf_count : 0; }
+int guide_field_iterations(const GuideField *f) { return f ? f->iterations : 0; }
+
+GuideField *guide_field_create(const float lo[3], const float hi[3], const GuideFieldParams *p) {
+    GuideField *f = calloc(1, sizeof *f);
+    if (!f) return NULL;
+    f->params = params_sanitize(p);
+    /* The cube around the bounds (§3: the S-tree partitions a cube), enlarged by 1e-3 of its
+     * side so points on the bounds are strictly inside after float rounding. Bounds that are
+     * not finite or empty fall back to [-1, 1] on that axis rather than poisoning the tree. */
+    double a[3], b[3], side = 0, mag = 0;
+    for (int k = 0; k < 3; ++k) {
+        a[k] = lo ? lo[k] : -1;
+        b[k] = hi ? hi[k] : 1;
+        if (!isfinite(a[k]) || !isfinite(b[k])) {
+            a[k] = -1;
+            b[k] = 1;
+        }
+        if (a[k] > b[k]) {
+            double t = a[k];
+            a[k] = b[k];
+            b[k] = t;
+        }
+        side = fmax(side, b[k] - a[k]);
+        mag = fmax(mag, fmax(fabs(a[k]), fabs(b[k])));
+    }
+    side = fmax(side * (1 + 1e-3), fmax(mag, 1.0) * 1e-3); /* never a point-sized cube */
+    f->nodes = calloc(1, sizeof *f->nodes);
+    f->leaves = calloc(1, sizeof *f->leaves);
+    if (!f->nodes || !f->leaves) {
+        guide_field_free(f);
+        return NULL;
+    }
+    SpatialNode *root = &f->nodes[0];
+    for (int k = 0; k < 3; ++k) {
+        double c = 0.5 * (a[k] + b[k]);
+        root->lo[k] = (float)(c - 0.5 * side);
+        root->hi[k] = (float)(c + 0.5 * side);
+    }
+    f->node_count = 1;
+    f->leaf_count = 1;
+    GuideDistribution *leaf = &f->leaves[0];
+    memcpy(leaf->lo, root->lo, sizeof leaf->lo);
+    memcpy(leaf->hi, root->hi, sizeof leaf->hi);
+    RebuildScratch s = {0};
+    int rc = quadtree_initial(&f->params, quadtree_node_limit(&f->params), &s, &leaf->building);
+    scratch_free(&s);
+    if (rc) {
+        guide_field_free(f);
+        return NULL;
+    }
+    return f;
+}
+
+void guide_field_free(GuideField *f) {
+    if (!f) return;
+    if (f->leaves)
+        for (uint32_t i = 0; i < f->leaf_count; ++i) {
+            quadtree_free(&f->leaves[i].sampling);
+            quadtree_free(&f->leaves[i].building);
+        }
+    free(f->leaves);
+    free(f->nodes);
+    free(f);
+}
+
+/* The leaf containing pos, clamped into the root box (NaN coordinates clamp to the low
+ * side: fmaxf returns the number). */
+static uint32_t field_find_leaf(const GuideField *f, const float pos[3]) {
+    const SpatialNode *root = &f->nodes[0];
+    float p[3];
+    for (int k = 0; k < 3; ++k) p[k] = fminf(fmaxf(pos[k], root->lo[k]), root->hi[k]);
+    const SpatialNode *n = root;
+    while (n->child) n = &f->nodes[n->child + (p[n->axis] >= n->split)];
+    return n->leaf;
+}
+
+void guide_field_record(GuideField *f, const GuideTrainingSample *s, size_t n) {
+    if (!f || !s) return;
+    for (size_t i = 0; i < n; ++i) {
+        const GuideTrainingSample *x = &s[i];
+        if (!isfinite(x->pos[0]) || !isfinite(x->pos[1]) || !isfinite(x->pos[2])) continue;
+        if (!isfinite(x->radiance) || !(x->pdf > 0) || !isfinite(x->pdf)) continue;
+        double u, v;
+        if (!dir_to_uv(x->dir, &u, &v)) continue;
+        GuideDistribution *leaf = &f->leaves[field_find_leaf(f, x->pos)];
+        /* §3: the statistical weight counts every sample, zero radiance included (C1 §8.1:
+         * dropping them biases the learned distribution). */
+        leaf->recorded += 1;
+        /* The incident radiance estimate L / p over the sphere: its sum per cell estimates the
+         * cell's flux (§3, "collecting estimates"). In double: finite for any float input. */
+        double value = (double)x->radiance / (double)x->pdf;
+        if (value > 0) quadtree_add(&leaf->building, u, v, value);
+    }
+}
+
+/* Level `level` of the complete subtree replacing a leaf at depth `depth` splits its boxes on
+ * axis (depth + level) % 3; the two halves must stay non-degenerate in float, so the half
+ * width must be well above the precision of the coordinates. */
+static int split_is_sound(const float lo[3], const float hi[3], int depth, int level) {
+    int axis = (depth + level) % 3, earlier = 0; /* earlier levels of the subtree on this axis */
+    for (int l = 0; l < level; ++l) earlier += (depth + l) % 3 == axis;
+    double width = ldexp((double)hi[axis] - (double)lo[axis], -earlier);
+    double mag = fmax(fabs((double)lo[axis]), fabs((double)hi[axis]));
+    return 0.5 * width > 64.0 * FLT_EPSILON * fmax(mag, width);
+}
+
+/* Appends the two children of node idx (a leaf) and turns it into their parent. */
+static void spatial_split(SpatialNode *nodes, uint32_t idx, uint32_t *count) {
+    SpatialNode *n = &nodes[idx];
+    int axis = n->depth % 3;
+    float mid = n->lo[axis] + 0.5f * (n->hi[axis] - n->lo[axis]);
+    uint32_t c = *count;
+    *count += 2;
+    SpatialNode child = *n;
+    child.child = 0;
+    child.leaf = 0;
+    child.split = 0;
+    child.axis = 0;
+    child.depth = (uint8_t)(n->depth + 1);
+    nodes[c] = child;
+    nodes[c + 1] = child;
+    nodes[c].hi[axis] = mid;
+    nodes[c + 1].lo[axis] = mid;
+    n->child = c;
+    n->axis = (uint8_t)axis;
+    n->split = mid;
+}
+
+int guide_field_update(GuideField *f, float iteration_spp) {
+    if (!f) return -1;
+    const GuideFieldParams *p = &f->params;
+    const uint32_t old_leaves = f->leaf_count;
+    /* §3: the split threshold grows with the iteration, c sqrt(2^k). Each iteration takes
+     * twice the samples of the last; a threshold growing by sqrt 2 lets the number of leaves
+     * and the samples per leaf both grow by sqrt 2, so the spatial and the directional
+     * resolution refine together. */
+    /* 2^k is the samples per pixel of PPG's iteration k; a schedule of other sizes (the
+     * guided schedule repeats 1 spp) gives its own */
+    double spp = isfinite(iteration_spp) && iteration_spp >= 1.0f ? (double)iteration_spp : 1.0;
+    double threshold = (double)p->spatial_threshold * sqrt(spp);
+    uint32_t node_limit = quadtree_node_limit(p);
+
+    QuadTree *rebuilt = calloc(old_leaves, sizeof *rebuilt);
+    uint8_t *levels = calloc(old_leaves, 1);
+    RebuildScratch scratch = {0};
+    SpatialNode *new_nodes = NULL;
+    GuideDistribution *new_leaves = NULL;
+    uint32_t new_leaf_count = 0;
+    if (!rebuilt || !levels) goto fail;
+
+    /* 1. The directional rebuild of every leaf that saw flux. */
+    for (uint32_t i = 0; i < old_leaves; ++i) {
+        const GuideDistribution *l = &f->leaves[i];
+        if (!(l->recorded > 0) || l->building.count == 0) continue;
+        double total = node_total(&l->building.nodes[0]);
+        if (!(total > 0) || !isfinite(total)) continue; /* keep the previous sampling tree */
+        if (quadtree_rebuild(&l->building, p->flux_threshold, p->max_quadtree_depth, node_limit, &scratch, &rebuilt[i]))
+            goto fail;
+    }
+    scratch_free(&scratch);
+
+    /* 2. The spatial splits, within the memory cap: each extra leaf costs its two D-trees,
+     * its leaf record and two spatial nodes. Leaves are visited in index order, so the cap
+     * cuts deterministically. */
+    size_t projected = sizeof *f + (size_t)f->node_count * sizeof(SpatialNode) + (size_t)old_leaves * sizeof(GuideDistribution);
+    for (uint32_t i = 0; i < old_leaves; ++i)
+        projected += rebuilt[i].count ? 2 * quadtree_bytes(&rebuilt[i]) : leaf_tree_bytes(&f->leaves[i]);
+    uint64_t total_leaves = old_leaves, total_nodes = f->node_count;
+    for (uint32_t i = 0; i < old_leaves; ++i) {
+        const GuideDistribution *l = &f->leaves[i];
+        const SpatialNode *node = &f->nodes[l->node];
+        size_t trees = rebuilt[i].count ? 2 * quadtree_bytes(&rebuilt[i]) : leaf_tree_bytes(l);
+        size_t per_leaf = trees + sizeof(GuideDistribution) + 2 * sizeof(SpatialNode);
+        double count = l->recorded;
+        int s = 0;
+        while (count > threshold && node->depth + s < SPATIAL_MAX_DEPTH &&
+               split_is_sound(node->lo, node->hi, node->depth, s)) {
+            uint64_t added = (uint64_t)1 << s; /* doubling the subtree's leaves */
+            if (total_leaves + added > LEAF_LIMIT) break;
+            if (projected > p->max_bytes || per_leaf > (p->max_bytes - projected) / added) break;
+            projected += per_leaf * (size_t)added;
+            total_leaves += added;
+            total_nodes += 2 * added;
+            count *= 0.5;
+            ++s;
+        }
+        levels[i] = (uint8_t)s;
+    }
+
+    /* 3. Allocate the new state. Entries [0, old_leaves) of new_leaves take over the old
+     * leaves (only their new building trees are allocated here); the extra leaves of each
+     * split follow in leaf order, each with its own copies. */
+    new_leaf_count = (uint32_t)total_leaves;
+    new_nodes = malloc((size_t)total_nodes * sizeof *new_nodes);
+    new_leaves = calloc(new_leaf_count, sizeof *new_leaves);
+    if (!new_nodes || !new_leaves) goto fail;
+    uint32_t extra = old_leaves;
+    for (uint32_t i = 0; i < old_leaves; ++i) {
+        const GuideDistribution *l = &f->leaves[i];
+        int s = levels[i];
+        if (rebuilt[i].count && quadtree_copy(&rebuilt[i], 0, 1, &new_leaves[i].building)) goto fail;
+        const QuadTree *sampling = rebuilt[i].count ? &rebuilt[i] : &l->sampling;
+        const QuadTree *building = rebuilt[i].count ? &rebuilt[i] : &l->building;
+        int exponent = rebuilt[i].count ? -s : 0; /* half the statistics per split */
+        for (uint32_t j = 1; j < ((uint32_t)1 << s); ++j, ++extra) {
+            if (quadtree_copy(sampling, exponent, 0, &new_leaves[extra].sampling)) goto fail;
+            if (quadtree_copy(building, 0, 1, &new_leaves[extra].building)) goto fail;
+        }
+    }
+
+    /* 4. Commit: nothing below allocates or fails. */
+    memcpy(new_nodes, f->nodes, (size_t)f->node_count * sizeof *new_nodes);
+    uint32_t node_count = f->node_count;
+    extra = old_leaves;
+    for (uint32_t i = 0; i < old_leaves; ++i) {
+        GuideDistribution *old = &f->leaves[i], *nl = &new_leaves[i];
+        int s = levels[i];
+        if (rebuilt[i].count) {
+            quadtree_scale(&rebuilt[i], -s);
+            nl->sampling = rebuilt[i];
+            rebuilt[i] = (QuadTree){NULL, 0};
+            quadtree_free(&old->sampling);
+            quadtree_free(&old->building);
+            nl->learned = ldexp(old->recorded, -s);
+        } else {
+            nl->sampling = old->sampling;
+            nl->building = old->building;
+            quadtree_zero(&nl->building);
+            nl->learned = ldexp(old->learned, -s);
+        }
+        nl->recorded = 0;
+        nl->node = old->node;
+        if (s > 0) {
+            /* The complete subtree, level by level; each level's nodes are contiguous. */
+            spatial_split(new_nodes, old->node, &node_count);
+            uint32_t first = node_count - 2, end = node_count;
+            for (int level = 1; level < s; ++level) {
+                for (uint32_t j = first; j < end; ++j) spatial_split(new_nodes, j, &node_count);
+                first = end;
+                end = node_count;
+            }
+            for (uint32_t j = first; j < end; ++j) {
+                uint32_t li = j == first ? i : extra++;
+                GuideDistribution *dst = &new_leaves[li];
+                if (li != i) {
+                    dst->learned = nl->learned;
+                    dst->recorded = 0;
+                }
+                dst->node = j;
+                new_nodes[j].leaf = li;
+            }
+        }
+        new_nodes[nl->node].leaf = i;
+    }
+    for (uint32_t i = 0; i < new_leaf_count; ++i) {
+        const SpatialNode *n = &new_nodes[new_leaves[i].node];
+        memcpy(new_leaves[i].lo, n->lo, sizeof n->lo);
+        memcpy(new_leaves[i].hi, n->hi, sizeof n->hi);
+    }
+    free(f->nodes);
+    free(f->leaves);
+    f->nodes = new_nodes;
+    f->node_count = node_count;
+    f->leaves = new_leaves;
+    f->leaf_count = new_leaf_count;
+    f->iterations += 1;
+    free(rebuilt);
+    free(levels);
+    return 0;
+
+fail:
+    scratch_free(&scratch);
+    if (rebuilt)
+        for (uint32_t i = 0; i < old_leaves; ++i) quadtree_free(&rebuilt[i]);
+    if (new_leaves)
+        for (uint32_t i = 0; i < new_leaf_count; ++i) {
+            quadtree_free(&new_leaves[i].sampling);
+            quadtree_free(&new_leaves[i].building);
+        }
+    free(rebuilt);
+    free(levels);
+    free(new_nodes);
+    free(new_leaves);
+    return -1;
+}
+
+/* ------------------------------------------------------------------ distributions */
+
+const GuideDistribution *guide_field_lookup(const GuideField *f, const float pos[3]) {
+    if (!f) return NULL;
+    static const float origin[3] = {0, 0, 0};
+    return &f->leaves[field_find_leaf(f, pos ? pos : origin)];
+}
+
+float guide_distribution_pdf(const GuideDistribution *d, const float dir[3]) {
+    double u, v;
+    if (!d || !dir || !dir_to_uv(dir, &u, &v)) return 0;
+    return (float)(quadtree_pdf_uv(&d->sampling, u, v) * GUIDE_INV_4PI);
+}
+
+void guide_distribution_sample(const GuideDistribution *d, float u1, float u2, float dir[3], float *pdf) {
+    double u, v;
+    static const QuadTree none = {NULL, 0};
+    quadtree_sample(d ? &d->sampling : &none, clamp_unit_open(u1), clamp_unit_open(u2), &u, &v);
+    uv_to_dir(u, v, dir);
+    /* The density of the direction as guide_distribution_pdf sees it (see the top comment). */
+    if (pdf) *pdf = d ? guide_distribution_pdf(d, dir) : (float)GUIDE_INV_4PI;
+}
+
+double guide_distribution_samples(const GuideDistribution *d) { return d ? d->learned : 0.0; }
+
+void guide_distribution_bounds(const GuideDistribution *d, float lo[3], float hi[3]) {
+    if (!d) return;
+    for (int k = 0; k < 3; ++k) {
+        if (lo) lo[k] = d->lo[k];
+        if (hi) hi[k] = d->hi[k];
+    }
+}
+
+void guide_distribution_image(const GuideDistribution *d, int w, int h, float *out) {
+    if (!d || !out || w <= 0 || h <= 0) return;
+    for (int row = 0; row < h; ++row)
+        for (int col = 0; col < w; ++col) {
+            double u = (col + 0.5) / w, v = (row + 0.5) / h;
+            out[(size_t)row * (size_t)w + (size_t)col] = (float)(quadtree_pdf_uv(&d->sampling, u, v) * GUIDE_INV_4PI);
+        }
+}
+
+/* ------------------------------------------------------------------ PLY */
+
+int guide_field_write_ply(const GuideField *f, const char *path) {
+    if (!f || !path) {
+        errno = EINVAL;
+        return -1;
+    }
+    FILE *fp = fopen(path, "w");
+    if (!fp) return -1;
+    int bad = 0;
+    uint32_t n = f->leaf_count;
+    /* Per vertex (repeated on a box's 8 corners): the samples the leaf's sampling tree was
+     * learned from, the samples recorded since the last update, and the size of its sampling
+     * quadtree in nodes, so a viewer can colour the boxes by any of them. */
+    bad |= fprintf(fp,
+                   "ply\nformat ascii 1.0\ncomment candela guiding field (PPG SD-tree), %d updates\n"
+                   "element vertex %lu\nproperty float x\nproperty float y\nproperty float z\n"
+                   "property float samples\nproperty float recorded\nproperty float quadtree_nodes\n"
+                   "element face %lu\nproperty list uchar int vertex_indices\nend_header\n",
+                   f->iterations, 8ul * n, 6ul * n) < 0;
+    for (uint32_t i = 0; i < n && !bad; ++i) {
+        const GuideDistribution *l = &f->leaves[i];
+        for (int c = 0; c < 8 && !bad; ++c) {
+            float x = (c & 1) ? l->hi[0] : l->lo[0];
+            float y = (c & 2) ? l->hi[1] : l->lo[1];
+            float z = (c & 4) ? l->hi[2] : l->lo[2];
+            bad |= fprintf(fp, "%.9g %.9g %.9g %.9g %.9g %lu\n", x, y, z, l->learned, l->recorded,
+                           (unsigned long)l->sampling.count) < 0;
+        }
+    }
+    /* Corner c = bx + 2 by + 4 bz; each face counter-clockwise seen from outside. */
+    static const unsigned long faces[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
+    for (uint32_t i = 0; i < n && !bad; ++i) {
+        unsigned long base = 8ul * i;
+        for (int k = 0; k < 6 && !bad; ++k)
+            bad |= fprintf(fp, "4 %lu %lu %lu %lu\n", base + faces[k][0], base + faces[k][1], base + faces[k][2],
+                           base + faces[k][3]) < 0;
+    }
+    if (!bad && ferror(fp)) {
+        bad = 1;
+        errno = EIO;
+    }
+    int saved = errno;
+    if (fclose(fp) != 0) {
+        if (!bad) saved = errno;
+        bad = 1;
+    }
+    if (bad) {
+        errno = saved ? saved : EIO;
+        return -1;
+    }
+    return 0;
+}

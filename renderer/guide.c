@@ -1,0 +1,204 @@
+/* renderer/guide.c: path guiding in the wavefront (--guiding off|mis|ris).
+ *
+ * Two guiding fields (guiding/guiding.h: Practical Path Guiding's SD-tree), one trained from
+ * surface vertices and one from medium vertices (PPG knows no media; the digest's §2 asks for
+ * separate statistics), both over the scene bounds. After every batch the recorder's samples
+ * (record.c; sorted by path, so the order never depends on the thread count) train the
+ * building trees: continuation vertices only, not NEE vertices, and not directions from delta
+ * lobes (ch. 1 §5: the guide learns indirect plus MIS-weighted direct light, as the emission a
+ * continuation's subtree found is already MIS-weighted), zero-radiance samples included
+ * (ch. 1 §8.1). At each iteration barrier the fields update (PPG's spatial split at
+ * c sqrt(spp of the iteration), quadtree refinement); guided sampling starts once 8 spp have
+ * trained them (ch. 2 §5.2, §5.3.3), on the guided schedule of render.c. */
+#include <math.h>
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "clock.h"
+#include "io.h"
+#include "integrator.h"
+#include "scatter.h"
+
+#define GUIDE_TRAINING_SPP 8 /* samples per pixel of training before guided sampling starts */
+
+int guide_init(Integrator *ig) {
+    GuideState *gs = &ig->guide;
+    memset(gs, 0, sizeof *gs);
+    if (ig->opt->guiding == CANDELA_GUIDING_OFF) return 0;
+    GuideFieldParams params;
+    guide_field_params_default(&params);
+    if (ig->opt->guide_spatial_threshold > 0.0f) params.spatial_threshold = ig->opt->guide_spatial_threshold;
+    const float lo[3] = {ig->scene->bounds_min.x, ig->scene->bounds_min.y, ig->scene->bounds_min.z};
+    const float hi[3] = {ig->scene->bounds_max.x, ig->scene->bounds_max.y, ig->scene->bounds_max.z};
+    gs->surface = guide_field_create(lo, hi, &params);
+    gs->volume = media_any(ig->media) ? guide_field_create(lo, hi, &params) : NULL;
+    if (!gs->surface || (media_any(ig->media) && !gs->volume)) {
+        guide_free(ig);
+        return -1;
+    }
+    gs->keep_last = ig->opt->guide_dump_prefix != NULL;
+    gs->mode = ig->opt->guiding == CANDELA_GUIDING_RIS ? SCATTER_GUIDE_RIS : SCATTER_GUIDE_MIS;
+    return 0;
+}
+
+void guide_free(Integrator *ig) {
+    GuideState *gs = &ig->guide;
+    guide_field_free(gs->surface);
+    guide_field_free(gs->volume);
+    free(gs->train);
+    free(gs->last);
+    memset(gs, 0, sizeof *gs);
+}
+
+const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, int volume) {
+    const GuideState *gs = &ig->guide;
+    if (!gs->active) return NULL;
+    const GuideField *f = volume ? gs->volume : gs->surface;
+    if (!f) return NULL;
+    const float x[3] = {p.x, p.y, p.z};
+    return guide_field_lookup(f, x);
+}
+
+/* The samples of one field, in the batch's order. */
+static void train_field(GuideState *gs, GuideField *field, const RecorderSamples *batch, int volume) {
+    size_t n = 0;
+    for (size_t i = 0; i < batch->count; ++i) {
+        const RecorderSample *s = &batch->items[i];
+        if (s->flags & (PV_FLAG_NEE | PV_FLAG_DELTA)) continue;
+        if (!!(s->flags & PV_FLAG_VOLUME) != volume) continue;
+        GuideTrainingSample *t = &gs->train[n++];
+        memcpy(t->pos, s->pos, sizeof t->pos);
+        memcpy(t->dir, s->dir, sizeof t->dir);
+        t->radiance = 0.2126f * s->radiance[0] + 0.7152f * s->radiance[1] + 0.0722f * s->radiance[2];
+        t->pdf = s->pdf;
+    }
+    guide_field_record(field, gs->train, n);
+    gs->samples_trained += n;
+    if (!volume && gs->keep_last) { /* guide-dump's histogram */
+        if (gs->last_count + n > gs->last_capacity) {
+            size_t cap = 2 * (gs->last_count + n);
+            GuideTrainingSample *l = realloc(gs->last, cap * sizeof *l);
+            if (!l) { gs->dropped = 1; return; }
+            gs->last = l;
+            gs->last_capacity = cap;
+        }
+        memcpy(gs->last + gs->last_count, gs->train, n * sizeof *gs->train);
+        gs->last_count += n;
+    }
+}
+
+void guide_train_batch(Integrator *ig) {
+    GuideState *gs = &ig->guide;
+    const RecorderSamples *batch = &ig->record.batch;
+    if (!gs->surface || !ig->record.active || batch->count == 0) return;
+    gs->pending = 1;
+    double t0 = clock_seconds();
+    if (batch->count > gs->train_capacity) {
+        GuideTrainingSample *t = realloc(gs->train, batch->count * sizeof *t);
+        if (!t) { gs->dropped = 1; return; } /* training loses a batch; the image is not affected */
+        gs->train = t;
+        gs->train_capacity = batch->count;
+    }
+    train_field(gs, gs->surface, batch, 0);
+    if (gs->volume) train_field(gs, gs->volume, batch, 1);
+    gs->train_seconds += clock_seconds() - t0;
+}
+
+void guide_barrier(Integrator *ig) {
+    GuideState *gs = &ig->guide;
+    if (!gs->surface) return;
+    /* ch. 2 §5.3.3: guided sampling only after the first 8 spp trained the fields */
+    gs->active = ig->spp_done >= GUIDE_TRAINING_SPP;
+    if (!gs->pending) return; /* nothing new was recorded: the fields stay as they are */
+    gs->pending = 0;
+    double t0 = clock_seconds();
+    if (guide_field_update(gs->surface, (float)ig->iteration_spp) != 0) gs->dropped = 1;
+    if (gs->volume && guide_field_update(gs->volume, (float)ig->iteration_spp) != 0) gs->dropped = 1;
+    gs->updates++;
+    gs->train_seconds += clock_seconds() - t0;
+    if (ig->record.active && ig->spp_done < ig->opt->spp) gs->last_count = 0; /* guide-dump keeps the last trained iteration's */
+}
+
+void guide_report(const Integrator *ig, CandelaStats *st) {
+    const GuideState *gs = &ig->guide;
+    if (!gs->surface) return;
+    st->guide_updates = gs->updates;
+    st->guide_train_seconds = gs->train_seconds;
+    st->guide_samples = gs->samples_trained;
+    st->guide_leaves = guide_field_num_leaves(gs->surface) + (gs->volume ? guide_field_num_leaves(gs->volume) : 0);
+    st->guide_bytes = guide_field_bytes(gs->surface) + (gs->volume ? guide_field_bytes(gs->volume) : 0);
+    st->guide_dropped = gs->dropped;
+}
+
+/* Writes an image as EXR (R = G = B = v) and a PNG preview scaled to its maximum. */
+static int write_plane(const char *prefix, const char *what, int w, int h, const float *v, char err[CANDELA_ERR_LEN]) {
+    char path[4096], ioerr[IO_ERR_LEN];
+    size_t n = (size_t)w * (size_t)h;
+    float *rgb = malloc(3 * n * sizeof *rgb);
+    if (!rgb) { snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", prefix); return -1; }
+    float vmax = 0.0f;
+    for (size_t i = 0; i < n; ++i) vmax = fmaxf(vmax, v[i]);
+    const IoExrChannel ch[3] = {{"R", v}, {"G", v}, {"B", v}};
+    snprintf(path, sizeof path, "%s.%s.exr", prefix, what);
+    int rc = io_write_exr(path, w, h, ch, 3, ioerr);
+    if (rc == 0) {
+        for (size_t i = 0; i < n; ++i) rgb[3 * i] = rgb[3 * i + 1] = rgb[3 * i + 2] = vmax > 0.0f ? sqrtf(v[i] / vmax) : 0.0f;
+        snprintf(path, sizeof path, "%s.%s.png", prefix, what);
+        rc = io_write_png(path, w, h, rgb, ioerr);
+    }
+    free(rgb);
+    if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
+    return rc;
+}
+
+int guide_dump(const Integrator *ig, const float at[3], const char *prefix, char err[CANDELA_ERR_LEN]) {
+    const GuideState *gs = &ig->guide;
+    if (!gs->surface) { snprintf(err, CANDELA_ERR_LEN, "guide-dump: guiding is off"); return -1; }
+    enum { W = 128, H = 64 }; /* (u, v) = ((cos theta + 1) / 2, phi / 2 pi): u across, v down */
+    float *img = calloc((size_t)W * H, sizeof *img);
+    if (!img) { snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", prefix); return -1; }
+    const GuideDistribution *d = guide_field_lookup(gs->surface, at);
+    guide_distribution_image(d, W, H, img);
+    int rc = write_plane(prefix, "guide", W, H, img, err);
+    float lo[3], hi[3];
+    guide_distribution_bounds(d, lo, hi);
+    size_t in_leaf = 0;
+    if (rc == 0) {
+        /* the training directions of the final iteration inside the leaf's box (blurrier than
+         * the model: they marginalise over the box; the seed's ch. 2 §4.4) */
+        memset(img, 0, (size_t)W * H * sizeof *img);
+        for (size_t i = 0; i < gs->last_count; ++i) {
+            const GuideTrainingSample *t = &gs->last[i];
+            if (t->pos[0] < lo[0] || t->pos[0] > hi[0] || t->pos[1] < lo[1] || t->pos[1] > hi[1] || t->pos[2] < lo[2] ||
+                t->pos[2] > hi[2])
+                continue;
+            float u = 0.5f * (t->dir[2] + 1.0f), phi = atan2f(t->dir[1], t->dir[0]);
+            if (phi < 0.0f) phi += 2.0f * (float)M_PI;
+            int x = (int)(u * W), y = (int)(phi / (2.0f * (float)M_PI) * H);
+            x = x < 0 ? 0 : x >= W ? W - 1 : x;
+            y = y < 0 ? 0 : y >= H ? H - 1 : y;
+            img[(size_t)y * W + x] += 1.0f;
+            ++in_leaf;
+        }
+        rc = write_plane(prefix, "hist", W, H, img, err);
+        if (getenv("CANDELA_DEBUG_DUMP")) { FILE *df = fopen(getenv("CANDELA_DEBUG_DUMP"), "wb"); fwrite(gs->last, sizeof *gs->last, gs->last_count, df); fclose(df); }
+    }
+    free(img);
+    if (rc == 0) {
+        char path[4096];
+        snprintf(path, sizeof path, "%s.leaves.ply", prefix);
+        if (guide_field_write_ply(gs->surface, path) != 0) {
+            snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot write (%s)", path, strerror(errno));
+            return -1;
+        }
+        if (!ig->opt->quiet)
+            fprintf(stderr,
+                    "candela: guide-dump at (%g, %g, %g): leaf [%g %g %g] - [%g %g %g], learned from %.0f samples, %zu "
+                    "training directions of the last iteration; wrote %s.guide.exr/.png, %s.hist.exr/.png, %s\n",
+                    at[0], at[1], at[2], lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], guide_distribution_samples(d), in_leaf,
+                    prefix, prefix, path);
+    }
+    return rc;
+}

@@ -1,0 +1,102 @@
+#!/usr/bin/env python3
+"""Path guiding at equal spp (issue 10's benchmark): unguided, guided by one-sample MIS and by
+RIS, all with the default light sampler (cache points), on the indirect-dominated interior
+(scenes/guiding_interior.gltf: a room lit through a small window) and the direct-dominated
+default scene.
+
+    python3 scenes/guiding_benchmark.py [--candela build/renderer/candela] [--res 160x120]
+                                        [--spp 256] [--ref-spp 4096] [--out DIR] [--scenes a,b]
+
+Per scene: a reference (guided RIS at --ref-spp with another seed: its noise is independent of
+every render compared, and it is unbiased: tests/test_guiding.c checks that guided and unguided
+converge to the same image), then each configuration at --spp. MSE is against the reference
+over RGB (oiiotool --diff), with the reference's own variance of the mean (its EXR's variance
+channels, averaged) subtracted; time is the render's wall clock without scene loading (the cache
+point build, guiding's training and the recorder are counted); TTUV = MSE x time, lower is
+better; the ratio is unguided's TTUV over the configuration's. Also the mean path length
+(bounce rays per camera ray), the radiance recorder's vertices per path and the training time
+per guiding update. Prints a Markdown table. Needs oiiotool (Debian openimageio-tools).
+Timings are wall clock: run on an otherwise idle machine and compare ratios within one run.
+"""
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SCENES = {"interior": "scenes/guiding_interior.gltf", "default": "scenes/default.gltf"}
+CONFIGS = [("unguided", ["--guiding", "off"]), ("guided MIS", ["--guiding", "mis"]), ("guided RIS", ["--guiding", "ris"])]
+
+
+def render(candela, scene, out, spp, seed, res, extra):
+    stats = out[:-4] + ".json"
+    cmd = [candela, "render", scene, "--res", res, "--spp", str(spp), "--seed", str(seed), "-o", out,
+           "--png", out[:-4] + ".png", "--stats-json", stats, "-q"] + extra
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit("render failed: %s\n%s" % (" ".join(cmd), r.stderr))
+    with open(stats) as f:
+        return json.load(f)
+
+
+def oiio_mean(args):
+    r = subprocess.run(["oiiotool"] + args + ["--printstats"], capture_output=True, text=True)
+    m = re.search(r"Stats Avg: ([0-9.eE+\- ]+)", r.stdout)
+    if not m:
+        sys.exit("oiiotool gave no stats for %s:\n%s" % (" ".join(args), r.stdout + r.stderr))
+    vals = [float(x) for x in m.group(1).split()]
+    return sum(vals) / len(vals)
+
+
+def mse(a, b):
+    r = subprocess.run(["oiiotool", a, "--ch", "R,G,B", b, "--ch", "R,G,B", "--diff"], capture_output=True, text=True)
+    m = re.search(r"RMS error = ([0-9.eE+-]+)", r.stdout + r.stderr)
+    if not m:
+        sys.exit("oiiotool --diff gave no RMS error for %s %s:\n%s" % (a, b, r.stdout + r.stderr))
+    return float(m.group(1)) ** 2
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--candela", default=os.path.join(ROOT, "build", "renderer", "candela"))
+    ap.add_argument("--res", default="160x120")
+    ap.add_argument("--spp", type=int, default=256)
+    ap.add_argument("--ref-spp", type=int, default=4096)
+    ap.add_argument("--out", default=os.path.join(ROOT, "out", "guiding_benchmark"))
+    ap.add_argument("--scenes", default="interior,default")
+    ap.add_argument("--reference", action="append", default=[], help="NAME=FILE.exr: reuse a reference")
+    a = ap.parse_args()
+    os.makedirs(a.out, exist_ok=True)
+    given = dict(x.split("=", 1) for x in a.reference)
+    print("| scene | configuration | spp | time (s) | MSE | TTUV ratio vs unguided | mean path length | recorder vertices/path | training s/update |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
+    for name in a.scenes.split(","):
+        scene = os.path.join(ROOT, SCENES[name])
+        ref = given.get(name) or os.path.join(a.out, name + "_reference.exr")
+        if name not in given:
+            render(a.candela, scene, ref, a.ref_spp, 1000003, a.res, ["--guiding", "ris"])
+        ref_var = oiio_mean([ref, "--ch", "variance.R,variance.G,variance.B"])
+        base = None
+        for label, extra in CONFIGS:
+            out = os.path.join(a.out, "%s_%s.exr" % (name, extra[1]))
+            st = render(a.candela, scene, out, a.spp, 0, a.res, extra)
+            t = st["time_seconds"]["total"] - st["time_seconds"]["load"]
+            err = max(mse(out, ref) - ref_var, 1e-30)
+            ttuv = err * t
+            if base is None:
+                base = ttuv
+            paths = max(st["paths"], 1)
+            rec = st.get("recorder", {})
+            gd = st.get("guiding", {})
+            vpp = rec.get("vertices", 0) / max(rec.get("paths", 0), 1) if rec.get("paths") else 0.0
+            spu = gd.get("train_seconds", 0.0) / gd["updates"] if gd.get("updates") else 0.0
+            print("| %s | %s | %d | %.2f | %.4g | %.2fx | %.2f | %s | %s |" % (
+                name, label, a.spp, t, err, base / ttuv, st["rays"]["bounce"] / paths,
+                "%.2f" % vpp if vpp else "-", "%.4f" % spu if spu else "-"))
+            sys.stdout.flush()
+
+
+if __name__ == "__main__":
+    main()

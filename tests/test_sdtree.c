@@ -1,0 +1,544 @@
+/* tests/test_sdtree.c: the guiding field (guiding/sdtree.c, Müller et al. 2017 SD-tree).
+ * Uniform before training; after training on a bright cone plus a dim constant: the pdf
+ * integrates to 1 (equal-area grid, the (u, v) image and Monte Carlo), sample and pdf agree
+ * pointwise and in a chi-square histogram (which must reject a transposed or mirrored
+ * histogram), the cone is learned and the quadtree refined; spatial splitting separates two
+ * regions with different bright directions; the memory cap bounds splitting; two fields fed
+ * the same samples are bit-identical; bad samples are skipped and do not count; outside
+ * points get a valid distribution; the PLY export. Fixed seeds, no timing assertions. */
+#include "check.h"
+#include "guiding.h"
+#include "stats.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <string.h>
+#include <unistd.h>
+
+#define PI 3.14159265358979323846
+#define UNIFORM_PDF ((float)(1.0 / (4.0 * PI)))
+
+static float rnd(uint64_t *s) { return (float)splitmix_uniform(s); }
+
+static void uniform_dir(uint64_t *s, float d[3]) {
+    double z = 1 - 2 * splitmix_uniform(s), phi = 2 * PI * splitmix_uniform(s);
+    double r = sqrt(fmax(0.0, 1 - z * z));
+    d[0] = (float)(r * cos(phi));
+    d[1] = (float)(r * sin(phi));
+    d[2] = (float)z;
+}
+
+static void normalize(float d[3]) {
+    float l = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    for (int k = 0; k < 3; ++k) d[k] /= l;
+}
+
+static float dot(const float a[3], const float b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+/* The (u, v) of a direction, as guiding.h defines the mapping. */
+static void dir_uv(const float d[3], double *u, double *v) {
+    double phi = atan2(d[1], d[0]);
+    if (phi < 0) phi += 2 * PI;
+    *u = 0.5 * (d[2] + 1);
+    *v = phi / (2 * PI);
+}
+
+/* A light field: radiance `bright` inside the cone of half-angle acos(cos_cone) around axis,
+ * `dim` elsewhere; directions sampled uniformly (pdf 1/4pi) at positions uniform in a box. */
+typedef struct {
+    float axis[3], cos_cone, bright, dim;
+    float lo[3], hi[3];
+} Light;
+
+static void train(GuideField *f, uint64_t *rng, const Light *L, int n) {
+    GuideTrainingSample batch[512];
+    int m = 0;
+    for (int i = 0; i < n; ++i) {
+        GuideTrainingSample *s = &batch[m++];
+        for (int k = 0; k < 3; ++k) s->pos[k] = L->lo[k] + (L->hi[k] - L->lo[k]) * rnd(rng);
+        uniform_dir(rng, s->dir);
+        s->radiance = dot(s->dir, L->axis) > L->cos_cone ? L->bright : L->dim;
+        s->pdf = UNIFORM_PDF;
+        if (m == 512 || i == n - 1) {
+            guide_field_record(f, batch, (size_t)m);
+            m = 0;
+        }
+    }
+}
+
+/* The integral of the pdf over the sphere from the (u, v) image (exact for cells no finer
+ * than the image's pixels) and from an equal-area grid of directions. */
+static double integral_image(const GuideDistribution *d, int res, float *img) {
+    guide_distribution_image(d, res, res, img);
+    double sum = 0;
+    for (int i = 0; i < res * res; ++i) sum += img[i];
+    return sum * 4 * PI / ((double)res * res);
+}
+
+static double integral_grid(const GuideDistribution *d, int res) {
+    double sum = 0;
+    for (int j = 0; j < res; ++j)
+        for (int i = 0; i < res; ++i) {
+            double u = (i + 0.5) / res, v = (j + 0.5) / res;
+            double z = 2 * u - 1, r = sqrt(fmax(0.0, 1 - z * z)), phi = 2 * PI * v;
+            float dir[3] = {(float)(r * cos(phi)), (float)(r * sin(phi)), (float)z};
+            sum += guide_distribution_pdf(d, dir);
+        }
+    return sum * 4 * PI / ((double)res * res);
+}
+
+static int bits_equal(float a, float b) { return memcmp(&a, &b, sizeof a) == 0; }
+
+/* ---------------------------------------------------------------- 1. uniform before training */
+static void test_uniform(void) {
+    float lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
+    GuideField *f = guide_field_create(lo, hi, NULL);
+    CHECK(f != NULL, "create");
+    if (!f) return;
+    CHECK(guide_field_iterations(f) == 0, "iterations %d", guide_field_iterations(f));
+    CHECK(guide_field_num_leaves(f) == 1, "leaves %u", guide_field_num_leaves(f));
+    uint64_t rng = 1;
+    int bad_pdf = 0, bad_len = 0, bad_sample_pdf = 0;
+    for (int i = 0; i < 2000; ++i) {
+        float pos[3] = {rnd(&rng), rnd(&rng), rnd(&rng)}, dir[3];
+        const GuideDistribution *d = guide_field_lookup(f, pos);
+        uniform_dir(&rng, dir);
+        bad_pdf += fabsf(guide_distribution_pdf(d, dir) - UNIFORM_PDF) > 1e-6f * UNIFORM_PDF;
+        float s[3], pdf;
+        guide_distribution_sample(d, rnd(&rng), rnd(&rng), s, &pdf);
+        bad_len += fabsf(sqrtf(dot(s, s)) - 1) > 1e-5f;
+        bad_sample_pdf += fabsf(pdf - UNIFORM_PDF) > 1e-6f * UNIFORM_PDF;
+    }
+    CHECK(bad_pdf == 0, "%d pdfs differ from 1/(4 pi)", bad_pdf);
+    CHECK(bad_len == 0, "%d sampled directions not unit length", bad_len);
+    CHECK(bad_sample_pdf == 0, "%d sample pdfs differ from 1/(4 pi)", bad_sample_pdf);
+    float img[64];
+    guide_distribution_image(guide_field_lookup(f, lo), 8, 8, img);
+    int bad_img = 0;
+    for (int i = 0; i < 64; ++i) bad_img += img[i] != UNIFORM_PDF;
+    CHECK(bad_img == 0, "%d image pixels not uniform", bad_img);
+    /* An update without samples learns nothing: still uniform. */
+    CHECK(guide_field_update(f, 1.0f) == 0, "empty update");
+    CHECK(guide_field_iterations(f) == 1, "iterations %d", guide_field_iterations(f));
+    float z[3] = {0, 0, 1};
+    CHECK(guide_distribution_pdf(guide_field_lookup(f, lo), z) == UNIFORM_PDF, "uniform after an empty update");
+    guide_field_free(f);
+}
+
+/* ---------------------------------------------------------------- 2-4. the trained cone */
+static void test_trained(void) {
+    float lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
+    Light L = {{0.3f, -0.5f, 0.8f}, 0, 100.0f, 0.1f, {0, 0, 0}, {1, 1, 1}};
+    normalize(L.axis);
+    L.cos_cone = cosf(15.0f * (float)PI / 180.0f);
+    float anti[3] = {-L.axis[0], -L.axis[1], -L.axis[2]}, centre[3] = {0.5f, 0.5f, 0.5f};
+    GuideField *f = guide_field_create(lo, hi, NULL);
+    CHECK(f != NULL, "create");
+    if (!f) return;
+    uint64_t rng = 42;
+    size_t bytes0 = guide_field_bytes(f);
+
+    /* 4. One update learns the cone. */
+    train(f, &rng, &L, 50000);
+    CHECK(guide_field_update(f, 1.0f) == 0, "update 0");
+    size_t bytes1 = guide_field_bytes(f);
+    const GuideDistribution *d = guide_field_lookup(f, centre);
+    float p_axis = guide_distribution_pdf(d, L.axis), p_anti = guide_distribution_pdf(d, anti);
+    fprintf(stderr, "after 1 update: leaves %u, bytes %zu -> %zu, pdf(axis) %g, pdf(-axis) %g (ratio %.0f)\n",
+            guide_field_num_leaves(f), bytes0, bytes1, p_axis, p_anti, p_axis / p_anti);
+    CHECK(p_axis > 10 * p_anti, "pdf toward the cone %g vs away %g", p_axis, p_anti);
+    CHECK(bytes1 > bytes0, "bytes %zu -> %zu", bytes0, bytes1);
+    /* 50000 samples against c = 12000: 50000 / 2^3 < 12000 <= 50000 / 2^2: eight leaves. */
+    CHECK(guide_field_num_leaves(f) == 8, "leaves %u", guide_field_num_leaves(f));
+
+    /* Two more iterations with doubling sample counts (the threshold grows by sqrt 2 each). */
+    train(f, &rng, &L, 100000);
+    CHECK(guide_field_update(f, 1.0f) == 0, "update 1");
+    train(f, &rng, &L, 200000);
+    CHECK(guide_field_update(f, 1.0f) == 0, "update 2");
+    CHECK(guide_field_iterations(f) == 3, "iterations %d", guide_field_iterations(f));
+    d = guide_field_lookup(f, centre);
+    p_axis = guide_distribution_pdf(d, L.axis);
+    p_anti = guide_distribution_pdf(d, anti);
+    fprintf(stderr, "after 3 updates: leaves %u, bytes %zu, pdf(axis) %g, pdf(-axis) %g (ratio %.0f)\n",
+            guide_field_num_leaves(f), guide_field_bytes(f), p_axis, p_anti, p_axis / p_anti);
+    CHECK(p_axis > 100 * p_anti, "pdf toward the cone %g vs away %g", p_axis, p_anti);
+
+    /* Refined below the initial 16 x 16 cells: two pixels of one 1/16 cell differ. */
+    enum { RES = 1024 };
+    float *img = malloc(sizeof(float) * RES * RES);
+    CHECK(img != NULL, "malloc");
+    if (!img) {
+        guide_field_free(f);
+        return;
+    }
+    double img_integral = integral_image(d, RES, img);
+    int refined = 0;
+    for (int j = 0; j < RES && !refined; ++j)
+        for (int i = 1; i < RES; ++i)
+            if (i % (RES / 16) && img[j * RES + i] != img[j * RES + i - 1]) {
+                refined = 1;
+                break;
+            }
+    CHECK(refined, "no cell finer than 1/16 after three updates");
+
+    /* 2. The pdf integrates to 1. */
+    double grid_integral = integral_grid(d, RES);
+    fprintf(stderr, "integral: image %.7f, direction grid %.7f\n", img_integral, grid_integral);
+    CHECK(fabs(img_integral - 1) < 1e-4, "image integral %.7f", img_integral);
+    CHECK(fabs(grid_integral - 1) < 1e-3, "grid integral %.7f", grid_integral);
+    {
+        uint64_t r = 7;
+        const int n = 400000;
+        double sum = 0, sum2 = 0;
+        for (int i = 0; i < n; ++i) {
+            float dir[3];
+            uniform_dir(&r, dir);
+            double x = 4 * PI * guide_distribution_pdf(d, dir);
+            sum += x;
+            sum2 += x * x;
+        }
+        double mean = sum / n, se = sqrt(fmax(0.0, sum2 / n - mean * mean) / n);
+        fprintf(stderr, "Monte Carlo integral %.5f +- %.5f (%.2f standard errors)\n", mean, se, (mean - 1) / se);
+        CHECK(se > 0 && fabs(mean - 1) < 5 * se, "MC integral %.5f, standard error %.5f", mean, se);
+    }
+
+    /* 3. Sampling agrees with the pdf: pointwise, and in a histogram over (u, v). */
+    {
+        enum { BINS = 32, PER = RES / BINS };
+        static double obs[BINS * BINS], obs_t[BINS * BINS], obs_m[BINS * BINS], expv[BINS * BINS];
+        memset(obs, 0, sizeof obs);
+        const int n = 400000;
+        uint64_t r = 99;
+        int mismatch = 0, nonpositive = 0, bad_len = 0;
+        for (int i = 0; i < n; ++i) {
+            float dir[3], pdf;
+            guide_distribution_sample(d, rnd(&r), rnd(&r), dir, &pdf);
+            float q = guide_distribution_pdf(d, dir);
+            mismatch += fabsf(pdf - q) > 1e-4f * q;
+            nonpositive += !(pdf > 0);
+            bad_len += fabsf(sqrtf(dot(dir, dir)) - 1) > 1e-5f;
+            double u, v;
+            dir_uv(dir, &u, &v);
+            int bu = (int)(u * BINS), bv = (int)(v * BINS);
+            bu = bu < 0 ? 0 : bu >= BINS ? BINS - 1 : bu;
+            bv = bv < 0 ? 0 : bv >= BINS ? BINS - 1 : bv;
+            obs[bv * BINS + bu] += 1;
+        }
+        CHECK(mismatch == 0, "%d sample pdfs differ from guide_distribution_pdf", mismatch);
+        CHECK(nonpositive == 0, "%d sampled directions with pdf <= 0", nonpositive);
+        CHECK(bad_len == 0, "%d sampled directions not unit length", bad_len);
+        /* Expected counts: the pdf integrated over each bin from the image's pixels. */
+        for (int b = 0; b < BINS * BINS; ++b) expv[b] = 0;
+        for (int j = 0; j < RES; ++j)
+            for (int i = 0; i < RES; ++i) expv[(j / PER) * BINS + i / PER] += img[j * RES + i];
+        for (int b = 0; b < BINS * BINS; ++b) expv[b] *= n * 4 * PI / ((double)RES * RES);
+        /* The same counts transposed (u and v swapped) and mirrored in v must be rejected:
+         * the test can tell a sampler that confuses the axes. */
+        for (int j = 0; j < BINS; ++j)
+            for (int i = 0; i < BINS; ++i) {
+                obs_t[j * BINS + i] = obs[i * BINS + j];
+                obs_m[j * BINS + i] = obs[(BINS - 1 - j) * BINS + i];
+            }
+        int dof, dof_t, dof_m;
+        double stat, stat_t, stat_m;
+        double pv = chi2_pvalue(obs, expv, BINS * BINS, &dof, &stat);
+        double pv_t = chi2_pvalue(obs_t, expv, BINS * BINS, &dof_t, &stat_t);
+        double pv_m = chi2_pvalue(obs_m, expv, BINS * BINS, &dof_m, &stat_m);
+        fprintf(stderr, "chi-square %.1f (dof %d, p %.4f); transposed %.3g (p %.3g); mirrored %.3g (p %.3g)\n", stat,
+                dof, pv, stat_t, pv_t, stat_m, pv_m);
+        CHECK(pv > 1e-4, "sample histogram vs pdf: chi2 %.1f dof %d p %g", stat, dof, pv);
+        CHECK(pv_t < 1e-9, "transposed histogram not rejected: p %g", pv_t);
+        CHECK(pv_m < 1e-9, "mirrored histogram not rejected: p %g", pv_m);
+    }
+    free(img);
+    guide_field_free(f);
+}
+
+/* ---------------------------------------------------------------- 5. spatial splitting */
+static GuideField *two_regions(uint64_t seed, int updates) {
+    float lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
+    GuideFieldParams p;
+    guide_field_params_default(&p);
+    p.spatial_threshold = 100;
+    GuideField *f = guide_field_create(lo, hi, &p);
+    if (!f) return NULL;
+    Light a = {{0, 0, 1}, 0, 50.0f, 0.05f, {0, 0, 0}, {0.2f, 0.2f, 0.2f}};
+    Light b = {{-1, 0, 0}, 0, 50.0f, 0.05f, {0.8f, 0.8f, 0.8f}, {1, 1, 1}};
+    a.cos_cone = b.cos_cone = cosf(20.0f * (float)PI / 180.0f);
+    uint64_t rng = seed;
+    for (int it = 0; it < updates; ++it) {
+        train(f, &rng, &a, 3000 << it);
+        train(f, &rng, &b, 3000 << it);
+        if (guide_field_update(f, 1.0f)) {
+            guide_field_free(f);
+            return NULL;
+        }
+    }
+    return f;
+}
+
+static int box_contains(const GuideDistribution *d, const float p[3]) {
+    float lo[3], hi[3];
+    guide_distribution_bounds(d, lo, hi);
+    for (int k = 0; k < 3; ++k)
+        if (!(p[k] >= lo[k] && p[k] <= hi[k])) return 0;
+    return 1;
+}
+
+static void test_spatial(void) {
+    GuideField *f = two_regions(5, 3);
+    CHECK(f != NULL, "two_regions");
+    if (!f) return;
+    float pa[3] = {0.1f, 0.1f, 0.1f}, pb[3] = {0.9f, 0.9f, 0.9f};
+    float up[3] = {0, 0, 1}, left[3] = {-1, 0, 0}, cos_cone = cosf(20.0f * (float)PI / 180.0f);
+    const GuideDistribution *da = guide_field_lookup(f, pa), *db = guide_field_lookup(f, pb);
+    /* The preference as the probability mass each leaf puts into either cone (3% each under
+     * a uniform pdf). A point pdf would be a poor measure here: small leaves learn from few
+     * cone samples, and a cone around the pole spreads them over all the v cells. */
+    double a_up = 0, a_left = 0, b_up = 0, b_left = 0;
+    uint64_t rng = 31;
+    const int n = 20000;
+    for (int i = 0; i < n; ++i) {
+        float dir[3], pdf;
+        guide_distribution_sample(da, rnd(&rng), rnd(&rng), dir, &pdf);
+        a_up += dot(dir, up) > cos_cone;
+        a_left += dot(dir, left) > cos_cone;
+        guide_distribution_sample(db, rnd(&rng), rnd(&rng), dir, &pdf);
+        b_up += dot(dir, up) > cos_cone;
+        b_left += dot(dir, left) > cos_cone;
+    }
+    a_up /= n, a_left /= n, b_up /= n, b_left /= n;
+    fprintf(stderr, "two regions: %u leaves, %zu bytes; mass in the +z / -x cones: A %.3f / %.3f, B %.3f / %.3f\n",
+            guide_field_num_leaves(f), guide_field_bytes(f), a_up, a_left, b_up, b_left);
+    CHECK(guide_field_num_leaves(f) > 1, "leaves %u", guide_field_num_leaves(f));
+    CHECK(da != db, "the two regions share a leaf");
+    CHECK(box_contains(da, pa) && box_contains(db, pb), "leaf boxes do not contain their points");
+    CHECK(a_up > 0.5 && a_left < 0.1, "region A prefers +z: %.3f vs %.3f", a_up, a_left);
+    CHECK(b_left > 0.5 && b_up < 0.1, "region B prefers -x: %.3f vs %.3f", b_left, b_up);
+    /* Every leaf's box contains the points that look it up. */
+    rng = 3;
+    int outside = 0;
+    for (int i = 0; i < 2000; ++i) {
+        float p[3] = {rnd(&rng), rnd(&rng), rnd(&rng)};
+        outside += !box_contains(guide_field_lookup(f, p), p);
+    }
+    CHECK(outside == 0, "%d lookups outside their leaf's box", outside);
+    guide_field_free(f);
+
+    /* The memory cap bounds splitting: many zero-radiance samples (no flux, so the quadtrees
+     * keep their size) with c = 1 would split deep; the cap stops it. */
+    float lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
+    GuideFieldParams p;
+    guide_field_params_default(&p);
+    p.spatial_threshold = 1;
+    GuideField *probe = guide_field_create(lo, hi, &p);
+    CHECK(probe != NULL, "create");
+    if (!probe) return;
+    size_t cap = 10 * guide_field_bytes(probe);
+    guide_field_free(probe);
+    p.max_bytes = cap;
+    GuideField *capped = guide_field_create(lo, hi, &p);
+    CHECK(capped != NULL, "create");
+    if (!capped) return;
+    Light dark = {{0, 0, 1}, 0.5f, 0, 0, {0, 0, 0}, {1, 1, 1}};
+    rng = 11;
+    train(capped, &rng, &dark, 4000);
+    CHECK(guide_field_update(capped, 1.0f) == 0, "capped update");
+    fprintf(stderr, "memory cap %zu: %u leaves, %zu bytes\n", cap, guide_field_num_leaves(capped),
+            guide_field_bytes(capped));
+    CHECK(guide_field_num_leaves(capped) > 1, "capped field did not split at all");
+    CHECK(guide_field_num_leaves(capped) < 4000, "cap did not limit splitting: %u leaves", guide_field_num_leaves(capped));
+    CHECK(guide_field_bytes(capped) <= cap, "bytes %zu above the cap %zu", guide_field_bytes(capped), cap);
+    guide_field_free(capped);
+}
+
+/* ---------------------------------------------------------------- 6. determinism */
+static void test_determinism(void) {
+    GuideField *f = two_regions(17, 3), *g = two_regions(17, 3);
+    CHECK(f && g, "two_regions");
+    if (f && g) {
+        CHECK(guide_field_num_leaves(f) == guide_field_num_leaves(g), "leaves %u vs %u", guide_field_num_leaves(f),
+              guide_field_num_leaves(g));
+        CHECK(guide_field_bytes(f) == guide_field_bytes(g), "bytes %zu vs %zu", guide_field_bytes(f),
+              guide_field_bytes(g));
+        uint64_t rng = 23;
+        int differ = 0;
+        for (int i = 0; i < 5000; ++i) {
+            float pos[3] = {rnd(&rng), rnd(&rng), rnd(&rng)}, dir[3];
+            uniform_dir(&rng, dir);
+            const GuideDistribution *a = guide_field_lookup(f, pos), *b = guide_field_lookup(g, pos);
+            differ += !bits_equal(guide_distribution_pdf(a, dir), guide_distribution_pdf(b, dir));
+            float u1 = rnd(&rng), u2 = rnd(&rng), da[3], db[3], pa, pb;
+            guide_distribution_sample(a, u1, u2, da, &pa);
+            guide_distribution_sample(b, u1, u2, db, &pb);
+            differ += memcmp(da, db, sizeof da) != 0 || !bits_equal(pa, pb);
+        }
+        CHECK(differ == 0, "%d pdfs or samples differ between identical fields", differ);
+    }
+    guide_field_free(f);
+    guide_field_free(g);
+}
+
+/* ---------------------------------------------------------------- 7. bad input */
+static GuideTrainingSample sample_at(float x, float y, float z, float radiance, float pdf) {
+    GuideTrainingSample s = {{x, y, z}, {0, 0, 1}, radiance, pdf};
+    return s;
+}
+
+static void test_bad_input(void) {
+    float lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
+    GuideFieldParams p;
+    guide_field_params_default(&p);
+    p.spatial_threshold = 1; /* the first update splits a leaf with more than 1 sample */
+    GuideField *f = guide_field_create(lo, hi, &p);
+    CHECK(f != NULL, "create");
+    if (!f) return;
+    GuideTrainingSample s[16];
+    int n = 0;
+    s[n++] = sample_at(0.5f, 0.5f, 0.5f, 1.0f, UNIFORM_PDF); /* the one valid sample */
+    s[n++] = sample_at(0.5f, 0.5f, 0.5f, NAN, UNIFORM_PDF);
+    s[n++] = sample_at(0.5f, 0.5f, 0.5f, INFINITY, UNIFORM_PDF);
+    s[n++] = sample_at(0.5f, 0.5f, 0.5f, 1.0f, 0.0f);
+    s[n++] = sample_at(0.5f, 0.5f, 0.5f, 1.0f, -1.0f);
+    s[n++] = sample_at(0.5f, 0.5f, 0.5f, 1.0f, NAN);
+    s[n++] = sample_at(0.5f, 0.5f, 0.5f, 1.0f, INFINITY);
+    s[n++] = sample_at(NAN, 0.5f, 0.5f, 1.0f, UNIFORM_PDF);
+    s[n++] = sample_at(0.5f, INFINITY, 0.5f, 1.0f, UNIFORM_PDF);
+    s[n] = sample_at(0.5f, 0.5f, 0.5f, 1.0f, UNIFORM_PDF);
+    s[n].dir[2] = 0; /* zero direction */
+    ++n;
+    s[n] = sample_at(0.5f, 0.5f, 0.5f, 1.0f, UNIFORM_PDF);
+    s[n].dir[0] = NAN;
+    ++n;
+    guide_field_record(f, s, (size_t)n);
+    guide_field_record(f, NULL, 5); /* no samples: nothing happens */
+    CHECK(guide_field_update(f, 1.0f) == 0, "update");
+    CHECK(guide_field_num_leaves(f) == 1, "bad samples were counted: %u leaves", guide_field_num_leaves(f));
+    const GuideDistribution *d = guide_field_lookup(f, lo);
+    float up[3] = {0, 0, 1}, down[3] = {0, 0, -1};
+    float p_up = guide_distribution_pdf(d, up), p_down = guide_distribution_pdf(d, down);
+    CHECK(isfinite(p_up) && p_up > 0 && p_down == 0, "learned from the valid sample only: %g %g", p_up, p_down);
+    float img[256 * 256];
+    double integral = integral_image(d, 256, img);
+    CHECK(fabs(integral - 1) < 1e-4, "integral %.6f", integral);
+    guide_field_free(f);
+
+    /* Control: two valid zero-radiance samples do count (they split), and a leaf without flux
+     * stays uniform. Points outside the bounds are clamped into it and count too. */
+    f = guide_field_create(lo, hi, &p);
+    CHECK(f != NULL, "create");
+    if (!f) return;
+    s[0] = sample_at(5.0f, 5.0f, 5.0f, 0.0f, UNIFORM_PDF);
+    s[1] = sample_at(-3.0f, 0.5f, 9.0f, 0.0f, 2.0f);
+    guide_field_record(f, s, 2);
+    CHECK(guide_field_update(f, 1.0f) == 0, "update");
+    CHECK(guide_field_num_leaves(f) > 1, "zero-radiance samples were not counted: %u leaves", guide_field_num_leaves(f));
+    uint64_t rng = 77;
+    int not_uniform = 0;
+    for (int i = 0; i < 200; ++i) {
+        float pos[3] = {rnd(&rng), rnd(&rng), rnd(&rng)}, dir[3];
+        uniform_dir(&rng, dir);
+        not_uniform += guide_distribution_pdf(guide_field_lookup(f, pos), dir) != UNIFORM_PDF;
+    }
+    CHECK(not_uniform == 0, "%d pdfs not uniform without flux", not_uniform);
+    guide_field_free(f);
+
+    /* Extreme but valid values (FLT_MAX radiance over the smallest pdf) stay finite. */
+    f = guide_field_create(lo, hi, NULL);
+    CHECK(f != NULL, "create");
+    if (!f) return;
+    s[0] = sample_at(0.5f, 0.5f, 0.5f, 3.4e38f, 1e-45f);
+    s[1] = sample_at(0.5f, 0.5f, 0.5f, 1.0f, UNIFORM_PDF);
+    s[1].dir[0] = 1;
+    s[1].dir[2] = 0;
+    guide_field_record(f, s, 2);
+    CHECK(guide_field_update(f, 1.0f) == 0, "update");
+    d = guide_field_lookup(f, lo);
+    integral = integral_image(d, 256, img);
+    CHECK(fabs(integral - 1) < 1e-4, "integral %.6f after extreme values", integral);
+
+    /* A point outside the bounds (or NaN) gets a valid distribution. */
+    float far[3] = {1e30f, -1e30f, NAN};
+    d = guide_field_lookup(f, far);
+    CHECK(d != NULL, "lookup outside");
+    if (d) {
+        float blo[3], bhi[3], dir[3], pdf;
+        guide_distribution_bounds(d, blo, bhi);
+        int ok = 1;
+        for (int k = 0; k < 3; ++k) ok &= isfinite(blo[k]) && isfinite(bhi[k]) && blo[k] < bhi[k];
+        CHECK(ok, "bounds of the outside leaf");
+        guide_distribution_sample(d, 0.3f, 0.7f, dir, &pdf);
+        CHECK(fabsf(sqrtf(dot(dir, dir)) - 1) < 1e-5f && isfinite(pdf) && pdf > 0, "outside sample %g", pdf);
+        guide_distribution_sample(d, NAN, 1.5f, dir, &pdf); /* out-of-range uniforms are clamped */
+        CHECK(fabsf(sqrtf(dot(dir, dir)) - 1) < 1e-5f && isfinite(pdf), "sample with NaN uniforms %g", pdf);
+        float zero[3] = {0, 0, 0};
+        CHECK(guide_distribution_pdf(d, zero) == 0, "pdf of a zero direction");
+    }
+    guide_field_free(f);
+
+    /* Degenerate bounds (a point, NaN) still give a usable field. */
+    float pt[3] = {2, 2, 2}, nan3[3] = {NAN, 0, 0};
+    f = guide_field_create(pt, pt, NULL);
+    CHECK(f && guide_field_lookup(f, pt) != NULL, "point bounds");
+    guide_field_free(f);
+    f = guide_field_create(nan3, pt, NULL);
+    CHECK(f && guide_field_lookup(f, pt) != NULL, "NaN bounds");
+    guide_field_free(f);
+}
+
+/* ---------------------------------------------------------------- 8. PLY */
+static void test_ply(void) {
+    GuideField *f = two_regions(5, 2);
+    CHECK(f != NULL, "two_regions");
+    if (!f) return;
+    uint32_t leaves = guide_field_num_leaves(f);
+    char path[256];
+    snprintf(path, sizeof path, "/tmp/test_sdtree_%ld.ply", (long)getpid());
+    CHECK(guide_field_write_ply(f, path) == 0, "write %s: %s", path, strerror(errno));
+    FILE *fp = fopen(path, "r");
+    CHECK(fp != NULL, "reopen %s", path);
+    if (fp) {
+        char line[512];
+        unsigned long vertices = 0, faces = 0, body = 0, quads = 0;
+        int header = 1, first = 1, starts_ply = 0;
+        while (fgets(line, sizeof line, fp)) {
+            if (first) starts_ply = strcmp(line, "ply\n") == 0;
+            first = 0;
+            if (header) {
+                sscanf(line, "element vertex %lu", &vertices);
+                sscanf(line, "element face %lu", &faces);
+                if (strcmp(line, "end_header\n") == 0) header = 0;
+            } else {
+                ++body;
+                quads += line[0] == '4' && line[1] == ' ';
+            }
+        }
+        fclose(fp);
+        fprintf(stderr, "ply: %u leaves, %lu vertices, %lu faces, %lu body lines\n", leaves, vertices, faces, body);
+        CHECK(starts_ply, "file does not start with ply");
+        CHECK(vertices == 8ul * leaves, "element vertex %lu for %u leaves", vertices, leaves);
+        CHECK(faces == 6ul * leaves, "element face %lu for %u leaves", faces, leaves);
+        CHECK(body == 14ul * leaves, "%lu body lines", body);
+        CHECK(quads >= 6ul * leaves, "%lu quad lines", quads);
+    }
+    remove(path);
+    errno = 0;
+    int rc = guide_field_write_ply(f, "/nonexistent-candela-dir/field.ply");
+    CHECK(rc == -1 && errno == ENOENT, "write into a missing directory: rc %d errno %d", rc, errno);
+    guide_field_free(f);
+}
+
+int main(void) {
+    double t0 = test_seconds();
+    test_uniform();
+    test_trained();
+    test_spatial();
+    test_determinism();
+    test_bad_input();
+    test_ply();
+    fprintf(stderr, "test_sdtree: %.2f s\n", test_seconds() - t0);
+    return test_exit();
+}
