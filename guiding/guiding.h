@@ -137,6 +137,9 @@ typedef struct GuideFieldParams {
     float flux_threshold;      /* rho: a quadtree node subdivides above this share of flux (0.01) */
     int max_quadtree_depth;    /* 20 */
     size_t max_bytes;          /* memory cap of the spatial tree and its quadtrees (0: 256 MiB) */
+    int accumulate;            /* 1 (default): the building trees keep their statistics across
+                                * updates (re-binned into the rebuilt structure, halved per
+                                * split); 0: PPG 2017's fresh start each iteration */
 } GuideFieldParams;
 void guide_field_params_default(GuideFieldParams *p);
 

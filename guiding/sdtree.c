@@ -129,6 +129,7 @@ void guide_field_params_default(GuideFieldParams *p) {
     p->flux_threshold = DEFAULT_FLUX_THRESHOLD;
     p->max_quadtree_depth = QUAD_DEFAULT_DEPTH;
     p->max_bytes = DEFAULT_MAX_BYTES;
+    p->accumulate = 1;
 }
 
 /* Out-of-range values fall back to the defaults rather than building absurd trees (rho <= 0
@@ -142,6 +143,7 @@ static GuideFieldParams params_sanitize(const GuideFieldParams *in) {
     if (in->max_quadtree_depth > 0)
         p.max_quadtree_depth = in->max_quadtree_depth < QUAD_MAX_DEPTH ? in->max_quadtree_depth : QUAD_MAX_DEPTH;
     if (in->max_bytes > 0) p.max_bytes = in->max_bytes;
+    p.accumulate = in->accumulate != 0;
     return p;
 }
 
@@ -596,13 +598,19 @@ int guide_field_update(GuideField *f, float iteration_spp) {
     for (uint32_t i = 0; i < old_leaves; ++i) {
         const GuideDistribution *l = &f->leaves[i];
         int s = levels[i];
-        if (rebuilt[i].count && quadtree_copy(&rebuilt[i], 0, 1, &new_leaves[i].building)) goto fail;
+        /* accumulating: the flux learned so far stays in the building tree (L / pdf is an unbiased
+         * estimate of a cell's flux whatever pdf sampled it, so earlier iterations' samples
+         * remain valid), and a guided schedule of 1-spp iterations no longer rebuilds every
+         * leaf from a handful of non-zero samples (which collapsed the pdf onto the few
+         * directions that happened to find light) */
+        const int acc = p->accumulate;
+        if (rebuilt[i].count && quadtree_copy(&rebuilt[i], acc ? -s : 0, !acc, &new_leaves[i].building)) goto fail;
         const QuadTree *sampling = rebuilt[i].count ? &rebuilt[i] : &l->sampling;
         const QuadTree *building = rebuilt[i].count ? &rebuilt[i] : &l->building;
         int exponent = rebuilt[i].count ? -s : 0; /* half the statistics per split */
         for (uint32_t j = 1; j < ((uint32_t)1 << s); ++j, ++extra) {
             if (quadtree_copy(sampling, exponent, 0, &new_leaves[extra].sampling)) goto fail;
-            if (quadtree_copy(building, 0, 1, &new_leaves[extra].building)) goto fail;
+            if (quadtree_copy(building, acc && rebuilt[i].count ? -s : 0, !acc, &new_leaves[extra].building)) goto fail;
         }
     }
 
@@ -623,10 +631,10 @@ int guide_field_update(GuideField *f, float iteration_spp) {
         } else {
             nl->sampling = old->sampling;
             nl->building = old->building;
-            quadtree_zero(&nl->building);
+            if (!p->accumulate) quadtree_zero(&nl->building);
             nl->learned = ldexp(old->learned, -s);
         }
-        nl->recorded = 0;
+        nl->recorded = p->accumulate ? ldexp(old->recorded, -s) : 0;
         nl->node = old->node;
         if (s > 0) {
             /* The complete subtree, level by level; each level's nodes are contiguous. */
@@ -642,7 +650,7 @@ int guide_field_update(GuideField *f, float iteration_spp) {
                 GuideDistribution *dst = &new_leaves[li];
                 if (li != i) {
                     dst->learned = nl->learned;
-                    dst->recorded = 0;
+                    dst->recorded = nl->recorded;
                 }
                 dst->node = j;
                 new_nodes[j].leaf = li;

@@ -229,6 +229,7 @@ void record_barrier(Integrator *ig);
 void record_report(const Integrator *ig, CandelaStats *st);
 
 /* guide.c: path guiding (see there). */
+#define GUIDE_MAX_VOLUME_VERTICES 8 /* medium vertices of a path that are guided (stage_medium.c) */
 int guide_init(Integrator *ig);
 void guide_free(Integrator *ig);
 /* The learned distribution at p (surface or medium field); NULL while guiding is not active. */

@@ -150,7 +150,13 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         vec3 x = v3_madd(ray.org, ray.dir, ev.t);
         Scatter sc;
         scatter_init_phase(&sc, view.media[ev.medium]->g, v3_neg(ray.dir));
-        if (ig->guide.active) scatter_set_guide(&sc, guide_lookup(ig, x, 1), (ScatterGuideMode)ig->guide.mode);
+        /* guided phase sampling for the first few scattering events of a path only: each guided
+         * weight f / (alpha p + (1 - alpha) g) lies in (0, 2], and hundreds of them in a dense
+         * medium multiplied into a heavy-tailed throughput (a furnace of optical thickness 300
+         * came out 9% dark at 64 spp, 21 paths overflowing to inf); deep in such media the
+         * incident light is diffuse, and guiding has nothing to find there */
+        if (ig->guide.active && ps->volume_bounces[p] <= GUIDE_MAX_VOLUME_VERTICES)
+            scatter_set_guide(&sc, guide_lookup(ig, x, 1), (ScatterGuideMode)ig->guide.mode);
         LightSampleContext lc = {x, v3s(0.0f), {0, 0.0f}, scratch, &s->volume, walk_previous};
         light_sampler_prepare(ig->light_sampler, &lc, hint);
         walk_previous = lc.vertex;

@@ -16,7 +16,12 @@
  *       absorbing cube, the camera inside it (found at the start), and a sun's shadow rays
  *       through an absorbing slab onto a Lambert floor;
  *   (i) a floor lit by an emitting volume: emission sampling on and off agree, and on is less
- *       noisy; (j) the same on a heterogeneous, scattering emitter, and 1 vs 2 threads.
+ *       noisy; (j) the same on a heterogeneous, scattering emitter, and 1 vs 2 threads;
+ *   (n) volume path guiding (phase sampling guided, |g| < 0.95): the furnace stays exactly
+ *       the environment with one-sample MIS and with RIS, bit-identical for 1 and 2 threads;
+ *   (o) the radiance recorder on a deep medium (optical thickness 300, albedo 1: hundreds of
+ *       scattering events per path) stays under its bound (--recorder-mb 4), and its debug AOV
+ *       still converges to the image.
  * CANDELA_KEEP_TEST_SCENES=1 keeps the written scenes (their folder is printed) for rendering
  * them by hand. */
 #include <math.h>
@@ -107,6 +112,10 @@ static int g_max_depth = 8;
 static int g_emission_sampling = 1;
 static CandelaLightSampler g_sampler = CANDELA_LIGHT_SAMPLER_POWER;
 static int g_inscatter = 0;
+static CandelaGuiding g_guiding = CANDELA_GUIDING_OFF;
+static int g_aov = 0;              /* --aov recorder-debug */
+static uint32_t g_recorder_mb = 0;
+static CandelaStats g_stats;       /* the last render's */
 
 static Result render(const char *name, int spp, int max_volume_bounces, int threads) {
     char path[512];
@@ -125,9 +134,12 @@ static Result render(const char *name, int spp, int max_volume_bounces, int thre
     o.light_units = CANDELA_LIGHT_UNITS_RAW;
     o.light_sampler = g_sampler;
     o.volume_inscatter_sampling = g_inscatter;
+    o.guiding = g_guiding;
+    o.aov_recorder_debug = g_aov;
+    o.recorder_mb = g_recorder_mb;
     Result r = {0};
     char err[CANDELA_ERR_LEN];
-    int rc = candela_render(&o, &r.img, NULL, NULL, err);
+    int rc = candela_render(&o, &r.img, &g_stats, NULL, err);
     CHECK(rc == 0, "%s: %s", name, err);
     if (rc != 0) return r;
     size_t n = (size_t)r.img.width * r.img.height;
@@ -496,6 +508,51 @@ int main(void) {
           "1 and 2 threads differ");
     candela_image_free(&d.img);
     candela_image_free(&d1.img);
+
+    /* (n) volume guiding in the furnace: guided phase sampling keeps L = 1 */
+    for (int g = CANDELA_GUIDING_MIS; g <= CANDELA_GUIDING_RIS; ++g) {
+        g_guiding = (CandelaGuiding)g;
+        Result l = render("furnace.gltf", 128, 256, 2);
+        expect(g == CANDELA_GUIDING_MIS ? "(n) furnace, guided MIS" : "(n) furnace, guided RIS", l, 1.0, 0.0);
+        CHECK(g_stats.guide_updates > 8 && g_stats.guide_samples > 0, "(n) the volume field trained (%d updates)",
+              g_stats.guide_updates);
+        Result l1 = render("furnace.gltf", 128, 256, 1);
+        CHECK(l.img.rgb && l1.img.rgb && memcmp(l.img.rgb, l1.img.rgb, 16 * 16 * 3 * sizeof(float)) == 0,
+              "(n) guided (%d): 1 and 2 threads differ", g);
+        candela_image_free(&l.img);
+        candela_image_free(&l1.img);
+    }
+    g_guiding = CANDELA_GUIDING_OFF;
+
+    /* (o) a deep medium: hundreds of bounces per path, the recorder bounded */
+    write_gltf("deep.gltf", "{\"uri\": \"box.vdb\", \"density_scale\": 300.0, \"albedo\": [1, 1, 1], \"anisotropy\": 0.3}",
+               "white.exr", NULL, 0.0f, 0.6f);
+    g_aov = 1;
+    g_recorder_mb = 4;
+    g_guiding = CANDELA_GUIDING_MIS;
+    Result m = render("deep.gltf", 32, 100000, 2);
+    expect("(o) deep furnace, recorded", m, 1.0, 0.0);
+    double mean_bounces = (double)g_stats.rays_bounce / (double)g_stats.paths;
+    fprintf(stderr, "  (o) %.0f bounce rays per path, recorder peak %.2f MiB of a %.2f MiB bound (%u live vertices), "
+                    "%llu children refused, path skip %.3f\n",
+            mean_bounces, g_stats.recorder_peak_bytes / 1048576.0, g_stats.recorder_bound_bytes / 1048576.0,
+            g_stats.recorder_peak_vertices, (unsigned long long)g_stats.recorder_refused, g_stats.recorder_path_skip);
+    CHECK(mean_bounces > 100.0, "(o) the medium is deep (%.0f bounces per path)", mean_bounces);
+    CHECK(g_stats.recorder_peak_bytes <= g_stats.recorder_bound_bytes && g_stats.recorder_bound_bytes <= (size_t)5 << 20,
+          "(o) recorder memory %zu over its bound %zu", g_stats.recorder_peak_bytes, g_stats.recorder_bound_bytes);
+    if (m.img.recorder_debug) {
+        double dbg = 0.0;
+        for (int i = 0; i < 16 * 16 * 3; ++i) dbg += m.img.recorder_debug[i];
+        dbg /= 16 * 16 * 3;
+        /* the AOV divides by the path recording probability: noisier than the image */
+        double tol = 5.0 * m.se / sqrt(fmax(1e-3, 1.0 - g_stats.recorder_path_skip)) + 0.02;
+        fprintf(stderr, "  (o) recorder-debug mean %.4f vs image %.4f (tolerance %.4f)\n", dbg, m.mean, tol);
+        CHECK(fabs(dbg - m.mean) <= tol, "(o) the recorder-debug AOV %.4f vs the image %.4f", dbg, m.mean);
+    } else CHECK(0, "(o) no recorder-debug AOV");
+    candela_image_free(&m.img);
+    g_aov = 0;
+    g_recorder_mb = 0;
+    g_guiding = CANDELA_GUIDING_OFF;
 
     test_mesh_media();
     test_emission_sampling();
