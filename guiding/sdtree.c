@@ -110,6 +110,7 @@ struct GuideField {
     GuideDistribution *leaves;
     uint32_t leaf_count;
     int iterations;
+    uint64_t recorded_total; /* samples ever given to guide_field_record: the spatial filter's hash key */
 };
 
 /* Scratch arrays of a quadtree rebuild (grown as needed, reused across the leaves). */
@@ -130,6 +131,7 @@ void guide_field_params_default(GuideFieldParams *p) {
     p->max_quadtree_depth = QUAD_DEFAULT_DEPTH;
     p->max_bytes = DEFAULT_MAX_BYTES;
     p->accumulate = 1;
+    p->spatial_filter = 0;
 }
 
 /* Out-of-range values fall back to the defaults rather than building absurd trees (rho <= 0
@@ -144,6 +146,7 @@ static GuideFieldParams params_sanitize(const GuideFieldParams *in) {
         p.max_quadtree_depth = in->max_quadtree_depth < QUAD_MAX_DEPTH ? in->max_quadtree_depth : QUAD_MAX_DEPTH;
     if (in->max_bytes > 0) p.max_bytes = in->max_bytes;
     p.accumulate = in->accumulate != 0;
+    p.spatial_filter = in->spatial_filter != 0;
     return p;
 }
 
@@ -482,7 +485,23 @@ void guide_field_record(GuideField *f, const GuideTrainingSample *s, size_t n) {
         if (!isfinite(x->radiance) || !(x->pdf > 0) || !isfinite(x->pdf)) continue;
         double u, v;
         if (!dir_to_uv(x->dir, &u, &v)) continue;
+        uint64_t index = f->recorded_total++;
         GuideDistribution *leaf = &f->leaves[field_find_leaf(f, x->pos)];
+        if (f->params.spatial_filter) {
+            /* Müller 2019 §4 (spatial filtering): splat into the leaf at a point drawn uniformly
+             * in a box of the sample's leaf's size around it, so neighbouring leaves share
+             * their data and the learned field has no seams at leaf boundaries */
+            float q[3];
+            for (int k = 0; k < 3; ++k) {
+                uint64_t h = index * 0x9E3779B97F4A7C15ull + (uint64_t)(k + 1) * 0xD1B54A32D192ED03ull;
+                h ^= h >> 31;
+                h *= 0xBF58476D1CE4E5B9ull;
+                h ^= h >> 29;
+                float u = (float)(h >> 40) * 0x1.0p-24f - 0.5f;
+                q[k] = x->pos[k] + u * (leaf->hi[k] - leaf->lo[k]);
+            }
+            leaf = &f->leaves[field_find_leaf(f, q)];
+        }
         /* §3: the statistical weight counts every sample, zero radiance included (C1 §8.1:
          * dropping them biases the learned distribution). */
         leaf->recorded += 1;

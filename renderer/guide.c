@@ -1,8 +1,12 @@
 /* renderer/guide.c: path guiding in the wavefront (--guiding off|mis|ris).
  *
- * Two guiding fields (guiding/guiding.h: Practical Path Guiding's SD-tree), one trained from
- * surface vertices and one from medium vertices (PPG knows no media; the digest's §2 asks for
- * separate statistics), both over the scene bounds. After every batch the recorder's samples
+ * Guiding fields (guiding/guiding.h: Practical Path Guiding's SD-tree) over the scene bounds:
+ * one for medium vertices (PPG knows no media; the digest's §2 asks for separate statistics)
+ * and six for surface vertices, one per orientation class of the shading normal (its largest
+ * component and sign). A spatial leaf of a room's corner holds floor, wall and ceiling points
+ * whose incident light comes from different hemispheres: one shared distribution sent a quarter
+ * of the guide's samples below the surface and spread the rest over every orientation's lobes
+ * (scenes/guiding_interior.gltf). After every batch the recorder's samples
  * (record.c; sorted by path, so the order never depends on the thread count) train the
  * building trees: continuation vertices only, not NEE vertices, and not directions from delta
  * lobes (ch. 1 §5: the guide learns indirect plus MIS-weighted direct light, as the emission a
@@ -30,13 +34,17 @@ int guide_init(Integrator *ig) {
     GuideFieldParams params;
     guide_field_params_default(&params);
     if (ig->opt->guide_spatial_threshold > 0.0f) params.spatial_threshold = ig->opt->guide_spatial_threshold;
+    params.spatial_filter = ig->opt->guide_spatial_filter;
     const float lo[3] = {ig->scene->bounds_min.x, ig->scene->bounds_min.y, ig->scene->bounds_min.z};
     const float hi[3] = {ig->scene->bounds_max.x, ig->scene->bounds_max.y, ig->scene->bounds_max.z};
-    gs->surface = guide_field_create(lo, hi, &params);
-    gs->volume = media_any(ig->media) ? guide_field_create(lo, hi, &params) : NULL;
-    if (!gs->surface || (media_any(ig->media) && !gs->volume)) {
-        guide_free(ig);
-        return -1;
+    gs->on = 1;
+    for (int k = 0; k < GUIDE_FIELDS; ++k) {
+        if (k == GUIDE_SURFACE_CLASSES && !media_any(ig->media)) break;
+        gs->fields[k] = guide_field_create(lo, hi, &params);
+        if (!gs->fields[k]) {
+            guide_free(ig);
+            return -1;
+        }
     }
     gs->keep_last = ig->opt->guide_dump_prefix != NULL;
     gs->mode = ig->opt->guiding == CANDELA_GUIDING_RIS ? SCATTER_GUIDE_RIS : SCATTER_GUIDE_MIS;
@@ -45,46 +53,68 @@ int guide_init(Integrator *ig) {
 
 void guide_free(Integrator *ig) {
     GuideState *gs = &ig->guide;
-    guide_field_free(gs->surface);
-    guide_field_free(gs->volume);
+    for (int k = 0; k < GUIDE_FIELDS; ++k) guide_field_free(gs->fields[k]);
     free(gs->train);
     free(gs->last);
+    free(gs->last_class);
     memset(gs, 0, sizeof *gs);
 }
 
-const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, int volume) {
+/* The orientation class of a normal: 2 x (axis of its largest component) + (that component < 0). */
+static int normal_class(vec3 n) {
+    float ax = fabsf(n.x), ay = fabsf(n.y), az = fabsf(n.z);
+    if (ax >= ay && ax >= az) return n.x < 0.0f;
+    if (ay >= az) return 2 + (n.y < 0.0f);
+    return 4 + (n.z < 0.0f);
+}
+
+#define GUIDE_CLASS_SHIFT 16 /* bits of the recorder flags above PV_FLAG_* and RECORDER_SAMPLE_PRIMARY */
+
+uint32_t guide_surface_flags(vec3 n) { return (uint32_t)(normal_class(n) + 1) << GUIDE_CLASS_SHIFT; }
+
+static int field_of_flags(uint32_t flags) {
+    if (flags & PV_FLAG_VOLUME) return GUIDE_SURFACE_CLASSES;
+    uint32_t c = (flags >> GUIDE_CLASS_SHIFT) & 7u;
+    return c >= 1 && c <= GUIDE_SURFACE_CLASSES ? (int)c - 1 : -1;
+}
+
+const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n) {
     const GuideState *gs = &ig->guide;
     if (!gs->active) return NULL;
-    const GuideField *f = volume ? gs->volume : gs->surface;
+    int volume = n.x == 0.0f && n.y == 0.0f && n.z == 0.0f;
+    const GuideField *f = gs->fields[volume ? GUIDE_SURFACE_CLASSES : normal_class(n)];
     if (!f) return NULL;
     const float x[3] = {p.x, p.y, p.z};
     return guide_field_lookup(f, x);
 }
 
 /* The samples of one field, in the batch's order. */
-static void train_field(GuideState *gs, GuideField *field, const RecorderSamples *batch, int volume) {
+static void train_field(GuideState *gs, int k, const RecorderSamples *batch) {
     size_t n = 0;
     for (size_t i = 0; i < batch->count; ++i) {
         const RecorderSample *s = &batch->items[i];
         if (s->flags & (PV_FLAG_NEE | PV_FLAG_DELTA)) continue;
-        if (!!(s->flags & PV_FLAG_VOLUME) != volume) continue;
+        if (field_of_flags(s->flags) != k) continue;
         GuideTrainingSample *t = &gs->train[n++];
         memcpy(t->pos, s->pos, sizeof t->pos);
         memcpy(t->dir, s->dir, sizeof t->dir);
         t->radiance = 0.2126f * s->radiance[0] + 0.7152f * s->radiance[1] + 0.0722f * s->radiance[2];
         t->pdf = s->pdf;
     }
-    guide_field_record(field, gs->train, n);
+    guide_field_record(gs->fields[k], gs->train, n);
     gs->samples_trained += n;
-    if (!volume && gs->keep_last) { /* guide-dump's histogram */
+    if (k < GUIDE_SURFACE_CLASSES && gs->keep_last) { /* guide-dump's histogram */
         if (gs->last_count + n > gs->last_capacity) {
             size_t cap = 2 * (gs->last_count + n);
             GuideTrainingSample *l = realloc(gs->last, cap * sizeof *l);
-            if (!l) { gs->dropped = 1; return; }
-            gs->last = l;
+            uint8_t *c = l ? realloc(gs->last_class, cap) : NULL;
+            if (l) gs->last = l;
+            if (c) gs->last_class = c;
+            if (!l || !c) { gs->dropped = 1; return; }
             gs->last_capacity = cap;
         }
         memcpy(gs->last + gs->last_count, gs->train, n * sizeof *gs->train);
+        memset(gs->last_class + gs->last_count, k, n);
         gs->last_count += n;
     }
 }
@@ -92,7 +122,7 @@ static void train_field(GuideState *gs, GuideField *field, const RecorderSamples
 void guide_train_batch(Integrator *ig) {
     GuideState *gs = &ig->guide;
     const RecorderSamples *batch = &ig->record.batch;
-    if (!gs->surface || !ig->record.active || batch->count == 0) return;
+    if (!gs->on || !ig->record.active || batch->count == 0) return;
     gs->pending = 1;
     double t0 = clock_seconds();
     if (batch->count > gs->train_capacity) {
@@ -101,21 +131,21 @@ void guide_train_batch(Integrator *ig) {
         gs->train = t;
         gs->train_capacity = batch->count;
     }
-    train_field(gs, gs->surface, batch, 0);
-    if (gs->volume) train_field(gs, gs->volume, batch, 1);
+    for (int k = 0; k < GUIDE_FIELDS; ++k)
+        if (gs->fields[k]) train_field(gs, k, batch);
     gs->train_seconds += clock_seconds() - t0;
 }
 
 void guide_barrier(Integrator *ig) {
     GuideState *gs = &ig->guide;
-    if (!gs->surface) return;
+    if (!gs->on) return;
     /* ch. 2 §5.3.3: guided sampling only after the first 8 spp trained the fields */
     gs->active = ig->spp_done >= GUIDE_TRAINING_SPP;
     if (!gs->pending) return; /* nothing new was recorded: the fields stay as they are */
     gs->pending = 0;
     double t0 = clock_seconds();
-    if (guide_field_update(gs->surface, (float)ig->iteration_spp) != 0) gs->dropped = 1;
-    if (gs->volume && guide_field_update(gs->volume, (float)ig->iteration_spp) != 0) gs->dropped = 1;
+    for (int k = 0; k < GUIDE_FIELDS; ++k)
+        if (gs->fields[k] && guide_field_update(gs->fields[k], (float)ig->iteration_spp) != 0) gs->dropped = 1;
     gs->updates++;
     gs->train_seconds += clock_seconds() - t0;
     if (ig->record.active && ig->spp_done < ig->opt->spp) gs->last_count = 0; /* guide-dump keeps the last trained iteration's */
@@ -123,12 +153,17 @@ void guide_barrier(Integrator *ig) {
 
 void guide_report(const Integrator *ig, CandelaStats *st) {
     const GuideState *gs = &ig->guide;
-    if (!gs->surface) return;
+    if (!gs->on) return;
     st->guide_updates = gs->updates;
     st->guide_train_seconds = gs->train_seconds;
     st->guide_samples = gs->samples_trained;
-    st->guide_leaves = guide_field_num_leaves(gs->surface) + (gs->volume ? guide_field_num_leaves(gs->volume) : 0);
-    st->guide_bytes = guide_field_bytes(gs->surface) + (gs->volume ? guide_field_bytes(gs->volume) : 0);
+    st->guide_leaves = 0;
+    st->guide_bytes = 0;
+    for (int k = 0; k < GUIDE_FIELDS; ++k)
+        if (gs->fields[k]) {
+            st->guide_leaves += guide_field_num_leaves(gs->fields[k]);
+            st->guide_bytes += guide_field_bytes(gs->fields[k]);
+        }
     st->guide_dropped = gs->dropped;
 }
 
@@ -155,11 +190,19 @@ static int write_plane(const char *prefix, const char *what, int w, int h, const
 
 int guide_dump(const Integrator *ig, const float at[3], const char *prefix, char err[CANDELA_ERR_LEN]) {
     const GuideState *gs = &ig->guide;
-    if (!gs->surface) { snprintf(err, CANDELA_ERR_LEN, "guide-dump: guiding is off"); return -1; }
+    if (!gs->on) { snprintf(err, CANDELA_ERR_LEN, "guide-dump: guiding is off"); return -1; }
+    /* the surface orientation whose leaf at the point learned from the most samples */
+    int best = 0;
+    double most = -1.0;
+    for (int k = 0; k < GUIDE_SURFACE_CLASSES; ++k) {
+        double learned = guide_distribution_samples(guide_field_lookup(gs->fields[k], at));
+        if (learned > most) { most = learned; best = k; }
+    }
+    static const char *const class_names[GUIDE_SURFACE_CLASSES] = {"+x", "-x", "+y", "-y", "+z", "-z"};
     enum { W = 128, H = 64 }; /* (u, v) = ((cos theta + 1) / 2, phi / 2 pi): u across, v down */
     float *img = calloc((size_t)W * H, sizeof *img);
     if (!img) { snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", prefix); return -1; }
-    const GuideDistribution *d = guide_field_lookup(gs->surface, at);
+    const GuideDistribution *d = guide_field_lookup(gs->fields[best], at);
     guide_distribution_image(d, W, H, img);
     int rc = write_plane(prefix, "guide", W, H, img, err);
     float lo[3], hi[3];
@@ -171,6 +214,7 @@ int guide_dump(const Integrator *ig, const float at[3], const char *prefix, char
         memset(img, 0, (size_t)W * H * sizeof *img);
         for (size_t i = 0; i < gs->last_count; ++i) {
             const GuideTrainingSample *t = &gs->last[i];
+            if (gs->last_class[i] != best) continue;
             if (t->pos[0] < lo[0] || t->pos[0] > hi[0] || t->pos[1] < lo[1] || t->pos[1] > hi[1] || t->pos[2] < lo[2] ||
                 t->pos[2] > hi[2])
                 continue;
@@ -183,21 +227,21 @@ int guide_dump(const Integrator *ig, const float at[3], const char *prefix, char
             ++in_leaf;
         }
         rc = write_plane(prefix, "hist", W, H, img, err);
-        if (getenv("CANDELA_DEBUG_DUMP")) { FILE *df = fopen(getenv("CANDELA_DEBUG_DUMP"), "wb"); fwrite(gs->last, sizeof *gs->last, gs->last_count, df); fclose(df); }
     }
     free(img);
     if (rc == 0) {
         char path[4096];
         snprintf(path, sizeof path, "%s.leaves.ply", prefix);
-        if (guide_field_write_ply(gs->surface, path) != 0) {
+        if (guide_field_write_ply(gs->fields[best], path) != 0) {
             snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot write (%s)", path, strerror(errno));
             return -1;
         }
         if (!ig->opt->quiet)
             fprintf(stderr,
-                    "candela: guide-dump at (%g, %g, %g): leaf [%g %g %g] - [%g %g %g], learned from %.0f samples, %zu "
-                    "training directions of the last iteration; wrote %s.guide.exr/.png, %s.hist.exr/.png, %s\n",
-                    at[0], at[1], at[2], lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], guide_distribution_samples(d), in_leaf,
+                    "candela: guide-dump at (%g, %g, %g), surfaces facing %s: leaf [%g %g %g] - [%g %g %g], learned from "
+                    "%.0f samples, %zu training directions of the last trained iteration; wrote %s.guide.exr/.png, "
+                    "%s.hist.exr/.png, %s\n",
+                    at[0], at[1], at[2], class_names[best], lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], guide_distribution_samples(d), in_leaf,
                     prefix, prefix, path);
     }
     return rc;

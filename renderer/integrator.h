@@ -96,8 +96,12 @@ typedef struct RecordState {
 } RecordState;
 
 /* guide.c: path guiding's state (off: surface NULL). */
+/* surface fields per orientation class of the normal (+x, -x, +y, -y, +z, -z), then the medium's */
+#define GUIDE_SURFACE_CLASSES 6
+#define GUIDE_FIELDS (GUIDE_SURFACE_CLASSES + 1)
 typedef struct GuideState {
-    GuideField *surface, *volume; /* trained from surface and medium vertices */
+    GuideField *fields[GUIDE_FIELDS]; /* [class]: surfaces; [GUIDE_SURFACE_CLASSES]: media (NULL without) */
+    int on;                       /* guiding is on (the fields exist) */
     int mode;                     /* ScatterGuideMode (scatter.h) */
     int active;                   /* guided sampling in this iteration (after the training spp) */
     int updates;
@@ -106,6 +110,7 @@ typedef struct GuideState {
     GuideTrainingSample *train;   /* scratch */
     size_t train_capacity;
     GuideTrainingSample *last;    /* guide-dump: the surface samples of the iteration being trained */
+    uint8_t *last_class;          /* their normal classes */
     size_t last_count, last_capacity;
     int dropped;                  /* a batch's training or an update ran out of memory */
     int keep_last;                /* guide-dump asked: keep `last` */
@@ -232,8 +237,11 @@ void record_report(const Integrator *ig, CandelaStats *st);
 #define GUIDE_MAX_VOLUME_VERTICES 8 /* medium vertices of a path that are guided (stage_medium.c) */
 int guide_init(Integrator *ig);
 void guide_free(Integrator *ig);
-/* The learned distribution at p (surface or medium field); NULL while guiding is not active. */
-const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, int volume);
+/* The learned distribution at p: a surface's with normal n (its orientation class), or the
+ * medium field's (n zero); NULL while guiding is not active. */
+const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n);
+/* The recorder flags that carry a surface vertex's orientation class. */
+uint32_t guide_surface_flags(vec3 n);
 void guide_train_batch(Integrator *ig);
 void guide_barrier(Integrator *ig);
 void guide_report(const Integrator *ig, CandelaStats *st);

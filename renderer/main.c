@@ -55,6 +55,8 @@ static const char *USAGE =
     "                            learned (default: a quarter of --spp, at least 22)\n"
     "  --guide-spatial-threshold C  a guiding leaf splits past C sqrt(spp of the iteration)\n"
     "                            training samples (default 12000, Mueller et al. 2017)\n"
+    "  --guide-spatial-filter on|off  train each sample into the leaf at a point jittered within\n"
+    "                            a box of its leaf's size (Mueller et al. 2019; default off)\n"
     "  --aov recorder-debug      add recorder_debug.RGB to the EXR: the radiance recorder's primary\n"
     "                            training samples times their throughput (converges to RGB)\n"
     "  --recorder-budget N       recorded vertices per path before path/vertex skipping (default 4;\n"
@@ -287,6 +289,13 @@ int main(int argc, char **argv) {
                 c = end + 1;
             }
             have_at = 1;
+            ++i;
+        }
+        else if (strcmp(a, "--guide-spatial-filter") == 0) {
+            if (!v) die("missing value for ", a);
+            if (strcmp(v, "on") == 0) o.guide_spatial_filter = 1;
+            else if (strcmp(v, "off") == 0) o.guide_spatial_filter = 0;
+            else { fprintf(stderr, "candela: unknown value '%s' for --guide-spatial-filter (on, off)\n", v); return 2; }
             ++i;
         }
         else if (strcmp(a, "--guide-training-spp") == 0) { o.guide_training_spp = (int)parse_long(a, v, 1, 1 << 20); ++i; }

@@ -170,7 +170,7 @@ static int surface_continuation(const Integrator *ig, Slice *s, uint32_t p, cons
     if (ss.transmitted) ps->medium[p] = side_medium(ig, p, h, ss.wi);
     if (ig->record.active)
         ps->pv[p] = record_child(ig, s, p, ps->pv[p], h->p, ss.wi, beta, ss.pdf, ss.scatter_pdf, ss.guide_pdf,
-                                 ss.delta ? PV_FLAG_DELTA : 0u, ps->hit[p].t);
+                                 (ss.delta ? PV_FLAG_DELTA : 0u) | guide_surface_flags(sc->ng), ps->hit[p].t);
     path_scattered(ps, p, h->p, lc, ss.pdf, ss.delta);
     ps->ray[p] = (SceneRay){offset_ray_origin(h->p, scatter_side_normal(sc, ss.wi)), 0.0f, ss.wi, INFINITY};
     s->rays[s->num_rays++] = p;
@@ -203,7 +203,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
         scene_material_at(scene, &h, &m);
         Scatter sc;
         scatter_init_surface(&sc, &h, &m.bsdf, wo);
-        if (ig->guide.active) scatter_set_guide(&sc, guide_lookup(ig, h.p, 0), (ScatterGuideMode)ig->guide.mode);
+        if (ig->guide.active) scatter_set_guide(&sc, guide_lookup(ig, h.p, sc.ng), (ScatterGuideMode)ig->guide.mode);
         uint32_t depth = ps->depth[p];
         if (depth == 0) path_write_aovs(ps, p, m.bsdf.base_color, sc.frame.n, hit->t);
 

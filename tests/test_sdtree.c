@@ -531,8 +531,42 @@ static void test_ply(void) {
     guide_field_free(f);
 }
 
+/* Müller 2019's spatial filter: after a field has split on samples from everywhere (light from
+ * +z), samples just left of the split plane x = 1/2 with light from -z change the leaf on the
+ * right of the plane too when the filter is on (its jitter box reaches across), and leave it
+ * alone when it is off. */
+static void test_spatial_filter(void) {
+    for (int filter = 0; filter <= 1; ++filter) {
+        GuideFieldParams p;
+        guide_field_params_default(&p);
+        p.spatial_threshold = 100.0f;
+        p.spatial_filter = filter;
+        const float lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
+        GuideField *f = guide_field_create(lo, hi, &p);
+        enum { N = 2000 };
+        GuideTrainingSample *smp = malloc(N * sizeof *smp);
+        for (int i = 0; i < N; ++i)
+            smp[i] = (GuideTrainingSample){{(i % 43) / 43.0f, (i % 37) / 37.0f, (i % 41) / 41.0f}, {0, 0, 1}, 1.0f, 0.0795775f};
+        guide_field_record(f, smp, N);
+        guide_field_update(f, 1.0f);
+        for (int i = 0; i < N; ++i)
+            smp[i] = (GuideTrainingSample){{0.45f, (i % 37) / 37.0f, (i % 41) / 41.0f}, {0, 0, -1}, 100.0f, 0.0795775f};
+        guide_field_record(f, smp, N);
+        guide_field_update(f, 1.0f);
+        const float right[3] = {0.55f, 0.5f, 0.5f}, down[3] = {0, 0, -1};
+        float pdf = guide_distribution_pdf(guide_field_lookup(f, right), down);
+        fprintf(stderr, "spatial filter %s: pdf towards -z across the plane %.4g (%u leaves)\n", filter ? "on" : "off", pdf,
+                guide_field_num_leaves(f));
+        if (filter) CHECK(pdf > 0.05f, "the spatial filter reaches the neighbouring leaf (pdf %g)", pdf);
+        else CHECK(pdf < 0.01f, "without the filter the neighbouring leaf learned -z (pdf %g)", pdf);
+        free(smp);
+        guide_field_free(f);
+    }
+}
+
 int main(void) {
     double t0 = test_seconds();
+    test_spatial_filter();
     test_uniform();
     test_trained();
     test_spatial();
