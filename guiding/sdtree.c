@@ -45,12 +45,12 @@
  *   a zero direction, are skipped entirely. Zero and negative radiance count as samples
  *   (weight 1) but add no flux: a negative flux would make the quadrant sums unusable as
  *   probabilities.
- * - guide_distribution_sample returns guide_distribution_pdf of the direction it produced:
- *   the float round trip (u, v) -> direction -> (u, v) can cross a cell boundary by a
- *   rounding error, and MIS needs the two to agree exactly. In that measure-zero corner the
- *   pdf may even be 0 (a direction at the edge of the support): callers treat pdf <= 0 as a
- *   failed sample.
- * - No spatial filtering (Müller 2019): a plain splat into the leaf containing the point. */
+ * - guide_distribution_sample returns the density of the cell its descent chose, the same
+ *   product of per-level factors guide_distribution_pdf forms for the direction. The float
+ *   round trip (u, v) -> direction -> (u, v) can cross a cell boundary by a rounding error, so
+ *   the two can differ on that measure-zero set (re-evaluating the pdf made them agree but
+ *   was a third of guiding's render cost).
+ * - Spatial filtering (Müller 2019) is a parameter (spatial_filter); plain splats by default. */
 #include "guiding.h"
 
 #include <errno.h>
@@ -262,8 +262,8 @@ static double quadtree_pdf_uv(const QuadTree *t, double u, double v) {
  * uniforms by rescaling them into the chosen interval; then uniformly inside the leaf cell.
  * The rescaling runs in double: each level consumes the bits of its decision, and a float
  * would be left with nothing for the deeper levels. */
-static void quadtree_sample(const QuadTree *t, double u1, double u2, double *u, double *v) {
-    double ox = 0, oy = 0, size = 1;
+static void quadtree_sample(const QuadTree *t, double u1, double u2, double *u, double *v, double *pdf_uv) {
+    double ox = 0, oy = 0, size = 1, pdf = 1;
     if (t->count > 0) {
         uint32_t i = 0;
         for (;;) {
@@ -295,12 +295,14 @@ static void quadtree_sample(const QuadTree *t, double u1, double u2, double *u, 
             ox += qx * size;
             oy += qy * size;
             int q = qx + 2 * qy;
+            pdf *= 4 * n->sum[q] / total; /* the same factor quadtree_pdf_uv takes at this level */
             if (!n->child[q]) break;
             i = n->child[q];
         }
     }
     *u = clamp_unit_open(ox + size * u1);
     *v = clamp_unit_open(oy + size * u2);
+    *pdf_uv = pdf;
 }
 
 static int scratch_reserve(RebuildScratch *s, uint32_t need) {
@@ -726,10 +728,14 @@ float guide_distribution_pdf(const GuideDistribution *d, const float dir[3]) {
 void guide_distribution_sample(const GuideDistribution *d, float u1, float u2, float dir[3], float *pdf) {
     double u, v;
     static const QuadTree none = {NULL, 0};
-    quadtree_sample(d ? &d->sampling : &none, clamp_unit_open(u1), clamp_unit_open(u2), &u, &v);
+    double pdf_uv;
+    quadtree_sample(d ? &d->sampling : &none, clamp_unit_open(u1), clamp_unit_open(u2), &u, &v, &pdf_uv);
     uv_to_dir(u, v, dir);
-    /* The density of the direction as guide_distribution_pdf sees it (see the top comment). */
-    if (pdf) *pdf = d ? guide_distribution_pdf(d, dir) : (float)GUIDE_INV_4PI;
+    /* The density of the cell the descent chose: the product guide_distribution_pdf forms for
+     * the direction, level by level (they can differ only where the float direction rounds
+     * across a cell boundary, a measure-zero set; evaluating the pdf again was a third of
+     * guiding's cost). */
+    if (pdf) *pdf = (float)(pdf_uv * GUIDE_INV_4PI);
 }
 
 double guide_distribution_samples(const GuideDistribution *d) { return d ? d->learned : 0.0; }
