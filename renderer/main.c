@@ -55,6 +55,9 @@ static const char *USAGE =
     "                            learned (default: a quarter of --spp, at least 22)\n"
     "  --guide-spatial-threshold C  a guiding leaf splits past C sqrt(spp of the iteration)\n"
     "                            training samples (default 12000, Mueller et al. 2017)\n"
+    "  --path-regularization G   roughen a vertex after a rough one: alpha' = 1 - (1 - alpha)\n"
+    "                            (1 - G alpha'_prev) (the course's 0.01 helps guiding find caustics;\n"
+    "                            biased; default 0: off)\n"
     "  --guide-spatial-filter on|off  train each sample into the leaf at a point jittered within\n"
     "                            a box of its leaf's size (Mueller et al. 2019; default off)\n"
     "  --aov recorder-debug      add recorder_debug.RGB to the EXR: the radiance recorder's primary\n"
@@ -291,6 +294,7 @@ int main(int argc, char **argv) {
             have_at = 1;
             ++i;
         }
+        else if (strcmp(a, "--path-regularization") == 0) { o.path_regularization = parse_float(a, v, 0.0f, 1.0f); ++i; }
         else if (strcmp(a, "--guide-spatial-filter") == 0) {
             if (!v) die("missing value for ", a);
             if (strcmp(v, "on") == 0) o.guide_spatial_filter = 1;

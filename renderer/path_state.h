@@ -35,6 +35,8 @@
                                      * sampling's p_guide / p_bsdf: double, ch. 1 §4.1.1) */     \
     F(uint32_t, pv, W)              /* the radiance recorder's vertex of the ray (PVIndex) */    \
     F(uint8_t, record_skip, N)      /* the recorder skips this path (path skipping) */          \
+    F(float, reg_roughness, N)      /* path-space regularisation: the last vertex's roughness   \
+                                     * alpha' (ch. 1 §7 Eq. 25; 0 at the camera) */               \
     /* -- ray: what this wave traces */                                                          \
     F(SceneRay, ray, R)                                                                          \
     /* -- hit: the closest hit of the ray (t = INFINITY: escaped) */                             \

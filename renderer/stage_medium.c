@@ -147,6 +147,7 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         /* a real scattering event: this depth's vertex is in the medium */
         if ((int)ps->volume_bounces[p] >= ig->opt->max_volume_bounces) return WALK_ENDED;
         ps->volume_bounces[p]++;
+        ps->reg_roughness[p] = 1.0f; /* a phase function counts as fully rough (regularisation) */
         vec3 x = v3_madd(ray.org, ray.dir, ev.t);
         Scatter sc;
         scatter_init_phase(&sc, view.media[ev.medium]->g, v3_neg(ray.dir));

@@ -201,6 +201,15 @@ void stage_surface(const Integrator *ig, Slice *s) {
         scene_surface_hit(scene, hit->instance, hit->local_prim, hit->triangle, hit->u, hit->v, &h);
         MaterialSample m;
         scene_material_at(scene, &h, &m);
+        float gamma = ig->opt->path_regularization;
+        if (gamma > 0.0f) {
+            /* path-space regularisation (ch. 1 §7, Eq. 25, OPSR with k = 1): a vertex after a rough
+             * one is roughened, alpha' = 1 - (1 - alpha)(1 - gamma alpha'_prev), so guiding can
+             * learn caustics (a biased, consistent-in-gamma trade: off unless asked) */
+            float r = fminf(fmaxf(m.bsdf.roughness, 0.0f), 1.0f);
+            m.bsdf.roughness = 1.0f - (1.0f - r) * (1.0f - gamma * ps->reg_roughness[p]);
+            ps->reg_roughness[p] = m.bsdf.roughness;
+        }
         Scatter sc;
         scatter_init_surface(&sc, &h, &m.bsdf, wo);
         if (ig->guide.active) scatter_set_guide(&sc, guide_lookup(ig, h.p, sc.ng), (ScatterGuideMode)ig->guide.mode);
