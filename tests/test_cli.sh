@@ -48,6 +48,28 @@ expect_error "bad scatter flag" "--volume-cachepoint-scatter" -- render "$scene"
 expect_error "scatter needs cache points" "needs --light-sampler cachepoints" -- render "$scene" --volume-cachepoint-scatter on --light-sampler power "${common[@]}"
 if "$bin" render "$scene" --volume-cachepoint-scatter auto --volume-emission-sampling auto -o "$tmp/auto.exr" --no-png --res 8x8 --spp 2 --quiet; then ok; else bad "the auto values are refused"; fi
 rm -f "$tmp/auto.exr"
+# guiding and the radiance recorder: every flag's bad values, and guide-dump's outputs
+expect_error "bad guiding" "--guiding" -- render "$scene" --guiding yes "${common[@]}"
+expect_error "bad aov" "unknown AOV" -- render "$scene" --aov beauty "${common[@]}"
+expect_error "bad recorder mb" "--recorder-mb" -- render "$scene" --recorder-mb 0 "${common[@]}"
+expect_error "bad recorder budget" "--recorder-budget" -- render "$scene" --recorder-budget -1 "${common[@]}"
+expect_error "bad training spp" "--guide-training-spp" -- render "$scene" --guide-training-spp 0 "${common[@]}"
+expect_error "bad spatial threshold" "--guide-spatial-threshold" -- render "$scene" --guide-spatial-threshold nan "${common[@]}"
+expect_error "bad regularization" "--path-regularization" -- render "$scene" --path-regularization 2 "${common[@]}"
+expect_error "bad spatial filter" "--guide-spatial-filter" -- render "$scene" --guide-spatial-filter 1 "${common[@]}"
+expect_error "dump without --at" "needs --at" -- guide-dump "$scene" "${common[@]}"
+expect_error "dump bad --at" "--at wants" -- guide-dump "$scene" --at 1,2 "${common[@]}"
+expect_error "dump nan --at" "--at wants" -- guide-dump "$scene" --at 1,nan,2 "${common[@]}"
+if "$bin" guide-dump "$scene" --at 0,0,0 -o "$tmp/dump.exr" --res 16x16 --spp 12 --quiet &&
+   [ -s "$tmp/dump.exr" ] && [ -s "$tmp/dump.guide.exr" ] && [ -s "$tmp/dump.guide.png" ] && [ -s "$tmp/dump.hist.png" ] &&
+   head -1 "$tmp/dump.leaves.ply" | grep -q '^ply$'; then ok; else bad "guide-dump did not write its files: $(ls "$tmp")"; fi
+if "$bin" render "$scene" --guiding ris --aov recorder-debug -o "$tmp/g.exr" --no-png --res 16x16 --spp 12 --quiet --stats-json "$tmp/g.json" &&
+   python3 -c "import json,sys; d=json.load(open(sys.argv[1])); sys.exit(0 if d['guiding']['updates'] > 8 and 0 < d['recorder']['peak_bytes'] <= d['recorder']['bound_bytes'] else 1)" "$tmp/g.json"; then
+  ok
+else
+  bad "a guided render's statistics lack the guiding updates or the recorder's memory: $(cat "$tmp/g.json" 2>/dev/null | tail -5)"
+fi
+rm -f "$tmp"/dump.* "$tmp"/g.*
 mkfifo "$tmp/fifo.exr"
 expect_error "fifo env" "not a regular file" -- render "$scene" --env "$tmp/fifo.exr" "${common[@]}"
 rm -f "$tmp/fifo.exr"
