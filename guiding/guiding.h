@@ -177,6 +177,10 @@ uint32_t guide_field_num_leaves(const GuideField *f);
  * outside the bounds gets the nearest leaf). Valid until the next guide_field_update. */
 typedef struct GuideDistribution GuideDistribution;
 const GuideDistribution *guide_field_lookup(const GuideField *f, const float pos[3]);
+/* The same, trying `hint` (a leaf of this field from an earlier lookup, or NULL) first: exactly
+ * the leaf guide_field_lookup returns (the box test follows the descent's >= split rule), and
+ * cheap for spatially sorted queries. */
+const GuideDistribution *guide_field_lookup_hint(const GuideField *f, const float pos[3], const GuideDistribution *hint);
 /* A direction from the distribution with two uniforms; its solid-angle pdf in *pdf. */
 void guide_distribution_sample(const GuideDistribution *d, float u1, float u2, float dir[3], float *pdf);
 float guide_distribution_pdf(const GuideDistribution *d, const float dir[3]);

@@ -741,6 +741,22 @@ void guide_distribution_sample(const GuideDistribution *d, float u1, float u2, f
     if (pdf) *pdf = (float)(pdf_uv * GUIDE_INV_4PI);
 }
 
+const GuideDistribution *guide_field_lookup_hint(const GuideField *f, const float pos[3], const GuideDistribution *hint) {
+    if (!f) return NULL;
+    if (hint && pos && hint >= f->leaves && hint < f->leaves + f->leaf_count) {
+        const SpatialNode *root = &f->nodes[0];
+        int inside = 1;
+        for (int k = 0; k < 3 && inside; ++k) {
+            /* the clamp and the half-open boxes of field_find_leaf: right of a split is >= */
+            float x = pos[k];
+            x = x > root->lo[k] ? (x < root->hi[k] ? x : root->hi[k]) : root->lo[k];
+            inside = x >= hint->lo[k] && (x < hint->hi[k] || hint->hi[k] >= root->hi[k]);
+        }
+        if (inside) return hint;
+    }
+    return guide_field_lookup(f, pos);
+}
+
 double guide_distribution_samples(const GuideDistribution *d) { return d ? d->learned : 0.0; }
 
 void guide_distribution_bounds(const GuideDistribution *d, float lo[3], float hi[3]) {

@@ -78,14 +78,17 @@ static int field_of_flags(uint32_t flags) {
     return c >= 1 && c <= GUIDE_SURFACE_CLASSES ? (int)c - 1 : -1;
 }
 
-const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n) {
+const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n, const GuideDistribution *hints[GUIDE_FIELDS]) {
     const GuideState *gs = &ig->guide;
     if (!gs->active) return NULL;
     int volume = n.x == 0.0f && n.y == 0.0f && n.z == 0.0f;
-    const GuideField *f = gs->fields[volume ? GUIDE_SURFACE_CLASSES : normal_class(n)];
+    int k = volume ? GUIDE_SURFACE_CLASSES : normal_class(n);
+    const GuideField *f = gs->fields[k];
     if (!f) return NULL;
     const float x[3] = {p.x, p.y, p.z};
-    return guide_field_lookup(f, x);
+    /* hits come sorted spatially: the last leaf of this field usually contains the next point
+     * (the answer is the same either way, so the hints never change an image) */
+    return hints[k] = guide_field_lookup_hint(f, x, hints[k]);
 }
 
 /* The samples of one field, in the batch's order. */

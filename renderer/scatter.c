@@ -100,8 +100,9 @@ static float guide_pdf_of(const Scatter *s, vec3 wi) {
 }
 
 vec3 scatter_eval(const Scatter *s, vec3 wi, float *pdf) {
-    vec3 f = function_eval(s, wi, pdf);
-    if (s->guide && !v3_is_black(f)) /* the pdf every MIS weight uses (scatter.h) */
+    float unused;
+    vec3 f = function_eval(s, wi, pdf ? pdf : &unused);
+    if (pdf && s->guide && !v3_is_black(f)) /* the pdf every MIS weight uses (scatter.h) */
         *pdf = SCATTER_GUIDE_ALPHA * *pdf + (1.0f - SCATTER_GUIDE_ALPHA) * guide_pdf_of(s, wi);
     return f;
 }

@@ -69,7 +69,8 @@ int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out
  * lobe rougher than 0.05 and no delta lobe, media with |g| < 0.95 (ch. 1 §3.1). */
 void scatter_set_guide(Scatter *s, const GuideDistribution *d, ScatterGuideMode mode);
 /* f |cos| for direction wi (world), and the pdf scatter_sample has for it; zero when the
- * direction is not reachable (delta lobes, the geometry guard). */
+ * direction is not reachable (delta lobes, the geometry guard). pdf may be NULL (a delta
+ * light's NEE needs no MIS weight: a guided Scatter then skips its guide's pdf). */
 vec3 scatter_eval(const Scatter *s, vec3 wi, float *pdf);
 /* 1 if every lobe is a delta: no direction can be evaluated, so NEE is useless. */
 static inline int scatter_is_delta(const Scatter *s) { return s->kind == SCATTER_BSDF && bsdf_is_delta(&s->bsdf); }

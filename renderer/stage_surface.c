@@ -73,8 +73,8 @@ int direct_light_sample_u(const Integrator *ig, vec3 beta, const Scatter *sc, co
     if (light->type == LIGHT_VOLUME)
         ls->cost = 2.0f + (lc->stats ? 0.1f * (float)(lc->stats->collisions - collisions) : 0.0f);
     if (!ok) return 0;
-    float scatter_pdf;
-    vec3 f = scatter_eval(sc, ls->wi, &scatter_pdf);
+    float scatter_pdf = 0.0f;
+    vec3 f = scatter_eval(sc, ls->wi, ls->is_delta ? NULL : &scatter_pdf);
     if (v3_is_black(f)) return 0;
     float light_pdf = pmf * ls->pdf;
     float w = ls->is_delta ? 1.0f : power_heuristic(light_pdf, scatter_pdf);
@@ -181,6 +181,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
     const PathState *ps = &ig->ps;
     const Scene *scene = ig->scene;
     uint32_t hint = UINT32_MAX; /* hits are sorted spatially: the last vertex's answer is near */
+    const GuideDistribution *guide_hints[GUIDE_FIELDS] = {0};
     float scratch[LIGHT_SAMPLER_SCRATCH];
     s->num_shadows = 0;
     s->num_rays = 0; /* the ray queue was consumed by stage_intersect: it now collects the next wave */
@@ -212,7 +213,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
         }
         Scatter sc;
         scatter_init_surface(&sc, &h, &m.bsdf, wo);
-        if (ig->guide.active) scatter_set_guide(&sc, guide_lookup(ig, h.p, sc.ng), (ScatterGuideMode)ig->guide.mode);
+        if (ig->guide.active) scatter_set_guide(&sc, guide_lookup(ig, h.p, sc.ng, guide_hints), (ScatterGuideMode)ig->guide.mode);
         uint32_t depth = ps->depth[p];
         if (depth == 0) path_write_aovs(ps, p, m.bsdf.base_color, sc.frame.n, hit->t);
 

@@ -6,7 +6,7 @@ default scene.
 
     python3 scenes/guiding_benchmark.py [--candela build/renderer/candela] [--res 160x120]
                                         [--spp 256] [--ref-spp 4096] [--out DIR] [--scenes a,b]
-                                        [--light-sampler S] [--reference NAME=FILE.exr]
+                                        [--light-sampler S] [--reference NAME=FILE.exr] [--ref-res WxH]
 
 Per scene: a reference (guided RIS at --ref-spp with another seed: its noise is independent of
 every render compared, and it is unbiased: tests/test_guiding.c checks that guided and unguided
@@ -68,26 +68,38 @@ def main():
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "guiding_benchmark"))
     ap.add_argument("--scenes", default="interior,default")
     ap.add_argument("--reference", action="append", default=[], help="NAME=FILE.exr: reuse a reference")
+    ap.add_argument("--ref-res", default=None,
+                    help="render the reference at this lower resolution (an integer fraction of --res) and "
+                         "compare box-downsampled renders with it: a box-filtered pixel is the mean of the "
+                         "pixels it covers, so this measures the renders' error at that scale, for a "
+                         "fraction of the reference's cost")
     ap.add_argument("--light-sampler", default="cachepoints",
                     help="the light sampler of every render (default cachepoints, the renderer's default)")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     given = dict(x.split("=", 1) for x in a.reference)
-    print("light sampler: %s, %s, reference %d spp (guided RIS, another seed)\n" % (a.light_sampler, a.res, a.ref_spp))
+    print("light sampler: %s, %s, reference %d spp at %s (guided RIS, another seed)\n" % (
+        a.light_sampler, a.res, a.ref_spp, a.ref_res or a.res))
     print("| scene | configuration | spp | time (s) | MSE | TTUV ratio vs unguided | mean path length | recorder vertices/path | training s/update |")
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
     for name in a.scenes.split(","):
         scene = os.path.join(ROOT, SCENES[name])
         ref = given.get(name) or os.path.join(a.out, name + "_reference.exr")
         if name not in given:
-            render(a.candela, scene, ref, a.ref_spp, 1000003, a.res, ["--guiding", "ris", "--light-sampler", a.light_sampler])
+            render(a.candela, scene, ref, a.ref_spp, 1000003, a.ref_res or a.res,
+                   ["--guiding", "ris", "--light-sampler", a.light_sampler])
         ref_var = oiio_mean([ref, "--ch", "variance.R,variance.G,variance.B"])
         base = None
         for label, extra in CONFIGS:
             out = os.path.join(a.out, "%s_%s_%s.exr" % (name, a.light_sampler, extra[1]))
             st = render(a.candela, scene, out, a.spp, 0, a.res, extra + ["--light-sampler", a.light_sampler])
             t = st["time_seconds"]["total"] - st["time_seconds"]["load"]
-            err = max(mse(out, ref) - ref_var, 1e-30)
+            compared = out
+            if a.ref_res and a.ref_res != a.res:
+                compared = out[:-4] + "_at_ref_res.exr"
+                subprocess.run(["oiiotool", out, "--ch", "R,G,B", "--resize:filter=box", a.ref_res, "-o", compared],
+                               check=True, capture_output=True)
+            err = max(mse(compared, ref) - ref_var, 1e-30)
             ttuv = err * t
             if base is None:
                 base = ttuv
