@@ -71,7 +71,7 @@ typedef struct CandelaOptions {
     float guide_spatial_threshold; /* PPG's c: a leaf splits past c sqrt(spp of the iteration); 0: default */
     float path_regularization;  /* gamma of path-space regularisation (ch. 1 §7; 0: off, 0.01: the course's) */
     int guide_spatial_filter;   /* Müller 2019's stochastic spatial box filter for training (0: off) */
-    int guide_training_spp;     /* guiding trains on this many spp, then only renders; 0: default (spp / 4, at least 22) */
+    int guide_training_spp;     /* guiding trains on this many spp, then only renders; 0: default (spp / 8, at least 22) */
     int aov_recorder_debug;     /* --aov recorder-debug: the recorder's primary samples rebuild the image */
     uint32_t recorder_mb;       /* the radiance recorder's vertex storage bound; 0: default (256) */
     int recorder_budget;        /* vertices per path before skipping (path and vertex); 0: none; -1: default (4) */

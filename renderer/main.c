@@ -52,7 +52,7 @@ static const char *USAGE =
     "                            of one candidate of each. Trains during the first 8 spp, then\n"
     "                            guides (iterations 1 x 8, then 2, 4, 8, 16, 16, ...)\n"
 "  --guide-training-spp N    guiding learns from the first N spp, then renders with what it\n"
-    "                            learned (default: a quarter of --spp, at least 22)\n"
+    "                            learned (default: an eighth of --spp, at least 22)\n"
     "  --guide-spatial-threshold C  a guiding leaf splits past C sqrt(spp of the iteration)\n"
     "                            training samples (default 12000, Mueller et al. 2017)\n"
     "  --path-regularization G   roughen a vertex after a rough one: alpha' = 1 - (1 - alpha)\n"

@@ -46,9 +46,11 @@ int record_init(Integrator *ig) {
     if (!rs->recorder) return -1;
     rs->debug_aov = o->aov_recorder_debug;
     rs->active = 1;
-    /* guiding trains on the first quarter of the samples (at least its 8 + 2 + 4 + 8 spp), then
-     * renders with the fields as learned: the recorder's cost is not paid on the rest */
-    rs->training_spp = o->guide_training_spp > 0 ? o->guide_training_spp : (o->spp / 4 > 22 ? o->spp / 4 : 22);
+    /* guiding trains on the first eighth of the samples (at least its 8 + 2 + 4 + 8 spp), then
+     * renders with the fields as learned: the recorder's cost is not paid on the rest. On the
+     * interior at 320x240, 256 spp, 24 spp of training had 1.06x the MSE of 64 at 0.82x the
+     * time (guided TTUV 1.77x unguided's against 1.58x) */
+    rs->training_spp = o->guide_training_spp > 0 ? o->guide_training_spp : (o->spp / 8 > 22 ? o->spp / 8 : 22);
     /* only the samples something reads: the AOV's primary ones, guiding's trainable ones */
     recorder_set_filter(rs->recorder, (rs->debug_aov ? RECORDER_KEEP_PRIMARY : 0u) |
                                           (o->guiding != CANDELA_GUIDING_OFF ? RECORDER_KEEP_TRAINABLE : 0u));
