@@ -34,9 +34,8 @@ static inline int pv_is_vertex(uint32_t pv) { return pv < PV_SKIPPED; }
 enum {
     PV_FLAG_NEE = 1,         /* the vertex's ray is a next-event (shadow) ray */
     PV_FLAG_VOLUME = 2,      /* its origin is a scattering point in a medium */
-    PV_FLAG_DELTA = 4,       /* its direction came from a delta lobe (not trainable) */
-    PV_FLAG_GUIDABLE = 8     /* the scattering function at its origin is guided (rough enough) */
-};
+    PV_FLAG_DELTA = 4        /* its direction came from a delta lobe (not trainable) */
+};                           /* bits 16 and up are the caller's (the renderer: a normal class) */
 
 /* What a new vertex knows: its ray and the throughput of that ray (camera to the vertex, times
  * the sampling weight of its direction), the pdfs of its direction. */

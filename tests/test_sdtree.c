@@ -564,8 +564,39 @@ static void test_spatial_filter(void) {
     }
 }
 
+/* Accumulation across updates: light from +z in iteration 0, from -z in iteration 1 (the
+ * uniform pdf is 0.08; -z lies in a cell refined for +z, so one update learns it coarsely). Kept
+ * (accumulate = 1, the default), the field still sends samples up; PPG 2017's fresh start
+ * (accumulate = 0) has forgotten +z. */
+static void test_accumulate(void) {
+    for (int acc = 0; acc <= 1; ++acc) {
+        GuideFieldParams p;
+        guide_field_params_default(&p);
+        p.accumulate = acc;
+        const float lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
+        GuideField *f = guide_field_create(lo, hi, &p);
+        enum { N = 500 };
+        GuideTrainingSample smp[N];
+        for (int pass = 0; pass < 2; ++pass) {
+            for (int i = 0; i < N; ++i)
+                smp[i] = (GuideTrainingSample){{0.5f, 0.5f, 0.5f}, {0, 0, pass ? -1.0f : 1.0f}, 1.0f, 0.0795775f};
+            guide_field_record(f, smp, N);
+            guide_field_update(f, 1.0f);
+        }
+        const float at[3] = {0.5f, 0.5f, 0.5f}, up[3] = {0, 0, 1}, down[3] = {0, 0, -1};
+        const GuideDistribution *d = guide_field_lookup(f, at);
+        float pu = guide_distribution_pdf(d, up), pd = guide_distribution_pdf(d, down);
+        fprintf(stderr, "accumulate %d: pdf up %.3g, down %.3g\n", acc, pu, pd);
+        CHECK(pd > 0.1f, "accumulate %d: the last iteration's light is learned (pdf %g)", acc, pd);
+        if (acc) CHECK(pu > 0.5f * pd, "accumulating keeps the first iteration's light (pdf up %g, down %g)", pu, pd);
+        else CHECK(pu < 0.01f * pd, "a fresh start forgets the first iteration's light (pdf up %g, down %g)", pu, pd);
+        guide_field_free(f);
+    }
+}
+
 int main(void) {
     double t0 = test_seconds();
+    test_accumulate();
     test_spatial_filter();
     test_uniform();
     test_trained();
