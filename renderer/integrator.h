@@ -259,6 +259,13 @@ static inline void path_add_radiance(const Integrator *ig, uint32_t p, vec3 cont
     if (ig->record.active) record_radiance(ig, p, contribution, source);
 }
 
+/* The throughput of an NEE ray, for its recorder vertex: the contribution per unit of the
+ * light's radiance (so its sample is the radiance that arrived). */
+static inline vec3 nee_throughput(vec3 contrib, vec3 radiance) {
+    return v3(radiance.x > 0.0f ? contrib.x / radiance.x : 0.0f, radiance.y > 0.0f ? contrib.y / radiance.y : 0.0f,
+              radiance.z > 0.0f ? contrib.z / radiance.z : 0.0f);
+}
+
 /* The path ends: its ray's vertex is released. */
 static inline void path_end(const Integrator *ig, Slice *s, uint32_t p) {
     if (ig->record.active) {

@@ -36,9 +36,7 @@ static float medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec
         float tfar = isinf(ls.distance) ? INFINITY : ls.distance * (1.0f - 1e-3f);
         s->shadow_rays++;
         if (ig->record.active) { /* the NEE vertex, released below once its ray is traced */
-            vec3 tp = v3_scale(contrib, weight);
-            tp = v3(ls.radiance.x > 0.0f ? tp.x / ls.radiance.x : 0.0f, ls.radiance.y > 0.0f ? tp.y / ls.radiance.y : 0.0f,
-                    ls.radiance.z > 0.0f ? tp.z / ls.radiance.z : 0.0f);
+            vec3 tp = nee_throughput(v3_scale(contrib, weight), ls.radiance);
             ps->shadow_pv[p] =
                 record_child(ig, s, p, ps->pv[p], x, ls.wi, tp, ls.pdf, ls.pdf, 0.0f, PV_FLAG_NEE | PV_FLAG_VOLUME, segment);
         }

@@ -99,13 +99,6 @@ int direct_light_sample(const Integrator *ig, uint32_t p, const Scatter *sc, con
 /* Next-event estimation from the vertex: the MIS-weighted contribution pending on a shadow ray
  * (queued when non-zero). The selection's outcome goes back to the sampler: from the shadow
  * stage when a ray is queued, from here (nothing got through) when not. */
-/* The throughput of an NEE ray, for its recorder vertex: the contribution per unit of the
- * light's radiance (so its sample is the radiance that arrived). */
-static vec3 nee_throughput(vec3 contrib, vec3 radiance) {
-    return v3(radiance.x > 0.0f ? contrib.x / radiance.x : 0.0f, radiance.y > 0.0f ? contrib.y / radiance.y : 0.0f,
-              radiance.z > 0.0f ? contrib.z / radiance.z : 0.0f);
-}
-
 static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, const SurfaceHit *h,
                                  const Scatter *sc, const LightSampleContext *lc) {
     const PathState *ps = &ig->ps;
