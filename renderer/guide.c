@@ -106,7 +106,7 @@ static void train_field(GuideState *gs, int k, const RecorderSamples *batch) {
     }
     guide_field_record(gs->fields[k], gs->train, n);
     gs->samples_trained += n;
-    if (k < GUIDE_SURFACE_CLASSES && gs->keep_last) { /* guide-dump's histogram */
+    if (k < GUIDE_SURFACE_CLASSES && gs->keep_last && n > 0) { /* guide-dump's histogram */
         if (gs->last_count + n > gs->last_capacity) {
             size_t cap = 2 * (gs->last_count + n);
             GuideTrainingSample *l = realloc(gs->last, cap * sizeof *l);

@@ -151,6 +151,7 @@ void record_batch_end(Integrator *ig, Slice *slices, uint32_t n) {
         else { all->items = items; all->capacity = total; }
     }
     for (uint32_t k = 0; k < n && total; ++k) {
+        if (rs->samples[k].s.count == 0) continue; /* its items may be NULL: no memcpy from NULL */
         memcpy(all->items + all->count, rs->samples[k].s.items, rs->samples[k].s.count * sizeof *all->items);
         all->count += rs->samples[k].s.count;
     }
