@@ -85,11 +85,14 @@ static vec3 function_eval(const Scatter *s, vec3 wi, float *pdf) {
     return v3_scale(bsdf_eval_pdf(&s->bsdf, s->wo, wi_l, pdf), fabsf(wi_l.z));
 }
 
+int scatter_guidable(const Scatter *s) {
+    return s->kind == SCATTER_PHASE ? fabsf(s->g) < SCATTER_PHASE_GUIDE_MAX_G : bsdf_guidable(&s->bsdf);
+}
+
 void scatter_set_guide(Scatter *s, const GuideDistribution *d, ScatterGuideMode mode) {
     s->guide = NULL;
     s->guide_mode = SCATTER_GUIDE_NONE;
-    if (!d || mode == SCATTER_GUIDE_NONE) return;
-    if (s->kind == SCATTER_PHASE ? !(fabsf(s->g) < SCATTER_PHASE_GUIDE_MAX_G) : !bsdf_guidable(&s->bsdf)) return;
+    if (!d || mode == SCATTER_GUIDE_NONE || !scatter_guidable(s)) return;
     s->guide = d;
     s->guide_mode = mode;
 }

@@ -65,8 +65,10 @@ int scatter_sample(const Scatter *s, float u_lobe, float u1, float u2, ScatterSa
 /* The same with the guide when there is one: u[0..2] as above, u[3], u[4] the guide's
  * direction, u[5] the choice between the two (MIS) or between the candidates (RIS). */
 int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out);
-/* Guides the scatter with d (NULL: not guided) when guiding may help there: surfaces with a
- * lobe rougher than 0.05 and no delta lobe, media with |g| < 0.95 (ch. 1 §3.1). */
+/* 1 where guiding may help (ch. 1 §3.1): surfaces with a lobe rougher than 0.05 and no delta
+ * lobe, media with |g| < 0.95. Ask before looking the guide up: the lookup is a tree descent. */
+int scatter_guidable(const Scatter *s);
+/* Guides the scatter with d (NULL: not guided) when it is guidable. */
 void scatter_set_guide(Scatter *s, const GuideDistribution *d, ScatterGuideMode mode);
 /* f |cos| for direction wi (world), and the pdf scatter_sample has for it; zero when the
  * direction is not reachable (delta lobes, the geometry guard). pdf may be NULL (a delta

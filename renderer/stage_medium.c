@@ -155,7 +155,7 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
          * medium multiplied into a heavy-tailed throughput (a furnace of optical thickness 300
          * came out 9% dark at 64 spp, 21 paths overflowing to inf); deep in such media the
          * incident light is diffuse, and guiding has nothing to find there */
-        if (ig->guide.active && ps->volume_bounces[p] <= GUIDE_MAX_VOLUME_VERTICES)
+        if (ig->guide.active && ps->volume_bounces[p] <= GUIDE_MAX_VOLUME_VERTICES && scatter_guidable(&sc))
             scatter_set_guide(&sc, guide_lookup(ig, x, v3s(0.0f), guide_hints), (ScatterGuideMode)ig->guide.mode);
         LightSampleContext lc = {x, v3s(0.0f), {0, 0.0f}, scratch, &s->volume, walk_previous};
         light_sampler_prepare(ig->light_sampler, &lc, hint);

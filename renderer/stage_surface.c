@@ -206,7 +206,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
         }
         Scatter sc;
         scatter_init_surface(&sc, &h, &m.bsdf, wo);
-        if (ig->guide.active) scatter_set_guide(&sc, guide_lookup(ig, h.p, sc.ng, guide_hints), (ScatterGuideMode)ig->guide.mode);
+        if (ig->guide.active && scatter_guidable(&sc)) scatter_set_guide(&sc, guide_lookup(ig, h.p, sc.ng, guide_hints), (ScatterGuideMode)ig->guide.mode);
         uint32_t depth = ps->depth[p];
         if (depth == 0) path_write_aovs(ps, p, m.bsdf.base_color, sc.frame.n, hit->t);
 
