@@ -27,6 +27,8 @@ import re
 import subprocess
 import sys
 
+from image_error import mse
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENES = {"interior": "scenes/guiding_interior.gltf", "default": "scenes/default.gltf"}
 CONFIGS = [("unguided", ["--guiding", "off"]), ("guided MIS", ["--guiding", "mis"]), ("guided RIS", ["--guiding", "ris"])]
@@ -50,14 +52,6 @@ def oiio_mean(args):
         sys.exit("oiiotool gave no stats for %s:\n%s" % (" ".join(args), r.stdout + r.stderr))
     vals = [float(x) for x in m.group(1).split()]
     return sum(vals) / len(vals)
-
-
-def mse(a, b):
-    r = subprocess.run(["oiiotool", a, "--ch", "R,G,B", b, "--ch", "R,G,B", "--diff"], capture_output=True, text=True)
-    m = re.search(r"RMS error = ([0-9.eE+-]+)", r.stdout + r.stderr)
-    if not m:
-        sys.exit("oiiotool --diff gave no RMS error for %s %s:\n%s" % (a, b, r.stdout + r.stderr))
-    return float(m.group(1)) ** 2
 
 
 def main():

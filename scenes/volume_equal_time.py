@@ -24,6 +24,8 @@ import re
 import subprocess
 import sys
 
+from image_error import mse
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENES = ["fig9_thin", "fig9_thick", "torch_mist", "spots_atmosphere"]
 CONFIGS = [
@@ -45,14 +47,6 @@ def render(candela, scene, out, spp, seed, res, extra):
     with open(stats) as f:
         t = json.load(f)["time_seconds"]
     return t["total"] - t["load"], t["build"]
-
-
-def mse(a, b):
-    r = subprocess.run(["oiiotool", a, "--ch", "R,G,B", b, "--ch", "R,G,B", "--diff"], capture_output=True, text=True)
-    m = re.search(r"RMS error = ([0-9.eE+-]+)", r.stdout + r.stderr)
-    if not m:
-        sys.exit("oiiotool --diff gave no RMS error for %s %s:\n%s" % (a, b, r.stdout + r.stderr))
-    return float(m.group(1)) ** 2
 
 
 def mse_trimmed(a, b, scratch, drop=0.001):
