@@ -148,7 +148,8 @@ int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out
         out->scatter_pdf = p_f;
         out->guide_pdf = p_g;
     } else {
-        /* RIS with one candidate of each (Eqs. 8-14): target t = f|cos| (alpha/4pi + (1 - alpha) g) */
+        /* RIS with one candidate of each (Eqs. 8-14): target t = f|cos| (beta/4pi + (1 - beta) g) */
+        const float beta = SCATTER_RIS_UNIFORM_SHARE;
         vec3 wc[2], fc[2];
         float pf[2] = {0, 0}, pg[2] = {0, 0}, w[2] = {0, 0}, t[2] = {0, 0};
         ScatterSample fs;
@@ -164,7 +165,7 @@ int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out
         fc[1] = function_eval(s, wc[1], &pf[1]);
         for (int k = 0; k < 2; ++k) {
             float p = 0.5f * pf[k] + 0.5f * pg[k];
-            t[k] = v3_luminance(fc[k]) * (alpha * (float)(0.25 / M_PI) + (1.0f - alpha) * pg[k]);
+            t[k] = v3_luminance(fc[k]) * (beta * (float)(0.25 / M_PI) + (1.0f - beta) * pg[k]);
             w[k] = p > 0.0f && t[k] > 0.0f ? t[k] / p : 0.0f;
         }
         float sum = w[0] + w[1];
