@@ -786,19 +786,19 @@ int32_t Loader::image_for(int gi, bool srgb, const std::string &what) {
     bool ok;
     if (from_file) {
         if (!is_regular_file(file)) fail(label + " not found (" + file + ")");
-        ok = candela_io::decode_image(file, nullptr, 0, srgb, texture_left(), &img, &problem);
+        ok = candela_io::decode_image(file, nullptr, 0, srgb, true, texture_left(), &img, &problem);
         if (!ok) problem = file + ": " + problem;
     } else if (im.bufferView >= 0) {
         size_t len = m_.bufferViews.size() > size_t(im.bufferView)
                          ? m_.bufferViews[size_t(im.bufferView)].byteLength : 0;
         const unsigned char *p = view_span(im.bufferView, 0, len, label, nullptr);
-        ok = candela_io::decode_image(label, p, len, srgb, texture_left(), &img, &problem);
+        ok = candela_io::decode_image(label, p, len, srgb, true, texture_left(), &img, &problem);
     } else {
         if (im.image.empty()) fail(label + " has no data");
-        ok = candela_io::decode_image(label, im.image.data(), im.image.size(), srgb, texture_left(), &img, &problem);
+        ok = candela_io::decode_image(label, im.image.data(), im.image.size(), srgb, true, texture_left(), &img, &problem);
     }
     if (!ok) fail(label + ": " + problem);
-    texture_used_ += uint64_t(img.width) * uint64_t(img.height) * 4u * sizeof(float);
+    texture_used_ += io_image_bytes(&img);
     images_.push_back(img);
     const int32_t index = int32_t(images_.size() - 1);
     image_cache_[{key, srgb ? 1 : 0}] = index;
@@ -1345,7 +1345,7 @@ extern "C" void io_scene_free(IoScene *scene) {
         std::free(p->tangents);
         std::free(p->indices);
     }
-    for (uint32_t i = 0; scene->images && i < scene->num_images; ++i) std::free(scene->images[i].rgba);
+    for (uint32_t i = 0; scene->images && i < scene->num_images; ++i) io_image_free(&scene->images[i]);
     for (uint32_t i = 0; scene->volumes && i < scene->num_volumes; ++i) {
         io_volume_grid_free(&scene->volumes[i].density);
         io_volume_grid_free(&scene->volumes[i].emission);

@@ -1,6 +1,7 @@
 // io/image_oiio.cpp: thin extern "C" adapter over OpenImageIO (C++17).
-// Decodes any image OIIO reads into linear float RGBA and writes 8-bit PNGs atomically
-// (temp name + rename). Also hosts the small helpers shared with gltf_loader.cpp.
+// Decodes any image OIIO reads into linear float RGBA (or keeps an 8-bit file as 8-bit RGBA)
+// and writes 8-bit PNGs atomically (temp name + rename). Also hosts the small helpers shared
+// with gltf_loader.cpp.
 #include "io.h"
 #include "io_internal.hpp"
 
@@ -75,8 +76,17 @@ static const char *sniff_extension(const unsigned char *p, size_t n) {
     return "bin";
 }
 
-bool decode_image(const std::string &path, const void *mem, size_t mem_size, bool srgb, uint64_t max_bytes,
-                  IoImage *out, std::string *problem) {
+// Whether every channel of the file is 8-bit unsigned: such an image can be held as its own
+// code values (IO_IMAGE_KEEP_8BIT) and lose nothing.
+static bool is_8bit(const OIIO::ImageSpec &spec) {
+    if (spec.format != OIIO::TypeDesc::UINT8) return false;
+    for (const OIIO::TypeDesc &t : spec.channelformats)
+        if (t != OIIO::TypeDesc::UINT8) return false;
+    return true;
+}
+
+bool decode_image(const std::string &path, const void *mem, size_t mem_size, bool srgb, bool keep_8bit,
+                  uint64_t max_bytes, IoImage *out, std::string *problem) {
     OIIO::ImageSpec config;
     // glTF (and PNG) alpha is straight; keep it so (OIIO premultiplies by default).
     config.attribute("oiio:UnassociatedAlpha", 1);
@@ -113,10 +123,13 @@ bool decode_image(const std::string &path, const void *mem, size_t mem_size, boo
                    "; limit " + std::to_string(kMaxImageSide) + " per side, 2^28 pixels)";
         return false;
     }
-    const uint64_t bytes = uint64_t(w) * uint64_t(h) * 4u * sizeof(float);
+    const bool as_8bit = keep_8bit && is_8bit(spec);
+    const uint64_t texel_bytes = as_8bit ? 4u : 4u * sizeof(float);
+    const uint64_t bytes = uint64_t(w) * uint64_t(h) * texel_bytes;
     if (max_bytes && bytes > max_bytes) {
         *problem = "image of " + std::to_string(w) + "x" + std::to_string(h) + " needs " +
-                   std::to_string(bytes >> 20) + " MiB; the texture budget has " + std::to_string(max_bytes >> 20) +
+                   std::to_string(bytes >> 20) + " MiB (" + (as_8bit ? "8-bit" : "float") +
+                   " RGBA); the texture budget has " + std::to_string(max_bytes >> 20) +
                    " MiB left (--texture-budget-mb)";
         return false;
     }
@@ -127,39 +140,63 @@ bool decode_image(const std::string &path, const void *mem, size_t mem_size, boo
     }
     const int nc = nc_file < 4 ? nc_file : 4;
     const size_t npix = size_t(w) * size_t(h);
-    std::vector<float> tmp(npix * size_t(nc));
-    if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, tmp.data())) {
+
+    // The file's first nc channels go straight into the RGBA buffer (no copy of the whole
+    // image on the side: the peak is the image itself), then each texel is completed in place:
+    // grey is copied to G and B, a missing alpha is opaque.
+    void *buffer = std::malloc(npix * size_t(texel_bytes));
+    if (!buffer) {
+        *problem = "out of memory";
+        return false;
+    }
+    const OIIO::TypeDesc want = as_8bit ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT;
+    const OIIO::stride_t xstride = OIIO::stride_t(texel_bytes), ystride = xstride * OIIO::stride_t(w);
+    if (!in->read_image(0, 0, 0, nc, want, buffer, xstride, ystride)) {
+        std::free(buffer);
         std::string e = in->geterror();
         *problem = "cannot decode: " + (e.empty() ? std::string("read failed") : e);
         return false;
     }
     in->close();
-
-    float *rgba = static_cast<float *>(std::malloc(npix * 4 * sizeof(float)));
-    if (!rgba) {
-        *problem = "out of memory";
-        return false;
-    }
-    for (size_t i = 0; i < npix; ++i) {
-        const float *s = &tmp[i * size_t(nc)];
-        float *d = &rgba[i * 4];
-        switch (nc) {
-        case 1: d[0] = d[1] = d[2] = s[0]; d[3] = 1.0f; break;
-        case 2: d[0] = d[1] = d[2] = s[0]; d[3] = s[1]; break;
-        case 3: d[0] = s[0]; d[1] = s[1]; d[2] = s[2]; d[3] = 1.0f; break;
-        default: d[0] = s[0]; d[1] = s[1]; d[2] = s[2]; d[3] = s[3]; break;
+    auto complete = [&](auto *px, auto opaque) {
+        for (size_t i = 0; i < npix; ++i) {
+            auto *d = px + i * 4;
+            switch (nc) {
+            case 1: d[1] = d[2] = d[0]; d[3] = opaque; break;
+            case 2: d[3] = d[1]; d[1] = d[2] = d[0]; break;
+            case 3: d[3] = opaque; break;
+            default: break;
+            }
         }
-    }
+    };
 
+    out->width = int(w);
+    out->height = int(h);
+    if (as_8bit) {
+        uint8_t *rgba8 = static_cast<uint8_t *>(buffer);
+        complete(rgba8, uint8_t(255));
+        // sRGB stays encoded: the lookup decodes each code value with io_texel8_tables()
+        out->rgba8 = rgba8;
+        out->srgb = srgb ? 1 : 0;
+        return true;
+    }
+    float *rgba = static_cast<float *>(buffer);
+    complete(rgba, 1.0f);
     if (srgb && is_integer_format(spec.format)) {
-        // 8/16-bit sources decode to k/(2^n-1) exactly; a table per code value is exact.
+        // 8/16-bit sources decode to k/(2^n-1) exactly; a table per code value is exact (for
+        // 8 bits the very table the 8-bit form is looked up with, so both forms agree).
         int bits = 0;
         if (spec.format.basetype == OIIO::TypeDesc::UINT8) bits = 8;
         if (spec.format.basetype == OIIO::TypeDesc::UINT16) bits = 16;
         if (bits) {
             const int maxv = (1 << bits) - 1;
-            std::vector<float> lut(size_t(maxv) + 1);
-            for (int k = 0; k <= maxv; ++k) lut[size_t(k)] = float(srgb_to_linear(double(k) / maxv));
+            std::vector<float> lut16;
+            const float *lut = io_texel8_tables()->srgb;
+            if (bits == 16) {
+                lut16.resize(size_t(maxv) + 1);
+                for (int k = 0; k <= maxv; ++k) lut16[size_t(k)] = float(srgb_to_linear(double(k) / maxv));
+                lut = lut16.data();
+            }
             for (size_t i = 0; i < npix; ++i)
                 for (int c = 0; c < 3; ++c) {
                     float v = rgba[i * 4 + size_t(c)];
@@ -176,9 +213,6 @@ bool decode_image(const std::string &path, const void *mem, size_t mem_size, boo
                 }
         }
     }
-
-    out->width = int(w);
-    out->height = int(h);
     out->rgba = rgba;
     return true;
 }
@@ -187,7 +221,30 @@ bool decode_image(const std::string &path, const void *mem, size_t mem_size, boo
 
 using candela_io::set_err;
 
-extern "C" int io_load_image(const char *path, int srgb, IoImage *image, char err[IO_ERR_LEN]) {
+extern "C" const IoTexel8Tables *io_texel8_tables(void) {
+    // linear: OpenImageIO's own uint8 -> float conversion, the one read_image applies when a
+    // float decode of an 8-bit file is asked for; srgb: the table the float decode of an sRGB
+    // 8-bit file uses. (A function-local static: built once, thread-safe.)
+    static const IoTexel8Tables tables = [] {
+        IoTexel8Tables t{};
+        unsigned char codes[256];
+        for (int k = 0; k < 256; ++k) codes[k] = (unsigned char)k;
+        if (!OIIO::convert_pixel_values(OIIO::TypeDesc::UINT8, codes, OIIO::TypeDesc::FLOAT, t.linear, 256))
+            for (int k = 0; k < 256; ++k) t.linear[k] = float(k) * (1.0f / 255.0f); // OIIO's formula
+        for (int k = 0; k < 256; ++k) t.srgb[k] = float(candela_io::srgb_to_linear(double(k) / 255.0));
+        return t;
+    }();
+    return &tables;
+}
+
+extern "C" uint64_t io_image_bytes(const IoImage *image) {
+    if (!image || image->width <= 0 || image->height <= 0) return 0;
+    const uint64_t texels = uint64_t(image->width) * uint64_t(image->height);
+    if (image->rgba8) return texels * 4u;
+    return image->rgba ? texels * 4u * sizeof(float) : 0;
+}
+
+extern "C" int io_load_image(const char *path, int flags, IoImage *image, char err[IO_ERR_LEN]) {
     if (err) err[0] = 0;
     if (!image) {
         set_err(err, path ? path : "(null)", "no output image");
@@ -210,7 +267,8 @@ extern "C" int io_load_image(const char *path, int srgb, IoImage *image, char er
     }
     try {
         std::string problem;
-        if (!candela_io::decode_image(path, nullptr, 0, srgb != 0, 0, image, &problem)) {
+        if (!candela_io::decode_image(path, nullptr, 0, (flags & IO_IMAGE_SRGB) != 0,
+                                      (flags & IO_IMAGE_KEEP_8BIT) != 0, 0, image, &problem)) {
             set_err(err, path, problem);
             return 1;
         }
@@ -229,6 +287,7 @@ extern "C" int io_load_image(const char *path, int srgb, IoImage *image, char er
 extern "C" void io_image_free(IoImage *image) {
     if (!image) return;
     std::free(image->rgba);
+    std::free(image->rgba8);
     std::memset(image, 0, sizeof *image);
 }
 

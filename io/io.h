@@ -37,11 +37,51 @@ void io_remove_active_temp(void);
  * intensity a scene may give: products with it stay finite in float. */
 #define IO_MAX_EMISSION 1e20
 
-/* One image in linear float RGBA, rows top to bottom (row 0 is the top of the picture). */
+/* One image, RGBA per texel, rows top to bottom (row 0 is the top of the picture), held in one
+ * of two forms: exactly one of rgba / rgba8 is non-NULL (both NULL only in an empty image).
+ *  - rgba: linear float, 16 bytes per texel: HDR, EXR, 16-bit and other files that are not
+ *    8 bits per channel, every image loaded without IO_IMAGE_KEEP_8BIT (the environment map).
+ *  - rgba8: the file's own 8-bit code values, 4 bytes per texel (PNG, JPEG, 8-bit TGA / BMP /
+ *    WebP ... loaded with IO_IMAGE_KEEP_8BIT, as glTF textures are): a 16k x 16k PNG is 1 GiB
+ *    rather than 4. Code k of R, G, B stands for io_texel8_tables()->srgb[k] when srgb != 0
+ *    and for ->linear[k] otherwise; alpha always for ->linear[k]. Those are exactly the floats
+ *    the float form of the same file holds, so the two forms render identically.
+ * Grey files are expanded to RGB and a missing alpha is opaque (1.0 / code 255) in both forms. */
 typedef struct IoImage {
     int width, height;
-    float *rgba; /* width*height*4 */
+    float *rgba;     /* width*height*4, or NULL */
+    uint8_t *rgba8;  /* width*height*4, or NULL */
+    int32_t srgb;    /* rgba8 only: R, G, B are sRGB-encoded (base colour, emissive) */
 } IoImage;
+
+/* What an 8-bit code value k stands for: linear[k] is the float OpenImageIO converts k to
+ * (k * (1/255) in single precision), srgb[k] the exact sRGB EOTF of k/255 rounded to float.
+ * Computed once, then read-only and shared by every thread. */
+typedef struct IoTexel8Tables {
+    float linear[256];
+    float srgb[256];
+} IoTexel8Tables;
+const IoTexel8Tables *io_texel8_tables(void);
+
+/* Texel `index` (y * width + x) of a non-empty image as linear float RGBA, whichever form it
+ * is held in. */
+static inline void io_image_texel(const IoImage *image, size_t index, float out[4]) {
+    if (image->rgba8) {
+        const IoTexel8Tables *tables = io_texel8_tables();
+        const float *rgb = image->srgb ? tables->srgb : tables->linear;
+        const uint8_t *c = image->rgba8 + 4 * index;
+        out[0] = rgb[c[0]];
+        out[1] = rgb[c[1]];
+        out[2] = rgb[c[2]];
+        out[3] = tables->linear[c[3]];
+    } else {
+        const float *f = image->rgba + 4 * index;
+        for (int k = 0; k < 4; ++k) out[k] = f[k];
+    }
+}
+
+/* The bytes an image's texels occupy (16 or 4 per texel; 0 when empty). */
+uint64_t io_image_bytes(const IoImage *image);
 
 /* A texture reference as a material uses it. image < 0: no texture.
  * KHR_texture_transform is already folded into offset/rotation/scale:
@@ -58,8 +98,9 @@ typedef struct IoTextureRef {
 enum { IO_ALPHA_OPAQUE = 0, IO_ALPHA_MASK = 1, IO_ALPHA_BLEND = 2 };
 
 /* glTF metallic-roughness material plus the extensions Candela honours. Images referenced
- * as base colour or emissive are sRGB-decoded to linear at load; metallic-roughness and
- * normal maps stay linear. (An image used both ways is loaded twice, once per colour space.) */
+ * as base colour or emissive are sRGB-encoded (8-bit ones are kept as code values with
+ * IoImage.srgb set, others are decoded to linear float at load); metallic-roughness and
+ * normal maps are linear. (An image used both ways is loaded twice, once per colour space.) */
 typedef struct IoMaterial {
     char name[64];
     float base_color[4];            /* baseColorFactor, linear RGBA */
@@ -233,16 +274,21 @@ typedef struct IoLoadOptions {
      * itself must resolve (realpath) inside this folder (NULL: no confinement; the default
      * policy lets a scene reference files anywhere relative to its folder) */
     const char *confine_dir;
-    /* the decoded textures' total size (RGBA float texels), checked before each image is
-     * decoded (0: no limit) */
+    /* the decoded textures' total size in bytes as held (io_image_bytes: 4 per texel for
+     * 8-bit files, 16 for the others), checked from each image's header before it is decoded
+     * (0: no limit) */
     uint64_t texture_budget_bytes;
 } IoLoadOptions;
 int io_load_gltf_opts(const char *path, const IoLoadOptions *opts, IoScene *scene, char err[IO_ERR_LEN]);
 void io_scene_free(IoScene *scene);
 
-/* Read any image OpenImageIO reads (EXR, HDR, PNG, ...) as linear float RGBA. 8/16-bit
- * integer files are treated as sRGB-encoded and decoded when srgb != 0. */
-int io_load_image(const char *path, int srgb, IoImage *image, char err[IO_ERR_LEN]);
+/* io_load_image flags. IO_IMAGE_SRGB: the file's R, G, B are sRGB-encoded (8/16-bit integer
+ * files; float files are linear whatever the flag says). IO_IMAGE_KEEP_8BIT: a file of 8 bits
+ * per channel is held as rgba8 (with IoImage.srgb = the IO_IMAGE_SRGB flag) instead of float. */
+enum { IO_IMAGE_SRGB = 1, IO_IMAGE_KEEP_8BIT = 2 };
+/* Read any image OpenImageIO reads (EXR, HDR, PNG, ...) into an IoImage: linear float RGBA,
+ * or with IO_IMAGE_KEEP_8BIT 8-bit RGBA for 8-bit files. */
+int io_load_image(const char *path, int flags, IoImage *image, char err[IO_ERR_LEN]);
 void io_image_free(IoImage *image);
 
 /* Write an 8-bit sRGB PNG through OpenImageIO. rgb: width*height*3 display values in [0,1]

@@ -14,15 +14,16 @@ namespace candela_io {
 constexpr int kMaxImageSide = 16384;
 constexpr long long kMaxImagePixels = 1LL << 28;
 
-// Decode an image with OpenImageIO into linear float RGBA (see io.h). Either from the file
-// `path` (mem == nullptr) or from the encoded bytes mem[0..mem_size) (path is then only a
-// name whose extension hints at the format). srgb != 0: decode the sRGB EOTF on RGB for
-// integer sources. On failure returns false with a one-line description in `problem`
-// (without any file-name prefix; the caller adds it). `out` is untouched on failure.
-// max_bytes: refuse (before decoding) an image whose decoded RGBA float texels would exceed it
-// (0: no limit).
-bool decode_image(const std::string &path, const void *mem, size_t mem_size, bool srgb, uint64_t max_bytes,
-                  IoImage *out, std::string *problem);
+// Decode an image with OpenImageIO into an IoImage (see io.h): linear float RGBA, or with
+// keep_8bit an 8-bit file's code values as RGBA8. Either from the file `path` (mem == nullptr)
+// or from the encoded bytes mem[0..mem_size) (path is then only a name whose extension hints
+// at the format). srgb: the file's RGB are sRGB-encoded (decoded to linear for integer
+// sources held as float; recorded in IoImage.srgb for RGBA8). On failure returns false with a
+// one-line description in `problem` (without any file-name prefix; the caller adds it). `out`
+// is untouched on failure. max_bytes: refuse (from the header, before decoding) an image whose
+// texels as held (io_image_bytes: 4 or 16 bytes each) would exceed it (0: no limit).
+bool decode_image(const std::string &path, const void *mem, size_t mem_size, bool srgb, bool keep_8bit,
+                  uint64_t max_bytes, IoImage *out, std::string *problem);
 
 // Replace every run of CR/LF in s by "; " and trim trailing separators and spaces.
 std::string one_line(const std::string &s);

@@ -64,7 +64,7 @@ typedef struct CandelaOptions {
     /* every file the scene references, and the scene, must lie inside this folder (NULL: the
      * default policy, files anywhere relative to the scene) */
     const char *confine_dir;
-    uint32_t texture_budget_mb; /* decoded textures in total (RGBA float); 0: no limit */
+    uint32_t texture_budget_mb; /* decoded textures in total (8-bit files 4 B/texel, others 16); 0: no limit */
     CandelaGuiding guiding;
     const char *guide_dump_prefix; /* candela guide-dump: write the learned field at guide_dump_at */
     float guide_dump_at[3];
@@ -93,6 +93,10 @@ typedef struct CandelaStats {
     int interrupted;              /* stopped at a barrier by CandelaOptions.stop */
     size_t peak_memory_bytes;
     uint32_t num_triangles, num_lights, num_instances;
+    /* the scene's decoded textures (not the environment) as held, what --texture-budget-mb
+     * counts: 8-bit files at 4 bytes per texel, the others at 16 */
+    uint32_t num_textures, num_textures_8bit;
+    uint64_t texture_bytes;
     double time_cachepoints;       /* cache point build (inside time_build) */
     uint32_t num_cachepoints, cachepoint_candidates;
     size_t cachepoint_bytes;

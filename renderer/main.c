@@ -29,7 +29,8 @@ static const char *USAGE =
     "  --png FILE.png            preview PNG path (default: the EXR path with .png)\n"
     "  --no-png                  do not write the PNG preview\n"
     "  --confine-to DIR          refuse a scene, or any file it references, outside DIR\n"
-    "  --texture-budget-mb N     decoded textures in total, RGBA float (default 8192; 0: none)\n"
+    "  --texture-budget-mb N     decoded textures in total, 4 bytes per texel for 8-bit files and\n"
+    "                            16 for others (default 8192; 0: none)\n"
     "  --save-partial            on Ctrl-C / SIGTERM, stop at the next iteration and write the\n"
     "                            image so far as NAME.partial.exr (exit 130); a second signal\n"
     "                            exits at once\n"
@@ -178,6 +179,10 @@ static void print_stats(const CandelaStats *s) {
             s->time_shadow, s->time_film, s->time_total, (unsigned long long)s->rays_camera,
             (unsigned long long)s->rays_bounce, (unsigned long long)s->rays_shadow,
             render > 0 ? (double)rays / render * 1e-6 : 0.0, (double)s->peak_memory_bytes / (1024.0 * 1024.0));
+    if (s->num_textures)
+        fprintf(stderr, "  textures: %u (%u 8-bit, %u float), %.1f MiB decoded\n", s->num_textures,
+                s->num_textures_8bit, s->num_textures - s->num_textures_8bit,
+                (double)s->texture_bytes / (1024.0 * 1024.0));
     if (s->num_cachepoints)
         fprintf(stderr,
                 "  cache points: %u from %u candidates, built in %.3fs, %.1f MiB; per point %.1f near lights, "

@@ -99,6 +99,8 @@ int candela_write_stats_json(const char *path_arg, const CandelaOptions *o, cons
     fprintf(f, "  \"iterations\": %d,\n  \"paths\": %llu,\n", s->iterations, (unsigned long long)s->paths);
     fprintf(f, "  \"triangles\": %u,\n  \"lights\": %u,\n  \"instances\": %u,\n", s->num_triangles, s->num_lights,
             s->num_instances);
+    fprintf(f, "  \"textures\": {\"count\": %u, \"count_8bit\": %u, \"bytes\": %llu},\n", s->num_textures,
+            s->num_textures_8bit, (unsigned long long)s->texture_bytes);
     fprintf(f,
             "  \"cachepoints\": {\"build\": \"%s\", \"build_seconds\": %.6f, \"candidates\": %u, \"points\": %u, "
             "\"bytes\": %zu, \"mean_near\": %.3f, \"mean_far\": %.3f, \"mean_clusters\": %.3f},\n",

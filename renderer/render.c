@@ -148,6 +148,11 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
     stats->num_triangles = r->scene.num_triangles_total;
     stats->num_lights = r->lights.count;
     stats->num_instances = r->scene.io.num_instances;
+    stats->num_textures = r->scene.io.num_images;
+    for (uint32_t i = 0; i < r->scene.io.num_images; ++i) {
+        stats->texture_bytes += io_image_bytes(&r->scene.io.images[i]);
+        if (r->scene.io.images[i].rgba8) ++stats->num_textures_8bit;
+    }
     stats->num_volumes = r->media.num_vdb;
 
     const Camera *cam = &r->scene.camera;

@@ -46,6 +46,19 @@ void texture_lookup(const IoImage *image, const IoTextureRef *ref, vec2 uv, floa
     int ys[2] = {wrap_coord(y0, image->height, ref->wrap_t), wrap_coord(y0 + 1, image->height, ref->wrap_t)};
     float w[4] = {(1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay};
     for (int k = 0; k < 4; ++k) out[k] = 0.0f;
+    if (image->rgba8) {
+        /* 8-bit texels (4 bytes each instead of 16) become the very floats a float decode of
+         * the file holds (io.h, io_texel8_tables) before they are weighted, so the result is
+         * bit for bit the float form's */
+        const IoTexel8Tables *tables = io_texel8_tables();
+        const float *rgb = image->srgb ? tables->srgb : tables->linear;
+        for (int j = 0; j < 4; ++j) {
+            const uint8_t *c = image->rgba8 + 4 * ((size_t)ys[j >> 1] * (size_t)image->width + (size_t)xs[j & 1]);
+            const float t[4] = {rgb[c[0]], rgb[c[1]], rgb[c[2]], tables->linear[c[3]]};
+            for (int k = 0; k < 4; ++k) out[k] += w[j] * t[k];
+        }
+        return;
+    }
     for (int j = 0; j < 4; ++j) {
         const float *t = image->rgba + 4 * ((size_t)ys[j >> 1] * (size_t)image->width + (size_t)xs[j & 1]);
         for (int k = 0; k < 4; ++k) out[k] += w[j] * t[k];
@@ -479,7 +492,9 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
     const char *env_path = o->env_path ? o->env_path : (io->env_path[0] ? io->env_path : NULL);
     scene->env_strength = o->env_path ? o->env_strength : io->env_strength;
     if (env_path) {
-        if (io_load_image(env_path, 1, &scene->env, ioerr) != 0) {
+        /* float whatever the file: the environment is summed into the light's sampling
+         * distribution and read as float there (lights.c, light_estimates.c) */
+        if (io_load_image(env_path, IO_IMAGE_SRGB, &scene->env, ioerr) != 0) {
             snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
             scene_free(scene);
             return -1;

@@ -65,7 +65,7 @@ typedef struct Scene {
     vec3 center;
     float radius;              /* bounding sphere of the geometry (>= a small minimum) */
     Camera camera;
-    IoImage env;               /* linear RGBA lat-long; width 0 when there is none */
+    IoImage env;               /* linear float RGBA lat-long (rgba, never rgba8); width 0 when there is none */
     float env_strength;
 } Scene;
 
@@ -109,7 +109,8 @@ vec3 scene_env_uv_to_dir(vec2 uv);
 /* Camera ray through film position (fx, fy) in pixels (0..width, 0..height, y down). */
 void camera_generate_ray(const Camera *c, float fx, float fy, vec3 *org, vec3 *dir);
 
-/* Bilinear lookup with glTF wrap modes and KHR_texture_transform applied. */
+/* Bilinear lookup with glTF wrap modes and KHR_texture_transform applied, of either form of
+ * image (float or 8-bit: the same texels give the same result to the bit). */
 void texture_lookup(const IoImage *image, const IoTextureRef *ref, vec2 uv, float out[4]);
 
 /* ---------------------------------------------------------------- the scene ray interface */

@@ -145,14 +145,24 @@ mkfifo "$tmp/env_fifo.exr"
 hostile "$tmp/env_fifo.gltf" 'd.setdefault("extras", {})["candela_environment"] = {"uri": "env_fifo.exr"}'
 expect_error "scene environment is a FIFO" "not a regular file" -- render "$tmp/env_fifo.gltf" "${common[@]}"
 rm -f "$tmp/env_fifo.exr"
-# the texture budget: a 1024^2 texture (16 MiB decoded) under --texture-budget-mb 1 is refused,
-# naming it, before it is decoded; under the default budget it loads (items 6, 17)
+# the texture budget: a 1024^2 8-bit texture (4 MiB as held: 8-bit files stay 8-bit) under
+# --texture-budget-mb 1 is refused, naming it, before it is decoded; under a budget of 4 MiB
+# (which 16 bytes per texel would exceed) and the default it loads, and the statistics report
+# it (items 6, 17)
 if command -v oiiotool >/dev/null; then
   oiiotool --pattern constant:color=0.5,0.5,0.5 1024x1024 3 -d uint8 -o "$tmp/tex1k.png" 2>/dev/null
   hostile "$tmp/textured.gltf" 'd["images"] = [{"uri": "tex1k.png"}]; d["textures"] = [{"source": 0}]; d["materials"][0].setdefault("pbrMetallicRoughness", {})["baseColorTexture"] = {"index": 0}'
   expect_error "texture over budget" "texture budget" -- render "$tmp/textured.gltf" --texture-budget-mb 1 "${common[@]}"
-  "$bin" render "$tmp/textured.gltf" -o "$tmp/tx.exr" --no-png --res 8x8 --spp 1 --quiet && ok || bad "a 1024^2 texture under the default budget"
-  rm -f "$tmp/tx.exr"
+  "$bin" render "$tmp/textured.gltf" -o "$tmp/tx.exr" --no-png --res 8x8 --spp 1 --quiet --texture-budget-mb 4 &&
+    ok || bad "a 1024^2 8-bit texture under a budget of 4 MiB"
+  if "$bin" render "$tmp/textured.gltf" -o "$tmp/tx.exr" --no-png --res 8x8 --spp 1 --stats-json "$tmp/tx.json" 2>"$tmp/tx.err" &&
+     python3 -c "import json,sys; t=json.load(open(sys.argv[1]))['textures']; sys.exit(0 if t == {'count': 1, 'count_8bit': 1, 'bytes': 4 << 20} else 1)" "$tmp/tx.json" &&
+     grep -q "textures: 1 (1 8-bit, 0 float), 4.0 MiB decoded" "$tmp/tx.err"; then
+    ok
+  else
+    bad "a 1024^2 texture under the default budget, or its statistics: $(cat "$tmp/tx.err" "$tmp/tx.json" 2>/dev/null | tr '\n' ' ')"
+  fi
+  rm -f "$tmp/tx.exr" "$tmp/tx.json" "$tmp/tx.err"
 fi
 # a zero scale hides a mesh (animation does this): a warning, and the render goes on
 hostile "$tmp/scale0.gltf" 'mesh[0]["scale"] = [0, 1, 1]'

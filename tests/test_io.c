@@ -6,6 +6,7 @@
  * VDB grids use the shared assets' vdb/cloud.vdb and vdb/slab.vdb by absolute path (or a
  * copy next to the generated glTF for relative uris) and are skipped when those are absent. */
 #include "check.h"
+#include "png_raw.h"
 
 #define PNANOVDB_C
 #include <nanovdb/PNanoVDB.h>
@@ -203,7 +204,7 @@ static void test_png(void) {
         CHECK(img.rgba == NULL, "io_image_free did not clear");
     }
     /* sRGB decode: value k/255 -> exact EOTF */
-    rc = io_load_image(path, 1, &img, err);
+    rc = io_load_image(path, IO_IMAGE_SRGB, &img, err);
     CHECK(rc == 0, "io_load_image srgb: %s", err);
     if (rc == 0) {
         int k = (int)lroundf(fminf(fmaxf(rgb[5 * 3 + 2], 0.0f), 1.0f) * 255.0f);
@@ -217,6 +218,145 @@ static void test_png(void) {
     check_err(err, missing, "missing png");
     CHECK(io_write_png(tmp_path("nodir/x.png"), W, H, rgb, err) != 0, "write into missing dir");
     check_err(err, tmp_path("nodir/x.png"), "png into missing dir");
+}
+
+/* ---------------------------------------------------------------- 8-bit and float textures */
+
+/* Loads path as float and with IO_IMAGE_KEEP_8BIT, both with srgb_flag, and checks that the
+ * 8-bit form is 8-bit and that every texel of it stands for exactly the float the float form
+ * holds (what keeps renders bit-identical to the float-only loader). */
+static void check_8bit_matches_float(const char *path, int srgb_flag, const char *what) {
+    char err[IO_ERR_LEN] = "";
+    IoImage f, e;
+    const int rf = io_load_image(path, srgb_flag, &f, err);
+    CHECK(rf == 0, "%s float: %s", what, err);
+    const int re = io_load_image(path, srgb_flag | IO_IMAGE_KEEP_8BIT, &e, err);
+    CHECK(re == 0, "%s 8-bit: %s", what, err);
+    if (rf == 0 && re == 0) {
+        const uint64_t texels = (uint64_t)f.width * (uint64_t)f.height;
+        CHECK(f.rgba && !f.rgba8 && io_image_bytes(&f) == 16 * texels, "%s: float form", what);
+        CHECK(e.rgba8 && !e.rgba && io_image_bytes(&e) == 4 * texels, "%s: not held at 4 bytes per texel", what);
+        CHECK(e.srgb == ((srgb_flag & IO_IMAGE_SRGB) != 0), "%s: srgb flag %d", what, e.srgb);
+        CHECK(e.width == f.width && e.height == f.height, "%s: size", what);
+        size_t differ = 0;
+        for (size_t i = 0; e.rgba8 && e.width == f.width && e.height == f.height && i < texels; ++i) {
+            float t[4];
+            io_image_texel(&e, i, t);
+            if (memcmp(t, f.rgba + 4 * i, sizeof t) != 0 && differ++ == 0)
+                fprintf(stderr, "  %s texel %zu: 8-bit %.9g %.9g %.9g %.9g, float %.9g %.9g %.9g %.9g\n", what, i,
+                        t[0], t[1], t[2], t[3], f.rgba[4 * i], f.rgba[4 * i + 1], f.rgba[4 * i + 2], f.rgba[4 * i + 3]);
+        }
+        CHECK(differ == 0, "%s: %zu texels of the 8-bit form differ from the float decode", what, differ);
+    }
+    if (rf == 0) io_image_free(&f);
+    if (re == 0) io_image_free(&e);
+}
+
+static void test_texture_forms(void) {
+    /* the tables: the exact sRGB EOTF in double rounded once; linear within rounding of k/255,
+     * with 0 and 255 exact (an opaque texel is alpha 1) */
+    const IoTexel8Tables *t = io_texel8_tables();
+    int bad_srgb = 0, bad_linear = 0, not_increasing = 0;
+    for (int k = 0; k < 256; ++k) {
+        const double c = k / 255.0;
+        const float want = (float)(c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4));
+        bad_srgb += t->srgb[k] != want;
+        bad_linear += !(fabs((double)t->linear[k] - c) <= 1e-7);
+        not_increasing += k > 0 && !(t->linear[k] > t->linear[k - 1] && t->srgb[k] > t->srgb[k - 1]);
+    }
+    CHECK(bad_srgb == 0, "%d sRGB table entries are not the exact EOTF", bad_srgb);
+    CHECK(bad_linear == 0, "%d linear table entries are not k/255", bad_linear);
+    CHECK(not_increasing == 0, "tables not increasing at %d codes", not_increasing);
+    CHECK(t->linear[0] == 0.0f && t->linear[255] == 1.0f && t->srgb[0] == 0.0f && t->srgb[255] == 1.0f,
+          "table ends");
+
+    /* every code value in every channel, for each PNG colour type, sRGB and linear: texel x of
+     * a 256 x 2 image has code x in the first channel, 255 - x in the next, (37 x + 11) mod 256
+     * and (91 x + 200) mod 256 in the others; row 1 shifts x by 128. The palette PNG maps
+     * index k to the same four codes (its alpha from tRNS). */
+    static const struct { int type; const char *name; int channels; } kinds[] = {
+        {0, "grey", 1}, {4, "grey_alpha", 2}, {2, "rgb", 3}, {6, "rgba", 4}, {3, "palette", 1}};
+    unsigned char raw[256 * 2 * 4], palette[3 * 256], trns[256];
+    for (int k = 0; k < 256; ++k) {
+        palette[3 * k] = (unsigned char)k;
+        palette[3 * k + 1] = (unsigned char)(255 - k);
+        palette[3 * k + 2] = (unsigned char)(37 * k + 11);
+        trns[k] = (unsigned char)(91 * k + 200);
+    }
+    for (size_t i = 0; i < sizeof kinds / sizeof kinds[0]; ++i) {
+        const int nc = kinds[i].channels;
+        for (int y = 0; y < 2; ++y)
+            for (int x = 0; x < 256; ++x) {
+                const int v = (x + 128 * y) & 255;
+                const int codes[4] = {v, 255 - v, (37 * v + 11) & 255, (91 * v + 200) & 255};
+                for (int c = 0; c < nc; ++c) raw[(size_t)(y * 256 + x) * (size_t)nc + (size_t)c] = (unsigned char)codes[c];
+            }
+        char name[64], what[96];
+        snprintf(name, sizeof name, "codes_%s.png", kinds[i].name);
+        const char *path = tmp_path(name);
+        write_png_raw(path, 256, 2, kinds[i].type, 8, raw, kinds[i].type == 3 ? palette : NULL,
+                      kinds[i].type == 3 ? trns : NULL);
+        snprintf(what, sizeof what, "%s linear", name);
+        check_8bit_matches_float(path, 0, what);
+        snprintf(what, sizeof what, "%s sRGB", name);
+        check_8bit_matches_float(path, IO_IMAGE_SRGB, what);
+    }
+    /* io_write_png's RGB PNG too (the writer the other tests use) */
+    float rgb[256 * 3];
+    for (int k = 0; k < 256; ++k) {
+        rgb[3 * k] = (float)k / 255.0f;
+        rgb[3 * k + 1] = (float)(255 - k) / 255.0f;
+        rgb[3 * k + 2] = (float)((k * 101) & 255) / 255.0f;
+    }
+    char err[IO_ERR_LEN] = "";
+    const char *written = tmp_path("codes_written.png");
+    CHECK(io_write_png(written, 256, 1, rgb, err) == 0, "io_write_png: %s", err);
+    check_8bit_matches_float(written, 0, "io_write_png linear");
+    check_8bit_matches_float(written, IO_IMAGE_SRGB, "io_write_png sRGB");
+
+    /* files that are not 8-bit stay float whatever the flags: a 16-bit PNG (sRGB-decoded from
+     * its 16-bit codes) and a float EXR */
+    unsigned char raw16[4 * 2 * 3 * 2];
+    for (int i = 0; i < 4 * 2 * 3; ++i) {
+        const unsigned v = (unsigned)(i * 2731 + 5);
+        raw16[2 * i] = (unsigned char)(v >> 8);
+        raw16[2 * i + 1] = (unsigned char)v;
+    }
+    const char *p16 = tmp_path("sixteen.png");
+    write_png_raw(p16, 4, 2, 2, 16, raw16, NULL, NULL);
+    IoImage im;
+    int rc = io_load_image(p16, IO_IMAGE_SRGB | IO_IMAGE_KEEP_8BIT, &im, err);
+    CHECK(rc == 0, "16-bit PNG: %s", err);
+    if (rc == 0) {
+        CHECK(im.rgba && !im.rgba8 && io_image_bytes(&im) == 16u * 8u, "a 16-bit PNG is not held as float");
+        if (im.rgba) {
+            const double c = (7 * 2731 + 5) / 65535.0; /* texel 2, green: sample 7 */
+            const double want = c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
+            CHECK(fabs(im.rgba[2 * 4 + 1] - want) < 1e-6, "16-bit sRGB decode %g vs %g", im.rgba[2 * 4 + 1], want);
+        }
+        io_image_free(&im);
+        CHECK(!im.rgba && !im.rgba8, "io_image_free did not clear");
+    }
+    /* (values that compress well: OpenEXR 3.1's C API writes a ZIP chunk whose zlib output is
+     * exactly its raw size as if it were raw, a corrupt file; openexr issue 2306) */
+    float r[64], g[64], b[64];
+    for (int i = 0; i < 64; ++i) {
+        r[i] = 2.5f * (float)(i % 4);
+        g[i] = 0.125f;
+        b[i] = 7.0f;
+    }
+    const IoExrChannel ch[3] = {{"R", r}, {"G", g}, {"B", b}};
+    const char *exr = tmp_path("float_tex.exr");
+    CHECK(io_write_exr(exr, 8, 8, ch, 3, err) == 0, "io_write_exr: %s", err);
+    rc = io_load_image(exr, IO_IMAGE_SRGB | IO_IMAGE_KEEP_8BIT, &im, err);
+    CHECK(rc == 0, "float EXR: %s", err);
+    if (rc == 0) {
+        CHECK(im.rgba && !im.rgba8 && io_image_bytes(&im) == 16u * 64u, "a float EXR is not held as float");
+        if (im.rgba)
+            CHECK(im.rgba[4 * 1] == 2.5f && im.rgba[4 * 1 + 1] == 0.125f && im.rgba[4 * 3 + 3] == 1.0f,
+                  "EXR values (linear whatever the sRGB flag) %g %g %g", im.rgba[4], im.rgba[5], im.rgba[15]);
+        io_image_free(&im);
+    }
 }
 
 /* ---------------------------------------------------------------- generated glTF */
@@ -334,10 +474,16 @@ static void test_generated_gltf(void) {
             const IoImage *lin = &s.images[m->metallic_roughness_tex.image];
             const IoImage *srgb = &s.images[m->base_color_tex.image];
             CHECK(lin->width == 4 && lin->height == 2, "texture size");
-            float e = lin->rgba[5 * 4 + 1];
+            /* an 8-bit PNG stays 8-bit in both colour spaces */
+            CHECK(lin->rgba8 && !lin->rgba && !lin->srgb, "linear texture not held as linear 8-bit");
+            CHECK(srgb->rgba8 && !srgb->rgba && srgb->srgb, "sRGB texture not held as sRGB 8-bit");
+            float tl[4], ts[4];
+            io_image_texel(lin, 5, tl);
+            io_image_texel(srgb, 5, ts);
+            float e = tl[1];
             double want = e <= 0.04045 ? e / 12.92 : pow((e + 0.055) / 1.055, 2.4);
-            CHECK(fabs(srgb->rgba[5 * 4 + 1] - want) < 1e-6, "sRGB texture decode");
-            CHECK(srgb->rgba[5 * 4 + 3] == 1.0f, "alpha not sRGB-decoded");
+            CHECK(fabs(ts[1] - want) < 1e-6, "sRGB texture decode");
+            CHECK(ts[3] == 1.0f, "alpha not sRGB-decoded");
         }
         io_scene_free(&s);
     }
@@ -579,6 +725,61 @@ static void test_generated_gltf(void) {
     }
 }
 
+/* --texture-budget-mb counts textures as held: 4 bytes per texel for an 8-bit file, 16 for a
+ * float one. The `textured` scene uses its image as sRGB and as linear, so it is held twice. */
+static void test_texture_budget(void) {
+    char err[IO_ERR_LEN] = "";
+    enum { N = 512 }; /* 512^2 texels: 1 MiB as 8-bit, 4 MiB as float */
+    float *rgb = malloc(sizeof(float) * 3 * N * N);
+    float *plane = malloc(sizeof(float) * N * N);
+    for (int i = 0; i < 3 * N * N; ++i) rgb[i] = (float)(i % 251) / 250.0f;
+    for (int i = 0; i < N * N; ++i) plane[i] = (float)(i % 7);
+    CHECK(io_write_png(tmp_path("budget.png"), N, N, rgb, err) == 0, "budget.png: %s", err);
+    const IoExrChannel ch[3] = {{"R", plane}, {"G", plane}, {"B", plane}};
+    CHECK(io_write_exr(tmp_path("budget.exr"), N, N, ch, 3, err) == 0, "budget.exr: %s", err);
+    free(rgb);
+    free(plane);
+    const uint64_t mib = 1u << 20;
+    static const struct {
+        const char *image;
+        uint64_t budget;
+        int fits;
+    } cases[] = {
+        {"budget.png", 2 * mib, 1},           /* 2 x 1 MiB: fits exactly (at 16 B/texel one alone is 4 MiB) */
+        {"budget.png", 2 * mib - 1, 0},       /* the second copy does not */
+        {"budget.png", mib - 1, 0},           /* nor the first */
+        {"budget.png", 0, 1},                 /* 0: no limit */
+        {"budget.exr", 8 * mib, 1},           /* float: 2 x 4 MiB */
+        {"budget.exr", 8 * mib - 1, 0},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
+        char top[1024];
+        snprintf(top, sizeof top, textured, cases[i].image);
+        const char *path = tmp_path("budget.gltf");
+        write_tri_gltf(path, NULL, 3, ",\"material\":0", top);
+        const IoLoadOptions opts = {NULL, cases[i].budget};
+        IoScene s;
+        const int rc = io_load_gltf_opts(path, &opts, &s, err);
+        CHECK((rc == 0) == cases[i].fits, "%s under a budget of %llu bytes: %s", cases[i].image,
+              (unsigned long long)cases[i].budget, rc == 0 ? "loaded" : err);
+        if (rc == 0) {
+            const int png = strstr(cases[i].image, ".png") != NULL;
+            uint64_t held = 0;
+            for (uint32_t k = 0; k < s.num_images; ++k) {
+                held += io_image_bytes(&s.images[k]);
+                CHECK(png ? s.images[k].rgba8 != NULL : s.images[k].rgba != NULL, "%s: held as %s", cases[i].image,
+                      s.images[k].rgba8 ? "8-bit" : "float");
+            }
+            CHECK(s.num_images == 2 && held == 2u * N * N * (png ? 4u : 16u), "%s: %u images, %llu bytes",
+                  cases[i].image, s.num_images, (unsigned long long)held);
+            io_scene_free(&s);
+        } else {
+            CHECK(strstr(err, "texture budget") != NULL && strstr(err, cases[i].image) != NULL,
+                  "the budget error names neither the budget nor the image: %s", err);
+        }
+    }
+}
+
 /* ---------------------------------------------------------------- shared assets */
 
 static int near(float a, float b, float eps) { return fabsf(a - b) <= eps; }
@@ -662,10 +863,32 @@ static void test_assets(const char *dir) {
             char png[1100];
             snprintf(png, sizeof png, "%s/gltf-thirdparty/Cube/Cube_BaseColor.png", dir);
             IoImage ref;
-            if (io_load_image(png, 1, &ref, err) == 0) {
+            if (io_load_image(png, IO_IMAGE_SRGB, &ref, err) == 0) {
                 const IoImage *im = &s.images[s.materials[0].base_color_tex.image];
-                CHECK(memcmp(ref.rgba, im->rgba, sizeof(float) * 4 * 512 * 512) == 0,
-                      "base colour texture differs from io_load_image(srgb)");
+                CHECK(im->rgba8 && im->srgb, "Cube base colour (8-bit RGBA PNG) not held as sRGB 8-bit");
+                CHECK(ref.rgba && io_image_bytes(&ref) == 16u * 512 * 512, "float reference");
+                /* the 8-bit texels stand for the very floats the float decode holds */
+                size_t differ = 0;
+                for (size_t i = 0; im->rgba8 && i < 512u * 512u; ++i) {
+                    float t[4];
+                    io_image_texel(im, i, t);
+                    differ += memcmp(t, ref.rgba + 4 * i, sizeof t) != 0;
+                }
+                CHECK(differ == 0, "base colour texture differs from io_load_image(srgb) in %zu texels", differ);
+                io_image_free(&ref);
+            }
+            /* and the metallic-roughness map, a 1-bit palette PNG, read linear */
+            snprintf(png, sizeof png, "%s/gltf-thirdparty/Cube/Cube_MetallicRoughness.png", dir);
+            if (io_load_image(png, 0, &ref, err) == 0) {
+                const IoImage *im = &s.images[s.materials[0].metallic_roughness_tex.image];
+                CHECK(im->rgba8 && !im->srgb, "Cube metallic-roughness (palette PNG) not held as linear 8-bit");
+                size_t differ = 0;
+                for (size_t i = 0; im->rgba8 && i < 512u * 512u; ++i) {
+                    float t[4];
+                    io_image_texel(im, i, t);
+                    differ += memcmp(t, ref.rgba + 4 * i, sizeof t) != 0;
+                }
+                CHECK(differ == 0, "metallic-roughness texture differs from io_load_image in %zu texels", differ);
                 io_image_free(&ref);
             }
         }
@@ -1244,8 +1467,10 @@ int main(int argc, char **argv) {
     }
     test_exr();
     test_png();
+    test_texture_forms();
     test_image_errors_do_not_leak();
     test_generated_gltf();
+    test_texture_budget();
     test_vdb_generated();
     test_material_media();
     test_volume_inputs();

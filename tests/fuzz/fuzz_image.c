@@ -1,6 +1,7 @@
 /* tests/fuzz/fuzz_image.c: libFuzzer over the image reader of textures and environments
- * (io_load_image, OpenImageIO): the first byte picks the file name's extension, the rest is the
- * file (OIIO picks its reader from the name, then from the content). */
+ * (io_load_image, OpenImageIO): the first byte picks the file name's extension and the flags
+ * (bit 7 sRGB, bit 6 keep 8-bit files as 8-bit, the glTF textures' form), the rest is the file
+ * (OIIO picks its reader from the name, then from the content). */
 #include "fuzz_common.h"
 #include "io.h"
 
@@ -10,6 +11,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     const char *path = fuzz_write_input(names[data[0] % 6], data + 1, size - 1);
     IoImage image;
     char err[IO_ERR_LEN];
-    if (io_load_image(path, data[0] & 0x80 ? 1 : 0, &image, err) == 0) io_image_free(&image);
+    const int flags = (data[0] & 0x80 ? IO_IMAGE_SRGB : 0) | (data[0] & 0x40 ? IO_IMAGE_KEEP_8BIT : 0);
+    if (io_load_image(path, flags, &image, err) == 0) io_image_free(&image);
     return 0;
 }
