@@ -8,8 +8,10 @@
 
 #include <openexr.h>
 
+#include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <limits.h>
 #include <signal.h>
 #include <stdarg.h>
 #include <stdint.h>
@@ -460,7 +462,50 @@ fail:
 static char active_temp[4096];
 static volatile sig_atomic_t active_temp_set;
 
+void io_remove_stale_temps(const char *path) {
+    const char *slash = strrchr(path, '/');
+    const char *base = slash ? slash + 1 : path;
+    const size_t base_len = strlen(base);
+    char dir[IO_PATH_MAX];
+    if (!slash) {
+        snprintf(dir, sizeof dir, ".");
+    } else if ((size_t)(slash - path) + 1 < sizeof dir) {
+        memcpy(dir, path, (size_t)(slash - path) + 1); /* with the slash: "/" stays the root */
+        dir[slash - path + 1] = 0;
+    } else {
+        return;
+    }
+    if (base_len == 0) return;
+    DIR *d = opendir(dir);
+    if (!d) return; /* the writer reports the folder's problem itself */
+    const int dfd = dirfd(d);
+    const pid_t self = getpid();
+    for (struct dirent *e; (e = readdir(d)) != NULL;) {
+        const char *n = e->d_name;
+        if (strncmp(n, base, base_len) != 0 || strncmp(n + base_len, ".tmp-", 5) != 0) continue;
+        /* exactly the digits "%ld" gives for a pid: no sign, no leading zero */
+        const char *digits = n + base_len + 5;
+        size_t k = strspn(digits, "0123456789");
+        if (k == 0 || k > 10 || digits[k] != 0 || digits[0] == '0') continue;
+        long long pid = strtoll(digits, NULL, 10);
+        if (pid > INT_MAX || (pid_t)pid == self) continue;
+        if (kill((pid_t)pid, 0) == 0 || errno != ESRCH) continue; /* alive (EPERM: someone else's) */
+        struct stat st;
+        if (fstatat(dfd, n, &st, AT_SYMLINK_NOFOLLOW) == 0 && S_ISREG(st.st_mode)) unlinkat(dfd, n, 0);
+    }
+    closedir(d);
+}
+
 void io_temp_begin(const char *tmp_path) {
+    /* tmp_path is "PATH.tmp-PID": PATH's stale temporaries go first */
+    const char *mark = NULL;
+    for (const char *p = strstr(tmp_path, ".tmp-"); p; p = strstr(p + 1, ".tmp-")) mark = p;
+    if (mark && (size_t)(mark - tmp_path) < IO_PATH_MAX) {
+        char path[IO_PATH_MAX];
+        memcpy(path, tmp_path, (size_t)(mark - tmp_path));
+        path[mark - tmp_path] = 0;
+        io_remove_stale_temps(path);
+    }
     active_temp_set = 0;
     size_t n = strlen(tmp_path);
     if (n >= sizeof active_temp) return; /* not registered: too long (the write still works) */

@@ -21,8 +21,15 @@ extern "C" {
 /* The temporary file being written (writers write PATH.tmp-PID, then rename it): registered
  * while it exists so that a signal handler can remove it with io_remove_active_temp (which is
  * async-signal-safe): an interrupted write leaves no file behind. One writer at a time (the
- * program writes its outputs one after another). */
+ * program writes its outputs one after another). io_temp_begin also removes PATH's stale
+ * temporaries (io_remove_stale_temps). */
 void io_temp_begin(const char *tmp_path);
+/* Removes the files named exactly PATH.tmp-PID beside PATH whose PID is no live process
+ * (kill(PID, 0) fails with ESRCH): what a SIGKILL, crash or power loss during a write left, which
+ * no signal handler could remove. A live writer's file (another process writing PATH) stays, and
+ * so does one whose PID has since been reused by a live process. (A writer in another PID
+ * namespace, e.g. another container sharing the folder, looks dead: its rename would then fail.) */
+void io_remove_stale_temps(const char *path);
 /* Where a writer puts PATH: a symbolic link is followed to its target (so a link into a shared
  * render folder gets the image, not replaced by a regular file), an existing directory, device
  * or FIFO is refused with a one-line error. 0 ok. */

@@ -317,6 +317,9 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
     snprintf(csv_path, sizeof csv_path, "%s/table.csv", c->out_dir);
     snprintf(md_tmp, sizeof md_tmp, "%s/table.md.tmp-%ld", c->out_dir, (long)getpid());
     snprintf(csv_tmp, sizeof csv_tmp, "%s/table.csv.tmp-%ld", c->out_dir, (long)getpid());
+    /* (two files at once, so not registered with io_temp_begin, which would do this) */
+    io_remove_stale_temps(md_path);
+    io_remove_stale_temps(csv_path);
     FILE *md = fopen(md_tmp, "w");
     FILE *csv = fopen(csv_tmp, "w");
     if (!md || !csv) {

@@ -153,6 +153,9 @@ static float parse_float(const char *flag, const char *s, float lo, float hi) {
     return v;
 }
 
+/* 0 when path's folder exists and is writable (made first with create), else -1 with errno
+ * saying why (access also says EROFS on a read-only file system, where root's rights do not
+ * help). */
 static int ensure_parent_dir(const char *path, int create) {
     char dir[PATH_MAX];
     snprintf(dir, sizeof dir, "%s", path);
@@ -162,7 +165,12 @@ static int ensure_parent_dir(const char *path, int create) {
     if (dir[0] == 0) return 0;
     if (create) mkdir(dir, 0777);
     struct stat st;
-    return stat(dir, &st) == 0 && S_ISDIR(st.st_mode) && access(dir, W_OK) == 0 ? 0 : -1;
+    if (stat(dir, &st) != 0) return -1;
+    if (!S_ISDIR(st.st_mode)) {
+        errno = ENOTDIR;
+        return -1;
+    }
+    return access(dir, W_OK) == 0 ? 0 : -1;
 }
 
 static void print_stats(const CandelaStats *s) {
@@ -413,11 +421,16 @@ int main(int argc, char **argv) {
     }
     if (!bench) {
         if (ensure_parent_dir(out, out == default_out) != 0) {
-            fprintf(stderr, "candela: %s: output directory does not exist or is not writable\n", out);
+            fprintf(stderr, "candela: %s: output directory does not exist or is not writable (%s)\n", out, strerror(errno));
             return 1;
         }
         if (png && ensure_parent_dir(png, 0) != 0) {
-            fprintf(stderr, "candela: %s: output directory does not exist or is not writable\n", png);
+            fprintf(stderr, "candela: %s: output directory does not exist or is not writable (%s)\n", png, strerror(errno));
+            return 1;
+        }
+        /* checked now too: a statistics file that cannot be written fails before the render */
+        if (stats_json && ensure_parent_dir(stats_json, 0) != 0) {
+            fprintf(stderr, "candela: %s: output directory does not exist or is not writable (%s)\n", stats_json, strerror(errno));
             return 1;
         }
         /* an output that is a device, FIFO or directory is refused before rendering, not after */

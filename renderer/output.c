@@ -1,4 +1,5 @@
 /* renderer/output.c: EXR/PNG output and the statistics JSON. */
+#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -79,7 +80,10 @@ int candela_write_stats_json(const char *path_arg, const CandelaOptions *o, cons
     char tmp[IO_PATH_MAX + 32];
     snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
     FILE *f = fopen(tmp, "w");
-    if (!f) { snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot open for writing", path); return -1; }
+    if (!f) {
+        snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot open for writing: %s", path, strerror(errno));
+        return -1;
+    }
     io_temp_begin(tmp);
     uint64_t rays = s->rays_camera + s->rays_bounce + s->rays_shadow;
     double render = candela_stats_render_seconds(s);

@@ -1,5 +1,6 @@
-/* tests/fuzz/fuzz_vdb.c: libFuzzer over the OpenVDB adapter (io_load_vdb_grid: OpenVDB's
- * reader, then the conversion to a NanoVDB buffer). */
+/* tests/fuzz/fuzz_vdb.c: libFuzzer over the OpenVDB adapter (io_load_vdb_grid: Candela's walk
+ * of the file, OpenVDB's reader of the grid "density", then the conversion to a NanoVDB
+ * buffer). */
 #include "fuzz_common.h"
 #include "io.h"
 
