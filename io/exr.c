@@ -113,6 +113,20 @@ int io_output_path(const char *path, char resolved[IO_PATH_MAX], char err[IO_ERR
     return 0;
 }
 
+/* OpenEXR 3.1.5 (Debian 12) stores a ZIP chunk whose compressed size equals its raw size as
+ * compressed data, while every reader takes a chunk of exactly the raw size to be stored raw
+ * (upstream issue #2306, fixed in 3.2 by storing such a chunk raw): a 2x2 image of 0, 0, 0, 25
+ * read back as garbage. The library's compressor runs first; in that one case the chunk's
+ * bytes become the raw ones, which is what the readers expect. */
+static exr_result_t compress_unambiguous(exr_encode_pipeline_t *enc) {
+    exr_result_t (*const *library_compress)(exr_encode_pipeline_t *) = enc->encoding_user_data;
+    exr_result_t rv = (*library_compress)(enc);
+    if (rv == EXR_ERR_SUCCESS && enc->compressed_buffer && enc->packed_buffer &&
+        enc->compressed_buffer != enc->packed_buffer && enc->compressed_bytes == enc->packed_bytes)
+        memcpy(enc->compressed_buffer, enc->packed_buffer, enc->packed_bytes);
+    return rv;
+}
+
 int io_write_exr(const char *path_arg, int width, int height, const IoExrChannel *channels,
                  int num_channels, char err[IO_ERR_LEN]) {
     if (err) err[0] = 0;
@@ -178,6 +192,7 @@ int io_write_exr(const char *path_arg, int width, int height, const IoExrChannel
     exr_context_t ctxt = NULL;
     exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
     int have_enc = 0;
+    exr_result_t (*library_compress)(exr_encode_pipeline_t *) = NULL;
     int part = 0;
     const char *stage = "cannot open";
     exr_result_t rv = exr_start_write(&ctxt, tmp, EXR_WRITE_FILE_DIRECTLY, &init);
@@ -229,8 +244,12 @@ int io_write_exr(const char *path_arg, int width, int height, const IoExrChannel
             ch->user_line_stride = 4 * width;
             ch->encode_from_ptr = (const uint8_t *)(src->data + (size_t)cinfo.start_y * (size_t)width);
         }
-        if (y == 0 && (rv = exr_encoding_choose_default_routines(ctxt, part, &enc)) != EXR_ERR_SUCCESS)
-            goto fail;
+        if (y == 0) {
+            if ((rv = exr_encoding_choose_default_routines(ctxt, part, &enc)) != EXR_ERR_SUCCESS) goto fail;
+            library_compress = enc.compress_fn;
+            enc.encoding_user_data = &library_compress;
+            enc.compress_fn = compress_unambiguous;
+        }
         if ((rv = exr_encoding_run(ctxt, part, &enc)) != EXR_ERR_SUCCESS) goto fail;
     }
     if (have_enc) {
