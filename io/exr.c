@@ -370,8 +370,12 @@ int io_read_exr_channel(const char *path, const char *channel, int *width, int *
     }
     exr_attr_box2i_t dw;
     if ((rv = exr_get_data_window(ctxt, 0, &dw)) != EXR_ERR_SUCCESS) goto fail;
+    /* each side first: two sides of up to 2^32 made the product overflow and wrap past the
+     * check (found by tests/fuzz/fuzz_exr: a 398-byte file asked for 12 GB). The limits are
+     * the renderer's largest image (16384 per side, 64 megapixels): a reference is compared
+     * with a render of the same size */
     int64_t w = (int64_t)dw.max.x - dw.min.x + 1, h = (int64_t)dw.max.y - dw.min.y + 1;
-    if (w <= 0 || h <= 0 || w * h > ((int64_t)1 << 30)) {
+    if (w <= 0 || h <= 0 || w > IO_EXR_MAX_SIDE || h > IO_EXR_MAX_SIDE || w * h > IO_EXR_MAX_PIXELS) {
         snprintf(problem, sizeof problem, "invalid data window %lldx%lld", (long long)w,
                  (long long)h);
         goto fail;

@@ -313,7 +313,10 @@ int io_write_exr(const char *path, int width, int height, const IoExrChannel *ch
                  int num_channels, char err[IO_ERR_LEN]);
 
 /* Read one channel by name from an EXR (any pixel type, converted to float). The caller
- * frees *data with free(). Used by tests and comparison tools. */
+ * frees *data with free(). Used by tests and comparison tools. Images larger than the
+ * renderer's largest (IO_EXR_MAX_SIDE per side, IO_EXR_MAX_PIXELS in all) are refused. */
+#define IO_EXR_MAX_SIDE 16384
+#define IO_EXR_MAX_PIXELS ((int64_t)64 << 20)
 int io_read_exr_channel(const char *path, const char *channel, int *width, int *height,
                         float **data, char err[IO_ERR_LEN]);
 

@@ -19,6 +19,9 @@
  *                            levelset_half.vdb with its metadata "is_saved_as_half_float"
  *                            renamed, so that OpenVDB reads the half-float values as floats
  *                            and takes half values for a chunk size
+ *   exr_wrapped_window.exr   fuzz_exr's finding (corpus/exr/finding_wrapped_window): a 398-byte
+ *                            EXR whose data window's two sides multiplied past int64, so the
+ *                            size check passed and the reader asked for 12 GB
  * usage: test_findings SOURCE_ROOT */
 #include "check.h"
 #include "io.h"
@@ -82,6 +85,18 @@ static void test_png_finding(void) {
         return;
     }
     check_err(err, path, NULL, "truncated png");
+}
+
+static void test_exr_finding(void) {
+    char path[1200];
+    snprintf(path, sizeof path, "%s/tests/bad/exr_wrapped_window.exr", root);
+    int w = -1, h = -1;
+    float *data = NULL;
+    char err[IO_ERR_LEN] = "";
+    int rc = io_read_exr_channel(path, "R", &w, &h, &data, err);
+    CHECK(rc != 0 && data == NULL && w == 0 && h == 0, "the wrapped data window was read (%dx%d)", w, h);
+    free(data);
+    if (rc != 0) check_err(err, path, "data window", "wrapped exr window");
 }
 
 static void test_vdb_findings(void) {
@@ -174,6 +189,7 @@ int main(int argc, char **argv) {
         return 1;
     }
     test_png_finding();
+    test_exr_finding();
     test_vdb_findings();
     test_vdb_damage();
     char in[128];
