@@ -10,9 +10,12 @@
 
 void ray_log_append(CandelaRayLog *log, const SceneRay *rays, const uint32_t *items, uint32_t n, int shadow) {
     if (log->failed) return;
+    /* bounded before it grows: doubling past the bound would wrap the size (to a small
+     * allocation, or to 0 and a loop that never ends) */
+    if (log->count > CANDELA_RAY_LOG_MAX || n > CANDELA_RAY_LOG_MAX - log->count) { log->failed = 1; return; }
     if (log->count + n > log->capacity) {
         size_t nc = log->capacity ? log->capacity : 1 << 20;
-        while (nc < log->count + n) nc *= 2;
+        while (nc < log->count + n) nc *= 2; /* at most 2^32: no wrap */
         float *a = realloc(log->org_dir_tfar, nc * 7 * sizeof(float));
         if (a) log->org_dir_tfar = a;
         uint8_t *s = a ? realloc(log->is_shadow, nc) : NULL;

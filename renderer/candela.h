@@ -136,7 +136,9 @@ typedef struct CandelaImage {
                             * camera ray found itself; converges to rgb */
 } CandelaImage;
 
-/* Every ray a render traced, for the bare-Embree replay of `candela bench`. */
+/* Every ray a render traced, for the bare-Embree replay of `candela bench`: at most
+ * CANDELA_RAY_LOG_MAX rays (29 bytes each, 58 GiB; past it, or when memory runs out, `failed`). */
+#define CANDELA_RAY_LOG_MAX ((size_t)1 << 31)
 typedef struct CandelaRayLog {
     size_t count, capacity;
     float *org_dir_tfar;   /* 7 floats per ray: ox oy oz dx dy dz tfar */
