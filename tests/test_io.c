@@ -814,6 +814,19 @@ static void check_indices(const IoScene *s, const char *what) {
         CHECK(s->instances[i].mesh < s->num_meshes, "%s: instance mesh index", what);
 }
 
+/* Texels of an 8-bit image whose float values (io_image_texel) are not bit for bit those of
+ * the float decode `ref` of the same file (n texels; all of them when `image` is not 8-bit). */
+static size_t texels_differing(const IoImage *image, const IoImage *ref, size_t n) {
+    if (!image->rgba8 || !ref->rgba) return n;
+    size_t differ = 0;
+    for (size_t i = 0; i < n; ++i) {
+        float t[4];
+        io_image_texel(image, i, t);
+        differ += memcmp(t, ref->rgba + 4 * i, sizeof t) != 0;
+    }
+    return differ;
+}
+
 static void test_assets(const char *dir) {
     char path[1024], err[IO_ERR_LEN] = "";
     IoScene s;
@@ -887,12 +900,7 @@ static void test_assets(const char *dir) {
                 CHECK(im->rgba8 && im->srgb, "Cube base colour (8-bit RGBA PNG) not held as sRGB 8-bit");
                 CHECK(ref.rgba && io_image_bytes(&ref) == 16u * 512 * 512, "float reference");
                 /* the 8-bit texels stand for the very floats the float decode holds */
-                size_t differ = 0;
-                for (size_t i = 0; im->rgba8 && i < 512u * 512u; ++i) {
-                    float t[4];
-                    io_image_texel(im, i, t);
-                    differ += memcmp(t, ref.rgba + 4 * i, sizeof t) != 0;
-                }
+                size_t differ = texels_differing(im, &ref, 512u * 512u);
                 CHECK(differ == 0, "base colour texture differs from io_load_image(srgb) in %zu texels", differ);
                 io_image_free(&ref);
             }
@@ -901,12 +909,7 @@ static void test_assets(const char *dir) {
             if (io_load_image(png, 0, &ref, err) == 0) {
                 const IoImage *im = &s.images[s.materials[0].metallic_roughness_tex.image];
                 CHECK(im->rgba8 && !im->srgb, "Cube metallic-roughness (palette PNG) not held as linear 8-bit");
-                size_t differ = 0;
-                for (size_t i = 0; im->rgba8 && i < 512u * 512u; ++i) {
-                    float t[4];
-                    io_image_texel(im, i, t);
-                    differ += memcmp(t, ref.rgba + 4 * i, sizeof t) != 0;
-                }
+                size_t differ = texels_differing(im, &ref, 512u * 512u);
                 CHECK(differ == 0, "metallic-roughness texture differs from io_load_image in %zu texels", differ);
                 io_image_free(&ref);
             }
