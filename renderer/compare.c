@@ -56,7 +56,7 @@ typedef struct Variant {
     const char *why;
     uint64_t image_hash; /* of the first render's pixels: repeats must match it */
     int runs, spp;
-    double times[COMPARE_MAX_TIMING_RUNS], cp_times[COMPARE_MAX_TIMING_RUNS];
+    double times[COMPARE_MAX_TIMING_RUNS], cp_times[COMPARE_MAX_TIMING_RUNS], pre_times[COMPARE_MAX_TIMING_RUNS];
     double time, time_min, time_max, preprocess, cp_time, mean_var, ttuv;
     ImageErrors errors;
     size_t peak;
@@ -510,13 +510,13 @@ static void tables(const Report *r, ReportText *md, ReportText *csv, ReportText 
                             "<td>%s</td><td>%.3f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td></tr>\n",
                       v->spp, tm, v->preprocess, mib, v->errors.rmse, v->errors.relmse, v->errors.mae, v->ttuv, cp, ratios[0],
                       ratios[1], ratios[2], ratios[3], ratios[4]);
-        /* %.9g: the metrics to float precision and more, so a check can recompute them */
-        report_printf(csv, ",%d,%.6f,%.6f,%.3f,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,", v->spp, v->time, v->preprocess,
+        /* %.9g: every number to float precision and more, so a check can recompute them */
+        report_printf(csv, ",%d,%.9g,%.9g,%.3f,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,", v->spp, v->time, v->preprocess,
                       mib, v->errors.rmse, v->errors.relmse, v->errors.mae, v->mean_var, v->ttuv, ratios[0], ratios[1], ratios[2],
                       ratios[3], ratios[4]);
         if (v->cp_count) report_printf(csv, "%.6f,%u", v->cp_time, v->cp_count);
         else report_printf(csv, ",");
-        report_printf(csv, ",%.6f,%.6f,%d\n", v->time_min, v->time_max, v->runs);
+        report_printf(csv, ",%.9g,%.9g,%d\n", v->time_min, v->time_max, v->runs);
     }
     report_printf(html, "</table>\n");
     report_printf(md, "\nTTUV = mean per-pixel variance x time (lower is better); relMSE = mean (x - ref)^2 / (ref^2 + %g).\n",
@@ -682,7 +682,7 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
         v->time_min = v->time_max = v->time;
         v->cp_time = v->cp_times[0] = st.time_cachepoints;
         v->cp_count = st.num_cachepoints;
-        v->preprocess = st.time_load + st.time_build;
+        v->preprocess = v->pre_times[0] = st.time_load + st.time_build;
         v->peak = st.peak_memory_bytes;
         v->errors = metrics_image_errors(img.rgb, ref, 3 * n);
         v->mean_var = metrics_mean(img.variance, 3 * n);
@@ -717,6 +717,7 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
             }
             v->times[v->runs] = st.time_total;
             v->cp_times[v->runs] = st.time_cachepoints;
+            v->pre_times[v->runs] = st.time_load + st.time_build;
             ++v->runs;
             if (st.peak_memory_bytes < v->peak) v->peak = st.peak_memory_bytes; /* least disturbed run */
         }
@@ -726,6 +727,7 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
         if (v->skipped || v->runs < 2) continue;
         v->time = median(v->times, v->runs);
         v->cp_time = median(v->cp_times, v->runs);
+        v->preprocess = median(v->pre_times, v->runs);
         v->time_min = v->time_max = v->times[0];
         for (int k = 1; k < v->runs; ++k) {
             if (v->times[k] < v->time_min) v->time_min = v->times[k];
