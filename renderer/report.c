@@ -1,7 +1,7 @@
 /* renderer/report.c: text, SVG plots and crop images of `candela compare`'s report (report.h).
  *
  * The plots are SVG written here (no plotting dependency): log-log axes with decade ticks
- * (and 2x, 5x ticks when the data span less than a decade), one polyline with markers per
+ * (and 2x, 5x ticks when the data span less than two decades), one polyline with markers per
  * series, a legend. Browsers show them inline through <img>. */
 #include <errno.h>
 #include <math.h>
@@ -100,8 +100,8 @@ static void tick_label(char *buf, size_t size, double v, int integers) {
     else snprintf(buf, size, "%.0e", v);
 }
 
-/* Ticks at 10^k, or (integers, the spp axis) at powers of two; with fewer than two of them in
- * range also at 2 and 5 times each decade. */
+/* Ticks at 10^k, or (integers, the spp axis) at powers of two; with fewer than three of them
+ * in range also at 2 and 5 times each decade. */
 static void axis_ticks(ReportText *t, const LogAxis *a, int vertical, int integers, double x0, double y0,
                        double length) {
     double ticks[64];
@@ -119,7 +119,7 @@ static void axis_ticks(ReportText *t, const LogAxis *a, int vertical, int intege
     } else {
         for (int e = (int)floor(a->lo); e <= (int)ceil(a->hi) && n < 60; ++e)
             if (e >= a->lo && e <= a->hi) ticks[n++] = pow(10.0, e);
-        if (n < 2) {
+        if (n < 3) {
             n = 0;
             for (int e = (int)floor(a->lo); e <= (int)ceil(a->hi) && n < 60; ++e)
                 for (int m = 0; m < 3; ++m) {

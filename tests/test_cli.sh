@@ -311,6 +311,13 @@ expect_error "variant file missing" "nope.toml: cannot read" -- compare "$det" -
   --variants "$tmp/nope.toml"
 [ "$(snapshot "$cmpd")" = "$before" ] && ok || bad "a refused variant changed the report folder"
 ls "$cmpd" | grep -q 'tmp-' && bad "a refused variant left a temporary file" || ok
+# the example comparison files next to the scenes parse and run (tiny: the scene is not theirs)
+for f in "$root"/scenes/compare/*.toml; do
+  n=$(grep -c '^\[\[variant\]\]' "$f")
+  if "$bin" compare "$det" --spp 1 --res 8x8 --ref-spp 1 --out-dir "$tmp/example" --quiet --variants "$f" >/dev/null 2>"$tmp/err"; then
+    [ "$(grep -c . "$tmp/example/table.csv")" = $((n + 1)) ] && ok || bad "$f: table rows"
+  else bad "$f: $(cat "$tmp/err")"; fi
+done
 # good files: the variants in their order, with their flags
 printf '# light samplers\n[[variant]]\nname = "tree"\nflags = "--light-sampler tree"\n\n[[variant]]\nname = "power-d2"\nflags = "--light-sampler power --max-depth 2"\n' >"$tmp/v.toml"
 printf '{"variant": [{"name": "tree", "flags": "--light-sampler tree"}, {"name": "power-d2", "flags": "--light-sampler power --max-depth 2"}]}' >"$tmp/v.json"
