@@ -282,6 +282,16 @@ static int build_variants(const CandelaOptions *base, const CandelaCompareOption
                 snprintf(err, CANDELA_ERR_LEN, "variant '%s' is given twice", vs[i].name);
                 rc = -1;
                 break;
+            } else {
+                /* NAME_error.png is both NAME's error image and NAME_error's preview */
+                const char *a = vs[i].name, *b = vs[j].name;
+                size_t la = strlen(a), lb = strlen(b);
+                if ((la == lb + 6 && strncmp(a, b, lb) == 0 && strcmp(a + lb, "_error") == 0) ||
+                    (lb == la + 6 && strncmp(b, a, la) == 0 && strcmp(b + la, "_error") == 0)) {
+                    snprintf(err, CANDELA_ERR_LEN, "variants '%s' and '%s' would write the same file", b, a);
+                    rc = -1;
+                    break;
+                }
             }
     if (rc != 0) { variants_free(vs, COMPARE_MAX_VARIANTS); return -1; }
     *out = vs;
