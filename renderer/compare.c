@@ -541,6 +541,7 @@ static void page(const Report *r, const ReportText *table_html, ReportText *t) {
                      "table { border-collapse: collapse; font-size: 0.9em; }\n"
                      "th, td { border: 1px solid #bbb; padding: 0.25em 0.5em; text-align: right; }\n"
                      "td:nth-child(1), td:nth-child(2) { text-align: left; }\n"
+                     "td code { white-space: nowrap; }\n"
                      "figure { display: inline-block; margin: 0.5em; vertical-align: top; }\n"
                      "figcaption { font-size: 0.9em; }\n"
                      ".images img { image-rendering: pixelated; width: 320px; }\n"
