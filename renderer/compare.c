@@ -14,7 +14,9 @@
  *   table.md, table.csv   per variant: spp, time (load + build + render), preprocess time
  *                         (load + build), peak memory, RMSE, relMSE, MAE, mean variance, TTUV
  *                         and the ratios against the first variant (metrics.h)
- *   NAME.exr, NAME.png    every variant's image; reference.exr / reference.png likewise
+ *   NAME.exr, NAME.png    every variant's image; reference.exr / reference.png likewise, and
+ *                         reference.key: what the reference depends on; a later run with the
+ *                         same key reuses reference.exr instead of rendering it again
  *   NAME_error.png        false-colour relative error against the reference
  *   crops.png             the same crop of the reference and of every variant, side by side
  *   convergence.csv, convergence_spp.svg, convergence_time.svg
@@ -327,6 +329,48 @@ static int load_reference(const char *path, int w, int h, float **out, char err[
     return 0;
 }
 
+/* What a rendered reference depends on, as one line: OUT/reference.exr is reused when
+ * OUT/reference.key starts with this line. The scene file (and an --env file) is identified by
+ * its size and modification time; files it references are not (delete reference.key after
+ * changing only a texture). */
+static void reference_key(const CandelaOptions *o, char *key, size_t size) {
+    struct stat sc, env;
+    if (stat(o->scene_path, &sc) != 0) memset(&sc, 0, sizeof sc);
+    if (!o->env_path || stat(o->env_path, &env) != 0) memset(&env, 0, sizeof env);
+    snprintf(key, size,
+             "candela %s; scene %s %lld %lld.%09ld; camera %s; res %dx%d; spp %d; seed %llu; depth %d; volume bounces %d; "
+             "emission sampling %d; inscatter %d; sampler %d; units %d; env %s %lld %lld.%09ld x %.9g; iteration cap %d; "
+             "occlusion %d; no visibility %d; retruncate %d; linear %d; cut %u; guiding %d; threshold %.9g; "
+             "regularization %.9g; filter %d; training %d; recorder %d %u; textures %u\n",
+             CANDELA_VERSION, o->scene_path, (long long)sc.st_size, (long long)sc.st_mtim.tv_sec, sc.st_mtim.tv_nsec,
+             o->camera_name ? o->camera_name : "-", o->width, o->height, o->spp, (unsigned long long)o->seed, o->max_depth,
+             o->max_volume_bounces, o->volume_emission_sampling, o->volume_inscatter_sampling, (int)o->light_sampler,
+             (int)o->light_units, o->env_path ? o->env_path : "-", (long long)env.st_size, (long long)env.st_mtim.tv_sec,
+             env.st_mtim.tv_nsec, o->env_strength, o->max_iteration_spp, o->optimal_occlusion, o->cachepoint_no_visibility,
+             o->cachepoint_retruncate, o->cachepoint_build_linear, o->cachepoint_cut_size, (int)o->guiding,
+             o->guide_spatial_threshold, o->path_regularization, o->guide_spatial_filter, o->guide_training_spp,
+             o->recorder_budget, o->recorder_mb, o->texture_budget_mb);
+}
+
+/* The cached reference when OUT/reference.key matches key (and its render time), else -1. */
+static int cached_reference(const char *dir, const char *key, float **ref, int *w, int *h, double *seconds) {
+    char path[IO_PATH_MAX + 64], text[8192];
+    snprintf(path, sizeof path, "%s/reference.key", dir);
+    FILE *f = fopen(path, "r");
+    if (!f) return -1;
+    size_t len = fread(text, 1, sizeof text - 1, f);
+    fclose(f);
+    text[len] = 0;
+    size_t klen = strlen(key);
+    if (len < klen || memcmp(text, key, klen) != 0 || sscanf(text + klen, "seconds %lf", seconds) != 1) return -1;
+    snprintf(path, sizeof path, "%s/reference.exr", dir);
+    float *r = NULL;
+    char ioerr[IO_ERR_LEN], err[CANDELA_ERR_LEN];
+    if (io_read_exr_channel(path, "R", w, h, &r, ioerr) != 0) return -1;
+    free(r);
+    return load_reference(path, *w, *h, ref, err);
+}
+
 /* Blue (0) -> green -> yellow -> red (>= 1): a readable false-colour ramp for |error|. */
 static void false_colour(float t, float rgb[3]) {
     t = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
@@ -407,13 +451,14 @@ typedef struct Snapshots {
     size_t values;       /* 3 x pixels */
     double time_budget;  /* > 0: stop at the first barrier at or past it */
     double hook_seconds; /* spent here so far: not the render's time */
-    int failed;          /* out of memory */
+    int failed;          /* 1: out of memory; 2: the image is not the reference's size */
 } Snapshots;
 
 static int on_iteration(void *user, const CandelaIterationInfo *info) {
     Snapshots *s = user;
     double t0 = clock_seconds();
     Variant *v = s->v;
+    if ((size_t)info->width * (size_t)info->height * 3 != s->values) { s->failed = 2; return 1; } /* not the reference's size */
     if (v->num_points == v->cap_points) {
         int cap = v->cap_points ? 2 * v->cap_points : 32;
         ReportPoint *p = realloc(v->points, (size_t)cap * sizeof *p);
@@ -450,7 +495,7 @@ typedef struct Report {
     int count, first; /* first: the index of the baseline (the first variant that rendered) */
     int width, height, runs;
     double ref_time;
-    int ref_spp;
+    int ref_spp, ref_cached;
     int crop[3];
 } Report;
 
@@ -465,7 +510,7 @@ static void heading(ReportText *t, const Report *r, int html) {
         if (html) report_html(t, r->c->reference_path);
         else report_printf(t, "%s", r->c->reference_path);
     } else {
-        report_printf(t, "tree sampler, %d spp (%.2f s)", r->ref_spp, r->ref_time);
+        report_printf(t, "tree sampler, %d spp (%.2f s%s)", r->ref_spp, r->ref_time, r->ref_cached ? ", cached from an earlier run" : "");
     }
     report_printf(t, html ? ".</p>\n" : ".\n\n");
     if (r->runs > 1) {
@@ -603,7 +648,7 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
     CandelaOptions o = *base;
     o.quiet = 1;
     float *ref = NULL, *mean = NULL, *error_map = NULL, **crops = NULL;
-    Report r = {base, c, vs, count, -1, 0, 0, 1, 0.0, 0, {0, 0, 0}};
+    Report r = {base, c, vs, count, -1, 0, 0, 1, 0.0, 0, 0, {0, 0, 0}};
     ReportText md = {0}, csv = {0}, table_html = {0}, html = {0}, conv = {0};
     int rc = -1;
 
@@ -626,22 +671,42 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
         ro.spp = r.ref_spp;
         ro.seed = base->seed + 0x5eed;  /* independent of the compared renders */
         ro.light_sampler = CANDELA_LIGHT_SAMPLER_TREE; /* the best general-purpose sampler here */
-        CandelaImage img;
-        CandelaStats st;
-        if (!base->quiet) fprintf(stderr, "candela compare: reference, %d spp\n", ro.spp);
-        if (candela_render(&ro, &img, &st, NULL, err) != 0) goto done;
-        r.ref_time = st.time_total;
-        r.width = img.width; r.height = img.height;
-        char png[IO_PATH_MAX + 64];
-        snprintf(path, sizeof path, "%s/reference.exr", c->out_dir);
-        snprintf(png, sizeof png, "%s/reference.png", c->out_dir);
-        int wrc = candela_write_outputs(&img, path, png, err);
-        size_t n = (size_t)r.width * (size_t)r.height;
-        ref = wrc == 0 ? malloc(3 * n * sizeof(float)) : NULL;
-        if (ref) memcpy(ref, img.rgb, 3 * n * sizeof(float));
-        candela_image_free(&img);
-        if (wrc != 0) goto done;
-        if (!ref) { snprintf(err, CANDELA_ERR_LEN, "out of memory"); goto done; }
+        char key[8192];
+        reference_key(&ro, key, sizeof key);
+        if (cached_reference(c->out_dir, key, &ref, &r.width, &r.height, &r.ref_time) == 0) {
+            r.ref_cached = 1;
+            if (!base->quiet) fprintf(stderr, "candela compare: reference, %d spp, from %s/reference.exr\n", ro.spp, c->out_dir);
+        } else {
+            CandelaImage img;
+            CandelaStats st;
+            if (!base->quiet) fprintf(stderr, "candela compare: reference, %d spp\n", ro.spp);
+            if (candela_render(&ro, &img, &st, NULL, err) != 0) goto done;
+            r.ref_time = st.time_total;
+            r.width = img.width; r.height = img.height;
+            char png[IO_PATH_MAX + 64];
+            /* the old key goes first: it must never vouch for a new reference.exr */
+            snprintf(path, sizeof path, "%s/reference.key", c->out_dir);
+            if (remove(path) != 0 && errno != ENOENT) {
+                snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot remove: %s", path, strerror(errno));
+                candela_image_free(&img);
+                goto done;
+            }
+            snprintf(path, sizeof path, "%s/reference.exr", c->out_dir);
+            snprintf(png, sizeof png, "%s/reference.png", c->out_dir);
+            int wrc = candela_write_outputs(&img, path, png, err);
+            size_t n = (size_t)r.width * (size_t)r.height;
+            ref = wrc == 0 ? malloc(3 * n * sizeof(float)) : NULL;
+            if (ref) memcpy(ref, img.rgb, 3 * n * sizeof(float));
+            candela_image_free(&img);
+            if (wrc != 0) goto done;
+            if (!ref) { snprintf(err, CANDELA_ERR_LEN, "out of memory"); goto done; }
+            ReportText k = {0};
+            report_printf(&k, "%sseconds %.9g\n", key, r.ref_time);
+            snprintf(path, sizeof path, "%s/reference.key", c->out_dir);
+            wrc = report_write_text(path, &k, err);
+            report_text_free(&k);
+            if (wrc != 0) goto done;
+        }
     }
     size_t n = (size_t)r.width * (size_t)r.height;
     mean = malloc(3 * n * sizeof(float));
@@ -679,6 +744,12 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
         CandelaImage img;
         CandelaStats st;
         if (candela_render(&vo, &img, &st, NULL, err) != 0) goto done;
+        if (snap.failed == 2 || img.width != r.width || img.height != r.height) {
+            snprintf(err, CANDELA_ERR_LEN, "variant '%s' renders %dx%d, the reference is %dx%d (give --res)", v->name, img.width,
+                     img.height, r.width, r.height);
+            candela_image_free(&img);
+            goto done;
+        }
         if (snap.failed) {
             candela_image_free(&img);
             snprintf(err, CANDELA_ERR_LEN, "out of memory recording the convergence of variant '%s'", v->name);

@@ -313,6 +313,17 @@ expect_error "variant file missing" "nope.toml: cannot read" -- compare "$det" -
   --variants "$tmp/nope.toml"
 [ "$(snapshot "$cmpd")" = "$before" ] && ok || bad "a refused variant changed the report folder"
 ls "$cmpd" | grep -q 'tmp-' && bad "a refused variant left a temporary file" || ok
+# the rendered reference is cached: the same reference options reuse OUT/reference.exr (and
+# say so), other options (here --max-depth) render it again
+rc_dir=$tmp/refcache
+"$bin" compare "$det" --strategies tree --spp 1 --res 8x8 --ref-spp 4 --out-dir "$rc_dir" --quiet >/dev/null 2>&1
+sum1=$(md5sum <"$rc_dir/reference.exr"); key1=$(cat "$rc_dir/reference.key" 2>/dev/null)
+"$bin" compare "$det" --strategies power --spp 1 --res 8x8 --ref-spp 4 --out-dir "$rc_dir" >/dev/null 2>"$tmp/err"
+grep -q "reference, 4 spp, from $rc_dir/reference.exr" "$tmp/err" && grep -q "cached from an earlier run" "$rc_dir/table.md" \
+  && [ "$(md5sum <"$rc_dir/reference.exr")" = "$sum1" ] && ok || bad "reference cache not used: $(cat "$tmp/err")"
+"$bin" compare "$det" --strategies power --spp 1 --res 8x8 --ref-spp 4 --max-depth 2 --out-dir "$rc_dir" >/dev/null 2>"$tmp/err"
+grep -q "from $rc_dir" "$tmp/err" && bad "reference cache used across --max-depth" || ok
+[ -n "$key1" ] && [ "$key1" != "$(cat "$rc_dir/reference.key")" ] && ok || bad "reference.key not rewritten"
 # the example comparison files next to the scenes parse and run (tiny: the scene is not theirs)
 for f in "$root"/scenes/compare/*.toml; do
   n=$(grep -c '^\[\[variant\]\]' "$f")
