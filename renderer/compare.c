@@ -46,6 +46,7 @@ enum { COMPARE_MAX_VARIANTS = IO_MAX_VARIANTS, COMPARE_MAX_TIMING_RUNS = 15, COM
 /* equal time: the reference's spp when neither --ref-spp nor --reference is given (16 x spp,
  * the equal-SPP default, has no meaning when spp is only a cap) */
 #define COMPARE_TIME_BUDGET_REF_SPP 256
+#define COMPARE_TIME_BUDGET_MAX_ITERATION_SPP 16
 
 typedef struct Variant {
     char name[COMPARE_NAME_MAX + 1];
@@ -738,6 +739,9 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
             if (c->time_budget > 0) fprintf(stderr, "candela compare: %s, %.3g s\n", v->name, c->time_budget);
             else fprintf(stderr, "candela compare: %s, %d spp\n", v->name, vo.spp);
         }
+        /* equal time: iterations of at most 16 spp (the guided cap; unguided renders default to
+         * 64), so a render overshoots the budget by less */
+        if (c->time_budget > 0 && vo.max_iteration_spp <= 0) vo.max_iteration_spp = COMPARE_TIME_BUDGET_MAX_ITERATION_SPP;
         Snapshots snap = {v, ref, mean, 3 * n, c->time_budget, 0.0, 0};
         vo.on_iteration = on_iteration;
         vo.on_iteration_user = &snap;
