@@ -361,6 +361,21 @@ static int setup_camera(Scene *scene, const CandelaOptions *o, char err[CANDELA_
     return 0;
 }
 
+/* The bounds of the committed top-level scene, its centre and bounding sphere. */
+static void scene_bounds(Scene *scene) {
+    struct RTCBounds b;
+    rtcGetSceneBounds(scene->top, &b);
+    if (scene->io.num_instances == 0 || !(b.lower_x <= b.upper_x)) {
+        scene->bounds_min = v3s(-1.0f);
+        scene->bounds_max = v3s(1.0f);
+    } else {
+        scene->bounds_min = v3(b.lower_x, b.lower_y, b.lower_z);
+        scene->bounds_max = v3(b.upper_x, b.upper_y, b.upper_z);
+    }
+    scene->center = v3_scale(v3_add(scene->bounds_min, scene->bounds_max), 0.5f);
+    scene->radius = fmaxf(0.5f * v3_length(v3_sub(scene->bounds_max, scene->bounds_min)), MIN_SCENE_RADIUS);
+}
+
 int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
     memset(scene, 0, sizeof *scene);
     char ioerr[IO_ERR_LEN];
@@ -475,17 +490,7 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
         scene_free(scene);
         return -1;
     }
-    struct RTCBounds b;
-    rtcGetSceneBounds(scene->top, &b);
-    if (io->num_instances == 0 || !(b.lower_x <= b.upper_x)) {
-        scene->bounds_min = v3s(-1.0f);
-        scene->bounds_max = v3s(1.0f);
-    } else {
-        scene->bounds_min = v3(b.lower_x, b.lower_y, b.lower_z);
-        scene->bounds_max = v3(b.upper_x, b.upper_y, b.upper_z);
-    }
-    scene->center = v3_scale(v3_add(scene->bounds_min, scene->bounds_max), 0.5f);
-    scene->radius = fmaxf(0.5f * v3_length(v3_sub(scene->bounds_max, scene->bounds_min)), MIN_SCENE_RADIUS);
+    scene_bounds(scene);
 
     if (setup_camera(scene, o, err) != 0) { scene_free(scene); return -1; }
 
@@ -524,6 +529,37 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
             fprintf(stderr, "%s: warning: %zu non-finite or negative environment values set to 0\n", env_path, bad);
     }
     return 0;
+}
+
+int scene_pose(Scene *scene, const CandelaOptions *o, double seconds, uint32_t *changed_instances,
+               char err[CANDELA_ERR_LEN]) {
+    char ioerr[IO_ERR_LEN];
+    *changed_instances = 0;
+    if (io_scene_pose(&scene->io, seconds, ioerr) != 0) {
+        snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
+        return -1;
+    }
+    /* meshes never change (one Embree scene each, built once); only the transforms of the
+     * instances that moved are set, and the top-level scene (one entry per instance) rebuilt */
+    for (uint32_t i = 0; i < scene->io.num_instances; ++i) {
+        SceneInstance *si = &scene->instances[i];
+        if (memcmp(si->xform, scene->io.instances[i].xform, sizeof si->xform) == 0) continue;
+        memcpy(si->xform, scene->io.instances[i].xform, sizeof si->xform);
+        invert_transpose3(si->xform, si->normal_xform);
+        RTCGeometry g = rtcGetGeometry(scene->top, i);
+        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT4X4_COLUMN_MAJOR, si->xform);
+        rtcCommitGeometry(g);
+        ++*changed_instances;
+    }
+    if (*changed_instances) {
+        rtcCommitScene(scene->top);
+        if (rtcGetDeviceError(scene->device) != RTC_ERROR_NONE) {
+            set_error(err, "%s: Embree failed to update the scene%s", o->scene_path, "");
+            return -1;
+        }
+        scene_bounds(scene);
+    }
+    return setup_camera(scene, o, err);
 }
 
 void scene_free(Scene *scene) {

@@ -73,6 +73,13 @@ typedef struct Scene {
  * Embree scene. */
 int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN]);
 void scene_free(Scene *scene);
+/* Re-places the loaded scene at animation time `seconds` (io_scene_pose): the instances that
+ * moved get their new transforms (Embree's top-level scene is rebuilt when any did; meshes and
+ * textures stay), then bounds and camera follow. Between renders only (no ray in flight).
+ * *changed_instances: how many moved. Fails (one line) on a transform the scene cannot take at
+ * that time. */
+int scene_pose(Scene *scene, const CandelaOptions *o, double seconds, uint32_t *changed_instances,
+               char err[CANDELA_ERR_LEN]);
 
 /* Everything shading needs about a hit point, in world space. */
 typedef struct SurfaceHit {
