@@ -226,8 +226,10 @@ static void frame_name(const char *pattern, int64_t frame, char out[PATH_MAX]) {
 /* NAME.exr -> NAME.partial.exr */
 static void partial_name(const char *path, char out[PATH_MAX]) {
     const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
-    if (!dot || (slash && dot < slash)) snprintf(out, PATH_MAX, "%s.partial", path);
-    else snprintf(out, PATH_MAX, "%.*s.partial%s", (int)(dot - path), path, dot);
+    int n;
+    if (!dot || (slash && dot < slash)) n = snprintf(out, PATH_MAX, "%s.partial", path);
+    else n = snprintf(out, PATH_MAX, "%.*s.partial%s", (int)(dot - path), path, dot);
+    if (n >= PATH_MAX) out[0] = 0; /* never a truncated name that might be another file */
 }
 
 static int file_exists(const char *path) {
@@ -360,7 +362,7 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
         const double slack = 1e-5 * fmax(1.0, fmax(fabs(info.anim_start), fabs(info.anim_end)));
         int64_t first = all.frames[0], last = all.frames[all.count - 1];
         if ((double)first / fps < info.anim_start - slack || (double)last / fps > info.anim_end + slack) {
-            double lo = ceil((info.anim_start - slack) * fps), hi = floor((info.anim_end + slack) * fps);
+            double lo = ceil((info.anim_start - slack) * fps) + 0.0 /* not -0 */, hi = floor((info.anim_end + slack) * fps);
             snprintf(err, CANDELA_ERR_LEN,
                      "%s: --frames %lld-%lld at %g fps is %g to %g s, outside the animation (%g to %g s: frames %.0f-%.0f)",
                      o->scene_path, (long long)first, (long long)last, fps, (double)first / fps, (double)last / fps,

@@ -254,7 +254,7 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
 /* A loaded scene rendered at many animation times: meshes, textures, volumes' grids, the
  * Embree device and mesh scenes and the thread pool load once; each frame poses the scene
  * (instance transforms, top-level rebuild), then render_frame builds media, lights and the
- * light sampler (cache points) for that pose and renders. candela_render is exactly a session
+ * light sampler for that pose and renders. candela_render is exactly a session
  * of one unposed frame. */
 struct CandelaSession {
     Render *r;

@@ -4,7 +4,8 @@
  * instanced once per node that references it), the camera and the environment image. The
  * lights are built beside it from the loaded scene (lights.h), so the scene knows nothing of
  * lights or of how they are selected. Everything here is read-only once scene_load()
- * returns, so every stage may read it from any thread.
+ * returns (and between scene_pose calls, which frame batches make between renders), so every
+ * stage may read it from any thread.
  *
  * Every ray the renderer traces goes through the scene ray interface below (closest hit and
  * occlusion, one ray or a batch): the wavefront stages, the cache point pilot paths, the
