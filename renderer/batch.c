@@ -432,7 +432,7 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
             render_seconds += dt;
         }
         char lerr[CANDELA_ERR_LEN];
-        if (log_frame(b, &fo, frame, seconds, status, out_exr ? out_exr : exr, rc != 0 ? ferr : NULL,
+        if (log_frame(b, &fo, frame, seconds, status, out_exr ? out_exr : "", rc != 0 ? ferr : NULL,
                       have_image ? &stats : NULL, &finfo, lerr) != 0)
             fprintf(stderr, "candela: frame %lld: %s\n", (long long)frame, lerr);
         if (have_image) candela_image_free(&image);

@@ -136,6 +136,7 @@ write('nan_value', scene([0, 1, 2], [(0, 0, 0), (nan, 0, 0), (2, 0, 0)]))
 write('zero_quat', scene([0, 1], [(0, 0, 0, 1), (0, 0, 0, 0)], path='rotation', ncomp=4))
 write('bad_interp', scene([0, 1], [(0, 0, 0), (1, 0, 0)], 'BEZIER'))
 write('vec2_input', scene([0, 1, 2, 3], [(0, 0, 0), (1, 0, 0)], in_type='VEC2'))
+write('weights', scene([0, 1], [(0, 0, 0), (1, 0, 0)], path='weights'))
 # fine data: scale 1, 0, 0, 1 held (STEP) at 0, 1, 2, 3 s: frames 1 and 2 at 1 fps are singular
 write('vanishing', scene([0, 1, 2, 3], [(1, 1, 1), (0, 0, 0), (0, 0, 0), (1, 1, 1)], 'STEP', path='scale'))
 EOF
@@ -181,6 +182,12 @@ expect_error "Slurm count missing" "SLURM_ARRAY_TASK_COUNT is missing" -- env SL
 expect_error "Slurm id garbage" "invalid SLURM_ARRAY_TASK_ID" -- env SLURM_ARRAY_TASK_ID=x SLURM_ARRAY_TASK_COUNT=3 "$bin" render "$scene" --frames 1-6 "${o[@]}"
 expect_error "shard without frames" "need --frames" -- "$bin" render "$scene" --shard 0/2 "${o[@]}"
 expect_error "stats-json with frames" "--frame-stats" -- "$bin" render "$scene" --frames 1-2 --stats-json "$tmp/out/s.json" "${o[@]}"
+
+# morph target weights are animated but not rendered: a warning, and the frames render
+mkdir -p "$tmp/weights"
+"$bin" render "$tmp/weights.gltf" --frames 0-1 -o "$tmp/weights/w.#.exr" --res 16x12 --spp 1 --quiet --no-png 2>"$tmp/weights/stderr" &&
+  grep -q "warning: .*weights are animated; they are not rendered" "$tmp/weights/stderr" && [ -e "$tmp/weights/w.1.exr" ] && ok ||
+  bad "a weights channel: $(cat "$tmp/weights/stderr")"
 
 # ---- 5. a frame that fails (a zero scale at that time) is reported, the batch goes on, and
 # the exit status counts the failures
