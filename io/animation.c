@@ -62,8 +62,7 @@ static void sample_channel(const IoAnimChannel *c, double t, int ncomp, double o
             out[j] = h00 * (double)a[ncomp + j] + h10 * td * (double)a[2 * ncomp + j] + h01 * (double)b[ncomp + j] +
                      h11 * td * (double)b[j];
     }
-    /* rotations are unit quaternions whatever the interpolation made of them; the local
-     * transform normalises again (as the loader does), this keeps out[] meaningful */
+    /* a rotation is normalised where it becomes a matrix (trs_matrix, as the loader does) */
 }
 
 /* Local matrix from TRS: the loader's formula (gltf_loader.cpp, flatten_nodes). */

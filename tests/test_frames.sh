@@ -46,6 +46,16 @@ cp_opts=(--res 32x24 --spp 2 --light-sampler cachepoints --quiet --no-png)
 "$bin" render "$scene" --frames 3 "${fast[@]}" --seed 7 -o "$tmp/single/s7.####.exr"
 cmp -s "$tmp/single/s7.0003.exr" "$tmp/batch/f.0003.exr" && bad "--seed does not change frame 3" || ok
 
+# a still scene renders any frame, and frame f is exactly a plain render with the frame's seed
+# (the session's path is candela_render's). Frame 1 of --seed 0 has seed 7960286522194355700,
+# the second output of splitmix64 seeded with 0 (computed independently in Python).
+still=$root/tests/scenes/point_plane.gltf
+"$bin" render "$still" --frames 1 "${fast[@]}" -o "$tmp/single/still.####.exr" --frame-stats "$tmp/single/still.jsonl"
+seed=$(python3 -c 'import json,sys; print(json.loads(open(sys.argv[1]).readline())["seed"])' "$tmp/single/still.jsonl")
+[ "$seed" = 7960286522194355700 ] && ok || bad "frame 1's seed is $seed"
+"$bin" render "$still" --seed "$seed" "${fast[@]}" -o "$tmp/single/plain.exr" &&
+  cmp -s "$tmp/single/still.0001.exr" "$tmp/single/plain.exr" && ok || bad "frame 1 of a still scene differs from a plain render with its seed"
+
 # ---- 2. --resume: outputs deleted, a temporary left by a killed write; only those re-render
 mkdir -p "$tmp/resume"
 cp "$tmp/batch"/f.000?.exr "$tmp/resume/"
