@@ -389,6 +389,11 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
         /* a final name exists only once its file is complete (temp + rename) */
         if (b->resume && file_exists(exr) && (!b->png_pattern || file_exists(png))) {
             ++skipped;
+            CandelaOptions so = *o;
+            so.seed = candela_frame_seed(o->seed, frame);
+            char lerr[CANDELA_ERR_LEN];
+            if (log_frame(b, &so, frame, seconds, "skipped", exr, NULL, NULL, NULL, lerr) != 0)
+                fprintf(stderr, "candela: frame %lld: %s\n", (long long)frame, lerr);
             if (!o->quiet) fprintf(stderr, "candela: [%zu/%zu] frame %lld: %s exists, skipped (--resume)\n", k + 1,
                                    mine.count, (long long)frame, exr);
             continue;

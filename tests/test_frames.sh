@@ -64,6 +64,7 @@ echo partial > "$tmp/resume/f.0003.exr.tmp-999999"   # what a SIGKILL during the
 touch -d '2001-01-01' "$tmp/resume"/f.000?.exr
 "$bin" render "$scene" --frames 1-6 "${fast[@]}" --resume -o "$tmp/resume/f.####.exr" --frame-stats "$tmp/resume/log.jsonl"
 [ "$(logged "$tmp/resume/log.jsonl")" = "2 3 5" ] && ok || bad "resume rendered frames '$(logged "$tmp/resume/log.jsonl")', expected 2 3 5"
+[ "$(logged "$tmp/resume/log.jsonl" skipped)" = "1 4 6" ] && ok || bad "resume logged '$(logged "$tmp/resume/log.jsonl" skipped)' as skipped"
 for f in 1 4 6; do
   [ "$(stat -c %Y "$tmp/resume/f.000$f.exr")" = "$(date -d 2001-01-01 +%s)" ] && ok || bad "resume rewrote frame $f"
 done
