@@ -161,8 +161,14 @@ int io_scene_pose(IoScene *scene, double seconds, char err[IO_ERR_LEN]) {
         IoInstance *inst = &scene->instances[i];
         if (inst->node < 0) continue;
         const double *w = world + 16 * (size_t)inst->node;
-        if ((problem = transform_problem(w, 1))) bad_node = inst->node;
-        else for (int k = 0; k < 16; ++k) inst->xform[k] = (float)w[k];
+        if ((problem = transform_problem(w, 0))) {
+            bad_node = inst->node;
+        } else if (transform_problem(w, 1)) {
+            inst->hidden = 1; /* a zero scale: hidden now, xform keeps the last invertible one */
+        } else {
+            inst->hidden = 0;
+            for (int k = 0; k < 16; ++k) inst->xform[k] = (float)w[k];
+        }
     }
     for (uint32_t i = 0; i < scene->num_cameras && !problem; ++i) {
         IoCamera *cam = &scene->cameras[i];
@@ -201,8 +207,9 @@ int io_scene_pose(IoScene *scene, double seconds, char err[IO_ERR_LEN]) {
     int rc = 0;
     if (problem) {
         const IoNode *nd = &scene->nodes[bad_node];
-        snprintf(err, IO_ERR_LEN, "%.400s: at %.6g s: node %d ('%.60s'): %s", scene->path, seconds, nd->gltf_node,
-                 nd->name, problem);
+        if (snprintf(err, IO_ERR_LEN, "%.380s: at %.6g s: node %d ('%.60s'): %s", scene->path, seconds, nd->gltf_node,
+                     nd->name, problem) >= IO_ERR_LEN)
+            err[IO_ERR_LEN - 1] = 0; /* cut, still one line */
         rc = -1;
     }
     free(world);

@@ -1005,19 +1005,28 @@ void Loader::flatten_nodes() {
             if (parent[i] == -1) roots.push_back(int(i));
     }
 
+    // nodes an animation channel moves (weights aside): with their descendants, a zero scale
+    // there may be a moment of an animation, not a mesh to drop
+    std::vector<char> channel_target(n, 0);
+    for (const tinygltf::Animation &anim : m_.animations)
+        for (const tinygltf::AnimationChannel &ch : anim.channels)
+            if (ch.target_node >= 0 && size_t(ch.target_node) < n && ch.target_path != "weights")
+                channel_target[size_t(ch.target_node)] = 1;
     struct Item {
         int node;
         Mat4 parent;
         int32_t parent_walk; // the parent's index in nodes_, or -1
+        bool animated;       // a channel moves this node or an ancestor
     };
     node_of_gltf_.assign(n, -1);
     std::vector<Item> stack;
-    for (size_t k = roots.size(); k-- > 0;) stack.push_back({roots[k], identity(), -1});
+    for (size_t k = roots.size(); k-- > 0;) stack.push_back({roots[k], identity(), -1, false});
     while (!stack.empty()) {
         Item it = stack.back();
         stack.pop_back();
         const tinygltf::Node &node = m_.nodes[size_t(it.node)];
         const std::string what = strf("node %d ('%s')", it.node, node.name.c_str());
+        const bool animated = it.animated || channel_target[size_t(it.node)];
         // the node as io_scene_pose re-places it (io.h, IoNode): the same local transform as below
         IoNode walk{};
         copy_name(walk.name, node.name);
@@ -1088,11 +1097,18 @@ void Loader::flatten_nodes() {
             inst.node = walk_index;
             for (int k = 0; k < 16; ++k) inst.xform[k] = float(world.m[k]);
             /* a zero scale hides an object (animation does this): skip it rather than give
-             * Embree a transform it cannot invert */
-            if (!(std::fabs(det) > 1e-30 * std::max(largest * largest * largest, 1e-300)))
-                warn(what + ": singular transform (a zero scale): the mesh is not rendered");
-            else
+             * Embree a transform it cannot invert; an animated one is kept hidden, for the
+             * frames where it has a scale (io_scene_pose) */
+            if (!(std::fabs(det) > 1e-30 * std::max(largest * largest * largest, 1e-300))) {
+                if (animated) {
+                    inst.hidden = 1;
+                    instances_.push_back(inst);
+                } else {
+                    warn(what + ": singular transform (a zero scale): the mesh is not rendered");
+                }
+            } else {
                 instances_.push_back(inst);
+            }
         } else if (node.mesh < -1) {
             fail(strf("%s: mesh %d out of range", what.c_str(), node.mesh));
         }
@@ -1169,7 +1185,7 @@ void Loader::flatten_nodes() {
             d.node = walk_index;
             lights_.push_back(d);
         }
-        for (size_t k = node.children.size(); k-- > 0;) stack.push_back({node.children[k], world, walk_index});
+        for (size_t k = node.children.size(); k-- > 0;) stack.push_back({node.children[k], world, walk_index, animated});
     }
 }
 

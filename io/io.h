@@ -176,6 +176,11 @@ typedef struct IoInstance {
     uint32_t mesh;
     float xform[16];
     int32_t node;       /* index into IoScene.nodes (io_scene_pose places it) */
+    /* 1 while its world transform is singular (a zero scale: how animations hide objects):
+     * not rendered, xform is then the last invertible one (or singular, at rest). Only
+     * animated nodes (or their descendants) give hidden instances; a static singular mesh is
+     * dropped at load with a warning. */
+    int32_t hidden;
 } IoInstance;
 
 enum { IO_LIGHT_POINT = 0, IO_LIGHT_SPOT = 1, IO_LIGHT_DIRECTIONAL = 2 };
@@ -319,9 +324,10 @@ typedef struct IoScene {
  * scaled by the key interval, glTF 2.0 Appendix C) and writes the world transforms of the
  * instances, cameras, lights (position, direction) and volumes. A node no channel animates keeps
  * its rest transform, computed exactly as the loader computed it (so posing a scene without
- * animation changes no bit). Fails with a one-line error naming the node when a transform at
- * this time is out of range (IO_MAX_COORDINATE, non-finite) or singular for a mesh or camera
- * (the scene is then partly posed: pose it again before use). */
+ * animation changes no bit). A mesh instance whose transform is singular at this time (a zero
+ * scale) is hidden (IoInstance.hidden), as at load. Fails with a one-line error naming the
+ * node when a transform at this time is out of range (IO_MAX_COORDINATE, non-finite) or a
+ * camera's is singular (the scene is then partly posed: pose it again before use). */
 int io_scene_pose(IoScene *scene, double seconds, char err[IO_ERR_LEN]);
 
 /* Load a .gltf or .glb (decided by content, not extension). Validates everything the renderer

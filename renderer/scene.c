@@ -479,7 +479,12 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
             scene->num_triangles_total += io->primitives[io->meshes[si->mesh].first_primitive + k].num_triangles;
         RTCGeometry g = rtcNewGeometry(scene->device, RTC_GEOMETRY_TYPE_INSTANCE);
         rtcSetGeometryInstancedScene(g, scene->mesh_scenes[si->mesh]);
-        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT4X4_COLUMN_MAJOR, si->xform);
+        /* a hidden instance (an animated zero scale) is disabled: Embree never sees its
+         * singular transform */
+        si->hidden = io->instances[i].hidden;
+        static const float identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT4X4_COLUMN_MAJOR, si->hidden ? identity : si->xform);
+        if (si->hidden) rtcDisableGeometry(g);
         rtcCommitGeometry(g);
         rtcAttachGeometryByID(scene->top, g, i);
         rtcReleaseGeometry(g);
@@ -543,12 +548,21 @@ int scene_pose(Scene *scene, const CandelaOptions *o, double seconds, uint32_t *
      * instances that moved are set, and the top-level scene (one entry per instance) rebuilt */
     for (uint32_t i = 0; i < scene->io.num_instances; ++i) {
         SceneInstance *si = &scene->instances[i];
-        if (memcmp(si->xform, scene->io.instances[i].xform, sizeof si->xform) == 0) continue;
-        memcpy(si->xform, scene->io.instances[i].xform, sizeof si->xform);
-        invert_transpose3(si->xform, si->normal_xform);
+        const IoInstance *ii = &scene->io.instances[i];
+        const int moved = !ii->hidden && memcmp(si->xform, ii->xform, sizeof si->xform) != 0;
+        if (!moved && si->hidden == ii->hidden) continue;
         RTCGeometry g = rtcGetGeometry(scene->top, i);
-        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT4X4_COLUMN_MAJOR, si->xform);
-        rtcCommitGeometry(g);
+        if (moved) {
+            memcpy(si->xform, ii->xform, sizeof si->xform);
+            invert_transpose3(si->xform, si->normal_xform);
+            rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT4X4_COLUMN_MAJOR, si->xform);
+            rtcCommitGeometry(g);
+        }
+        if (si->hidden != ii->hidden) {
+            if (ii->hidden) rtcDisableGeometry(g);
+            else rtcEnableGeometry(g);
+            si->hidden = ii->hidden;
+        }
         ++*changed_instances;
     }
     if (*changed_instances) {

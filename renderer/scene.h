@@ -49,6 +49,8 @@ typedef struct SceneInstance {
     uint32_t primitive_base;  /* index of (this instance, local primitive 0) among all instance
                                * primitives: per-instance-primitive tables (the area light of
                                * a hit) are indexed by primitive_base + local primitive */
+    int hidden;               /* a zero scale now (IoInstance.hidden): disabled in Embree, no
+                               * area lights, no cache point candidates */
 } SceneInstance;
 
 typedef struct Scene {

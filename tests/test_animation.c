@@ -5,7 +5,7 @@
  * gives the half angle at the midpoint, CUBICSPLINE reproduces a cubic exactly only when its
  * tangents are scaled by the key interval (so t^3 on keys 0 and 2 s catches an unscaled
  * spline), clamping before the first and after the last key, parents compose, lights follow
- * their node, a zero scale fails the pose naming the node. And posing a loaded scene without
+ * their node, a zero scale hides a mesh and fails a camera's pose naming the node. And posing a loaded scene without
  * animation changes no bit of any transform (the loader's formulas, repeated exactly). */
 #include <math.h>
 #include <stdint.h>
@@ -123,8 +123,9 @@ int main(void) {
         }
     }
 
-    /* scale to zero at 1 s (STEP) on the child: the pose fails there naming the node, and
-     * works again at 2 s */
+    /* scale to zero at 1 s (STEP) on the child: the mesh is hidden there (keeping its last
+     * invertible transform) and back at 2 s; a camera on that node cannot be placed, so with
+     * one the pose fails naming the node */
     {
         float times[3] = {0.0f, 1.0f, 2.0f};
         float values[9] = {2, 2, 2, 0, 0, 0, 1, 1, 1};
@@ -132,12 +133,20 @@ int main(void) {
         f.channels[0] = (IoAnimChannel){1, IO_ANIM_SCALE, IO_INTERP_STEP, 3, times, values};
         f.scene.num_channels = 1;
         pose(&f, 0.5);
-        CHECK(NEAR(f.instance.xform[0], 2.0), "scale 2 at 0.5 s gives %g", f.instance.xform[0]);
+        CHECK(NEAR(f.instance.xform[0], 2.0) && !f.instance.hidden, "scale 2 at 0.5 s gives %g", f.instance.xform[0]);
+        pose(&f, 1.0);
+        CHECK(f.instance.hidden && NEAR(f.instance.xform[0], 2.0), "zero scale: hidden %d, xform %g", f.instance.hidden,
+              f.instance.xform[0]);
+        pose(&f, 2.0);
+        CHECK(NEAR(f.instance.xform[0], 1.0) && !f.instance.hidden, "scale 1 at 2 s gives %g", f.instance.xform[0]);
+        IoCamera cam;
+        memset(&cam, 0, sizeof cam);
+        cam.node = 1;
+        f.scene.cameras = &cam;
+        f.scene.num_cameras = 1;
         int rc = io_scene_pose(&f.scene, 1.0, err);
         CHECK(rc != 0 && strstr(err, "fixture.gltf") && strstr(err, "'n1'") && strstr(err, "singular"),
-              "zero scale: rc %d, '%s'", rc, err);
-        pose(&f, 2.0);
-        CHECK(NEAR(f.instance.xform[0], 1.0), "scale 1 at 2 s gives %g", f.instance.xform[0]);
+              "camera with zero scale: rc %d, '%s'", rc, err);
     }
 
     /* a loaded scene without animation: posing changes no bit */

@@ -114,7 +114,8 @@ SLURM_ARRAY_TASK_ID=0 SLURM_ARRAY_TASK_COUNT=3 \
 python3 - "$tmp" <<'EOF'
 import base64, json, math, struct, sys
 out = sys.argv[1]
-def scene(times, values, interp='LINEAR', path='translation', ncomp=3, out_count=None, in_type='SCALAR'):
+def scene(times, values, interp='LINEAR', path='translation', ncomp=3, out_count=None, in_type='SCALAR', target=0,
+          rest_scale=None):
     buf = bytearray()
     def view(floats):
         off = len(buf)
@@ -127,11 +128,12 @@ def scene(times, values, interp='LINEAR', path='translation', ncomp=3, out_count
            {'bufferView': 2, 'componentType': 5126, 'count': out_count if out_count is not None else len(values),
             'type': 'VEC4' if ncomp == 4 else 'VEC3'}]
     return {'asset': {'version': '2.0'}, 'scene': 0, 'scenes': [{'nodes': [0, 1]}],
-            'nodes': [{'name': 'tri', 'mesh': 0}, {'name': 'cam', 'camera': 0, 'translation': [0.3, 0.3, 2]}],
+            'nodes': [dict({'name': 'tri', 'mesh': 0}, **({'scale': rest_scale} if rest_scale else {})),
+                      {'name': 'cam', 'camera': 0, 'translation': [0.3, 0.3, 2]}],
             'meshes': [{'primitives': [{'attributes': {'POSITION': 0}}]}],
             'cameras': [{'type': 'perspective', 'perspective': {'yfov': 0.8, 'znear': 0.01}}],
             'animations': [{'name': 'a', 'samplers': [{'input': 1, 'output': 2, 'interpolation': interp}],
-                            'channels': [{'sampler': 0, 'target': {'node': 0, 'path': path}}]}],
+                            'channels': [{'sampler': 0, 'target': {'node': target, 'path': path}}]}],
             'accessors': acc, 'bufferViews': views,
             'buffers': [{'byteLength': len(buf), 'uri': 'data:application/octet-stream;base64,' + base64.b64encode(bytes(buf)).decode()}]}
 def write(name, doc):
@@ -148,8 +150,12 @@ write('zero_quat', scene([0, 1], [(0, 0, 0, 1), (0, 0, 0, 0)], path='rotation', 
 write('bad_interp', scene([0, 1], [(0, 0, 0), (1, 0, 0)], 'BEZIER'))
 write('vec2_input', scene([0, 1, 2, 3], [(0, 0, 0), (1, 0, 0)], in_type='VEC2'))
 write('weights', scene([0, 1], [(0, 0, 0), (1, 0, 0)], path='weights'))
-# fine data: scale 1, 0, 0, 1 held (STEP) at 0, 1, 2, 3 s: frames 1 and 2 at 1 fps are singular
+# fine data: the triangle's scale 1, 0, 0, 1 held (STEP) at 0, 1, 2, 3 s (hidden in frames 1
+# and 2 at 1 fps); the same with scale 0 at rest (kept, hidden, until it appears at 3 s); the
+# camera's scale 0 in frames 1 and 2 (it cannot be placed: those frames fail)
 write('vanishing', scene([0, 1, 2, 3], [(1, 1, 1), (0, 0, 0), (0, 0, 0), (1, 1, 1)], 'STEP', path='scale'))
+write('appearing', scene([0, 1, 2, 3], [(0, 0, 0), (0, 0, 0), (0, 0, 0), (1, 1, 1)], 'STEP', path='scale', rest_scale=[0, 0, 0]))
+write('camera_zero', scene([0, 1, 2, 3], [(1, 1, 1), (0, 0, 0), (0, 0, 0), (1, 1, 1)], 'STEP', path='scale', target=1))
 EOF
 
 # expect_error NAME PATTERN -- ARGS... : non-zero exit below 128, exactly one stderr line with
@@ -200,15 +206,25 @@ mkdir -p "$tmp/weights"
   grep -q "warning: .*weights are animated; they are not rendered" "$tmp/weights/stderr" && [ -e "$tmp/weights/w.1.exr" ] && ok ||
   bad "a weights channel: $(cat "$tmp/weights/stderr")"
 
-# ---- 5. a frame that fails (a zero scale at that time) is reported, the batch goes on, and
-# the exit status counts the failures
+# ---- 5. a mesh scaled to zero is hidden in those frames (animations hide objects so), also
+# when it starts at zero; a frame that fails (a camera scaled to zero) is reported, the batch
+# goes on, and the exit status counts the failures
 mkdir -p "$tmp/vanish"
-"$bin" render "$tmp/vanishing.gltf" --frames 0-3 --fps 1 -o "$tmp/vanish/v.#.exr" --res 16x12 --spp 1 --quiet --no-png \
+tiny=(--fps 1 --res 16x12 --spp 1 --quiet --no-png)
+"$bin" render "$tmp/vanishing.gltf" --frames 0-3 "${tiny[@]}" -o "$tmp/vanish/v.#.exr" && ok || bad "vanishing mesh: exit $?"
+"$bin" render "$tmp/appearing.gltf" --frames 0-3 "${tiny[@]}" -o "$tmp/vanish/a.#.exr" && ok || bad "appearing mesh: exit $?"
+"$bin" render "$tmp/vanishing.gltf" --frames 1 "${tiny[@]}" --seed 5 -o "$tmp/vanish/v5.#.exr"
+"$bin" render "$tmp/vanishing.gltf" --frames 1 "${tiny[@]}" --seed 6 -o "$tmp/vanish/v6.#.exr"
+cmp -s "$tmp/vanish/v.0.exr" "$tmp/vanish/v.1.exr" && bad "the mesh did not vanish at frame 1" || ok
+cmp -s "$tmp/vanish/v5.1.exr" "$tmp/vanish/v6.1.exr" && ok || bad "frame 1 still shows something (seeds differ)"
+cmp -s "$tmp/vanish/v.3.exr" "$tmp/vanish/a.3.exr" && ok || bad "the appearing mesh's frame 3 differs from the vanishing one's"
+cmp -s "$tmp/vanish/a.0.exr" "$tmp/vanish/v.1.exr" && ok || bad "the appearing mesh shows at frame 0"
+"$bin" render "$tmp/camera_zero.gltf" --frames 0-3 "${tiny[@]}" -o "$tmp/vanish/c.#.exr" \
   --frame-stats "$tmp/vanish/log.jsonl" 2>"$tmp/vanish/stderr"
 rc=$?
 [ $rc -eq 2 ] && ok || bad "two failing frames gave exit status $rc"
-[ "$(ls "$tmp/vanish" | grep exr | tr '\n' ' ')" = "v.0.exr v.3.exr " ] && ok || bad "vanishing frames wrote $(ls "$tmp/vanish")"
-grep -q "frame 1 failed: .*singular transform" "$tmp/vanish/stderr" && grep -q "frame 2 failed" "$tmp/vanish/stderr" && ok ||
+[ "$(ls "$tmp/vanish" | grep '^c\.' | tr '\n' ' ')" = "c.0.exr c.3.exr " ] && ok || bad "the camera frames wrote $(ls "$tmp/vanish")"
+grep -q "frame 1 failed: .*'cam'.*singular transform" "$tmp/vanish/stderr" && grep -q "frame 2 failed" "$tmp/vanish/stderr" && ok ||
   bad "failing frames not reported: $(cat "$tmp/vanish/stderr")"
 [ "$(logged "$tmp/vanish/log.jsonl" failed)" = "1 2" ] && ok || bad "the log does not mark frames 1 and 2 failed"
 
