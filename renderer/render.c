@@ -210,6 +210,13 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
         stats->iterations = iteration + 1;
         stats->spp_done = spp_done;
         report_progress(&progress, done_paths, total_paths, done_paths == total_paths);
+        if (o->on_iteration) {
+            CandelaIterationInfo info = {iteration, spp_done, clock_seconds() - t_start, cam->width, cam->height, &ig->film};
+            if (o->on_iteration(o->on_iteration_user, &info) != 0 && spp_done < o->spp) {
+                stats->interrupted = 1;
+                break;
+            }
+        }
         /* an interruption takes effect here, between iterations: the image of the iterations
          * done is a complete, deterministic render of spp_done samples */
         if (o->stop && *o->stop && spp_done < o->spp) {
