@@ -75,6 +75,14 @@ typedef struct CandelaOptions {
     int aov_recorder_debug;     /* --aov recorder-debug: the recorder's primary samples rebuild the image */
     uint32_t recorder_mb;       /* the radiance recorder's vertex storage bound; 0: default (256) */
     int recorder_budget;        /* vertices per path before skipping (path and vertex); 0: none; -1: default (4) */
+    /* checkpoints (renderer/checkpoint.c): write the film and learned state to this file at the
+     * barriers of the checkpoint-skipping schedule and when stopped (NULL: never) */
+    const char *checkpoint_path;
+    const char *resume_from;    /* continue the checkpoint in this file (NULL: start afresh) */
+    /* --sample-shard I/N (shard_count 0: off): render only samples [spp I / N, spp (I + 1) / N)
+     * of every pixel, with the full render's RNG streams, and write the film sums to film_path */
+    uint32_t shard_index, shard_count;
+    const char *film_path;
 } CandelaOptions;
 
 void candela_options_default(CandelaOptions *o);
@@ -173,6 +181,13 @@ typedef struct CandelaCompareOptions {
 } CandelaCompareOptions;
 
 int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, char err[CANDELA_ERR_LEN]);
+
+/* candela merge: the finished films of the N sample shards of one render (any order) into the
+ * EXR (and PNG preview unless NULL): sums of L and L^2, counts and AOV sums added in shard order,
+ * then the mean and variance of the mean per pixel. Refuses films of different renders, a
+ * shard twice or missing, ranges that do not tile the samples. 0 ok, -1 with a one-line message. */
+int candela_merge(const char *out_exr, const char *png, const char *const *files, int num_files,
+                  char err[CANDELA_ERR_LEN]);
 
 int candela_write_stats_json(const char *path, const CandelaOptions *o, const CandelaStats *s,
                              char err[CANDELA_ERR_LEN]);
