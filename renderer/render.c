@@ -223,6 +223,18 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
             render_free(r);
             return -1;
         }
+        /* the progress must be a point of this render's schedule (the checksum guards the bytes;
+         * this guards a file written by a build with another schedule) */
+        int cumulative = 0, k = 0;
+        for (; k < at.iteration && cumulative < o->spp; ++k)
+            cumulative += iteration_spp(k, max_iter_spp, o->spp - cumulative, guided);
+        uint64_t iteration_total = (uint64_t)npixels * (uint64_t)iteration_spp(k, max_iter_spp, o->spp - cumulative, guided);
+        if (k != at.iteration || cumulative != at.spp_done || at.spp_done >= o->spp || at.iteration_paths >= iteration_total) {
+            snprintf(err, CANDELA_ERR_LEN, "%s: its progress (iteration %d, %d spp) is not a point of this render's schedule",
+                     o->resume_from, at.iteration, at.spp_done);
+            render_free(r);
+            return -1;
+        }
         done_paths = (uint64_t)npixels * (uint64_t)at.spp_done + at.iteration_paths;
     }
     int spp_done = at.spp_done, iteration = at.iteration, stopped = 0;
