@@ -7,6 +7,9 @@
 #   1. a 4-way sample-sharded frame (an array job, task I runs --sample-shard I/4, then the
 #      merge job): the cluster's shard films equal local renders of the same shards byte for
 #      byte, and its merged EXR equals the local merge of those shards bit for bit;
+#   1b. resume on requeue: a 2-shard frame whose task 0 is requeued (`scontrol requeue`: Slurm
+#      kills it and starts it again) after its first checkpoint resumes from it, and the merged
+#      frame still equals the local merge bit for bit;
 #   2. a 6-frame array job (candela render --frames 1-6 -o dir/f.####.exr, each task taking its
 #      share from SLURM_ARRAY_TASK_ID / COUNT): every frame exists exactly once and equals a
 #      local render of that frame bit for bit. Runs only when `candela --help` lists --frames.
@@ -120,6 +123,7 @@ scene=$root/scenes/default.gltf
 opts=(--spp 16 --res 32x24 --quiet)
 
 # --- 1. a 4-way sample-sharded frame
+echo "[$(date +%T)] 1. a 4-way sample-sharded frame"
 work=$tmp/work/shards
 if timeout 600 "$submit" --candela "$bin" --partition candela --cpus-per-task 1 --mem 500M --time 10:00 \
      --sample-shards 4 --work-dir "$work" --wait -o "$tmp/work/frame.exr" "$scene" -- "${opts[@]}" >"$tmp/submit1.out" 2>&1; then
@@ -138,7 +142,48 @@ done
 cmp -s "$tmp/work/frame.exr" "$tmp/local.exr" && ok || bad "the cluster's merged frame differs from the local merge"
 [ "$(ls "$work"/shard.*.film | wc -l)" -eq 4 ] && ok || bad "expected exactly 4 shard films"
 
+# --- 1b. resume on requeue: a shard task requeued (killed) after its first checkpoint continues
+# from it, and the merged frame is still the local merge bit for bit
+echo "[$(date +%T)] 1b. resume on requeue"
+slow=(--spp 192 --res 32x24 --threads 1 --batch 64 --quiet)
+rwork=$tmp/work/requeue
+ids=$("$submit" --candela "$bin" --partition candela --sample-shards 2 --work-dir "$rwork" -o "$tmp/work/rq.exr" \
+        "$scene" -- "${slow[@]}" 2>"$tmp/submit3.err") || bad "requeue job submission: $(cat "$tmp/submit3.err")"
+array=$(echo "$ids" | awk '{print $2}'); merge=$(echo "$ids" | awk '{print $4}')
+requeued=0
+for _ in $(seq 1 1200); do
+  if [ -e "$rwork/shard.0.ckpt" ]; then
+    # a requeued job waits (BeginTime) before it may start again: now is fine here
+    scontrol requeue "${array}_0" && requeued=1
+    break
+  fi
+  sleep 0.05
+done
+[ $requeued -eq 1 ] && ok || bad "could not requeue shard 0 after its first checkpoint"
+# Slurm holds a requeued job (Reason=BeginTime) for two minutes; once it is pending again, now
+for _ in $(seq 1 300); do
+  scontrol show job "${array}_0" 2>/dev/null | grep -q "JobState=PENDING" &&
+    scontrol update JobId="${array}_0" StartTime=now 2>/dev/null && break
+  sleep 0.1
+done
+echo "[$(date +%T)] requeued: $requeued"
+state=""
+for _ in $(seq 1 600); do
+  state=$(scontrol show job "$merge" 2>/dev/null | sed -n 's/.*JobState=\([A-Z_]*\).*/\1/p')
+  case "$state" in COMPLETED|FAILED|CANCELLED|TIMEOUT|NODE_FAIL|OUT_OF_MEMORY) break ;; esac
+  sleep 1
+done
+[ "$state" = COMPLETED ] && ok || { bad "requeue: the merge job ended $state"; cat "$rwork"/*.log; }
+echo "[$(date +%T)] merge job: $state"
+restarts=$(scontrol show job "${array}_0" 2>/dev/null | sed -n 's/.*Restarts=\([0-9]*\).*/\1/p')
+[ "${restarts:-0}" -ge 1 ] && ok || bad "requeue: shard 0 did not restart (Restarts=${restarts:-?})"
+grep -q "resuming from" "$rwork/shard.0.log" && ok || bad "requeue: shard 0 did not resume from its checkpoint: $(cat "$rwork/shard.0.log")"
+for i in 0 1; do "$bin" render "$scene" "${slow[@]}" --sample-shard $i/2 -o "$tmp/rq.$i.film" || bad "local shard $i/2"; done
+"$bin" merge -o "$tmp/rq-local.exr" --no-png "$tmp/rq.0.film" "$tmp/rq.1.film" || bad "local merge (requeue)"
+cmp -s "$tmp/work/rq.exr" "$tmp/rq-local.exr" && ok || bad "the requeued render's merged frame differs from the local merge"
+
 # --- 2. a 6-frame array job (candela render --frames, when built)
+echo "[$(date +%T)] 2. a 6-frame array job"
 if "$bin" --help | grep -q -- '--frames'; then
   fwork=$tmp/work/frames
   mkdir -p "$tmp/work/seq" "$tmp/local"

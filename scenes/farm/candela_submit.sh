@@ -118,7 +118,10 @@ set -eu
 i=\$SLURM_ARRAY_TASK_ID
 ck=$(quote "$work")/shard.\$i.ckpt
 resume=()
-if [ "\${SLURM_RESTART_COUNT:-0}" -gt 0 ] && [ -e "\$ck" ]; then resume=(--resume-from "\$ck"); fi
+if [ "\${SLURM_RESTART_COUNT:-0}" -gt 0 ] && [ -e "\$ck" ]; then
+  resume=(--resume-from "\$ck")
+  echo "candela_submit: restart \$SLURM_RESTART_COUNT of shard \$i/$shards: resuming from \$ck" >&2
+fi
 exec $(quote "$candela" render "$scene" "${render_args[@]}") --threads $cpus --sample-shard "\$i/$shards" \\
   --checkpoint "\$ck" "\${resume[@]}" -o $(quote "$work")/shard.\$i.film
 EOF
