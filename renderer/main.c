@@ -464,6 +464,10 @@ int main(int argc, char **argv) {
         strncat(default_out, ".exr", sizeof default_out - strlen(default_out) - 1);
         out = default_out;
     }
+    if ((compare || bench || dump) && (o.checkpoint_path || o.resume_from)) {
+        fprintf(stderr, "candela: --checkpoint and --resume-from are for candela render\n");
+        return 2;
+    }
     if (o.shard_count) {
         /* a shard's result is its film sums, never an image that could pass for the frame */
         if (compare || bench || dump || !has_extension(out, ".film")) {

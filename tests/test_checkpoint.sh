@@ -107,6 +107,8 @@ expect_error "missing checkpoint" "cannot read" -- "${base[@]}" --spp 64 -o "$tm
 for spec in 4/4 -1/4 1/0 a/4 1/ 2/3x 1/100000; do
   expect_error "shard spec $spec" "--sample-shard" -- "${base[@]}" --spp 8 --sample-shard "$spec" -o "$tmp/s.film" --quiet
 done
+expect_error "checkpoint with compare" "for candela render" -- compare "$scene" --res 32x24 --spp 4 --checkpoint "$tmp/c.ckpt" \
+  --out-dir "$tmp/cmp" --quiet
 expect_error "shard output" "NAME.film" -- "${base[@]}" --spp 8 --sample-shard 0/2 -o "$tmp/keep.exr" --quiet
 expect_error "shard of too few spp" "cannot be split" -- "${base[@]}" --spp 2 --sample-shard 0/4 -o "$tmp/s.film" --quiet
 
