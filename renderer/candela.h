@@ -58,8 +58,9 @@ typedef struct CandelaOptions {
     int cachepoint_build_linear;  /* 1: the paper's build (every light at every point); 0: a cut
                                    * through the light tree (the default) */
     uint32_t cachepoint_cut_size; /* cut build: far entries per point; 0: default */
-    /* set non-zero (e.g. from a signal handler) to stop at the next iteration barrier: the
-     * image of the iterations done is returned and CandelaStats.interrupted set. NULL: never. */
+    /* set non-zero (e.g. from a signal handler) to stop after the current batch (the rest of the
+     * iteration is abandoned; with checkpoint_path its state is written): the image of the
+     * samples done is returned and CandelaStats.interrupted set. NULL: never. */
     const volatile sig_atomic_t *stop;
     /* every file the scene references, and the scene, must lie inside this folder (NULL: the
      * default policy, files anywhere relative to the scene) */
@@ -98,7 +99,8 @@ typedef struct CandelaStats {
     uint64_t paths;
     int iterations;
     int spp_done;                 /* samples per pixel rendered (less than spp when interrupted) */
-    int interrupted;              /* stopped at a barrier by CandelaOptions.stop */
+    int interrupted;              /* stopped after a batch by CandelaOptions.stop */
+    int checkpoint_failed;        /* stopped, and the checkpoint of the stop could not be written */
     size_t peak_memory_bytes;
     uint32_t num_triangles, num_lights, num_instances;
     /* the scene's decoded textures (not the environment) as held, what --texture-budget-mb

@@ -596,7 +596,7 @@ int main(int argc, char **argv) {
         candela_ray_log_free(&log);
     } else {
         char out_partial[PATH_MAX], png_partial[PATH_MAX];
-        if (stats.interrupted && o.checkpoint_path)
+        if (stats.interrupted && o.checkpoint_path && !stats.checkpoint_failed)
             fprintf(stderr, "candela: checkpoint written to %s (continue with --resume-from %s)\n", o.checkpoint_path,
                     o.checkpoint_path);
         if (!stats.interrupted && o.shard_count) {

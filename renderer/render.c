@@ -277,7 +277,7 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
         int next = spp_done + iteration_spp(iteration + 1, max_iter_spp, o->spp - spp_done, guided);
         if (o->checkpoint_path && checkpoint_due(spp_done, next, o->spp)) {
             if (checkpoint_write(o->checkpoint_path, &identity, &at, ig, &r->sampler, 0, err) != 0) {
-                if (!o->quiet) fprintf(stderr, "candela: warning: %s (the render goes on)\n", err); /* a later one may succeed */
+                fprintf(stderr, "candela: warning: %s (the render goes on)\n", err); /* a later one may succeed */
             } else if (!o->quiet && !progress.is_tty) {
                 fprintf(stderr, "candela: checkpoint at %d spp: %s\n", spp_done, o->checkpoint_path);
             }
@@ -289,8 +289,8 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
          * iteration; each pixel's mean is its own samples'), and the state is kept to resume */
         stats->interrupted = 1;
         if (o->checkpoint_path && checkpoint_write(o->checkpoint_path, &identity, &at, ig, &r->sampler, 0, err) != 0) {
-            render_free(r);
-            return -1;
+            fprintf(stderr, "candela: warning: %s\n", err); /* the image so far may still be wanted */
+            stats->checkpoint_failed = 1;
         }
     } else if (o->film_path && checkpoint_write(o->film_path, &identity, &at, ig, &r->sampler, 1, err) != 0) {
         render_free(r);
