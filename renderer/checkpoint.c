@@ -221,20 +221,34 @@ static int check_identity(const char *path, const Header *h, const CheckpointIde
     return 0;
 }
 
-int checkpoint_check(const char *path, const CheckpointIdentity *id, char err[CANDELA_ERR_LEN]) {
+/* A verified checkpoint of this render, open after its header; NULL with a message. */
+static FILE *open_checkpoint(const char *path, const CheckpointIdentity *id, Header *hp, char err[CANDELA_ERR_LEN]) {
     Header h;
     FILE *f = open_verified(path, &h, err);
-    if (!f) return -1;
-    fclose(f);
+    if (!f) return NULL;
+    *hp = h;
     if (h.kind != CKPT_KIND_CHECKPOINT) {
         snprintf(err, CANDELA_ERR_LEN, "%s: a finished shard film, not a checkpoint (merge it with candela merge)", path);
-        return -1;
+        fclose(f);
+        return NULL;
     }
-    if (check_identity(path, &h, id, err) != 0) return -1;
+    if (check_identity(path, &h, id, err) != 0) {
+        fclose(f);
+        return NULL;
+    }
     if (h.pr.iteration < 0 || h.pr.spp_done < 0 || (uint64_t)h.pr.spp_done > id->sample_count) {
         snprintf(err, CANDELA_ERR_LEN, "%s: damaged progress record", path);
-        return -1;
+        fclose(f);
+        return NULL;
     }
+    return f;
+}
+
+int checkpoint_check(const char *path, const CheckpointIdentity *id, char err[CANDELA_ERR_LEN]) {
+    Header h;
+    FILE *f = open_checkpoint(path, id, &h, err);
+    if (!f) return -1;
+    fclose(f);
     return 0;
 }
 
@@ -285,9 +299,8 @@ int checkpoint_write(const char *path_arg, const CheckpointIdentity *id, const C
 
 int checkpoint_load(const char *path, const CheckpointIdentity *id, CheckpointProgress *pr, Integrator *ig,
                     const LightSampler *sampler, char err[CANDELA_ERR_LEN]) {
-    if (checkpoint_check(path, id, err) != 0) return -1;
     Header h;
-    FILE *f = open_verified(path, &h, err);
+    FILE *f = open_checkpoint(path, id, &h, err);
     if (!f) return -1;
     const char *what = "film";
     int rc = h.width == (uint32_t)ig->film.width && h.height == (uint32_t)ig->film.height ? film_load(&ig->film, f) : -1;
