@@ -2,6 +2,7 @@
 # Checkpoints, resume, interruption and sample shards at the CLI (renderer/checkpoint.c):
 # - the checkpoint-skipping schedule (ch. 2 §5.2.2): 4, 8, 16, 32 spp unguided; 4, 8, 14, 22
 #   on the guided schedule (cumulative 1..8, 10, 14, 22, 38, 54, 64), never the last barrier;
+#   the course's example at 128 guided spp: 4, 8, 14, 22, 54;
 # - writing checkpoints does not change the image; resuming from one gives the uninterrupted
 #   render's EXR bit for bit (cache points, the default light sampler, and --guiding mis);
 # - a render killed with SIGKILL after a checkpoint and resumed: bit-identical, and it left no
@@ -52,6 +53,13 @@ for mode in default mis; do
     bad "resume ($mode)"
   same "$tmp/full-$mode.exr" "$tmp/res-$mode.exr" "resumed render ($mode)"
 done
+
+# the course's own example (ch. 2 §5.2.2): a guided 128-spp render, cumulative 1..8, 10, 14, 22,
+# 38, 54, 70, ..., 118, 128, checkpoints at 4, 8, 14, 22, 54 (and 128, the end: the image itself)
+"$bin" render "$scene" --res 8x6 --no-png --spp 128 --guiding mis -o "$tmp/g128.exr" --checkpoint "$tmp/g128.ckpt" \
+  2>"$tmp/log-g128" || bad "guided 128 spp render"
+got=$(sed -n 's/^candela: checkpoint at \([0-9]*\) spp.*/\1/p' "$tmp/log-g128" | tr '\n' ' ')
+[ "$got" = "4 8 14 22 54 " ] && ok || bad "checkpoint schedule (guided, 128 spp): got '$got', want '4 8 14 22 54 '"
 
 # --- SIGKILL after a checkpoint, then resume (a slower render: one thread, small batches)
 slow=(--spp 192 --threads 1 --batch 64)
