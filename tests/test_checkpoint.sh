@@ -80,7 +80,7 @@ for mode in default mis; do
 done
 
 # --- SIGTERM: stop after the current batch, checkpoint, partial image; resume
-rm -f "$tmp/term.ckpt"
+rm -f "$tmp/term.ckpt"; : > "$tmp/term.log"
 "$bin" "${base[@]}" "${slow[@]}" -o "$tmp/term.exr" --checkpoint "$tmp/term.ckpt" --save-partial 2>"$tmp/term.log" &
 pid=$!
 for _ in $(seq 1 600); do grep -q "checkpoint at 8 spp" "$tmp/term.log" && break; sleep 0.05; done
