@@ -122,6 +122,21 @@ submit=$root/scenes/farm/candela_submit.sh
 scene=$root/scenes/default.gltf
 opts=(--spp 16 --res 32x24 --quiet)
 
+# --- 0. the submit script's own checks (one line, exit 2) and its job scripts (--dry-run)
+for bad_args in "--frames 3-1" "--frames 1-2 --sample-shards 2" "--sample-shards 0" "--cpus-per-task x --frames 1-2" "--bogus"; do
+  # shellcheck disable=SC2086
+  "$submit" --candela "$bin" $bad_args -o "$tmp/x.exr" "$scene" >/dev/null 2>"$tmp/sub.err"; rc=$?
+  [ $rc -eq 2 ] && [ "$(grep -c . "$tmp/sub.err")" -eq 1 ] && ok || bad "submit $bad_args: exit $rc, $(cat "$tmp/sub.err")"
+done
+"$submit" --dry-run --candela "$bin" -p candela -c 2 --mem 1G -t 5:00 --sample-shards 4 -o "$tmp/dry/x.exr" "$scene" \
+  -- --spp 8 >/dev/null 2>"$tmp/dry.out"
+for want in "--partition=candela" "--cpus-per-task=2" "--mem=1G" "--time=5:00" "--requeue" "--array=0-3" \
+            "--signal=B:TERM@120" "--sample-shard \"\$i/4\"" "--checkpoint \"\$ck\"" "--threads 2" "merge -o" \
+            "--dependency=afterok:"; do
+  grep -qF -- "$want" "$tmp/dry.out" && ok || bad "dry run lacks '$want'"
+done
+[ ! -e "$tmp/dry/x.exr" ] && ok || bad "a dry run wrote the output"
+
 # --- 1. a 4-way sample-sharded frame
 echo "[$(date +%T)] 1. a 4-way sample-sharded frame"
 work=$tmp/work/shards

@@ -110,7 +110,8 @@ submit() {
 
 if [ -n "$shards" ]; then
   [[ $shards =~ ^[1-9][0-9]*$ ]] || die "invalid --sample-shards '$shards'"
-  rm -f "$work"/shard.*.ckpt "$work"/shard.*.film # a new render: nothing of an earlier one is resumed or merged
+  # a new render: nothing of an earlier one is resumed or merged
+  [ $dry -eq 1 ] || rm -f "$work"/shard.*.ckpt "$work"/shard.*.film
   cat > "$work/shard.sh" <<EOF
 #!/usr/bin/env bash
 # one sample shard (array task \$SLURM_ARRAY_TASK_ID of $shards), resumed from its checkpoint when requeued
