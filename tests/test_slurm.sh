@@ -4,6 +4,8 @@
 # written here (own ports, state and spool in a temporary folder, SlurmUser=root,
 # proctrack/linuxproc, task/none, select/cons_tres, one node with CPUs=2). Jobs go through
 # scenes/farm/candela_submit.sh, as a user's would.
+#   0. the submit script refuses bad options with one line, and its dry run shows every option
+#      in the job scripts and sbatch commands (partition, cpus, memory, time, requeue, ...);
 #   1. a 4-way sample-sharded frame (an array job, task I runs --sample-shard I/4, then the
 #      merge job): the cluster's shard films equal local renders of the same shards byte for
 #      byte, and its merged EXR equals the local merge of those shards bit for bit;
