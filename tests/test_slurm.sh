@@ -9,6 +9,7 @@
 #   1. a 4-way sample-sharded frame (an array job, task I runs --sample-shard I/4, then the
 #      merge job): the cluster's shard films equal local renders of the same shards byte for
 #      byte, and its merged EXR equals the local merge of those shards bit for bit;
+#   1a. shards that fail (a bad render option): the merge job fails, naming the missing films;
 #   1b. resume on requeue: a 2-shard frame whose task 0 is requeued (`scontrol requeue`: Slurm
 #      kills it and starts it again) after its first checkpoint resumes from it, and the merged
 #      frame still equals the local merge bit for bit;
@@ -42,7 +43,7 @@ cleanup() {
     [ $alive -eq 0 ] && break; sleep 0.1
   done
   for p in "${pids[@]}"; do kill -KILL "$p" 2>/dev/null; done
-  rm -rf "$tmp"
+  if [ "${CANDELA_SLURM_KEEP:-0}" = 1 ]; then echo "kept $tmp"; else rm -rf "$tmp"; fi
 }
 trap cleanup EXIT
 trap 'exit 1' INT TERM
@@ -134,7 +135,7 @@ done
   -- --spp 8 >/dev/null 2>"$tmp/dry.out"
 for want in "--partition=candela" "--cpus-per-task=2" "--mem=1G" "--time=5:00" "--requeue" "--array=0-3" \
             "--signal=B:TERM@120" "--sample-shard \"\$i/4\"" "--checkpoint \"\$ck\"" "--threads 2" "merge -o" \
-            "--dependency=afterok:"; do
+            "--dependency=afterany:"; do
   grep -qF -- "$want" "$tmp/dry.out" && ok || bad "dry run lacks '$want'"
 done
 [ ! -e "$tmp/dry/x.exr" ] && ok || bad "a dry run wrote the output"
@@ -158,6 +159,15 @@ done
 "$bin" merge -o "$tmp/local.exr" --no-png "${films[@]}" || bad "local merge"
 cmp -s "$tmp/work/frame.exr" "$tmp/local.exr" && ok || bad "the cluster's merged frame differs from the local merge"
 [ "$(ls "$work"/shard.*.film | wc -l)" -eq 4 ] && ok || bad "expected exactly 4 shard films"
+
+# --- 1a. shards that fail: the merge job fails and names the missing films
+if timeout 600 "$submit" --candela "$bin" --partition candela --sample-shards 2 --work-dir "$tmp/work/failing" --wait \
+     -o "$tmp/work/failing.exr" "$scene" -- "${opts[@]}" --max-depth -1 >"$tmp/submit1a.out" 2>&1; then
+  bad "a sharded job whose shards fail succeeded"
+else
+  grep -q "films are missing" "$tmp/work/failing/merge.log" && [ ! -e "$tmp/work/failing.exr" ] && ok ||
+    bad "failing shards: merge.log says $(cat "$tmp/work/failing/merge.log")"
+fi
 
 # --- 1b. resume on requeue: a shard task requeued (killed) after its first checkpoint continues
 # from it, and the merged frame is still the local merge bit for bit

@@ -10,8 +10,9 @@
 #   sample shards: candela_submit.sh --sample-shards 8 -o out/frame.exr SCENE [-- RENDER OPTIONS]
 #                  one frame too slow for one machine: task I renders samples
 #                  [spp I/N, spp (I+1)/N) of every pixel (`--sample-shard I/N`) into
-#                  WORK/shard.I.film, and a merge job (after all of them succeeded) runs
-#                  `candela merge` into the -o EXR (per-pixel means and variances of all samples).
+#                  WORK/shard.I.film, and a merge job (once all of them have ended, requeued ones
+#                  included) runs `candela merge` into the -o EXR (per-pixel means and variances
+#                  of all samples); it fails, naming them, when shards failed.
 #
 # Resume on requeue: tasks are submitted with --requeue (unless --no-requeue). A sample shard
 # checkpoints to WORK/shard.I.ckpt (`--checkpoint`, written at about 4, 8, 16, ... spp and when
@@ -128,23 +129,34 @@ exec $(quote "$candela" render "$scene" "${render_args[@]}") --threads $cpus --s
 EOF
   films=()
   for ((i = 0; i < shards; ++i)); do films+=("$work/shard.$i.film"); done
+  # The merge runs once every shard task has ended (afterany, not afterok: a task requeued by a
+  # pre-emption passes through a failed-looking state, and afterok would cancel the merge). A
+  # requeued task is queued again and its film missing: the merge waits while any task of the
+  # array is queued or running; a film still missing then belongs to a shard that failed.
   cat > "$work/merge.sh" <<EOF
 #!/usr/bin/env bash
-set -eu
-exec $(quote "$candela" merge -o "$output" "${films[@]}")
+set -u
+films=($(quote "${films[@]}"))
+missing() { local f m=""; for f in "\${films[@]}"; do [ -e "\$f" ] || m="\$m \$f"; done; echo "\$m"; }
+while [ -n "\$(missing)" ]; do
+  if queued=\$(squeue -h -j "\$CANDELA_SHARD_ARRAY" -o %i 2>/dev/null) && [ -z "\$queued" ]; then
+    sleep 5 # a task that just finished: look once more
+    [ -z "\$(missing)" ] && break
+    echo "candela_submit: no shard task of job \$CANDELA_SHARD_ARRAY is left and these films are missing:\$(missing) (see the shard logs)" >&2
+    exit 1
+  fi
+  sleep 10
+done
+exec $(quote "$candela" merge -o "$output") "\${films[@]}"
 EOF
   chmod +x "$work/shard.sh" "$work/merge.sh"
   array_opts=("${sbatch_opts[@]}" --array="0-$((shards - 1))" --output="$work/shard.%a.log")
-  if [ $wait -eq 1 ] && [ $dry -eq 0 ]; then
-    # the merge waits for the array (afterok); --wait on the merge returns once both are done
-    array_id=$(submit "$work/shard.sh" "${array_opts[@]}")
-    merge_id=$(submit "$work/merge.sh" "${sbatch_opts[@]}" --cpus-per-task=1 --dependency=afterok:"$array_id" \
-                 --kill-on-invalid-dep=yes --output="$work/merge.log" --wait)
-  else
-    array_id=$(submit "$work/shard.sh" "${array_opts[@]}")
-    merge_id=$(submit "$work/merge.sh" "${sbatch_opts[@]}" --cpus-per-task=1 --dependency=afterok:"$array_id" \
-                 --kill-on-invalid-dep=yes --output="$work/merge.log")
-  fi
+  array_id=$(submit "$work/shard.sh" "${array_opts[@]}")
+  merge_opts=("${sbatch_opts[@]}" --cpus-per-task=1 --dependency=afterany:"$array_id"
+              --export=ALL,CANDELA_SHARD_ARRAY="$array_id" --output="$work/merge.log")
+  # with --wait, sbatch returns once the merge (which waits for the array) has ended
+  if [ $wait -eq 1 ] && [ $dry -eq 0 ]; then merge_opts+=(--wait); fi
+  merge_id=$(submit "$work/merge.sh" "${merge_opts[@]}")
   echo "array $array_id merge $merge_id"
 else
   if [ -z "$tasks" ]; then
