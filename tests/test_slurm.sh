@@ -18,7 +18,9 @@
 #      local render of that frame bit for bit. Runs only when `candela --help` lists --frames.
 # Skips (77) with the reason when not root (SlurmUser=root), when Slurm or munge is not
 # installed (.ci/setup installs slurm-wlm and munge) or when the cluster does not come up.
-# usage: test_slurm.sh CANDELA_BINARY SOURCE_ROOT
+# The daemons and jobs also run in the ASan build (about 50 s there): no skip needed.
+# usage: test_slurm.sh CANDELA_BINARY SOURCE_ROOT   (CANDELA_SLURM_KEEP=1 keeps the cluster's
+# folder, with the daemons' and jobs' logs, for inspection)
 set -u
 bin=$(cd "$(dirname "$1")" && pwd)/$(basename "$1"); root=$(cd "$2" && pwd)
 skip() { echo "skipped: $*"; exit 77; }
