@@ -339,6 +339,19 @@ void io_volume_grid_free(IoVolumeGrid *grid);
 int io_write_vdb_dense(const char *path, const char *const *names, const float *const *values, int num_grids,
                        int nx, int ny, int nz, const float index_to_world[16], char err[IO_ERR_LEN]);
 
+/* ---------------------------------------------------------------- comparison variants */
+/* `candela compare --variants FILE.toml|FILE.json` (io/variants.cpp): an ordered list of
+ * (name, render flags) read from a TOML file of [[variant]] tables or a JSON object
+ * {"variant": [{"name": ..., "flags": ...}, ...]}; any other key is an error. The flags are
+ * not interpreted here. Free with io_variants_free. */
+#define IO_MAX_VARIANTS 16
+typedef struct IoVariant {
+    char *name;
+    char *flags;
+} IoVariant;
+int io_read_variants(const char *path, IoVariant **variants, int *count, char err[IO_ERR_LEN]);
+void io_variants_free(IoVariant *variants, int count);
+
 #ifdef __cplusplus
 }
 #endif

@@ -31,6 +31,8 @@ typedef enum {
     CANDELA_LIGHT_UNITS_RAW = 1      /* intensities are already radiometric */
 } CandelaLightUnits;
 
+struct CandelaIterationInfo;
+
 typedef struct CandelaOptions {
     const char *scene_path;
     const char *camera_name;   /* NULL: first camera, or a default view framing the scene */
@@ -84,7 +86,33 @@ typedef struct CandelaOptions {
      * of every pixel, with the full render's RNG streams, and write the film sums to film_path */
     uint32_t shard_index, shard_count;
     const char *film_path;
+    /* called at every iteration barrier, after the barrier hooks (no ray in flight; candela
+     * compare's convergence snapshots and equal-time stop); a non-zero return stops the render
+     * there like `stop` (CandelaStats.interrupted). NULL: none. */
+    int (*on_iteration)(void *user, const struct CandelaIterationInfo *info);
+    void *on_iteration_user;
 } CandelaOptions;
+
+/* What CandelaOptions.on_iteration is told at a barrier. */
+typedef struct CandelaIterationInfo {
+    int iteration;          /* 0-based index of the iteration just finished */
+    int spp_done;           /* samples per pixel in the film so far */
+    double seconds;         /* since candela_render started (scene load and build included) */
+    int width, height;
+    const void *film;       /* the film (opaque): read it with candela_iteration_mean */
+} CandelaIterationInfo;
+
+/* The film's mean radiance so far, 3 floats per pixel, top row first: exactly the values the
+ * finished image would hold if the render stopped here. */
+void candela_iteration_mean(const CandelaIterationInfo *info, float *rgb);
+
+/* The render flags of the command line (renderer/flags.c): argv[*i] and, if it takes one, its
+ * value. Returns 1 when it was a render flag (o set, *i on its last word), 0 when argv[*i] is
+ * not a render flag (nothing changed), -1 on a missing or bad value (err: one line, no
+ * program-name prefix). candela render and candela compare's variants share it. */
+int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, int *i, char err[CANDELA_ERR_LEN]);
+/* Combinations of render options that cannot work together: 0 ok, -1 with err. */
+int candela_options_check(const CandelaOptions *o, char err[CANDELA_ERR_LEN]);
 
 void candela_options_default(CandelaOptions *o);
 /* "uniform", "power", "tree", "optimal", "cachepoints" */
@@ -172,14 +200,19 @@ int candela_write_outputs(const CandelaImage *image, const char *exr_path, const
 int candela_replay_rays(const CandelaOptions *o, const CandelaRayLog *log, int threads,
                         double *seconds, char err[CANDELA_ERR_LEN]);
 
-/* candela compare: every strategy at equal spp against a reference (renderer/compare.c). */
+/* candela compare: every variant at equal spp (or equal time) against a reference, and a
+ * report folder (renderer/compare.c, renderer/report.c). */
 typedef struct CandelaCompareOptions {
-    const char *strategies;      /* comma-separated, e.g. "uniform,power,tree,optimal" */
+    const char *strategies;      /* comma-separated, e.g. "uniform,power,tree,optimal"; NULL: the default list */
     int reference_spp;           /* 0: 16 x spp */
     const char *reference_path;  /* reuse this EXR instead of rendering a reference */
     const char *out_dir;
     int optimal_max_lights;      /* skip `optimal` above this many lights (0: never skip) */
     int timing_runs;             /* renders per strategy for the median time (1..15; 0 = 1) */
+    /* "NAME: FLAGS; NAME: FLAGS" or a FILE.toml / FILE.json (io_read_variants): any render
+     * flags per variant; NULL: `strategies` (each NAME stands for --light-sampler NAME) */
+    const char *variants;
+    double time_budget;          /* > 0: equal time, every variant renders until this many seconds */
 } CandelaCompareOptions;
 
 int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, char err[CANDELA_ERR_LEN]);

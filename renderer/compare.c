@@ -1,19 +1,32 @@
-/* renderer/compare.c: `candela compare`, the equal-SPP comparison of light-selection
- * strategies.
+/* renderer/compare.c: `candela compare`, equal-SPP (or equal-time) comparisons of render
+ * variants against a reference, written as a report folder.
  *
- * Renders the scene once per strategy at the same spp and seed, renders (or reuses) a
- * high-spp reference, and writes OUT/table.md, OUT/table.csv, OUT/<strategy>.exr and
- * OUT/<strategy>_error.png (false-colour relative error). Metrics per strategy:
- *   time        wall seconds of the whole render (load + build + iterations); with
- *               --timing-runs N every strategy is rendered N times, round-robin so slow
- *               spells of a shared machine hit all strategies alike, and the median is used
- *               (the repeats must give bit-identical images: renders are deterministic)
- *   peak memory peak resident set size during that render
- *   RMSE        sqrt(mean over pixels and channels of (x - ref)^2)
- *   relMSE      mean of (x - ref)^2 / (ref^2 + 0.01)
- *   TTUV        time-to-unit-variance = mean per-pixel variance of the estimate x time
- *               (the cache points paper's Table 3 measure: lower is better, independent of
- *               spp for an unbiased estimator at fixed cost per sample) */
+ * A variant is a name and render flags ("tree: --light-sampler tree --no-visibility"), parsed
+ * by the command line's own parser (candela_parse_render_flag), all of them before anything is
+ * rendered or written: a bad flag is a one-line error naming the variant. `--strategies` is
+ * the shorthand NAME -> "--light-sampler NAME" (cache points with -linear, -cut, -novis).
+ *
+ * Every variant renders with the same spp and seed (equal SPP) or until --time-budget seconds
+ * have passed, stopping at an iteration barrier (equal time; the table then gives the spp each
+ * reached). At every barrier a snapshot of the film's mean is compared with the reference
+ * (convergence.csv and the plots); the seconds the snapshots take are subtracted from the
+ * times reported and from the time budget. The report folder (OUT):
+ *   table.md, table.csv   per variant: spp, time (load + build + render), preprocess time
+ *                         (load + build), peak memory, RMSE, relMSE, MAE, mean variance, TTUV
+ *                         and the ratios against the first variant (metrics.h)
+ *   NAME.exr, NAME.png    every variant's image; reference.exr / reference.png likewise, and
+ *                         reference.key: what the reference depends on; a later run with the
+ *                         same key reuses reference.exr instead of rendering it again
+ *   NAME_error.png        false-colour relative error against the reference
+ *   crops.png             the same crop of the reference and of every variant, side by side
+ *   convergence.csv, convergence_spp.svg, convergence_time.svg
+ *                         relMSE per iteration against spp and against seconds
+ *   index.html            all of it on one page
+ * With --timing-runs N (equal SPP only) every variant is rendered N times, round-robin so slow
+ * spells of a shared machine hit all variants alike, and the median time is used (the repeats
+ * must give bit-identical images: renders are deterministic). Every file is written under a
+ * temporary name and renamed when complete. */
+#include <ctype.h>
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -23,22 +36,50 @@
 #include <unistd.h>
 
 #include "candela.h"
+#include "clock.h"
 #include "io.h"
+#include "metrics.h"
+#include "report.h"
 
-enum { COMPARE_MAX_STRATEGIES = 16, COMPARE_MAX_TIMING_RUNS = 15 };
+enum { COMPARE_MAX_VARIANTS = IO_MAX_VARIANTS, COMPARE_MAX_TIMING_RUNS = 15, COMPARE_NAME_MAX = 48 };
+#define COMPARE_DEFAULT_STRATEGIES "uniform,power,tree,optimal,cachepoints,cachepoints-novis"
+/* equal time: the reference's spp when neither --ref-spp nor --reference is given (16 x spp,
+ * the equal-SPP default, has no meaning when spp is only a cap) */
+#define COMPARE_TIME_BUDGET_REF_SPP 256
+#define COMPARE_TIME_BUDGET_MAX_ITERATION_SPP 16
 
-typedef struct StrategyResult {
-    const char *name;
+typedef struct Variant {
+    char name[COMPARE_NAME_MAX + 1];
+    char *flags;   /* owned: as given, for the table */
+    char *words;   /* owned: the flags split into NUL-terminated words, which argv and opts' strings point into */
+    char **argv;   /* owned */
+    int argc;
+    CandelaOptions opts;
     int skipped;
     const char *why;
-    CandelaOptions opts;    /* what this strategy rendered with (for the timing repeats) */
-    uint64_t image_hash;    /* of the first render's pixels: repeats must match it */
-    int runs;
-    double times[COMPARE_MAX_TIMING_RUNS], cp_times[COMPARE_MAX_TIMING_RUNS];
-    double time, time_min, time_max, ttuv, rmse, relmse, mean_var, cp_time;
+    uint64_t image_hash; /* of the first render's pixels: repeats must match it */
+    int runs, spp;
+    double times[COMPARE_MAX_TIMING_RUNS], cp_times[COMPARE_MAX_TIMING_RUNS], pre_times[COMPARE_MAX_TIMING_RUNS];
+    double time, time_min, time_max, preprocess, cp_time, mean_var, ttuv;
+    ImageErrors errors;
     size_t peak;
     uint32_t cp_count;
-} StrategyResult;
+    ReportPoint *points; /* owned: one per iteration */
+    int num_points, cap_points;
+} Variant;
+
+static void variant_free(Variant *v) {
+    free(v->flags);
+    free(v->words);
+    free(v->argv);
+    free(v->points);
+    memset(v, 0, sizeof *v);
+}
+
+static void variants_free(Variant *v, int count) {
+    for (int i = 0; i < count; ++i) variant_free(&v[i]);
+    free(v);
+}
 
 /* FNV-1a over the pixel bytes: equal images, equal hashes (a repeat is compared with it). */
 static uint64_t image_hash(const CandelaImage *img) {
@@ -57,35 +98,211 @@ static double median(const double *v, int n) {
     return n % 2 ? s[n / 2] : 0.5 * (s[n / 2 - 1] + s[n / 2]);
 }
 
-/* Blue (0) -> green -> yellow -> red (>= 1): a readable false-colour ramp for |error|. */
-static void false_colour(float t, float rgb[3]) {
-    t = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
-    const float stops[4][3] = {{0.05f, 0.05f, 0.5f}, {0.1f, 0.7f, 0.3f}, {0.95f, 0.9f, 0.1f}, {0.9f, 0.1f, 0.05f}};
-    float x = t * 3.0f;
-    int i = x >= 3.0f ? 2 : (int)x;
-    float f = x - (float)i;
-    for (int k = 0; k < 3; ++k) rgb[k] = stops[i][k] * (1.0f - f) + stops[i + 1][k] * f;
+/* ---------------------------------------------------------------- variants */
+
+/* Splits flags at white space into words; '...' and "..." quote (a path with spaces). */
+static int split_words(Variant *v, char err[CANDELA_ERR_LEN]) {
+    size_t len = strlen(v->flags);
+    v->words = malloc(len + 1);
+    v->argv = malloc((len / 2 + 2) * sizeof *v->argv); /* at most one word per two characters */
+    if (!v->words || !v->argv) { snprintf(err, CANDELA_ERR_LEN, "out of memory"); return -1; }
+    char *w = v->words;
+    const char *s = v->flags;
+    v->argc = 0;
+    for (;;) {
+        while (isspace((unsigned char)*s)) ++s;
+        if (!*s) break;
+        v->argv[v->argc++] = w;
+        while (*s && !isspace((unsigned char)*s)) {
+            if (*s == '\'' || *s == '"') {
+                char q = *s++;
+                while (*s && *s != q) *w++ = *s++;
+                if (*s != q) {
+                    snprintf(err, CANDELA_ERR_LEN, "variant '%s': unterminated %c quote in its flags", v->name, q);
+                    return -1;
+                }
+                ++s;
+            } else {
+                *w++ = *s++;
+            }
+        }
+        *w++ = 0;
+    }
+    return 0;
 }
 
-static int write_error_png(const char *path, const CandelaImage *img, const float *ref, char err[CANDELA_ERR_LEN]) {
-    size_t n = (size_t)img->width * (size_t)img->height;
-    float *rgb = malloc(3 * n * sizeof(float));
-    if (!rgb) { snprintf(err, CANDELA_ERR_LEN, "%.400s: out of memory", path); return -1; }
-    for (size_t i = 0; i < n; ++i) {
-        double e = 0.0, r = 0.0;
-        for (int k = 0; k < 3; ++k) {
-            e += fabs((double)img->rgb[3 * i + k] - ref[3 * i + k]);
-            r += ref[3 * i + k];
-        }
-        /* relative error, 0 .. 100% mapped over the ramp */
-        false_colour((float)(e / (r + 0.03)), rgb + 3 * i);
+/* name and flags -> a checked variant: every flag through the render's own parser. */
+static int variant_init(Variant *v, const char *name, size_t name_len, const char *flags, size_t flags_len,
+                        const CandelaOptions *base, char err[CANDELA_ERR_LEN]) {
+    memset(v, 0, sizeof *v);
+    while (name_len && isspace((unsigned char)*name)) { ++name; --name_len; }
+    while (name_len && isspace((unsigned char)name[name_len - 1])) --name_len;
+    int good = name_len > 0 && name_len <= COMPARE_NAME_MAX && name[0] != '.' && name[0] != '-';
+    for (size_t k = 0; good && k < name_len; ++k)
+        good = isalnum((unsigned char)name[k]) || name[k] == '_' || name[k] == '-' || name[k] == '.';
+    if (!good) {
+        snprintf(err, CANDELA_ERR_LEN,
+                 "variant name '%.*s': 1 to %d letters, digits, '_', '-' or '.' (not first), it names the files", (int)(name_len > 100 ? 100 : name_len),
+                 name, COMPARE_NAME_MAX);
+        return -1;
     }
-    char ioerr[IO_ERR_LEN];
-    int rc = io_write_png(path, img->width, img->height, rgb, ioerr);
-    free(rgb);
-    if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
-    return rc;
+    memcpy(v->name, name, name_len);
+    v->name[name_len] = 0;
+    if (strcmp(v->name, "reference") == 0 || strcmp(v->name, "crops") == 0 || strcmp(v->name, "index") == 0) {
+        snprintf(err, CANDELA_ERR_LEN, "variant name '%s' is taken by the report's own files", v->name);
+        return -1;
+    }
+    while (flags_len && isspace((unsigned char)*flags)) { ++flags; --flags_len; }
+    while (flags_len && isspace((unsigned char)flags[flags_len - 1])) --flags_len;
+    v->flags = strndup(flags, flags_len);
+    if (!v->flags) { snprintf(err, CANDELA_ERR_LEN, "out of memory"); return -1; }
+    if (split_words(v, err) != 0) return -1;
+    v->opts = *base;
+    for (int i = 0; i < v->argc; ++i) {
+        const char *a = v->argv[i];
+        if (strcmp(a, "--spp") == 0 || strcmp(a, "--seed") == 0 || strcmp(a, "--res") == 0) {
+            snprintf(err, CANDELA_ERR_LEN, "variant '%s': %s is the same for every variant (give it to candela compare)",
+                     v->name, a);
+            return -1;
+        }
+        char flag_err[CANDELA_ERR_LEN];
+        int r = candela_parse_render_flag(&v->opts, v->argc, v->argv, &i, flag_err);
+        if (r < 0) {
+            snprintf(err, CANDELA_ERR_LEN, "variant '%s': %.400s", v->name, flag_err);
+            return -1;
+        }
+        if (r == 0) {
+            snprintf(err, CANDELA_ERR_LEN, "variant '%s': %s '%.200s' (render flags only, see candela --help)", v->name,
+                     a[0] == '-' ? "unknown option" : "unexpected argument", a);
+            return -1;
+        }
+    }
+    char check_err[CANDELA_ERR_LEN];
+    if (candela_options_check(&v->opts, check_err) != 0) {
+        snprintf(err, CANDELA_ERR_LEN, "variant '%s': %.400s", v->name, check_err);
+        return -1;
+    }
+    return 0;
 }
+
+/* A --strategies name -> its flags: a light sampler, or cachepoints with -linear, -cut and/or
+ * -novis suffixes. */
+static int strategy_flags(const char *tok, char *flags, size_t size) {
+    CandelaLightSampler s;
+    if (strncmp(tok, "cachepoints", 11) != 0) {
+        if (candela_light_sampler_parse(tok, &s) != 0) return -1;
+        snprintf(flags, size, "--light-sampler %s", tok);
+        return 0;
+    }
+    snprintf(flags, size, "--light-sampler cachepoints");
+    for (const char *t = tok + 11; *t;) {
+        const char *add;
+        if (strncmp(t, "-linear", 7) == 0) { add = " --cachepoint-build linear"; t += 7; }
+        else if (strncmp(t, "-cut", 4) == 0) { add = " --cachepoint-build cut"; t += 4; }
+        else if (strncmp(t, "-novis", 6) == 0) { add = " --no-visibility"; t += 6; }
+        else return -1;
+        strncat(flags, add, size - strlen(flags) - 1);
+    }
+    return 0;
+}
+
+static int ends_with(const char *s, const char *suffix) {
+    size_t n = strlen(s), m = strlen(suffix);
+    return n >= m && strcmp(s + n - m, suffix) == 0;
+}
+
+/* The variants of the run, every one checked: from --variants (a file or "NAME: FLAGS; ...")
+ * or from --strategies. */
+static int build_variants(const CandelaOptions *base, const CandelaCompareOptions *c, Variant **out, int *count,
+                          char err[CANDELA_ERR_LEN]) {
+    Variant *vs = calloc(COMPARE_MAX_VARIANTS, sizeof *vs);
+    if (!vs) { snprintf(err, CANDELA_ERR_LEN, "out of memory"); return -1; }
+    int n = 0, rc = 0;
+    if (c->variants && c->strategies) {
+        snprintf(err, CANDELA_ERR_LEN, "give --variants or --strategies, not both");
+        rc = -1;
+    } else if (c->variants && (ends_with(c->variants, ".toml") || ends_with(c->variants, ".json"))) {
+        IoVariant *list = NULL;
+        int m = 0;
+        char ioerr[IO_ERR_LEN];
+        if (io_read_variants(c->variants, &list, &m, ioerr) != 0) {
+            snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
+            rc = -1;
+        }
+        for (int i = 0; rc == 0 && i < m; ++i) {
+            char verr[CANDELA_ERR_LEN];
+            rc = variant_init(&vs[n], list[i].name, strlen(list[i].name), list[i].flags, strlen(list[i].flags), base, verr);
+            ++n;
+            if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%.200s: %.300s", c->variants, verr);
+        }
+        io_variants_free(list, m);
+    } else if (c->variants) {
+        /* NAME: FLAGS; NAME: FLAGS (an empty entry, e.g. after a final ';', is skipped) */
+        for (const char *s = c->variants; rc == 0 && *s;) {
+            const char *end = strchr(s, ';');
+            if (!end) end = s + strlen(s);
+            const char *p = s;
+            while (p < end && isspace((unsigned char)*p)) ++p;
+            if (p < end) {
+                const char *colon = memchr(s, ':', (size_t)(end - s));
+                if (!colon) {
+                    snprintf(err, CANDELA_ERR_LEN, "--variants: '%.*s' is not NAME: FLAGS", (int)(end - s > 100 ? 100 : end - s), s);
+                    rc = -1;
+                } else if (n == COMPARE_MAX_VARIANTS) {
+                    snprintf(err, CANDELA_ERR_LEN, "--variants: more than %d variants", COMPARE_MAX_VARIANTS);
+                    rc = -1;
+                } else {
+                    rc = variant_init(&vs[n], s, (size_t)(colon - s), colon + 1, (size_t)(end - colon - 1), base, err);
+                    ++n;
+                }
+            }
+            s = *end ? end + 1 : end;
+        }
+    } else {
+        char list[1024];
+        snprintf(list, sizeof list, "%s", c->strategies ? c->strategies : COMPARE_DEFAULT_STRATEGIES);
+        for (char *save = NULL, *tok = strtok_r(list, ",", &save); rc == 0 && tok; tok = strtok_r(NULL, ",", &save)) {
+            char flags[256];
+            if (strategy_flags(tok, flags, sizeof flags) != 0) {
+                snprintf(err, CANDELA_ERR_LEN, "unknown strategy '%.200s' in --strategies", tok);
+                rc = -1;
+            } else if (n == COMPARE_MAX_VARIANTS) {
+                snprintf(err, CANDELA_ERR_LEN, "--strategies: give 1 to %d strategies", COMPARE_MAX_VARIANTS);
+                rc = -1;
+            } else {
+                rc = variant_init(&vs[n], tok, strlen(tok), flags, strlen(flags), base, err);
+                ++n;
+            }
+        }
+    }
+    if (rc == 0 && n == 0) {
+        snprintf(err, CANDELA_ERR_LEN, "%s: no variants", c->variants ? "--variants" : "--strategies");
+        rc = -1;
+    }
+    for (int i = 0; rc == 0 && i < n; ++i)
+        for (int j = 0; j < i; ++j)
+            if (strcmp(vs[i].name, vs[j].name) == 0) {
+                snprintf(err, CANDELA_ERR_LEN, "variant '%s' is given twice", vs[i].name);
+                rc = -1;
+                break;
+            } else {
+                /* NAME_error.png is both NAME's error image and NAME_error's preview */
+                const char *a = vs[i].name, *b = vs[j].name;
+                size_t la = strlen(a), lb = strlen(b);
+                if ((la == lb + 6 && strncmp(a, b, lb) == 0 && strcmp(a + lb, "_error") == 0) ||
+                    (lb == la + 6 && strncmp(b, a, la) == 0 && strcmp(b + la, "_error") == 0)) {
+                    snprintf(err, CANDELA_ERR_LEN, "variants '%s' and '%s' would write the same file", b, a);
+                    rc = -1;
+                    break;
+                }
+            }
+    if (rc != 0) { variants_free(vs, COMPARE_MAX_VARIANTS); return -1; }
+    *out = vs;
+    *count = n;
+    return 0;
+}
+
+/* ---------------------------------------------------------------- reference and images */
 
 static int load_reference(const char *path, int w, int h, float **out, char err[CANDELA_ERR_LEN]) {
     const char *names[3] = {"R", "G", "B"};
@@ -113,103 +330,397 @@ static int load_reference(const char *path, int w, int h, float **out, char err[
     return 0;
 }
 
-/* A strategy name: a light sampler, or cachepoints with -linear, -cut and/or -novis suffixes. */
-static int parse_strategy(const char *tok, CandelaLightSampler *s, CandelaOptions *o) {
-    if (strncmp(tok, "cachepoints", 11) != 0) return candela_light_sampler_parse(tok, s);
-    *s = CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
-    for (const char *t = tok + 11; *t;) {
-        if (strncmp(t, "-linear", 7) == 0) { o->cachepoint_build_linear = 1; t += 7; }
-        else if (strncmp(t, "-cut", 4) == 0) { o->cachepoint_build_linear = 0; t += 4; }
-        else if (strncmp(t, "-novis", 6) == 0) { o->cachepoint_no_visibility = 1; t += 6; }
-        else return -1;
+/* What a rendered reference depends on, as one line: OUT/reference.exr is reused when
+ * OUT/reference.key starts with this line. The scene file (and an --env file) is identified by
+ * its size and modification time; files it references are not (delete reference.key after
+ * changing only a texture). */
+static void reference_key(const CandelaOptions *o, char *key, size_t size) {
+    struct stat sc, env;
+    if (stat(o->scene_path, &sc) != 0) memset(&sc, 0, sizeof sc);
+    if (!o->env_path || stat(o->env_path, &env) != 0) memset(&env, 0, sizeof env);
+    snprintf(key, size,
+             "candela %s; scene %s %lld %lld.%09ld; camera %s; res %dx%d; spp %d; seed %llu; depth %d; volume bounces %d; "
+             "emission sampling %d; inscatter %d; sampler %d; units %d; env %s %lld %lld.%09ld x %.9g; iteration cap %d; "
+             "occlusion %d; no visibility %d; retruncate %d; linear %d; cut %u; guiding %d; threshold %.9g; "
+             "regularization %.9g; filter %d; training %d; recorder %d %u; textures %u\n",
+             CANDELA_VERSION, o->scene_path, (long long)sc.st_size, (long long)sc.st_mtim.tv_sec, sc.st_mtim.tv_nsec,
+             o->camera_name ? o->camera_name : "-", o->width, o->height, o->spp, (unsigned long long)o->seed, o->max_depth,
+             o->max_volume_bounces, o->volume_emission_sampling, o->volume_inscatter_sampling, (int)o->light_sampler,
+             (int)o->light_units, o->env_path ? o->env_path : "-", (long long)env.st_size, (long long)env.st_mtim.tv_sec,
+             env.st_mtim.tv_nsec, o->env_strength, o->max_iteration_spp, o->optimal_occlusion, o->cachepoint_no_visibility,
+             o->cachepoint_retruncate, o->cachepoint_build_linear, o->cachepoint_cut_size, (int)o->guiding,
+             o->guide_spatial_threshold, o->path_regularization, o->guide_spatial_filter, o->guide_training_spp,
+             o->recorder_budget, o->recorder_mb, o->texture_budget_mb);
+}
+
+/* The cached reference when OUT/reference.key matches key (and its render time), else -1. */
+static int cached_reference(const char *dir, const char *key, float **ref, int *w, int *h, double *seconds) {
+    char path[IO_PATH_MAX + 64], text[8192];
+    snprintf(path, sizeof path, "%s/reference.key", dir);
+    FILE *f = fopen(path, "r");
+    if (!f) return -1;
+    size_t len = fread(text, 1, sizeof text - 1, f);
+    fclose(f);
+    text[len] = 0;
+    size_t klen = strlen(key);
+    if (len < klen || memcmp(text, key, klen) != 0 || sscanf(text + klen, "seconds %lf", seconds) != 1) return -1;
+    snprintf(path, sizeof path, "%s/reference.exr", dir);
+    float *r = NULL;
+    char ioerr[IO_ERR_LEN], err[CANDELA_ERR_LEN];
+    if (io_read_exr_channel(path, "R", w, h, &r, ioerr) != 0) return -1;
+    free(r);
+    return load_reference(path, *w, *h, ref, err);
+}
+
+/* Blue (0) -> green -> yellow -> red (>= 1): a readable false-colour ramp for |error|. */
+static void false_colour(float t, float rgb[3]) {
+    t = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
+    const float stops[4][3] = {{0.05f, 0.05f, 0.5f}, {0.1f, 0.7f, 0.3f}, {0.95f, 0.9f, 0.1f}, {0.9f, 0.1f, 0.05f}};
+    float x = t * 3.0f;
+    int i = x >= 3.0f ? 2 : (int)x;
+    float f = x - (float)i;
+    for (int k = 0; k < 3; ++k) rgb[k] = stops[i][k] * (1.0f - f) + stops[i + 1][k] * f;
+}
+
+/* Relative error per pixel: sum over RGB of |x - ref|, over the reference's sum + 0.03 (so
+ * black pixels do not blow up); 0 .. 100 % spans the ramp. */
+static float relative_error(const float *x, const float *ref) {
+    double e = 0.0, r = 0.0;
+    for (int k = 0; k < 3; ++k) { e += fabs((double)x[k] - ref[k]); r += ref[k]; }
+    return (float)(e / (r + 0.03));
+}
+
+/* The false-colour PNG; also adds every pixel's relative error to error_map (the crop's pick). */
+static int write_error_png(const char *path, const CandelaImage *img, const float *ref, float *error_map,
+                           char err[CANDELA_ERR_LEN]) {
+    size_t n = (size_t)img->width * (size_t)img->height;
+    float *rgb = malloc(3 * n * sizeof(float));
+    if (!rgb) { snprintf(err, CANDELA_ERR_LEN, "%.400s: out of memory", path); return -1; }
+    for (size_t i = 0; i < n; ++i) {
+        float e = relative_error(img->rgb + 3 * i, ref + 3 * i);
+        error_map[i] += e;
+        false_colour(e, rgb + 3 * i);
+    }
+    char ioerr[IO_ERR_LEN];
+    int rc = io_write_png(path, img->width, img->height, rgb, ioerr);
+    free(rgb);
+    if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
+    return rc;
+}
+
+static int write_srgb_png(const char *path, const float *linear, int width, int height, char err[CANDELA_ERR_LEN]) {
+    size_t n = 3 * (size_t)width * (size_t)height;
+    float *rgb = malloc(n * sizeof(float));
+    if (!rgb) { snprintf(err, CANDELA_ERR_LEN, "%.400s: out of memory", path); return -1; }
+    for (size_t i = 0; i < n; ++i) rgb[i] = report_srgb(linear[i]);
+    char ioerr[IO_ERR_LEN];
+    int rc = io_write_png(path, width, height, rgb, ioerr);
+    free(rgb);
+    if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
+    return rc;
+}
+
+/* The crop of a variant, read back from its EXR (every image is not kept in memory). */
+static int read_crop(const char *path, int width, const int crop[3], float *out, char err[CANDELA_ERR_LEN]) {
+    const char *names[3] = {"R", "G", "B"};
+    for (int k = 0; k < 3; ++k) {
+        int rw, rh;
+        float *ch = NULL;
+        char ioerr[IO_ERR_LEN];
+        if (io_read_exr_channel(path, names[k], &rw, &rh, &ch, ioerr) != 0) { snprintf(err, CANDELA_ERR_LEN, "%s", ioerr); return -1; }
+        if (rw != width) { free(ch); snprintf(err, CANDELA_ERR_LEN, "%.400s: changed while the report was written", path); return -1; }
+        for (int y = 0; y < crop[2]; ++y)
+            for (int x = 0; x < crop[2]; ++x)
+                out[3 * ((size_t)y * crop[2] + x) + k] = ch[(size_t)(crop[1] + y) * (size_t)width + (size_t)(crop[0] + x)];
+        free(ch);
     }
     return 0;
 }
 
+static void crop_of(const float *rgb, int width, const int crop[3], float *out) {
+    for (int y = 0; y < crop[2]; ++y)
+        memcpy(out + 3 * (size_t)y * crop[2], rgb + 3 * ((size_t)(crop[1] + y) * (size_t)width + (size_t)crop[0]),
+               3 * (size_t)crop[2] * sizeof(float));
+}
+
+/* ---------------------------------------------------------------- snapshots */
+
+typedef struct Snapshots {
+    Variant *v;
+    const float *ref;
+    float *mean;         /* scratch: the film's mean at a barrier */
+    size_t values;       /* 3 x pixels */
+    double time_budget;  /* > 0: stop at the first barrier at or past it */
+    double hook_seconds; /* spent here so far: not the render's time */
+    int failed;          /* 1: out of memory; 2: the image is not the reference's size */
+} Snapshots;
+
+static int on_iteration(void *user, const CandelaIterationInfo *info) {
+    Snapshots *s = user;
+    double t0 = clock_seconds();
+    Variant *v = s->v;
+    if ((size_t)info->width * (size_t)info->height * 3 != s->values) { s->failed = 2; return 1; } /* not the reference's size */
+    if (v->num_points == v->cap_points) {
+        int cap = v->cap_points ? 2 * v->cap_points : 32;
+        ReportPoint *p = realloc(v->points, (size_t)cap * sizeof *p);
+        if (!p) { s->failed = 1; return 1; }
+        v->points = p;
+        v->cap_points = cap;
+    }
+    candela_iteration_mean(info, s->mean);
+    ImageErrors e = metrics_image_errors(s->mean, s->ref, s->values);
+    double seconds = info->seconds - s->hook_seconds;
+    v->points[v->num_points++] = (ReportPoint){info->spp_done, seconds, e.rmse, e.relmse, e.mae};
+    s->hook_seconds += clock_seconds() - t0;
+    return s->time_budget > 0.0 && seconds >= s->time_budget;
+}
+
+/* ---------------------------------------------------------------- tables and page */
+
+static void csv_quoted(ReportText *t, const char *s) {
+    report_printf(t, "\"");
+    for (; *s; ++s) report_printf(t, *s == '"' ? "\"\"" : "%c", *s);
+    report_printf(t, "\"");
+}
+
+static void md_code(ReportText *t, const char *s) {
+    report_printf(t, "`");
+    for (; *s; ++s) report_printf(t, *s == '|' ? "\\|" : *s == '`' ? "'" : "%c", *s);
+    report_printf(t, "`");
+}
+
+typedef struct Report {
+    const CandelaOptions *base;
+    const CandelaCompareOptions *c;
+    Variant *v;
+    int count, first; /* first: the index of the baseline (the first variant that rendered) */
+    int width, height, runs;
+    double ref_time;
+    int ref_spp, ref_cached;
+    int crop[3];
+} Report;
+
+static void heading(ReportText *t, const Report *r, int html) {
+    const CandelaOptions *b = r->base;
+    if (html) report_printf(t, "<p>");
+    report_printf(t, "%dx%d, ", r->width, r->height);
+    if (r->c->time_budget > 0) report_printf(t, "equal time: %.3g s per variant (at most %d spp)", r->c->time_budget, b->spp);
+    else report_printf(t, "equal spp: %d", b->spp);
+    report_printf(t, ", seed %llu. Reference: ", (unsigned long long)b->seed);
+    if (r->c->reference_path) {
+        if (html) report_html(t, r->c->reference_path);
+        else report_printf(t, "%s", r->c->reference_path);
+    } else {
+        report_printf(t, "tree sampler, %d spp (%.2f s%s)", r->ref_spp, r->ref_time, r->ref_cached ? ", cached from an earlier run" : "");
+    }
+    report_printf(t, html ? ".</p>\n" : ".\n\n");
+    if (r->runs > 1) {
+        if (html) report_printf(t, "<p>");
+        report_printf(t, "Times: median of %d renders per variant, round-robin (min-max in brackets); TTUV uses the median.",
+                      r->runs);
+        report_printf(t, html ? "</p>\n" : "\n\n");
+    }
+}
+
+static void tables(const Report *r, ReportText *md, ReportText *csv, ReportText *html) {
+    report_printf(md, "# %s\n\n", r->base->scene_path);
+    heading(md, r, 0);
+    report_printf(md, "| variant | flags | spp | time s | preprocess s | peak MiB | RMSE | relMSE | MAE | TTUV | cache points (build s) "
+                      "| time / first | RMSE / first | relMSE / first | MAE / first | TTUV / first |\n");
+    report_printf(md, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    report_printf(csv, "variant,flags,spp,time_s,preprocess_s,peak_mib,rmse,relmse,mae,mean_variance,ttuv,time_ratio,rmse_ratio,"
+                       "relmse_ratio,mae_ratio,ttuv_ratio,cachepoint_build_s,cache_points,time_min_s,time_max_s,timing_runs\n");
+    report_printf(html, "<table>\n<tr><th>variant</th><th>flags</th><th>spp</th><th>time s</th><th>preprocess s</th><th>peak MiB</th>"
+                        "<th>RMSE</th><th>relMSE</th><th>MAE</th><th>TTUV</th><th>cache points (build s)</th><th>time / first</th>"
+                        "<th>RMSE / first</th><th>relMSE / first</th><th>MAE / first</th><th>TTUV / first</th></tr>\n");
+    const Variant *f = r->first >= 0 ? &r->v[r->first] : NULL;
+    for (int i = 0; i < r->count; ++i) {
+        const Variant *v = &r->v[i];
+        report_printf(md, "| %s | ", v->name);
+        md_code(md, v->flags);
+        report_printf(csv, "%s,", v->name);
+        csv_quoted(csv, v->flags);
+        report_printf(html, "<tr><td>");
+        report_html(html, v->name);
+        report_printf(html, "</td><td><code>");
+        report_html(html, v->flags);
+        report_printf(html, "</code></td>");
+        if (v->skipped) {
+            report_printf(md, " | %s | | | | | | | | | | | | | |\n", v->why);
+            report_printf(csv, ",skipped,,,,,,,,,,,,,,,,,,\n");
+            report_printf(html, "<td colspan=\"14\">%s</td></tr>\n", v->why);
+            continue;
+        }
+        double ratios[5] = {metrics_ratio(v->time, f->time), metrics_ratio(v->errors.rmse, f->errors.rmse),
+                            metrics_ratio(v->errors.relmse, f->errors.relmse), metrics_ratio(v->errors.mae, f->errors.mae),
+                            metrics_ratio(v->ttuv, f->ttuv)};
+        char tm[64], cp[64] = "-";
+        if (v->runs > 1) snprintf(tm, sizeof tm, "%.3f (%.3f-%.3f)", v->time, v->time_min, v->time_max);
+        else snprintf(tm, sizeof tm, "%.3f", v->time);
+        if (v->cp_count) snprintf(cp, sizeof cp, "%u (%.3f)", v->cp_count, v->cp_time);
+        double mib = (double)v->peak / 1048576.0;
+        report_printf(md, " | %d | %s | %.3f | %.1f | %.5g | %.5g | %.5g | %.5g | %s | %.3f | %.3f | %.3f | %.3f | %.3f |\n", v->spp,
+                      tm, v->preprocess, mib, v->errors.rmse, v->errors.relmse, v->errors.mae, v->ttuv, cp, ratios[0], ratios[1],
+                      ratios[2], ratios[3], ratios[4]);
+        report_printf(html, "<td>%d</td><td>%s</td><td>%.3f</td><td>%.1f</td><td>%.5g</td><td>%.5g</td><td>%.5g</td><td>%.5g</td>"
+                            "<td>%s</td><td>%.3f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td></tr>\n",
+                      v->spp, tm, v->preprocess, mib, v->errors.rmse, v->errors.relmse, v->errors.mae, v->ttuv, cp, ratios[0],
+                      ratios[1], ratios[2], ratios[3], ratios[4]);
+        /* %.9g: every number to float precision and more, so a check can recompute them */
+        report_printf(csv, ",%d,%.9g,%.9g,%.3f,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,", v->spp, v->time, v->preprocess,
+                      mib, v->errors.rmse, v->errors.relmse, v->errors.mae, v->mean_var, v->ttuv, ratios[0], ratios[1], ratios[2],
+                      ratios[3], ratios[4]);
+        if (v->cp_count) report_printf(csv, "%.6f,%u", v->cp_time, v->cp_count);
+        else report_printf(csv, ",");
+        report_printf(csv, ",%.9g,%.9g,%d\n", v->time_min, v->time_max, v->runs);
+    }
+    report_printf(html, "</table>\n");
+    report_printf(md, "\nTTUV = mean per-pixel variance x time (lower is better); relMSE = mean (x - ref)^2 / (ref^2 + %g).\n",
+                  METRICS_RELMSE_EPSILON);
+}
+
+static void page(const Report *r, const ReportText *table_html, ReportText *t) {
+    report_printf(t, "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>candela compare: ");
+    report_html(t, r->base->scene_path);
+    report_printf(t, "</title>\n<style>\n"
+                     "body { font-family: sans-serif; margin: 1.5em; }\n"
+                     "table { border-collapse: collapse; font-size: 0.9em; }\n"
+                     "th, td { border: 1px solid #bbb; padding: 0.25em 0.5em; text-align: right; }\n"
+                     "td:nth-child(1), td:nth-child(2) { text-align: left; }\n"
+                     "td code { white-space: nowrap; }\n"
+                     "figure { display: inline-block; margin: 0.5em; vertical-align: top; }\n"
+                     "figcaption { font-size: 0.9em; }\n"
+                     ".images img { image-rendering: pixelated; width: 320px; }\n"
+                     "</style>\n</head>\n<body>\n<h1>candela compare: ");
+    report_html(t, r->base->scene_path);
+    report_printf(t, "</h1>\n");
+    heading(t, r, 1);
+    report_printf(t, "%.*s", (int)table_html->len, table_html->s ? table_html->s : "");
+    report_printf(t, "<p>TTUV = mean per-pixel variance &times; time (lower is better); relMSE = mean (x &minus; ref)&sup2; / "
+                     "(ref&sup2; + %g); ratios are against the first variant. Data: <a href=\"table.csv\">table.csv</a>, "
+                     "<a href=\"convergence.csv\">convergence.csv</a>.</p>\n", METRICS_RELMSE_EPSILON);
+    report_printf(t, "<h2>Convergence</h2>\n<p>relMSE of the image after every iteration (seconds exclude the snapshots' own "
+                     "cost).</p>\n<img src=\"convergence_spp.svg\" alt=\"relMSE against spp\">\n"
+                     "<img src=\"convergence_time.svg\" alt=\"relMSE against time\">\n");
+    report_printf(t, "<h2>Crops</h2>\n<p>Pixels %d-%d &times; %d-%d (where the variants differ most from the reference), "
+                     "left to right: reference", r->crop[0], r->crop[0] + r->crop[2] - 1, r->crop[1], r->crop[1] + r->crop[2] - 1);
+    for (int i = 0; i < r->count; ++i)
+        if (!r->v[i].skipped) { report_printf(t, ", "); report_html(t, r->v[i].name); }
+    report_printf(t, ".</p>\n<img src=\"crops.png\" alt=\"crops\">\n");
+    report_printf(t, "<h2>Images</h2>\n<p>Each variant's image and its relative error against the reference (false colour: "
+                     "blue 0, green, yellow, red &ge; 100 %%).</p>\n<div class=\"images\">\n"
+                     "<figure><img src=\"reference.png\" alt=\"reference\"><figcaption>reference</figcaption></figure>\n");
+    for (int i = 0; i < r->count; ++i) {
+        const Variant *v = &r->v[i];
+        if (v->skipped) continue;
+        report_printf(t, "<figure><img src=\"%s.png\" alt=\"%s\"><figcaption>%s</figcaption></figure>\n", v->name, v->name, v->name);
+        report_printf(t, "<figure><img src=\"%s_error.png\" alt=\"%s error\"><figcaption>%s: relative error</figcaption></figure>\n",
+                      v->name, v->name, v->name);
+    }
+    /* a check that a person or a headless browser can read: did every image load? */
+    report_printf(t, "</div>\n<p id=\"load-check\">images: not checked (scripts off?)</p>\n<script>\n"
+                     "window.addEventListener('load', function () {\n"
+                     "  var bad = [], imgs = document.images;\n"
+                     "  for (var i = 0; i < imgs.length; ++i)\n"
+                     "    if (!imgs[i].complete || imgs[i].naturalWidth === 0) bad.push(imgs[i].getAttribute('src'));\n"
+                     "  document.getElementById('load-check').textContent =\n"
+                     "    bad.length ? 'IMAGES-FAILED ' + bad.join(' ') : 'IMAGES-OK ' + imgs.length;\n"
+                     "});\n</script>\n</body>\n</html>\n");
+}
+
+/* ---------------------------------------------------------------- the comparison */
+
 int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, char err[CANDELA_ERR_LEN]) {
-    /* every strategy name is checked before anything renders */
-    {
-        char list[512];
-        int n_strategies = 0;
-        snprintf(list, sizeof list, "%s", c->strategies);
-        for (char *save = NULL, *tok = strtok_r(list, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
-            CandelaLightSampler s;
-            CandelaOptions check = *base;
-            if (parse_strategy(tok, &s, &check) != 0) {
-                snprintf(err, CANDELA_ERR_LEN, "unknown strategy '%s' in --strategies", tok);
-                return -1;
-            }
-            ++n_strategies;
-        }
-        if (n_strategies == 0 || n_strategies > COMPARE_MAX_STRATEGIES) {
-            snprintf(err, CANDELA_ERR_LEN, "--strategies: give 1 to %d strategies", COMPARE_MAX_STRATEGIES);
-            return -1;
-        }
+    Variant *vs = NULL;
+    int count = 0;
+    /* every variant is checked before anything renders or is written */
+    if (build_variants(base, c, &vs, &count, err) != 0) return -1;
+    if (c->time_budget > 0 && c->timing_runs > 1) {
+        snprintf(err, CANDELA_ERR_LEN, "--timing-runs repeats equal-spp renders; it does not go with --time-budget");
+        variants_free(vs, COMPARE_MAX_VARIANTS);
+        return -1;
     }
     if (mkdir(c->out_dir, 0777) != 0 && errno != EEXIST) {
         snprintf(err, CANDELA_ERR_LEN, "%s: cannot create the output folder: %s", c->out_dir, strerror(errno));
+        variants_free(vs, COMPARE_MAX_VARIANTS);
         return -1;
     }
-    char path[4096];
+    char path[IO_PATH_MAX + 64];
     CandelaOptions o = *base;
     o.quiet = 1;
-    float *ref = NULL;
-    int width = 0, height = 0;
-    double ref_time = 0.0;
+    float *ref = NULL, *mean = NULL, *error_map = NULL, **crops = NULL;
+    Report r = {base, c, vs, count, -1, 0, 0, 1, 0.0, 0, 0, {0, 0, 0}};
+    ReportText md = {0}, csv = {0}, table_html = {0}, html = {0}, conv = {0};
+    int rc = -1;
 
-    /* 1. reference: reuse an EXR, or render with the power sampler at reference_spp */
+    /* 1. the reference: reuse an EXR, or render with the tree sampler */
     if (c->reference_path) {
         /* the resolution must match: render one sample to learn it cheaply */
         CandelaOptions probe = o;
         probe.spp = 1;
         CandelaImage img;
-        if (candela_render(&probe, &img, NULL, NULL, err) != 0) return -1;
-        width = img.width; height = img.height;
+        if (candela_render(&probe, &img, NULL, NULL, err) != 0) goto done;
+        r.width = img.width; r.height = img.height;
         candela_image_free(&img);
-        if (load_reference(c->reference_path, width, height, &ref, err) != 0) return -1;
+        if (load_reference(c->reference_path, r.width, r.height, &ref, err) != 0) goto done;
+        snprintf(path, sizeof path, "%s/reference.png", c->out_dir);
+        if (write_srgb_png(path, ref, r.width, r.height, err) != 0) goto done;
     } else {
         CandelaOptions ro = o;
-        ro.spp = c->reference_spp > 0 ? c->reference_spp : 16 * base->spp;
+        r.ref_spp = c->reference_spp > 0 ? c->reference_spp
+                    : c->time_budget > 0 ? COMPARE_TIME_BUDGET_REF_SPP : 16 * base->spp;
+        ro.spp = r.ref_spp;
         ro.seed = base->seed + 0x5eed;  /* independent of the compared renders */
         ro.light_sampler = CANDELA_LIGHT_SAMPLER_TREE; /* the best general-purpose sampler here */
-        CandelaImage img;
-        CandelaStats st;
-        if (!base->quiet) fprintf(stderr, "candela compare: reference, %d spp\n", ro.spp);
-        if (candela_render(&ro, &img, &st, NULL, err) != 0) return -1;
-        ref_time = st.time_total;
-        width = img.width; height = img.height;
-        snprintf(path, sizeof path, "%s/reference.exr", c->out_dir);
-        if (candela_write_outputs(&img, path, NULL, err) != 0) { candela_image_free(&img); return -1; }
-        size_t n = (size_t)width * (size_t)height;
-        ref = malloc(3 * n * sizeof(float));
-        if (!ref) { candela_image_free(&img); snprintf(err, CANDELA_ERR_LEN, "out of memory"); return -1; }
-        memcpy(ref, img.rgb, 3 * n * sizeof(float));
-        candela_image_free(&img);
-    }
-    size_t n = (size_t)width * (size_t)height;
-
-    /* 2. every strategy at the same spp and seed */
-    StrategyResult results[COMPARE_MAX_STRATEGIES];
-    int count = 0;
-    char list[512];
-    snprintf(list, sizeof list, "%s", c->strategies);
-    for (char *save = NULL, *tok = strtok_r(list, ",", &save); tok && count < COMPARE_MAX_STRATEGIES; tok = strtok_r(NULL, ",", &save)) {
-        StrategyResult *r = &results[count];
-        memset(r, 0, sizeof *r);
-        r->name = strdup(tok);
-        ++count;
-        CandelaLightSampler s;
-        o.cachepoint_no_visibility = base->cachepoint_no_visibility;
-        o.cachepoint_build_linear = base->cachepoint_build_linear;
-        if (parse_strategy(tok, &s, &o) != 0) {
-            snprintf(err, CANDELA_ERR_LEN, "unknown strategy '%s' in --strategies", tok);
-            for (int i = 0; i < count; ++i) free((char *)results[i].name);
-            free(ref);
-            return -1;
+        char key[8192];
+        reference_key(&ro, key, sizeof key);
+        if (cached_reference(c->out_dir, key, &ref, &r.width, &r.height, &r.ref_time) == 0) {
+            r.ref_cached = 1;
+            if (!base->quiet) fprintf(stderr, "candela compare: reference, %d spp, from %s/reference.exr\n", ro.spp, c->out_dir);
+        } else {
+            CandelaImage img;
+            CandelaStats st;
+            if (!base->quiet) fprintf(stderr, "candela compare: reference, %d spp\n", ro.spp);
+            if (candela_render(&ro, &img, &st, NULL, err) != 0) goto done;
+            r.ref_time = st.time_total;
+            r.width = img.width; r.height = img.height;
+            char png[IO_PATH_MAX + 64];
+            /* the old key goes first: it must never vouch for a new reference.exr */
+            snprintf(path, sizeof path, "%s/reference.key", c->out_dir);
+            if (remove(path) != 0 && errno != ENOENT) {
+                snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot remove: %s", path, strerror(errno));
+                candela_image_free(&img);
+                goto done;
+            }
+            snprintf(path, sizeof path, "%s/reference.exr", c->out_dir);
+            snprintf(png, sizeof png, "%s/reference.png", c->out_dir);
+            int wrc = candela_write_outputs(&img, path, png, err);
+            size_t n = (size_t)r.width * (size_t)r.height;
+            ref = wrc == 0 ? malloc(3 * n * sizeof(float)) : NULL;
+            if (ref) memcpy(ref, img.rgb, 3 * n * sizeof(float));
+            candela_image_free(&img);
+            if (wrc != 0) goto done;
+            if (!ref) { snprintf(err, CANDELA_ERR_LEN, "out of memory"); goto done; }
+            ReportText k = {0};
+            report_printf(&k, "%sseconds %.9g\n", key, r.ref_time);
+            snprintf(path, sizeof path, "%s/reference.key", c->out_dir);
+            wrc = report_write_text(path, &k, err);
+            report_text_free(&k);
+            if (wrc != 0) goto done;
         }
-        o.light_sampler = s;
-        if (s == CANDELA_LIGHT_SAMPLER_OPTIMAL && c->optimal_max_lights > 0) {
-            CandelaOptions probe = o;
+    }
+    size_t n = (size_t)r.width * (size_t)r.height;
+    mean = malloc(3 * n * sizeof(float));
+    error_map = calloc(n, sizeof(float));
+    if (!mean || !error_map) { snprintf(err, CANDELA_ERR_LEN, "out of memory"); goto done; }
+
+    /* 2. every variant at the same spp and seed (or the same time), with snapshots */
+    for (int i = 0; i < count; ++i) {
+        Variant *v = &vs[i];
+        CandelaOptions vo = v->opts;
+        vo.quiet = 1;
+        if (vo.light_sampler == CANDELA_LIGHT_SAMPLER_OPTIMAL && c->optimal_max_lights > 0) {
+            CandelaOptions probe = vo;
             probe.spp = 1;
             probe.width = probe.height = 1;
             probe.light_sampler = CANDELA_LIGHT_SAMPLER_POWER;
@@ -218,166 +729,158 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
             if (candela_render(&probe, &img, &st, NULL, err) == 0) {
                 candela_image_free(&img);
                 if (st.num_lights > (uint32_t)c->optimal_max_lights) {
-                    r->skipped = 1;
-                    r->why = "skipped: O(lights) per vertex is too slow here (--optimal-max-lights)";
+                    v->skipped = 1;
+                    v->why = "skipped: O(lights) per vertex is too slow here (--optimal-max-lights)";
                     continue;
                 }
             }
         }
-        if (!base->quiet) fprintf(stderr, "candela compare: %s, %d spp\n", tok, o.spp);
+        if (!base->quiet) {
+            if (c->time_budget > 0) fprintf(stderr, "candela compare: %s, %.3g s\n", v->name, c->time_budget);
+            else fprintf(stderr, "candela compare: %s, %d spp\n", v->name, vo.spp);
+        }
+        /* equal time: iterations of at most 16 spp (the guided cap; unguided renders default to
+         * 64), so a render overshoots the budget by less */
+        if (c->time_budget > 0 && vo.max_iteration_spp <= 0) vo.max_iteration_spp = COMPARE_TIME_BUDGET_MAX_ITERATION_SPP;
+        Snapshots snap = {v, ref, mean, 3 * n, c->time_budget, 0.0, 0};
+        vo.on_iteration = on_iteration;
+        vo.on_iteration_user = &snap;
         CandelaImage img;
         CandelaStats st;
-        if (candela_render(&o, &img, &st, NULL, err) != 0) {
-            for (int i = 0; i < count; ++i) free((char *)results[i].name);
-            free(ref);
-            return -1;
+        if (candela_render(&vo, &img, &st, NULL, err) != 0) goto done;
+        if (snap.failed == 2 || img.width != r.width || img.height != r.height) {
+            snprintf(err, CANDELA_ERR_LEN, "variant '%s' renders %dx%d, the reference is %dx%d (give --res)", v->name, img.width,
+                     img.height, r.width, r.height);
+            candela_image_free(&img);
+            goto done;
         }
-        double se = 0.0, rel = 0.0, var = 0.0;
-        for (size_t i = 0; i < 3 * n; ++i) {
-            double d = (double)img.rgb[i] - ref[i];
-            se += d * d;
-            rel += d * d / ((double)ref[i] * ref[i] + 0.01);
-            var += img.variance[i];
+        if (snap.failed) {
+            candela_image_free(&img);
+            snprintf(err, CANDELA_ERR_LEN, "out of memory recording the convergence of variant '%s'", v->name);
+            goto done;
         }
-        r->opts = o;
-        r->image_hash = image_hash(&img);
-        r->runs = 1;
-        r->times[0] = st.time_total;
-        r->cp_times[0] = st.time_cachepoints;
-        r->time = st.time_total;
-        r->cp_time = st.time_cachepoints;
-        r->cp_count = st.num_cachepoints;
-        r->peak = st.peak_memory_bytes;
-        r->rmse = sqrt(se / (3.0 * (double)n));
-        r->relmse = rel / (3.0 * (double)n);
-        r->mean_var = var / (3.0 * (double)n);
-        r->ttuv = r->mean_var * r->time;
-        snprintf(path, sizeof path, "%s/%s.exr", c->out_dir, tok);
-        int rc = candela_write_outputs(&img, path, NULL, err);
-        snprintf(path, sizeof path, "%s/%s_error.png", c->out_dir, tok);
-        if (rc == 0) rc = write_error_png(path, &img, ref, err);
+        if (r.first < 0) r.first = i;
+        v->opts.quiet = 1;
+        v->image_hash = image_hash(&img);
+        v->runs = 1;
+        v->spp = st.spp_done;
+        v->time = v->times[0] = st.time_total - snap.hook_seconds;
+        v->time_min = v->time_max = v->time;
+        v->cp_time = v->cp_times[0] = st.time_cachepoints;
+        v->cp_count = st.num_cachepoints;
+        v->preprocess = v->pre_times[0] = st.time_load + st.time_build;
+        v->peak = st.peak_memory_bytes;
+        v->errors = metrics_image_errors(img.rgb, ref, 3 * n);
+        v->mean_var = metrics_mean(img.variance, 3 * n);
+        v->ttuv = metrics_ttuv(v->mean_var, v->time);
+        char png[IO_PATH_MAX + 64];
+        snprintf(path, sizeof path, "%s/%s.exr", c->out_dir, v->name);
+        snprintf(png, sizeof png, "%s/%s.png", c->out_dir, v->name);
+        int wrc = candela_write_outputs(&img, path, png, err);
+        snprintf(path, sizeof path, "%s/%s_error.png", c->out_dir, v->name);
+        if (wrc == 0) wrc = write_error_png(path, &img, ref, error_map, err);
         candela_image_free(&img);
-        if (rc != 0) {
-            for (int i = 0; i < count; ++i) free((char *)results[i].name);
-            free(ref);
-            return -1;
-        }
+        if (wrc != 0) goto done;
     }
-    free(ref);
+    if (r.first < 0) { snprintf(err, CANDELA_ERR_LEN, "every variant was skipped"); goto done; }
 
     /* 3. timing repeats, round-robin; the median time (and build time) is reported */
-    int runs = c->timing_runs < 1 ? 1 : c->timing_runs > COMPARE_MAX_TIMING_RUNS ? COMPARE_MAX_TIMING_RUNS : c->timing_runs;
-    for (int run = 1; run < runs; ++run) {
+    r.runs = c->timing_runs < 1 ? 1 : c->timing_runs > COMPARE_MAX_TIMING_RUNS ? COMPARE_MAX_TIMING_RUNS : c->timing_runs;
+    for (int run = 1; run < r.runs; ++run) {
         for (int i = 0; i < count; ++i) {
-            StrategyResult *r = &results[i];
-            if (r->skipped) continue;
-            if (!base->quiet) fprintf(stderr, "candela compare: %s, timing run %d of %d\n", r->name, run + 1, runs);
+            Variant *v = &vs[i];
+            if (v->skipped) continue;
+            if (!base->quiet) fprintf(stderr, "candela compare: %s, timing run %d of %d\n", v->name, run + 1, r.runs);
             CandelaImage img;
             CandelaStats st;
-            int rc = candela_render(&r->opts, &img, &st, NULL, err);
-            if (rc == 0) {
-                uint64_t hash = image_hash(&img);
-                candela_image_free(&img);
-                if (hash != r->image_hash) {
-                    snprintf(err, CANDELA_ERR_LEN,
-                             "%s: strategy %s gave a different image on a repeated render (not deterministic)",
-                             base->scene_path, r->name);
-                    rc = -1;
-                }
+            if (candela_render(&v->opts, &img, &st, NULL, err) != 0) goto done;
+            uint64_t hash = image_hash(&img);
+            candela_image_free(&img);
+            if (hash != v->image_hash) {
+                snprintf(err, CANDELA_ERR_LEN, "%s: variant %s gave a different image on a repeated render (not deterministic)",
+                         base->scene_path, v->name);
+                goto done;
             }
-            if (rc != 0) {
-                for (int j = 0; j < count; ++j) free((char *)results[j].name);
-                return -1;
-            }
-            r->times[r->runs] = st.time_total;
-            r->cp_times[r->runs] = st.time_cachepoints;
-            ++r->runs;
-            if (st.peak_memory_bytes < r->peak) r->peak = st.peak_memory_bytes; /* least disturbed run */
+            v->times[v->runs] = st.time_total;
+            v->cp_times[v->runs] = st.time_cachepoints;
+            v->pre_times[v->runs] = st.time_load + st.time_build;
+            ++v->runs;
+            if (st.peak_memory_bytes < v->peak) v->peak = st.peak_memory_bytes; /* least disturbed run */
         }
     }
     for (int i = 0; i < count; ++i) {
-        StrategyResult *r = &results[i];
-        if (r->skipped) continue;
-        r->time = median(r->times, r->runs);
-        r->cp_time = median(r->cp_times, r->runs);
-        r->time_min = r->time_max = r->times[0];
-        for (int k = 1; k < r->runs; ++k) {
-            if (r->times[k] < r->time_min) r->time_min = r->times[k];
-            if (r->times[k] > r->time_max) r->time_max = r->times[k];
+        Variant *v = &vs[i];
+        if (v->skipped || v->runs < 2) continue;
+        v->time = median(v->times, v->runs);
+        v->cp_time = median(v->cp_times, v->runs);
+        v->preprocess = median(v->pre_times, v->runs);
+        v->time_min = v->time_max = v->times[0];
+        for (int k = 1; k < v->runs; ++k) {
+            if (v->times[k] < v->time_min) v->time_min = v->times[k];
+            if (v->times[k] > v->time_max) v->time_max = v->times[k];
         }
-        r->ttuv = r->mean_var * r->time;
+        v->ttuv = metrics_ttuv(v->mean_var, v->time);
     }
 
-    /* 4. tables; TTUV also relative to the first strategy that ran */
-    double ttuv0 = 0.0;
-    for (int i = 0; i < count; ++i) if (!results[i].skipped) { ttuv0 = results[i].ttuv; break; }
-    /* written under temporary names and renamed when complete */
-    char md_tmp[4200], csv_tmp[4200], md_path[4200], csv_path[4200];
-    snprintf(md_path, sizeof md_path, "%s/table.md", c->out_dir);
-    snprintf(csv_path, sizeof csv_path, "%s/table.csv", c->out_dir);
-    snprintf(md_tmp, sizeof md_tmp, "%s/table.md.tmp-%ld", c->out_dir, (long)getpid());
-    snprintf(csv_tmp, sizeof csv_tmp, "%s/table.csv.tmp-%ld", c->out_dir, (long)getpid());
-    /* (two files at once, so not registered with io_temp_begin, which would do this) */
-    io_remove_stale_temps(md_path);
-    io_remove_stale_temps(csv_path);
-    FILE *md = fopen(md_tmp, "w");
-    FILE *csv = fopen(csv_tmp, "w");
-    if (!md || !csv) {
-        if (md) { fclose(md); remove(md_tmp); }
-        if (csv) { fclose(csv); remove(csv_tmp); }
-        for (int i = 0; i < count; ++i) free((char *)results[i].name);
-        snprintf(err, CANDELA_ERR_LEN, "%s: cannot write the tables", c->out_dir);
-        return -1;
-    }
-    fprintf(md, "# %s, %dx%d, %d spp, seed %llu\n\n", base->scene_path, width, height, base->spp,
-            (unsigned long long)base->seed);
-    if (runs > 1)
-        fprintf(md, "Times: median of %d renders per strategy, round-robin (min-max in brackets); TTUV uses the median.\n\n",
-                runs);
-    if (c->reference_path) fprintf(md, "Reference: %s\n\n", c->reference_path);
-    else fprintf(md, "Reference: tree sampler, %d spp (%.2f s)\n\n",
-                 c->reference_spp > 0 ? c->reference_spp : 16 * base->spp, ref_time);
-    fprintf(md, "| strategy | time s | cache point build s | cache points | peak MiB | RMSE | relMSE | mean variance | TTUV | TTUV / first |\n");
-    fprintf(md, "|---|---|---|---|---|---|---|---|---|---|\n");
-    fprintf(csv, "strategy,time_s,cachepoint_build_s,cache_points,peak_mib,rmse,relmse,mean_variance,ttuv,ttuv_ratio,"
-                 "time_min_s,time_max_s,timing_runs\n");
+    /* 4. the crops: where the variants' summed relative error is largest */
+    report_pick_crop(error_map, r.width, r.height, r.crop);
+    size_t crop_values = 3 * (size_t)r.crop[2] * (size_t)r.crop[2];
+    crops = calloc((size_t)count + 1, sizeof *crops);
+    if (!crops) { snprintf(err, CANDELA_ERR_LEN, "out of memory"); goto done; }
+    int panels = 0;
+    if (!(crops[panels] = malloc(crop_values * sizeof(float)))) { snprintf(err, CANDELA_ERR_LEN, "out of memory"); goto done; }
+    crop_of(ref, r.width, r.crop, crops[panels++]);
     for (int i = 0; i < count; ++i) {
-        const StrategyResult *r = &results[i];
-        if (r->skipped) {
-            fprintf(md, "| %s | %s | | | | | | | | |\n", r->name, r->why);
-            fprintf(csv, "%s,skipped,,,,,,,,,,,\n", r->name);
-            continue;
-        }
-        char cpt[32] = "-", cpn[32] = "-";
-        if (r->cp_count) {
-            snprintf(cpt, sizeof cpt, "%.3f", r->cp_time);
-            snprintf(cpn, sizeof cpn, "%u", r->cp_count);
-        }
-        char tm[64];
-        if (r->runs > 1) snprintf(tm, sizeof tm, "%.3f (%.3f-%.3f)", r->time, r->time_min, r->time_max);
-        else snprintf(tm, sizeof tm, "%.3f", r->time);
-        fprintf(md, "| %s | %s | %s | %s | %.1f | %.5g | %.5g | %.5g | %.5g | %.3f |\n", r->name, tm, cpt, cpn,
-                (double)r->peak / 1048576.0, r->rmse, r->relmse, r->mean_var, r->ttuv, ttuv0 > 0 ? r->ttuv / ttuv0 : 0.0);
-        fprintf(csv, "%s,%.6f,%s,%s,%.3f,%.8g,%.8g,%.8g,%.8g,%.6f,%.6f,%.6f,%d\n", r->name, r->time,
-                r->cp_count ? cpt : "", r->cp_count ? cpn : "", (double)r->peak / 1048576.0, r->rmse, r->relmse,
-                r->mean_var, r->ttuv, ttuv0 > 0 ? r->ttuv / ttuv0 : 0.0, r->time_min, r->time_max, r->runs);
+        if (vs[i].skipped) continue;
+        if (!(crops[panels] = malloc(crop_values * sizeof(float)))) { snprintf(err, CANDELA_ERR_LEN, "out of memory"); goto done; }
+        snprintf(path, sizeof path, "%s/%s.exr", c->out_dir, vs[i].name);
+        if (read_crop(path, r.width, r.crop, crops[panels++], err) != 0) goto done;
     }
-    int werr = ferror(md) | ferror(csv);
-    werr |= fclose(md) != 0;
-    werr |= fclose(csv) != 0;
-    if (werr || rename(md_tmp, md_path) != 0 || rename(csv_tmp, csv_path) != 0) {
-        remove(md_tmp);
-        remove(csv_tmp);
-        for (int i = 0; i < count; ++i) free((char *)results[i].name);
-        snprintf(err, CANDELA_ERR_LEN, "%s: cannot write the tables", c->out_dir);
-        return -1;
+    snprintf(path, sizeof path, "%s/crops.png", c->out_dir);
+    if (report_crops_png(path, (const float *const *)crops, panels, r.crop[2], err) != 0) goto done;
+
+    /* 5. convergence: the data and the two plots */
+    ReportSeries series[COMPARE_MAX_VARIANTS];
+    int num_series = 0;
+    report_printf(&conv, "variant,iteration,spp,seconds,rmse,relmse,mae\n");
+    for (int i = 0; i < count; ++i) {
+        const Variant *v = &vs[i];
+        if (v->skipped) continue;
+        series[num_series++] = (ReportSeries){v->name, v->points, v->num_points};
+        for (int k = 0; k < v->num_points; ++k)
+            report_printf(&conv, "%s,%d,%d,%.6f,%.9g,%.9g,%.9g\n", v->name, k, v->points[k].spp, v->points[k].seconds,
+                          v->points[k].rmse, v->points[k].relmse, v->points[k].mae);
     }
-    FILE *f = fopen(md_path, "r");
-    if (f) {
-        char line[1024];
-        while (fgets(line, sizeof line, f)) fputs(line, stdout);
-        fclose(f);
-    }
-    for (int i = 0; i < count; ++i) free((char *)results[i].name);
-    return 0;
+    snprintf(path, sizeof path, "%s/convergence.csv", c->out_dir);
+    if (report_write_text(path, &conv, err) != 0) goto done;
+    snprintf(path, sizeof path, "%s/convergence_spp.svg", c->out_dir);
+    if (report_convergence_svg(path, series, num_series, REPORT_X_SPP, err) != 0) goto done;
+    snprintf(path, sizeof path, "%s/convergence_time.svg", c->out_dir);
+    if (report_convergence_svg(path, series, num_series, REPORT_X_SECONDS, err) != 0) goto done;
+
+    /* 6. the tables and the page (last: a page that exists shows files that exist) */
+    tables(&r, &md, &csv, &table_html);
+    page(&r, &table_html, &html);
+    snprintf(path, sizeof path, "%s/table.md", c->out_dir);
+    if (report_write_text(path, &md, err) != 0) goto done;
+    snprintf(path, sizeof path, "%s/table.csv", c->out_dir);
+    if (report_write_text(path, &csv, err) != 0) goto done;
+    snprintf(path, sizeof path, "%s/index.html", c->out_dir);
+    if (report_write_text(path, &html, err) != 0) goto done;
+    fwrite(md.s, 1, md.len, stdout);
+    rc = 0;
+done:
+    if (crops)
+        for (int i = 0; i <= count; ++i) free(crops[i]);
+    free(crops);
+    free(ref);
+    free(mean);
+    free(error_map);
+    report_text_free(&md);
+    report_text_free(&csv);
+    report_text_free(&table_html);
+    report_text_free(&html);
+    report_text_free(&conv);
+    variants_free(vs, COMPARE_MAX_VARIANTS);
+    return rc;
 }

@@ -89,6 +89,15 @@ int film_resolve(const Film *f, CandelaImage *img) {
     return 0;
 }
 
+void candela_iteration_mean(const CandelaIterationInfo *info, float *rgb) {
+    const Film *f = info->film;
+    size_t n = (size_t)f->width * (size_t)f->height;
+    for (size_t i = 0; i < n; ++i) { /* the same double division and rounding as film_resolve */
+        double cnt = f->count[i];
+        for (int k = 0; k < 3; ++k) rgb[3 * i + k] = (float)(cnt > 0 ? f->sum[3 * i + k] / cnt : 0.0);
+    }
+}
+
 void candela_image_free(CandelaImage *img) {
     free(img->rgb); free(img->variance); free(img->albedo); free(img->normal); free(img->depth); free(img->recorder_debug);
     memset(img, 0, sizeof *img);

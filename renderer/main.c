@@ -20,7 +20,8 @@ static const char *USAGE =
     "                            (OUT.guide.exr/.png over (u, v) = ((cos theta + 1)/2, phi/2pi)), the\n"
     "                            final iteration's training directions in its leaf (OUT.hist.*)\n"
     "                            and the spatial tree's leaves (OUT.leaves.ply), OUT = -o without .exr\n"
-    "       candela compare SCENE [options] every light sampler at equal spp vs a reference\n"
+    "       candela compare SCENE [options] render variants at equal spp (or time) vs a reference\n"
+    "                            and write a report folder (tables, images, crops, plots, HTML)\n"
     "       candela merge -o OUT.exr [--png FILE | --no-png] SHARD.film...   the films of the\n"
     "                            --sample-shard renders of one frame into its image (sums of L,\n"
     "                            L^2 and counts added: per-pixel means and variances of all samples)\n"
@@ -92,19 +93,24 @@ static const char *USAGE =
     "  --batch N                 paths in flight per batch (default 16384; never changes the image)\n"
     "  --stats-json FILE         write render statistics as JSON\n"
     "  --quiet                   no progress or statistics on stderr\n"
-    "compare options:\n"
-    "  --strategies LIST         default uniform,power,tree,optimal,cachepoints,cachepoints-novis;\n"
-    "                            also cachepoints-linear, cachepoints-linear-novis\n"
-    "  --ref-spp N               reference spp (default 16 x --spp), tree sampler\n"
+    "compare options (the options above apply to every variant and the reference):\n"
+    "  --variants SPEC           \"NAME: FLAGS; NAME: FLAGS\" or FILE.toml / FILE.json: any render\n"
+    "                            flags per variant (not --spp, --seed, --res); the first variant\n"
+    "                            is the ratios' baseline (examples: scenes/compare/)\n"
+    "  --strategies LIST         shorthand: NAME = --light-sampler NAME (default uniform,power,tree,\n"
+    "                            optimal,cachepoints,cachepoints-novis; also cachepoints-linear,\n"
+    "                            cachepoints-cut, with -novis)\n"
+    "  --time-budget S           equal time: every variant renders until S seconds (load and build\n"
+    "                            included), stopping at an iteration barrier; --spp is then a cap\n"
+    "                            (default 1048576) and the table reports the spp reached\n"
+    "  --ref-spp N               reference spp (default 16 x --spp; 256 with --time-budget), tree\n"
+    "                            sampler\n"
     "  --reference FILE.exr      reuse a reference instead of rendering one\n"
     "  --out-dir DIR             default out/compare-<scene name>\n"
     "  --optimal-max-lights N    skip optimal above N lights (default 5000; 0 = never)\n"
-    "  --timing-runs N           render each strategy N times (1-15, round-robin) and report the\n"
-    "                            median time: robust timings on a busy machine (default 1)\n";
-
-/* The largest image: 16384 per side, 64 Mpixels in all (the film takes ~100 bytes per pixel). */
-#define MAX_RES_SIDE 16384
-#define MAX_RES_PIXELS (64 << 20)
+    "  --timing-runs N           render each variant N times (1-15, round-robin) and report the\n"
+    "                            median time: robust timings on a busy machine (default 1; equal\n"
+    "                            spp only)\n";
 
 /* Interruption (SIGINT, SIGTERM): the first asks the render to stop at the next iteration
  * barrier (CandelaOptions.stop); a second removes the output being written, if any, and exits
@@ -292,10 +298,15 @@ int main(int argc, char **argv) {
     candela_options_default(&o);
     const char *out = NULL, *png = NULL, *stats_json = NULL;
     int no_png = 0, save_partial = 0;
-    CandelaCompareOptions co = {"uniform,power,tree,optimal,cachepoints,cachepoints-novis", 0, NULL, NULL, 5000};
+    CandelaCompareOptions co = {NULL, 0, NULL, NULL, 5000}; /* strategies NULL: compare.c's default list */
+    char flag_err[CANDELA_ERR_LEN];
     for (int i = 2; i < argc; ++i) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
+        /* render options (shared with compare's variants: renderer/flags.c) first */
+        int parsed = candela_parse_render_flag(&o, argc, argv, &i, flag_err);
+        if (parsed < 0) { fprintf(stderr, "candela: %s\n", flag_err); return 2; }
+        if (parsed > 0) continue;
         if (strcmp(a, "-o") == 0 || strcmp(a, "--output") == 0) { if (!v) die("missing value for ", a); out = v; ++i; }
         else if (strcmp(a, "--png") == 0) { if (!v) die("missing value for ", a); png = v; ++i; }
         else if (strcmp(a, "--no-png") == 0) no_png = 1;
@@ -320,54 +331,14 @@ int main(int argc, char **argv) {
             o.shard_count = (uint32_t)sn;
             ++i;
         }
-        else if (strcmp(a, "--confine-to") == 0) { if (!v) die("missing value for ", a); o.confine_dir = v; ++i; }
-        else if (strcmp(a, "--texture-budget-mb") == 0) { o.texture_budget_mb = (uint32_t)parse_long(a, v, 0, 1 << 24); ++i; }
-        else if (strcmp(a, "--optimal-occlusion") == 0) o.optimal_occlusion = 1;
-        else if (strcmp(a, "--no-visibility") == 0) o.cachepoint_no_visibility = 1;
-        else if (strcmp(a, "--cachepoint-retruncate") == 0) o.cachepoint_retruncate = 1;
-        else if (strcmp(a, "--cachepoint-cut-size") == 0) { o.cachepoint_cut_size = (uint32_t)parse_long(a, v, 1, 1 << 20); ++i; }
-        else if (strcmp(a, "--cachepoint-build") == 0) {
-            if (!v) die("missing value for ", a);
-            if (strcmp(v, "linear") == 0) o.cachepoint_build_linear = 1;
-            else if (strcmp(v, "cut") == 0) o.cachepoint_build_linear = 0;
-            else { fprintf(stderr, "candela: unknown cache point build '%s' (cut, linear)\n", v); return 2; }
-            ++i;
-        }
         else if (compare && strcmp(a, "--strategies") == 0) { if (!v) die("missing value for ", a); co.strategies = v; ++i; }
+        else if (compare && strcmp(a, "--variants") == 0) { if (!v) die("missing value for ", a); co.variants = v; ++i; }
+        else if (compare && strcmp(a, "--time-budget") == 0) { co.time_budget = parse_float(a, v, 0.001f, 1e7f); ++i; }
         else if (compare && strcmp(a, "--ref-spp") == 0) { co.reference_spp = (int)parse_long(a, v, 1, 1 << 20); ++i; }
         else if (compare && strcmp(a, "--reference") == 0) { if (!v) die("missing value for ", a); co.reference_path = v; ++i; }
         else if (compare && strcmp(a, "--out-dir") == 0) { if (!v) die("missing value for ", a); co.out_dir = v; ++i; }
         else if (compare && strcmp(a, "--optimal-max-lights") == 0) { co.optimal_max_lights = (int)parse_long(a, v, 0, 1 << 30); ++i; }
         else if (compare && strcmp(a, "--timing-runs") == 0) { co.timing_runs = (int)parse_long(a, v, 1, 15); ++i; }
-        else if (strcmp(a, "--spp") == 0) { o.spp = (int)parse_long(a, v, 1, 1 << 20); ++i; }
-        else if (strcmp(a, "--seed") == 0) { o.seed = (uint64_t)parse_long(a, v, 0, LONG_MAX); ++i; }
-        else if (strcmp(a, "--threads") == 0) { o.threads = (int)parse_long(a, v, 1, 1024); ++i; }
-        else if (strcmp(a, "--max-depth") == 0) { o.max_depth = (int)parse_long(a, v, 0, 1024); ++i; }
-        else if (strcmp(a, "--max-volume-bounces") == 0) { o.max_volume_bounces = (int)parse_long(a, v, 0, 100000); ++i; }
-        else if (strcmp(a, "--volume-emission-sampling") == 0) {
-            if (!v) die("missing value for ", a);
-            if (strcmp(v, "on") == 0) o.volume_emission_sampling = 1;
-            else if (strcmp(v, "off") == 0) o.volume_emission_sampling = 0;
-            else if (strcmp(v, "auto") == 0) o.volume_emission_sampling = 2;
-            else { fprintf(stderr, "candela: unknown value '%s' for --volume-emission-sampling (on, off, auto)\n", v); return 2; }
-            ++i;
-        }
-        else if (strcmp(a, "--volume-cachepoint-scatter") == 0) {
-            if (!v) die("missing value for ", a);
-            if (strcmp(v, "on") == 0) o.volume_inscatter_sampling = 1;
-            else if (strcmp(v, "off") == 0) o.volume_inscatter_sampling = 0;
-            else if (strcmp(v, "auto") == 0) o.volume_inscatter_sampling = 2;
-            else { fprintf(stderr, "candela: unknown value '%s' for --volume-cachepoint-scatter (on, off, auto)\n", v); return 2; }
-            ++i;
-        }
-        else if (strcmp(a, "--guiding") == 0) {
-            if (!v) die("missing value for ", a);
-            if (strcmp(v, "off") == 0) o.guiding = CANDELA_GUIDING_OFF;
-            else if (strcmp(v, "mis") == 0) o.guiding = CANDELA_GUIDING_MIS;
-            else if (strcmp(v, "ris") == 0) o.guiding = CANDELA_GUIDING_RIS;
-            else { fprintf(stderr, "candela: unknown value '%s' for --guiding (off, mis, ris)\n", v); return 2; }
-            ++i;
-        }
         else if (dump && strcmp(a, "--at") == 0) {
             if (!v) die("missing value for ", a);
             char *end;
@@ -383,62 +354,9 @@ int main(int argc, char **argv) {
             have_at = 1;
             ++i;
         }
-        else if (strcmp(a, "--path-regularization") == 0) { o.path_regularization = parse_float(a, v, 0.0f, 1.0f); ++i; }
-        else if (strcmp(a, "--guide-spatial-filter") == 0) {
-            if (!v) die("missing value for ", a);
-            if (strcmp(v, "on") == 0) o.guide_spatial_filter = 1;
-            else if (strcmp(v, "off") == 0) o.guide_spatial_filter = 0;
-            else { fprintf(stderr, "candela: unknown value '%s' for --guide-spatial-filter (on, off)\n", v); return 2; }
-            ++i;
-        }
-        else if (strcmp(a, "--guide-training-spp") == 0) { o.guide_training_spp = (int)parse_long(a, v, 1, 1 << 20); ++i; }
-        else if (strcmp(a, "--guide-spatial-threshold") == 0) { o.guide_spatial_threshold = parse_float(a, v, 1.0f, 1e9f); ++i; }
-        else if (strcmp(a, "--aov") == 0) {
-            if (!v) die("missing value for ", a);
-            if (strcmp(v, "recorder-debug") == 0) o.aov_recorder_debug = 1;
-            else { fprintf(stderr, "candela: unknown AOV '%s' (recorder-debug)\n", v); return 2; }
-            ++i;
-        }
-        else if (strcmp(a, "--recorder-budget") == 0) { o.recorder_budget = (int)parse_long(a, v, 0, 1 << 20); ++i; }
-        else if (strcmp(a, "--recorder-mb") == 0) { o.recorder_mb = (uint32_t)parse_long(a, v, 1, 1 << 20); ++i; }
-        else if (strcmp(a, "--batch") == 0) { o.batch_size = (uint32_t)parse_long(a, v, 1, 1 << 22); ++i; }
-        else if (strcmp(a, "--env-strength") == 0) { o.env_strength = parse_float(a, v, 0.0f, 1e9f); ++i; }
-        else if (strcmp(a, "--env") == 0) { if (!v) die("missing value for ", a); o.env_path = v; ++i; }
-        else if (strcmp(a, "--camera") == 0) { if (!v) die("missing value for ", a); o.camera_name = v; ++i; }
         else if (strcmp(a, "--stats-json") == 0) { if (!v) die("missing value for ", a); stats_json = v; ++i; }
         else if (strcmp(a, "--quiet") == 0 || strcmp(a, "-q") == 0) o.quiet = 1;
-        else if (strcmp(a, "--res") == 0) {
-            if (!v) die("missing value for ", a);
-            /* strtol with range checks: sscanf's %d wrapped 4294967304 to 8 */
-            char *x = NULL, *end = NULL;
-            errno = 0;
-            long w = strtol(v, &x, 10), h = 0;
-            int good = errno == 0 && x != v && *x == 'x' && (w >= 1 && w <= MAX_RES_SIDE);
-            if (good) {
-                h = strtol(x + 1, &end, 10);
-                good = errno == 0 && end != x + 1 && *end == 0 && h >= 1 && h <= MAX_RES_SIDE &&
-                       (long long)w * h <= MAX_RES_PIXELS;
-            }
-            if (!good) {
-                fprintf(stderr, "candela: invalid value '%s' for --res (expected WxH, 1..%d each, at most %d megapixels)\n",
-                        v, MAX_RES_SIDE, MAX_RES_PIXELS >> 20);
-                return 2;
-            }
-            o.width = (int)w; o.height = (int)h; ++i;
-        } else if (strcmp(a, "--light-sampler") == 0) {
-            if (!v) die("missing value for ", a);
-            if (candela_light_sampler_parse(v, &o.light_sampler) != 0) {
-                fprintf(stderr, "candela: unknown light sampler '%s' (uniform, power, tree, optimal, cachepoints)\n", v);
-                return 2;
-            }
-            ++i;
-        } else if (strcmp(a, "--light-units") == 0) {
-            if (!v) die("missing value for ", a);
-            if (strcmp(v, "blender") == 0) o.light_units = CANDELA_LIGHT_UNITS_BLENDER;
-            else if (strcmp(v, "raw") == 0) o.light_units = CANDELA_LIGHT_UNITS_RAW;
-            else { fprintf(stderr, "candela: unknown light units '%s' (blender, raw)\n", v); return 2; }
-            ++i;
-        } else if (a[0] == '-') {
+        else if (a[0] == '-') {
             fprintf(stderr, "candela: unknown option '%s' (see candela --help)\n", a);
             return 2;
         } else if (!o.scene_path) {
@@ -505,8 +423,8 @@ int main(int argc, char **argv) {
         if (dot && strcmp(dot, ".exr") == 0) *dot = 0;
         o.guide_dump_prefix = dump_prefix;
     }
-    if (o.volume_inscatter_sampling == 1 && o.light_sampler != CANDELA_LIGHT_SAMPLER_CACHEPOINTS) {
-        fprintf(stderr, "candela: --volume-cachepoint-scatter on needs --light-sampler cachepoints\n");
+    if (candela_options_check(&o, flag_err) != 0) {
+        fprintf(stderr, "candela: %s\n", flag_err);
         return 2;
     }
     if (png && strcmp(png, out) == 0) {
@@ -554,6 +472,10 @@ int main(int argc, char **argv) {
             if (dot && dot > dir + 12) *dot = 0;
             co.out_dir = dir;
         }
+        /* equal time: --spp is only a cap, by default the largest (the time budget decides) */
+        int spp_given = 0;
+        for (int i = 2; i < argc; ++i) spp_given |= strcmp(argv[i], "--spp") == 0;
+        if (co.time_budget > 0 && !spp_given) o.spp = 1 << 20;
         if (candela_compare(&o, &co, err) != 0) {
             fprintf(stderr, "candela: %s\n", err);
             return 1;

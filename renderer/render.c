@@ -270,6 +270,13 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
         stats->spp_done = spp_done;
         report_progress(&progress, done_paths, total_paths, done_paths == total_paths);
         at = (CheckpointProgress){iteration + 1, spp_done, 0};
+        if (o->on_iteration) {
+            CandelaIterationInfo info = {iteration, spp_done, clock_seconds() - t_start, cam->width, cam->height, &ig->film};
+            if (o->on_iteration(o->on_iteration_user, &info) != 0 && spp_done < o->spp) {
+                stopped = 1;
+                break;
+            }
+        }
         if (o->stop && *o->stop && spp_done < o->spp) {
             stopped = 1;
             break;

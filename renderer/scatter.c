@@ -92,7 +92,7 @@ int scatter_guidable(const Scatter *s) {
 void scatter_set_guide(Scatter *s, const GuideDistribution *d, ScatterGuideMode mode) {
     s->guide = NULL;
     s->guide_mode = SCATTER_GUIDE_NONE;
-    if (!d || mode == SCATTER_GUIDE_NONE || !scatter_guidable(s)) return;
+    if (!d || mode == SCATTER_GUIDE_NONE) return; /* the caller asked scatter_guidable (a BSDF preparation) */
     s->guide = d;
     s->guide_mode = mode;
 }

@@ -75,7 +75,8 @@ int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out
 /* 1 where guiding may help (ch. 1 §3.1): surfaces with a lobe rougher than 0.05 and no delta
  * lobe, media with |g| < 0.95. Ask before looking the guide up: the lookup is a tree descent. */
 int scatter_guidable(const Scatter *s);
-/* Guides the scatter with d (NULL: not guided) when it is guidable. */
+/* Guides the scatter with d (NULL: not guided). Only for a scatter scatter_guidable accepted
+ * (the callers ask first, to skip the lookup; asking again here was 1.5% of a guided render). */
 void scatter_set_guide(Scatter *s, const GuideDistribution *d, ScatterGuideMode mode);
 /* f |cos| for direction wi (world), and the pdf scatter_sample has for it; zero when the
  * direction is not reachable (delta lobes, the geometry guard). pdf may be NULL (a delta

@@ -4,7 +4,7 @@ RIS, all with the default light sampler (cache points), on the indirect-dominate
 (scenes/guiding_interior.gltf: a room lit through a small window) and the direct-dominated
 default scene.
 
-    python3 scenes/guiding_benchmark.py [--candela build/renderer/candela] [--res 160x120]
+    python3 scenes/guiding_benchmark.py [--candela build/renderer/candela] [--res 640x480]
                                         [--spp 256] [--ref-spp 4096] [--out DIR] [--scenes a,b]
                                         [--light-sampler S] [--reference NAME=FILE.exr] [--ref-res WxH]
                                         [--repeats N]
@@ -57,13 +57,15 @@ def oiio_mean(args):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--candela", default=os.path.join(ROOT, "build", "renderer", "candela"))
-    ap.add_argument("--res", default="160x120")
+    ap.add_argument("--res", default="640x480",
+                    help="render resolution (default: the scenes' own, 640 wide; guiding learns from every "
+                         "path, so its gain grows with the paths per iteration)")
     ap.add_argument("--spp", type=int, default=256)
     ap.add_argument("--ref-spp", type=int, default=4096)
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "guiding_benchmark"))
     ap.add_argument("--scenes", default="interior,default")
     ap.add_argument("--reference", action="append", default=[], help="NAME=FILE.exr: reuse a reference")
-    ap.add_argument("--ref-res", default=None,
+    ap.add_argument("--ref-res", default="160x120",
                     help="render the reference at this lower resolution (an integer fraction of --res) and "
                          "compare box-downsampled renders with it: a box-filtered pixel is the mean of the "
                          "pixels it covers, so this measures the renders' error at that scale, for a "

@@ -243,7 +243,10 @@ cmpd=$tmp/cmp
 if "$bin" compare "$det" --strategies uniform,tree,cachepoints-novis --spp 2 --res 24x16 --ref-spp 8 \
      --timing-runs 2 --out-dir "$cmpd" --quiet >"$tmp/cmp.out" 2>"$tmp/cmp.err"; then ok; else bad "compare: $(cat "$tmp/cmp.err")"; fi
 [ "$(grep -c . "$cmpd/table.csv" 2>/dev/null)" = 4 ] && ok || bad "compare: table.csv rows"
-awk -F, 'NR > 1 && !($NF == 2 && $6 + 0 > 0 && $9 + 0 > 0 && $11 <= $2 && $2 <= $12) { exit 1 }' "$cmpd/table.csv" \
+# (columns by name; the flags column is quoted and holds no comma here)
+awk -F, 'NR == 1 { for (i = 1; i <= NF; ++i) col[$i] = i; next }
+  !($col["timing_runs"] == 2 && $col["rmse"] + 0 > 0 && $col["ttuv"] + 0 > 0 && $col["time_min_s"] <= $col["time_s"] &&
+    $col["time_s"] <= $col["time_max_s"] && $col["spp"] == 2) { exit 1 }' "$cmpd/table.csv" \
   && ok || bad "compare: table.csv values $(cat "$cmpd/table.csv")"
 for s in uniform tree cachepoints-novis; do
   [ -s "$cmpd/$s.exr" ] && [ -s "$cmpd/${s}_error.png" ] && ok || bad "compare: $s outputs missing"
@@ -255,6 +258,88 @@ expect_error "compare bad strategy" "unknown strategy 'best'" -- compare "$det" 
 [ -e "$tmp/cmp3" ] && bad "compare bad strategy: created its output folder" || ok
 expect_error "compare bad reference size" "reference is 24x16" -- compare "$det" --strategies tree --spp 1 --res 8x8 --reference "$cmpd/reference.exr" --out-dir "$tmp/cmp4" --quiet
 expect_error "compare bad timing runs" "--timing-runs" -- compare "$det" --timing-runs 0 --out-dir "$tmp/cmp5" --quiet
+
+# candela compare --variants: every variant's flags go through the render's parser before
+# anything renders; a bad one is one line naming the variant and the flag, and an existing
+# report folder is left exactly as it was (no file written, replaced or left half-written)
+snapshot() { (cd "$1" && find . -type f | sort | xargs md5sum; ls -la --time-style=+%s . | awk '$7 != ".." {print $6, $7}'); }
+before=$(snapshot "$cmpd")
+expect_error "variant unknown flag" "variant 'b': unknown option '--bogus'" -- compare "$det" --spp 1 --res 8x8 --ref-spp 1 \
+  --out-dir "$cmpd" --quiet --variants "a: --light-sampler tree; b: --light-sampler power --bogus 3"
+expect_error "variant bad value" "variant 'b': unknown light sampler 'best'" -- compare "$det" --spp 1 --res 8x8 --ref-spp 1 \
+  --out-dir "$cmpd" --quiet --variants "a: --light-sampler tree; b: --light-sampler best"
+expect_error "variant missing value" "variant 'a': missing value for --max-depth" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$cmpd" --quiet --variants "a: --max-depth"
+expect_error "variant bad number" "variant 'a': invalid value 'x' for --max-depth" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$cmpd" --quiet --variants "a: --max-depth x"
+expect_error "variant output flag" "variant 'a': unknown option '-o'" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$cmpd" --quiet --variants "a: -o x.exr"
+expect_error "variant spp" "variant 'a': --spp is the same for every variant" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$cmpd" --quiet --variants "a: --spp 4"
+expect_error "variant scatter" "variant 'a': --volume-cachepoint-scatter on needs" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$cmpd" --quiet --variants "a: --light-sampler power --volume-cachepoint-scatter on"
+expect_error "variant twice" "variant 'a' is given twice" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$cmpd" --quiet --variants "a: --light-sampler power; a: --light-sampler tree"
+expect_error "variant file clash" "would write the same file" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$cmpd" --quiet --variants "a: --light-sampler power; a_error: --light-sampler tree"
+expect_error "variant bad name" "variant name '../x'" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$cmpd" --quiet --variants "../x: --light-sampler power"
+expect_error "variant reserved name" "taken by the report" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$cmpd" --quiet --variants "reference: --light-sampler power"
+expect_error "variant no colon" "is not NAME: FLAGS" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$cmpd" --quiet --variants "--light-sampler power"
+expect_error "variant quote" "unterminated" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$cmpd" --quiet --variants "a: --env 'sky.exr"
+expect_error "variants and strategies" "not both" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$cmpd" --quiet --variants "a: --light-sampler power" --strategies tree
+expect_error "time budget and timing runs" "does not go with --time-budget" -- compare "$det" --res 8x8 \
+  --out-dir "$cmpd" --quiet --strategies tree --time-budget 1 --timing-runs 2
+# variant files: TOML ([[variant]] tables) and JSON ({"variant": [...]}); unknown keys and
+# malformed files are errors naming the file
+printf '[[variant]]\nname = "a"\nflags = "--light-sampler tree"\n[[variant]]\nname = "b"\nflag = "--guiding mis"\n' >"$tmp/v_key.toml"
+expect_error "toml unknown key" "v_key.toml: variant 2: unknown key 'flag'" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$cmpd" --quiet --variants "$tmp/v_key.toml"
+printf '[[variant]]\nname = "a"\nflags = "--light-sampler tree\n' >"$tmp/v_syntax.toml"
+expect_error "toml syntax" "v_syntax.toml: line" -- compare "$det" --spp 1 --res 8x8 --out-dir "$cmpd" --quiet --variants "$tmp/v_syntax.toml"
+printf '[[variant]]\nname = "a"\nflags = "--light-sampler tree --bogus"\n' >"$tmp/v_flag.toml"
+expect_error "toml unknown flag" "v_flag.toml: variant 'a': unknown option '--bogus'" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$cmpd" --quiet --variants "$tmp/v_flag.toml"
+printf '{"variant": [{"name": "a", "flags": 3}]}' >"$tmp/v_type.json"
+expect_error "json flags type" "v_type.json: variant 1 ('a'): flags must be a string" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$cmpd" --quiet --variants "$tmp/v_type.json"
+printf '{"variant": [{"name": "a", "flags": "--light-sampler tree"}' >"$tmp/v_trunc.json"
+expect_error "json truncated" "v_trunc.json: " -- compare "$det" --spp 1 --res 8x8 --out-dir "$cmpd" --quiet --variants "$tmp/v_trunc.json"
+expect_error "variant file missing" "nope.toml: cannot read" -- compare "$det" --spp 1 --res 8x8 --out-dir "$cmpd" --quiet \
+  --variants "$tmp/nope.toml"
+[ "$(snapshot "$cmpd")" = "$before" ] && ok || bad "a refused variant changed the report folder"
+ls "$cmpd" | grep -q 'tmp-' && bad "a refused variant left a temporary file" || ok
+# the rendered reference is cached: the same reference options reuse OUT/reference.exr (and
+# say so), other options (here --max-depth) render it again
+rc_dir=$tmp/refcache
+"$bin" compare "$det" --strategies tree --spp 1 --res 8x8 --ref-spp 4 --out-dir "$rc_dir" --quiet >/dev/null 2>&1
+sum1=$(md5sum <"$rc_dir/reference.exr"); key1=$(cat "$rc_dir/reference.key" 2>/dev/null)
+"$bin" compare "$det" --strategies power --spp 1 --res 8x8 --ref-spp 4 --out-dir "$rc_dir" >/dev/null 2>"$tmp/err"
+grep -q "reference, 4 spp, from $rc_dir/reference.exr" "$tmp/err" && grep -q "cached from an earlier run" "$rc_dir/table.md" \
+  && [ "$(md5sum <"$rc_dir/reference.exr")" = "$sum1" ] && ok || bad "reference cache not used: $(cat "$tmp/err")"
+"$bin" compare "$det" --strategies power --spp 1 --res 8x8 --ref-spp 4 --max-depth 2 --out-dir "$rc_dir" >/dev/null 2>"$tmp/err"
+grep -q "from $rc_dir" "$tmp/err" && bad "reference cache used across --max-depth" || ok
+[ -n "$key1" ] && [ "$key1" != "$(cat "$rc_dir/reference.key")" ] && ok || bad "reference.key not rewritten"
+# the example comparison files next to the scenes parse and run (tiny: the scene is not theirs)
+for f in "$root"/scenes/compare/*.toml; do
+  n=$(grep -c '^\[\[variant\]\]' "$f")
+  if "$bin" compare "$det" --spp 1 --res 8x8 --ref-spp 1 --out-dir "$tmp/example" --quiet --variants "$f" >/dev/null 2>"$tmp/err"; then
+    [ "$(grep -c . "$tmp/example/table.csv")" = $((n + 1)) ] && ok || bad "$f: table rows"
+  else bad "$f: $(cat "$tmp/err")"; fi
+done
+# good files: the variants in their order, with their flags
+printf '# light samplers\n[[variant]]\nname = "tree"\nflags = "--light-sampler tree"\n\n[[variant]]\nname = "power-d2"\nflags = "--light-sampler power --max-depth 2"\n' >"$tmp/v.toml"
+printf '{"variant": [{"name": "tree", "flags": "--light-sampler tree"}, {"name": "power-d2", "flags": "--light-sampler power --max-depth 2"}]}' >"$tmp/v.json"
+for f in v.toml v.json; do
+  if "$bin" compare "$det" --spp 1 --res 8x8 --ref-spp 2 --out-dir "$tmp/cmp_$f" --quiet --variants "$tmp/$f" >/dev/null 2>"$tmp/err"; then
+    [ "$(cut -d, -f1 "$tmp/cmp_$f/table.csv" | tr '\n' ' ')" = "variant tree power-d2 " ] \
+      && grep -q '^power-d2,"--light-sampler power --max-depth 2",1,' "$tmp/cmp_$f/table.csv" && ok || bad "$f: table $(cat "$tmp/cmp_$f/table.csv")"
+  else bad "$f: $(cat "$tmp/err")"; fi
+done
 
 # file references: anywhere relative to the scene by default (../textures/ works); with
 # --confine-to DIR only inside DIR (a buffer URI climbing to /etc/passwd is refused either way:
