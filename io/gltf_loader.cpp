@@ -424,6 +424,10 @@ class Loader {
     std::vector<IoLight> lights_;
     std::vector<IoCamera> cameras_;
     std::vector<IoVolume> volumes_;
+    std::vector<IoNode> nodes_;             // the node walk, parents first (io.h, IoNode)
+    std::vector<int32_t> node_of_gltf_;     // glTF node -> index in nodes_, or -1 (not in the scene)
+    std::vector<IoAnimChannel> channels_;
+    double anim_start_ = 0.0, anim_end_ = 0.0;
     std::map<std::pair<std::string, int>, int32_t> image_cache_;
 
     // Warnings are held until the load succeeds: a failed load prints only its one error line.
@@ -439,6 +443,11 @@ class Loader {
         images_.clear();
         for (IoVolume &v : volumes_) free_volume(&v);
         volumes_.clear();
+        for (IoAnimChannel &c : channels_) {
+            std::free(c.times);
+            std::free(c.values);
+        }
+        channels_.clear();
     }
     static void free_volume(IoVolume *v) {
         io_volume_grid_free(&v->density);
@@ -468,6 +477,8 @@ class Loader {
     void convert_materials();
     void material_medium(const tinygltf::Material &src, const std::string &what, IoMaterial *d);
     void flatten_nodes();
+    void convert_animations();
+    void convert_channel(const tinygltf::Animation &anim, size_t ai, size_t ci);
     void load_volume(const tinygltf::Node &node, const std::string &what, const Mat4 &world);
     void load_grid(const std::string &vdb, const std::string &grid, const std::string &what, IoVolumeGrid *out);
     void environment(IoScene *out);
@@ -994,21 +1005,43 @@ void Loader::flatten_nodes() {
             if (parent[i] == -1) roots.push_back(int(i));
     }
 
+    // nodes an animation channel moves (weights aside): with their descendants, a zero scale
+    // there may be a moment of an animation, not a mesh to drop
+    std::vector<char> channel_target(n, 0);
+    for (const tinygltf::Animation &anim : m_.animations)
+        for (const tinygltf::AnimationChannel &ch : anim.channels)
+            if (ch.target_node >= 0 && size_t(ch.target_node) < n && ch.target_path != "weights")
+                channel_target[size_t(ch.target_node)] = 1;
     struct Item {
         int node;
         Mat4 parent;
+        int32_t parent_walk; // the parent's index in nodes_, or -1
+        bool animated;       // a channel moves this node or an ancestor
     };
+    node_of_gltf_.assign(n, -1);
     std::vector<Item> stack;
-    for (size_t k = roots.size(); k-- > 0;) stack.push_back({roots[k], identity()});
+    for (size_t k = roots.size(); k-- > 0;) stack.push_back({roots[k], identity(), -1, false});
     while (!stack.empty()) {
         Item it = stack.back();
         stack.pop_back();
         const tinygltf::Node &node = m_.nodes[size_t(it.node)];
         const std::string what = strf("node %d ('%s')", it.node, node.name.c_str());
+        const bool animated = it.animated || channel_target[size_t(it.node)];
+        // the node as io_scene_pose re-places it (io.h, IoNode): the same local transform as below
+        IoNode walk{};
+        copy_name(walk.name, node.name);
+        walk.gltf_node = it.node;
+        walk.parent = it.parent_walk;
+        walk.rotation[3] = 1.0;
+        walk.scale[0] = walk.scale[1] = walk.scale[2] = 1.0;
+        const int32_t walk_index = int32_t(nodes_.size());
+        node_of_gltf_[size_t(it.node)] = walk_index;
         Mat4 local = identity();
         if (!node.matrix.empty()) {
             if (node.matrix.size() != 16) fail(what + ": matrix must have 16 numbers");
             for (int k = 0; k < 16; ++k) local.m[k] = node.matrix[size_t(k)];
+            walk.has_matrix = 1;
+            for (int k = 0; k < 16; ++k) walk.matrix[k] = local.m[k];
         } else {
             if (!node.translation.empty() && node.translation.size() != 3)
                 fail(what + ": translation must have 3 numbers");
@@ -1019,6 +1052,9 @@ void Loader::flatten_nodes() {
             for (size_t k = 0; k < node.translation.size(); ++k) t[k] = node.translation[k];
             for (size_t k = 0; k < node.rotation.size(); ++k) q[k] = node.rotation[k];
             for (size_t k = 0; k < node.scale.size(); ++k) s[k] = node.scale[k];
+            for (int k = 0; k < 3; ++k) walk.translation[k] = t[k];
+            for (int k = 0; k < 4; ++k) walk.rotation[k] = q[k];
+            for (int k = 0; k < 3; ++k) walk.scale[k] = s[k];
             double qn = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
             if (qn > 0.0 && std::isfinite(qn))
                 for (double &c : q) c /= qn;
@@ -1033,6 +1069,7 @@ void Loader::flatten_nodes() {
             local.m[13] = t[1];
             local.m[14] = t[2];
         }
+        nodes_.push_back(walk);
         const Mat4 world = mul(it.parent, local);
         /* Transform sanity where the data enters (Debian's Embree asserts on invalid rays, and
          * a 1e30 scale hung the cache point build): every entry finite and within
@@ -1057,13 +1094,21 @@ void Loader::flatten_nodes() {
                 fail(strf("%s: mesh %d out of range", what.c_str(), node.mesh));
             IoInstance inst{};
             inst.mesh = uint32_t(node.mesh);
+            inst.node = walk_index;
             for (int k = 0; k < 16; ++k) inst.xform[k] = float(world.m[k]);
             /* a zero scale hides an object (animation does this): skip it rather than give
-             * Embree a transform it cannot invert */
-            if (!(std::fabs(det) > 1e-30 * std::max(largest * largest * largest, 1e-300)))
-                warn(what + ": singular transform (a zero scale): the mesh is not rendered");
-            else
+             * Embree a transform it cannot invert; an animated one is kept hidden, for the
+             * frames where it has a scale (io_scene_pose) */
+            if (!(std::fabs(det) > 1e-30 * std::max(largest * largest * largest, 1e-300))) {
+                if (animated) {
+                    inst.hidden = 1;
+                    instances_.push_back(inst);
+                } else {
+                    warn(what + ": singular transform (a zero scale): the mesh is not rendered");
+                }
+            } else {
                 instances_.push_back(inst);
+            }
         } else if (node.mesh < -1) {
             fail(strf("%s: mesh %d out of range", what.c_str(), node.mesh));
         }
@@ -1087,11 +1132,13 @@ void Loader::flatten_nodes() {
                 c.zfar = float(cam.perspective.zfar);
             }
             for (int k = 0; k < 16; ++k) c.xform[k] = float(world.m[k]);
+            c.node = walk_index;
             if (!(std::fabs(det) > 0.0)) fail(what + ": singular camera transform (a zero scale)");
             cameras_.push_back(c);
         }
         if (member(node.extras, "candela_volume")) {
             load_volume(node, what, world);
+            volumes_.back().node = walk_index;
         } else if (const char raw = raw_member_start(node.extras_json_string, "candela_volume"); raw == '{' || raw == '[') {
             fail(what + (raw == '{' ? ": extras.candela_volume has no \"uri\" (the VDB file, required)"
                                     : ": extras.candela_volume must be an object"));
@@ -1135,9 +1182,115 @@ void Loader::flatten_nodes() {
             } else {
                 d.direction[2] = -1.0f;
             }
+            d.node = walk_index;
             lights_.push_back(d);
         }
-        for (size_t k = node.children.size(); k-- > 0;) stack.push_back({node.children[k], world});
+        for (size_t k = node.children.size(); k-- > 0;) stack.push_back({node.children[k], world, walk_index, animated});
+    }
+}
+
+// The file's animations (io.h, IoAnimChannel): every sampler checked against the glTF 2.0
+// rules the evaluation relies on, every failure one line naming the animation and channel.
+void Loader::convert_animations() {
+    bool warned_weights = false;
+    std::vector<uint8_t> animated(nodes_.size() * 3, 0); // (node, path) already has a channel
+    for (size_t ai = 0; ai < m_.animations.size(); ++ai) {
+        const tinygltf::Animation &anim = m_.animations[ai];
+        for (size_t ci = 0; ci < anim.channels.size(); ++ci) {
+            const tinygltf::AnimationChannel &ch = anim.channels[ci];
+            const std::string what = strf("animation %zu ('%s') channel %zu", ai, anim.name.c_str(), ci);
+            if (ch.target_path == "weights") {
+                if (!warned_weights) warn(what + ": morph target weights are animated; they are not rendered");
+                warned_weights = true;
+                continue;
+            }
+            int path = -1;
+            if (ch.target_path == "translation") path = IO_ANIM_TRANSLATION;
+            else if (ch.target_path == "rotation") path = IO_ANIM_ROTATION;
+            else if (ch.target_path == "scale") path = IO_ANIM_SCALE;
+            if (path < 0) {
+                warn(what + ": target path '" + ch.target_path + "' is not supported; the channel is ignored");
+                continue;
+            }
+            if (ch.target_node < 0 || size_t(ch.target_node) >= m_.nodes.size())
+                fail(strf("%s: target node %d out of range", what.c_str(), ch.target_node));
+            const int32_t walk = node_of_gltf_.empty() ? -1 : node_of_gltf_[size_t(ch.target_node)];
+            if (walk < 0) continue; // a node outside the loaded scene
+            if (nodes_[size_t(walk)].has_matrix)
+                fail(strf("%s: node %d ('%s') is animated but has a matrix (glTF allows only TRS there)",
+                          what.c_str(), ch.target_node, nodes_[size_t(walk)].name));
+            uint8_t &seen = animated[size_t(walk) * 3 + size_t(path)];
+            if (seen)
+                fail(strf("%s: node %d ('%s') %s is animated by two channels", what.c_str(), ch.target_node,
+                          nodes_[size_t(walk)].name, ch.target_path.c_str()));
+            seen = 1;
+            convert_channel(anim, ai, ci);
+            channels_.back().node = walk;
+            channels_.back().path = path;
+        }
+    }
+    for (size_t k = 0; k < channels_.size(); ++k) {
+        const IoAnimChannel &c = channels_[k];
+        const double first = c.times[0], last = c.times[c.num_keys - 1];
+        anim_start_ = k == 0 ? first : std::min(anim_start_, first);
+        anim_end_ = k == 0 ? last : std::max(anim_end_, last);
+    }
+}
+
+// One channel's sampler: times and values read and checked into channels_.back().
+void Loader::convert_channel(const tinygltf::Animation &anim, size_t ai, size_t ci) {
+    const tinygltf::AnimationChannel &ch = anim.channels[ci];
+    const std::string what = strf("animation %zu ('%s') channel %zu (%s of node %d)", ai, anim.name.c_str(), ci,
+                                  ch.target_path.c_str(), ch.target_node);
+    if (ch.sampler < 0 || size_t(ch.sampler) >= anim.samplers.size())
+        fail(strf("%s: sampler %d out of range", what.c_str(), ch.sampler));
+    const tinygltf::AnimationSampler &sm = anim.samplers[size_t(ch.sampler)];
+    IoAnimChannel c{};
+    if (sm.interpolation == "STEP") c.interpolation = IO_INTERP_STEP;
+    else if (sm.interpolation == "LINEAR" || sm.interpolation.empty()) c.interpolation = IO_INTERP_LINEAR;
+    else if (sm.interpolation == "CUBICSPLINE") c.interpolation = IO_INTERP_CUBICSPLINE;
+    else fail(what + ": unknown interpolation '" + sm.interpolation + "' (STEP, LINEAR, CUBICSPLINE)");
+    const bool rotation = ch.target_path == "rotation";
+    const AccView in = accessor(sm.input, what + " input", TINYGLTF_TYPE_SCALAR);
+    if (in.ct != TINYGLTF_COMPONENT_TYPE_FLOAT) fail(what + ": input times must be FLOAT");
+    const AccView out = accessor(sm.output, what + " output", rotation ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3);
+    if (out.ct != TINYGLTF_COMPONENT_TYPE_FLOAT && !(rotation && out.normalized))
+        fail(what + ": output values must be FLOAT (or normalized integers for a rotation)");
+    const size_t per_key = c.interpolation == IO_INTERP_CUBICSPLINE ? 3 : 1;
+    if (out.count != in.count * per_key)
+        fail(strf("%s: input has %zu times but output has %zu values (%s needs %zu per time)", what.c_str(),
+                  in.count, out.count, sm.interpolation.c_str(), per_key));
+    if (c.interpolation == IO_INTERP_CUBICSPLINE && in.count < 2)
+        fail(what + ": CUBICSPLINE needs at least 2 keys");
+    // allocated before any further check can throw, so release_all frees them
+    channels_.push_back(c);
+    IoAnimChannel &d = channels_.back();
+    d.times = read_floats(in, what, false);
+    d.num_keys = uint32_t(in.count);
+    for (size_t k = 0; k < in.count; ++k) {
+        const float t = d.times[k];
+        if (!std::isfinite(t)) fail(strf("%s: key time %zu is not finite", what.c_str(), k));
+        if (t < 0.0f) fail(strf("%s: key time %zu is negative (%g s)", what.c_str(), k, double(t)));
+        if (k > 0 && !(t > d.times[k - 1]))
+            fail(strf("%s: key times are not increasing (time %zu is %g s, time %zu is %g s)", what.c_str(), k - 1,
+                      double(d.times[k - 1]), k, double(t)));
+    }
+    d.values = read_floats(out, what, false);
+    const size_t ncomp = size_t(out.ncomp);
+    for (size_t k = 0; k < out.count; ++k) {
+        double norm2 = 0.0;
+        for (size_t j = 0; j < ncomp; ++j) {
+            const float v = d.values[k * ncomp + j];
+            if (!std::isfinite(v) || std::fabs(v) > IO_MAX_COORDINATE)
+                fail(strf("%s: value %zu is %s", what.c_str(), k,
+                          std::isfinite(v) ? strf("out of range (%g; the limit is %g)", double(v), IO_MAX_COORDINATE).c_str()
+                                           : "not finite"));
+            norm2 += double(v) * double(v);
+        }
+        // a rotation key (not a tangent) must be a quaternion that can be normalised
+        const bool key_value = per_key == 1 || k % 3 == 1;
+        if (rotation && key_value && !(norm2 > 1e-12))
+            fail(strf("%s: rotation value %zu is a zero quaternion", what.c_str(), k / per_key));
     }
 }
 
@@ -1249,10 +1402,12 @@ void Loader::transfer(IoScene *out) {
         s.lights = c_array(lights_);
         s.cameras = c_array(cameras_);
         s.volumes = c_array(volumes_);
+        s.nodes = c_array(nodes_);
+        s.channels = c_array(channels_);
     } catch (...) {
         std::free(s.primitives); std::free(s.meshes); std::free(s.instances);
         std::free(s.materials); std::free(s.images); std::free(s.lights); std::free(s.cameras);
-        std::free(s.volumes);
+        std::free(s.volumes); std::free(s.nodes); std::free(s.channels);
         throw;
     }
     out->primitives = s.primitives; out->num_primitives = uint32_t(prims_.size());
@@ -1263,12 +1418,18 @@ void Loader::transfer(IoScene *out) {
     out->lights = s.lights;         out->num_lights = uint32_t(lights_.size());
     out->cameras = s.cameras;       out->num_cameras = uint32_t(cameras_.size());
     out->volumes = s.volumes;       out->num_volumes = uint32_t(volumes_.size());
+    out->nodes = s.nodes;           out->num_nodes = uint32_t(nodes_.size());
+    out->channels = s.channels;     out->num_channels = uint32_t(channels_.size());
+    out->anim_start = anim_start_;
+    out->anim_end = anim_end_;
+    std::snprintf(out->path, sizeof out->path, "%s", path_.c_str());
     out->num_warnings = warnings_;
     for (const std::string &w : pending_warnings_)
         std::fprintf(stderr, "%s: warning: %s\n", path_.c_str(), w.c_str());
     prims_.clear();  // ownership of their arrays moved to *out
     images_.clear();
     volumes_.clear();
+    channels_.clear();
 }
 
 void Loader::run(IoScene *out) {
@@ -1277,6 +1438,7 @@ void Loader::run(IoScene *out) {
     convert_meshes();
     convert_materials();
     flatten_nodes();
+    convert_animations();
     if (prims_.size() > UINT32_MAX || instances_.size() > UINT32_MAX) fail("scene too large");
     IoScene tmp{};
     environment(&tmp);
@@ -1359,5 +1521,11 @@ extern "C" void io_scene_free(IoScene *scene) {
     std::free(scene->lights);
     std::free(scene->cameras);
     std::free(scene->volumes);
+    for (uint32_t i = 0; scene->channels && i < scene->num_channels; ++i) {
+        std::free(scene->channels[i].times);
+        std::free(scene->channels[i].values);
+    }
+    std::free(scene->channels);
+    std::free(scene->nodes);
     std::memset(scene, 0, sizeof *scene);
 }

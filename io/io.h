@@ -175,6 +175,12 @@ typedef struct IoMesh {
 typedef struct IoInstance {
     uint32_t mesh;
     float xform[16];
+    int32_t node;       /* index into IoScene.nodes (io_scene_pose places it) */
+    /* 1 while its world transform is singular (a zero scale: how animations hide objects):
+     * not rendered, xform is then the last invertible one (or singular, at rest). Only
+     * animated nodes (or their descendants) give hidden instances; a static singular mesh is
+     * dropped at load with a warning. */
+    int32_t hidden;
 } IoInstance;
 
 enum { IO_LIGHT_POINT = 0, IO_LIGHT_SPOT = 1, IO_LIGHT_DIRECTIONAL = 2 };
@@ -191,6 +197,7 @@ typedef struct IoLight {
     float outer_cone_angle;
     float position[3];      /* world */
     float direction[3];     /* world, unit: the direction light travels (node's -Z) */
+    int32_t node;           /* index into IoScene.nodes */
 } IoLight;
 
 enum { IO_CAMERA_PERSPECTIVE = 0, IO_CAMERA_ORTHOGRAPHIC = 1 };
@@ -203,6 +210,7 @@ typedef struct IoCamera {
     float xmag, ymag;   /* orthographic half extents */
     float znear, zfar;
     float xform[16];    /* camera-to-world, column-major; camera looks down its local -Z, +Y up */
+    int32_t node;       /* index into IoScene.nodes */
 } IoCamera;
 
 /* One float grid of a VDB file, converted to NanoVDB so that C reads it with PNanoVDB.h
@@ -254,7 +262,42 @@ typedef struct IoVolume {
     IoVolumeGrid density;        /* always loaded */
     IoVolumeGrid emission;       /* buffer NULL unless emission_grid names a grid */
     IoVolumeGrid temperature;    /* buffer NULL unless temperature_grid names a grid (kelvin) */
+    int32_t node;                /* index into IoScene.nodes */
 } IoVolume;
+
+/* ---------------------------------------------------------------- animation
+ * The node walk of the loaded scene, kept so that io_scene_pose can re-place everything at an
+ * animation time: nodes[] lists the visited glTF nodes parents first (depth first, scene roots
+ * in order, as the instances, cameras, lights and volumes are listed), each with its rest
+ * (static) local transform. */
+typedef struct IoNode {
+    char name[64];
+    int32_t gltf_node;      /* index in the file's "nodes" */
+    int32_t parent;         /* index into IoScene.nodes (always earlier), or -1 for a root */
+    int32_t has_matrix;     /* local transform given as a matrix (not animatable: glTF forbids
+                             * animating such a node; its channels are refused at load) */
+    double matrix[16];      /* has_matrix: the local matrix, column-major */
+    double translation[3], rotation[4], scale[3]; /* !has_matrix: the rest TRS (rotation x y z w) */
+} IoNode;
+
+enum { IO_ANIM_TRANSLATION = 0, IO_ANIM_ROTATION = 1, IO_ANIM_SCALE = 2 };
+enum { IO_INTERP_STEP = 0, IO_INTERP_LINEAR = 1, IO_INTERP_CUBICSPLINE = 2 };
+
+/* One animation channel with its sampler, validated at load: times finite, >= 0 and strictly
+ * increasing; values finite; counts matching (CUBICSPLINE: 3 values per key, in-tangent,
+ * value, out-tangent). Every glTF animation of the file plays at once (channels of all
+ * animations are listed together); channels that target a node outside the loaded scene, and
+ * "weights" channels (morph targets, not rendered: a warning), are dropped. */
+typedef struct IoAnimChannel {
+    int32_t node;           /* index into IoScene.nodes */
+    int32_t path;           /* IO_ANIM_* */
+    int32_t interpolation;  /* IO_INTERP_* */
+    uint32_t num_keys;
+    float *times;           /* num_keys seconds */
+    float *values;          /* num_keys x (3 or 4) floats, x 3 again for CUBICSPLINE */
+} IoAnimChannel;
+
+
 
 typedef struct IoScene {
     IoPrimitive *primitives; uint32_t num_primitives;
@@ -270,7 +313,22 @@ typedef struct IoScene {
     float env_strength;
     IoVolume *volumes;       uint32_t num_volumes; /* nodes with extras.candela_volume */
     uint32_t num_warnings;   /* warnings printed to stderr while loading (e.g. morph targets ignored) */
+    IoNode *nodes;           uint32_t num_nodes;    /* the node walk (io_scene_pose) */
+    IoAnimChannel *channels; uint32_t num_channels; /* all animations' channels */
+    double anim_start, anim_end; /* first and last key time of all channels, seconds (0, 0 without) */
+    char path[1024];         /* the file it was loaded from (for io_scene_pose's messages) */
 } IoScene;
+
+/* Evaluates every channel at time `seconds` (before the first key: the first value, after the
+ * last: the last; STEP, LINEAR with slerp for rotations, CUBICSPLINE Hermite with tangents
+ * scaled by the key interval, glTF 2.0 Appendix C) and writes the world transforms of the
+ * instances, cameras, lights (position, direction) and volumes. A node no channel animates keeps
+ * its rest transform, computed exactly as the loader computed it (so posing a scene without
+ * animation changes no bit). A mesh instance whose transform is singular at this time (a zero
+ * scale) is hidden (IoInstance.hidden), as at load. Fails with a one-line error naming the
+ * node when a transform at this time is out of range (IO_MAX_COORDINATE, non-finite) or a
+ * camera's is singular (the scene is then partly posed: pose it again before use). */
+int io_scene_pose(IoScene *scene, double seconds, char err[IO_ERR_LEN]);
 
 /* Load a .gltf or .glb (decided by content, not extension). Validates everything the renderer
  * relies on: accessor bounds and types, index ranges, finite positions, image sizes. */

@@ -226,5 +226,54 @@ int candela_merge(const char *out_exr, const char *png, const char *const *files
 
 int candela_write_stats_json(const char *path, const CandelaOptions *o, const CandelaStats *s,
                              char err[CANDELA_ERR_LEN]);
+/* The same statistics as one line of JSON (no newline), malloc'd into *json; 0 ok. */
+int candela_stats_json_line(const CandelaOptions *o, const CandelaStats *s, char **json);
+
+/* ---------------------------------------------------------------- animation frames
+ * A session loads a scene once and renders it at many animation times (renderer/render.c):
+ * meshes, textures and volume grids load once; per frame the scene is posed (instance
+ * transforms, Embree's top-level scene), and media, lights and the light sampler (cache
+ * points) are rebuilt for that pose. A session frame at time t renders exactly what a fresh
+ * session's first frame at t renders. */
+typedef struct CandelaSession CandelaSession;
+typedef struct CandelaSessionInfo {
+    double time_load;             /* seconds to load the scene */
+    uint32_t num_channels;        /* animation channels (0: a still scene) */
+    double anim_start, anim_end;  /* the animation's first and last key time, seconds */
+} CandelaSessionInfo;
+typedef struct CandelaFrameInfo {
+    double time_pose;             /* posing the scene and updating Embree (inside stats time_load) */
+    uint32_t instances_moved;     /* instances whose transform changed since the previous frame */
+} CandelaFrameInfo;
+int candela_session_open(const CandelaOptions *o, CandelaSession **session, CandelaSessionInfo *info,
+                         char err[CANDELA_ERR_LEN]);
+/* Renders the session's scene posed at `seconds`. o must name the session's scene (its seed,
+ * spp, ... may differ per frame). A failure (a transform the scene cannot take at that time,
+ * out of memory) leaves the session usable for other frames. */
+int candela_session_render(CandelaSession *session, const CandelaOptions *o, double seconds, CandelaImage *image,
+                           CandelaStats *stats, CandelaFrameInfo *frame, char err[CANDELA_ERR_LEN]);
+void candela_session_close(CandelaSession *session);
+
+/* The seed of frame f: splitmix64's output for the state seed + (f + 1) * 0x9E3779B97F4A7C15,
+ * i.e. the (f + 1)-th number of the splitmix64 stream seeded with --seed (README "Animation"). */
+uint64_t candela_frame_seed(uint64_t seed, int64_t frame);
+
+/* candela render --frames (renderer/batch.c). */
+typedef struct CandelaBatchOptions {
+    const char *frames;       /* "A-B[:step]" or a comma list of frames and ranges */
+    double fps;               /* frame f is time f / fps (default 24) */
+    const char *shard;        /* "I/N" (I in 0..N-1, round-robin); NULL: SLURM_ARRAY_* or the whole list */
+    const char *exr_pattern;  /* output name with a run of '#' replaced by the zero-padded frame number */
+    const char *png_pattern;  /* the same for the PNG preview; NULL: none */
+    const char *stats_jsonl;  /* one JSON line per frame appended here; NULL: none */
+    int resume;               /* skip frames whose EXR (and PNG, when asked) exist */
+    int save_partial;         /* an interrupted frame is written under a .partial name */
+} CandelaBatchOptions;
+/* Renders the frames. Returns -1 on an error before any frame was rendered (bad frame list,
+ * shard, pattern, scene, a frame outside the animation: err says what; nothing written), else
+ * the number of frames that failed (each reported on stderr with its number; the batch goes
+ * on), with *interrupted set when a signal (o->stop) stopped it. */
+int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, int *interrupted,
+                         char err[CANDELA_ERR_LEN]);
 
 #endif

@@ -146,6 +146,7 @@ int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, Candel
     for (uint32_t i = 0; i < scene->io.num_instances; ++i) {
         const SceneInstance *inst = &scene->instances[i];
         const IoMesh *mesh = &scene->io.meshes[inst->mesh];
+        if (inst->hidden) continue; /* a zero scale in this frame of an animation */
         for (uint32_t k = 0; k < mesh->num_primitives; ++k) {
             const ScenePrimitive *sp = &scene->prims[mesh->first_primitive + k];
             const float *e = sp->material->emissive;

@@ -181,7 +181,7 @@ static int bbox_candidates(const Scene *scene, const SceneMedia *media, uint64_t
     double total = 0.0;
     for (uint32_t i = 0; i < n; ++i) {
         if (i < ni) {
-            if (!instance_reflects(scene, i)) continue;
+            if (!instance_reflects(scene, i) || scene->instances[i].hidden) continue;
             instance_bounds(scene, i, &lo[i], &hi[i]);
         } else {
             const Medium *m = &media->vdb[i - ni];

@@ -92,6 +92,21 @@ static const char *USAGE =
     "  --env-strength S          environment multiplier (default 1)\n"
     "  --batch N                 paths in flight per batch (default 16384; never changes the image)\n"
     "  --stats-json FILE         write render statistics as JSON\n"
+    "animation frames (render):\n"
+    "  --frames A-B[:step]|LIST  render these frames (e.g. 1-48, 1-48:4, 1,5,10-12) of the glTF\n"
+    "                            animation at time frame / fps, one scene load for all; -o must\n"
+    "                            then hold a run of '#' for the zero-padded frame number\n"
+    "                            (default out/<scene>.####.exr; the PNG follows it). Frame f's\n"
+    "                            seed is splitmix64 of --seed and f (README \"Animation\"). Exit\n"
+    "                            status: the number of failed frames (at most 100), 101 when the\n"
+    "                            request is bad (nothing rendered), 130 when interrupted\n"
+    "  --fps F                   frames per second (default 24)\n"
+    "  --resume                  skip frames whose EXR (and PNG) already exist\n"
+    "  --shard I/N               render every N-th frame of the list starting at position I\n"
+    "                            (0 <= I < N, round-robin); without it SLURM_ARRAY_TASK_ID,\n"
+    "                            _COUNT, _MIN and _STEP choose the shard of a Slurm job array\n"
+    "  --frame-stats FILE.jsonl  append one JSON line per frame (frame, time, seed, status,\n"
+    "                            pose and cache point seconds, the --stats-json fields)\n"
     "  --quiet                   no progress or statistics on stderr\n"
     "compare options (the options above apply to every variant and the reference):\n"
     "  --variants SPEC           \"NAME: FLAGS; NAME: FLAGS\" or FILE.toml / FILE.json: any render\n"
@@ -298,6 +313,7 @@ int main(int argc, char **argv) {
     candela_options_default(&o);
     const char *out = NULL, *png = NULL, *stats_json = NULL;
     int no_png = 0, save_partial = 0;
+    CandelaBatchOptions batch = {0};
     CandelaCompareOptions co = {NULL, 0, NULL, NULL, 5000}; /* strategies NULL: compare.c's default list */
     char flag_err[CANDELA_ERR_LEN];
     for (int i = 2; i < argc; ++i) {
@@ -331,6 +347,11 @@ int main(int argc, char **argv) {
             o.shard_count = (uint32_t)sn;
             ++i;
         }
+        else if (strcmp(a, "--frames") == 0) { if (!v) die("missing value for ", a); batch.frames = v; ++i; }
+        else if (strcmp(a, "--fps") == 0) { batch.fps = parse_float(a, v, 1e-3f, 1e6f); ++i; }
+        else if (strcmp(a, "--shard") == 0) { if (!v) die("missing value for ", a); batch.shard = v; ++i; }
+        else if (strcmp(a, "--resume") == 0) batch.resume = 1;
+        else if (strcmp(a, "--frame-stats") == 0) { if (!v) die("missing value for ", a); batch.stats_jsonl = v; ++i; }
         else if (compare && strcmp(a, "--strategies") == 0) { if (!v) die("missing value for ", a); co.strategies = v; ++i; }
         else if (compare && strcmp(a, "--variants") == 0) { if (!v) die("missing value for ", a); co.variants = v; ++i; }
         else if (compare && strcmp(a, "--time-budget") == 0) { co.time_budget = parse_float(a, v, 0.001f, 1e7f); ++i; }
@@ -379,8 +400,13 @@ int main(int argc, char **argv) {
         snprintf(default_out, sizeof default_out, "out/%s", base);
         char *dot = strrchr(default_out, '.');
         if (dot && dot > default_out + 4) *dot = 0;
-        strncat(default_out, ".exr", sizeof default_out - strlen(default_out) - 1);
+        strncat(default_out, batch.frames ? ".####.exr" : ".exr", sizeof default_out - strlen(default_out) - 1);
         out = default_out;
+    }
+    if (batch.frames && (o.checkpoint_path || o.resume_from || o.shard_count)) {
+        /* one checkpoint or shard film names one frame's render; a batch resumes with --resume */
+        fprintf(stderr, "candela: --checkpoint, --resume-from and --sample-shard render one frame (not with --frames)\n");
+        return 2;
     }
     if ((compare || bench || dump) && (o.checkpoint_path || o.resume_from)) {
         fprintf(stderr, "candela: --checkpoint and --resume-from are for candela render\n");
@@ -413,6 +439,18 @@ int main(int argc, char **argv) {
     const char *ext = strrchr(out, '.');
     if (!compare && !bench && !o.shard_count && (!ext || strcmp(ext, ".exr") != 0)) {
         fprintf(stderr, "candela: %s: the output must be an .exr file (the PNG preview goes to --png)\n", out);
+        return 2;
+    }
+    if (batch.frames && (compare || bench || dump)) {
+        fprintf(stderr, "candela: --frames belongs to candela render\n");
+        return 2;
+    }
+    if (!batch.frames && (batch.shard || batch.resume || batch.stats_jsonl || batch.fps > 0.0)) {
+        fprintf(stderr, "candela: --shard, --resume, --fps and --frame-stats need --frames\n");
+        return 2;
+    }
+    if (batch.frames && stats_json) {
+        fprintf(stderr, "candela: --stats-json writes one render's statistics; with --frames use --frame-stats FILE.jsonl\n");
         return 2;
     }
     if (dump) {
@@ -452,8 +490,13 @@ int main(int argc, char **argv) {
                     strerror(errno));
             return 1;
         }
-        const char *outputs[4] = {out, png, stats_json, o.checkpoint_path};
-        for (int k = 0; k < 4; ++k)
+        const char *outputs[5] = {out, png, stats_json, batch.stats_jsonl, o.checkpoint_path};
+        if (batch.stats_jsonl && ensure_parent_dir(batch.stats_jsonl, 0) != 0) {
+            fprintf(stderr, "candela: %s: output directory does not exist or is not writable (%s)\n", batch.stats_jsonl,
+                    strerror(errno));
+            return 1;
+        }
+        for (int k = 0; k < 5; ++k)
             if (outputs[k] && io_output_path(outputs[k], resolved, ioerr) != 0) {
                 fprintf(stderr, "candela: %s\n", ioerr);
                 return 1;
@@ -487,6 +530,19 @@ int main(int argc, char **argv) {
     CandelaRayLog log = {0};
     install_interrupt_handlers();
     o.stop = &interrupts;
+    if (batch.frames) {
+        batch.exr_pattern = out;
+        batch.png_pattern = png;
+        batch.save_partial = save_partial;
+        int interrupted = 0;
+        int failed = candela_batch_render(&o, &batch, &interrupted, err);
+        if (failed < 0) {
+            fprintf(stderr, "%s%s\n", strncmp(err, "candela: ", 9) == 0 ? "" : "candela: ", err);
+            return 101;
+        }
+        if (interrupted) return 130;
+        return failed > 100 ? 100 : failed;
+    }
     if (candela_render(&o, &image, &stats, bench ? &log : NULL, err) != 0) {
         fprintf(stderr, "candela: %s\n", err);
         return 1;

@@ -70,21 +70,8 @@ static void json_string(FILE *f, const char *s) {
     fputc('"', f);
 }
 
-int candela_write_stats_json(const char *path_arg, const CandelaOptions *o, const CandelaStats *s,
-                             char err[CANDELA_ERR_LEN]) {
-    char path[IO_PATH_MAX], ioerr[IO_ERR_LEN];
-    if (io_output_path(path_arg, path, ioerr) != 0) {
-        snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
-        return -1;
-    }
-    char tmp[IO_PATH_MAX + 32];
-    snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
-    FILE *f = fopen(tmp, "w");
-    if (!f) {
-        snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot open for writing: %s", path, strerror(errno));
-        return -1;
-    }
-    io_temp_begin(tmp);
+/* The statistics object, pretty-printed (two-space indentation, a member per line). */
+static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s) {
     uint64_t rays = s->rays_camera + s->rays_bounce + s->rays_shadow;
     double render = candela_stats_render_seconds(s);
     fputs("{\n  \"scene\": ", f);
@@ -125,6 +112,24 @@ int candela_write_stats_json(const char *path_arg, const CandelaOptions *o, cons
             o->guiding == CANDELA_GUIDING_MIS ? "mis" : o->guiding == CANDELA_GUIDING_RIS ? "ris" : "off", s->guide_updates,
             (unsigned long long)s->guide_samples, s->guide_leaves, s->guide_bytes, s->guide_train_seconds);
     fprintf(f, "  \"peak_memory_bytes\": %zu\n}\n", s->peak_memory_bytes);
+}
+
+int candela_write_stats_json(const char *path_arg, const CandelaOptions *o, const CandelaStats *s,
+                             char err[CANDELA_ERR_LEN]) {
+    char path[IO_PATH_MAX], ioerr[IO_ERR_LEN];
+    if (io_output_path(path_arg, path, ioerr) != 0) {
+        snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
+        return -1;
+    }
+    char tmp[IO_PATH_MAX + 32];
+    snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
+    FILE *f = fopen(tmp, "w");
+    if (!f) {
+        snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot open for writing: %s", path, strerror(errno));
+        return -1;
+    }
+    io_temp_begin(tmp);
+    stats_json(f, o, s);
     int synced = fflush(f) == 0 && fsync(fileno(f)) == 0;
     if (fclose(f) != 0 || !synced || rename(tmp, path) != 0) {
         remove(tmp);
@@ -136,3 +141,28 @@ int candela_write_stats_json(const char *path_arg, const CandelaOptions *o, cons
     return 0;
 }
 
+
+int candela_stats_json_line(const CandelaOptions *o, const CandelaStats *s, char **json) {
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    if (!f) return -1;
+    stats_json(f, o, s);
+    if (fclose(f) != 0) {
+        free(buf);
+        return -1;
+    }
+    /* one line: drop each newline and the indentation after it (strings are escaped, so
+     * every raw newline is layout) */
+    size_t w = 0;
+    for (size_t r = 0; r < len; ++r) {
+        if (buf[r] == '\n') {
+            while (r + 1 < len && buf[r + 1] == ' ') ++r;
+            continue;
+        }
+        buf[w++] = buf[r];
+    }
+    buf[w] = 0;
+    *json = buf;
+    return 0;
+}

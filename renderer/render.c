@@ -109,27 +109,37 @@ typedef struct Render {
     int have_scene, have_lights, have_media, have_sampler, have_integrator;
 } Render;
 
-static void render_free(Render *r) {
+/* What one frame builds from the (posed) scene: media, lights, light sampler, integrator. The
+ * scene, its Embree device and the thread pool outlive it (a frame batch renders many). */
+static void render_free_frame(Render *r) {
     if (r->have_integrator) integrator_free(&r->ig);
     if (r->have_sampler) light_sampler_free(&r->sampler);
-    if (r->pool) threadpool_destroy(r->pool);
     if (r->have_media) media_free(&r->media);
     if (r->have_lights) lights_free(&r->lights);
+    r->have_integrator = r->have_sampler = r->have_media = r->have_lights = 0;
+}
+
+static void render_free(Render *r) {
+    render_free_frame(r);
+    if (r->pool) threadpool_destroy(r->pool);
     if (r->have_scene) scene_free(&r->scene);
     free(r);
 }
 
-int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *stats, CandelaRayLog *ray_log,
-                   char err[CANDELA_ERR_LEN]) {
-    CandelaStats local_stats;
-    if (!stats) stats = &local_stats;
-    memset(stats, 0, sizeof *stats);
-    memset(image, 0, sizeof *image);
+static int render_options_valid(const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
     if (o->spp < 1 || o->max_depth < 0 || o->max_volume_bounces < 0 || o->width < 0 || o->height < 0 || o->width > 16384 || o->height > 16384) {
         snprintf(err, CANDELA_ERR_LEN, "%s: invalid render options (spp >= 1, 0 <= max depth and volume bounces, resolution <= 16384)",
                  o->scene_path ? o->scene_path : "candela");
-        return -1;
+        return 0;
     }
+    return 1;
+}
+
+/* One render of the loaded scene as it is placed now: media -> lights -> light sampler ->
+ * integrator -> iterations -> film. Frees what it built (render_free_frame) before it returns;
+ * t_start is when the caller started (load or pose), for time_load and time_total. */
+static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image, CandelaStats *stats,
+                        CandelaRayLog *ray_log, double t_start, char err[CANDELA_ERR_LEN]) {
     /* --sample-shard I/N: this render is samples [sample_begin, sample_begin + spp) of every pixel
      * of the full render (with its RNG streams), and learns from those alone: a render of that
      * many spp whose sample indices start at sample_begin (`ro` is what the integrator sees). */
@@ -141,6 +151,7 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
         if (o->shard_index >= o->shard_count || e == b) {
             snprintf(err, CANDELA_ERR_LEN, "%s: sample shard %u/%u of %d spp is empty (shards need at least one sample each)",
                      o->scene_path, o->shard_index, o->shard_count, o->spp);
+            render_free_frame(r);
             return -1;
         }
         sample_begin = b;
@@ -148,12 +159,6 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
     }
     const CandelaOptions *given = o; /* the identity names the full render */
     o = &ro;
-    Render *r = calloc(1, sizeof *r);
-    if (!r) { snprintf(err, CANDELA_ERR_LEN, "candela: out of memory"); return -1; }
-    peak_rss_reset();
-    double t_start = clock_seconds();
-    if (scene_load(&r->scene, o, err) != 0) { render_free(r); return -1; }
-    r->have_scene = 1;
     /* the render's identity, and a checkpoint to resume checked against it before anything is built */
     CheckpointIdentity identity;
     int use_identity = o->checkpoint_path || o->resume_from || o->film_path;
@@ -161,15 +166,15 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
         if (checkpoint_identity(given, r->scene.camera.width, r->scene.camera.height, sample_begin, (uint64_t)o->spp,
                                 &identity, err) != 0 ||
             (o->resume_from && checkpoint_check(o->resume_from, &identity, err) != 0)) {
-            render_free(r);
+            render_free_frame(r);
             return -1;
         }
     }
-    if (media_build(&r->media, &r->scene, o->scene_path, err) != 0) { render_free(r); return -1; }
+    if (media_build(&r->media, &r->scene, o->scene_path, err) != 0) { render_free_frame(r); return -1; }
     r->have_media = 1;
     if (lights_build(&r->lights, &r->scene, o->volume_emission_sampling ? &r->media : NULL, o->light_units, err,
                      CANDELA_ERR_LEN) != 0) {
-        render_free(r);
+        render_free_frame(r);
         return -1;
     }
     r->have_lights = 1;
@@ -191,10 +196,10 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
     if (batch > MAX_BATCH_SIZE) batch = MAX_BATCH_SIZE;
     uint64_t max_paths_per_iteration = (uint64_t)npixels * (uint64_t)o->spp;
     if (batch > max_paths_per_iteration) batch = (uint32_t)max_paths_per_iteration;
-    r->pool = threadpool_create(o->threads);
-    if (!r->pool) { snprintf(err, CANDELA_ERR_LEN, "candela: out of memory"); render_free(r); return -1; }
+    if (!r->pool) r->pool = threadpool_create(o->threads);
+    if (!r->pool) { snprintf(err, CANDELA_ERR_LEN, "candela: out of memory"); render_free_frame(r); return -1; }
     if (light_sampler_create(&r->sampler, &r->lights, &r->scene, &r->media, r->pool, o, err) != 0) {
-        render_free(r);
+        render_free_frame(r);
         return -1;
     }
     r->have_sampler = 1;
@@ -202,7 +207,7 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
     if (integrator_init(&r->ig, o, &r->scene, &r->lights, &r->media, &r->sampler, batch) != 0) {
         snprintf(err, CANDELA_ERR_LEN, "%s: out of memory allocating the %dx%d film and %u paths in flight",
                  o->scene_path, cam->width, cam->height, batch);
-        render_free(r);
+        render_free_frame(r);
         return -1;
     }
     r->have_integrator = 1;
@@ -220,7 +225,7 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
     CheckpointProgress at = {0, 0, 0}; /* where the render stands (a resumed one: where the checkpoint stood) */
     if (o->resume_from) {
         if (checkpoint_load(o->resume_from, &identity, &at, ig, &r->sampler, err) != 0) {
-            render_free(r);
+            render_free_frame(r);
             return -1;
         }
         /* the progress must be a point of this render's schedule (the checksum guards the bytes;
@@ -232,7 +237,7 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
         if (k != at.iteration || cumulative != at.spp_done || at.spp_done >= o->spp || at.iteration_paths >= iteration_total) {
             snprintf(err, CANDELA_ERR_LEN, "%s: its progress (iteration %d, %d spp) is not a point of this render's schedule",
                      o->resume_from, at.iteration, at.spp_done);
-            render_free(r);
+            render_free_frame(r);
             return -1;
         }
         done_paths = (uint64_t)npixels * (uint64_t)at.spp_done + at.iteration_paths;
@@ -300,19 +305,96 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
             stats->checkpoint_failed = 1;
         }
     } else if (o->film_path && checkpoint_write(o->film_path, &identity, &at, ig, &r->sampler, 1, err) != 0) {
-        render_free(r);
+        render_free_frame(r);
         return -1;
     }
     stats->time_total = clock_seconds() - t_start;
     record_report(ig, stats);
     guide_report(ig, stats);
     if (o->guide_dump_prefix && guide_dump(ig, o->guide_dump_at, o->guide_dump_prefix, err) != 0) {
-        render_free(r);
+        render_free_frame(r);
         return -1;
     }
     int rc = film_resolve(&ig->film, image);
     if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s: out of memory resolving the film", o->scene_path);
     stats->peak_memory_bytes = peak_rss_bytes();
+    render_free_frame(r);
+    return rc;
+}
+
+int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *stats, CandelaRayLog *ray_log,
+                   char err[CANDELA_ERR_LEN]) {
+    CandelaStats local_stats;
+    if (!stats) stats = &local_stats;
+    memset(stats, 0, sizeof *stats);
+    memset(image, 0, sizeof *image);
+    if (!render_options_valid(o, err)) return -1;
+    Render *r = calloc(1, sizeof *r);
+    if (!r) { snprintf(err, CANDELA_ERR_LEN, "candela: out of memory"); return -1; }
+    peak_rss_reset();
+    double t_start = clock_seconds();
+    if (scene_load(&r->scene, o, err) != 0) { render_free(r); return -1; }
+    r->have_scene = 1;
+    int rc = render_frame(r, o, image, stats, ray_log, t_start, err);
     render_free(r);
     return rc;
+}
+
+/* ---------------------------------------------------------------- sessions (frame batches) */
+
+/* A loaded scene rendered at many animation times: meshes, textures, volumes' grids, the
+ * Embree device and mesh scenes and the thread pool load once; each frame poses the scene
+ * (instance transforms, top-level rebuild), then render_frame builds media, lights and the
+ * light sampler for that pose and renders. candela_render is exactly a session
+ * of one unposed frame. */
+struct CandelaSession {
+    Render *r;
+};
+
+int candela_session_open(const CandelaOptions *o, CandelaSession **out, CandelaSessionInfo *info,
+                         char err[CANDELA_ERR_LEN]) {
+    *out = NULL;
+    memset(info, 0, sizeof *info);
+    if (!render_options_valid(o, err)) return -1;
+    CandelaSession *s = calloc(1, sizeof *s);
+    Render *r = calloc(1, sizeof *r);
+    if (!s || !r) {
+        free(s);
+        free(r);
+        snprintf(err, CANDELA_ERR_LEN, "candela: out of memory");
+        return -1;
+    }
+    double t_start = clock_seconds();
+    if (scene_load(&r->scene, o, err) != 0) {
+        free(s);
+        render_free(r);
+        return -1;
+    }
+    r->have_scene = 1;
+    s->r = r;
+    info->time_load = clock_seconds() - t_start;
+    info->num_channels = r->scene.io.num_channels;
+    info->anim_start = r->scene.io.anim_start;
+    info->anim_end = r->scene.io.anim_end;
+    *out = s;
+    return 0;
+}
+
+int candela_session_render(CandelaSession *s, const CandelaOptions *o, double seconds, CandelaImage *image,
+                           CandelaStats *stats, CandelaFrameInfo *frame, char err[CANDELA_ERR_LEN]) {
+    memset(stats, 0, sizeof *stats);
+    memset(image, 0, sizeof *image);
+    memset(frame, 0, sizeof *frame);
+    if (!render_options_valid(o, err)) return -1;
+    peak_rss_reset();
+    double t_start = clock_seconds();
+    if (scene_pose(&s->r->scene, o, seconds, &frame->instances_moved, err) != 0) return -1;
+    frame->time_pose = clock_seconds() - t_start;
+    return render_frame(s->r, o, image, stats, NULL, t_start, err);
+}
+
+void candela_session_close(CandelaSession *s) {
+    if (!s) return;
+    render_free(s->r);
+    free(s);
 }

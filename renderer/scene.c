@@ -361,6 +361,21 @@ static int setup_camera(Scene *scene, const CandelaOptions *o, char err[CANDELA_
     return 0;
 }
 
+/* The bounds of the committed top-level scene, its centre and bounding sphere. */
+static void scene_bounds(Scene *scene) {
+    struct RTCBounds b;
+    rtcGetSceneBounds(scene->top, &b);
+    if (scene->io.num_instances == 0 || !(b.lower_x <= b.upper_x)) {
+        scene->bounds_min = v3s(-1.0f);
+        scene->bounds_max = v3s(1.0f);
+    } else {
+        scene->bounds_min = v3(b.lower_x, b.lower_y, b.lower_z);
+        scene->bounds_max = v3(b.upper_x, b.upper_y, b.upper_z);
+    }
+    scene->center = v3_scale(v3_add(scene->bounds_min, scene->bounds_max), 0.5f);
+    scene->radius = fmaxf(0.5f * v3_length(v3_sub(scene->bounds_max, scene->bounds_min)), MIN_SCENE_RADIUS);
+}
+
 int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
     memset(scene, 0, sizeof *scene);
     char ioerr[IO_ERR_LEN];
@@ -464,7 +479,12 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
             scene->num_triangles_total += io->primitives[io->meshes[si->mesh].first_primitive + k].num_triangles;
         RTCGeometry g = rtcNewGeometry(scene->device, RTC_GEOMETRY_TYPE_INSTANCE);
         rtcSetGeometryInstancedScene(g, scene->mesh_scenes[si->mesh]);
-        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT4X4_COLUMN_MAJOR, si->xform);
+        /* a hidden instance (an animated zero scale) is disabled: Embree never sees its
+         * singular transform */
+        si->hidden = io->instances[i].hidden;
+        static const float identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT4X4_COLUMN_MAJOR, si->hidden ? identity : si->xform);
+        if (si->hidden) rtcDisableGeometry(g);
         rtcCommitGeometry(g);
         rtcAttachGeometryByID(scene->top, g, i);
         rtcReleaseGeometry(g);
@@ -475,17 +495,7 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
         scene_free(scene);
         return -1;
     }
-    struct RTCBounds b;
-    rtcGetSceneBounds(scene->top, &b);
-    if (io->num_instances == 0 || !(b.lower_x <= b.upper_x)) {
-        scene->bounds_min = v3s(-1.0f);
-        scene->bounds_max = v3s(1.0f);
-    } else {
-        scene->bounds_min = v3(b.lower_x, b.lower_y, b.lower_z);
-        scene->bounds_max = v3(b.upper_x, b.upper_y, b.upper_z);
-    }
-    scene->center = v3_scale(v3_add(scene->bounds_min, scene->bounds_max), 0.5f);
-    scene->radius = fmaxf(0.5f * v3_length(v3_sub(scene->bounds_max, scene->bounds_min)), MIN_SCENE_RADIUS);
+    scene_bounds(scene);
 
     if (setup_camera(scene, o, err) != 0) { scene_free(scene); return -1; }
 
@@ -524,6 +534,46 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
             fprintf(stderr, "%s: warning: %zu non-finite or negative environment values set to 0\n", env_path, bad);
     }
     return 0;
+}
+
+int scene_pose(Scene *scene, const CandelaOptions *o, double seconds, uint32_t *changed_instances,
+               char err[CANDELA_ERR_LEN]) {
+    char ioerr[IO_ERR_LEN];
+    *changed_instances = 0;
+    if (io_scene_pose(&scene->io, seconds, ioerr) != 0) {
+        snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
+        return -1;
+    }
+    /* meshes never change (one Embree scene each, built once); only the transforms of the
+     * instances that moved are set, and the top-level scene (one entry per instance) rebuilt */
+    for (uint32_t i = 0; i < scene->io.num_instances; ++i) {
+        SceneInstance *si = &scene->instances[i];
+        const IoInstance *ii = &scene->io.instances[i];
+        const int moved = !ii->hidden && memcmp(si->xform, ii->xform, sizeof si->xform) != 0;
+        if (!moved && si->hidden == ii->hidden) continue;
+        RTCGeometry g = rtcGetGeometry(scene->top, i);
+        if (moved) {
+            memcpy(si->xform, ii->xform, sizeof si->xform);
+            invert_transpose3(si->xform, si->normal_xform);
+            rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT4X4_COLUMN_MAJOR, si->xform);
+            rtcCommitGeometry(g);
+        }
+        if (si->hidden != ii->hidden) {
+            if (ii->hidden) rtcDisableGeometry(g);
+            else rtcEnableGeometry(g);
+            si->hidden = ii->hidden;
+        }
+        ++*changed_instances;
+    }
+    if (*changed_instances) {
+        rtcCommitScene(scene->top);
+        if (rtcGetDeviceError(scene->device) != RTC_ERROR_NONE) {
+            set_error(err, "%s: Embree failed to update the scene%s", o->scene_path, "");
+            return -1;
+        }
+        scene_bounds(scene);
+    }
+    return setup_camera(scene, o, err);
 }
 
 void scene_free(Scene *scene) {

@@ -4,7 +4,8 @@
  * instanced once per node that references it), the camera and the environment image. The
  * lights are built beside it from the loaded scene (lights.h), so the scene knows nothing of
  * lights or of how they are selected. Everything here is read-only once scene_load()
- * returns, so every stage may read it from any thread.
+ * returns (and between scene_pose calls, which frame batches make between renders), so every
+ * stage may read it from any thread.
  *
  * Every ray the renderer traces goes through the scene ray interface below (closest hit and
  * occlusion, one ray or a batch): the wavefront stages, the cache point pilot paths, the
@@ -48,6 +49,8 @@ typedef struct SceneInstance {
     uint32_t primitive_base;  /* index of (this instance, local primitive 0) among all instance
                                * primitives: per-instance-primitive tables (the area light of
                                * a hit) are indexed by primitive_base + local primitive */
+    int hidden;               /* a zero scale now (IoInstance.hidden): disabled in Embree, no
+                               * area lights, no cache point candidates */
 } SceneInstance;
 
 typedef struct Scene {
@@ -73,6 +76,13 @@ typedef struct Scene {
  * Embree scene. */
 int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN]);
 void scene_free(Scene *scene);
+/* Re-places the loaded scene at animation time `seconds` (io_scene_pose): the instances that
+ * moved get their new transforms (Embree's top-level scene is rebuilt when any did; meshes and
+ * textures stay), then bounds and camera follow. Between renders only (no ray in flight).
+ * *changed_instances: how many moved. Fails (one line) on a transform the scene cannot take at
+ * that time. */
+int scene_pose(Scene *scene, const CandelaOptions *o, double seconds, uint32_t *changed_instances,
+               char err[CANDELA_ERR_LEN]);
 
 /* Everything shading needs about a hit point, in world space. */
 typedef struct SurfaceHit {

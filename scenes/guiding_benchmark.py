@@ -24,6 +24,7 @@ import argparse
 import json
 import os
 import re
+import resource
 import subprocess
 import sys
 
@@ -35,14 +36,19 @@ CONFIGS = [("unguided", ["--guiding", "off"]), ("guided MIS", ["--guiding", "mis
 
 
 def render(candela, scene, out, spp, seed, res, extra):
+    """Renders; returns the stats JSON with "cpu_seconds" added (the process's user + system time)."""
     stats = out[:-4] + ".json"
     cmd = [candela, "render", scene, "--res", res, "--spp", str(spp), "--seed", str(seed), "-o", out,
            "--png", out[:-4] + ".png", "--stats-json", stats, "-q"] + extra
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     r = subprocess.run(cmd, capture_output=True, text=True)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if r.returncode != 0:
         sys.exit("render failed: %s\n%s" % (" ".join(cmd), r.stderr))
     with open(stats) as f:
-        return json.load(f)
+        st = json.load(f)
+    st["cpu_seconds"] = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return st
 
 
 def oiio_mean(args):
@@ -73,13 +79,18 @@ def main():
     ap.add_argument("--repeats", type=int, default=1,
                     help="render each configuration this many times (same seed, same image) and keep the "
                          "shortest time: a shared machine's noise only ever adds time")
+    ap.add_argument("--time", choices=["wall", "cpu"], default="wall",
+                    help="the time of TTUV: the render's wall clock without scene loading (default), or the "
+                         "process's CPU time (user + system; with --threads 1 it is the work done, which a "
+                         "busy shared machine disturbs far less than the wall clock)")
+    ap.add_argument("--threads", type=int, default=0, help="render threads (0: all cores)")
     ap.add_argument("--light-sampler", default="cachepoints",
                     help="the light sampler of every render (default cachepoints, the renderer's default)")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     given = dict(x.split("=", 1) for x in a.reference)
-    print("light sampler: %s, %s, reference %d spp at %s (guided RIS, another seed)\n" % (
-        a.light_sampler, a.res, a.ref_spp, a.ref_res or a.res))
+    print("light sampler: %s, %s, reference %d spp at %s (guided RIS, another seed), time: %s, threads: %s\n" % (
+        a.light_sampler, a.res, a.ref_spp, a.ref_res or a.res, a.time, a.threads or "all"))
     print("| scene | configuration | spp | time (s) | MSE | TTUV ratio vs unguided | mean path length | recorder vertices/path | training s/update |")
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
     for name in a.scenes.split(","):
@@ -94,8 +105,12 @@ def main():
             out = os.path.join(a.out, "%s_%s_%s.exr" % (name, a.light_sampler, extra[1]))
             t = None
             for _ in range(max(a.repeats, 1)):
-                st = render(a.candela, scene, out, a.spp, 0, a.res, extra + ["--light-sampler", a.light_sampler])
-                ti = st["time_seconds"]["total"] - st["time_seconds"]["load"]
+                st = render(a.candela, scene, out, a.spp, 0, a.res,
+                            extra + ["--light-sampler", a.light_sampler, "--threads", str(a.threads)])
+                if a.time == "cpu":
+                    ti = st["cpu_seconds"]
+                else:
+                    ti = st["time_seconds"]["total"] - st["time_seconds"]["load"]
                 t = ti if t is None else min(t, ti)
             compared = out
             if a.ref_res and a.ref_res != a.res:

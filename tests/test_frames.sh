@@ -1,0 +1,232 @@
+#!/usr/bin/env bash
+# Animation frame batches (candela render --frames): every frame of a batch equals a
+# single-frame render of it bit for bit; --resume after an interrupted batch renders only the
+# missing frames and ends with the same images; shards (--shard, SLURM_ARRAY_*) partition the
+# frames; a frame that fails is counted in the exit status and the batch goes on; bad
+# animations, frame ranges and shard specs give one line, a non-zero exit and write nothing.
+# usage: test_frames.sh CANDELA_BINARY SOURCE_ROOT
+set -u
+bin=$1; root=$2
+tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
+pass=0; fail=0
+ok()  { pass=$((pass + 1)); }
+bad() { fail=$((fail + 1)); echo "FAIL: $*" >&2; }
+
+scene=$root/scenes/animation.gltf
+# tiny frames; the tree sampler keeps them fast (cache points get their own check below)
+fast=(--res 32x24 --spp 2 --light-sampler tree --quiet --no-png)
+
+# frame numbers rendered according to a --frame-stats log, sorted, space separated
+# (no file: none; every line must parse as JSON)
+logged() { [ -e "$1" ] || { echo ""; return; }
+  python3 -c 'import json,sys; print(" ".join(str(f) for f in sorted(json.loads(l)["frame"] for l in open(sys.argv[1]) if json.loads(l)["status"] == sys.argv[2])))' "$1" "${2:-ok}"; }
+
+# ---- 1. a batch equals single-frame renders, frame by frame (LINEAR camera and ball, slerped
+# camera rotation, CUBICSPLINE light, STEP cube: frame 6 is t = 0.25 s, the cube's first step)
+mkdir -p "$tmp/batch" "$tmp/single"
+"$bin" render "$scene" --frames 1-6 "${fast[@]}" -o "$tmp/batch/f.####.exr" --frame-stats "$tmp/batch/log.jsonl"
+rc=$?
+[ $rc -eq 0 ] && ok || bad "batch 1-6 exit $rc"
+[ "$(logged "$tmp/batch/log.jsonl")" = "1 2 3 4 5 6" ] && ok || bad "batch log lists $(logged "$tmp/batch/log.jsonl")"
+for f in 1 2 3 4 5 6; do
+  "$bin" render "$scene" --frames $f "${fast[@]}" -o "$tmp/single/f.####.exr" || bad "single frame $f failed"
+  cmp -s "$tmp/batch/f.000$f.exr" "$tmp/single/f.000$f.exr" && ok || bad "frame $f of the batch differs from its single-frame render"
+done
+# the frames do differ (the animation moves things): no test that cannot fail
+cmp -s "$tmp/batch/f.0001.exr" "$tmp/batch/f.0002.exr" && bad "frames 1 and 2 are identical" || ok
+# the thread count changes nothing
+"$bin" render "$scene" --frames 4 "${fast[@]}" --threads 1 -o "$tmp/single/t1.####.exr" &&
+  cmp -s "$tmp/batch/f.0004.exr" "$tmp/single/t1.0004.exr" && ok || bad "frame 4 differs with 1 thread"
+# cache points are rebuilt per frame: frame 5 after frame 2 in one session equals frame 5 alone
+cp_opts=(--res 32x24 --spp 2 --light-sampler cachepoints --quiet --no-png)
+"$bin" render "$scene" --frames 2,5 "${cp_opts[@]}" -o "$tmp/batch/cp.####.exr" &&
+  "$bin" render "$scene" --frames 5 "${cp_opts[@]}" -o "$tmp/single/cp.####.exr" &&
+  cmp -s "$tmp/batch/cp.0005.exr" "$tmp/single/cp.0005.exr" && ok || bad "cache point frame 5 differs after frame 2"
+# per-frame seeds: the same frame with another --seed differs, the same seed reproduces it
+"$bin" render "$scene" --frames 3 "${fast[@]}" --seed 7 -o "$tmp/single/s7.####.exr"
+cmp -s "$tmp/single/s7.0003.exr" "$tmp/batch/f.0003.exr" && bad "--seed does not change frame 3" || ok
+
+# a still scene renders any frame, and frame f is exactly a plain render with the frame's seed
+# (the session's path is candela_render's). Frame 1 of --seed 0 has seed 7960286522194355700,
+# the second output of splitmix64 seeded with 0 (computed independently in Python).
+still=$root/tests/scenes/point_plane.gltf
+"$bin" render "$still" --frames 1 "${fast[@]}" -o "$tmp/single/still.####.exr" --frame-stats "$tmp/single/still.jsonl"
+seed=$(python3 -c 'import json,sys; print(json.loads(open(sys.argv[1]).readline())["seed"])' "$tmp/single/still.jsonl")
+[ "$seed" = 7960286522194355700 ] && ok || bad "frame 1's seed is $seed"
+"$bin" render "$still" --seed "$seed" "${fast[@]}" -o "$tmp/single/plain.exr" &&
+  cmp -s "$tmp/single/still.0001.exr" "$tmp/single/plain.exr" && ok || bad "frame 1 of a still scene differs from a plain render with its seed"
+
+# ---- 2. --resume: outputs deleted, a temporary left by a killed write; only those re-render
+mkdir -p "$tmp/resume"
+cp "$tmp/batch"/f.000?.exr "$tmp/resume/"
+rm "$tmp/resume/f.0002.exr" "$tmp/resume/f.0005.exr" "$tmp/resume/f.0003.exr"
+echo partial > "$tmp/resume/f.0003.exr.tmp-999999"   # what a SIGKILL during the write leaves
+touch -d '2001-01-01' "$tmp/resume"/f.000?.exr
+"$bin" render "$scene" --frames 1-6 "${fast[@]}" --resume -o "$tmp/resume/f.####.exr" --frame-stats "$tmp/resume/log.jsonl"
+[ "$(logged "$tmp/resume/log.jsonl")" = "2 3 5" ] && ok || bad "resume rendered frames '$(logged "$tmp/resume/log.jsonl")', expected 2 3 5"
+[ "$(logged "$tmp/resume/log.jsonl" skipped)" = "1 4 6" ] && ok || bad "resume logged '$(logged "$tmp/resume/log.jsonl" skipped)' as skipped"
+for f in 1 4 6; do
+  [ "$(stat -c %Y "$tmp/resume/f.000$f.exr")" = "$(date -d 2001-01-01 +%s)" ] && ok || bad "resume rewrote frame $f"
+done
+for f in 1 2 3 4 5 6; do
+  cmp -s "$tmp/batch/f.000$f.exr" "$tmp/resume/f.000$f.exr" && ok || bad "resumed frame $f differs"
+done
+[ -e "$tmp/resume/f.0003.exr.tmp-999999" ] && bad "a stale temporary was left" || ok
+# a batch killed (SIGKILL) at some point, then resumed: every frame once, each as in the batch
+mkdir -p "$tmp/kill"
+"$bin" render "$scene" --frames 1-6 "${fast[@]}" -o "$tmp/kill/f.####.exr" &
+pid=$!
+for _ in $(seq 200); do [ -e "$tmp/kill/f.0002.exr" ] && break; sleep 0.02; done
+kill -KILL $pid 2>/dev/null; wait $pid 2>/dev/null
+before=$(cd "$tmp/kill" && ls f.000?.exr 2>/dev/null | sed 's/f\.000\(.\)\.exr/\1/' | tr '\n' ' ')
+"$bin" render "$scene" --frames 1-6 "${fast[@]}" --resume -o "$tmp/kill/f.####.exr" --frame-stats "$tmp/kill/log.jsonl"
+expected=""
+for f in 1 2 3 4 5 6; do case " $before" in *" $f "*) ;; *) expected="$expected $f";; esac; done
+[ "$(logged "$tmp/kill/log.jsonl")" = "${expected# }" ] && ok ||
+  bad "after a kill with frames '$before' done, resume rendered '$(logged "$tmp/kill/log.jsonl")'"
+for f in 1 2 3 4 5 6; do
+  cmp -s "$tmp/batch/f.000$f.exr" "$tmp/kill/f.000$f.exr" && ok || bad "killed+resumed frame $f differs"
+done
+ls "$tmp/kill" | grep -q tmp- && bad "temporaries left after resume: $(ls "$tmp/kill")" || ok
+
+# ---- 3. shards: round-robin over the sorted list, together exactly the list, frames as in the batch
+mkdir -p "$tmp/shard"
+for i in 0 1 2; do
+  "$bin" render "$scene" --frames 1-6 --shard $i/3 "${fast[@]}" -o "$tmp/shard/f.####.exr" --frame-stats "$tmp/shard/log$i.jsonl" ||
+    bad "shard $i/3 failed"
+done
+[ "$(logged "$tmp/shard/log0.jsonl")" = "1 4" ] && [ "$(logged "$tmp/shard/log1.jsonl")" = "2 5" ] &&
+  [ "$(logged "$tmp/shard/log2.jsonl")" = "3 6" ] && ok || bad "shards are not round-robin"
+for f in 1 2 3 4 5 6; do
+  cmp -s "$tmp/batch/f.000$f.exr" "$tmp/shard/f.000$f.exr" && ok || bad "sharded frame $f differs"
+done
+# Slurm's variables (a 1-based array 1-3: task 2 is shard 1/3)
+mkdir -p "$tmp/slurm"
+SLURM_ARRAY_TASK_ID=2 SLURM_ARRAY_TASK_MIN=1 SLURM_ARRAY_TASK_COUNT=3 \
+  "$bin" render "$scene" --frames 1-6 "${fast[@]}" -o "$tmp/slurm/f.####.exr" --frame-stats "$tmp/slurm/log.jsonl"
+[ "$(logged "$tmp/slurm/log.jsonl")" = "2 5" ] && ok || bad "Slurm task 2 of 1-3 rendered '$(logged "$tmp/slurm/log.jsonl")'"
+# --shard wins over the environment
+SLURM_ARRAY_TASK_ID=0 SLURM_ARRAY_TASK_COUNT=3 \
+  "$bin" render "$scene" --frames 1-6 --shard 2/3 "${fast[@]}" -o "$tmp/slurm/g.####.exr" --frame-stats "$tmp/slurm/log2.jsonl"
+[ "$(logged "$tmp/slurm/log2.jsonl")" = "3 6" ] && ok || bad "--shard did not override SLURM_ARRAY_TASK_ID"
+
+# ---- 4. malformed animations (generated here) and bad requests
+python3 - "$tmp" <<'EOF'
+import base64, json, math, struct, sys
+out = sys.argv[1]
+def scene(times, values, interp='LINEAR', path='translation', ncomp=3, out_count=None, in_type='SCALAR', target=0,
+          rest_scale=None):
+    buf = bytearray()
+    def view(floats):
+        off = len(buf)
+        buf.extend(struct.pack('<%df' % len(floats), *floats))
+        return {'buffer': 0, 'byteOffset': off, 'byteLength': 4 * len(floats)}
+    tri = [0, 0, 0, 1, 0, 0, 0, 1, 0]
+    views = [view(tri), view(times), view([c for v in values for c in v])]
+    acc = [{'bufferView': 0, 'componentType': 5126, 'count': 3, 'type': 'VEC3', 'min': [0, 0, 0], 'max': [1, 1, 0]},
+           {'bufferView': 1, 'componentType': 5126, 'count': len(times), 'type': in_type},
+           {'bufferView': 2, 'componentType': 5126, 'count': out_count if out_count is not None else len(values),
+            'type': 'VEC4' if ncomp == 4 else 'VEC3'}]
+    return {'asset': {'version': '2.0'}, 'scene': 0, 'scenes': [{'nodes': [0, 1]}],
+            'nodes': [dict({'name': 'tri', 'mesh': 0}, **({'scale': rest_scale} if rest_scale else {})),
+                      {'name': 'cam', 'camera': 0, 'translation': [0.3, 0.3, 2]}],
+            'meshes': [{'primitives': [{'attributes': {'POSITION': 0}}]}],
+            'cameras': [{'type': 'perspective', 'perspective': {'yfov': 0.8, 'znear': 0.01}}],
+            'animations': [{'name': 'a', 'samplers': [{'input': 1, 'output': 2, 'interpolation': interp}],
+                            'channels': [{'sampler': 0, 'target': {'node': target, 'path': path}}]}],
+            'accessors': acc, 'bufferViews': views,
+            'buffers': [{'byteLength': len(buf), 'uri': 'data:application/octet-stream;base64,' + base64.b64encode(bytes(buf)).decode()}]}
+def write(name, doc):
+    with open('%s/%s.gltf' % (out, name), 'w') as f:
+        json.dump(doc, f)
+nan = float('nan')
+write('counts', scene([0, 1, 2], [(0, 0, 0), (1, 0, 0)]))
+write('cubic_counts', scene([0, 1, 2], [(0, 0, 0), (1, 0, 0), (2, 0, 0)], 'CUBICSPLINE'))
+write('nonmonotonic', scene([0, 1, 0.5], [(0, 0, 0), (1, 0, 0), (2, 0, 0)]))
+write('repeated_time', scene([0, 1, 1], [(0, 0, 0), (1, 0, 0), (2, 0, 0)]))
+write('nan_time', scene([0, nan, 2], [(0, 0, 0), (1, 0, 0), (2, 0, 0)]))
+write('nan_value', scene([0, 1, 2], [(0, 0, 0), (nan, 0, 0), (2, 0, 0)]))
+write('zero_quat', scene([0, 1], [(0, 0, 0, 1), (0, 0, 0, 0)], path='rotation', ncomp=4))
+write('bad_interp', scene([0, 1], [(0, 0, 0), (1, 0, 0)], 'BEZIER'))
+write('vec2_input', scene([0, 1, 2, 3], [(0, 0, 0), (1, 0, 0)], in_type='VEC2'))
+write('weights', scene([0, 1], [(0, 0, 0), (1, 0, 0)], path='weights'))
+# fine data: the triangle's scale 1, 0, 0, 1 held (STEP) at 0, 1, 2, 3 s (hidden in frames 1
+# and 2 at 1 fps); the same with scale 0 at rest (kept, hidden, until it appears at 3 s); the
+# camera's scale 0 in frames 1 and 2 (it cannot be placed: those frames fail)
+write('vanishing', scene([0, 1, 2, 3], [(1, 1, 1), (0, 0, 0), (0, 0, 0), (1, 1, 1)], 'STEP', path='scale'))
+write('appearing', scene([0, 1, 2, 3], [(0, 0, 0), (0, 0, 0), (0, 0, 0), (1, 1, 1)], 'STEP', path='scale', rest_scale=[0, 0, 0]))
+write('camera_zero', scene([0, 1, 2, 3], [(1, 1, 1), (0, 0, 0), (0, 0, 0), (1, 1, 1)], 'STEP', path='scale', target=1))
+EOF
+
+# expect_error NAME PATTERN -- ARGS... : non-zero exit below 128, exactly one stderr line with
+# PATTERN, and nothing new or changed in $tmp/out (it holds one earlier frame: never overwritten)
+mkdir -p "$tmp/out"
+cp "$tmp/batch/f.0001.exr" "$tmp/out/f.0001.exr"
+expect_error() {
+  local name=$1 pattern=$2; shift 3
+  "$@" >"$tmp/stdout" 2>"$tmp/stderr"; local rc=$?
+  local lines; lines=$(grep -c . "$tmp/stderr")
+  if [ $rc -eq 0 ] || [ $rc -ge 128 ]; then bad "$name: exit code $rc"; return; fi
+  if [ "$lines" -ne 1 ]; then bad "$name: expected one error line, got $lines: $(cat "$tmp/stderr")"; return; fi
+  if ! grep -q -- "$pattern" "$tmp/stderr"; then bad "$name: message lacks '$pattern': $(cat "$tmp/stderr")"; return; fi
+  if [ "$(ls "$tmp/out")" != "f.0001.exr" ]; then bad "$name: wrote $(ls "$tmp/out")"; return; fi
+  if ! cmp -s "$tmp/out/f.0001.exr" "$tmp/batch/f.0001.exr"; then bad "$name: overwrote a frame"; return; fi
+  ok
+}
+o=(-o "$tmp/out/f.####.exr" --res 16x12 --spp 1 --light-sampler tree --quiet)
+expect_error "count mismatch" "input has 3 times but output has 2 values" -- "$bin" render "$tmp/counts.gltf" --frames 0-1 "${o[@]}"
+expect_error "cubic count mismatch" "CUBICSPLINE needs 3 per time" -- "$bin" render "$tmp/cubic_counts.gltf" --frames 0-1 "${o[@]}"
+expect_error "non-monotonic times" "not increasing" -- "$bin" render "$tmp/nonmonotonic.gltf" --frames 0-1 "${o[@]}"
+expect_error "repeated time" "not increasing" -- "$bin" render "$tmp/repeated_time.gltf" --frames 0-1 "${o[@]}"
+expect_error "NaN time" "key time 1 is not finite" -- "$bin" render "$tmp/nan_time.gltf" --frames 0-1 "${o[@]}"
+expect_error "NaN value" "value 1 is not finite" -- "$bin" render "$tmp/nan_value.gltf" --frames 0-1 "${o[@]}"
+expect_error "zero quaternion" "zero quaternion" -- "$bin" render "$tmp/zero_quat.gltf" --frames 0-1 "${o[@]}"
+expect_error "bad interpolation" "unknown interpolation 'BEZIER'" -- "$bin" render "$tmp/bad_interp.gltf" --frames 0-1 "${o[@]}"
+expect_error "input type" "expected SCALAR" -- "$bin" render "$tmp/vec2_input.gltf" --frames 0-1 "${o[@]}"
+# the malformed file also fails a plain render (the animation is validated at every load)
+expect_error "plain render" "not increasing" -- "$bin" render "$tmp/nonmonotonic.gltf" -o "$tmp/out/plain.exr" --res 16x12 --spp 1 --quiet
+expect_error "range past the end" "outside the animation (0 to 2 s: frames 0-48)" -- "$bin" render "$scene" --frames 1-100 "${o[@]}"
+expect_error "range at fps" "at 48 fps" -- "$bin" render "$scene" --frames 90-97 --fps 48 "${o[@]}"
+expect_error "bad frames" "invalid --frames '6-2'" -- "$bin" render "$scene" --frames 6-2 "${o[@]}"
+expect_error "bad frames list" "invalid --frames '1,,2'" -- "$bin" render "$scene" --frames 1,,2 "${o[@]}"
+expect_error "bad step" "invalid --frames '1-6:0'" -- "$bin" render "$scene" --frames 1-6:0 "${o[@]}"
+expect_error "no pattern" "needs a frame pattern" -- "$bin" render "$scene" --frames 1-2 -o "$tmp/out/plain.exr" --res 16x12 --spp 1 --quiet
+for spec in 3/3 1/0 a/2 1 -1/2 1/2/3 ""; do
+  expect_error "bad shard '$spec'" "invalid --shard" -- "$bin" render "$scene" --frames 1-6 --shard "$spec" "${o[@]}"
+done
+expect_error "Slurm task past the count" "SLURM_ARRAY_TASK_COUNT=3" -- env SLURM_ARRAY_TASK_ID=3 SLURM_ARRAY_TASK_COUNT=3 "$bin" render "$scene" --frames 1-6 "${o[@]}"
+expect_error "Slurm count missing" "SLURM_ARRAY_TASK_COUNT is missing" -- env SLURM_ARRAY_TASK_ID=1 "$bin" render "$scene" --frames 1-6 "${o[@]}"
+expect_error "Slurm id garbage" "invalid SLURM_ARRAY_TASK_ID" -- env SLURM_ARRAY_TASK_ID=x SLURM_ARRAY_TASK_COUNT=3 "$bin" render "$scene" --frames 1-6 "${o[@]}"
+expect_error "shard without frames" "need --frames" -- "$bin" render "$scene" --shard 0/2 "${o[@]}"
+expect_error "stats-json with frames" "--frame-stats" -- "$bin" render "$scene" --frames 1-2 --stats-json "$tmp/out/s.json" "${o[@]}"
+
+# morph target weights are animated but not rendered: a warning, and the frames render
+mkdir -p "$tmp/weights"
+"$bin" render "$tmp/weights.gltf" --frames 0-1 -o "$tmp/weights/w.#.exr" --res 16x12 --spp 1 --quiet --no-png 2>"$tmp/weights/stderr" &&
+  grep -q "warning: .*weights are animated; they are not rendered" "$tmp/weights/stderr" && [ -e "$tmp/weights/w.1.exr" ] && ok ||
+  bad "a weights channel: $(cat "$tmp/weights/stderr")"
+
+# ---- 5. a mesh scaled to zero is hidden in those frames (animations hide objects so), also
+# when it starts at zero; a frame that fails (a camera scaled to zero) is reported, the batch
+# goes on, and the exit status counts the failures
+mkdir -p "$tmp/vanish"
+tiny=(--fps 1 --res 16x12 --spp 1 --quiet --no-png)
+"$bin" render "$tmp/vanishing.gltf" --frames 0-3 "${tiny[@]}" -o "$tmp/vanish/v.#.exr" && ok || bad "vanishing mesh: exit $?"
+"$bin" render "$tmp/appearing.gltf" --frames 0-3 "${tiny[@]}" -o "$tmp/vanish/a.#.exr" && ok || bad "appearing mesh: exit $?"
+"$bin" render "$tmp/vanishing.gltf" --frames 1 "${tiny[@]}" --seed 5 -o "$tmp/vanish/v5.#.exr"
+"$bin" render "$tmp/vanishing.gltf" --frames 1 "${tiny[@]}" --seed 6 -o "$tmp/vanish/v6.#.exr"
+cmp -s "$tmp/vanish/v.0.exr" "$tmp/vanish/v.1.exr" && bad "the mesh did not vanish at frame 1" || ok
+cmp -s "$tmp/vanish/v5.1.exr" "$tmp/vanish/v6.1.exr" && ok || bad "frame 1 still shows something (seeds differ)"
+cmp -s "$tmp/vanish/v.3.exr" "$tmp/vanish/a.3.exr" && ok || bad "the appearing mesh's frame 3 differs from the vanishing one's"
+cmp -s "$tmp/vanish/a.0.exr" "$tmp/vanish/v.1.exr" && ok || bad "the appearing mesh shows at frame 0"
+"$bin" render "$tmp/camera_zero.gltf" --frames 0-3 "${tiny[@]}" -o "$tmp/vanish/c.#.exr" \
+  --frame-stats "$tmp/vanish/log.jsonl" 2>"$tmp/vanish/stderr"
+rc=$?
+[ $rc -eq 2 ] && ok || bad "two failing frames gave exit status $rc"
+[ "$(ls "$tmp/vanish" | grep '^c\.' | tr '\n' ' ')" = "c.0.exr c.3.exr " ] && ok || bad "the camera frames wrote $(ls "$tmp/vanish")"
+grep -q "frame 1 failed: .*'cam'.*singular transform" "$tmp/vanish/stderr" && grep -q "frame 2 failed" "$tmp/vanish/stderr" && ok ||
+  bad "failing frames not reported: $(cat "$tmp/vanish/stderr")"
+[ "$(logged "$tmp/vanish/log.jsonl" failed)" = "1 2" ] && ok || bad "the log does not mark frames 1 and 2 failed"
+
+echo "frames: $pass passed, $fail failed"
+[ $fail -eq 0 ]
