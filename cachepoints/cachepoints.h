@@ -16,6 +16,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
 /* Optional view of the scene's light BVH. With it the build works on clusters of lights (a
  * cut through the tree) and never visits every light for every point (the paper's scaling
@@ -206,6 +207,12 @@ uint32_t cachepoints_slot(const CachePoints *cp, uint32_t point, uint32_t light)
  * keeps R), so the counters never overflow while a slot gets fewer than 2^23 records per
  * iteration. */
 void cachepoints_update_visibility(CachePoints *cp);
+/* Checkpoints (checkpoint.c): what visibility learning changed (the counters, W' and the tables
+ * built from it), in native byte order with a magic and format version. load expects the same
+ * build (a deterministic function of the scene and options): 0 ok, -1 a short or damaged record,
+ * -2 a record of another build (its sizes differ). */
+int cachepoints_save_learned(const CachePoints *cp, FILE *out);
+int cachepoints_load_learned(CachePoints *cp, FILE *in);
 /* The visibility weight W' currently used for (point, light): that of the entry holding the
  * light (a cluster's with the cut build); 1 when no entry holds it. */
 float cachepoints_visibility(const CachePoints *cp, uint32_t point, uint32_t light);

@@ -23,6 +23,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
 /* ------------------------------------------------------------------ radiance recorder */
 
@@ -126,6 +127,9 @@ typedef struct RecorderStats {
 } RecorderStats;
 void recorder_stats(const Recorder *r, RecorderStats *st);
 void recorder_reset_counts(Recorder *r);
+/* A resumed render (checkpoints): the counts since the last recorder_reset_counts as saved
+ * (they decide the next iteration's path skipping). */
+void recorder_restore_counts(Recorder *r, uint64_t vertices_created, uint64_t vertices_refused);
 /* Every vertex freed and every index back in the free queue exactly once (a test's check). */
 int recorder_consistent(const Recorder *r);
 
@@ -192,5 +196,11 @@ void guide_distribution_image(const GuideDistribution *d, int w, int h, float *o
 /* Writes the spatial tree's leaves as an ASCII PLY of boxes (8 vertices, 6 faces each). 0 ok;
  * -1 with errno on failure. */
 int guide_field_write_ply(const GuideField *f, const char *path);
+/* Checkpoints: the field's whole learned state (trees, counts, update count) in native byte
+ * order, with its own magic and format version. load replaces the state of a field created
+ * with the same parameters; on failure (-1: a short, damaged or foreign record, or out of
+ * memory) the field is left as it was. */
+int guide_field_save(const GuideField *f, FILE *out);
+int guide_field_load(GuideField *f, FILE *in);
 
 #endif

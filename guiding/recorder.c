@@ -253,6 +253,13 @@ void recorder_reset_counts(Recorder *r) {
     pthread_mutex_unlock(&r->lock);
 }
 
+void recorder_restore_counts(Recorder *r, uint64_t vertices_created, uint64_t vertices_refused) {
+    pthread_mutex_lock(&r->lock);
+    r->created = vertices_created;
+    r->refused = vertices_refused;
+    pthread_mutex_unlock(&r->lock);
+}
+
 int recorder_consistent(const Recorder *r) {
     uint32_t n = r->num_blocks * BLOCK;
     if (r->live != 0 || r->queue_count != n) return 0;

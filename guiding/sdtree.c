@@ -989,3 +989,146 @@ int guide_field_write_ply(const GuideField *f, const char *path) {
     }
     return 0;
 }
+
+/* ------------------------------------------------------------------ checkpoint (save / load) */
+
+/* The field's whole state (the spatial tree, every leaf's sampling and building quadtrees and
+ * counts, the update count and the spatial filter's sample counter) in native byte order, so a
+ * resumed render trains and samples bit-identically. Structs are written member by member:
+ * their padding never reaches the file. */
+#define FIELD_MAGIC 0x44544453u /* "SDTD" */
+#define FIELD_VERSION 1u
+
+static int put(FILE *out, const void *p, size_t n) { return fwrite(p, 1, n, out) == n ? 0 : -1; }
+static int get(FILE *in, void *p, size_t n) { return fread(p, 1, n, in) == n ? 0 : -1; }
+
+static int quadtree_save(const QuadTree *t, FILE *out) {
+    int rc = put(out, &t->count, sizeof t->count);
+    for (uint32_t i = 0; i < t->count && rc == 0; ++i)
+        rc = put(out, t->nodes[i].sum, sizeof t->nodes[i].sum) | put(out, t->nodes[i].child, sizeof t->nodes[i].child);
+    return rc;
+}
+
+static int quadtree_load(QuadTree *t, uint32_t max_nodes, FILE *in) {
+    uint32_t count;
+    if (get(in, &count, sizeof count) || count > max_nodes) return -1;
+    t->count = 0;
+    t->nodes = NULL;
+    if (count == 0) return 0;
+    t->nodes = calloc(count, sizeof *t->nodes);
+    if (!t->nodes) return -1;
+    t->count = count;
+    for (uint32_t i = 0; i < count; ++i) {
+        if (get(in, t->nodes[i].sum, sizeof t->nodes[i].sum) || get(in, t->nodes[i].child, sizeof t->nodes[i].child))
+            return -1;
+        for (int q = 0; q < 4; ++q) /* a child is created after its parent (see Layout) */
+            if (t->nodes[i].child[q] != 0 && (t->nodes[i].child[q] <= i || t->nodes[i].child[q] >= count)) return -1;
+    }
+    return 0;
+}
+
+int guide_field_save(const GuideField *f, FILE *out) {
+    uint32_t head[4] = {FIELD_MAGIC, FIELD_VERSION, f->node_count, f->leaf_count};
+    int32_t iterations = f->iterations;
+    int rc = put(out, head, sizeof head) | put(out, &iterations, sizeof iterations) |
+             put(out, &f->recorded_total, sizeof f->recorded_total);
+    for (uint32_t i = 0; i < f->node_count && rc == 0; ++i) {
+        const SpatialNode *n = &f->nodes[i];
+        rc = put(out, n->lo, sizeof n->lo) | put(out, n->hi, sizeof n->hi) | put(out, &n->split, sizeof n->split) |
+             put(out, &n->child, sizeof n->child) | put(out, &n->leaf, sizeof n->leaf) | put(out, &n->axis, 1) |
+             put(out, &n->depth, 1);
+    }
+    for (uint32_t i = 0; i < f->leaf_count && rc == 0; ++i) {
+        const GuideDistribution *l = &f->leaves[i];
+        rc = put(out, &l->recorded, sizeof l->recorded) | put(out, &l->learned, sizeof l->learned) |
+             put(out, l->lo, sizeof l->lo) | put(out, l->hi, sizeof l->hi) | put(out, &l->node, sizeof l->node);
+        if (rc == 0) rc = quadtree_save(&l->sampling, out);
+        if (rc == 0) rc = quadtree_save(&l->building, out);
+    }
+    return rc;
+}
+
+int guide_field_load(GuideField *f, FILE *in) {
+    uint32_t head[4];
+    int32_t iterations;
+    uint64_t recorded_total;
+    if (get(in, head, sizeof head) || head[0] != FIELD_MAGIC || head[1] != FIELD_VERSION) return -1;
+    uint32_t node_count = head[2], leaf_count = head[3];
+    /* the memory cap bounds what a valid field can hold */
+    if (node_count == 0 || leaf_count == 0 || leaf_count > LEAF_LIMIT || node_count > 2 * leaf_count ||
+        (size_t)node_count * sizeof(SpatialNode) > f->params.max_bytes)
+        return -1;
+    if (get(in, &iterations, sizeof iterations) || get(in, &recorded_total, sizeof recorded_total) || iterations < 0)
+        return -1;
+    GuideField g = *f; /* the loaded state, committed only when complete */
+    g.nodes = calloc(node_count, sizeof *g.nodes);
+    g.leaves = calloc(leaf_count, sizeof *g.leaves);
+    g.node_count = node_count;
+    g.leaf_count = leaf_count;
+    int rc = g.nodes && g.leaves ? 0 : -1;
+    for (uint32_t i = 0; i < node_count && rc == 0; ++i) {
+        SpatialNode *n = &g.nodes[i];
+        rc = get(in, n->lo, sizeof n->lo) | get(in, n->hi, sizeof n->hi) | get(in, &n->split, sizeof n->split) |
+             get(in, &n->child, sizeof n->child) | get(in, &n->leaf, sizeof n->leaf) | get(in, &n->axis, 1) |
+             get(in, &n->depth, 1);
+        if (rc == 0 && (n->child != 0 ? (n->child <= i || n->child >= node_count - 1 || n->axis > 2)
+                                      : n->leaf >= leaf_count))
+            rc = -1;
+    }
+    uint32_t max_nodes = quadtree_node_limit(&f->params);
+    for (uint32_t i = 0; i < leaf_count && rc == 0; ++i) {
+        GuideDistribution *l = &g.leaves[i];
+        rc = get(in, &l->recorded, sizeof l->recorded) | get(in, &l->learned, sizeof l->learned) |
+             get(in, l->lo, sizeof l->lo) | get(in, l->hi, sizeof l->hi) | get(in, &l->node, sizeof l->node);
+        if (rc == 0 && l->node >= node_count) rc = -1;
+        if (rc == 0) rc = quadtree_load(&l->sampling, max_nodes, in);
+        if (rc == 0) rc = quadtree_load(&l->building, max_nodes, in);
+    }
+    if (rc != 0) {
+        if (g.leaves)
+            for (uint32_t i = 0; i < leaf_count; ++i) {
+                quadtree_free(&g.leaves[i].sampling);
+                quadtree_free(&g.leaves[i].building);
+            }
+        free(g.leaves);
+        free(g.nodes);
+        return -1;
+    }
+    /* the lookups' flat trees and alias tables, built from the sampling trees as an update does */
+    size_t flat_count = 0, cell_count = 0, max_cells = 0;
+    for (uint32_t i = 0; i < leaf_count; ++i) {
+        flat_count += g.leaves[i].sampling.count;
+        cell_count += tree_cells(&g.leaves[i].sampling);
+        if (tree_cells(&g.leaves[i].sampling) > max_cells) max_cells = tree_cells(&g.leaves[i].sampling);
+    }
+    PdfNode *flat_nodes = malloc((flat_count ? flat_count : 1) * sizeof *flat_nodes);
+    SampleCell *flat_cells = malloc((cell_count ? cell_count : 1) * sizeof *flat_cells);
+    AliasScratch alias = {0};
+    if (!flat_nodes || !flat_cells || alias_scratch_alloc(&alias, max_cells)) {
+        free(flat_nodes);
+        free(flat_cells);
+        for (uint32_t i = 0; i < leaf_count; ++i) {
+            quadtree_free(&g.leaves[i].sampling);
+            quadtree_free(&g.leaves[i].building);
+        }
+        free(g.leaves);
+        free(g.nodes);
+        return -1;
+    }
+    field_flatten(g.leaves, leaf_count, flat_nodes, flat_cells, &alias);
+    alias_scratch_free(&alias);
+    for (uint32_t i = 0; i < f->leaf_count; ++i) {
+        quadtree_free(&f->leaves[i].sampling);
+        quadtree_free(&f->leaves[i].building);
+    }
+    free(f->leaves);
+    free(f->nodes);
+    free(f->pdf_nodes);
+    free(f->cells);
+    g.pdf_nodes = flat_nodes;
+    g.cells = flat_cells;
+    g.iterations = iterations;
+    g.recorded_total = recorded_total;
+    *f = g;
+    return 0;
+}

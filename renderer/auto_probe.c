@@ -20,6 +20,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "checkpoint.h"
 #include "integrator.h"
 
 typedef struct ProbeMedium {
@@ -111,4 +112,45 @@ void auto_probe_barrier(AutoProbe *ap, int quiet) {
     }
     free(ap->prev); /* the probe's per-pixel memory goes once it has decided */
     ap->prev = NULL;
+}
+
+/* ---------------------------------------------------------------- checkpoints */
+
+#define PROBE_TAG CKPT_TAG('P', 'R', 'O', 'B')
+#define PROBE_VERSION 1u
+
+/* The choices per medium, and while probing the sums, the per-medium sums and every pixel's
+ * last probe sample (the pairs continue across a resume). */
+int auto_probe_save(const AutoProbe *ap, uint32_t npixels, FILE *out) {
+    int32_t head[4] = {(int32_t)ap->num_media, ap->active, ap->iterations, (ap->media != NULL) | (ap->prev != NULL) << 1};
+    double sums[4] = {ap->cost, ap->paths, ap->pairs, ap->path_d2};
+    return ckpt_put_tag(out, PROBE_TAG, PROBE_VERSION) | ckpt_put(out, head, sizeof head) |
+           ckpt_put(out, sums, sizeof sums) | ckpt_put(out, ap->on, ap->num_media) |
+           (ap->media ? ckpt_put(out, ap->media, ap->num_media * sizeof *ap->media) : 0) |
+           (ap->prev ? ckpt_put(out, ap->prev, npixels * sizeof *ap->prev) : 0);
+}
+
+int auto_probe_load(AutoProbe *ap, uint32_t npixels, FILE *in) {
+    int32_t head[4];
+    double sums[4];
+    if (ckpt_get_tag(in, PROBE_TAG, PROBE_VERSION) || ckpt_get(in, head, sizeof head) || ckpt_get(in, sums, sizeof sums))
+        return -1;
+    int had_media = head[3] & 1, had_prev = (head[3] >> 1) & 1;
+    /* a freshly built probe has both while it may still probe; the saved one may have let
+     * `prev` go after deciding, never gained anything */
+    if (head[0] != (int32_t)ap->num_media || had_media != (ap->media != NULL) || (had_prev && !ap->prev)) return -1;
+    if (ckpt_get(in, ap->on, ap->num_media) || (had_media && ckpt_get(in, ap->media, ap->num_media * sizeof *ap->media)) ||
+        (had_prev && ckpt_get(in, ap->prev, npixels * sizeof *ap->prev)))
+        return -1;
+    if (!had_prev) {
+        free(ap->prev);
+        ap->prev = NULL;
+    }
+    ap->active = head[1] != 0;
+    ap->iterations = head[2];
+    ap->cost = sums[0];
+    ap->paths = sums[1];
+    ap->pairs = sums[2];
+    ap->path_d2 = sums[3];
+    return 0;
 }

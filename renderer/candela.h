@@ -60,8 +60,9 @@ typedef struct CandelaOptions {
     int cachepoint_build_linear;  /* 1: the paper's build (every light at every point); 0: a cut
                                    * through the light tree (the default) */
     uint32_t cachepoint_cut_size; /* cut build: far entries per point; 0: default */
-    /* set non-zero (e.g. from a signal handler) to stop at the next iteration barrier: the
-     * image of the iterations done is returned and CandelaStats.interrupted set. NULL: never. */
+    /* set non-zero (e.g. from a signal handler) to stop after the current batch (the rest of the
+     * iteration is abandoned; with checkpoint_path its state is written): the image of the
+     * samples done is returned and CandelaStats.interrupted set. NULL: never. */
     const volatile sig_atomic_t *stop;
     /* every file the scene references, and the scene, must lie inside this folder (NULL: the
      * default policy, files anywhere relative to the scene) */
@@ -77,6 +78,14 @@ typedef struct CandelaOptions {
     int aov_recorder_debug;     /* --aov recorder-debug: the recorder's primary samples rebuild the image */
     uint32_t recorder_mb;       /* the radiance recorder's vertex storage bound; 0: default (256) */
     int recorder_budget;        /* vertices per path before skipping (path and vertex); 0: none; -1: default (4) */
+    /* checkpoints (renderer/checkpoint.c): write the film and learned state to this file at the
+     * barriers of the checkpoint-skipping schedule and when stopped (NULL: never) */
+    const char *checkpoint_path;
+    const char *resume_from;    /* continue the checkpoint in this file (NULL: start afresh) */
+    /* --sample-shard I/N (shard_count 0: off): render only samples [spp I / N, spp (I + 1) / N)
+     * of every pixel, with the full render's RNG streams, and write the film sums to film_path */
+    uint32_t shard_index, shard_count;
+    const char *film_path;
     /* called at every iteration barrier, after the barrier hooks (no ray in flight; candela
      * compare's convergence snapshots and equal-time stop); a non-zero return stops the render
      * there like `stop` (CandelaStats.interrupted). NULL: none. */
@@ -118,7 +127,8 @@ typedef struct CandelaStats {
     uint64_t paths;
     int iterations;
     int spp_done;                 /* samples per pixel rendered (less than spp when interrupted) */
-    int interrupted;              /* stopped at a barrier by CandelaOptions.stop */
+    int interrupted;              /* stopped after a batch by CandelaOptions.stop */
+    int checkpoint_failed;        /* stopped, and the checkpoint of the stop could not be written */
     size_t peak_memory_bytes;
     uint32_t num_triangles, num_lights, num_instances;
     /* the scene's decoded textures (not the environment) as held, what --texture-budget-mb
@@ -206,6 +216,13 @@ typedef struct CandelaCompareOptions {
 } CandelaCompareOptions;
 
 int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, char err[CANDELA_ERR_LEN]);
+
+/* candela merge: the finished films of the N sample shards of one render (any order) into the
+ * EXR (and PNG preview unless NULL): sums of L and L^2, counts and AOV sums added in shard order,
+ * then the mean and variance of the mean per pixel. Refuses films of different renders, a
+ * shard twice or missing, ranges that do not tile the samples. 0 ok, -1 with a one-line message. */
+int candela_merge(const char *out_exr, const char *png, const char *const *files, int num_files,
+                  char err[CANDELA_ERR_LEN]);
 
 int candela_write_stats_json(const char *path, const CandelaOptions *o, const CandelaStats *s,
                              char err[CANDELA_ERR_LEN]);

@@ -3,6 +3,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "checkpoint.h"
 #include "integrator.h"
 
 int film_alloc(Film *f, int w, int h) {
@@ -100,4 +101,33 @@ void candela_iteration_mean(const CandelaIterationInfo *info, float *rgb) {
 void candela_image_free(CandelaImage *img) {
     free(img->rgb); free(img->variance); free(img->albedo); free(img->normal); free(img->depth); free(img->recorder_debug);
     memset(img, 0, sizeof *img);
+}
+
+/* ---------------------------------------------------------------- checkpoints */
+
+#define FILM_TAG CKPT_TAG('F', 'I', 'L', 'M')
+#define FILM_VERSION 1u
+
+/* Every Film array: the sums of L and L^2, counts, AOV sums and the recorder AOV. */
+int film_save(const Film *f, FILE *out) {
+    size_t n = (size_t)f->width * (size_t)f->height;
+    int32_t head[3] = {f->width, f->height, f->recorder != NULL};
+    return ckpt_put_tag(out, FILM_TAG, FILM_VERSION) | ckpt_put(out, head, sizeof head) |
+           ckpt_put(out, f->sum, 3 * n * sizeof(double)) | ckpt_put(out, f->sum2, 3 * n * sizeof(double)) |
+           ckpt_put(out, f->albedo, 3 * n * sizeof(double)) | ckpt_put(out, f->normal, 3 * n * sizeof(double)) |
+           ckpt_put(out, f->depth, n * sizeof(double)) | ckpt_put(out, f->hits, n * sizeof(uint32_t)) |
+           ckpt_put(out, f->count, n * sizeof(uint32_t)) |
+           (f->recorder ? ckpt_put(out, f->recorder, 3 * n * sizeof(double)) : 0);
+}
+
+int film_load(Film *f, FILE *in) {
+    size_t n = (size_t)f->width * (size_t)f->height;
+    int32_t head[3];
+    if (ckpt_get_tag(in, FILM_TAG, FILM_VERSION) || ckpt_get(in, head, sizeof head)) return -1;
+    if (head[0] != f->width || head[1] != f->height || head[2] != (f->recorder != NULL)) return -1;
+    return ckpt_get(in, f->sum, 3 * n * sizeof(double)) | ckpt_get(in, f->sum2, 3 * n * sizeof(double)) |
+           ckpt_get(in, f->albedo, 3 * n * sizeof(double)) | ckpt_get(in, f->normal, 3 * n * sizeof(double)) |
+           ckpt_get(in, f->depth, n * sizeof(double)) | ckpt_get(in, f->hits, n * sizeof(uint32_t)) |
+           ckpt_get(in, f->count, n * sizeof(uint32_t)) |
+           (f->recorder ? ckpt_get(in, f->recorder, 3 * n * sizeof(double)) : 0);
 }

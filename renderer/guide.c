@@ -22,6 +22,7 @@
 
 #include "clock.h"
 #include "io.h"
+#include "checkpoint.h"
 #include "integrator.h"
 #include "scatter.h"
 
@@ -248,4 +249,43 @@ int guide_dump(const Integrator *ig, const float at[3], const char *prefix, char
                     prefix, prefix, path);
     }
     return rc;
+}
+
+/* ---------------------------------------------------------------- checkpoints */
+
+#define GUIDE_TAG CKPT_TAG('G', 'U', 'I', 'D')
+#define GUIDE_VERSION 1u
+
+/* The fields (guiding/sdtree.c saves each whole: sampling and building trees), whether guided
+ * sampling is on, whether samples wait for the next update, and the statistics' counts.
+ * guide-dump's `last` samples are not kept: a dump is a render of its own. */
+int guide_save(const Integrator *ig, FILE *out) {
+    const GuideState *gs = &ig->guide;
+    int32_t flags[4] = {gs->on, gs->active, gs->pending, gs->updates};
+    uint32_t present = 0;
+    for (int k = 0; k < GUIDE_FIELDS; ++k) present |= (uint32_t)(gs->fields[k] != NULL) << k;
+    int rc = ckpt_put_tag(out, GUIDE_TAG, GUIDE_VERSION) | ckpt_put(out, flags, sizeof flags) |
+             ckpt_put(out, &present, sizeof present) | ckpt_put(out, &gs->samples_trained, sizeof gs->samples_trained);
+    for (int k = 0; k < GUIDE_FIELDS && rc == 0; ++k)
+        if (gs->fields[k]) rc = guide_field_save(gs->fields[k], out);
+    return rc;
+}
+
+int guide_load(Integrator *ig, FILE *in) {
+    GuideState *gs = &ig->guide;
+    int32_t flags[4];
+    uint32_t present = 0, expected = 0;
+    uint64_t trained;
+    for (int k = 0; k < GUIDE_FIELDS; ++k) expected |= (uint32_t)(gs->fields[k] != NULL) << k;
+    if (ckpt_get_tag(in, GUIDE_TAG, GUIDE_VERSION) || ckpt_get(in, flags, sizeof flags) ||
+        ckpt_get(in, &present, sizeof present) || ckpt_get(in, &trained, sizeof trained))
+        return -1;
+    if (flags[0] != gs->on || present != expected) return -1;
+    for (int k = 0; k < GUIDE_FIELDS; ++k)
+        if (gs->fields[k] && guide_field_load(gs->fields[k], in) != 0) return -1;
+    gs->active = flags[1] != 0;
+    gs->pending = flags[2] != 0;
+    gs->updates = flags[3];
+    gs->samples_trained = trained;
+    return 0;
 }

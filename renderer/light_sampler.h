@@ -26,6 +26,7 @@
 #define CANDELA_LIGHT_SAMPLER_H
 
 #include <stdint.h>
+#include <stdio.h>
 
 #include "candela.h"
 #include "lights.h"
@@ -50,6 +51,10 @@ typedef struct LightSamplerOps {
     void (*record)(void *state, uint32_t outcome, float visibility);
     void (*prefetch_outcome)(const void *state, uint32_t outcome); /* a cache hint before tracing */
     void (*barrier)(void *state);
+    /* optional, with record: the learned state for checkpoints (0 ok; load: -1 a damaged
+     * record, -2 one of another build) */
+    int (*save_learned)(const void *state, FILE *out);
+    int (*load_learned)(void *state, FILE *in);
     /* optional: cache-point in-scattering sampling (§4.2): the importance of in-scattering
      * at x for distance sampling along camera rays (the summed scattering weights of x's
      * cache point) and in *radius the distance over which it holds; hint as for prepare */
@@ -108,6 +113,14 @@ static inline void light_sampler_prefetch_outcome(const LightSampler *s, uint32_
 
 static inline void light_sampler_barrier(const LightSampler *s) {
     if (s->ops->barrier) s->ops->barrier(s->state);
+}
+
+/* Checkpoints: a strategy without learned state saves nothing and loads nothing. */
+static inline int light_sampler_save_learned(const LightSampler *s, FILE *out) {
+    return s->ops->save_learned ? s->ops->save_learned(s->state, out) : 0;
+}
+static inline int light_sampler_load_learned(const LightSampler *s, FILE *in) {
+    return s->ops->load_learned ? s->ops->load_learned(s->state, in) : 0;
 }
 
 static inline int light_sampler_learns(const LightSampler *s) { return s->ops->record != NULL; }

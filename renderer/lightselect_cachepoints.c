@@ -492,6 +492,13 @@ static void cp_prefetch_outcome(const void *state, uint32_t outcome) {
 
 static void cp_barrier(void *state) { cachepoints_update_visibility(((CachePointSampler *)state)->cp); }
 
+static int cp_save_learned(const void *state, FILE *out) {
+    return cachepoints_save_learned(((const CachePointSampler *)state)->cp, out);
+}
+static int cp_load_learned(void *state, FILE *in) {
+    return cachepoints_load_learned(((CachePointSampler *)state)->cp, in);
+}
+
 static void cp_report(const void *state, CandelaStats *st) {
     const CachePointSampler *s = state;
     st->time_cachepoints = s->build_seconds;
@@ -519,11 +526,13 @@ static void cp_destroy(void *state) {
 
 static const LightSamplerOps CACHEPOINT_OPS = {
     .name = "cachepoints", .prepare = cp_prepare, .select = cp_select, .pmf = cp_pmf, .record = cp_record,
-    .prefetch_outcome = cp_prefetch_outcome, .barrier = cp_barrier, .report = cp_report, .destroy = cp_destroy};
+    .prefetch_outcome = cp_prefetch_outcome, .barrier = cp_barrier, .save_learned = cp_save_learned,
+    .load_learned = cp_load_learned, .report = cp_report, .destroy = cp_destroy};
 /* with the §4.2 scattering weights (scenes with media, in-scattering sampling not off) */
 static const LightSamplerOps CACHEPOINT_INSCATTER_OPS = {
     .name = "cachepoints", .prepare = cp_prepare, .select = cp_select, .pmf = cp_pmf, .record = cp_record,
-    .prefetch_outcome = cp_prefetch_outcome, .barrier = cp_barrier, .report = cp_report, .destroy = cp_destroy,
+    .prefetch_outcome = cp_prefetch_outcome, .barrier = cp_barrier, .save_learned = cp_save_learned,
+    .load_learned = cp_load_learned, .report = cp_report, .destroy = cp_destroy,
     .inscatter_weight = cp_inscatter_weight};
 
 /* ---------------------------------------------------------------- build */

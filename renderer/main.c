@@ -22,6 +22,9 @@ static const char *USAGE =
     "                            and the spatial tree's leaves (OUT.leaves.ply), OUT = -o without .exr\n"
     "       candela compare SCENE [options] render variants at equal spp (or time) vs a reference\n"
     "                            and write a report folder (tables, images, crops, plots, HTML)\n"
+    "       candela merge -o OUT.exr [--png FILE | --no-png] SHARD.film...   the films of the\n"
+    "                            --sample-shard renders of one frame into its image (sums of L,\n"
+    "                            L^2 and counts added: per-pixel means and variances of all samples)\n"
     "       candela --help | --version\n"
     "\n"
     "options:\n"
@@ -32,9 +35,18 @@ static const char *USAGE =
     "  --confine-to DIR          refuse a scene, or any file it references, outside DIR\n"
     "  --texture-budget-mb N     decoded textures in total, 4 bytes per texel for 8-bit files and\n"
     "                            16 for others (default 8192; 0: none)\n"
-    "  --save-partial            on Ctrl-C / SIGTERM, stop at the next iteration and write the\n"
-    "                            image so far as NAME.partial.exr (exit 130); a second signal\n"
-    "                            exits at once\n"
+    "  --save-partial            on Ctrl-C / SIGTERM, stop after the current batch (abandoning the\n"
+    "                            rest of the iteration; with --checkpoint its state is written\n"
+    "                            first) and write the image so far as NAME.partial.exr (exit 130);\n"
+    "                            a second signal exits at once\n"
+    "  --checkpoint FILE         write the film and learned state to FILE at the barriers after\n"
+    "                            about 4, 8, 16, 32, ... spp (the largest cumulative spp not above\n"
+    "                            each) and when interrupted; atomically (FILE.tmp-PID, rename)\n"
+    "  --resume-from FILE        continue the render FILE checkpointed (same scene, resolution and\n"
+    "                            options, else refused): the image equals the uninterrupted render's\n"
+    "  --sample-shard I/N        render only samples [spp I/N, spp (I+1)/N) of every pixel (I from\n"
+    "                            0), with the full render's random numbers, and write their film\n"
+    "                            sums to -o NAME.film (no EXR); candela merge combines the N films\n"
     "  --spp N                   samples per pixel (default 16)\n"
     "  --seed S                  random seed (default 0)\n"
     "  --res WxH                 resolution (default: 640 wide, camera aspect)\n"
@@ -240,10 +252,54 @@ static void print_stats(const CandelaStats *s) {
                 s->volume_capped_walks ? "; WARNING: some walks hit the collision cap (an extreme medium): the image is biased there" : "");
 }
 
+/* NAME ends in ext. */
+static int has_extension(const char *name, const char *ext) {
+    size_t n = strlen(name), e = strlen(ext);
+    return n > e && strcmp(name + n - e, ext) == 0;
+}
+
+/* candela merge -o OUT.exr [--png FILE | --no-png] SHARD.film... */
+static int merge_main(int argc, char **argv) {
+    const char *out = NULL, *png = NULL;
+    int no_png = 0, n = 0;
+    const char **files = calloc((size_t)argc, sizeof *files);
+    if (!files) { fprintf(stderr, "candela: out of memory\n"); return 1; }
+    for (int i = 2; i < argc; ++i) {
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        if (strcmp(a, "-o") == 0 || strcmp(a, "--output") == 0) { if (!v) die("missing value for ", a); out = v; ++i; }
+        else if (strcmp(a, "--png") == 0) { if (!v) die("missing value for ", a); png = v; ++i; }
+        else if (strcmp(a, "--no-png") == 0) no_png = 1;
+        else if (a[0] == '-') { fprintf(stderr, "candela: unknown merge option '%s' (see candela --help)\n", a); free(files); return 2; }
+        else files[n++] = a;
+    }
+    char png_buf[PATH_MAX], err[CANDELA_ERR_LEN];
+    int rc = 0;
+    if (!out || !has_extension(out, ".exr")) {
+        fprintf(stderr, "candela: merge needs -o OUT.exr\n");
+        rc = 2;
+    } else if (n == 0) {
+        fprintf(stderr, "candela: merge needs the shards' .film files\n");
+        rc = 2;
+    } else {
+        if (!png && !no_png) {
+            snprintf(png_buf, sizeof png_buf, "%.*s.png", (int)(strlen(out) - 4), out);
+            png = png_buf;
+        }
+        if (no_png) png = NULL;
+        if (candela_merge(out, png, files, n, err) != 0) {
+            fprintf(stderr, "candela: %s\n", err);
+            rc = 1;
+        }
+    }
+    free(files);
+    return rc;
+}
+
 int main(int argc, char **argv) {
     if (argc < 2) { fputs(USAGE, stderr); return 2; }
     if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0) { fputs(USAGE, stdout); return 0; }
     if (strcmp(argv[1], "--version") == 0) { printf("candela %s\n", CANDELA_VERSION); return 0; }
+    if (strcmp(argv[1], "merge") == 0) return merge_main(argc, argv);
     int bench = 0, compare = 0, dump = 0, have_at = 0;
     char dump_prefix[PATH_MAX];
     if (strcmp(argv[1], "bench") == 0) bench = 1;
@@ -271,6 +327,26 @@ int main(int argc, char **argv) {
         else if (strcmp(a, "--png") == 0) { if (!v) die("missing value for ", a); png = v; ++i; }
         else if (strcmp(a, "--no-png") == 0) no_png = 1;
         else if (strcmp(a, "--save-partial") == 0) save_partial = 1;
+        else if (strcmp(a, "--checkpoint") == 0) { if (!v) die("missing value for ", a); o.checkpoint_path = v; ++i; }
+        else if (strcmp(a, "--resume-from") == 0) { if (!v) die("missing value for ", a); o.resume_from = v; ++i; }
+        else if (strcmp(a, "--sample-shard") == 0) {
+            if (!v) die("missing value for ", a);
+            char *slash = NULL, *end = NULL;
+            errno = 0;
+            long si = strtol(v, &slash, 10), sn = 0;
+            int good = errno == 0 && slash != v && *slash == '/' && si >= 0;
+            if (good) {
+                sn = strtol(slash + 1, &end, 10);
+                good = errno == 0 && end != slash + 1 && *end == 0 && sn >= 1 && sn <= 65536 && si < sn;
+            }
+            if (!good) {
+                fprintf(stderr, "candela: invalid value '%s' for --sample-shard (expected I/N with 0 <= I < N <= 65536)\n", v);
+                return 2;
+            }
+            o.shard_index = (uint32_t)si;
+            o.shard_count = (uint32_t)sn;
+            ++i;
+        }
         else if (strcmp(a, "--frames") == 0) { if (!v) die("missing value for ", a); batch.frames = v; ++i; }
         else if (strcmp(a, "--fps") == 0) { batch.fps = parse_float(a, v, 1e-3f, 1e6f); ++i; }
         else if (strcmp(a, "--shard") == 0) { if (!v) die("missing value for ", a); batch.shard = v; ++i; }
@@ -327,6 +403,29 @@ int main(int argc, char **argv) {
         strncat(default_out, batch.frames ? ".####.exr" : ".exr", sizeof default_out - strlen(default_out) - 1);
         out = default_out;
     }
+    if (batch.frames && (o.checkpoint_path || o.resume_from || o.shard_count)) {
+        /* one checkpoint or shard film names one frame's render; a batch resumes with --resume */
+        fprintf(stderr, "candela: --checkpoint, --resume-from and --sample-shard render one frame (not with --frames)\n");
+        return 2;
+    }
+    if ((compare || bench || dump) && (o.checkpoint_path || o.resume_from)) {
+        fprintf(stderr, "candela: --checkpoint and --resume-from are for candela render\n");
+        return 2;
+    }
+    if (o.shard_count) {
+        /* a shard's result is its film sums, never an image that could pass for the frame */
+        if (compare || bench || dump || !has_extension(out, ".film")) {
+            fprintf(stderr, "candela: %s: --sample-shard renders write their film sums to -o NAME.film\n", out);
+            return 2;
+        }
+        if (o.spp < (int)o.shard_count) {
+            fprintf(stderr, "candela: --sample-shard %u/%u: %d spp cannot be split %u ways\n", o.shard_index,
+                    o.shard_count, o.spp, o.shard_count);
+            return 2;
+        }
+        o.film_path = out;
+        no_png = 1;
+    }
     if (!png && !no_png) {
         snprintf(png_buf, sizeof png_buf, "%s", out);
         char *dot = strrchr(png_buf, '.');
@@ -338,7 +437,7 @@ int main(int argc, char **argv) {
     if (no_png) png = NULL;
     /* the EXR is the image: writing it under a .png name, or the preview over it, loses it */
     const char *ext = strrchr(out, '.');
-    if (!compare && !bench && (!ext || strcmp(ext, ".exr") != 0)) {
+    if (!compare && !bench && !o.shard_count && (!ext || strcmp(ext, ".exr") != 0)) {
         fprintf(stderr, "candela: %s: the output must be an .exr file (the PNG preview goes to --png)\n", out);
         return 2;
     }
@@ -386,13 +485,18 @@ int main(int argc, char **argv) {
         }
         /* an output that is a device, FIFO or directory is refused before rendering, not after */
         char resolved[IO_PATH_MAX], ioerr[IO_ERR_LEN];
-        const char *outputs[4] = {out, png, stats_json, batch.stats_jsonl};
+        if (o.checkpoint_path && ensure_parent_dir(o.checkpoint_path, 0) != 0) {
+            fprintf(stderr, "candela: %s: checkpoint directory does not exist or is not writable (%s)\n", o.checkpoint_path,
+                    strerror(errno));
+            return 1;
+        }
+        const char *outputs[5] = {out, png, stats_json, batch.stats_jsonl, o.checkpoint_path};
         if (batch.stats_jsonl && ensure_parent_dir(batch.stats_jsonl, 0) != 0) {
             fprintf(stderr, "candela: %s: output directory does not exist or is not writable (%s)\n", batch.stats_jsonl,
                     strerror(errno));
             return 1;
         }
-        for (int k = 0; k < 4; ++k)
+        for (int k = 0; k < 5; ++k)
             if (outputs[k] && io_output_path(outputs[k], resolved, ioerr) != 0) {
                 fprintf(stderr, "candela: %s\n", ioerr);
                 return 1;
@@ -470,9 +574,14 @@ int main(int argc, char **argv) {
         candela_ray_log_free(&log);
     } else {
         char out_partial[PATH_MAX], png_partial[PATH_MAX];
-        if (stats.interrupted) {
+        if (stats.interrupted && o.checkpoint_path && !stats.checkpoint_failed)
+            fprintf(stderr, "candela: checkpoint written to %s (continue with --resume-from %s)\n", o.checkpoint_path,
+                    o.checkpoint_path);
+        if (!stats.interrupted && o.shard_count) {
+            if (!o.quiet) fprintf(stderr, "candela: wrote %s (shard %u/%u)\n", out, o.shard_index, o.shard_count);
+        } else if (stats.interrupted) {
             /* never a file that looks complete: the image so far only under a .partial name */
-            if (!save_partial) {
+            if (!save_partial || o.shard_count) {
                 fprintf(stderr, "candela: interrupted after %d of %d spp; nothing written (--save-partial keeps the image so far)\n",
                         stats.spp_done, o.spp);
                 candela_image_free(&image);
@@ -485,7 +594,9 @@ int main(int argc, char **argv) {
                 png = png_partial;
             }
         }
-        if (candela_write_outputs(&image, out, png, err) != 0) {
+        if (!stats.interrupted && o.shard_count) {
+            /* the film file was written by the render */
+        } else if (candela_write_outputs(&image, out, png, err) != 0) {
             fprintf(stderr, "candela: %s\n", err);
             rc = 1;
         } else if (stats.interrupted) {

@@ -22,6 +22,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "checkpoint.h"
 #include "integrator.h"
 #include "rng.h"
 
@@ -199,4 +200,46 @@ void record_report(const Integrator *ig, CandelaStats *st) {
     st->recorder_refused = rs->refused;
     st->recorder_paths = rs->total_paths;
     st->recorder_path_skip = rs->path_skip;
+}
+
+/* ---------------------------------------------------------------- checkpoints */
+
+#define RECORD_TAG CKPT_TAG('R', 'E', 'C', 'D')
+#define RECORD_VERSION 1u
+
+/* What the next barrier's path skipping and the training switch read: this iteration's
+ * counts so far (the recorder's own and the paths'), the skip probability in force, whether
+ * rays still carry vertices, and the totals of the statistics. No vertex is live at a batch
+ * boundary, so nothing else of the recorder is needed. */
+int record_save(const Integrator *ig, FILE *out) {
+    const RecordState *rs = &ig->record;
+    RecorderStats st = {0};
+    if (rs->recorder) recorder_stats(rs->recorder, &st);
+    int32_t flags[2] = {rs->recorder != NULL, rs->active};
+    uint64_t counts[8] = {rs->iteration_paths, rs->iteration_samples, rs->total_vertices, rs->total_paths,
+                          rs->total_samples, rs->refused, st.vertices_created, st.vertices_refused};
+    return ckpt_put_tag(out, RECORD_TAG, RECORD_VERSION) | ckpt_put(out, flags, sizeof flags) |
+           ckpt_put(out, &rs->path_skip, sizeof rs->path_skip) | ckpt_put(out, counts, sizeof counts);
+}
+
+int record_load(Integrator *ig, FILE *in) {
+    RecordState *rs = &ig->record;
+    int32_t flags[2];
+    uint64_t counts[8];
+    float skip;
+    if (ckpt_get_tag(in, RECORD_TAG, RECORD_VERSION) || ckpt_get(in, flags, sizeof flags) ||
+        ckpt_get(in, &skip, sizeof skip) || ckpt_get(in, counts, sizeof counts))
+        return -1;
+    if (flags[0] != (rs->recorder != NULL) || !(skip >= 0.0f && skip <= 1.0f)) return -1;
+    if (!rs->recorder) return 0;
+    rs->active = flags[1] != 0;
+    rs->path_skip = skip;
+    rs->iteration_paths = counts[0];
+    rs->iteration_samples = counts[1];
+    rs->total_vertices = counts[2];
+    rs->total_paths = counts[3];
+    rs->total_samples = counts[4];
+    rs->refused = counts[5];
+    recorder_restore_counts(rs->recorder, counts[6], counts[7]);
+    return 0;
 }

@@ -16,6 +16,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include "checkpoint.h"
 #include "clock.h"
 #include "integrator.h"
 
@@ -139,6 +140,36 @@ static int render_options_valid(const CandelaOptions *o, char err[CANDELA_ERR_LE
  * t_start is when the caller started (load or pose), for time_load and time_total. */
 static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image, CandelaStats *stats,
                         CandelaRayLog *ray_log, double t_start, char err[CANDELA_ERR_LEN]) {
+    /* --sample-shard I/N: this render is samples [sample_begin, sample_begin + spp) of every pixel
+     * of the full render (with its RNG streams), and learns from those alone: a render of that
+     * many spp whose sample indices start at sample_begin (`ro` is what the integrator sees). */
+    CandelaOptions ro = *o;
+    uint64_t sample_begin = 0;
+    if (o->shard_count) {
+        uint64_t b = (uint64_t)o->spp * o->shard_index / o->shard_count;
+        uint64_t e = (uint64_t)o->spp * (o->shard_index + 1) / o->shard_count;
+        if (o->shard_index >= o->shard_count || e == b) {
+            snprintf(err, CANDELA_ERR_LEN, "%s: sample shard %u/%u of %d spp is empty (shards need at least one sample each)",
+                     o->scene_path, o->shard_index, o->shard_count, o->spp);
+            render_free_frame(r);
+            return -1;
+        }
+        sample_begin = b;
+        ro.spp = (int)(e - b);
+    }
+    const CandelaOptions *given = o; /* the identity names the full render */
+    o = &ro;
+    /* the render's identity, and a checkpoint to resume checked against it before anything is built */
+    CheckpointIdentity identity;
+    int use_identity = o->checkpoint_path || o->resume_from || o->film_path;
+    if (use_identity) {
+        if (checkpoint_identity(given, r->scene.camera.width, r->scene.camera.height, sample_begin, (uint64_t)o->spp,
+                                &identity, err) != 0 ||
+            (o->resume_from && checkpoint_check(o->resume_from, &identity, err) != 0)) {
+            render_free_frame(r);
+            return -1;
+        }
+    }
     if (media_build(&r->media, &r->scene, o->scene_path, err) != 0) { render_free_frame(r); return -1; }
     r->have_media = 1;
     if (lights_build(&r->lights, &r->scene, o->volume_emission_sampling ? &r->media : NULL, o->light_units, err,
@@ -191,38 +222,91 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
     /* guided: smaller iterations, so the fields update often (ch. 2 §5.2: a smaller maximum) */
     if (guided && o->max_iteration_spp <= 0) max_iter_spp = GUIDED_MAX_ITERATION_SPP;
     uint64_t total_paths = (uint64_t)npixels * (uint64_t)o->spp, done_paths = 0;
-    int spp_done = 0, iteration = 0;
+    CheckpointProgress at = {0, 0, 0}; /* where the render stands (a resumed one: where the checkpoint stood) */
+    if (o->resume_from) {
+        if (checkpoint_load(o->resume_from, &identity, &at, ig, &r->sampler, err) != 0) {
+            render_free_frame(r);
+            return -1;
+        }
+        /* the progress must be a point of this render's schedule (the checksum guards the bytes;
+         * this guards a file written by a build with another schedule) */
+        int cumulative = 0, k = 0;
+        for (; k < at.iteration && cumulative < o->spp; ++k)
+            cumulative += iteration_spp(k, max_iter_spp, o->spp - cumulative, guided);
+        uint64_t iteration_total = (uint64_t)npixels * (uint64_t)iteration_spp(k, max_iter_spp, o->spp - cumulative, guided);
+        if (k != at.iteration || cumulative != at.spp_done || at.spp_done >= o->spp || at.iteration_paths >= iteration_total) {
+            snprintf(err, CANDELA_ERR_LEN, "%s: its progress (iteration %d, %d spp) is not a point of this render's schedule",
+                     o->resume_from, at.iteration, at.spp_done);
+            render_free_frame(r);
+            return -1;
+        }
+        done_paths = (uint64_t)npixels * (uint64_t)at.spp_done + at.iteration_paths;
+    }
+    int spp_done = at.spp_done, iteration = at.iteration, stopped = 0;
+    uint64_t resume_paths = at.iteration_paths;
+    ig->spp_done = spp_done;
     for (; spp_done < o->spp; ++iteration) {
         int spp_i = iteration_spp(iteration, max_iter_spp, o->spp - spp_done, guided);
         ig->iteration_spp = spp_i;
-        ig->sample_base = (uint64_t)spp_done;
+        ig->sample_base = sample_begin + (uint64_t)spp_done;
         uint64_t iter_paths = (uint64_t)npixels * (uint64_t)spp_i;
-        for (uint64_t first = 0; first < iter_paths; first += batch) {
+        uint64_t first = resume_paths < iter_paths ? resume_paths : 0;
+        resume_paths = 0;
+        while (first < iter_paths) {
             ig->batch_first = first;
             ig->batch_count = (uint32_t)((iter_paths - first) < batch ? (iter_paths - first) : batch);
             integrator_run_batch(ig, r->pool, stats);
             done_paths += ig->batch_count;
+            first += ig->batch_count;
             report_progress(&progress, done_paths, total_paths, 0);
+            /* an interruption abandons the rest of the iteration: the state at this batch
+             * boundary is a checkpoint like any other (the iteration continues from here) */
+            if (o->stop && *o->stop && first < iter_paths) {
+                at = (CheckpointProgress){iteration, spp_done, first};
+                stopped = 1;
+                break;
+            }
         }
+        if (stopped) break;
         spp_done += spp_i;
         ig->spp_done = spp_done;
         integrator_barrier(ig); /* no ray in flight: learned state changes here */
         stats->iterations = iteration + 1;
         stats->spp_done = spp_done;
         report_progress(&progress, done_paths, total_paths, done_paths == total_paths);
+        at = (CheckpointProgress){iteration + 1, spp_done, 0};
         if (o->on_iteration) {
             CandelaIterationInfo info = {iteration, spp_done, clock_seconds() - t_start, cam->width, cam->height, &ig->film};
             if (o->on_iteration(o->on_iteration_user, &info) != 0 && spp_done < o->spp) {
-                stats->interrupted = 1;
+                stopped = 1;
                 break;
             }
         }
-        /* an interruption takes effect here, between iterations: the image of the iterations
-         * done is a complete, deterministic render of spp_done samples */
         if (o->stop && *o->stop && spp_done < o->spp) {
-            stats->interrupted = 1;
+            stopped = 1;
             break;
         }
+        int next = spp_done + iteration_spp(iteration + 1, max_iter_spp, o->spp - spp_done, guided);
+        if (o->checkpoint_path && checkpoint_due(spp_done, next, o->spp)) {
+            if (checkpoint_write(o->checkpoint_path, &identity, &at, ig, &r->sampler, 0, err) != 0) {
+                fprintf(stderr, "candela: warning: %s (the render goes on)\n", err); /* a later one may succeed */
+            } else if (!o->quiet && !progress.is_tty) {
+                fprintf(stderr, "candela: checkpoint at %d spp: %s\n", spp_done, o->checkpoint_path);
+            }
+        }
+    }
+    stats->spp_done = spp_done;
+    if (stopped) {
+        /* the image of the samples done is returned (per-pixel counts differ after an abandoned
+         * iteration; each pixel's mean is its own samples'), and the state is kept to resume */
+        stats->interrupted = 1;
+        if (o->checkpoint_path && checkpoint_write(o->checkpoint_path, &identity, &at, ig, &r->sampler, 0, err) != 0) {
+            fprintf(stderr, "candela: warning: %s\n", err); /* the image so far may still be wanted */
+            stats->checkpoint_failed = 1;
+        }
+    } else if (o->film_path && checkpoint_write(o->film_path, &identity, &at, ig, &r->sampler, 1, err) != 0) {
+        render_free_frame(r);
+        return -1;
     }
     stats->time_total = clock_seconds() - t_start;
     record_report(ig, stats);

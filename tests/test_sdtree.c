@@ -382,6 +382,84 @@ static void test_determinism(void) {
     guide_field_free(g);
 }
 
+/* ---------------------------------------------------------------- 6b. checkpoints */
+/* A trained field saved and loaded into a fresh field samples, evaluates and keeps training
+ * exactly as the original; a truncated or foreign record is refused and leaves the field as it
+ * was. */
+static int fields_equal(const GuideField *f, const GuideField *g, uint64_t seed) {
+    uint64_t rng = seed;
+    int differ = guide_field_num_leaves(f) != guide_field_num_leaves(g) || guide_field_bytes(f) != guide_field_bytes(g) ||
+                 guide_field_iterations(f) != guide_field_iterations(g);
+    for (int i = 0; i < 3000; ++i) {
+        float pos[3] = {rnd(&rng), rnd(&rng), rnd(&rng)}, dir[3];
+        uniform_dir(&rng, dir);
+        const GuideDistribution *a = guide_field_lookup(f, pos), *b = guide_field_lookup(g, pos);
+        differ += !bits_equal(guide_distribution_pdf(a, dir), guide_distribution_pdf(b, dir));
+        float u1 = rnd(&rng), u2 = rnd(&rng), da[3], db[3], pa, pb;
+        guide_distribution_sample(a, u1, u2, da, &pa);
+        guide_distribution_sample(b, u1, u2, db, &pb);
+        differ += memcmp(da, db, sizeof da) != 0 || !bits_equal(pa, pb);
+    }
+    return differ == 0;
+}
+
+static void test_checkpoint(void) {
+    GuideField *f = two_regions(31, 3);
+    float lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
+    GuideFieldParams p;
+    guide_field_params_default(&p);
+    p.spatial_threshold = 100;
+    GuideField *g = guide_field_create(lo, hi, &p);
+    FILE *tmp = tmpfile();
+    CHECK(f && g && tmp, "setup");
+    if (!f || !g || !tmp) return;
+    /* half an iteration's training pending in the building trees, as at a batch boundary */
+    Light a = {{0, 0, 1}, 0, 50.0f, 0.05f, {0, 0, 0}, {0.2f, 0.2f, 0.2f}};
+    a.cos_cone = cosf(20.0f * (float)PI / 180.0f);
+    uint64_t rng = 99;
+    train(f, &rng, &a, 5000);
+    CHECK(guide_field_save(f, tmp) == 0, "save");
+    long size = ftell(tmp);
+    rewind(tmp);
+    CHECK(guide_field_load(g, tmp) == 0, "load");
+    CHECK(ftell(tmp) == size, "load read %ld of %ld bytes", ftell(tmp), size);
+    CHECK(fields_equal(f, g, 5), "the loaded field differs");
+    uint64_t r1 = 7, r2 = 7; /* both continue training identically */
+    train(f, &r1, &a, 4000);
+    train(g, &r2, &a, 4000);
+    CHECK(guide_field_update(f, 2.0f) == 0 && guide_field_update(g, 2.0f) == 0, "update");
+    CHECK(fields_equal(f, g, 6), "the loaded field trains differently");
+    /* truncated at 64 points along it: refused, the field untouched */
+    unsigned leaves = guide_field_num_leaves(g);
+    int accepted = 0;
+    char *buf = malloc((size_t)size);
+    rewind(tmp);
+    if (buf && fread(buf, 1, (size_t)size, tmp) == (size_t)size) {
+        for (long cut = 0; cut < size; cut += size / 64 + 1) {
+            FILE *t = tmpfile();
+            if (!t) break;
+            fwrite(buf, 1, (size_t)cut, t);
+            rewind(t);
+            accepted += guide_field_load(g, t) == 0;
+            fclose(t);
+        }
+        buf[0] ^= 0x55; /* a foreign magic */
+        FILE *t = tmpfile();
+        if (t) {
+            fwrite(buf, 1, (size_t)size, t);
+            rewind(t);
+            accepted += guide_field_load(g, t) == 0;
+            fclose(t);
+        }
+    }
+    CHECK(accepted == 0, "%d damaged records loaded", accepted);
+    CHECK(guide_field_num_leaves(g) == leaves && fields_equal(f, g, 8), "a refused load changed the field");
+    free(buf);
+    fclose(tmp);
+    guide_field_free(f);
+    guide_field_free(g);
+}
+
 /* ---------------------------------------------------------------- 7. bad input */
 static GuideTrainingSample sample_at(float x, float y, float z, float radiance, float pdf) {
     GuideTrainingSample s = {{x, y, z}, {0, 0, 1}, radiance, pdf};
@@ -602,6 +680,7 @@ int main(void) {
     test_trained();
     test_spatial();
     test_determinism();
+    test_checkpoint();
     test_bad_input();
     test_ply();
     fprintf(stderr, "test_sdtree: %.2f s\n", test_seconds() - t0);

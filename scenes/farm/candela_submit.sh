@@ -1,0 +1,188 @@
+#!/usr/bin/env bash
+# scenes/farm/candela_submit.sh: render on a Slurm cluster as a job array.
+#
+# Two kinds of job:
+#   frames:        candela_submit.sh --frames 1-48 -o out/shot.####.exr SCENE [-- RENDER OPTIONS]
+#                  an array of --tasks tasks (default: one per frame); each runs
+#                  `candela render SCENE --frames A-B -o PATTERN`, which reads SLURM_ARRAY_TASK_ID
+#                  and SLURM_ARRAY_TASK_COUNT itself and renders its share of the frames (with
+#                  --resume, when candela has it, a requeued task skips the frames it finished).
+#   sample shards: candela_submit.sh --sample-shards 8 -o out/frame.exr SCENE [-- RENDER OPTIONS]
+#                  one frame too slow for one machine: task I renders samples
+#                  [spp I/N, spp (I+1)/N) of every pixel (`--sample-shard I/N`) into
+#                  WORK/shard.I.film, and a merge job (once all of them have ended, requeued ones
+#                  included) runs `candela merge` into the -o EXR (per-pixel means and variances
+#                  of all samples); it fails, naming them, when shards failed.
+#
+# Resume on requeue: tasks are submitted with --requeue (unless --no-requeue). A sample shard
+# checkpoints to WORK/shard.I.ckpt (`--checkpoint`, written at about 4, 8, 16, ... spp and when
+# Slurm sends SIGTERM before pre-empting or at the time limit); a requeued task (SLURM_RESTART_COUNT
+# > 0) with a checkpoint continues it (`--resume-from`), and the image is the same as without the
+# interruption. candela is exec'd, so Slurm's SIGTERM reaches it; --signal asks for one 120 s
+# before the time limit. A new submission removes the previous submission's checkpoints (they
+# belong to another render or to one that is starting over).
+#
+# Options:
+#   -p, --partition NAME     Slurm partition (default: the cluster's default)
+#   -c, --cpus-per-task N    CPUs per task, also candela's --threads (default 1)
+#   --mem SIZE               memory per task, Slurm syntax (e.g. 4G; default: the cluster's)
+#   -t, --time LIMIT         time limit per task, Slurm syntax (e.g. 2:00:00)
+#   --frames RANGE           frames to render (candela's --frames syntax, e.g. 1-48 or 1-48:2)
+#   --tasks N                frames: array tasks sharing the frames (default: frames in RANGE)
+#   --sample-shards N        split one frame's samples over N tasks, then merge
+#   -o, --output PATH        frames: the pattern (out/shot.####.exr); shards: the merged EXR
+#   --work-dir DIR           shard films, checkpoints, job scripts and Slurm logs (default:
+#                            OUTPUT.farm/ for shards, JOBNAME.farm/ beside the frames)
+#   --candela PATH           the candela binary (default: `candela` on PATH, resolved now)
+#   --job-name NAME          (default candela)
+#   --no-requeue             do not requeue pre-empted tasks
+#   --wait                   wait until every job has finished (sbatch --wait); exit status is
+#                            non-zero when one failed
+#   --dry-run                print the job scripts and sbatch commands, submit nothing
+#   --                       everything after goes to `candela render` (--spp, --res, --seed, ...)
+#
+# Prints the job ids (array, and merge for shards). Example:
+#   scenes/farm/candela_submit.sh -p render -c 16 --mem 32G -t 4:00:00 --sample-shards 8 \
+#       -o out/hero.exr scenes/default.gltf -- --spp 4096 --res 1920x1080
+set -euo pipefail
+
+usage() { sed -n '2,/^set -euo/p' "$0" | sed -e '$d' -e 's/^# \{0,1\}//'; }
+die() { echo "candela_submit: $*" >&2; exit 2; }
+
+partition="" cpus=1 mem="" time_limit="" frames="" tasks="" shards="" output="" work="" candela=""
+job_name=candela requeue=1 wait=0 dry=0 scene=""
+render_args=()
+while [ $# -gt 0 ]; do
+  case "$1" in
+    -p|--partition) partition=${2:?}; shift 2 ;;
+    -c|--cpus-per-task) cpus=${2:?}; shift 2 ;;
+    --mem) mem=${2:?}; shift 2 ;;
+    -t|--time) time_limit=${2:?}; shift 2 ;;
+    --frames) frames=${2:?}; shift 2 ;;
+    --tasks) tasks=${2:?}; shift 2 ;;
+    --sample-shards) shards=${2:?}; shift 2 ;;
+    -o|--output) output=${2:?}; shift 2 ;;
+    --work-dir) work=${2:?}; shift 2 ;;
+    --candela) candela=${2:?}; shift 2 ;;
+    --job-name) job_name=${2:?}; shift 2 ;;
+    --no-requeue) requeue=0; shift ;;
+    --wait) wait=1; shift ;;
+    --dry-run) dry=1; shift ;;
+    -h|--help) usage; exit 0 ;;
+    --) shift; render_args=("$@"); break ;;
+    -*) die "unknown option '$1' (see --help)" ;;
+    *) [ -z "$scene" ] || die "one scene per submission ('$1')"; scene=$1; shift ;;
+  esac
+done
+
+[ -n "$scene" ] || die "no scene given (see --help)"
+[ -r "$scene" ] || die "$scene: cannot read"
+[ -n "$output" ] || die "no -o OUTPUT given"
+[[ $cpus =~ ^[1-9][0-9]*$ ]] || die "invalid --cpus-per-task '$cpus'"
+if [ -n "$frames" ] && [ -n "$shards" ]; then die "--frames and --sample-shards do not combine (shard one frame at a time)"; fi
+if [ -z "$frames" ] && [ -z "$shards" ]; then die "give --frames RANGE or --sample-shards N"; fi
+if [ -z "$candela" ]; then candela=$(command -v candela || true); fi
+[ -n "$candela" ] && [ -x "$candela" ] || die "candela binary not found (--candela PATH)"
+candela=$(cd "$(dirname "$candela")" && pwd)/$(basename "$candela")
+scene=$(cd "$(dirname "$scene")" && pwd)/$(basename "$scene")
+out_dir=$(dirname "$output"); mkdir -p "$out_dir"; out_dir=$(cd "$out_dir" && pwd)
+output=$out_dir/$(basename "$output")
+if [ -z "$work" ]; then
+  if [ -n "$shards" ]; then work=$output.farm; else work=$out_dir/$job_name.farm; fi
+fi
+mkdir -p "$work"; work=$(cd "$work" && pwd)
+quote() { local s; s=$(printf '%q ' "$@"); printf '%s' "${s% }"; } # shell-quoted words, for the job scripts
+
+sbatch_opts=(--parsable --job-name="$job_name" --cpus-per-task="$cpus" --signal=B:TERM@120)
+[ -n "$partition" ] && sbatch_opts+=(--partition="$partition")
+[ -n "$mem" ] && sbatch_opts+=(--mem="$mem")
+[ -n "$time_limit" ] && sbatch_opts+=(--time="$time_limit")
+if [ $requeue -eq 1 ]; then sbatch_opts+=(--requeue); else sbatch_opts+=(--no-requeue); fi
+
+# submit SCRIPT_FILE SBATCH_OPTIONS...: prints the job id
+submit() {
+  local script=$1; shift
+  if [ $dry -eq 1 ]; then
+    echo "# sbatch $(quote "$@") $script" >&2; cat "$script" >&2; echo "DRY-RUN"
+  else
+    sbatch "$@" "$script"
+  fi
+}
+
+if [ -n "$shards" ]; then
+  [[ $shards =~ ^[1-9][0-9]*$ ]] || die "invalid --sample-shards '$shards'"
+  # a new render: nothing of an earlier one is resumed or merged
+  [ $dry -eq 1 ] || rm -f "$work"/shard.*.ckpt "$work"/shard.*.film
+  cat > "$work/shard.sh" <<EOF
+#!/usr/bin/env bash
+# one sample shard (array task \$SLURM_ARRAY_TASK_ID of $shards), resumed from its checkpoint when requeued
+set -eu
+i=\$SLURM_ARRAY_TASK_ID
+ck=$(quote "$work")/shard.\$i.ckpt
+resume=()
+if [ "\${SLURM_RESTART_COUNT:-0}" -gt 0 ] && [ -e "\$ck" ]; then
+  resume=(--resume-from "\$ck")
+  echo "candela_submit: restart \$SLURM_RESTART_COUNT of shard \$i/$shards: resuming from \$ck" >&2
+fi
+exec $(quote "$candela" render "$scene" "${render_args[@]}") --threads $cpus --sample-shard "\$i/$shards" \\
+  --checkpoint "\$ck" "\${resume[@]}" -o $(quote "$work")/shard.\$i.film
+EOF
+  films=()
+  for ((i = 0; i < shards; ++i)); do films+=("$work/shard.$i.film"); done
+  # The merge runs once every shard task has ended (afterany, not afterok: a task requeued by a
+  # pre-emption passes through a failed-looking state, and afterok would cancel the merge). A
+  # requeued task is queued again and its film missing: the merge waits while any task of the
+  # array is queued or running; a film still missing then belongs to a shard that failed.
+  cat > "$work/merge.sh" <<EOF
+#!/usr/bin/env bash
+set -u
+films=($(quote "${films[@]}"))
+missing() { local f m=""; for f in "\${films[@]}"; do [ -e "\$f" ] || m="\$m \$f"; done; echo "\$m"; }
+while [ -n "\$(missing)" ]; do
+  if queued=\$(squeue -h -j "\$CANDELA_SHARD_ARRAY" -o %i 2>/dev/null) && [ -z "\$queued" ]; then
+    sleep 5 # a task that just finished: look once more
+    [ -z "\$(missing)" ] && break
+    echo "candela_submit: no shard task of job \$CANDELA_SHARD_ARRAY is left and these films are missing:\$(missing) (see the shard logs)" >&2
+    exit 1
+  fi
+  sleep 10
+done
+exec $(quote "$candela" merge -o "$output") "\${films[@]}"
+EOF
+  chmod +x "$work/shard.sh" "$work/merge.sh"
+  array_opts=("${sbatch_opts[@]}" --array="0-$((shards - 1))" --output="$work/shard.%a.log")
+  array_id=$(submit "$work/shard.sh" "${array_opts[@]}")
+  merge_opts=("${sbatch_opts[@]}" --cpus-per-task=1 --dependency=afterany:"$array_id"
+              --export=ALL,CANDELA_SHARD_ARRAY="$array_id" --output="$work/merge.log")
+  # with --wait, sbatch returns once the merge (which waits for the array) has ended
+  if [ $wait -eq 1 ] && [ $dry -eq 0 ]; then merge_opts+=(--wait); fi
+  merge_id=$(submit "$work/merge.sh" "${merge_opts[@]}")
+  echo "array $array_id merge $merge_id"
+else
+  if [ -z "$tasks" ]; then
+    # frames in A-B[:step] or a list A,B,C
+    if [[ $frames =~ ^([0-9]+)-([0-9]+)(:([1-9][0-9]*))?$ ]]; then
+      a=${BASH_REMATCH[1]} b=${BASH_REMATCH[2]} step=${BASH_REMATCH[4]:-1}
+      [ "$b" -ge "$a" ] || die "invalid --frames '$frames'"
+      tasks=$(( (b - a) / step + 1 ))
+    elif [[ $frames =~ ^[0-9]+(,[0-9]+)*$ ]]; then
+      tasks=$(echo "$frames" | tr ',' '\n' | wc -l)
+    else
+      die "invalid --frames '$frames' (A-B[:step] or A,B,...)"
+    fi
+  fi
+  [[ $tasks =~ ^[1-9][0-9]*$ ]] || die "invalid --tasks '$tasks'"
+  resume=""
+  if "$candela" --help | grep -q -- '--resume '; then resume="--resume"; fi
+  cat > "$work/frames.sh" <<EOF
+#!/usr/bin/env bash
+# array task \$SLURM_ARRAY_TASK_ID of $tasks: candela takes its share of the frames from SLURM_ARRAY_TASK_*
+set -eu
+exec $(quote "$candela" render "$scene" "${render_args[@]}") --threads $cpus --frames $(quote "$frames") $resume -o $(quote "$output")
+EOF
+  chmod +x "$work/frames.sh"
+  opts=("${sbatch_opts[@]}" --array="0-$((tasks - 1))" --output="$work/frames.%a.log")
+  [ $wait -eq 1 ] && [ $dry -eq 0 ] && opts+=(--wait)
+  array_id=$(submit "$work/frames.sh" "${opts[@]}")
+  echo "array $array_id"
+fi

@@ -1,0 +1,143 @@
+#!/usr/bin/env bash
+# Checkpoints, resume, interruption and sample shards at the CLI (renderer/checkpoint.c):
+# - the checkpoint-skipping schedule (ch. 2 §5.2.2): 4, 8, 16, 32 spp unguided; 4, 8, 14, 22
+#   on the guided schedule (cumulative 1..8, 10, 14, 22, 38, 54, 64), never the last barrier;
+#   the course's example at 128 guided spp: 4, 8, 14, 22, 54;
+# - writing checkpoints does not change the image; resuming from one gives the uninterrupted
+#   render's EXR bit for bit (cache points, the default light sampler, and --guiding mis);
+# - a render killed with SIGKILL after a checkpoint and resumed: bit-identical, and it left no
+#   finished-looking file; SIGTERM stops after the current batch (mid-iteration), writes the
+#   checkpoint and with --save-partial only NAME.partial.*; resuming that: bit-identical;
+# - bad input: a checkpoint of another scene, resolution, spp or options, a damaged or truncated
+#   one, a shard film given to --resume-from, bad shard specs and merges: one line, non-zero
+#   exit, the existing output untouched;
+# - sample shards: merging the same films in any order gives the same EXR bit for bit.
+# usage: test_checkpoint.sh CANDELA_BINARY SOURCE_ROOT
+set -u
+bin=$1; root=$2
+tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
+pass=0; fail=0
+ok()  { pass=$((pass + 1)); }
+bad() { fail=$((fail + 1)); echo "FAIL: $*" >&2; }
+same() { if cmp -s "$1" "$2"; then ok; else bad "$3: $1 and $2 differ"; fi; }
+
+scene=$root/scenes/default.gltf
+base=(render "$scene" --res 32x24 --no-png)
+
+# expect_error NAME PATTERN -- ARGS...: non-zero exit below 128, one stderr line with PATTERN,
+# and $tmp/keep.exr (a finished image from before) untouched
+expect_error() {
+  local name=$1 pattern=$2; shift 3
+  echo sentinel > "$tmp/keep.exr"
+  "$bin" "$@" >"$tmp/stdout" 2>"$tmp/stderr"; local rc=$?
+  local lines; lines=$(grep -c . "$tmp/stderr")
+  if [ $rc -eq 0 ] || [ $rc -ge 128 ]; then bad "$name: exit code $rc"; return; fi
+  if [ "$lines" -ne 1 ]; then bad "$name: expected one error line, got $lines: $(cat "$tmp/stderr")"; return; fi
+  if ! grep -q -- "$pattern" "$tmp/stderr"; then bad "$name: message lacks '$pattern': $(cat "$tmp/stderr")"; return; fi
+  if [ "$(cat "$tmp/keep.exr")" != sentinel ]; then bad "$name: overwrote the output"; return; fi
+  ok
+}
+
+# --- schedule, identity of images with checkpoints, resume from the last checkpoint
+for mode in default mis; do
+  extra=(); [ $mode = mis ] && extra=(--guiding mis)
+  "$bin" "${base[@]}" --spp 64 "${extra[@]}" -o "$tmp/full-$mode.exr" --quiet || bad "full render ($mode)"
+  "$bin" "${base[@]}" --spp 64 "${extra[@]}" -o "$tmp/ck-$mode.exr" --checkpoint "$tmp/$mode.ckpt" 2>"$tmp/log-$mode" ||
+    bad "render with --checkpoint ($mode)"
+  got=$(sed -n 's/^candela: checkpoint at \([0-9]*\) spp.*/\1/p' "$tmp/log-$mode" | tr '\n' ' ')
+  want="4 8 16 32 "; [ $mode = mis ] && want="4 8 14 22 "
+  [ "$got" = "$want" ] && ok || bad "checkpoint schedule ($mode): got '$got', want '$want'"
+  same "$tmp/full-$mode.exr" "$tmp/ck-$mode.exr" "checkpoints changed the image ($mode)"
+  # the file left is the last checkpoint (32 or 22 spp): as if killed right after it
+  "$bin" "${base[@]}" --spp 64 "${extra[@]}" -o "$tmp/res-$mode.exr" --resume-from "$tmp/$mode.ckpt" --quiet ||
+    bad "resume ($mode)"
+  same "$tmp/full-$mode.exr" "$tmp/res-$mode.exr" "resumed render ($mode)"
+done
+
+# the course's own example (ch. 2 §5.2.2): a guided 128-spp render, cumulative 1..8, 10, 14, 22,
+# 38, 54, 70, ..., 118, 128, checkpoints at 4, 8, 14, 22, 54 (and 128, the end: the image itself)
+"$bin" render "$scene" --res 8x6 --no-png --spp 128 --guiding mis -o "$tmp/g128.exr" --checkpoint "$tmp/g128.ckpt" \
+  2>"$tmp/log-g128" || bad "guided 128 spp render"
+got=$(sed -n 's/^candela: checkpoint at \([0-9]*\) spp.*/\1/p' "$tmp/log-g128" | tr '\n' ' ')
+[ "$got" = "4 8 14 22 54 " ] && ok || bad "checkpoint schedule (guided, 128 spp): got '$got', want '4 8 14 22 54 '"
+
+# --- SIGKILL after a checkpoint, then resume (a slower render: one thread, small batches)
+slow=(--spp 192 --threads 1 --batch 64)
+for mode in default mis; do
+  extra=(); [ $mode = mis ] && extra=(--guiding mis)
+  "$bin" "${base[@]}" "${slow[@]}" "${extra[@]}" -o "$tmp/kfull-$mode.exr" --quiet || bad "full slow render ($mode)"
+  rm -f "$tmp/kill.ckpt" "$tmp/kill.exr"
+  "$bin" "${base[@]}" "${slow[@]}" "${extra[@]}" -o "$tmp/kill.exr" --checkpoint "$tmp/kill.ckpt" --quiet &
+  pid=$!
+  for _ in $(seq 1 600); do [ -e "$tmp/kill.ckpt" ] && break; sleep 0.05; done
+  kill -KILL $pid 2>/dev/null; wait $pid 2>/dev/null
+  if [ ! -e "$tmp/kill.ckpt" ]; then bad "no checkpoint before SIGKILL ($mode)"; continue; fi
+  [ -e "$tmp/kill.exr" ] && bad "the render finished before SIGKILL ($mode): the test proves less (machine too fast?)"
+  "$bin" "${base[@]}" "${slow[@]}" "${extra[@]}" -o "$tmp/kill.exr" --resume-from "$tmp/kill.ckpt" \
+    --checkpoint "$tmp/kill.ckpt" --quiet || bad "resume after SIGKILL ($mode)"
+  same "$tmp/kfull-$mode.exr" "$tmp/kill.exr" "resumed after SIGKILL ($mode)"
+  ls "$tmp"/kill.ckpt.tmp-* >/dev/null 2>&1 && bad "a stale checkpoint temporary survived ($mode)"
+done
+
+# --- SIGTERM: stop after the current batch, checkpoint, partial image; resume
+rm -f "$tmp/term.ckpt"; : > "$tmp/term.log"
+"$bin" "${base[@]}" "${slow[@]}" -o "$tmp/term.exr" --checkpoint "$tmp/term.ckpt" --save-partial 2>"$tmp/term.log" &
+pid=$!
+for _ in $(seq 1 600); do grep -q "checkpoint at 8 spp" "$tmp/term.log" && break; sleep 0.05; done
+kill -TERM $pid; wait $pid; rc=$?
+if [ $rc -eq 130 ]; then
+  ok
+  [ ! -e "$tmp/term.exr" ] && [ -e "$tmp/term.partial.exr" ] && ok || bad "SIGTERM: want only term.partial.exr"
+  grep -q "checkpoint written to" "$tmp/term.log" && ok || bad "SIGTERM: no checkpoint message"
+  "$bin" "${base[@]}" "${slow[@]}" -o "$tmp/term.exr" --resume-from "$tmp/term.ckpt" --quiet || bad "resume after SIGTERM"
+  same "$tmp/kfull-default.exr" "$tmp/term.exr" "resumed after SIGTERM"
+else
+  bad "SIGTERM: exit $rc (want 130; finished before the signal?)"
+fi
+
+# --- bad input: one line, nothing overwritten
+ck=$tmp/default.ckpt
+expect_error "another resolution" "res 32x24 there, 16x16 here" -- render "$scene" --res 16x16 --spp 64 --no-png \
+  -o "$tmp/keep.exr" --resume-from "$ck" --quiet
+expect_error "another scene" "scene file's content differs" -- render "$root/tests/scenes/two_lights.gltf" --res 32x24 \
+  --spp 64 --no-png -o "$tmp/keep.exr" --resume-from "$ck" --quiet
+expect_error "another spp" "spp 64 there, 32 here" -- "${base[@]}" --spp 32 -o "$tmp/keep.exr" --resume-from "$ck" --quiet
+expect_error "another seed" "seed 0 there, 5 here" -- "${base[@]}" --spp 64 --seed 5 -o "$tmp/keep.exr" --resume-from "$ck" --quiet
+expect_error "other options" "guiding off there, mis here" -- "${base[@]}" --spp 64 --guiding mis -o "$tmp/keep.exr" \
+  --resume-from "$ck" --quiet
+head -c 2000 "$ck" > "$tmp/cut.ckpt"
+expect_error "truncated" "checksum" -- "${base[@]}" --spp 64 -o "$tmp/keep.exr" --resume-from "$tmp/cut.ckpt" --quiet
+cp "$ck" "$tmp/flip.ckpt"; printf '\x55' | dd of="$tmp/flip.ckpt" bs=1 seek=5000 conv=notrunc 2>/dev/null
+expect_error "damaged" "checksum" -- "${base[@]}" --spp 64 -o "$tmp/keep.exr" --resume-from "$tmp/flip.ckpt" --quiet
+expect_error "not a checkpoint" "not a candela checkpoint" -- "${base[@]}" --spp 64 -o "$tmp/keep.exr" \
+  --resume-from "$scene" --quiet
+expect_error "missing checkpoint" "cannot read" -- "${base[@]}" --spp 64 -o "$tmp/keep.exr" --resume-from "$tmp/none" --quiet
+for spec in 4/4 -1/4 1/0 a/4 1/ 2/3x 1/100000; do
+  expect_error "shard spec $spec" "--sample-shard" -- "${base[@]}" --spp 8 --sample-shard "$spec" -o "$tmp/s.film" --quiet
+done
+expect_error "checkpoint with compare" "for candela render" -- compare "$scene" --res 32x24 --spp 4 --checkpoint "$tmp/c.ckpt" \
+  --out-dir "$tmp/cmp" --quiet
+expect_error "shard output" "NAME.film" -- "${base[@]}" --spp 8 --sample-shard 0/2 -o "$tmp/keep.exr" --quiet
+expect_error "shard of too few spp" "cannot be split" -- "${base[@]}" --spp 2 --sample-shard 0/4 -o "$tmp/s.film" --quiet
+
+# --- sample shards: the merge is a pure function of the films (any order, bit for bit)
+for i in 0 1 2 3; do
+  "$bin" "${base[@]}" --spp 16 --sample-shard $i/4 -o "$tmp/s$i.film" --quiet || bad "shard $i"
+done
+"$bin" merge -o "$tmp/m1.exr" --no-png "$tmp"/s0.film "$tmp"/s1.film "$tmp"/s2.film "$tmp"/s3.film || bad "merge"
+"$bin" merge -o "$tmp/m2.exr" --no-png "$tmp"/s3.film "$tmp"/s1.film "$tmp"/s0.film "$tmp"/s2.film || bad "merge reordered"
+same "$tmp/m1.exr" "$tmp/m2.exr" "merge order"
+[ -e "$tmp/m1.png" ] && bad "merge --no-png wrote a PNG"
+"$bin" merge -o "$tmp/m3.exr" "$tmp"/s*.film && [ -e "$tmp/m3.png" ] && ok || bad "merge with a preview"
+expect_error "merge: a shard missing" "shard count" -- merge -o "$tmp/keep.exr" "$tmp"/s0.film "$tmp"/s1.film "$tmp"/s2.film
+expect_error "merge: a shard twice" "given twice" -- merge -o "$tmp/keep.exr" "$tmp"/s0.film "$tmp"/s1.film "$tmp"/s2.film \
+  "$tmp"/s2.film
+"$bin" "${base[@]}" --spp 16 --seed 3 --sample-shard 1/4 -o "$tmp/x1.film" --quiet || bad "shard of another seed"
+expect_error "merge: another render" "another render" -- merge -o "$tmp/keep.exr" "$tmp"/s0.film "$tmp"/x1.film \
+  "$tmp"/s2.film "$tmp"/s3.film
+expect_error "merge: a checkpoint" "not a finished shard film" -- merge -o "$tmp/keep.exr" "$ck"
+expect_error "resume from a film" "finished shard film" -- "${base[@]}" --spp 16 --sample-shard 0/4 -o "$tmp/s0b.film" \
+  --resume-from "$tmp/s0.film" --quiet
+
+echo "checkpoint tests: $pass passed, $fail failed"
+[ $fail -eq 0 ]
