@@ -106,7 +106,8 @@ def main():
             t = None
             for _ in range(max(a.repeats, 1)):
                 st = render(a.candela, scene, out, a.spp, 0, a.res,
-                            extra + ["--light-sampler", a.light_sampler, "--threads", str(a.threads)])
+                            extra + ["--light-sampler", a.light_sampler] +
+                            (["--threads", str(a.threads)] if a.threads > 0 else []))
                 if a.time == "cpu":
                     ti = st["cpu_seconds"]
                 else:
