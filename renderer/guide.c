@@ -55,7 +55,7 @@ int guide_init(Integrator *ig) {
 void guide_free(Integrator *ig) {
     GuideState *gs = &ig->guide;
     for (int k = 0; k < GUIDE_FIELDS; ++k) guide_field_free(gs->fields[k]);
-    free(gs->train);
+    for (int k = 0; k < GUIDE_FIELDS; ++k) free(gs->train[k]);
     free(gs->last);
     free(gs->last_class);
     memset(gs, 0, sizeof *gs);
@@ -93,21 +93,56 @@ const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n, cons
 }
 
 /* The samples of one field, in the batch's order. */
+/* Field k's samples of the batch, in batch order, into its own scratch, and recorded into it
+ * (the fields are independent: they train on the threads, each in its deterministic order). */
 static void train_field(GuideState *gs, int k, const RecorderSamples *batch) {
+    gs->train_count[k] = 0;
+    gs->field_failed[k] = 0;
+    if (batch->count > gs->train_capacity[k]) {
+        GuideTrainingSample *t = realloc(gs->train[k], batch->count * sizeof *t);
+        if (!t) { gs->field_failed[k] = 1; return; } /* training loses a batch; the image is not affected */
+        gs->train[k] = t;
+        gs->train_capacity[k] = batch->count;
+    }
     size_t n = 0;
     for (size_t i = 0; i < batch->count; ++i) {
         const RecorderSample *s = &batch->items[i];
         if (s->flags & (PV_FLAG_NEE | PV_FLAG_DELTA)) continue;
         if (field_of_flags(s->flags) != k) continue;
-        GuideTrainingSample *t = &gs->train[n++];
+        GuideTrainingSample *t = &gs->train[k][n++];
         memcpy(t->pos, s->pos, sizeof t->pos);
         memcpy(t->dir, s->dir, sizeof t->dir);
         t->radiance = 0.2126f * s->radiance[0] + 0.7152f * s->radiance[1] + 0.0722f * s->radiance[2];
         t->pdf = s->pdf;
     }
-    guide_field_record(gs->fields[k], gs->train, n);
-    gs->samples_trained += n;
-    if (k < GUIDE_SURFACE_CLASSES && gs->keep_last && n > 0) { /* guide-dump's histogram */
+    guide_field_record(gs->fields[k], gs->train[k], n);
+    gs->train_count[k] = n;
+}
+
+typedef struct FieldCtx {
+    GuideState *gs;
+    const RecorderSamples *batch;
+    float iteration_spp;
+} FieldCtx;
+
+static void train_fields(void *ctx, size_t begin, size_t end, int thread_index) {
+    (void)thread_index;
+    FieldCtx *c = ctx;
+    for (size_t k = begin; k < end; ++k)
+        if (c->gs->fields[k]) train_field(c->gs, (int)k, c->batch);
+}
+
+static void update_fields(void *ctx, size_t begin, size_t end, int thread_index) {
+    (void)thread_index;
+    FieldCtx *c = ctx;
+    for (size_t k = begin; k < end; ++k)
+        c->gs->field_failed[k] = c->gs->fields[k] && guide_field_update(c->gs->fields[k], c->iteration_spp) != 0;
+}
+
+/* guide-dump's histogram: the surface fields' samples of the batch, appended in field order. */
+static void keep_last_samples(GuideState *gs, int k) {
+    size_t n = gs->train_count[k];
+    if (k < GUIDE_SURFACE_CLASSES && gs->keep_last && n > 0) {
         if (gs->last_count + n > gs->last_capacity) {
             size_t cap = 2 * (gs->last_count + n);
             GuideTrainingSample *l = realloc(gs->last, cap * sizeof *l);
@@ -117,7 +152,7 @@ static void train_field(GuideState *gs, int k, const RecorderSamples *batch) {
             if (!l || !c) { gs->dropped = 1; return; }
             gs->last_capacity = cap;
         }
-        memcpy(gs->last + gs->last_count, gs->train, n * sizeof *gs->train);
+        memcpy(gs->last + gs->last_count, gs->train[k], n * sizeof *gs->train[k]);
         memset(gs->last_class + gs->last_count, k, n);
         gs->last_count += n;
     }
@@ -129,14 +164,15 @@ void guide_train_batch(Integrator *ig) {
     if (!gs->on || !ig->record.active || batch->count == 0) return;
     gs->pending = 1;
     double t0 = clock_seconds();
-    if (batch->count > gs->train_capacity) {
-        GuideTrainingSample *t = realloc(gs->train, batch->count * sizeof *t);
-        if (!t) { gs->dropped = 1; return; } /* training loses a batch; the image is not affected */
-        gs->train = t;
-        gs->train_capacity = batch->count;
+    FieldCtx c = {gs, batch, 0.0f};
+    if (ig->pool) threadpool_parallel_for(ig->pool, GUIDE_FIELDS, 1, train_fields, &c);
+    else train_fields(&c, 0, GUIDE_FIELDS, 0);
+    for (int k = 0; k < GUIDE_FIELDS; ++k) {
+        if (!gs->fields[k]) continue;
+        if (gs->field_failed[k]) gs->dropped = 1;
+        gs->samples_trained += gs->train_count[k];
+        keep_last_samples(gs, k);
     }
-    for (int k = 0; k < GUIDE_FIELDS; ++k)
-        if (gs->fields[k]) train_field(gs, k, batch);
     gs->train_seconds += clock_seconds() - t0;
 }
 
@@ -148,8 +184,11 @@ void guide_barrier(Integrator *ig) {
     if (!gs->pending) return; /* nothing new was recorded: the fields stay as they are */
     gs->pending = 0;
     double t0 = clock_seconds();
+    FieldCtx c = {gs, NULL, (float)ig->iteration_spp};
+    if (ig->pool) threadpool_parallel_for(ig->pool, GUIDE_FIELDS, 1, update_fields, &c);
+    else update_fields(&c, 0, GUIDE_FIELDS, 0);
     for (int k = 0; k < GUIDE_FIELDS; ++k)
-        if (gs->fields[k] && guide_field_update(gs->fields[k], (float)ig->iteration_spp) != 0) gs->dropped = 1;
+        if (gs->field_failed[k]) gs->dropped = 1;
     gs->updates++;
     gs->train_seconds += clock_seconds() - t0;
     if (ig->record.active && ig->spp_done < ig->opt->spp) gs->last_count = 0; /* guide-dump keeps the last trained iteration's */

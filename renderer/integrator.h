@@ -107,8 +107,9 @@ typedef struct GuideState {
     int updates;
     double train_seconds;         /* recording into and updating the fields */
     uint64_t samples_trained;
-    GuideTrainingSample *train;   /* scratch */
-    size_t train_capacity;
+    GuideTrainingSample *train[GUIDE_FIELDS]; /* scratch: each field's samples of the batch */
+    size_t train_capacity[GUIDE_FIELDS], train_count[GUIDE_FIELDS];
+    int field_failed[GUIDE_FIELDS];           /* per field (the fields train on the threads) */
     GuideTrainingSample *last;    /* guide-dump: the surface samples of the iteration being trained */
     uint8_t *last_class;          /* their normal classes */
     size_t last_count, last_capacity;
@@ -144,6 +145,7 @@ typedef struct Integrator {
     BarrierHook hooks[MAX_BARRIER_HOOKS];
     int num_hooks;
     CandelaRayLog *ray_log;   /* bench: every traced ray (NULL: not recorded) */
+    ThreadPool *pool;         /* the render's threads, for the batch-end and barrier work (NULL: serial) */
     pthread_mutex_t ray_log_mutex;
 } Integrator;
 

@@ -135,6 +135,18 @@ void record_radiance(const Integrator *ig, uint32_t p, vec3 c, RadianceSource so
     recorder_add_emission(ig->record.recorder, target, e);
 }
 
+typedef struct SortCtx {
+    RecordState *rs;
+    int failed[MAX_SLICES];
+} SortCtx;
+
+static void sort_slices(void *ctx, size_t begin, size_t end, int thread_index) {
+    (void)thread_index;
+    SortCtx *c = ctx;
+    for (size_t k = begin; k < end; ++k)
+        if (recorder_samples_sort(&c->rs->samples[k].s) != 0) c->failed[k] = 1;
+}
+
 void record_batch_end(Integrator *ig, Slice *slices, uint32_t n) {
     RecordState *rs = &ig->record;
     RecorderSamples *all = &rs->batch;
@@ -142,6 +154,14 @@ void record_batch_end(Integrator *ig, Slice *slices, uint32_t n) {
     size_t total = 0;
     for (uint32_t k = 0; k < n; ++k) recorder_flush_cache(rs->recorder, &slices[k].record_cache);
     recorder_end_batch(rs->recorder);
+    /* Slice k holds the paths [begin_k, end_k), contiguous and in slice order: sorting every
+     * slice's samples by path (stable, on the threads) and concatenating them in slice order is
+     * the stable sort of them all, without a serial sort of the whole batch. */
+    SortCtx sc = {rs, {0}};
+    if (ig->pool && n > 1) threadpool_parallel_for(ig->pool, n, 1, sort_slices, &sc);
+    else sort_slices(&sc, 0, n, 0);
+    for (uint32_t k = 0; k < n; ++k)
+        if (sc.failed[k]) rs->dropped = 1;
     for (uint32_t k = 0; k < n; ++k) {
         total += rs->samples[k].s.count;
         if (rs->samples[k].s.failed) rs->dropped = 1;
@@ -157,7 +177,6 @@ void record_batch_end(Integrator *ig, Slice *slices, uint32_t n) {
         all->count += rs->samples[k].s.count;
     }
     for (uint32_t k = 0; k < n; ++k) recorder_samples_clear(&rs->samples[k].s);
-    if (recorder_samples_sort(all) != 0) rs->dropped = 1;
     /* recorded paths of the batch, for the next iteration's path skipping */
     uint32_t recorded = 0;
     for (uint32_t p = 0; p < ig->batch_count; ++p) recorded += !ig->ps.record_skip[p];

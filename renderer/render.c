@@ -213,6 +213,7 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
     r->have_integrator = 1;
     Integrator *ig = &r->ig;
     ig->ray_log = ray_log;
+    ig->pool = r->pool;
     if (light_sampler_has_barrier(&r->sampler)) integrator_add_barrier_hook(ig, light_sampler_barrier_hook, &r->sampler);
     stats->time_build = clock_seconds() - t_loaded;
 
