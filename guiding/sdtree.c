@@ -546,14 +546,19 @@ GuideField *guide_field_create(const float lo[3], const float hi[3], const Guide
     return f;
 }
 
+/* Frees the leaves' quadtrees and the array (leaves may be NULL). */
+static void leaves_free(GuideDistribution *leaves, uint32_t count) {
+    if (leaves)
+        for (uint32_t i = 0; i < count; ++i) {
+            quadtree_free(&leaves[i].sampling);
+            quadtree_free(&leaves[i].building);
+        }
+    free(leaves);
+}
+
 void guide_field_free(GuideField *f) {
     if (!f) return;
-    if (f->leaves)
-        for (uint32_t i = 0; i < f->leaf_count; ++i) {
-            quadtree_free(&f->leaves[i].sampling);
-            quadtree_free(&f->leaves[i].building);
-        }
-    free(f->leaves);
+    leaves_free(f->leaves, f->leaf_count);
     free(f->nodes);
     free(f->pdf_nodes);
     free(f->cells);
@@ -816,15 +821,10 @@ fail:
     scratch_free(&scratch);
     if (rebuilt)
         for (uint32_t i = 0; i < old_leaves; ++i) quadtree_free(&rebuilt[i]);
-    if (new_leaves)
-        for (uint32_t i = 0; i < new_leaf_count; ++i) {
-            quadtree_free(&new_leaves[i].sampling);
-            quadtree_free(&new_leaves[i].building);
-        }
+    leaves_free(new_leaves, new_leaf_count);
     free(rebuilt);
     free(levels);
     free(new_nodes);
-    free(new_leaves);
     free(flat_nodes);
     free(flat_cells);
     alias_scratch_free(&alias);
@@ -1085,12 +1085,7 @@ int guide_field_load(GuideField *f, FILE *in) {
         if (rc == 0) rc = quadtree_load(&l->building, max_nodes, in);
     }
     if (rc != 0) {
-        if (g.leaves)
-            for (uint32_t i = 0; i < leaf_count; ++i) {
-                quadtree_free(&g.leaves[i].sampling);
-                quadtree_free(&g.leaves[i].building);
-            }
-        free(g.leaves);
+        leaves_free(g.leaves, leaf_count);
         free(g.nodes);
         return -1;
     }
@@ -1107,21 +1102,13 @@ int guide_field_load(GuideField *f, FILE *in) {
     if (!flat_nodes || !flat_cells || alias_scratch_alloc(&alias, max_cells)) {
         free(flat_nodes);
         free(flat_cells);
-        for (uint32_t i = 0; i < leaf_count; ++i) {
-            quadtree_free(&g.leaves[i].sampling);
-            quadtree_free(&g.leaves[i].building);
-        }
-        free(g.leaves);
+        leaves_free(g.leaves, leaf_count);
         free(g.nodes);
         return -1;
     }
     field_flatten(g.leaves, leaf_count, flat_nodes, flat_cells, &alias);
     alias_scratch_free(&alias);
-    for (uint32_t i = 0; i < f->leaf_count; ++i) {
-        quadtree_free(&f->leaves[i].sampling);
-        quadtree_free(&f->leaves[i].building);
-    }
-    free(f->leaves);
+    leaves_free(f->leaves, f->leaf_count);
     free(f->nodes);
     free(f->pdf_nodes);
     free(f->cells);
