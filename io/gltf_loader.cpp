@@ -1365,6 +1365,7 @@ void Loader::load_volume(const tinygltf::Node &node, const std::string &what, co
 void Loader::environment(IoScene *out) {
     out->env_path[0] = 0;
     out->env_strength = 1.0f;
+    out->env_rotation_deg = 0.0f;
     const tinygltf::Value *env = nullptr;
     if (scene_ >= 0) env = member(m_.scenes[size_t(scene_)].extras, "candela_environment");
     if (!env) env = member(m_.asset.extras, "candela_environment");
@@ -1379,6 +1380,8 @@ void Loader::environment(IoScene *out) {
     if (p.size() >= sizeof out->env_path) fail("extras.candela_environment.uri is too long");
     std::memcpy(out->env_path, p.c_str(), p.size() + 1);
     out->env_strength = strength ? float(strength->GetNumberAsDouble()) : 1.0f;
+    // degrees about the vertical, as Blender's Z rotation of the world's Mapping node
+    out->env_rotation_deg = float(finite_number(*env, "rotation", 0.0, "extras.candela_environment"));
 }
 
 template <class T>
@@ -1445,6 +1448,7 @@ void Loader::run(IoScene *out) {
     transfer(out);
     std::memcpy(out->env_path, tmp.env_path, sizeof out->env_path);
     out->env_strength = tmp.env_strength;
+    out->env_rotation_deg = tmp.env_rotation_deg;
 }
 
 }  // namespace

@@ -307,10 +307,12 @@ typedef struct IoScene {
     IoImage *images;         uint32_t num_images;
     IoLight *lights;         uint32_t num_lights;
     IoCamera *cameras;       uint32_t num_cameras;
-    /* scene.extras.candela_environment {"uri": "...", "strength": S}: path resolved relative
-     * to the glTF file; env_path[0] == 0 when absent. */
+    /* scene.extras.candela_environment {"uri": "...", "strength": S, "rotation": DEG}: path
+     * resolved relative to the glTF file; env_path[0] == 0 when absent. rotation: degrees about
+     * the vertical (+Y), the sign of Blender's Z rotation of the world's Mapping node (0 when absent). */
     char env_path[1024];
     float env_strength;
+    float env_rotation_deg;
     IoVolume *volumes;       uint32_t num_volumes; /* nodes with extras.candela_volume */
     uint32_t num_warnings;   /* warnings printed to stderr while loading (e.g. morph targets ignored) */
     IoNode *nodes;           uint32_t num_nodes;    /* the node walk (io_scene_pose) */

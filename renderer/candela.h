@@ -51,6 +51,7 @@ typedef struct CandelaOptions {
     CandelaLightUnits light_units;
     const char *env_path;      /* overrides the scene's extras; NULL: none */
     float env_strength;
+    float env_rotation_deg;    /* --env-rotation: degrees about the vertical, Blender's sign; NaN: the scene's extras (else 0) */
     uint32_t batch_size;       /* paths in flight per batch; 0: default. Never changes the image. */
     int max_iteration_spp;     /* cap of the 1,1,2,4,... schedule; 0: default */
     int quiet;                 /* no progress output */

@@ -128,6 +128,8 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
         if ((rc = parse_long(a, v, 1, 1 << 22, &n, err)) == 0) o->batch_size = (uint32_t)n;
     } else if (strcmp(a, "--env-strength") == 0) {
         if ((rc = parse_float(a, v, 0.0f, 1e9f, &f, err)) == 0) o->env_strength = f;
+    } else if (strcmp(a, "--env-rotation") == 0) {
+        if ((rc = parse_float(a, v, -1e6f, 1e6f, &f, err)) == 0) o->env_rotation_deg = f;
     } else if (strcmp(a, "--env") == 0) {
         if (!v) return missing(a, err);
         o->env_path = v;

@@ -283,7 +283,7 @@ float light_volume_pdf_li(const Lights *ls, const Light *l, vec3 p, vec3 d) {
 
 float light_env_pdf_li(const Lights *ls, vec3 d) {
     if (ls->environment < 0) return 0.0f;
-    vec2 uv = scene_env_dir_to_uv(d);
+    vec2 uv = scene_env_dir_to_uv(ls->scene, d);
     float sin_theta = sqrtf(fmaxf(0.0f, 1.0f - d.y * d.y));
     if (!(sin_theta > 0.0f)) return 0.0f;
     return dist2d_pdf(&ls->env_distribution, uv) / (2.0f * PI_F * PI_F * sin_theta);
@@ -392,7 +392,7 @@ int light_sample_li(const Lights *ls, const Light *l, const LightSampleContext *
         float pdf_uv;
         vec2 uv = dist2d_sample(&ls->env_distribution, u0, u1, &pdf_uv);
         (void)u2;
-        vec3 d = scene_env_uv_to_dir(uv);
+        vec3 d = scene_env_uv_to_dir(scene, uv);
         float sin_theta = sinf(uv.y * PI_F);
         if (!(pdf_uv > 0.0f) || !(sin_theta > 0.0f)) return 0;
         s->wi = d;

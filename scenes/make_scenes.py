@@ -15,9 +15,12 @@ Outputs (paths relative to the repository root):
   tests/scenes/env_constant.gltf       nothing visible, constant environment (env_constant.exr)
   tests/scenes/env_plane.gltf          Lambert plane under the constant environment
   tests/scenes/env_directions.gltf     orthographic cameras looking at texel centres of env_grid.exr
+  tests/scenes/env_directions_rot.gltf the same with the environment rotated (extras rotation 75)
+  tests/scenes/env_marked.gltf         a camera looking down -Z under env_marked.exr
   tests/scenes/two_lights.gltf         floor + wall, 1 emissive quad, 3 point lights of very different power
   tests/scenes/env_constant.exr        16x8 FLOAT EXR, every pixel (0.5, 0.75, 1.0)
   tests/scenes/env_grid.exr            8x4 FLOAT EXR, texel (i, j) = ((i+1)/8, (j+1)/4, 0.25 + 0.5*((i+j)%2))
+  tests/scenes/env_marked.exr          64x32 FLOAT EXR, 0 but texel (18, 14) = 1
 
 The expected values the tests use are documented next to each scene below and in
 tests/test_analytic.c.
@@ -623,11 +626,27 @@ def env_grid_texel(i, j):
 ENV_DIR_TEXELS = [(0, 1), (1, 2), (2, 1), (3, 0), (4, 2), (5, 3), (6, 1), (7, 2)]
 
 
-def latlong_dir(u, v):
-    """Inverse of u = atan2(-dz, -dx)/(2 pi) + 0.5, v_top = 0.5 - atan2(dy, hypot(dx, dz))/pi."""
-    phi = (u - 0.5) * 2 * math.pi
-    el = (0.5 - v) * math.pi
-    return (-math.cos(el) * math.cos(phi), math.sin(el), -math.cos(el) * math.sin(phi))
+def latlong_dir(u, v, rotation_deg=0.0):
+    """The world direction (glTF axes) whose environment lookup lands at (u, v) (v from the
+    image's top row), written from Cycles' convention, not from the renderer's code: Cycles'
+    equirectangular_to_direction (Blender's Z-up axes, its v = 1 - ours) is phi = pi - 2 pi u,
+    theta = pi v, d_b = (sin theta cos phi, sin theta sin phi, cos theta). A world Mapping node of
+    type Point with Z rotation rho looks up Rz(rho) d, so the world direction is Rz(-rho) d_b.
+    Blender to glTF: (x, y, z)_gltf = (x_b, z_b, -y_b)."""
+    phi = math.pi - 2.0 * math.pi * u - math.radians(rotation_deg)
+    theta = math.pi * v
+    xb, yb, zb = math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta)
+    return (xb, zb, -yb)
+
+
+# the rotation of env_directions_rot.gltf (extras) and of the rot_* cameras: not a multiple of
+# the 45-degree texel width, so a wrong sign or a missing rotation lands on another texel
+ENV_DIR_ROTATION = 75.0
+
+# env_marked.exr: 64x32, zero but one texel (ENV_MARK) of radiance 1; env_marked.gltf's
+# camera looks down -Z (yfov 90 degrees), where Cycles puts that texel for rotations -20, 0 and
+# +20 degrees (tests/test_analytic.c projects it)
+ENV_MARK = (18, 14)
 
 
 def env_scenes():
@@ -635,6 +654,8 @@ def env_scenes():
     os.makedirs(d, exist_ok=True)
     write_exr(os.path.join(d, 'env_constant.exr'), 16, 8, lambda x, y: ENV_CONSTANT)
     write_exr(os.path.join(d, 'env_grid.exr'), 8, 4, env_grid_texel)
+    write_exr(os.path.join(d, 'env_marked.exr'), 64, 32,
+              lambda x, y: (1.0, 1.0, 1.0) if (x, y) == ENV_MARK else (0.0, 0.0, 0.0))
 
     # every camera ray misses: pixel = Lenv = (0.5, 0.75, 1.0)
     g = Gltf()
@@ -651,14 +672,27 @@ def env_scenes():
     g.write(os.path.join(d, 'env_plane.gltf'))
 
     # orthographic cameras (all rays parallel) looking at texel centres of env_grid.exr: each
-    # pixel = that texel exactly (with nearest or bilinear lookup). Camera "texel_i_j".
+    # pixel = that texel exactly (with nearest or bilinear lookup). Camera "texel_i_j" for the
+    # environment unrotated, "rot_texel_i_j" for it rotated by ENV_DIR_ROTATION; the same
+    # cameras in env_directions.gltf (no rotation) and env_directions_rot.gltf (extras rotation).
+    for name, rotation in (('env_directions.gltf', None), ('env_directions_rot.gltf', ENV_DIR_ROTATION)):
+        g = Gltf()
+        tiny_far_box(g)
+        for prefix, rho in (('texel', 0.0), ('rot_texel', ENV_DIR_ROTATION)):
+            for (i, j) in ENV_DIR_TEXELS:
+                fwd = latlong_dir((i + 0.5) / 8.0, (j + 0.5) / 4.0, rho)
+                g.orthographic('%s_%d_%d' % (prefix, i, j), (0.0, 0.0, 0.0), fwd, 0.01, 0.01)
+        g.environment('env_grid.exr', 1.0)
+        if rotation is not None:
+            g.doc['scenes'][0]['extras']['candela_environment']['rotation'] = rotation
+        g.write(os.path.join(d, name))
+
+    # one camera at the origin looking down -Z (glTF's default orientation: no node rotation)
     g = Gltf()
     tiny_far_box(g)
-    for (i, j) in ENV_DIR_TEXELS:
-        fwd = latlong_dir((i + 0.5) / 8.0, (j + 0.5) / 4.0)
-        g.orthographic('texel_%d_%d' % (i, j), (0.0, 0.0, 0.0), fwd, 0.01, 0.01)
-    g.environment('env_grid.exr', 1.0)
-    g.write(os.path.join(d, 'env_directions.gltf'))
+    g.perspective('camera', (0.0, 0.0, 0.0), (0.0, 0.0, -1.0), 90.0, aspect=1.0)
+    g.environment('env_marked.exr', 1.0)
+    g.write(os.path.join(d, 'env_marked.gltf'))
 
 
 def two_lights():

@@ -34,7 +34,10 @@
  *   env_plane          plane under it: irradiance pi Lenv, L = rho Lenv = (0.25, 0.375, 0.5).
  *   env_directions     orthographic cameras (parallel rays) aimed at texel centres of the 8x4
  *                      lat-long env_grid.exr: pixel = texel ((i+1)/8, (j+1)/4, .25 + .5((i+j)%2)).
- *                      Checks the mapping u = atan2(-dz, -dx)/2pi + .5, v = .5 - asin(dy)/pi.
+ *                      Checks Cycles' equirectangular mapping in glTF axes (make_scenes.py
+ *                      latlong_dir), unrotated and rotated 75 degrees (extras, --env-rotation).
+ *   env_marked         one bright texel seen by a perspective camera where Cycles puts it,
+ *                      with rotations 0, +20, -20 degrees (test_env_marked).
  *   two_lights         no exact value: the uniform vs the power and vs the tree light sampler (different seeds)
  *                      must agree: z = (a - b)/sqrt(va + vb) per pixel, mean z^2 within
  *                      1 +- 5 sqrt(2/N), and the mean difference within 5 standard errors.
@@ -63,6 +66,8 @@ typedef struct RenderSpec {
     CandelaLightSampler sampler;
     CandelaLightUnits units;
     uint64_t seed;
+    int env_rotation_given;  /* 0: the scene's own rotation (CandelaOptions.env_rotation_deg NaN) */
+    float env_rotation_deg;
 } RenderSpec;
 
 /* Renders; on failure records a CHECK failure and returns non-zero (image left empty). */
@@ -83,6 +88,7 @@ static int render(const RenderSpec *s, CandelaImage *img) {
     o.light_sampler = s->sampler;
     o.light_units = s->units;
     o.seed = s->seed;
+    if (s->env_rotation_given) o.env_rotation_deg = s->env_rotation_deg;
     o.threads = 2;
     o.quiet = 1;
 
@@ -321,6 +327,63 @@ static double directional_L(double x, double z) {
     return 0.5 / M_PI * 2 * M_PI * cos(M_PI / 6);
 }
 
+/* env_marked: a 64x32 environment, black but texel (18, 14) of radiance 1, seen by a 90-degree
+ * perspective camera at the origin looking down -Z (32x32 pixels, top row first). The texel's
+ * centre direction is derived here from Cycles' equirectangular_to_direction in Blender's axes
+ * (phi = pi - 2 pi u, theta = pi v_top, d_b = (sin theta cos phi, sin theta sin phi, cos theta)),
+ * a world Mapping node's Z rotation rho (lookup Rz(rho) d: the world direction turns by -rho),
+ * glTF = (x_b, z_b, -y_b), and the pinhole projection. The image's brightness centroid must
+ * lie within 1 pixel of that projection (the texel spans ~2 pixels; its footprint's centroid
+ * is not exactly its centre's projection), and the image must hold the texel's radiance
+ * times its solid angle (energy, with the rotation too: 5 standard errors). The old mapping, 180 degrees off, put
+ * the texel behind the camera. */
+static void test_env_marked(void) {
+    const int W = 64, H = 32, mi = 18, mj = 14, R = 32;
+    const float rotations[] = {0.0f, 20.0f, -20.0f};
+    for (size_t q = 0; q < sizeof rotations / sizeof rotations[0]; ++q) {
+        double u = (mi + 0.5) / W, v = (mj + 0.5) / H;
+        double phi = M_PI - 2.0 * M_PI * u - rotations[q] * M_PI / 180.0, theta = M_PI * v;
+        double xb = sin(theta) * cos(phi), yb = sin(theta) * sin(phi), zb = cos(theta);
+        double x = xb, y = zb, z = -yb; /* glTF */
+        /* pinhole looking down -Z, tan(45 deg) = 1, aspect 1: film x right, y down */
+        double px = (x / -z + 1.0) * 0.5 * R, py = (1.0 - y / -z) * 0.5 * R;
+        CHECK(z < 0 && px > 2 && px < R - 2 && py > 2 && py < R - 2, "marked texel outside the view (%g, %g)", px, py);
+        RenderSpec s = {"env_marked.gltf", NULL, R, R, 16, 0, CANDELA_LIGHT_SAMPLER_POWER, CANDELA_LIGHT_UNITS_RAW, 7,
+                        1, rotations[q]};
+        CandelaImage img;
+        if (render(&s, &img) != 0) { candela_image_free(&img); continue; }
+        double sum = 0, cx = 0, cy = 0, energy = 0, energy_var = 0;
+        for (int j = 0; j < R; ++j)
+            for (int i = 0; i < R; ++i) {
+                double L = img.rgb[3 * (j * R + i)];
+                sum += L;
+                cx += L * (i + 0.5);
+                cy += L * (j + 0.5);
+                /* a pixel's solid angle: (2/R)^2 over |film point|^3 on the plane at distance 1 */
+                double fx = (i + 0.5) * 2.0 / R - 1.0, fy = (j + 0.5) * 2.0 / R - 1.0;
+                double sr = (4.0 / (R * R)) / pow(1.0 + fx * fx + fy * fy, 1.5);
+                energy += L * sr;
+                energy_var += sr * sr * img.variance[3 * (j * R + i)];
+            }
+        double texel_sr = (2.0 * M_PI / W) * (cos(M_PI * mj / H) - cos(M_PI * (mj + 1) / H));
+        CHECK(sum > 0, "env_marked rotation %g: black image", (double)rotations[q]);
+        if (sum > 0) {
+            cx /= sum;
+            cy /= sum;
+            fprintf(stderr, "  env_marked rotation %+g: centroid (%.2f, %.2f), Cycles' direction at (%.2f, %.2f); "
+                    "energy %.5f +- %.5f sr, texel %.5f sr\n", (double)rotations[q], cx, cy, px, py, energy,
+                    sqrt(energy_var), texel_sr);
+            CHECK(fabs(cx - px) <= 1.0 && fabs(cy - py) <= 1.0,
+                  "env_marked rotation %g: marked texel at (%.2f, %.2f), Cycles puts it at (%.2f, %.2f)",
+                  (double)rotations[q], cx, cy, px, py);
+            /* 5 standard errors of the pixel sums, plus 1% for the pixel-centre solid angles */
+            CHECK(fabs(energy - texel_sr) <= 5.0 * sqrt(energy_var) + 0.01 * texel_sr, "env_marked rotation %g: %.5f sr of radiance 1, texel %.5f sr",
+                  (double)rotations[q], energy, texel_sr);
+        }
+        candela_image_free(&img);
+    }
+}
+
 static void test_env(void) {
     RenderSpec s = {"env_constant.gltf", NULL, 32, 32, 16, 0, CANDELA_LIGHT_SAMPLER_POWER,
                     CANDELA_LIGHT_UNITS_RAW, 3};
@@ -346,27 +409,45 @@ static void test_env(void) {
     }
     candela_image_free(&img);
 
+    /* Each camera looks at a texel centre of the 8x4 grid along the direction Cycles maps it
+     * to (scenes/make_scenes.py latlong_dir); "rot_" cameras for the environment turned by 75
+     * degrees (Blender's Mapping node Z rotation), from the extras or from --env-rotation. */
     static const int texels[][2] = {{0, 1}, {1, 2}, {2, 1}, {3, 0}, {4, 2}, {5, 3}, {6, 1}, {7, 2}};
-    for (size_t k = 0; k < sizeof texels / sizeof texels[0]; ++k) {
-        int i = texels[k][0], j = texels[k][1];
-        char cam[32], name[64];
-        snprintf(cam, sizeof cam, "texel_%d_%d", i, j);
-        snprintf(name, sizeof name, "env_directions %s", cam);
-        RenderSpec sd = {"env_directions.gltf", cam, 4, 4, 4, 0, CANDELA_LIGHT_SAMPLER_POWER,
-                         CANDELA_LIGHT_UNITS_RAW, 5};
-        if (render(&sd, &img) == 0) {
-            double *e = constant_exact(16, (i + 1) / 8.0, (j + 1) / 4.0, 0.25 + 0.5 * ((i + j) % 2));
-            /* bilinear lookups at a texel centre are exact to float rounding of the direction */
-            int bad = 0;
-            for (int p = 0; p < 16; ++p)
-                for (int c = 0; c < 3; ++c)
-                    if (!(fabs(img.rgb[3 * p + c] - e[3 * p + c]) <= 1e-3)) ++bad;
-            CHECK(bad == 0, "%s: expected texel (%d,%d) = %g %g %g, pixel 0 = %g %g %g", name, i, j,
-                  e[0], e[1], e[2], img.rgb[0], img.rgb[1], img.rgb[2]);
-            free(e);
+    static const struct {
+        const char *file, *prefix;
+        int given;
+        float deg;
+    } cases[] = {
+        {"env_directions.gltf", "texel", 0, 0.0f},           /* no rotation */
+        {"env_directions_rot.gltf", "rot_texel", 0, 0.0f},   /* extras rotation 75 */
+        {"env_directions.gltf", "rot_texel", 1, 75.0f},      /* --env-rotation 75 */
+        {"env_directions.gltf", "rot_texel", 1, 75.0f - 720.0f}, /* whole turns do nothing */
+        {"env_directions_rot.gltf", "texel", 1, 0.0f},       /* --env-rotation 0 overrides the extras */
+    };
+    for (size_t q = 0; q < sizeof cases / sizeof cases[0]; ++q) {
+        for (size_t k = 0; k < sizeof texels / sizeof texels[0]; ++k) {
+            int i = texels[k][0], j = texels[k][1];
+            char cam[32], name[128];
+            snprintf(cam, sizeof cam, "%s_%d_%d", cases[q].prefix, i, j);
+            snprintf(name, sizeof name, "env_directions %s %s (--env-rotation %s%g)", cases[q].file, cam,
+                     cases[q].given ? "" : "none, ", cases[q].given ? (double)cases[q].deg : 0.0);
+            RenderSpec sd = {cases[q].file, cam, 4, 4, 4, 0, CANDELA_LIGHT_SAMPLER_POWER,
+                             CANDELA_LIGHT_UNITS_RAW, 5, cases[q].given, cases[q].deg};
+            if (render(&sd, &img) == 0) {
+                double *e = constant_exact(16, (i + 1) / 8.0, (j + 1) / 4.0, 0.25 + 0.5 * ((i + j) % 2));
+                /* bilinear lookups at a texel centre are exact to float rounding of the direction */
+                int bad = 0;
+                for (int p = 0; p < 16; ++p)
+                    for (int c = 0; c < 3; ++c)
+                        if (!(fabs(img.rgb[3 * p + c] - e[3 * p + c]) <= 1e-3)) ++bad;
+                CHECK(bad == 0, "%s: expected texel (%d,%d) = %g %g %g, pixel 0 = %g %g %g", name, i, j,
+                      e[0], e[1], e[2], img.rgb[0], img.rgb[1], img.rgb[2]);
+                free(e);
+            }
+            candela_image_free(&img);
         }
-        candela_image_free(&img);
     }
+    test_env_marked();
 }
 
 /* Compares two renders of the same scene made with different light samplers (uniform as

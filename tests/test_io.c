@@ -107,6 +107,8 @@ static void expect_gltf_failure(const char *path, const char *what) {
     CHECK(scene_is_zero(&s), "%s: scene not zeroed after failure", what);
 }
 
+static void expect_failure_saying(const char *path, const char *what, const char *needle1, const char *needle2);
+
 /* ---------------------------------------------------------------- EXR */
 
 static void test_exr(void) {
@@ -730,7 +732,7 @@ static void test_generated_gltf(void) {
     /* environment from scene extras */
     snprintf(json, sizeof json,
              "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[],\"extras\":"
-             "{\"candela_environment\":{\"uri\":\"sky.exr\",\"strength\":2.5}}}]}");
+             "{\"candela_environment\":{\"uri\":\"sky.exr\",\"strength\":2.5,\"rotation\":-112.5}}}]}");
     const char *envp = tmp_path("env.gltf");
     write_bytes(envp, json, strlen(json));
     rc = io_load_gltf(envp, &s, err);
@@ -740,8 +742,25 @@ static void test_generated_gltf(void) {
         snprintf(want, sizeof want, "%s/sky.exr", tmpdir);
         CHECK(strcmp(s.env_path, want) == 0, "env path '%s'", s.env_path);
         CHECK(s.env_strength == 2.5f, "env strength %g", s.env_strength);
+        CHECK(s.env_rotation_deg == -112.5f, "env rotation %g", s.env_rotation_deg);
         io_scene_free(&s);
     }
+    /* rotation: a finite number of degrees, or absent (0) */
+    static const char *const bad_rotations[] = {"\"90\"", "1e300", "[90]"};
+    for (size_t i = 0; i < sizeof bad_rotations / sizeof bad_rotations[0]; ++i) {
+        snprintf(json, sizeof json,
+                 "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[],\"extras\":"
+                 "{\"candela_environment\":{\"uri\":\"sky.exr\",\"rotation\":%s}}}]}", bad_rotations[i]);
+        write_bytes(envp, json, strlen(json));
+        expect_failure_saying(envp, "bad environment rotation", "extras.candela_environment.rotation", NULL);
+    }
+    snprintf(json, sizeof json,
+             "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[],\"extras\":"
+             "{\"candela_environment\":{\"uri\":\"sky.exr\"}}}]}");
+    write_bytes(envp, json, strlen(json));
+    rc = io_load_gltf(envp, &s, err);
+    CHECK(rc == 0 && s.env_rotation_deg == 0.0f, "env without rotation: %s %g", err, rc == 0 ? s.env_rotation_deg : 0.0f);
+    if (rc == 0) io_scene_free(&s);
 }
 
 /* --texture-budget-mb counts textures as held: 4 bytes per texel for an 8-bit file, 16 for a
