@@ -345,6 +345,8 @@ typedef struct IoLoadOptions {
      * 8-bit files, 16 for the others), checked from each image's header before it is decoded
      * (0: no limit) */
     uint64_t texture_budget_bytes;
+    /* non-zero: warnings are counted (IoScene.num_warnings) but not printed (--no-warnings) */
+    int no_warnings;
 } IoLoadOptions;
 int io_load_gltf_opts(const char *path, const IoLoadOptions *opts, IoScene *scene, char err[IO_ERR_LEN]);
 void io_scene_free(IoScene *scene);

@@ -55,6 +55,7 @@ typedef struct CandelaOptions {
     uint32_t batch_size;       /* paths in flight per batch; 0: default. Never changes the image. */
     int max_iteration_spp;     /* cap of the 1,1,2,4,... schedule; 0: default */
     int quiet;                 /* no progress output */
+    int no_warnings;           /* --no-warnings: no "warning:" lines about the scene (what is read but not rendered) */
     int optimal_occlusion;     /* optimal sampler: one shadow ray per light per vertex */
     int cachepoint_no_visibility; /* cache points without visibility learning */
     int cachepoint_retruncate;    /* re-truncate blurred far bins (memory bound) */

@@ -386,7 +386,7 @@ static void scene_bounds(Scene *scene) {
 int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
     memset(scene, 0, sizeof *scene);
     char ioerr[IO_ERR_LEN];
-    IoLoadOptions lo = {o->confine_dir, (uint64_t)o->texture_budget_mb << 20};
+    IoLoadOptions lo = {o->confine_dir, (uint64_t)o->texture_budget_mb << 20, o->no_warnings};
     if (io_load_gltf_opts(o->scene_path, &lo, &scene->io, ioerr) != 0) {
         snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
         return -1;
@@ -542,7 +542,7 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
             scene_free(scene);
             return -1;
         }
-        if (bad && !o->quiet)
+        if (bad && !o->quiet && !o->no_warnings)
             fprintf(stderr, "%s: warning: %zu non-finite or negative environment values set to 0\n", env_path, bad);
     }
     return 0;
