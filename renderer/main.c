@@ -87,6 +87,8 @@ static const char *USAGE =
     "  --cachepoint-retruncate   linear build: re-apply the 97%/256 rule after the blur (less memory)\n"
     "  --optimal-occlusion       optimal sampler: one shadow ray per light per vertex\n"
     "  --light-units U           blender (default: cd/683, lux/683) | raw (W/sr, W/m^2)\n"
+    "  --light-model M           gltf (default: glTF's spot cone ramp) | blender3 (Cycles 3.4's\n"
+    "                            spot blend smoothstep, blend = 1 - inner/outer cone angle)\n"
     "  --camera NAME             glTF camera by name (default: the first, or a framing view)\n"
     "  --env FILE                lat-long environment map (EXR/HDR/PNG...)\n"
     "  --env-strength S          environment multiplier (default 1)\n"

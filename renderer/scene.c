@@ -508,6 +508,7 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
 
     const char *env_path = o->env_path ? o->env_path : (io->env_path[0] ? io->env_path : NULL);
     scene->env_strength = o->env_path ? o->env_strength : io->env_strength;
+    scene->light_model = o->light_model;
     /* --env-rotation (NaN when not given) wins over the extras' rotation, with or without --env */
     double rotation_deg = isnan(o->env_rotation_deg) ? (double)io->env_rotation_deg : (double)o->env_rotation_deg;
     double turns = rotation_deg / 360.0;

@@ -71,6 +71,7 @@ typedef struct Scene {
     IoImage env;               /* linear float RGBA lat-long (rgba, never rgba8); width 0 when there is none */
     float env_strength;
     float env_rotation_turns;  /* the environment's rotation about +Y in turns, in [0, 1) (scene_env_dir_to_uv) */
+    CandelaLightModel light_model; /* how lights_build shapes punctual lights (--light-model) */
 } Scene;
 
 /* Loads the glTF, applies options (camera choice, resolution, environment) and builds the

@@ -207,6 +207,7 @@ warned "no lights" "no lights and no environment" "$root/tests/scenes/no_lights.
 silent "no lights but an environment" "$root/tests/scenes/no_lights.gltf" --env "$root/tests/scenes/env_constant.exr"
 expect_error "bad env rotation" "--env-rotation" -- render "$scene" --env-rotation 90deg "${common[@]}"
 expect_error "nan env rotation" "--env-rotation" -- render "$scene" --env-rotation nan "${common[@]}"
+expect_error "bad light model" "unknown light model 'blender4'" -- render "$scene" --light-model blender4 "${common[@]}"
 rm -f "$tmp/w.exr" "$tmp/w.err"
 
 # volumes: a node whose candela_volume names a missing, a truncated or a non-VDB file, or a
