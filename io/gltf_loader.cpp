@@ -566,7 +566,8 @@ void Loader::parse() {
 static bool extension_supported(const std::string &e) {
     static const char *supported[] = {
         "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_specular",
-        "KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_volume", "KHR_texture_transform"};
+        "KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_volume", "KHR_texture_transform",
+        "KHR_materials_clearcoat"};
     for (const char *s : supported)
         if (e == s) return true;
     return false;
@@ -855,6 +856,21 @@ int32_t Loader::image_for(int gi, bool srgb, const std::string &what) {
     return index;
 }
 
+// A textureInfo inside an extension's JSON (KHR_materials_clearcoat's textures) as tinygltf's
+// TextureInfo, for texture_ref: index (-1 when the key is absent), texCoord, extensions.
+tinygltf::TextureInfo texture_info(const tinygltf::Value &ext, const char *key, const std::string &what) {
+    tinygltf::TextureInfo ti;
+    const tinygltf::Value *v = member(ext, key);
+    if (!v) return ti;
+    const tinygltf::Value *index = member(*v, "index");
+    if (!index || index_value(*index) < 0) fail(what + "." + key + ": needs a texture \"index\"");
+    ti.index = index_value(*index);
+    if (const tinygltf::Value *tc = member(*v, "texCoord"); tc && index_value(*tc) >= 0) ti.texCoord = index_value(*tc);
+    if (const tinygltf::Value *x = member(*v, "extensions"); x && x->IsObject())
+        for (const std::string &k : x->Keys()) ti.extensions[k] = x->Get(k);
+    return ti;
+}
+
 template <class Info>
 IoTextureRef Loader::texture_ref(const Info &info, bool srgb, const std::string &what) {
     IoTextureRef r{};
@@ -951,6 +967,20 @@ void Loader::convert_materials() {
             d.transmission = float(number_or(*e, "transmissionFactor", 0.0));
         if (const tinygltf::Value *e = extension(src.extensions, "KHR_materials_ior"))
             d.ior = float(number_or(*e, "ior", 1.5));
+        d.clearcoat_tex.image = d.clearcoat_roughness_tex.image = -1;
+        if (const tinygltf::Value *e = extension(src.extensions, "KHR_materials_clearcoat")) {
+            const std::string w = what + " KHR_materials_clearcoat";
+            d.clearcoat = float(finite_number(*e, "clearcoatFactor", 0.0, w));
+            d.clearcoat_roughness = float(finite_number(*e, "clearcoatRoughnessFactor", 0.0, w));
+            if (!(d.clearcoat >= 0.0f && d.clearcoat <= 1.0f) ||
+                !(d.clearcoat_roughness >= 0.0f && d.clearcoat_roughness <= 1.0f))
+                fail(w + ": clearcoatFactor and clearcoatRoughnessFactor must be in [0, 1]");
+            d.clearcoat_tex = texture_ref(texture_info(*e, "clearcoatTexture", w), false, w + " clearcoatTexture");
+            d.clearcoat_roughness_tex =
+                texture_ref(texture_info(*e, "clearcoatRoughnessTexture", w), false, w + " clearcoatRoughnessTexture");
+            if (member(*e, "clearcoatNormalTexture"))
+                warn(w + ": clearcoatNormalTexture is ignored (the coat uses the base's shading normal)");
+        }
 
         d.base_color_tex = texture_ref(pbr.baseColorTexture, true, what + " baseColorTexture");
         d.metallic_roughness_tex =

@@ -123,6 +123,11 @@ typedef struct IoMaterial {
     float specular_color[3];        /* specularColorFactor, default 1,1,1 */
     float transmission;             /* KHR_materials_transmission transmissionFactor, default 0 */
     float ior;                      /* KHR_materials_ior, default 1.5 */
+    /* KHR_materials_clearcoat: clearcoatFactor x clearcoatTexture.R (default 0: no coat),
+     * clearcoatRoughnessFactor x clearcoatRoughnessTexture.G (default 0); a clearcoatNormalTexture
+     * is not read (warning): the coat shares the base's shading normal */
+    float clearcoat, clearcoat_roughness;
+    IoTextureRef clearcoat_tex, clearcoat_roughness_tex;
     int32_t double_sided;
     int32_t alpha_mode;             /* IO_ALPHA_* (BLEND is treated as MASK by the renderer) */
     float alpha_cutoff;             /* default 0.5 */

@@ -199,6 +199,19 @@ void scene_material_at(const Scene *scene, const SurfaceHit *hit, MaterialSample
     m->bsdf.specular_color = v3(mat->specular_color[0], mat->specular_color[1], mat->specular_color[2]);
     m->bsdf.transmission = clampf(mat->transmission, 0.0f, 1.0f);
     m->bsdf.ior = mat->ior >= 1.0f && isfinite(mat->ior) ? mat->ior : 1.5f;
+    float coat = mat->clearcoat, coat_roughness = mat->clearcoat_roughness;
+    if (coat > 0.0f && texture_present(scene, &mat->clearcoat_tex)) {
+        float t[4];
+        texture_lookup(&scene->io.images[mat->clearcoat_tex.image], &mat->clearcoat_tex, hit->uv, t);
+        coat *= t[0];
+    }
+    if (coat > 0.0f && texture_present(scene, &mat->clearcoat_roughness_tex)) {
+        float t[4];
+        texture_lookup(&scene->io.images[mat->clearcoat_roughness_tex.image], &mat->clearcoat_roughness_tex, hit->uv, t);
+        coat_roughness *= t[1];
+    }
+    m->bsdf.clearcoat = clampf(coat, 0.0f, 1.0f);
+    m->bsdf.clearcoat_roughness = clampf(coat_roughness, 0.0f, 1.0f);
     m->double_sided = mat->double_sided;
 }
 
@@ -396,6 +409,7 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
     for (int k = 0; k < 4; ++k) dm->base_color[k] = 1.0f;
     dm->metallic = 1.0f; dm->roughness = 1.0f;
     dm->base_color_tex.image = dm->metallic_roughness_tex.image = dm->normal_tex.image = dm->emissive_tex.image = -1;
+    dm->clearcoat_tex.image = dm->clearcoat_roughness_tex.image = -1;
     dm->normal_scale = 1.0f; dm->emissive_strength = 1.0f; dm->specular = 1.0f;
     dm->specular_color[0] = dm->specular_color[1] = dm->specular_color[2] = 1.0f;
     dm->ior = 1.5f; dm->alpha_cutoff = 0.5f;

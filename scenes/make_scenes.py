@@ -15,6 +15,7 @@ Outputs (paths relative to the repository root):
   tests/scenes/area_plane.gltf         Lambert plane + one-sided emissive square (+ a back-facing one)
   tests/scenes/env_constant.gltf       nothing visible, constant environment (env_constant.exr)
   tests/scenes/env_plane.gltf          Lambert plane under the constant environment
+  tests/scenes/coat_plane.gltf         env_plane with a smooth clearcoat (KHR_materials_clearcoat)
   tests/scenes/env_directions.gltf     orthographic cameras looking at texel centres of env_grid.exr
   tests/scenes/env_directions_rot.gltf the same with the environment rotated (extras rotation 75)
   tests/scenes/env_marked.gltf         a camera looking down -Z under env_marked.exr
@@ -691,6 +692,19 @@ def env_scenes():
     top_ortho(g)
     g.environment('env_constant.exr', 1.0)
     g.write(os.path.join(d, 'env_plane.gltf'))
+
+    # the same plane with a smooth KHR_materials_clearcoat (factor 1, roughness 0): seen from
+    # straight above, L = (Fc(1) + (1 - Fc(1)) rho (1 - <Fc>)) Lenv with Fc(1) = 0.04 and
+    # <Fc> = 0.04 + 0.96 / 21 (tests/test_analytic.c)
+    g = Gltf()
+    m = g.material('lambert_half_coated', **LAMBERT_WHITE)
+    g.use('KHR_materials_clearcoat')
+    g.doc['materials'][m]['extensions']['KHR_materials_clearcoat'] = {'clearcoatFactor': 1.0,
+                                                                      'clearcoatRoughnessFactor': 0.0}
+    g.mesh('plane', 'plane', PLANE, m)
+    top_ortho(g)
+    g.environment('env_constant.exr', 1.0)
+    g.write(os.path.join(d, 'coat_plane.gltf'))
 
     # orthographic cameras (all rays parallel) looking at texel centres of env_grid.exr: each
     # pixel = that texel exactly (with nearest or bilinear lookup). Camera "texel_i_j" for the

@@ -34,6 +34,7 @@
  *                      facing away from the plane must add nothing.
  *   env_constant       camera sees only the constant environment: L = (0.5, 0.75, 1.0).
  *   env_plane          plane under it: irradiance pi Lenv, L = rho Lenv = (0.25, 0.375, 0.5).
+ *   coat_plane         env_plane with a smooth clearcoat: (0.04 + 0.96 rho (1 - <Fc>)) Lenv.
  *   env_directions     orthographic cameras (parallel rays) aimed at texel centres of the 8x4
  *                      lat-long env_grid.exr: pixel = texel ((i+1)/8, (j+1)/4, .25 + .5((i+j)%2)).
  *                      Checks Cycles' equirectangular mapping in glTF axes (make_scenes.py
@@ -463,6 +464,16 @@ static void test_env(void) {
         double *e = constant_exact(32 * 32, 0.25, 0.375, 0.5);
         compare("env_plane", &img, e);
         check_top_aovs("env_plane", &img, 3.0);
+        free(e);
+    }
+    candela_image_free(&img);
+    /* coat_plane: the same with a smooth clearcoat (the BSDF's closed form, tests/test_bsdf.c):
+     * L = (0.04 + 0.96 rho (1 - 0.04 - 0.96 / 21)) Lenv */
+    RenderSpec s3 = {"coat_plane.gltf", NULL, 32, 32, 64, 0, CANDELA_LIGHT_SAMPLER_POWER, CANDELA_LIGHT_UNITS_RAW, 4};
+    if (render(&s3, &img) == 0) {
+        double k = 0.04 + 0.96 * 0.5 * (1.0 - 0.04 - 0.96 / 21.0);
+        double *e = constant_exact(32 * 32, 0.5 * k, 0.75 * k, 1.0 * k);
+        compare("coat_plane", &img, e);
         free(e);
     }
     candela_image_free(&img);

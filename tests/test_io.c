@@ -1242,6 +1242,40 @@ static void write_volume_gltf(const char *path, const char *volume) {
 
 /* Bad candela_volume values: found before any VDB file is opened (the uri names a file that
  * does not exist), so these need no assets. */
+/* KHR_materials_clearcoat: factors read, defaults 0, out-of-range refused naming the material,
+ * a clearcoatNormalTexture warned about (not rendered), and the extension no longer warned about
+ * in extensionsUsed (it is rendered). */
+static void test_clearcoat(void) {
+    const char *p = tmp_path("coat.gltf");
+    write_fmt(p, "{\"asset\":{\"version\":\"2.0\"},\"extensionsUsed\":[\"KHR_materials_clearcoat\"],\"materials\":["
+                 "{\"name\":\"coated\",\"extensions\":{\"KHR_materials_clearcoat\":{\"clearcoatFactor\":0.75,"
+                 "\"clearcoatRoughnessFactor\":0.25}}},{\"name\":\"plain\"}]}");
+    IoScene s;
+    char err[IO_ERR_LEN] = "";
+    int rc = io_load_gltf(p, &s, err);
+    CHECK(rc == 0, "clearcoat: %s", err);
+    if (rc == 0) {
+        CHECK(s.num_materials == 2 && s.materials[0].clearcoat == 0.75f && s.materials[0].clearcoat_roughness == 0.25f &&
+                  s.materials[0].clearcoat_tex.image == -1 && s.materials[0].clearcoat_roughness_tex.image == -1,
+              "clearcoat factors %g %g", s.materials[0].clearcoat, s.materials[0].clearcoat_roughness);
+        CHECK(s.materials[1].clearcoat == 0.0f && s.materials[1].clearcoat_tex.image == -1, "no clearcoat by default");
+        CHECK(s.num_warnings == 0, "a supported extension warned (%u warnings)", s.num_warnings);
+        io_scene_free(&s);
+    }
+    write_fmt(p, "{\"asset\":{\"version\":\"2.0\"},\"materials\":[{\"name\":\"coated\",\"extensions\":"
+                 "{\"KHR_materials_clearcoat\":{\"clearcoatFactor\":1.5}}}]}");
+    expect_failure_saying(p, "clearcoat factor 1.5", "material 'coated' KHR_materials_clearcoat", "[0, 1]");
+    write_fmt(p, "{\"asset\":{\"version\":\"2.0\"},\"materials\":[{\"name\":\"coated\",\"extensions\":"
+                 "{\"KHR_materials_clearcoat\":{\"clearcoatFactor\":1,\"clearcoatTexture\":{\"index\":3}}}}]}");
+    expect_failure_saying(p, "clearcoat texture out of range", "clearcoatTexture", "out of range");
+    write_fmt(p, "{\"asset\":{\"version\":\"2.0\"},\"materials\":[{\"name\":\"coated\",\"extensions\":"
+                 "{\"KHR_materials_clearcoat\":{\"clearcoatFactor\":1,\"clearcoatNormalTexture\":{\"index\":0}}}}]}");
+    rc = io_load_gltf(p, &s, err);
+    CHECK(rc == 0 && s.num_warnings == 1, "clearcoatNormalTexture: rc %d, %u warnings (%s)", rc, rc == 0 ? s.num_warnings : 0,
+          err);
+    if (rc == 0) io_scene_free(&s);
+}
+
 static void test_volume_inputs(void) {
     const char *p = tmp_path("volume-bad.gltf");
     static const struct {
@@ -1514,6 +1548,7 @@ int main(int argc, char **argv) {
     test_texture_budget();
     test_vdb_generated();
     test_material_media();
+    test_clearcoat();
     test_volume_inputs();
 
     char probe[1024];
