@@ -385,8 +385,9 @@ const char *type_name(int t) {
 
 class Loader {
   public:
-    Loader(const std::string &path, const std::string &confine, uint64_t texture_budget)
-        : path_(path), dir_(dir_of(path)), fs_user_{dir_of(path), confine}, texture_budget_(texture_budget) {}
+    Loader(const std::string &path, const std::string &confine, uint64_t texture_budget, bool print_warnings)
+        : path_(path), dir_(dir_of(path)), fs_user_{dir_of(path), confine}, texture_budget_(texture_budget),
+          print_warnings_(print_warnings) {}
     ~Loader() { release_all(); }
     Loader(const Loader &) = delete;
     Loader &operator=(const Loader &) = delete;
@@ -412,8 +413,10 @@ class Loader {
         return file;
     }
     uint32_t warnings_ = 0;
+    bool print_warnings_ = true; // IoLoadOptions.no_warnings: counted, not printed
     bool warned_morph_ = false;
     bool warned_texcoord_ = false;
+    bool warned_color_ = false;
     int scene_ = -1;
 
     std::vector<IoPrimitive> prims_;
@@ -465,6 +468,7 @@ class Loader {
 
     void parse();
     void check_required_extensions();
+    void warn_unrendered();
     const unsigned char *view_span(int bvi, long long offset, size_t need, const std::string &what,
                                    size_t *stride);
     AccView accessor(int ai, const std::string &what, int want_type);
@@ -557,15 +561,47 @@ void Loader::parse() {
     }
 }
 
-void Loader::check_required_extensions() {
+// The extensions the renderer renders (a required one outside this list refuses the file, a
+// used one is warned about).
+static bool extension_supported(const std::string &e) {
     static const char *supported[] = {
         "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_specular",
-        "KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_volume", "KHR_texture_transform"};
-    for (const std::string &e : m_.extensionsRequired) {
-        bool ok = false;
-        for (const char *s : supported) ok = ok || e == s;
-        if (!ok) fail("requires unsupported extension '" + e + "'");
+        "KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_volume", "KHR_texture_transform",
+        "KHR_materials_clearcoat"};
+    for (const char *s : supported)
+        if (e == s) return true;
+    return false;
+}
+
+void Loader::check_required_extensions() {
+    for (const std::string &e : m_.extensionsRequired)
+        if (!extension_supported(e)) fail("requires unsupported extension '" + e + "'");
+}
+
+// One warning per feature the file has and the renderer reads past (issue 14): an exporter
+// (Blender's writes KHR_materials_clearcoat, animations, BLEND) gets exit 0 and an image that
+// differs from its own renderer's, so say what was left out. After the file parsed; the
+// animations' warning is the renderer's (a frame batch renders them).
+void Loader::warn_unrendered() {
+    for (const std::string &e : m_.extensionsUsed)
+        if (!extension_supported(e) && std::find(m_.extensionsRequired.begin(), m_.extensionsRequired.end(), e) ==
+                                           m_.extensionsRequired.end())
+            warn("extension '" + e + "' is not supported; it is ignored (extensionsUsed)");
+    std::vector<std::string> blend;
+    for (const tinygltf::Material &m : m_.materials)
+        if (m.alphaMode == "BLEND") blend.push_back("'" + m.name + "'");
+    if (!blend.empty()) {
+        std::string names;
+        for (size_t i = 0; i < blend.size() && i < 3; ++i) names += (i ? ", " : "") + blend[i];
+        if (blend.size() > 3) names += strf(" and %zu more", blend.size() - 3);
+        warn(strf("alphaMode BLEND is rendered as MASK (cut out below alphaCutoff, default 0.5; opaque above) in %zu "
+                  "material%s: ",
+                  blend.size(), blend.size() == 1 ? "" : "s") +
+             names);
     }
+    if (!m_.skins.empty())
+        warn(strf("%zu skin%s ignored: skinned meshes render in their node's rest transform", m_.skins.size(),
+                  m_.skins.size() == 1 ? "" : "s"));
 }
 
 // Pointer to [offset, offset+need) inside bufferView bvi, after checking the view lies inside
@@ -685,6 +721,10 @@ void Loader::convert_primitive(const tinygltf::Mesh &mesh, size_t pi) {
     };
     const int pos_ai = attr("POSITION");
     if (pos_ai < 0) fail(where + ": no POSITION attribute");
+    if (attr("COLOR_0") >= 0 && !warned_color_) {
+        warned_color_ = true;
+        warn(where + ": vertex colours (COLOR_0) are ignored (the base colour does not include them)");
+    }
 
     prims_.push_back(IoPrimitive{});
     IoPrimitive &out = prims_.back();
@@ -816,6 +856,21 @@ int32_t Loader::image_for(int gi, bool srgb, const std::string &what) {
     return index;
 }
 
+// A textureInfo inside an extension's JSON (KHR_materials_clearcoat's textures) as tinygltf's
+// TextureInfo, for texture_ref: index (-1 when the key is absent), texCoord, extensions.
+tinygltf::TextureInfo texture_info(const tinygltf::Value &ext, const char *key, const std::string &what) {
+    tinygltf::TextureInfo ti;
+    const tinygltf::Value *v = member(ext, key);
+    if (!v) return ti;
+    const tinygltf::Value *index = member(*v, "index");
+    if (!index || index_value(*index) < 0) fail(what + "." + key + ": needs a texture \"index\"");
+    ti.index = index_value(*index);
+    if (const tinygltf::Value *tc = member(*v, "texCoord"); tc && index_value(*tc) >= 0) ti.texCoord = index_value(*tc);
+    if (const tinygltf::Value *x = member(*v, "extensions"); x && x->IsObject())
+        for (const std::string &k : x->Keys()) ti.extensions[k] = x->Get(k);
+    return ti;
+}
+
 template <class Info>
 IoTextureRef Loader::texture_ref(const Info &info, bool srgb, const std::string &what) {
     IoTextureRef r{};
@@ -912,6 +967,20 @@ void Loader::convert_materials() {
             d.transmission = float(number_or(*e, "transmissionFactor", 0.0));
         if (const tinygltf::Value *e = extension(src.extensions, "KHR_materials_ior"))
             d.ior = float(number_or(*e, "ior", 1.5));
+        d.clearcoat_tex.image = d.clearcoat_roughness_tex.image = -1;
+        if (const tinygltf::Value *e = extension(src.extensions, "KHR_materials_clearcoat")) {
+            const std::string w = what + " KHR_materials_clearcoat";
+            d.clearcoat = float(finite_number(*e, "clearcoatFactor", 0.0, w));
+            d.clearcoat_roughness = float(finite_number(*e, "clearcoatRoughnessFactor", 0.0, w));
+            if (!(d.clearcoat >= 0.0f && d.clearcoat <= 1.0f) ||
+                !(d.clearcoat_roughness >= 0.0f && d.clearcoat_roughness <= 1.0f))
+                fail(w + ": clearcoatFactor and clearcoatRoughnessFactor must be in [0, 1]");
+            d.clearcoat_tex = texture_ref(texture_info(*e, "clearcoatTexture", w), false, w + " clearcoatTexture");
+            d.clearcoat_roughness_tex =
+                texture_ref(texture_info(*e, "clearcoatRoughnessTexture", w), false, w + " clearcoatRoughnessTexture");
+            if (member(*e, "clearcoatNormalTexture"))
+                warn(w + ": clearcoatNormalTexture is ignored (the coat uses the base's shading normal)");
+        }
 
         d.base_color_tex = texture_ref(pbr.baseColorTexture, true, what + " baseColorTexture");
         d.metallic_roughness_tex =
@@ -1365,6 +1434,7 @@ void Loader::load_volume(const tinygltf::Node &node, const std::string &what, co
 void Loader::environment(IoScene *out) {
     out->env_path[0] = 0;
     out->env_strength = 1.0f;
+    out->env_rotation_deg = 0.0f;
     const tinygltf::Value *env = nullptr;
     if (scene_ >= 0) env = member(m_.scenes[size_t(scene_)].extras, "candela_environment");
     if (!env) env = member(m_.asset.extras, "candela_environment");
@@ -1379,6 +1449,8 @@ void Loader::environment(IoScene *out) {
     if (p.size() >= sizeof out->env_path) fail("extras.candela_environment.uri is too long");
     std::memcpy(out->env_path, p.c_str(), p.size() + 1);
     out->env_strength = strength ? float(strength->GetNumberAsDouble()) : 1.0f;
+    // degrees about the vertical, as Blender's Z rotation of the world's Mapping node
+    out->env_rotation_deg = float(finite_number(*env, "rotation", 0.0, "extras.candela_environment"));
 }
 
 template <class T>
@@ -1424,8 +1496,9 @@ void Loader::transfer(IoScene *out) {
     out->anim_end = anim_end_;
     std::snprintf(out->path, sizeof out->path, "%s", path_.c_str());
     out->num_warnings = warnings_;
-    for (const std::string &w : pending_warnings_)
-        std::fprintf(stderr, "%s: warning: %s\n", path_.c_str(), w.c_str());
+    if (print_warnings_)
+        for (const std::string &w : pending_warnings_)
+            std::fprintf(stderr, "%s: warning: %s\n", path_.c_str(), w.c_str());
     prims_.clear();  // ownership of their arrays moved to *out
     images_.clear();
     volumes_.clear();
@@ -1435,6 +1508,7 @@ void Loader::transfer(IoScene *out) {
 void Loader::run(IoScene *out) {
     parse();
     check_required_extensions();
+    warn_unrendered();
     convert_meshes();
     convert_materials();
     flatten_nodes();
@@ -1445,6 +1519,7 @@ void Loader::run(IoScene *out) {
     transfer(out);
     std::memcpy(out->env_path, tmp.env_path, sizeof out->env_path);
     out->env_strength = tmp.env_strength;
+    out->env_rotation_deg = tmp.env_rotation_deg;
 }
 
 }  // namespace
@@ -1480,7 +1555,7 @@ extern "C" int io_load_gltf_opts(const char *path, const IoLoadOptions *opts, Io
         }
     }
     try {
-        Loader loader(path, confine, opts ? opts->texture_budget_bytes : 0);
+        Loader loader(path, confine, opts ? opts->texture_budget_bytes : 0, !(opts && opts->no_warnings));
         loader.run(scene);
         return 0;
     } catch (const LoadError &e) {

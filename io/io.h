@@ -123,6 +123,11 @@ typedef struct IoMaterial {
     float specular_color[3];        /* specularColorFactor, default 1,1,1 */
     float transmission;             /* KHR_materials_transmission transmissionFactor, default 0 */
     float ior;                      /* KHR_materials_ior, default 1.5 */
+    /* KHR_materials_clearcoat: clearcoatFactor x clearcoatTexture.R (default 0: no coat),
+     * clearcoatRoughnessFactor x clearcoatRoughnessTexture.G (default 0); a clearcoatNormalTexture
+     * is not read (warning): the coat shares the base's shading normal */
+    float clearcoat, clearcoat_roughness;
+    IoTextureRef clearcoat_tex, clearcoat_roughness_tex;
     int32_t double_sided;
     int32_t alpha_mode;             /* IO_ALPHA_* (BLEND is treated as MASK by the renderer) */
     float alpha_cutoff;             /* default 0.5 */
@@ -307,10 +312,12 @@ typedef struct IoScene {
     IoImage *images;         uint32_t num_images;
     IoLight *lights;         uint32_t num_lights;
     IoCamera *cameras;       uint32_t num_cameras;
-    /* scene.extras.candela_environment {"uri": "...", "strength": S}: path resolved relative
-     * to the glTF file; env_path[0] == 0 when absent. */
+    /* scene.extras.candela_environment {"uri": "...", "strength": S, "rotation": DEG}: path
+     * resolved relative to the glTF file; env_path[0] == 0 when absent. rotation: degrees about
+     * the vertical (+Y), the sign of Blender's Z rotation of the world's Mapping node (0 when absent). */
     char env_path[1024];
     float env_strength;
+    float env_rotation_deg;
     IoVolume *volumes;       uint32_t num_volumes; /* nodes with extras.candela_volume */
     uint32_t num_warnings;   /* warnings printed to stderr while loading (e.g. morph targets ignored) */
     IoNode *nodes;           uint32_t num_nodes;    /* the node walk (io_scene_pose) */
@@ -343,6 +350,8 @@ typedef struct IoLoadOptions {
      * 8-bit files, 16 for the others), checked from each image's header before it is decoded
      * (0: no limit) */
     uint64_t texture_budget_bytes;
+    /* non-zero: warnings are counted (IoScene.num_warnings) but not printed (--no-warnings) */
+    int no_warnings;
 } IoLoadOptions;
 int io_load_gltf_opts(const char *path, const IoLoadOptions *opts, IoScene *scene, char err[IO_ERR_LEN]);
 void io_scene_free(IoScene *scene);

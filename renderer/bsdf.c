@@ -7,6 +7,10 @@
  *   DIFF   (1-m)(1-t)   (1 - max F(|wo.z|)) (1 - max F(|wi.z|)) base_color / pi
  *   GLASS  (1-m) t      rough (Walter 2007) or smooth dielectric, exact Fresnel scaled by
  *                       specular; refraction tinted by base_color and scaled by 1/eta^2
+ *   COAT   c            KHR_materials_clearcoat: GGX reflection of its own roughness, F = c
+ *                       Schlick(0.04, 1) at the half vector; every lobe above is attenuated by
+ *                       (1 - c Fc(|wo.z|)) (1 - c Fc(|wi.z|)), the coat's Fresnel at both ends,
+ *                       the same reciprocal product form as the diffuse layer's (below)
  *
  * The diffuse layer's "1 - specular * max(F)" (glTF) is evaluated at both |wo.z| and |wi.z|
  * rather than at the half vector: glTF's per-half-vector form is reciprocal but reflects far
@@ -31,7 +35,10 @@
 /* Directions closer than this to the horizon produce no sample (f / |cos| would blow up). */
 #define MIN_COS 1e-7f
 
-enum { LOBE_METAL, LOBE_SPEC, LOBE_DIFFUSE, LOBE_GLASS, LOBE_COUNT };
+enum { LOBE_METAL, LOBE_SPEC, LOBE_DIFFUSE, LOBE_GLASS, LOBE_COAT, LOBE_COUNT };
+
+/* KHR_materials_clearcoat's coat: a dielectric of ior 1.5 (F0 = 0.04) */
+#define COAT_F0 0.04f
 
 typedef struct {
     vec3 base;       /* clamped to [0,1] */
@@ -42,6 +49,8 @@ typedef struct {
     float alpha;     /* opaque lobes, >= BSDF_MIN_ALPHA */
     float alpha_glass;
     int glass_delta;
+    float coat;        /* clearcoat factor; 0: no coat */
+    float alpha_coat;  /* >= BSDF_MIN_ALPHA */
 } Prep;
 
 static float sane01(float x, float fallback) {
@@ -69,6 +78,9 @@ static void prepare(const BsdfParams *p, Prep *q) {
     q->f0_spec = v3_scale(v3_min(v3_scale(sc, r0), v3s(1.0f)), q->specular);
     q->f90_spec = q->specular;
     q->spec_on = q->ior != 1.0f && q->specular > 0.0f;
+    q->coat = sane01(p->clearcoat, 0.0f);
+    float rc = sane01(p->clearcoat_roughness, 0.0f);
+    q->alpha_coat = maxf(rc * rc, BSDF_MIN_ALPHA);
 }
 
 static float pow5(float x) { float x2 = x * x; return x2 * x2 * x; }
@@ -83,6 +95,12 @@ static float spec_fmax(const Prep *q, float c) {
     if (!q->spec_on) return 0.0f;
     float f0 = v3_max_component(q->f0_spec);
     return f0 + (q->f90_spec - f0) * pow5(1.0f - clampf(c, 0.0f, 1.0f));
+}
+
+/* c Fc(cos): the share the coat reflects (0 without a coat). */
+static float coat_fresnel(const Prep *q, float c) {
+    if (!(q->coat > 0.0f)) return 0.0f;
+    return q->coat * (COAT_F0 + (1.0f - COAT_F0) * pow5(1.0f - clampf(fabsf(c), 0.0f, 1.0f)));
 }
 
 /* Exact unpolarised dielectric Fresnel; cos_i < 0 means arriving from the eta side. Double
@@ -120,7 +138,7 @@ static double ggx_lambda_dbl(double x, double y, double z, double alpha) {
 static float lobe_probs(const Prep *q, vec3 wo, float prob[LOBE_COUNT]) {
     /* scalars, not a stack array: partial stores into an array that is then reloaded whole
      * stalled store forwarding and made this the hottest function of the shade stage */
-    float w_metal = 0.0f, w_spec = 0.0f, w_diffuse = 0.0f, w_glass = 0.0f;
+    float w_metal = 0.0f, w_spec = 0.0f, w_diffuse = 0.0f, w_glass = 0.0f, w_coat = 0.0f;
     if (wo.z > 0.0f) {
         float c = wo.z;
         if (q->m > 0.0f) {
@@ -137,12 +155,22 @@ static float lobe_probs(const Prep *q, vec3 wo, float prob[LOBE_COUNT]) {
         }
     }
     if (wo.z != 0.0f) w_glass = (1.0f - q->m) * q->t;
-    float sum = w_metal + w_spec + w_diffuse + w_glass;
+    if (q->coat > 0.0f) {
+        /* the base lobes are seen through the coat; the coat itself from outside only */
+        float fc = coat_fresnel(q, wo.z), through = 1.0f - fc;
+        w_metal *= through;
+        w_spec *= through;
+        w_diffuse *= through;
+        w_glass *= through;
+        if (wo.z > 0.0f) w_coat = fc > 0.02f * q->coat ? fc : 0.02f * q->coat;
+    }
+    float sum = w_metal + w_spec + w_diffuse + w_glass + w_coat;
     float inv = sum > 0.0f ? 1.0f / sum : 0.0f;
     prob[LOBE_METAL] = w_metal * inv;
     prob[LOBE_SPEC] = w_spec * inv;
     prob[LOBE_DIFFUSE] = w_diffuse * inv;
     prob[LOBE_GLASS] = w_glass * inv;
+    prob[LOBE_COAT] = w_coat * inv;
     return sum;
 }
 
@@ -251,6 +279,17 @@ static vec3 eval_pdf(const Prep *q, vec3 wo, vec3 wi, float *pdf_out) {
         f = refr ? v3_madd(f, q->base, wg * g) : v3_add(f, v3s(wg * g));
         pdf += prob[LOBE_GLASS] * gp;
     }
+    if (q->coat > 0.0f) {
+        /* the base through the coat, both ways; then the coat's own reflection */
+        f = v3_scale(f, (1.0f - coat_fresnel(q, wo.z)) * (1.0f - coat_fresnel(q, wi.z)));
+        if (wo.z > 0.0f && wi.z > 0.0f) {
+            vec3 wm = v3(0.0f, 0.0f, 1.0f);
+            float pdf_coat;
+            float dg = ggx_reflect_common(wo, wi, q->alpha_coat, &wm, &pdf_coat);
+            f = v3_add(f, v3s(coat_fresnel(q, v3_dot(wo, wm)) * dg));
+            pdf += prob[LOBE_COAT] * pdf_coat;
+        }
+    }
     if (!v3_is_finite(f) || !isfinite(pdf)) {
         f = v3s(0.0f);
         pdf = 0.0f;
@@ -326,6 +365,13 @@ int bsdf_sample(const BsdfParams *p, vec3 wo, float u_lobe, float u1, float u2, 
         s->flags = BSDF_REFLECTION;
         break;
     }
+    case LOBE_COAT: {
+        vec3 wm = ggx_sample_visible_normal(wo, q.alpha_coat, u1, u2);
+        wi = reflect_about(wo, wm);
+        if (!(wi.z > MIN_COS)) return 0;
+        s->flags = BSDF_REFLECTION;
+        break;
+    }
     case LOBE_DIFFUSE:
         wi = sample_cosine_hemisphere(u1, u2);
         if (!(wi.z > MIN_COS)) return 0;
@@ -354,6 +400,7 @@ int bsdf_sample(const BsdfParams *p, vec3 wo, float u_lobe, float u1, float u2, 
                 s->flags = BSDF_TRANSMISSION | BSDF_DELTA;
             }
             if (!(fabsf(w.z) > MIN_COS) || !(pr > 0.0f)) return 0;
+            weight_f *= (1.0f - coat_fresnel(&q, o.z)) * (1.0f - coat_fresnel(&q, w.z)); /* through the coat */
             s->wi = v3_scale(w, sg);
             s->pdf = prob[LOBE_GLASS] * pr;
             /* weight = f |cos| / pdf = wg * weight_f * tint / (prob * pr): the lobe's mixture
@@ -402,7 +449,7 @@ int bsdf_guidable(const BsdfParams *p) {
 int bsdf_is_delta(const BsdfParams *p) {
     Prep q;
     prepare(p, &q);
-    return q.m == 0.0f && q.t == 1.0f && q.glass_delta;
+    return q.m == 0.0f && q.t == 1.0f && q.glass_delta && q.coat == 0.0f;
 }
 
 int bsdf_has_transmission(const BsdfParams *p) {

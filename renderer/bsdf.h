@@ -9,6 +9,9 @@
  *                base_color; alpha < BSDF_DELTA_ALPHA is an exact delta (smooth glass)
  * with F the Schlick Fresnel of F0 = ((ior-1)/(ior+1))^2 * specular_color * specular and
  * F90 = specular, and alpha = roughness^2, clamped to >= BSDF_MIN_ALPHA for reflection.
+ * KHR_materials_clearcoat layers a coat over all of it: f = coat + (1 - c Fc(wo)) (1 - c Fc(wi))
+ * f_base, the coat a GGX reflection of alpha = clearcoat_roughness^2 weighted by c Fc(wo.h),
+ * Fc the Schlick Fresnel of ior 1.5 (F0 0.04), c the clearcoat factor.
  *
  * Conventions: directions are in the local shading frame (normal = +z), both pointing away
  * from the surface. f excludes the cosine. Opaque lobes are zero unless wo.z > 0 and
@@ -32,6 +35,8 @@ typedef struct BsdfParams {
     vec3 specular_color; /* KHR_materials_specular colour factor */
     float transmission;  /* [0,1] */
     float ior;           /* > 1 (1.5 default); ior == 1 disables the specular layer */
+    float clearcoat;     /* KHR_materials_clearcoat: coat weight [0,1]; 0 = no coat */
+    float clearcoat_roughness; /* perceptual [0,1], the coat's alpha = roughness^2 */
 } BsdfParams;
 
 enum {
@@ -53,7 +58,7 @@ vec3 bsdf_eval(const BsdfParams *p, vec3 wo, vec3 wi);
 float bsdf_pdf(const BsdfParams *p, vec3 wo, vec3 wi);
 /* Both at once (next-event estimation needs both; one pass over the lobes). */
 vec3 bsdf_eval_pdf(const BsdfParams *p, vec3 wo, vec3 wi, float *pdf);
-/* 1 if every lobe of p is a delta (smooth glass with metallic 0 and transmission 1): NEE is
+/* 1 if every lobe of p is a delta (smooth glass with metallic 0, transmission 1, no coat): NEE is
  * useless there and the renderer skips it. */
 int bsdf_is_delta(const BsdfParams *p);
 /* 1 if path guiding may sample directions here: no delta lobe, and some lobe rougher than

@@ -31,6 +31,13 @@ typedef enum {
     CANDELA_LIGHT_UNITS_RAW = 1      /* intensities are already radiometric */
 } CandelaLightUnits;
 
+/* How punctual lights are shaped (issue 14): glTF's KHR_lights_punctual, or Blender 3.4's
+ * Cycles for a scene Blender's glTF exporter wrote (spot cones: renderer/lights.c). */
+typedef enum {
+    CANDELA_LIGHT_MODEL_GLTF = 0,     /* spot: glTF's squared linear ramp in cos between the cones */
+    CANDELA_LIGHT_MODEL_BLENDER3 = 1  /* spot: Cycles 3.4's cos x smoothstep over spot_blend */
+} CandelaLightModel;
+
 struct CandelaIterationInfo;
 
 typedef struct CandelaOptions {
@@ -49,11 +56,14 @@ typedef struct CandelaOptions {
                                     * (needs the cachepoints light sampler) */
     CandelaLightSampler light_sampler;
     CandelaLightUnits light_units;
+    CandelaLightModel light_model; /* --light-model */
     const char *env_path;      /* overrides the scene's extras; NULL: none */
     float env_strength;
+    float env_rotation_deg;    /* --env-rotation: degrees about the vertical, Blender's sign; NaN: the scene's extras (else 0) */
     uint32_t batch_size;       /* paths in flight per batch; 0: default. Never changes the image. */
     int max_iteration_spp;     /* cap of the 1,1,2,4,... schedule; 0: default */
     int quiet;                 /* no progress output */
+    int no_warnings;           /* --no-warnings: no "warning:" lines about the scene (what is read but not rendered) */
     int optimal_occlusion;     /* optimal sampler: one shadow ray per light per vertex */
     int cachepoint_no_visibility; /* cache points without visibility learning */
     int cachepoint_retruncate;    /* re-truncate blurred far bins (memory bound) */

@@ -99,6 +99,14 @@ int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t
                  o->scene_path);
         return -1;
     }
+    /* issue 14's image-changing options, appended (NaN rotation: the scene's own, in its hash) */
+    int m = snprintf(id->text + n, sizeof id->text - (size_t)n, " env_rotation=%a light_model=%d",
+                     (double)o->env_rotation_deg, (int)o->light_model);
+    if (m < 0 || (size_t)m >= sizeof id->text - (size_t)n) {
+        snprintf(err, CANDELA_ERR_LEN, "%s: the render's options are too long for a checkpoint (camera or --env name)",
+                 o->scene_path);
+        return -1;
+    }
     id->spp_total = (uint64_t)o->spp;
     id->sample_begin = sample_begin;
     id->sample_count = sample_count;

@@ -128,6 +128,8 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
         if ((rc = parse_long(a, v, 1, 1 << 22, &n, err)) == 0) o->batch_size = (uint32_t)n;
     } else if (strcmp(a, "--env-strength") == 0) {
         if ((rc = parse_float(a, v, 0.0f, 1e9f, &f, err)) == 0) o->env_strength = f;
+    } else if (strcmp(a, "--env-rotation") == 0) {
+        if ((rc = parse_float(a, v, -1e6f, 1e6f, &f, err)) == 0) o->env_rotation_deg = f;
     } else if (strcmp(a, "--env") == 0) {
         if (!v) return missing(a, err);
         o->env_path = v;
@@ -159,6 +161,10 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
             snprintf(err, CANDELA_ERR_LEN, "unknown light sampler '%.200s' (uniform, power, tree, optimal, cachepoints)", v);
             return -1;
         }
+    } else if (strcmp(a, "--light-model") == 0) {
+        static const char *const names[] = {"gltf", "blender3", NULL};
+        static const int values[] = {CANDELA_LIGHT_MODEL_GLTF, CANDELA_LIGHT_MODEL_BLENDER3};
+        if ((rc = parse_choice(a, v, names, values, &c, "light model", err)) == 0) o->light_model = (CandelaLightModel)c;
     } else if (strcmp(a, "--light-units") == 0) {
         static const char *const names[] = {"blender", "raw", NULL};
         static const int values[] = {CANDELA_LIGHT_UNITS_BLENDER, CANDELA_LIGHT_UNITS_RAW};

@@ -111,7 +111,7 @@ void light_env_estimates(const Scene *scene, float out[7]) {
         float v = ((float)y + 0.5f) / (float)im->height;
         float dw = (2.0f * PI_F / (float)im->width) * (PI_F / (float)im->height) * sinf(v * PI_F);
         for (int x = 0; x < im->width; ++x) {
-            vec3 d = scene_env_uv_to_dir((vec2){((float)x + 0.5f) / (float)im->width, v});
+            vec3 d = scene_env_uv_to_dir(scene, (vec2){((float)x + 0.5f) / (float)im->width, v});
             const float *t = im->rgba + 4 * ((size_t)y * (size_t)im->width + (size_t)x);
             double L = (double)v3_luminance(v3(t[0], t[1], t[2])) * scene->env_strength * dw;
             for (int i = 0; i < 6; ++i) acc[i] += L * maxf(v3_dot(axes[i], d), 0.0f);

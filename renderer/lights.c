@@ -134,6 +134,18 @@ int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, Candel
             l.cos_outer = cosf(outer);
             l.cos_inner = cosf(inner);
             l.power = 2.0f * PI_F * (1.0f - 0.5f * (l.cos_inner + l.cos_outer)) * lum;
+            if (scene->light_model == CANDELA_LIGHT_MODEL_BLENDER3) {
+                /* Blender's glTF exporter writes outer = spot_size / 2 and inner = outer (1 -
+                 * spot_blend) (its importer inverts that), so blend = 1 - inner / outer; Cycles 3.4
+                 * smooths over (1 - cos_outer) blend in cos and keeps a cos factor (light_spot_falloff) */
+                float blend = outer > 0.0f ? 1.0f - inner / outer : 0.0f;
+                float w = (1.0f - l.cos_outer) * blend, co = l.cos_outer;
+                l.spot_cycles = 1;
+                l.spot_smooth = w;
+                /* 2 pi int_co^1 falloff dc: c over [co + w, 1]; (co + t) smoothstep(t / w) over [0, w],
+                 * whose integral is w (co / 2 + 0.35 w) */
+                l.power = 2.0f * PI_F * (0.5f * (1.0f - (co + w) * (co + w)) + w * (0.5f * co + 0.35f * w)) * lum;
+            }
             break;
         }
         default:
@@ -233,6 +245,18 @@ int32_t lights_of_primitive(const Lights *ls, uint32_t instance, uint32_t local_
 
 float light_spot_falloff(const Light *l, vec3 w) {
     float c = v3_dot(w, l->direction);
+    if (l->spot_cycles) {
+        /* Cycles 3.4 (kernel light spot_light_attenuation, checked against Blender 3.4.1's
+         * render of tests/scenes/spot_blend_plane.gltf): 0 outside the cone, then smoothstep
+         * over spot_smooth in cos, and the cosine itself throughout */
+        float t = c - l->cos_outer;
+        if (!(t > 0.0f)) return 0.0f;
+        if (t < l->spot_smooth) {
+            float x = t / l->spot_smooth;
+            return c * x * x * (3.0f - 2.0f * x);
+        }
+        return c;
+    }
     float t = l->cos_inner > l->cos_outer ? (c - l->cos_outer) / (l->cos_inner - l->cos_outer)
                                           : (c >= l->cos_outer ? 1.0f : 0.0f);
     t = clampf(t, 0.0f, 1.0f);
@@ -283,7 +307,7 @@ float light_volume_pdf_li(const Lights *ls, const Light *l, vec3 p, vec3 d) {
 
 float light_env_pdf_li(const Lights *ls, vec3 d) {
     if (ls->environment < 0) return 0.0f;
-    vec2 uv = scene_env_dir_to_uv(d);
+    vec2 uv = scene_env_dir_to_uv(ls->scene, d);
     float sin_theta = sqrtf(fmaxf(0.0f, 1.0f - d.y * d.y));
     if (!(sin_theta > 0.0f)) return 0.0f;
     return dist2d_pdf(&ls->env_distribution, uv) / (2.0f * PI_F * PI_F * sin_theta);
@@ -392,7 +416,7 @@ int light_sample_li(const Lights *ls, const Light *l, const LightSampleContext *
         float pdf_uv;
         vec2 uv = dist2d_sample(&ls->env_distribution, u0, u1, &pdf_uv);
         (void)u2;
-        vec3 d = scene_env_uv_to_dir(uv);
+        vec3 d = scene_env_uv_to_dir(scene, uv);
         float sin_theta = sinf(uv.y * PI_F);
         if (!(pdf_uv > 0.0f) || !(sin_theta > 0.0f)) return 0;
         s->wi = d;

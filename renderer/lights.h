@@ -31,6 +31,8 @@ typedef struct Light {
     vec3 direction;       /* spot, directional: the direction light travels */
     vec3 intensity;       /* point/spot: W/sr; directional: irradiance W/m^2 */
     float cos_inner, cos_outer; /* spot */
+    float spot_smooth;          /* spot, --light-model blender3: Cycles' smoothstep width in cos (0: none) */
+    int spot_cycles;            /* spot: 1 = Cycles 3.4's falloff (light_spot_falloff) */
     /* area */
     uint32_t instance, local_prim, global_prim;
     float area;               /* world-space area of the primitive */
@@ -103,7 +105,8 @@ void lights_free(Lights *lights);
 int32_t lights_of_primitive(const Lights *lights, uint32_t instance, uint32_t local_prim);
 
 /* A spot light's intensity factor in direction w (unit, from the light): glTF's recommended
- * smooth falloff between the cones (a squared linear ramp in cos). */
+ * smooth falloff between the cones (a squared linear ramp in cos), or with --light-model
+ * blender3 Cycles 3.4's: cos x smoothstep((cos - cos_outer) / spot_smooth). */
 float light_spot_falloff(const Light *l, vec3 w);
 
 /* light_estimates.c: unoccluded contribution estimates (the cache points paper's Table 1

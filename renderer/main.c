@@ -87,9 +87,13 @@ static const char *USAGE =
     "  --cachepoint-retruncate   linear build: re-apply the 97%/256 rule after the blur (less memory)\n"
     "  --optimal-occlusion       optimal sampler: one shadow ray per light per vertex\n"
     "  --light-units U           blender (default: cd/683, lux/683) | raw (W/sr, W/m^2)\n"
+    "  --light-model M           gltf (default: glTF's spot cone ramp) | blender3 (Cycles 3.4's\n"
+    "                            spot blend smoothstep, blend = 1 - inner/outer cone angle)\n"
     "  --camera NAME             glTF camera by name (default: the first, or a framing view)\n"
     "  --env FILE                lat-long environment map (EXR/HDR/PNG...)\n"
     "  --env-strength S          environment multiplier (default 1)\n"
+    "  --env-rotation DEG        turn the environment about the vertical, in degrees, with the sign\n"
+    "                            of Blender's Mapping-node Z rotation (default: the scene's, else 0)\n"
     "  --batch N                 paths in flight per batch (default 16384; never changes the image)\n"
     "  --stats-json FILE         write render statistics as JSON\n"
     "animation frames (render):\n"
@@ -107,7 +111,8 @@ static const char *USAGE =
     "                            _COUNT, _MIN and _STEP choose the shard of a Slurm job array\n"
     "  --frame-stats FILE.jsonl  append one JSON line per frame (frame, time, seed, status,\n"
     "                            pose and cache point seconds, the --stats-json fields)\n"
-    "  --quiet                   no progress or statistics on stderr\n"
+    "  --quiet                   no progress or statistics on stderr (warnings stay)\n"
+    "  --no-warnings             no warnings about the scene (what it holds that is not rendered)\n"
     "compare options (the options above apply to every variant and the reference):\n"
     "  --variants SPEC           \"NAME: FLAGS; NAME: FLAGS\" or FILE.toml / FILE.json: any render\n"
     "                            flags per variant (not --spp, --seed, --res); the first variant\n"
@@ -377,6 +382,7 @@ int main(int argc, char **argv) {
         }
         else if (strcmp(a, "--stats-json") == 0) { if (!v) die("missing value for ", a); stats_json = v; ++i; }
         else if (strcmp(a, "--quiet") == 0 || strcmp(a, "-q") == 0) o.quiet = 1;
+        else if (strcmp(a, "--no-warnings") == 0) o.no_warnings = 1;
         else if (a[0] == '-') {
             fprintf(stderr, "candela: unknown option '%s' (see candela --help)\n", a);
             return 2;

@@ -1,4 +1,5 @@
 /* renderer/options.c: render option defaults and the light sampler names. */
+#include <math.h>
 #include <string.h>
 
 #include "candela.h"
@@ -15,6 +16,7 @@ void candela_options_default(CandelaOptions *o) {
     o->light_sampler = CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
     o->light_units = CANDELA_LIGHT_UNITS_BLENDER;
     o->env_strength = 1.0f;
+    o->env_rotation_deg = NAN;        /* not given: the scene's candela_environment.rotation */
     o->guiding = CANDELA_GUIDING_OFF;
     o->recorder_budget = -1;          /* the seed's soft budget of 4 vertices per path */
 }

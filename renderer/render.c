@@ -107,6 +107,7 @@ typedef struct Render {
     ThreadPool *pool;
     Integrator ig;
     int have_scene, have_lights, have_media, have_sampler, have_integrator;
+    int warned_unlit; /* "no lights and no environment" said once per session */
 } Render;
 
 /* What one frame builds from the (posed) scene: media, lights, light sampler, integrator. The
@@ -178,6 +179,11 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
         return -1;
     }
     r->have_lights = 1;
+    if (r->lights.count == 0 && !o->no_warnings && !r->warned_unlit) {
+        fprintf(stderr, "%s: warning: the scene has no lights and no environment (no punctual light, no emissive "
+                        "material, no --env or candela_environment): the image is black\n", o->scene_path);
+        r->warned_unlit = 1;
+    }
     double t_loaded = clock_seconds();
     stats->time_load = t_loaded - t_start;
     stats->num_triangles = r->scene.num_triangles_total;
@@ -336,6 +342,11 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
     double t_start = clock_seconds();
     if (scene_load(&r->scene, o, err) != 0) { render_free(r); return -1; }
     r->have_scene = 1;
+    /* a single render is unposed (a frame batch, candela_session_*, renders animation times) */
+    if (r->scene.io.num_channels > 0 && !o->no_warnings)
+        fprintf(stderr, "%s: warning: %u animation channel%s not rendered: a single render shows the rest pose "
+                        "(render animation times with --frames)\n", o->scene_path, r->scene.io.num_channels,
+                r->scene.io.num_channels == 1 ? " is" : "s are");
     int rc = render_frame(r, o, image, stats, ray_log, t_start, err);
     render_free(r);
     return rc;

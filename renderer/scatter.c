@@ -5,6 +5,33 @@
 
 #include "volumes.h"
 
+/* The shading normal ns bent towards ng just enough that the mirror reflection of wo about it
+ * leaves the surface at an elevation of at least t = min(0.9 (ng.wo), 0.01) above the geometric
+ * plane (the approach of Cycles' ensure_valid_reflection; derived here, not copied). A normal
+ * map or interpolated normal tilted away from a grazing view otherwise puts wo below the
+ * shading hemisphere: the BSDF is zero there and the geometric guard rejects what is left, so
+ * valid paths die and the pixels turn black (issue 14). ng and ns are on wo's side (ng.wo > 0).
+ * In the plane of ng (z) and ns's tangential part (x), ns' = (sin a, cos a) reflects wo
+ * (components wx, wz) to an elevation wx sin 2a + wz cos 2a = A cos(2a - phi) with
+ * A = |(wx, wz)|, phi = atan2(wx, wz); it falls from wz > t at a = 0 to below t at ns's own
+ * tilt, crossing t once, at 2a = phi + acos(t / A): the least bending that makes it valid. */
+static vec3 shading_normal_valid_for(vec3 ng, vec3 ns, vec3 wo) {
+    float wz = v3_dot(ng, wo);
+    float t = fminf(0.9f * wz, 0.01f);
+    float won = v3_dot(ns, wo);
+    vec3 r = v3_sub(v3_scale(ns, 2.0f * won), wo);
+    if (v3_dot(ng, r) >= t) return ns;
+    vec3 x = v3_sub(ns, v3_scale(ng, v3_dot(ns, ng)));
+    float xl = v3_length(x);
+    if (!(xl > 1e-7f) || !(wz > 0.0f)) return ng;
+    x = v3_scale(x, 1.0f / xl);
+    float wx = v3_dot(wo, x);
+    float a_len = sqrtf(wx * wx + wz * wz);
+    float a = 0.5f * (atan2f(wx, wz) + acosf(clampf(t / a_len, -1.0f, 1.0f)));
+    vec3 n = v3_add(v3_scale(ng, cosf(a)), v3_scale(x, sinf(a)));
+    return v3_normalize(n);
+}
+
 void scatter_init_surface(Scatter *s, const SurfaceHit *h, const BsdfParams *bsdf, vec3 wo_world) {
     s->guide = NULL;
     s->guide_mode = SCATTER_GUIDE_NONE;
@@ -16,6 +43,11 @@ void scatter_init_surface(Scatter *s, const SurfaceHit *h, const BsdfParams *bsd
     if (!s->transmissive && v3_dot(wo_world, ng) < 0.0f) { ng = v3_neg(ng); ns = v3_neg(ns); }
     s->ng = ng;
     s->wo_outside = v3_dot(wo_world, ng) > 0.0f;
+    {
+        /* on wo's side (glass keeps +z outside, so flip there and back) */
+        float side = s->wo_outside ? 1.0f : -1.0f;
+        ns = v3_scale(shading_normal_valid_for(v3_scale(ng, side), v3_scale(ns, side), wo_world), side);
+    }
     Frame *f = &s->frame;
     f->n = ns;
     f->t = h->dpdu;

@@ -199,6 +199,19 @@ void scene_material_at(const Scene *scene, const SurfaceHit *hit, MaterialSample
     m->bsdf.specular_color = v3(mat->specular_color[0], mat->specular_color[1], mat->specular_color[2]);
     m->bsdf.transmission = clampf(mat->transmission, 0.0f, 1.0f);
     m->bsdf.ior = mat->ior >= 1.0f && isfinite(mat->ior) ? mat->ior : 1.5f;
+    float coat = mat->clearcoat, coat_roughness = mat->clearcoat_roughness;
+    if (coat > 0.0f && texture_present(scene, &mat->clearcoat_tex)) {
+        float t[4];
+        texture_lookup(&scene->io.images[mat->clearcoat_tex.image], &mat->clearcoat_tex, hit->uv, t);
+        coat *= t[0];
+    }
+    if (coat > 0.0f && texture_present(scene, &mat->clearcoat_roughness_tex)) {
+        float t[4];
+        texture_lookup(&scene->io.images[mat->clearcoat_roughness_tex.image], &mat->clearcoat_roughness_tex, hit->uv, t);
+        coat_roughness *= t[1];
+    }
+    m->bsdf.clearcoat = clampf(coat, 0.0f, 1.0f);
+    m->bsdf.clearcoat_roughness = clampf(coat_roughness, 0.0f, 1.0f);
     m->double_sided = mat->double_sided;
 }
 
@@ -217,24 +230,31 @@ vec3 scene_emitted_radiance(const Scene *scene, const SurfaceHit *hit, vec3 w) {
 
 /* ---------------------------------------------------------------- environment */
 
-vec2 scene_env_dir_to_uv(vec3 d) {
-    float u = atan2f(-d.z, -d.x) * INV_2PI_F + 0.5f;
+/* Cycles' equirectangular map (direction_to_equirectangular: u = 0.5 - atan2(y, x) / 2pi,
+ * v = 1 - acos(z) / pi with v = 1 the top row, in Blender's Z-up axes) written in glTF's axes
+ * (x_b = x, y_b = -z, z_b = y): u = 0.5 + atan2(z, x) / 2pi, the image's row from the top
+ * acos(y) / pi. +X looks at the image's centre column, -Z (Blender's +Y) at u = 0.25. The
+ * rotation is that of Blender's Mapping node (type Point) before the Environment Texture: the
+ * lookup direction is Rz(rotation) d, i.e. phi = atan2(z, x) becomes phi - rotation, a shift of
+ * u by -rotation / 2pi. */
+vec2 scene_env_dir_to_uv(const Scene *scene, vec3 d) {
+    float u = atan2f(d.z, d.x) * INV_2PI_F + 0.5f - scene->env_rotation_turns;
     float v = 0.5f - atan2f(d.y, sqrtf(d.x * d.x + d.z * d.z)) * INV_PI_F;
-    if (u >= 1.0f) u -= 1.0f;
-    if (u < 0.0f) u += 1.0f;
+    u -= floorf(u);
+    if (u >= 1.0f) u = 0.0f; /* -tiny - floor(-tiny) rounds to 1 */
     return (vec2){u, clampf(v, 0.0f, 1.0f)};
 }
 
-vec3 scene_env_uv_to_dir(vec2 uv) {
-    float phi = (uv.x - 0.5f) * 2.0f * PI_F;  /* = atan2(-z, -x) */
+vec3 scene_env_uv_to_dir(const Scene *scene, vec2 uv) {
+    float phi = (uv.x - 0.5f + scene->env_rotation_turns) * 2.0f * PI_F; /* = atan2(z, x) */
     float elev = (0.5f - uv.y) * PI_F;
     float c = cosf(elev);
-    return v3(-c * cosf(phi), sinf(elev), -c * sinf(phi));
+    return v3(c * cosf(phi), sinf(elev), c * sinf(phi));
 }
 
 vec3 scene_env_radiance(const Scene *scene, vec3 d) {
     if (scene->env.width <= 0) return v3s(0.0f);
-    vec2 uv = scene_env_dir_to_uv(d);
+    vec2 uv = scene_env_dir_to_uv(scene, d);
     /* piecewise constant, matching the sampling distribution's cells */
     int x = (int)(uv.x * (float)scene->env.width), y = (int)(uv.y * (float)scene->env.height);
     if (x >= scene->env.width) x = scene->env.width - 1;
@@ -379,7 +399,7 @@ static void scene_bounds(Scene *scene) {
 int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
     memset(scene, 0, sizeof *scene);
     char ioerr[IO_ERR_LEN];
-    IoLoadOptions lo = {o->confine_dir, (uint64_t)o->texture_budget_mb << 20};
+    IoLoadOptions lo = {o->confine_dir, (uint64_t)o->texture_budget_mb << 20, o->no_warnings};
     if (io_load_gltf_opts(o->scene_path, &lo, &scene->io, ioerr) != 0) {
         snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
         return -1;
@@ -389,6 +409,7 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
     for (int k = 0; k < 4; ++k) dm->base_color[k] = 1.0f;
     dm->metallic = 1.0f; dm->roughness = 1.0f;
     dm->base_color_tex.image = dm->metallic_roughness_tex.image = dm->normal_tex.image = dm->emissive_tex.image = -1;
+    dm->clearcoat_tex.image = dm->clearcoat_roughness_tex.image = -1;
     dm->normal_scale = 1.0f; dm->emissive_strength = 1.0f; dm->specular = 1.0f;
     dm->specular_color[0] = dm->specular_color[1] = dm->specular_color[2] = 1.0f;
     dm->ior = 1.5f; dm->alpha_cutoff = 0.5f;
@@ -501,6 +522,12 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
 
     const char *env_path = o->env_path ? o->env_path : (io->env_path[0] ? io->env_path : NULL);
     scene->env_strength = o->env_path ? o->env_strength : io->env_strength;
+    scene->light_model = o->light_model;
+    /* --env-rotation (NaN when not given) wins over the extras' rotation, with or without --env */
+    double rotation_deg = isnan(o->env_rotation_deg) ? (double)io->env_rotation_deg : (double)o->env_rotation_deg;
+    double turns = rotation_deg / 360.0;
+    turns -= floor(turns);
+    scene->env_rotation_turns = turns < 1.0 ? (float)turns : 0.0f;
     if (env_path) {
         /* float whatever the file: the environment is summed into the light's sampling
          * distribution and read as float there (lights.c, light_estimates.c) */
@@ -530,7 +557,7 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
             scene_free(scene);
             return -1;
         }
-        if (bad && !o->quiet)
+        if (bad && !o->quiet && !o->no_warnings)
             fprintf(stderr, "%s: warning: %zu non-finite or negative environment values set to 0\n", env_path, bad);
     }
     return 0;

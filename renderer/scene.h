@@ -70,6 +70,8 @@ typedef struct Scene {
     Camera camera;
     IoImage env;               /* linear float RGBA lat-long (rgba, never rgba8); width 0 when there is none */
     float env_strength;
+    float env_rotation_turns;  /* the environment's rotation about +Y in turns, in [0, 1) (scene_env_dir_to_uv) */
+    CandelaLightModel light_model; /* how lights_build shapes punctual lights (--light-model) */
 } Scene;
 
 /* Loads the glTF, applies options (camera choice, resolution, environment) and builds the
@@ -112,9 +114,10 @@ vec3 scene_emitted_radiance(const Scene *scene, const SurfaceHit *hit, vec3 w);
 
 /* Environment radiance for a world direction d (zero without an environment). */
 vec3 scene_env_radiance(const Scene *scene, vec3 d);
-/* Lat-long mapping (Blender's equirectangular convention in glTF's Y-up axes). */
-vec2 scene_env_dir_to_uv(vec3 d);
-vec3 scene_env_uv_to_dir(vec2 uv);
+/* Lat-long mapping (Cycles' equirectangular convention in glTF's Y-up axes, turned by the
+ * scene's environment rotation): uv in [0, 1)^2, v = 0 the image's top row. */
+vec2 scene_env_dir_to_uv(const Scene *scene, vec3 d);
+vec3 scene_env_uv_to_dir(const Scene *scene, vec2 uv);
 
 /* Camera ray through film position (fx, fy) in pixels (0..width, 0..height, y down). */
 void camera_generate_ray(const Camera *c, float fx, float fy, vec3 *org, vec3 *dir);

@@ -10,14 +10,20 @@ Outputs (paths relative to the repository root):
   tests/scenes/furnace_sphere.gltf     closed emissive Lambert sphere, camera at the centre
   tests/scenes/point_plane.gltf        Lambert plane + point light (RAW units)
   tests/scenes/spot_plane.gltf         Lambert plane + spot light, all pixels in the inner cone
+  tests/scenes/spot_blend_plane.gltf   Lambert plane + spot (outer 0.9, inner 0.45 rad), the whole cone in view
   tests/scenes/directional_plane.gltf  Lambert plane + directional light at 30 degrees
   tests/scenes/area_plane.gltf         Lambert plane + one-sided emissive square (+ a back-facing one)
   tests/scenes/env_constant.gltf       nothing visible, constant environment (env_constant.exr)
   tests/scenes/env_plane.gltf          Lambert plane under the constant environment
+  tests/scenes/coat_plane.gltf         env_plane with a smooth clearcoat (KHR_materials_clearcoat)
   tests/scenes/env_directions.gltf     orthographic cameras looking at texel centres of env_grid.exr
+  tests/scenes/env_directions_rot.gltf the same with the environment rotated (extras rotation 75)
+  tests/scenes/env_marked.gltf         a camera looking down -Z under env_marked.exr
+  tests/scenes/normalmap_grazing.gltf  normal-mapped planes (normalmap_stripes.exr) seen at 85 degrees
   tests/scenes/two_lights.gltf         floor + wall, 1 emissive quad, 3 point lights of very different power
   tests/scenes/env_constant.exr        16x8 FLOAT EXR, every pixel (0.5, 0.75, 1.0)
   tests/scenes/env_grid.exr            8x4 FLOAT EXR, texel (i, j) = ((i+1)/8, (j+1)/4, 0.25 + 0.5*((i+j)%2))
+  tests/scenes/env_marked.exr          64x32 FLOAT EXR, 0 but texel (18, 14) = 1
 
 The expected values the tests use are documented next to each scene below and in
 tests/test_analytic.c.
@@ -574,6 +580,25 @@ def spot_plane():
     g.write(os.path.join(ROOT, 'tests', 'scenes', 'spot_plane.gltf'))
 
 
+# spot_blend_plane: Blender spot size 2 * SPOT_BLEND_OUTER, blend 0.5 (exported inner = outer (1 - blend))
+SPOT_BLEND_OUTER = 0.9
+SPOT_BLEND_INNER = 0.45
+
+
+def spot_blend_plane():
+    """Lambert plane + a spot 1 m above it pointing down, outer cone 0.9 rad, inner 0.45 rad (what
+    Blender's glTF exporter writes for spot size 1.8 rad, blend 0.5), intensity 2 pi W/sr (RAW).
+    The camera sees the whole cone (radius tan 0.9 = 1.26 m): the falloff's closed forms (glTF's
+    ramp by default, Cycles 3.4's smoothstep and cosine with --light-model blender3) are in
+    tests/test_analytic.c."""
+    g = Gltf()
+    g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
+    g.light('spot', 'spot', 2 * math.pi, translation=(0.0, 1.0, 0.0),
+            rotation=look_rotation(DOWN, (0.0, 0.0, -1.0)), inner=SPOT_BLEND_INNER, outer=SPOT_BLEND_OUTER)
+    top_ortho(g, mag=1.5)
+    g.write(os.path.join(ROOT, 'tests', 'scenes', 'spot_blend_plane.gltf'))
+
+
 def directional_plane():
     """Plane + directional light 30 deg from the normal (travelling along
     -(sin 30, cos 30, 0)), E = 2*pi W/m^2 (RAW). L = rho/pi * E * cos 30 = cos 30 = 0.8660254."""
@@ -623,11 +648,27 @@ def env_grid_texel(i, j):
 ENV_DIR_TEXELS = [(0, 1), (1, 2), (2, 1), (3, 0), (4, 2), (5, 3), (6, 1), (7, 2)]
 
 
-def latlong_dir(u, v):
-    """Inverse of u = atan2(-dz, -dx)/(2 pi) + 0.5, v_top = 0.5 - atan2(dy, hypot(dx, dz))/pi."""
-    phi = (u - 0.5) * 2 * math.pi
-    el = (0.5 - v) * math.pi
-    return (-math.cos(el) * math.cos(phi), math.sin(el), -math.cos(el) * math.sin(phi))
+def latlong_dir(u, v, rotation_deg=0.0):
+    """The world direction (glTF axes) whose environment lookup lands at (u, v) (v from the
+    image's top row), written from Cycles' convention, not from the renderer's code: Cycles'
+    equirectangular_to_direction (Blender's Z-up axes, its v = 1 - ours) is phi = pi - 2 pi u,
+    theta = pi v, d_b = (sin theta cos phi, sin theta sin phi, cos theta). A world Mapping node of
+    type Point with Z rotation rho looks up Rz(rho) d, so the world direction is Rz(-rho) d_b.
+    Blender to glTF: (x, y, z)_gltf = (x_b, z_b, -y_b)."""
+    phi = math.pi - 2.0 * math.pi * u - math.radians(rotation_deg)
+    theta = math.pi * v
+    xb, yb, zb = math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta)
+    return (xb, zb, -yb)
+
+
+# the rotation of env_directions_rot.gltf (extras) and of the rot_* cameras: not a multiple of
+# the 45-degree texel width, so a wrong sign or a missing rotation lands on another texel
+ENV_DIR_ROTATION = 75.0
+
+# env_marked.exr: 64x32, zero but one texel (ENV_MARK) of radiance 1; env_marked.gltf's
+# camera looks down -Z (yfov 90 degrees), where Cycles puts that texel for rotations -20, 0 and
+# +20 degrees (tests/test_analytic.c projects it)
+ENV_MARK = (18, 14)
 
 
 def env_scenes():
@@ -635,6 +676,8 @@ def env_scenes():
     os.makedirs(d, exist_ok=True)
     write_exr(os.path.join(d, 'env_constant.exr'), 16, 8, lambda x, y: ENV_CONSTANT)
     write_exr(os.path.join(d, 'env_grid.exr'), 8, 4, env_grid_texel)
+    write_exr(os.path.join(d, 'env_marked.exr'), 64, 32,
+              lambda x, y: (1.0, 1.0, 1.0) if (x, y) == ENV_MARK else (0.0, 0.0, 0.0))
 
     # every camera ray misses: pixel = Lenv = (0.5, 0.75, 1.0)
     g = Gltf()
@@ -650,15 +693,88 @@ def env_scenes():
     g.environment('env_constant.exr', 1.0)
     g.write(os.path.join(d, 'env_plane.gltf'))
 
+    # the same plane with a smooth KHR_materials_clearcoat (factor 1, roughness 0): seen from
+    # straight above, L = (Fc(1) + (1 - Fc(1)) rho (1 - <Fc>)) Lenv with Fc(1) = 0.04 and
+    # <Fc> = 0.04 + 0.96 / 21 (tests/test_analytic.c)
+    g = Gltf()
+    m = g.material('lambert_half_coated', **LAMBERT_WHITE)
+    g.use('KHR_materials_clearcoat')
+    g.doc['materials'][m]['extensions']['KHR_materials_clearcoat'] = {'clearcoatFactor': 1.0,
+                                                                      'clearcoatRoughnessFactor': 0.0}
+    g.mesh('plane', 'plane', PLANE, m)
+    top_ortho(g)
+    g.environment('env_constant.exr', 1.0)
+    g.write(os.path.join(d, 'coat_plane.gltf'))
+
     # orthographic cameras (all rays parallel) looking at texel centres of env_grid.exr: each
-    # pixel = that texel exactly (with nearest or bilinear lookup). Camera "texel_i_j".
+    # pixel = that texel exactly (with nearest or bilinear lookup). Camera "texel_i_j" for the
+    # environment unrotated, "rot_texel_i_j" for it rotated by ENV_DIR_ROTATION; the same
+    # cameras in env_directions.gltf (no rotation) and env_directions_rot.gltf (extras rotation).
+    for name, rotation in (('env_directions.gltf', None), ('env_directions_rot.gltf', ENV_DIR_ROTATION)):
+        g = Gltf()
+        tiny_far_box(g)
+        for prefix, rho in (('texel', 0.0), ('rot_texel', ENV_DIR_ROTATION)):
+            for (i, j) in ENV_DIR_TEXELS:
+                fwd = latlong_dir((i + 0.5) / 8.0, (j + 0.5) / 4.0, rho)
+                g.orthographic('%s_%d_%d' % (prefix, i, j), (0.0, 0.0, 0.0), fwd, 0.01, 0.01)
+        g.environment('env_grid.exr', 1.0)
+        if rotation is not None:
+            g.doc['scenes'][0]['extras']['candela_environment']['rotation'] = rotation
+        g.write(os.path.join(d, name))
+
+    # one camera at the origin looking down -Z (glTF's default orientation: no node rotation)
     g = Gltf()
     tiny_far_box(g)
-    for (i, j) in ENV_DIR_TEXELS:
-        fwd = latlong_dir((i + 0.5) / 8.0, (j + 0.5) / 4.0)
-        g.orthographic('texel_%d_%d' % (i, j), (0.0, 0.0, 0.0), fwd, 0.01, 0.01)
-    g.environment('env_grid.exr', 1.0)
-    g.write(os.path.join(d, 'env_directions.gltf'))
+    g.perspective('camera', (0.0, 0.0, 0.0), (0.0, 0.0, -1.0), 90.0, aspect=1.0)
+    g.environment('env_marked.exr', 1.0)
+    g.write(os.path.join(d, 'env_marked.gltf'))
+
+
+# normalmap_grazing: the tilt of the normal map's stripes and the camera's angle from the plane's normal
+NORMALMAP_TILT_DEG = 10.0
+NORMALMAP_VIEW_DEG = 85.0
+
+
+def normalmap_grazing():
+    """Two 2 x 2 m planes (y = 0, facing +y) under the constant environment env_constant.exr, each
+    with a tangent-space normal map of stripes along x (normalmap_stripes.exr, 16 x 2 texels,
+    pairs of texels tilted +-NORMALMAP_TILT_DEG about the tangent's normal plane), seen by an
+    orthographic camera NORMALMAP_VIEW_DEG from the normal (grazing, looking along +x): every other
+    stripe tilts away from the view by more than the 5 degrees the view has left, so the view is
+    below its shading hemisphere. 'lambert' (rho 0.5, z in [-1, 1]): L between
+    rho Lenv (1 + cos tilt) / 2 (the tilted cosine lobe cut by the geometric plane) and rho Lenv
+    (the flat plane), never 0. 'metal' (white GGX metal, roughness 0.3, z in [3, 5]): in (0, Lenv]."""
+    d = os.path.join(ROOT, 'tests', 'scenes')
+    th = math.radians(NORMALMAP_TILT_DEG)
+
+    def texel(x, y):
+        sgn = 1.0 if (x // 2) % 2 == 0 else -1.0
+        n = (sgn * math.sin(th), 0.0, math.cos(th))
+        return tuple(0.5 * c + 0.5 for c in n)
+
+    write_exr(os.path.join(d, 'normalmap_stripes.exr'), 16, 2, texel)
+    g = Gltf()
+    g.doc['images'] = [{'uri': 'normalmap_stripes.exr'}]
+    g.doc['samplers'] = [{'magFilter': 9729, 'minFilter': 9729, 'wrapS': 10497, 'wrapT': 10497}]
+    g.doc['textures'] = [{'source': 0, 'sampler': 0}]
+    uvs = [(0.0, 0.0), (0.0, 1.0), (1.0, 1.0), (1.0, 0.0)]
+    flat = [f32(c) for v in uvs for c in v]
+    g.doc['accessors'].append({'bufferView': g._view(struct.pack('<%df' % len(flat), *flat), 34962),
+                               'componentType': 5126, 'count': len(uvs), 'type': 'VEC2'})
+    uv_accessor = len(g.doc['accessors']) - 1
+    lambert = g.material('lambert_half', **LAMBERT_WHITE)
+    metal = g.material('metal', base=(1.0, 1.0, 1.0), metallic=1.0, roughness=0.3)
+    view = math.radians(NORMALMAP_VIEW_DEG)
+    forward = (math.sin(view), -math.cos(view), 0.0)
+    for name, mat, z0 in (('lambert', lambert, 0.0), ('metal', metal, 4.0)):
+        g.doc['materials'][mat]['normalTexture'] = {'index': 0}
+        # u along +x (the tangent), v along +z
+        geom = quad((-1.0, 0.0, z0 - 1.0), (-1.0, 0.0, z0 + 1.0), (1.0, 0.0, z0 + 1.0), (1.0, 0.0, z0 - 1.0))
+        node = g.mesh(name, name, geom, mat)
+        g.doc['meshes'][g.doc['nodes'][node]['mesh']]['primitives'][0]['attributes']['TEXCOORD_0'] = uv_accessor
+        g.orthographic(name, (-forward[0], -forward[1], z0), forward, 0.05, 0.05)
+    g.environment('env_constant.exr', 1.0)
+    g.write(os.path.join(d, 'normalmap_grazing.gltf'))
 
 
 def two_lights():
@@ -807,9 +923,11 @@ def main():
     point_plane()
     masked_planes()
     spot_plane()
+    spot_blend_plane()
     directional_plane()
     area_plane()
     env_scenes()
+    normalmap_grazing()
     two_lights()
     occluded_lights()
     light_edge_cases()

@@ -25,6 +25,8 @@
  *                      L(x) = rho/pi * I * h / r^3, r^2 = h^2 + |x|^2, so L(0) = 1.
  *                      Also rendered with Blender units: exactly 1/683 of that.
  *   spot_plane         the same light as a spot pointing down, every pixel in the inner cone.
+ *   spot_blend_plane   a spot of outer 0.9, inner 0.45 rad: glTF's ramp, and with --light-model
+ *                      blender3 Cycles 3.4's cos x smoothstep (test_spot_blend).
  *   directional_plane  E = 2 pi W/m^2 at 30 deg from the normal: L = rho/pi E cos 30 = 0.8660254.
  *   area_plane         one-sided square emitter (side 1, height 1, Le = 2, facing down):
  *                      L(x) = rho/pi * E(x) with Lambert's polygon formula
@@ -32,9 +34,15 @@
  *                      facing away from the plane must add nothing.
  *   env_constant       camera sees only the constant environment: L = (0.5, 0.75, 1.0).
  *   env_plane          plane under it: irradiance pi Lenv, L = rho Lenv = (0.25, 0.375, 0.5).
+ *   coat_plane         env_plane with a smooth clearcoat: (0.04 + 0.96 rho (1 - <Fc>)) Lenv.
  *   env_directions     orthographic cameras (parallel rays) aimed at texel centres of the 8x4
  *                      lat-long env_grid.exr: pixel = texel ((i+1)/8, (j+1)/4, .25 + .5((i+j)%2)).
- *                      Checks the mapping u = atan2(-dz, -dx)/2pi + .5, v = .5 - asin(dy)/pi.
+ *                      Checks Cycles' equirectangular mapping in glTF axes (make_scenes.py
+ *                      latlong_dir), unrotated and rotated 75 degrees (extras, --env-rotation).
+ *   env_marked         one bright texel seen by a perspective camera where Cycles puts it,
+ *                      with rotations 0, +20, -20 degrees (test_env_marked).
+ *   normalmap_grazing  normal-mapped planes at grazing view: no black pixel, Lambert within
+ *                      its tilted-lobe bounds (test_normalmap_grazing).
  *   two_lights         no exact value: the uniform vs the power and vs the tree light sampler (different seeds)
  *                      must agree: z = (a - b)/sqrt(va + vb) per pixel, mean z^2 within
  *                      1 +- 5 sqrt(2/N), and the mean difference within 5 standard errors.
@@ -63,6 +71,9 @@ typedef struct RenderSpec {
     CandelaLightSampler sampler;
     CandelaLightUnits units;
     uint64_t seed;
+    int env_rotation_given;  /* 0: the scene's own rotation (CandelaOptions.env_rotation_deg NaN) */
+    float env_rotation_deg;
+    CandelaLightModel light_model;
 } RenderSpec;
 
 /* Renders; on failure records a CHECK failure and returns non-zero (image left empty). */
@@ -83,6 +94,8 @@ static int render(const RenderSpec *s, CandelaImage *img) {
     o.light_sampler = s->sampler;
     o.light_units = s->units;
     o.seed = s->seed;
+    if (s->env_rotation_given) o.env_rotation_deg = s->env_rotation_deg;
+    o.light_model = s->light_model;
     o.threads = 2;
     o.quiet = 1;
 
@@ -316,9 +329,118 @@ static void test_plane(const char *file, const char *name, PlaneFn f, double sca
     candela_image_free(&img);
 }
 
+/* spot_blend_plane: the spot of point_plane (1 m up, 2 pi W/sr, Lambert 0.5 below) with outer
+ * cone 0.9 rad and inner 0.45 rad, as Blender's glTF exporter writes spot size 1.8 rad, blend
+ * 0.5. L = rho/pi I falloff(c) c / r^2 with c = h / r. glTF: falloff = t^2, t the linear ramp
+ * in cos from the outer to the inner cone. Blender 3.4 (--light-model blender3): Cycles' spot
+ * is c smoothstep((c - cos outer) / w), w = (1 - cos outer) blend, blend = 1 - inner / outer
+ * (the exporter's inverse); Blender 3.4.1's Cycles renders this scene to these values within
+ * 0.1% (README). */
+static double spot_blend_falloff_gltf(double c) {
+    double co = cos(0.9), ci = cos(0.45);
+    double t = (c - co) / (ci - co);
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    return t * t;
+}
+static double spot_blend_falloff_blender3(double c) {
+    double co = cos(0.9), w = (1.0 - co) * (1.0 - 0.45 / 0.9), t = c - co;
+    if (t <= 0) return 0.0;
+    if (t >= w) return c;
+    double x = t / w;
+    return c * x * x * (3.0 - 2.0 * x);
+}
+static double spot_blend_L(double x, double z, double (*falloff)(double)) {
+    const double rho = 0.5, I = 2 * M_PI, h = 1.0;
+    double r2 = h * h + x * x + z * z, c = h / sqrt(r2);
+    return rho / M_PI * I * falloff(c) * c / r2;
+}
+static double spot_blend_L_gltf(double x, double z) { return spot_blend_L(x, z, spot_blend_falloff_gltf); }
+static double spot_blend_L_blender3(double x, double z) { return spot_blend_L(x, z, spot_blend_falloff_blender3); }
+
+static void test_spot_blend(void) {
+    for (int k = 0; k < 2; ++k) {
+        RenderSpec s = {"spot_blend_plane.gltf", NULL, 32, 32, 64, 0, CANDELA_LIGHT_SAMPLER_POWER,
+                        CANDELA_LIGHT_UNITS_RAW, 7, 0, 0.0f,
+                        k ? CANDELA_LIGHT_MODEL_BLENDER3 : CANDELA_LIGHT_MODEL_GLTF};
+        CandelaImage img;
+        if (render(&s, &img) == 0) {
+            double *e = plane_exact(32, 32, 1.5, k ? spot_blend_L_blender3 : spot_blend_L_gltf, 1.0);
+            compare(k ? "spot_blend_plane (blender3)" : "spot_blend_plane (gltf)", &img, e);
+            free(e);
+            /* the models differ where the test can see it, in the blend ring: the other model's
+             * values must be far (6 sigma) from many pixels */
+            double *other = plane_exact(32, 32, 1.5, k ? spot_blend_L_gltf : spot_blend_L_blender3, 1.0);
+            int far = 0;
+            for (int p = 0; p < 32 * 32; ++p)
+                far += fabs(img.rgb[3 * p] - other[3 * p]) > 6.0 * sqrt((double)img.variance[3 * p]) + 1e-4;
+            fprintf(stderr, "  spot_blend_plane: %d of 1024 pixels reject the other model\n", far);
+            CHECK(far >= 100, "spot_blend_plane: only %d pixels tell the models apart", far);
+            free(other);
+        }
+        candela_image_free(&img);
+    }
+}
+
 static double directional_L(double x, double z) {
     (void)x; (void)z;
     return 0.5 / M_PI * 2 * M_PI * cos(M_PI / 6);
+}
+
+/* env_marked: a 64x32 environment, black but texel (18, 14) of radiance 1, seen by a 90-degree
+ * perspective camera at the origin looking down -Z (32x32 pixels, top row first). The texel's
+ * centre direction is derived here from Cycles' equirectangular_to_direction in Blender's axes
+ * (phi = pi - 2 pi u, theta = pi v_top, d_b = (sin theta cos phi, sin theta sin phi, cos theta)),
+ * a world Mapping node's Z rotation rho (lookup Rz(rho) d: the world direction turns by -rho),
+ * glTF = (x_b, z_b, -y_b), and the pinhole projection. The image's brightness centroid must
+ * lie within 1 pixel of that projection (the texel spans ~2 pixels; its footprint's centroid
+ * is not exactly its centre's projection), and the image must hold the texel's radiance
+ * times its solid angle (energy, with the rotation too: 5 standard errors). The old mapping, 180 degrees off, put
+ * the texel behind the camera. */
+static void test_env_marked(void) {
+    const int W = 64, H = 32, mi = 18, mj = 14, R = 32;
+    const float rotations[] = {0.0f, 20.0f, -20.0f};
+    for (size_t q = 0; q < sizeof rotations / sizeof rotations[0]; ++q) {
+        double u = (mi + 0.5) / W, v = (mj + 0.5) / H;
+        double phi = M_PI - 2.0 * M_PI * u - rotations[q] * M_PI / 180.0, theta = M_PI * v;
+        double xb = sin(theta) * cos(phi), yb = sin(theta) * sin(phi), zb = cos(theta);
+        double x = xb, y = zb, z = -yb; /* glTF */
+        /* pinhole looking down -Z, tan(45 deg) = 1, aspect 1: film x right, y down */
+        double px = (x / -z + 1.0) * 0.5 * R, py = (1.0 - y / -z) * 0.5 * R;
+        CHECK(z < 0 && px > 2 && px < R - 2 && py > 2 && py < R - 2, "marked texel outside the view (%g, %g)", px, py);
+        RenderSpec s = {"env_marked.gltf", NULL, R, R, 16, 0, CANDELA_LIGHT_SAMPLER_POWER, CANDELA_LIGHT_UNITS_RAW, 7,
+                        1, rotations[q]};
+        CandelaImage img;
+        if (render(&s, &img) != 0) { candela_image_free(&img); continue; }
+        double sum = 0, cx = 0, cy = 0, energy = 0, energy_var = 0;
+        for (int j = 0; j < R; ++j)
+            for (int i = 0; i < R; ++i) {
+                double L = img.rgb[3 * (j * R + i)];
+                sum += L;
+                cx += L * (i + 0.5);
+                cy += L * (j + 0.5);
+                /* a pixel's solid angle: (2/R)^2 over |film point|^3 on the plane at distance 1 */
+                double fx = (i + 0.5) * 2.0 / R - 1.0, fy = (j + 0.5) * 2.0 / R - 1.0;
+                double sr = (4.0 / (R * R)) / pow(1.0 + fx * fx + fy * fy, 1.5);
+                energy += L * sr;
+                energy_var += sr * sr * img.variance[3 * (j * R + i)];
+            }
+        double texel_sr = (2.0 * M_PI / W) * (cos(M_PI * mj / H) - cos(M_PI * (mj + 1) / H));
+        CHECK(sum > 0, "env_marked rotation %g: black image", (double)rotations[q]);
+        if (sum > 0) {
+            cx /= sum;
+            cy /= sum;
+            fprintf(stderr, "  env_marked rotation %+g: centroid (%.2f, %.2f), Cycles' direction at (%.2f, %.2f); "
+                    "energy %.5f +- %.5f sr, texel %.5f sr\n", (double)rotations[q], cx, cy, px, py, energy,
+                    sqrt(energy_var), texel_sr);
+            CHECK(fabs(cx - px) <= 1.0 && fabs(cy - py) <= 1.0,
+                  "env_marked rotation %g: marked texel at (%.2f, %.2f), Cycles puts it at (%.2f, %.2f)",
+                  (double)rotations[q], cx, cy, px, py);
+            /* 5 standard errors of the pixel sums, plus 1% for the pixel-centre solid angles */
+            CHECK(fabs(energy - texel_sr) <= 5.0 * sqrt(energy_var) + 0.01 * texel_sr, "env_marked rotation %g: %.5f sr of radiance 1, texel %.5f sr",
+                  (double)rotations[q], energy, texel_sr);
+        }
+        candela_image_free(&img);
+    }
 }
 
 static void test_env(void) {
@@ -345,28 +467,56 @@ static void test_env(void) {
         free(e);
     }
     candela_image_free(&img);
-
-    static const int texels[][2] = {{0, 1}, {1, 2}, {2, 1}, {3, 0}, {4, 2}, {5, 3}, {6, 1}, {7, 2}};
-    for (size_t k = 0; k < sizeof texels / sizeof texels[0]; ++k) {
-        int i = texels[k][0], j = texels[k][1];
-        char cam[32], name[64];
-        snprintf(cam, sizeof cam, "texel_%d_%d", i, j);
-        snprintf(name, sizeof name, "env_directions %s", cam);
-        RenderSpec sd = {"env_directions.gltf", cam, 4, 4, 4, 0, CANDELA_LIGHT_SAMPLER_POWER,
-                         CANDELA_LIGHT_UNITS_RAW, 5};
-        if (render(&sd, &img) == 0) {
-            double *e = constant_exact(16, (i + 1) / 8.0, (j + 1) / 4.0, 0.25 + 0.5 * ((i + j) % 2));
-            /* bilinear lookups at a texel centre are exact to float rounding of the direction */
-            int bad = 0;
-            for (int p = 0; p < 16; ++p)
-                for (int c = 0; c < 3; ++c)
-                    if (!(fabs(img.rgb[3 * p + c] - e[3 * p + c]) <= 1e-3)) ++bad;
-            CHECK(bad == 0, "%s: expected texel (%d,%d) = %g %g %g, pixel 0 = %g %g %g", name, i, j,
-                  e[0], e[1], e[2], img.rgb[0], img.rgb[1], img.rgb[2]);
-            free(e);
-        }
-        candela_image_free(&img);
+    /* coat_plane: the same with a smooth clearcoat (the BSDF's closed form, tests/test_bsdf.c):
+     * L = (0.04 + 0.96 rho (1 - 0.04 - 0.96 / 21)) Lenv */
+    RenderSpec s3 = {"coat_plane.gltf", NULL, 32, 32, 64, 0, CANDELA_LIGHT_SAMPLER_POWER, CANDELA_LIGHT_UNITS_RAW, 4};
+    if (render(&s3, &img) == 0) {
+        double k = 0.04 + 0.96 * 0.5 * (1.0 - 0.04 - 0.96 / 21.0);
+        double *e = constant_exact(32 * 32, 0.5 * k, 0.75 * k, 1.0 * k);
+        compare("coat_plane", &img, e);
+        free(e);
     }
+    candela_image_free(&img);
+
+    /* Each camera looks at a texel centre of the 8x4 grid along the direction Cycles maps it
+     * to (scenes/make_scenes.py latlong_dir); "rot_" cameras for the environment turned by 75
+     * degrees (Blender's Mapping node Z rotation), from the extras or from --env-rotation. */
+    static const int texels[][2] = {{0, 1}, {1, 2}, {2, 1}, {3, 0}, {4, 2}, {5, 3}, {6, 1}, {7, 2}};
+    static const struct {
+        const char *file, *prefix;
+        int given;
+        float deg;
+    } cases[] = {
+        {"env_directions.gltf", "texel", 0, 0.0f},           /* no rotation */
+        {"env_directions_rot.gltf", "rot_texel", 0, 0.0f},   /* extras rotation 75 */
+        {"env_directions.gltf", "rot_texel", 1, 75.0f},      /* --env-rotation 75 */
+        {"env_directions.gltf", "rot_texel", 1, 75.0f - 720.0f}, /* whole turns do nothing */
+        {"env_directions_rot.gltf", "texel", 1, 0.0f},       /* --env-rotation 0 overrides the extras */
+    };
+    for (size_t q = 0; q < sizeof cases / sizeof cases[0]; ++q) {
+        for (size_t k = 0; k < sizeof texels / sizeof texels[0]; ++k) {
+            int i = texels[k][0], j = texels[k][1];
+            char cam[32], name[128];
+            snprintf(cam, sizeof cam, "%s_%d_%d", cases[q].prefix, i, j);
+            snprintf(name, sizeof name, "env_directions %s %s (--env-rotation %s%g)", cases[q].file, cam,
+                     cases[q].given ? "" : "none, ", cases[q].given ? (double)cases[q].deg : 0.0);
+            RenderSpec sd = {cases[q].file, cam, 4, 4, 4, 0, CANDELA_LIGHT_SAMPLER_POWER,
+                             CANDELA_LIGHT_UNITS_RAW, 5, cases[q].given, cases[q].deg};
+            if (render(&sd, &img) == 0) {
+                double *e = constant_exact(16, (i + 1) / 8.0, (j + 1) / 4.0, 0.25 + 0.5 * ((i + j) % 2));
+                /* bilinear lookups at a texel centre are exact to float rounding of the direction */
+                int bad = 0;
+                for (int p = 0; p < 16; ++p)
+                    for (int c = 0; c < 3; ++c)
+                        if (!(fabs(img.rgb[3 * p + c] - e[3 * p + c]) <= 1e-3)) ++bad;
+                CHECK(bad == 0, "%s: expected texel (%d,%d) = %g %g %g, pixel 0 = %g %g %g", name, i, j,
+                      e[0], e[1], e[2], img.rgb[0], img.rgb[1], img.rgb[2]);
+                free(e);
+            }
+            candela_image_free(&img);
+        }
+    }
+    test_env_marked();
 }
 
 /* Compares two renders of the same scene made with different light samplers (uniform as
@@ -399,6 +549,49 @@ static void compare_samplers(const CandelaImage *a, const CandelaImage *b, const
                 "  two_lights ch%d: uniform mean %.5f %s mean %.5f diff %+.2e (stderr %.2e), "
                 "mean z^2 %.4f over %d px, sum var uniform %.3g %s %.3g\n",
                 c, sa / n, bname, sb / n, sd / n, se, mz2, m, va_sum, bname, vb_sum);
+    }
+}
+
+/* normalmap_grazing (scenes/make_scenes.py): normal-mapped planes under the constant environment
+ * (0.5, 0.75, 1) seen 85 degrees from their normal, half their stripes tilted 10 degrees away
+ * from the view (the view below their shading hemisphere: black pixels before the shading
+ * normal was bent, issue 14). Every pixel sees the plane (depth finite) and must be non-zero.
+ * Lambert rho = 0.5: the cosine lobe about a normal tilted by at most 10 degrees, cut by the
+ * geometric plane, holds between (1 + cos 10) / 2 and all of rho Lenv: each pixel within those
+ * bounds (6 sigma), and the image mean too (5 standard errors): the flat plane's value to 0.8%.
+ * White GGX metal: non-zero and at most Lenv (single scattering loses, never gains). */
+static void test_normalmap_grazing(void) {
+    const double env[3] = {0.5, 0.75, 1.0}, rho = 0.5, tilt = 10.0 * M_PI / 180.0;
+    for (int k = 0; k < 2; ++k) {
+        const char *cam = k == 0 ? "lambert" : "metal";
+        RenderSpec s = {"normalmap_grazing.gltf", cam, 16, 16, 64, 0, CANDELA_LIGHT_SAMPLER_POWER,
+                        CANDELA_LIGHT_UNITS_RAW, 11};
+        CandelaImage img;
+        if (render(&s, &img) != 0) { candela_image_free(&img); continue; }
+        const int n = 16 * 16;
+        int zeros = 0, missed = 0, out_of_bounds = 0;
+        for (int c = 0; c < 3; ++c) {
+            double lo = k == 0 ? rho * env[c] * 0.5 * (1.0 + cos(tilt)) : 0.0, hi = k == 0 ? rho * env[c] : env[c];
+            double sum = 0, var = 0;
+            for (int p = 0; p < n; ++p) {
+                double v = img.rgb[3 * p + c], sd = sqrt((double)img.variance[3 * p + c]);
+                zeros += v == 0.0;
+                if (c == 0) missed += !isfinite(img.depth[p]);
+                out_of_bounds += !(v >= lo - 6.0 * sd - 1e-6 && v <= hi + 6.0 * sd + 1e-6);
+                sum += v;
+                var += img.variance[3 * p + c];
+            }
+            double mean = sum / n, se = sqrt(var) / n;
+            fprintf(stderr, "  normalmap_grazing %-7s ch%d mean %.5f (+- %.5f), bounds [%.5f, %.5f]\n", cam, c, mean,
+                    se, lo, hi);
+            CHECK(mean >= lo - 5.0 * se && mean <= hi + 5.0 * se, "normalmap_grazing %s ch%d: mean %.5f outside [%.5f, %.5f]",
+                  cam, c, mean, lo, hi);
+        }
+        CHECK(missed == 0, "normalmap_grazing %s: %d pixels miss the plane", cam, missed);
+        CHECK(zeros == 0, "normalmap_grazing %s: %d pixel channels are exactly 0 (paths killed at grazing view)", cam,
+              zeros);
+        CHECK(out_of_bounds == 0, "normalmap_grazing %s: %d pixel channels outside the bounds", cam, out_of_bounds);
+        candela_image_free(&img);
     }
 }
 
@@ -459,10 +652,12 @@ int main(int argc, char **argv) {
     test_plane("point_plane.gltf", "point_plane (blender units)", point_light_L, 1.0 / 683.0,
                CANDELA_LIGHT_UNITS_BLENDER, 3.0);
     test_plane("spot_plane.gltf", "spot_plane", point_light_L, 1.0, CANDELA_LIGHT_UNITS_RAW, 3.0);
+    test_spot_blend();
     test_plane("directional_plane.gltf", "directional_plane", directional_L, 1.0,
                CANDELA_LIGHT_UNITS_RAW, 3.0);
     test_plane("area_plane.gltf", "area_plane", area_light_L, 1.0, CANDELA_LIGHT_UNITS_RAW, 0.5);
     test_env();
+    test_normalmap_grazing();
     test_samplers();
     test_default_scene();
     return test_exit();

@@ -83,6 +83,7 @@ static void fake_scene(Fake *f, const Light *l) {
     memset(f, 0, sizeof *f);
     f->mat.emissive_tex.image = -1;
     f->mat.base_color_tex.image = f->mat.metallic_roughness_tex.image = f->mat.normal_tex.image = -1;
+    f->mat.clearcoat_tex.image = f->mat.clearcoat_roughness_tex.image = -1;
     f->mat.double_sided = l->two_sided;
     f->mat.emissive[0] = l->emission.x;
     f->mat.emissive[1] = l->emission.y;

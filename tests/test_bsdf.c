@@ -41,6 +41,8 @@ static BsdfParams mat(float base, float metallic, float roughness, float specula
     p.specular_color = v3s(1.0f);
     p.transmission = transmission;
     p.ior = ior;
+    p.clearcoat = 0.0f;
+    p.clearcoat_roughness = 0.0f;
     return p;
 }
 
@@ -185,6 +187,45 @@ static void test_furnace(void) {
                 }
             }
 
+    /* KHR_materials_clearcoat over white bases (coat 1): never more than 1. A smooth coat over
+     * black is the coat alone, Fc(wo.z) = 0.04 + 0.96 (1 - wo.z)^5 (its alpha 1e-3 GGX mirror
+     * loses nothing measurable); over white Lambert it is Fc(wo) + (1 - Fc(wo)) (1 - <Fc>) with
+     * <Fc> = 2 int_0^1 Fc(c) c dc = 0.04 + 0.96 / 21 (the cosine-weighted light the coat keeps
+     * in on the way out). Rough coats reflect less than Fc(wo.z) at grazing view (Fresnel at
+     * the half vector, single-scattering GGX) while the base keeps its (1 - Fc(wo.z)) share:
+     * energy is lost, never gained. The model is linear in the base, so over white Lambert the
+     * albedo is the coat's alone (the black base's) plus (1 - Fc(wo)) (1 - <Fc>) at any coat
+     * roughness. */
+    const float crough[3] = {0.0f, 0.3f, 0.6f};
+    Est coat_alone[3][3];
+    for (int base = 0; base < 4; ++base)
+        for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c) {
+                static const char *const bases[4] = {"black", "lambert", "plastic", "metal"};
+                BsdfParams p = base == 0 ? mat(0.0f, 0.0f, 0.5f, 0.0f, 0.0f, 1.5f)
+                             : base == 1 ? mat(1.0f, 0.0f, 0.5f, 0.0f, 0.0f, 1.5f)
+                             : base == 2 ? mat(1.0f, 0.0f, 0.4f, 1.0f, 0.0f, 1.5f)
+                                         : mat(1.0f, 1.0f, 0.2f, 1.0f, 0.0f, 1.5f);
+                p.clearcoat = 1.0f;
+                p.clearcoat_roughness = crough[r];
+                snprintf(name, sizeof name, "coat %.1f over %s", crough[r], bases[base]);
+                Est e = furnace(name, &p, dir_cos(coss[c], 0.9f), N, &id, crough[r] >= 0.1f);
+                CHECK(e.mean <= 1.0 + 3.0 * e.se + 1e-6, "%s wo.z %g: albedo %.5f > 1", name, coss[c], e.mean);
+                double fc = 0.04 + 0.96 * pow(1.0 - coss[c], 5.0), avg = 0.04 + 0.96 / 21.0;
+                if (r == 0 && base <= 1) {
+                    double want = base == 0 ? fc : fc + (1.0 - fc) * (1.0 - avg);
+                    CHECK(fabs(e.mean - want) <= 5.0 * e.se + 1e-3, "%s wo.z %g: albedo %.5f, closed form %.5f", name,
+                          coss[c], e.mean, want);
+                }
+                if (base == 0) coat_alone[r][c] = e;
+                if (base == 1) {
+                    double want = coat_alone[r][c].mean + (1.0 - fc) * (1.0 - avg);
+                    double tol = 5.0 * sqrt(e.se * e.se + coat_alone[r][c].se * coat_alone[r][c].se) + 1e-4;
+                    CHECK(fabs(e.mean - want) <= tol, "%s wo.z %g: albedo %.5f, coat alone + base share %.5f", name,
+                          coss[c], e.mean, want);
+                }
+            }
+
     /* ior 1: the glass is an exact pass-through, no radiance scaling involved. */
     for (int r = 0; r < 2; ++r) {
         BsdfParams p = mat(1.0f, 0.0f, r ? 0.7f : 0.0f, 1.0f, 1.0f, 1.0f);
@@ -216,6 +257,9 @@ static BsdfParams random_params(uint64_t key, uint32_t *dim, int non_delta) {
     p.specular = r < 0.1f ? 0.0f : (r < 0.6f ? 1.0f : rnd(key, dim));
     p.specular_color = v3(0.5f + rnd(key, dim), 1.0f, rnd(key, dim));
     p.ior = 1.05f + 1.5f * rnd(key, dim);
+    r = rnd(key, dim);
+    p.clearcoat = r < 0.5f ? 0.0f : (r < 0.7f ? 1.0f : rnd(key, dim));
+    p.clearcoat_roughness = non_delta ? 0.05f + 0.95f * rnd(key, dim) : rnd(key, dim);
     return p;
 }
 
@@ -381,6 +425,14 @@ static void test_chi2(void) {
      * "no direction" bin. */
     p = mat(0.9f, 0.0f, 0.0f, 0.0f, 0.5f, 1.5f);
     chi2_bsdf("lambert + smooth refraction", &p, dir_cos(0.5f, 0.5f), N, 4006);
+    p = mat(0.8f, 0.0f, 0.6f, 1.0f, 0.0f, 1.5f);
+    p.clearcoat = 0.8f;
+    p.clearcoat_roughness = 0.25f;
+    chi2_bsdf("clearcoat 0.25 over plastic", &p, dir_cos(0.45f, 1.5f), N, 4007);
+    p = mat(0.9f, 0.0f, 0.4f, 1.0f, 0.7f, 1.5f);
+    p.clearcoat = 1.0f;
+    p.clearcoat_roughness = 0.4f;
+    chi2_bsdf("clearcoat 0.4 over rough glass", &p, dir_cos(0.6f, 2.5f), N, 4008);
 }
 
 /* ---------------------------------------------------------------- (d) robustness */
@@ -417,6 +469,8 @@ static void test_robustness(void) {
         p.specular_color = v3(special(key, &dim, 0, 2), special(key, &dim, 0, 1), special(key, &dim, 0, 1));
         p.transmission = special(key, &dim, 0, 1);
         p.ior = special(key, &dim, 1.0f, 3.0f);
+        p.clearcoat = special(key, &dim, 0, 1);
+        p.clearcoat_roughness = special(key, &dim, 0, 1);
         vec3 wo = special_dir(key, &dim), wi = special_dir(key, &dim);
         float u[3];
         for (int i = 0; i < 3; ++i) {
@@ -444,7 +498,7 @@ static void test_robustness(void) {
         }
     }
     /* Garbage parameters are sanitised, not propagated. */
-    BsdfParams g = {{NAN, INFINITY, -1.0f}, NAN, NAN, INFINITY, {NAN, -3.0f, 1e30f}, -NAN, NAN};
+    BsdfParams g = {{NAN, INFINITY, -1.0f}, NAN, NAN, INFINITY, {NAN, -3.0f, 1e30f}, -NAN, NAN, NAN, INFINITY};
     vec3 wo = dir_cos(0.5f, 0.0f), wi = dir_cos(0.7f, 2.0f);
     vec3 f = bsdf_eval(&g, wo, wi);
     BsdfSample s;

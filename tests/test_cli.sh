@@ -173,6 +173,43 @@ else
 fi
 rm -f "$tmp/s0.exr"
 
+# warnings (issue 14): one stderr line per feature that is read but not rendered, the render
+# goes on (exit 0); --no-warnings silences them (--quiet does not: it is progress and statistics)
+warned() { # NAME PATTERN FILE [FLAGS...]: exit 0, exactly one warning line, saying PATTERN
+  local name=$1 pattern=$2 file=$3; shift 3
+  if ! "$bin" render "$file" -o "$tmp/w.exr" --no-png --res 8x8 --spp 1 --quiet "$@" 2>"$tmp/w.err"; then
+    bad "$name: exit non-zero: $(cat "$tmp/w.err")"; return; fi
+  local n; n=$(grep -c "warning:" "$tmp/w.err")
+  if [ "$n" -ne 1 ] || ! grep -q -- "$pattern" "$tmp/w.err"; then bad "$name: want one warning saying '$pattern', got: $(cat "$tmp/w.err")"; return; fi
+  if ! "$bin" render "$file" -o "$tmp/w.exr" --no-png --res 8x8 --spp 1 --quiet --no-warnings "$@" 2>"$tmp/w.err" ||
+     [ -s "$tmp/w.err" ]; then bad "$name: --no-warnings still prints: $(cat "$tmp/w.err")"; return; fi
+  ok
+}
+silent() { # NAME FILE [FLAGS...]: exit 0 and nothing on stderr
+  local name=$1 file=$2; shift 2
+  "$bin" render "$file" -o "$tmp/w.exr" --no-png --res 8x8 --spp 1 --quiet "$@" 2>"$tmp/w.err" && [ ! -s "$tmp/w.err" ] && ok ||
+    bad "$name: expected no output, got: $(cat "$tmp/w.err")"
+}
+silent "a plain scene" "$scene"
+hostile "$tmp/ext.gltf" 'd.setdefault("extensionsUsed", []).append("KHR_materials_sheen")'
+warned "unsupported extension used" "extension 'KHR_materials_sheen' is not supported" "$tmp/ext.gltf"
+hostile "$tmp/blend.gltf" 'd["materials"][0]["alphaMode"] = "BLEND"; d["materials"][0]["name"] = "glass_pane"'
+warned "alphaMode BLEND" "BLEND is rendered as MASK.*'glass_pane'" "$tmp/blend.gltf"
+hostile "$tmp/color0.gltf" 'p = d["meshes"][0]["primitives"][0]; p["attributes"]["COLOR_0"] = p["attributes"]["NORMAL"]'
+warned "vertex colours" "COLOR_0" "$tmp/color0.gltf"
+hostile "$tmp/skin.gltf" 'd["skins"] = [{"joints": [0]}]'
+warned "skins" "1 skin ignored" "$tmp/skin.gltf"
+warned "animations in a single render" "5 animation channels are not rendered" "$root/scenes/animation.gltf"
+"$bin" render "$root/scenes/animation.gltf" --frames 1 -o "$tmp/anim.#.exr" --no-png --res 8x8 --spp 1 --quiet 2>"$tmp/w.err" &&
+  [ ! -s "$tmp/w.err" ] && ok || bad "a frame batch warns about the animation it renders: $(cat "$tmp/w.err")"
+rm -f "$tmp"/anim.*.exr
+warned "no lights" "no lights and no environment" "$root/tests/scenes/no_lights.gltf"
+silent "no lights but an environment" "$root/tests/scenes/no_lights.gltf" --env "$root/tests/scenes/env_constant.exr"
+expect_error "bad env rotation" "--env-rotation" -- render "$scene" --env-rotation 90deg "${common[@]}"
+expect_error "nan env rotation" "--env-rotation" -- render "$scene" --env-rotation nan "${common[@]}"
+expect_error "bad light model" "unknown light model 'blender4'" -- render "$scene" --light-model blender4 "${common[@]}"
+rm -f "$tmp/w.exr" "$tmp/w.err"
+
 # volumes: a node whose candela_volume names a missing, a truncated or a non-VDB file, or a
 # grid that is not there (the scene is point_plane.gltf plus one volume node)
 volume_scene() { # FILE URI [GRID]

@@ -107,6 +107,8 @@ static void expect_gltf_failure(const char *path, const char *what) {
     CHECK(scene_is_zero(&s), "%s: scene not zeroed after failure", what);
 }
 
+static void expect_failure_saying(const char *path, const char *what, const char *needle1, const char *needle2);
+
 /* ---------------------------------------------------------------- EXR */
 
 static void test_exr(void) {
@@ -730,7 +732,7 @@ static void test_generated_gltf(void) {
     /* environment from scene extras */
     snprintf(json, sizeof json,
              "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[],\"extras\":"
-             "{\"candela_environment\":{\"uri\":\"sky.exr\",\"strength\":2.5}}}]}");
+             "{\"candela_environment\":{\"uri\":\"sky.exr\",\"strength\":2.5,\"rotation\":-112.5}}}]}");
     const char *envp = tmp_path("env.gltf");
     write_bytes(envp, json, strlen(json));
     rc = io_load_gltf(envp, &s, err);
@@ -740,8 +742,25 @@ static void test_generated_gltf(void) {
         snprintf(want, sizeof want, "%s/sky.exr", tmpdir);
         CHECK(strcmp(s.env_path, want) == 0, "env path '%s'", s.env_path);
         CHECK(s.env_strength == 2.5f, "env strength %g", s.env_strength);
+        CHECK(s.env_rotation_deg == -112.5f, "env rotation %g", s.env_rotation_deg);
         io_scene_free(&s);
     }
+    /* rotation: a finite number of degrees, or absent (0) */
+    static const char *const bad_rotations[] = {"\"90\"", "1e300", "[90]"};
+    for (size_t i = 0; i < sizeof bad_rotations / sizeof bad_rotations[0]; ++i) {
+        snprintf(json, sizeof json,
+                 "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[],\"extras\":"
+                 "{\"candela_environment\":{\"uri\":\"sky.exr\",\"rotation\":%s}}}]}", bad_rotations[i]);
+        write_bytes(envp, json, strlen(json));
+        expect_failure_saying(envp, "bad environment rotation", "extras.candela_environment.rotation", NULL);
+    }
+    snprintf(json, sizeof json,
+             "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[],\"extras\":"
+             "{\"candela_environment\":{\"uri\":\"sky.exr\"}}}]}");
+    write_bytes(envp, json, strlen(json));
+    rc = io_load_gltf(envp, &s, err);
+    CHECK(rc == 0 && s.env_rotation_deg == 0.0f, "env without rotation: %s %g", err, rc == 0 ? s.env_rotation_deg : 0.0f);
+    if (rc == 0) io_scene_free(&s);
 }
 
 /* --texture-budget-mb counts textures as held: 4 bytes per texel for an 8-bit file, 16 for a
@@ -1223,6 +1242,40 @@ static void write_volume_gltf(const char *path, const char *volume) {
 
 /* Bad candela_volume values: found before any VDB file is opened (the uri names a file that
  * does not exist), so these need no assets. */
+/* KHR_materials_clearcoat: factors read, defaults 0, out-of-range refused naming the material,
+ * a clearcoatNormalTexture warned about (not rendered), and the extension no longer warned about
+ * in extensionsUsed (it is rendered). */
+static void test_clearcoat(void) {
+    const char *p = tmp_path("coat.gltf");
+    write_fmt(p, "{\"asset\":{\"version\":\"2.0\"},\"extensionsUsed\":[\"KHR_materials_clearcoat\"],\"materials\":["
+                 "{\"name\":\"coated\",\"extensions\":{\"KHR_materials_clearcoat\":{\"clearcoatFactor\":0.75,"
+                 "\"clearcoatRoughnessFactor\":0.25}}},{\"name\":\"plain\"}]}");
+    IoScene s;
+    char err[IO_ERR_LEN] = "";
+    int rc = io_load_gltf(p, &s, err);
+    CHECK(rc == 0, "clearcoat: %s", err);
+    if (rc == 0) {
+        CHECK(s.num_materials == 2 && s.materials[0].clearcoat == 0.75f && s.materials[0].clearcoat_roughness == 0.25f &&
+                  s.materials[0].clearcoat_tex.image == -1 && s.materials[0].clearcoat_roughness_tex.image == -1,
+              "clearcoat factors %g %g", s.materials[0].clearcoat, s.materials[0].clearcoat_roughness);
+        CHECK(s.materials[1].clearcoat == 0.0f && s.materials[1].clearcoat_tex.image == -1, "no clearcoat by default");
+        CHECK(s.num_warnings == 0, "a supported extension warned (%u warnings)", s.num_warnings);
+        io_scene_free(&s);
+    }
+    write_fmt(p, "{\"asset\":{\"version\":\"2.0\"},\"materials\":[{\"name\":\"coated\",\"extensions\":"
+                 "{\"KHR_materials_clearcoat\":{\"clearcoatFactor\":1.5}}}]}");
+    expect_failure_saying(p, "clearcoat factor 1.5", "material 'coated' KHR_materials_clearcoat", "[0, 1]");
+    write_fmt(p, "{\"asset\":{\"version\":\"2.0\"},\"materials\":[{\"name\":\"coated\",\"extensions\":"
+                 "{\"KHR_materials_clearcoat\":{\"clearcoatFactor\":1,\"clearcoatTexture\":{\"index\":3}}}}]}");
+    expect_failure_saying(p, "clearcoat texture out of range", "clearcoatTexture", "out of range");
+    write_fmt(p, "{\"asset\":{\"version\":\"2.0\"},\"materials\":[{\"name\":\"coated\",\"extensions\":"
+                 "{\"KHR_materials_clearcoat\":{\"clearcoatFactor\":1,\"clearcoatNormalTexture\":{\"index\":0}}}}]}");
+    rc = io_load_gltf(p, &s, err);
+    CHECK(rc == 0 && s.num_warnings == 1, "clearcoatNormalTexture: rc %d, %u warnings (%s)", rc, rc == 0 ? s.num_warnings : 0,
+          err);
+    if (rc == 0) io_scene_free(&s);
+}
+
 static void test_volume_inputs(void) {
     const char *p = tmp_path("volume-bad.gltf");
     static const struct {
@@ -1495,6 +1548,7 @@ int main(int argc, char **argv) {
     test_texture_budget();
     test_vdb_generated();
     test_material_media();
+    test_clearcoat();
     test_volume_inputs();
 
     char probe[1024];
