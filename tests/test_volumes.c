@@ -411,6 +411,22 @@ static void test_heterogeneous(void) {
             double ex = exp(-scale * 0.8 * 0.5);
             CHECK(acc_ok(&acc[0], ex), "ramp, axis-aligned: %g +- %g vs %g", acc_mean(&acc[0]), acc_se(&acc[0]), ex);
             printf("ramp axis-aligned: %.4f +- %.4f, exact %.4f\n", acc_mean(&acc[0]), acc_se(&acc[0]), ex);
+            /* residual ratio tracking (media_transmittance) against plain ratio tracking
+             * (media_ratio_track) on the same ray: the control takes part of the optical
+             * depth, so its standard error at equal count must be below plain's (0.69x here: the ramp
+             * changes by a quarter of its range across a cell, so the controls are loose) */
+            TestRng tr;
+            VolumeRng rng = make_rng(&tr, 6);
+            Acc plain = {0};
+            for (int i = 0; i < 40000; ++i) {
+                float T[3], nm;
+                media_ratio_track(&v, o, d, 0.0f, 0.8f, &rng, T, &nm, NULL);
+                acc_add(&plain, T[0]);
+            }
+            CHECK(acc_ok(&plain, ex), "ramp, plain ratio tracking: %g +- %g vs %g", acc_mean(&plain), acc_se(&plain), ex);
+            CHECK(acc_se(&acc[0]) < 0.85 * acc_se(&plain), "residual ratio tracking's error %g not below 0.85 of plain's %g",
+                  acc_se(&acc[0]), acc_se(&plain));
+            printf("ramp axis-aligned: standard error residual %.5f, plain %.5f\n", acc_se(&acc[0]), acc_se(&plain));
         }
         /* oblique, inside the linear region: tau = scale x length x (mean y + 0.5) */
         {
@@ -525,6 +541,7 @@ static void test_majorant(void) {
     TestRng r = {4242};
     char err[IO_ERR_LEN] = "";
     long points = 0, nonzero = 0, violations = 0, tiling_errors = 0, rays = 0, segments = 0, empty_rays = 0;
+    long control_errors = 0, controlled = 0;
     VolumeStats st = {0};
     for (int trial = 0; trial < 24; ++trial) {
         int nx = 3 + (int)(urand(&r) * 38), ny = 3 + (int)(urand(&r) * 38), nz = 3 + (int)(urand(&r) * 38);
@@ -537,6 +554,8 @@ static void test_majorant(void) {
                     double dd = sqrt((x - cx) * (x - cx) + (y - cy) * (y - cy) + (z - cz) * (z - cz));
                     double u = urand(&r);
                     v[x + nx * (y + ny * z)] = dd < rad ? (float)(u * u * 5.0) : u < 0.02 ? (float)(u * 100.0) : 0.0f;
+                    /* every fourth grid dense (a fog, as the mist): cells with a control > 0 */
+                    if (trial % 4 == 2) v[x + nx * (y + ny * z)] = (float)(1.0 + u);
                 }
         v[0] = 1.0f; /* never all zero */
         float i2w[16];
@@ -612,6 +631,31 @@ static void test_majorant(void) {
                 } else if (n == 0 || prev != c1) {
                     ++tiling_errors;
                 }
+                /* the control segments (residual ratio tracking): the same tiling, and
+                 * ctl <= sigma_t <= maj at every point; an emitting medium has no control */
+                medium_majorant_begin_control(&m, o, d, tmin, tmax, &it);
+                float ctl;
+                int nc = 0;
+                prev = 0.0f;
+                while (medium_majorant_next_control(&it, &t0, &t1, &maj, &ctl)) {
+                    if (nc == 0 ? t0 != c0 : t0 != prev) ++tiling_errors;
+                    if (!(ctl >= 0.0f) || !(ctl <= maj) || (emissive && ctl != 0.0f)) ++control_errors;
+                    prev = t1;
+                    controlled += ctl > 0.0f;
+                    for (int j = 0; j < 8; ++j) {
+                        float t = t0 + (float)urand(&r) * (t1 - t0);
+                        float p[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
+                        float sig = sigma_t_at(&m, p);
+                        if (sig < ctl || sig > maj) {
+                            if (control_errors < 5)
+                                fprintf(stderr, "  control violation: grid %d ray %d t %g: sigma_t %g not in [%g, %g]\n",
+                                        trial, ray, t, sig, ctl, maj);
+                            ++control_errors;
+                        }
+                    }
+                    if (++nc > 100000) break;
+                }
+                if (hit && (nc < n || prev != c1)) ++tiling_errors;
                 /* the trackers over the same ray terminate */
                 if (ray % 8 == 0) {
                     MediaView view = {{&m}, 1};
@@ -636,6 +680,10 @@ static void test_majorant(void) {
            "errors\n",
            rays, empty_rays, segments, points, nonzero, violations, tiling_errors);
     CHECK(violations == 0, "%ld points above their segment's majorant", violations);
+    CHECK(control_errors == 0, "%ld points below their segment's control (or a control above the majorant)",
+          control_errors);
+    CHECK(controlled > 0, "no control segment with sigma_c > 0: residual ratio tracking untested");
+    printf("majorant: %ld control segments with sigma_c > 0\n", controlled);
     CHECK(tiling_errors == 0, "%ld tiling errors (segments must tile the clipped interval)", tiling_errors);
     CHECK(nonzero > points / 20, "too few points inside the media (%ld of %ld)", nonzero, points);
     CHECK(st.capped_walks == 0, "capped walks %llu", (unsigned long long)st.capped_walks);

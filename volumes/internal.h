@@ -30,6 +30,8 @@
  * collision are rounded, so an interpolated value can exceed the max of its corners by an
  * ulp or two. 1e-4 costs 0.01 % more null collisions and makes sigma_t <= sigma_maj exact. */
 #define VOL_MAJORANT_SLACK 1.0001f
+/* The same on the control (minorant) grid, downwards: sigma_c <= sigma_t stays exact. */
+#define VOL_CONTROL_SLACK 0.9999f
 
 /* min/max as compares: with a NaN in a they return b (so vmaxf(x, 0) maps NaN to 0). */
 static inline float vmaxf(float a, float b) { return a > b ? a : b; }

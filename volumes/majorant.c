@@ -50,7 +50,7 @@ static int block_table_alloc(BlockTable *b, const int32_t origin[3], const int32
 /* Fills the z layer bz of blocks (voxels origin + 8 (x, y, bz) ...) into the table's layer
  * `slot`. A block is a leaf (512 values from its table) or lies in a tile / the background
  * (one value). */
-static void block_layer_fill(BlockTable *b, GridReader *r, int32_t bz, int32_t slot) {
+static void block_layer_fill(BlockTable *b, GridReader *r, int32_t bz, int32_t slot, int take_min) {
     for (int32_t by = 0; by < b->dims[1]; ++by)
         for (int32_t bx = 0; bx < b->dims[0]; ++bx) {
             float *out = b->v + block_index(b, bx, by, slot);
@@ -62,16 +62,27 @@ static void block_layer_fill(BlockTable *b, GridReader *r, int32_t bz, int32_t s
                 continue;
             }
             pnanovdb_leaf_handle_t leaf = r->acc.leaf; /* the lookup above cached it */
-            float mx[BLK_FACES] = {0};
+            float mx[BLK_FACES];
+            for (int k = 0; k < BLK_FACES; ++k) mx[k] = take_min ? FLT_MAX : 0.0f;
             for (uint32_t i = 0; i < 512; ++i) {
                 float v = vol_clean(pnanovdb_read_float(
                     r->buf, pnanovdb_leaf_get_table_address(PNANOVDB_GRID_TYPE_FLOAT, r->buf, leaf, i)));
-                mx[0] = vmaxf(mx[0], v);
+                if (take_min) {
+                    mx[0] = vminf(mx[0], v);
+                } else {
+                    mx[0] = vmaxf(mx[0], v);
+                }
                 if (b->nvals == 1) continue;
                 uint32_t l[3] = {i >> 6, (i >> 3) & 7, i & 7}; /* NanoVDB leaf order: x slowest */
                 for (int a = 0; a < 3; ++a) {
-                    if (l[a] <= 1) mx[1 + 2 * a] = vmaxf(mx[1 + 2 * a], v);
-                    if (l[a] >= 6) mx[2 + 2 * a] = vmaxf(mx[2 + 2 * a], v);
+                    float *lo = &mx[1 + 2 * a], *hi = &mx[2 + 2 * a];
+                    if (take_min) {
+                        if (l[a] <= 1) *lo = vminf(*lo, v);
+                        if (l[a] >= 6) *hi = vminf(*hi, v);
+                    } else {
+                        if (l[a] <= 1) *lo = vmaxf(*lo, v);
+                        if (l[a] >= 6) *hi = vmaxf(*hi, v);
+                    }
                 }
             }
             for (int k = 0; k < b->nvals; ++k) out[k] = mx[k];
@@ -118,11 +129,15 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **em
         return -1;
     }
     mg->sigma_maj = malloc((size_t)ncells * sizeof(float));
+    /* the control grid (residual ratio tracking): only for media that do not emit (an
+     * emitting medium's walks gather its emission at collisions, which need its whole
+     * majorant) */
+    mg->sigma_min = m->emissive ? NULL : malloc((size_t)ncells * sizeof(float));
 
     /* Density block maxima with a ring of one block around the cells: a cell's majorant
      * bounds its voxels and the two-voxel shell around them, i.e. the trilinear footprint of
      * the cell (its voxels and the next one up) with a voxel of slack on both sides. */
-    BlockTable dens = {0}, aux = {0};
+    BlockTable dens = {0}, aux = {0}, dmin_table = {0};
     int32_t ring_origin[3], ring_dims[3];
     for (int k = 0; k < 3; ++k) {
         ring_origin[k] = mg->origin[k] - 8;
@@ -130,7 +145,8 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **em
     }
     /* only three z layers of density blocks are alive at a time (a layer of cells needs the
      * layers below, at and above it): the temporary memory is a slab, not the volume */
-    int fail = !mg->sigma_maj || block_table_alloc(&dens, ring_origin, ring_dims, 3, BLK_FACES);
+    int fail = !mg->sigma_maj || block_table_alloc(&dens, ring_origin, ring_dims, 3, BLK_FACES) ||
+               (!m->emissive && (!mg->sigma_min || block_table_alloc(&dmin_table, ring_origin, ring_dims, 3, BLK_FACES)));
     if (!fail && m->emissive && emit_bound) fail = !(bound = calloc((size_t)ncells, sizeof(float)));
 
     /* The emission (or temperature) grid's block maxima over its own index space. */
@@ -146,15 +162,18 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **em
         if (!fail) {
             GridReader r;
             grid_reader_init(&r, ag);
-            for (int32_t bz = 0; bz < d[2]; ++bz) block_layer_fill(&aux, &r, bz, bz);
+            for (int32_t bz = 0; bz < d[2]; ++bz) block_layer_fill(&aux, &r, bz, bz, 0);
         }
     }
     if (fail) {
         free(dens.v);
         free(aux.v);
+        free(dmin_table.v);
         free(bound);
         free(mg->sigma_maj);
+        free(mg->sigma_min);
         mg->sigma_maj = NULL;
+        mg->sigma_min = NULL;
         if (err) snprintf(err, IO_ERR_LEN, "%s: out of memory building the majorant grid", name);
         return -1;
     }
@@ -172,9 +191,13 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **em
 
     GridReader reader;
     grid_reader_init(&reader, g);
-    for (int32_t bz = 0; bz < 2; ++bz) block_layer_fill(&dens, &reader, bz, bz);
+    for (int32_t bz = 0; bz < 2; ++bz) {
+        block_layer_fill(&dens, &reader, bz, bz, 0);
+        if (dmin_table.v) block_layer_fill(&dmin_table, &reader, bz, bz, 1);
+    }
     for (int32_t cz = 0; cz < mg->dims[2]; ++cz) {
-        block_layer_fill(&dens, &reader, cz + 2, (cz + 2) % 3);
+        block_layer_fill(&dens, &reader, cz + 2, (cz + 2) % 3, 0);
+        if (dmin_table.v) block_layer_fill(&dmin_table, &reader, cz + 2, (cz + 2) % 3, 1);
         for (int32_t cy = 0; cy < mg->dims[1]; ++cy)
             for (int32_t cx = 0; cx < mg->dims[0]; ++cx) {
                 int32_t c[3] = {cx, cy, cz};
@@ -221,9 +244,29 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **em
                     if (bound) bound[cx + mg->dims[0] * (cy + mg->dims[1] * cz)] = term;
                 }
                 mg->sigma_maj[cx + mg->dims[0] * (cy + mg->dims[1] * cz)] = maj * VOL_MAJORANT_SLACK;
+                if (mg->sigma_min) {
+                    /* the same footprint's minimum: a neighbour's two-voxel face towards the
+                     * cell; an edge or corner lies in each of its faces, so the largest of
+                     * their minima bounds it from below */
+                    float dmn = FLT_MAX;
+                    for (int dz = -1; dz <= 1; ++dz)
+                        for (int dy = -1; dy <= 1; ++dy)
+                            for (int dx = -1; dx <= 1; ++dx) {
+                                int dd[3] = {dx, dy, dz};
+                                const float *nb =
+                                    dmin_table.v + block_index(&dmin_table, cx + 1 + dx, cy + 1 + dy, (cz + 1 + dz) % 3);
+                                float v = nb[BLK_ALL];
+                                for (int a = 0; a < 3; ++a)
+                                    if (dd[a]) v = vmaxf(v, nb[1 + 2 * a + (dd[a] > 0 ? 0 : 1)]);
+                                dmn = vminf(dmn, v);
+                            }
+                    float ctl = vminf(m->density_scale * dmn, VOLUME_MAX_SIGMA_T) * VOL_CONTROL_SLACK;
+                    mg->sigma_min[cx + mg->dims[0] * (cy + mg->dims[1] * cz)] = ctl < maj ? ctl : 0.0f;
+                }
             }
     }
     free(dens.v);
+    free(dmin_table.v);
     free(aux.v);
     if (emit_bound) *emit_bound = bound;
     return 0;
@@ -240,6 +283,7 @@ static int finite3(const float v[3]) { return isfinite(v[0]) && isfinite(v[1]) &
 void medium_majorant_begin(const Medium *m, const float o[3], const float d[3], float tmin, float tmax,
                            MajorantIterator *it) {
     it->phase = PH_DONE;
+    it->cells_min = NULL;
     float t0, t1;
     if (!medium_clip_ray(m, o, d, tmin, tmax, &t0, &t1)) return;
     it->t = t0;
@@ -262,6 +306,7 @@ void medium_majorant_begin(const Medium *m, const float o[3], const float d[3], 
     }
     it->t_base = t0;
     it->cells = mg->sigma_maj;
+    it->cells_min = NULL;
     memcpy(it->dims, mg->dims, sizeof it->dims);
     it->phase = PH_TAIL; /* until the ray is known to cross the box: one empty segment */
     if (!finite3(it->o_index) || !finite3(it->d_index)) return;
@@ -331,6 +376,10 @@ static inline float piece_majorant(const MajorantIterator *it) {
     return it->phase == PH_GRID ? it->cells[it->index] : it->phase == PH_HOMOG ? it->sigma : 0.0f;
 }
 
+static inline float piece_control(const MajorantIterator *it) {
+    return it->phase == PH_GRID && it->cells_min ? it->cells_min[it->index] : 0.0f;
+}
+
 /* The axis of the smallest t_next without branches (Amanatides & Woo's comparison table):
  * which plane comes next is what a branch predictor cannot guess. */
 static inline int next_axis(const float tn[3]) {
@@ -342,10 +391,10 @@ static inline int next_axis(const float tn[3]) {
  * leaves it->t at the end of the run. Every step moves to a neighbouring cell along one axis
  * (monotonically per axis) or leaves the grid, so a walk takes at most dims[0] + dims[1] +
  * dims[2] steps. */
-static inline void grid_run(MajorantIterator *it, float maj) {
+static inline void grid_run(MajorantIterator *it, float maj, float ctl) {
     /* the state in locals: cells (float *) may alias the iterator's floats as far as the
      * compiler knows, which would keep every field in memory across the loop */
-    const float *cells = it->cells;
+    const float *cells = it->cells, *cells_min = it->cells_min;
     float tn[3] = {it->t_next[0], it->t_next[1], it->t_next[2]};
     int32_t cell[3] = {it->cell[0], it->cell[1], it->cell[2]}, index = it->index;
     float t = it->t, t_grid1 = it->t_grid1;
@@ -365,7 +414,7 @@ static inline void grid_run(MajorantIterator *it, float maj) {
         }
         index += it->index_step[a];
         tn[a] += it->t_delta[a];
-        if (cells[index] != maj) break;
+        if (cells[index] != maj || (cells_min && cells_min[index] != ctl)) break;
     }
     it->t = t;
     it->index = index;
@@ -375,10 +424,11 @@ static inline void grid_run(MajorantIterator *it, float maj) {
     }
 }
 
-int medium_majorant_next(MajorantIterator *it, float *t0, float *t1, float *sigma_maj) {
+int medium_majorant_next_control(MajorantIterator *it, float *t0, float *t1, float *sigma_maj, float *sigma_min) {
     while (it->phase != PH_DONE) {
-        float a = it->t, maj = piece_majorant(it);
-        /* neighbouring pieces of equal majorant are one segment (empty space, uniform media) */
+        float a = it->t, maj = piece_majorant(it), ctl = piece_control(it);
+        /* neighbouring pieces of equal majorant (and control) are one segment (empty space,
+         * uniform media) */
         for (;;) {
             switch (it->phase) {
             case PH_LEAD:
@@ -386,21 +436,33 @@ int medium_majorant_next(MajorantIterator *it, float *t0, float *t1, float *sigm
                 it->phase = PH_GRID;
                 break;
             case PH_GRID:
-                grid_run(it, maj);
+                grid_run(it, maj, ctl);
                 break;
             default: /* PH_TAIL, PH_HOMOG */
                 it->t = it->t_end;
                 it->phase = PH_DONE;
                 break;
             }
-            if (it->phase == PH_DONE || piece_majorant(it) != maj) break;
+            if (it->phase == PH_DONE || piece_majorant(it) != maj || piece_control(it) != ctl) break;
         }
         if (it->t > a) {
             *t0 = a;
             *t1 = it->t;
             *sigma_maj = maj;
+            *sigma_min = ctl;
             return 1;
         }
     }
     return 0;
+}
+
+int medium_majorant_next(MajorantIterator *it, float *t0, float *t1, float *sigma_maj) {
+    float ctl; /* cells_min is NULL: always 0, and runs split on the majorant alone */
+    return medium_majorant_next_control(it, t0, t1, sigma_maj, &ctl);
+}
+
+void medium_majorant_begin_control(const Medium *m, const float o[3], const float d[3], float tmin, float tmax,
+                                   MajorantIterator *it) {
+    medium_majorant_begin(m, o, d, tmin, tmax, it);
+    if (m->kind != MEDIUM_HOMOGENEOUS) it->cells_min = m->majorant.sigma_min;
 }

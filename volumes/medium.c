@@ -310,6 +310,7 @@ int medium_init_vdb(Medium *m, const VolumeDesc *desc, char err[IO_ERR_LEN]) {
 void medium_free(Medium *m) {
     if (!m) return;
     free(m->majorant.sigma_maj);
+    free(m->majorant.sigma_min);
     emission_free(m);
     memset(m, 0, sizeof *m);
 }

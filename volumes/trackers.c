@@ -16,6 +16,7 @@ typedef struct Lane {
     const Medium *m;
     MajorantIterator it;
     float a, b, maj;     /* the iterator's current segment */
+    float ctl;           /* its control extinction (residual walks; 0 otherwise) */
     int live;            /* 0: no segment left */
     GridMediumCache cache;
 } Lane;
@@ -28,7 +29,8 @@ typedef struct Walk {
     const float *o, *d;
 } Walk;
 
-static void walk_begin(Walk *w, const MediaView *v, const float o[3], const float d[3], float tmin, float tmax) {
+static void walk_begin_mode(Walk *w, const MediaView *v, const float o[3], const float d[3], float tmin, float tmax,
+                            int control) {
     w->n = v ? (v->count < 0 ? 0 : v->count > VOLUME_MAX_OVERLAP ? VOLUME_MAX_OVERLAP : v->count) : 0;
     w->t = tmin;
     w->tmax = tmax;
@@ -41,9 +43,19 @@ static void walk_begin(Walk *w, const MediaView *v, const float o[3], const floa
         l->live = 0;
         l->cache.ready = 0;
         if (!l->m) continue;
-        medium_majorant_begin(l->m, o, d, tmin, tmax, &l->it);
-        l->live = medium_majorant_next(&l->it, &l->a, &l->b, &l->maj);
+        l->ctl = 0.0f;
+        if (control) {
+            medium_majorant_begin_control(l->m, o, d, tmin, tmax, &l->it);
+            l->live = medium_majorant_next_control(&l->it, &l->a, &l->b, &l->maj, &l->ctl);
+        } else {
+            medium_majorant_begin(l->m, o, d, tmin, tmax, &l->it);
+            l->live = medium_majorant_next(&l->it, &l->a, &l->b, &l->maj);
+        }
     }
+}
+
+static void walk_begin(Walk *w, const MediaView *v, const float o[3], const float d[3], float tmin, float tmax) {
+    walk_begin_mode(w, v, o, d, tmin, tmax, 0);
 }
 
 /* The combined majorant on [w->t, *end] and the lanes present there; 0 once the walk has
@@ -305,15 +317,16 @@ done:
 /* Below this max(T), Russian roulette: survive with probability max(T) and divide by it. */
 #define RATIO_RR_THRESHOLD 0.1f
 
-/* The ratio-tracking walk both estimators below are: at every collision of the view's majorant
- * process, with emitter >= 0, L += w sigma_a,e L_e,e / sigma_maj (the emission gathered so
- * far), then w *= sigma_n / sigma_maj = 1 - sigma_t / sigma_maj per channel (Novák et al. 2014:
+/* The ratio-tracking walk of media_ratio_track (the null vertices' product it also returns is
+ * that of the free flights' own majorant process, which residual tracking would not give): at
+ * every collision of the view's majorant process w *= sigma_n / sigma_maj = 1 - sigma_t /
+ * sigma_maj per channel (Novák et al. 2014:
  * w stays an unbiased estimate of the transmittance with the grey, max over RGB, majorant);
  * below max(w) = RATIO_RR_THRESHOLD an unbiased Russian roulette (w = 0 when it ends the walk).
  * next_collision places a collision before anything is gathered and stops at the segment's
  * end, so nothing beyond tmax counts. Returns 0 when stopped by VOLUME_MAX_COLLISIONS. */
-static int ratio_walk(const MediaView *v, int emitter, const float o[3], const float d[3], float tmin, float tmax,
-                      VolumeRng *rng, float w[3], float L[3], float *null_mis, uint64_t *collisions) {
+static int ratio_walk(const MediaView *v, const float o[3], const float d[3], float tmin, float tmax, VolumeRng *rng,
+                      float w[3], float *null_mis, uint64_t *collisions) {
     Walk walk;
     walk_begin(&walk, v, o, d, tmin, tmax);
     float end, maj, depth = sample_depth(rng);
@@ -327,13 +340,8 @@ static int ratio_walk(const MediaView *v, int emitter, const float o[3], const f
             float tn = walk.t;
             if (*collisions == VOLUME_MAX_COLLISIONS) return 0;
             ++*collisions;
-            float sa[3], ss[3], src[3], lane_src[VOLUME_MAX_OVERLAP][3];
-            if (emitter >= 0) {
-                walk_eval(&walk, tn, sa, ss, NULL, src, lane_src);
-                for (int k = 0; k < 3; ++k) L[k] += w[k] * lane_src[emitter][k] * inv_maj;
-            } else {
-                walk_eval(&walk, tn, sa, ss, NULL, NULL, NULL);
-            }
+            float sa[3], ss[3];
+            walk_eval(&walk, tn, sa, ss, NULL, NULL, NULL);
             float q[3];
             for (int k = 0; k < 3; ++k) {
                 q[k] = vmaxf(1.0f - (sa[k] + ss[k]) * inv_maj, 0.0f);
@@ -355,12 +363,109 @@ static int ratio_walk(const MediaView *v, int emitter, const float o[3], const f
     return 1;
 }
 
+/* ---------------------------------------------------------------- residual ratio tracking */
+
+/* The residual interval: on [w->t, *end] the control extinction sigma_c (per channel: the
+ * homogeneous lanes' exact sigma_t plus the grid lanes' controls), the residual majorant
+ * sum(maj - ctl) over the grid lanes that collide, and their summed control (grey). A
+ * homogeneous lane never collides: its transmittance is exp(-sigma_t d) exactly. */
+static inline int walk_interval_residual(Walk *w, float *end, float *maj_r, float sc[3], float *ctl_active) {
+    if (!(w->t < w->tmax)) return 0;
+    float e = w->tmax, s = 0.0f, ca = 0.0f;
+    sc[0] = sc[1] = sc[2] = 0.0f;
+    unsigned act = 0;
+    for (int i = 0; i < w->n; ++i) {
+        Lane *l = &w->lane[i];
+        while (l->live && !(l->b > w->t))
+            l->live = medium_majorant_next_control(&l->it, &l->a, &l->b, &l->maj, &l->ctl);
+        if (!l->live) continue;
+        if (l->a <= w->t) {
+            e = vminf(e, l->b);
+            if (l->m->kind == MEDIUM_HOMOGENEOUS) {
+                for (int k = 0; k < 3; ++k) sc[k] += l->m->sigma_a[k] + l->m->sigma_s[k];
+            } else if (l->maj > 0.0f) {
+                for (int k = 0; k < 3; ++k) sc[k] += l->ctl;
+                s += l->maj - l->ctl;
+                ca += l->ctl;
+                act |= 1u << i;
+            }
+        } else {
+            e = vminf(e, l->a);
+        }
+    }
+    *end = e;
+    *maj_r = s;
+    *ctl_active = ca;
+    w->active = act;
+    return 1;
+}
+
+static inline void attenuate(float w[3], const float sc[3], float length) {
+    if (length > 0.0f)
+        for (int k = 0; k < 3; ++k)
+            if (sc[k] > 0.0f) w[k] *= expf(-sc[k] * length);
+}
+
+/* Residual ratio tracking (Novak, Selle and Jarosz 2014 §5): T = exp(-integral of sigma_c) x
+ * the ratio-tracking estimate of the residual sigma_t - sigma_c under the residual majorant
+ * maj - sigma_c, with the control sigma_c a per-cell lower bound of sigma_t (the control grid,
+ * majorant.c), so q = 1 - (sigma_t - sigma_c) / (maj - sigma_c) lies in [0, 1]. Where the
+ * medium is nearly uniform in a cell the residual is small: few collisions, each with q near
+ * 1, instead of ratio tracking's q near 0 that made the transmittance through mist close to a
+ * binary estimate. With emitter >= 0 the emission of that lane (whose control is 0, so its
+ * whole majorant with the emission term drives the collisions) is gathered as in
+ * media_emission_line's collision estimator, weighted by the transmittance estimate so far
+ * (the running weight is unbiased for T(tmin, t) at any t fixed before the walk). Russian
+ * roulette below max(w) = RATIO_RR_THRESHOLD as ratio tracking. */
+static int residual_walk(const MediaView *v, int emitter, const float o[3], const float d[3], float tmin, float tmax,
+                         VolumeRng *rng, float w[3], float L[3], uint64_t *collisions) {
+    Walk walk;
+    walk_begin_mode(&walk, v, o, d, tmin, tmax, 1);
+    float end, maj, ctl, sc[3], depth = sample_depth(rng);
+    while (walk_interval_residual(&walk, &end, &maj, sc, &ctl)) {
+        float t_last = walk.t;
+        if (!(maj > 0.0f)) {
+            attenuate(w, sc, end - t_last);
+            walk.t = end;
+            continue;
+        }
+        float inv_maj = 1.0f / maj;
+        while (next_collision(&walk, end, maj, &depth)) {
+            float tn = walk.t;
+            if (*collisions == VOLUME_MAX_COLLISIONS) return 0;
+            ++*collisions;
+            attenuate(w, sc, tn - t_last);
+            t_last = tn;
+            float sa[3], ss[3], src[3], lane_src[VOLUME_MAX_OVERLAP][3];
+            if (emitter >= 0) {
+                walk_eval(&walk, tn, sa, ss, NULL, src, lane_src);
+                for (int k = 0; k < 3; ++k) L[k] += w[k] * lane_src[emitter][k] * inv_maj;
+            } else {
+                walk_eval(&walk, tn, sa, ss, NULL, NULL, NULL);
+            }
+            for (int k = 0; k < 3; ++k) w[k] *= vmaxf(1.0f - (sa[k] + ss[k] - ctl) * inv_maj, 0.0f);
+            float mx = vmax3(w);
+            if (mx < RATIO_RR_THRESHOLD) {
+                if (!(mx > 0.0f) || rng->next(rng->state) >= mx) {
+                    w[0] = w[1] = w[2] = 0.0f;
+                    return 1;
+                }
+                float inv = 1.0f / mx;
+                for (int k = 0; k < 3; ++k) w[k] *= inv;
+            }
+            depth = sample_depth(rng);
+        }
+        attenuate(w, sc, end - t_last);
+    }
+    return 1;
+}
+
 void media_transmittance(const MediaView *v, const float o[3], const float d[3], float tmin, float tmax,
                          VolumeRng *rng, float T[3], VolumeStats *stats) {
-    /* ratio tracking (Novák et al. 2014 §4): the walk's weight is the estimate */
+    /* residual ratio tracking (Novák et al. 2014 §5): the walk's weight is the estimate */
     T[0] = T[1] = T[2] = 1.0f;
     uint64_t collisions = 0;
-    if (!ratio_walk(v, -1, o, d, tmin, tmax, rng, T, NULL, NULL, &collisions)) {
+    if (!residual_walk(v, -1, o, d, tmin, tmax, rng, T, NULL, &collisions)) {
         if (stats) ++stats->capped_walks;
         T[0] = T[1] = T[2] = 0.0f;
     }
@@ -372,7 +477,7 @@ void media_ratio_track(const MediaView *v, const float o[3], const float d[3], f
     T[0] = T[1] = T[2] = 1.0f;
     *null_mis = 1.0f;
     uint64_t collisions = 0;
-    if (!ratio_walk(v, -1, o, d, tmin, tmax, rng, T, NULL, null_mis, &collisions)) {
+    if (!ratio_walk(v, o, d, tmin, tmax, rng, T, null_mis, &collisions)) {
         if (stats) ++stats->capped_walks;
         T[0] = T[1] = T[2] = 0.0f;
     }
@@ -392,6 +497,6 @@ void media_emission_line(const MediaView *v, int emitter, const float o[3], cons
     if (emitter < 0 || emitter >= n || !v->media[emitter] || !v->media[emitter]->emissive) return;
     float w[3] = {1.0f, 1.0f, 1.0f};
     uint64_t collisions = 0;
-    if (!ratio_walk(v, emitter, o, d, tmin, tmax, rng, w, L, NULL, &collisions) && stats) ++stats->capped_walks;
+    if (!residual_walk(v, emitter, o, d, tmin, tmax, rng, w, L, &collisions) && stats) ++stats->capped_walks;
     if (stats) stats->collisions += collisions;
 }

@@ -19,10 +19,14 @@
  *     max(sigma_t, min(sigma_a L_e, cap)) where media emit, so emissive regions of low
  *     extinction are sampled densely (the paper's §4.3, Algorithm 1; the cap keeps about one
  *     expected collision per voxel).
- *   - media_transmittance: ratio tracking (Novák et al. 2014) for shadow rays, RGB.
+ *   - media_transmittance: residual ratio tracking (Novák et al. 2014 §5) for shadow rays,
+ *     RGB: a per-cell control extinction (a lower bound of sigma_t, the majorant grid's
+ *     sigma_min) is integrated exactly and only the residual is tracked; homogeneous media
+ *     are exact (no collision).
  *   - media_emission_line: emission-optimised tracking (the paper's §4.3, Algorithm 1): one
  *     medium's emission integral along a segment, attenuated by all media of the view, with
- *     every collision gathering (P_a = P_n = 1).
+ *     every collision gathering (P_a = P_n = 1); the other media's attenuation is residual
+ *     ratio tracking as media_transmittance's (an emitting medium has no control).
  *   - medium_emission_sample / medium_emission_pdf: emissive media as lights (§4.3,
  *     Algorithm 2, Eq. 11): points from an emission-energy grid, and the solid-angle density
  *     of a direction by a DDA over its cells; medium_emission_power / _centroid for light
@@ -66,6 +70,9 @@ typedef struct MajorantGrid {
     int32_t origin[3];           /* index of cell (0,0,0)'s first voxel */
     int32_t dims[3];             /* cells per axis */
     float *sigma_maj;            /* dims[0] * dims[1] * dims[2], x fastest */
+    /* per cell a lower bound of sigma_t over the same footprint (the control extinction of
+     * residual ratio tracking, Novak et al. 2014 §5); NULL for an emitting medium (0) */
+    float *sigma_min;
 } MajorantGrid;
 
 /* The emission-energy grid of an emitting VDB medium (the cache points paper §4.3, "an
@@ -163,6 +170,7 @@ int medium_clip_ray(const Medium *m, const float o[3], const float d[3], float t
  * fields are the module's. */
 typedef struct MajorantIterator {
     const float *cells;              /* MajorantGrid.sigma_maj (grid media) */
+    const float *cells_min;          /* MajorantGrid.sigma_min when the walk asked for controls, else NULL */
     int32_t dims[3], cell[3], step[3];
     int32_t index;                   /* linear index of the current cell */
     int32_t index_step[3];           /* what a step along each axis adds to index */
@@ -179,6 +187,12 @@ void medium_majorant_begin(const Medium *m, const float o[3], const float d[3], 
                            MajorantIterator *it);
 /* The next segment; 0 when there is none left. */
 int medium_majorant_next(MajorantIterator *it, float *t0, float *t1, float *sigma_maj);
+/* The same segments split further where the control grid changes: each also carries
+ * *sigma_min, a lower bound of sigma_t (grey) on it (0 for emitting media, empty space and
+ * homogeneous media, whose trackers use their exact coefficients). */
+void medium_majorant_begin_control(const Medium *m, const float o[3], const float d[3], float tmin, float tmax,
+                                   MajorantIterator *it);
+int medium_majorant_next_control(MajorantIterator *it, float *t0, float *t1, float *sigma_maj, float *sigma_min);
 
 /* Statistics a tracker adds to (the renderer reports them). */
 typedef struct VolumeStats {
@@ -220,12 +234,13 @@ typedef struct VolumeEvent {
 void media_sample_event(const MediaView *v, const float o[3], const float d[3], float tmin, float tmax,
                         const float beta[3], VolumeRng *rng, VolumeEvent *ev, VolumeStats *stats);
 
-/* Transmittance (RGB) of o + t d (d unit) over [tmin, tmax] by ratio tracking; the estimate
- * is unbiased. */
+/* Transmittance (RGB) of o + t d (d unit) over [tmin, tmax] by residual ratio tracking; the
+ * estimate is unbiased. */
 void media_transmittance(const MediaView *v, const float o[3], const float d[3], float tmin, float tmax,
                          VolumeRng *rng, float T[3], VolumeStats *stats);
 
-/* Ratio tracking as media_transmittance (the same walk and estimate), also returning in
+/* Plain ratio tracking over the view's majorant (no control: the null vertices must be those
+ * of the free flights' majorant process), also returning in
  * *null_mis the product over its collisions of the mean over RGB of sigma_n / sigma_maj (see
  * VolumeEvent.null_mis): the null-collision path's density ratio of Eq. 10 for a point sampled
  * at tmax by another technique. */
@@ -295,6 +310,8 @@ float medium_emission_pdf(const Medium *m, const float o[3], const float d[3]);
  * stops, before anything is gathered) over the view's merged majorants (as
  * media_sample_event, which carry the emission term): at every collision
  * L += w sigma_a,e L_e,e / sigma_maj, then w *= 1 - sigma_t,all / sigma_maj per channel
+ * (sigma_maj and sigma_t,all here the residual ones of the non-emitting media: see
+ * media_transmittance)
  * (P_a = P_n = 1: no absorption or scattering event is chosen, the walk always goes on); below
  * max(w) = 0.1 Russian roulette (survive with probability max(w), divide by it), as ratio
  * tracking. Unbiased. At most VOLUME_MAX_COLLISIONS collisions (stats->capped_walks; the
