@@ -9,7 +9,8 @@
  * the shading point and normal, as for whole lights) when it has more than
  * LIGHT_AREA_TREE_MAX_CDF triangles, else in proportion to area (l->triangles). The tree
  * also falls back to the area CDF for a context from which the tree's root has zero
- * importance (the bounds say the point sees no emitting side); sampling and
+ * importance (the bounds say the point sees no emitting side, or the whole mesh lies below
+ * the receiver's horizon); sampling and
  * light_area_pdf_li make that decision with the same function, so the pdf stays exact. */
 #ifndef CANDELA_LIGHTS_H
 #define CANDELA_LIGHTS_H

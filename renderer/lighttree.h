@@ -3,16 +3,26 @@
  * Splitting"; the single-path variant of pbrt-v4's BVHLightSampler).
  *
  * Every finite light with power > 0 is a leaf of a binary BVH whose nodes store a bounding
- * box, a bounding cone of emitter normals (axis w, spread theta_o, emission falloff theta_e)
- * and the summed power phi. Selection walks one path from the root, choosing a child with
- * probability proportional to its importance for the shading point (p, n); the light's
- * probability is the product of the branch probabilities. light_tree_pmf() recomputes the
- * same branch probabilities along the light's stored bit trail, with the same float
- * operations in the same order, so it returns exactly what light_tree_select() reported.
+ * box, a bounding cone of emitter normals (axis w, spread theta_o, emission falloff theta_e;
+ * two-sided emitters keep their cone and mirror it) and phi, the summed power of isotropic
+ * emitters of the members' peak intensities (a spot counts 4 pi I, not its flux: its cone is
+ * in the orientation bound). The build is pbrt-v4's SAOH (12 buckets per axis, cost
+ * phi x M_Omega x surface area x Kr). Selection walks one path from the root, choosing a child
+ * with probability proportional to its importance for the shading point (p, n):
+ * phi cos(theta') / d^2 x cos(theta_i') (Conty Estevez & Kulla 2018, §4.1), with d^2 the
+ * squared distance to the box's centre clamped to LIGHT_TREE_D2_CLAMP x the squared radius
+ * of its bounding sphere, and a one-sided receiver cosine (n faces the side light is
+ * gathered from; zero n: a medium point or a transmissive surface, no cosine), so a cluster
+ * wholly below the horizon gets 0. The light's probability is the product of the branch
+ * probabilities. light_tree_pmf() recomputes the same branch probabilities along the light's
+ * stored bit trail, with the same float operations in the same order, so it returns exactly
+ * what light_tree_select() reported.
  *
- * Infinite lights (directional, environment) are not in the BVH: with n_inf of them they are
- * chosen with probability p_inf = n_inf / (n_inf + (BVH non-empty ? 1 : 0)), uniformly among
- * themselves. Lights with zero (or non-finite) power are left out: probability 0 everywhere.
+ * Infinite lights (directional, environment) are not in the BVH: as in pbrt-v4, each of them
+ * and the BVH get one equal share, except that a directional light below the receiver's
+ * horizon, and the BVH when its root has importance 0, get none at that context (they cannot
+ * contribute); with nothing left the context-free shares apply. Lights with zero (or
+ * non-finite) power are left out: probability 0 everywhere.
  *
  * When both children of a node have zero importance (the bounds say the point sees nothing
  * in either), the node splits in proportion to the children's power instead of giving up, so
@@ -23,8 +33,8 @@
  * The same structure serves as the inner tree of an emissive mesh (light_tree_build_triangles,
  * the cache points paper, §2 and §5.2.2: an emissive mesh is one light whose triangles a light
  * hierarchy picks): its "lights" are the mesh's triangles (power = area x luminance,
- * x2 when two-sided; bounds = the triangle's box; normal cone = the triangle's normal, or the
- * whole sphere when two-sided; theta_e = pi/2), with no infinite entries, so
+ * x2 when two-sided; bounds = the triangle's box; normal cone = the triangle's normal,
+ * mirrored when two-sided; theta_e = pi/2), with no infinite entries, so
  * light_tree_select / light_tree_pmf pick a triangle index and give its probability. */
 #ifndef CANDELA_LIGHTTREE_H
 #define CANDELA_LIGHTTREE_H
@@ -48,7 +58,8 @@ typedef struct LightTreeNode {
     vec3 w;              /* unit axis of the normal cone */
     float cos_o;         /* cos theta_o: spread of the normals around w (-1: every direction) */
     float cos_e;         /* cos theta_e: emission beyond the normals (point 0, spot cos_outer) */
-    float phi;           /* summed power */
+    float phi;           /* summed power of isotropic emitters of the peak intensities (4 pi I) */
+    uint32_t two_sided;  /* 1: some member emits from both faces (the cone is mirrored: |cos|) */
     uint32_t child;      /* interior: index of the second child (the first is this + 1) */
     uint32_t light;      /* leaf: light index; interior: LIGHT_TREE_INTERIOR */
 } LightTreeNode;
@@ -60,9 +71,10 @@ typedef struct LightTree {
     uint64_t *trail;       /* per light: bit d = 1 -> second child at depth d */
     uint8_t *kind;         /* per light: LIGHT_TREE_NONE / _BVH / _INFINITE */
     uint32_t *infinite;    /* light indices of the infinite lights */
+    vec3 *inf_dir;         /* per infinite light: a directional light's travel direction (0: environment) */
     uint32_t num_infinite;
-    float p_inf;           /* probability of choosing among the infinite lights */
-    float p_bvh;           /* 1 - p_inf: the factor every BVH light's pmf starts from */
+    float p_inf;           /* context-free probability of choosing among the infinite lights */
+    float p_bvh;           /* 1 - p_inf: context-free factor every BVH light's pmf starts from */
     float pmf_inf;         /* p_inf / num_infinite */
     uint8_t *depth;        /* per node: its depth (the root is 0) */
     float *intensity;      /* per node, optional: summed peak radiant intensity (light_tree_set_intensities) */

@@ -8,7 +8,11 @@
  *       (point lights: phi |n.w| / d^2; spot: times cos of the angle off its axis, zero outside
  *       the outer cone; both invisible: split by power), plus degenerate trees (no light, one
  *       light, only infinite lights, only zero-power lights);
- *   (c) a 1,000,000-point-light build succeeds (its time is printed, not asserted). */
+ *   (c) a 1,000,000-point-light build succeeds (its time is printed, not asserted);
+ *   (d) the importance culls only lights that cannot contribute (brute force over points on
+ *       every light: pmf > 0 wherever some point of a light reaches the receiver), a node is
+ *       0 only when every light below it is, and pbrt-v4's terms by hand: spots weigh by
+ *       intensity, two-sided emitters keep their normal cone, receivers are one-sided. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -34,9 +38,12 @@ static Light point_light(vec3 p, float power) {
     l.power = power;
     return l;
 }
+/* `power` here is the tree's phi, 4 pi times the peak intensity (Light.power, the flux, is
+ * set to the same positive value; the tree only checks that it is positive) */
 static Light spot_light(vec3 p, vec3 dir, float outer, float power) {
     Light l = point_light(p, power);
     l.type = LIGHT_SPOT;
+    l.intensity = v3s(power / (4.0f * PI_F));
     l.direction = v3_normalize(dir);
     l.cos_outer = cosf(outer);
     l.cos_inner = cosf(0.5f * outer);
@@ -120,7 +127,10 @@ static void test_random(void) {
             if (!(pmf[i] >= 0.0)) ++bad_sum;
         }
         zero_pmf_light += pmf[n - 1] != 0.0;
-        CHECK(pmf[n - 2] == 0.5, "ctx %d: directional pmf %g", q, pmf[n - 2]);
+        /* the directional light (travelling -y) and the BVH share equally where both can
+         * contribute; below the receiver's horizon the light gets nothing */
+        double expect_dir = v3_is_black(ctx.n) || ctx.n.y > 0.0f ? 0.5 : 0.0;
+        CHECK(pmf[n - 2] == expect_dir, "ctx %d: directional pmf %g, expected %g", q, pmf[n - 2], expect_dir);
         if (!(fabs(sum - 1.0) < 1e-4)) {
             ++bad_sum;
             fprintf(stderr, "FAIL ctx %d: pmf sums to %.7f\n", q, sum);
@@ -193,14 +203,14 @@ static void test_by_hand(void) {
     LightSampleContext med = {p, v3s(0.0f)};
     double m0 = 3.0 / 5.0, m1 = 1.0 / 6.0;
     expect2("two points, medium", two, med, m0 / (m0 + m1), m1 / (m0 + m1));
-    /* spot at (0,2,0) aiming at (0.5,-1,0): p = origin is 0.4636 rad off its axis, outer 0.8:
-     * importance phi cos(angle) |n.w| / d^2 */
+    /* spot at (0,2,0) aiming at (0.5,-1,0): p = origin is 0.4636 rad off its axis, inner
+     * cone 0.4, outer 0.8: importance phi cos(angle - inner) |n.w| / d^2 */
     two[0] = spot_light(v3(0, 2, 0), v3(0.5f, -1.0f, 0.0f), 0.8f, 2.0f);
     {
         vec3 d = v3_sub(p, two[0].position);
         double dist = sqrt(v3_dot(d, d));
-        double cos_axis = v3_dot(v3_scale(d, 1.0f / (float)dist), two[0].direction);
-        double i0 = 2.0 * cos_axis * fabs(v3_dot(n, d)) / dist / (dist * dist);
+        double angle = acos(v3_dot(v3_scale(d, 1.0f / (float)dist), two[0].direction));
+        double i0 = 2.0 * cos(angle - 0.4) * fabs(v3_dot(n, d)) / dist / (dist * dist);
         vec3 d1 = v3_sub(two[1].position, p);
         double dd1 = v3_dot(d1, d1);
         double i1 = 1.0 * fabs(v3_dot(n, d1)) / sqrt(dd1) / dd1;
@@ -294,6 +304,169 @@ static void test_degenerate_layouts(void) {
     free(ls);
 }
 
+/* ---------------------------------------------------------------- (d) */
+
+/* Whether `l` can send light to (p, n) by brute force: some point of it (the position; for a
+ * quad 64 stratified points) emits towards p (spot falloff > 0, the emitting face) and lies
+ * above the receiver's horizon (n zero: every direction). */
+static int contributes(const Light *l, vec3 p, vec3 n) {
+    if (l->type == LIGHT_POINT || l->type == LIGHT_SPOT) {
+        vec3 d = v3_sub(p, l->position);
+        float d2 = v3_dot(d, d);
+        if (!(d2 > 0.0f)) return 0;
+        vec3 w = v3_scale(d, 1.0f / sqrtf(d2));
+        if (l->type == LIGHT_SPOT && !(light_spot_falloff(l, w) > 0.0f)) return 0;
+        return v3_is_black(n) || -v3_dot(n, w) > 0.0f;
+    }
+    for (int k = 0; k < 64; ++k) {
+        const float *v = l->world_vertices + 9 * (k & 1);
+        vec3 a = v3(v[0], v[1], v[2]), b = v3(v[3], v[4], v[5]), c = v3(v[6], v[7], v[8]);
+        float u0 = ((float)(k >> 1) + 0.5f) / 32.0f, u1 = (float)((k * 13) % 32 + 0.5f) / 32.0f;
+        vec2 bc = sample_uniform_triangle(u0, u1);
+        vec3 y = v3_add(v3_add(v3_scale(a, 1.0f - bc.x - bc.y), v3_scale(b, bc.x)), v3_scale(c, bc.y));
+        vec3 ng = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+        vec3 d = v3_sub(p, y);
+        float cos_l = v3_dot(ng, d);
+        if (l->two_sided) cos_l = fabsf(cos_l);
+        if (cos_l > 1e-4f * v3_length(d) && (v3_is_black(n) || -v3_dot(n, d) > 1e-4f * v3_length(d))) return 1;
+    }
+    return 0;
+}
+
+/* Whether a light below `node` can contribute (reach[light] from contributes()); counts the
+ * nodes with importance 0 above such a light (the bound would cull a light that matters). */
+static int any_reaches(const LightTree *t, uint32_t node, vec3 p, vec3 n, const char *reach, int *not_conservative) {
+    const LightTreeNode *nd = &t->nodes[node];
+    int any = nd->light != LIGHT_TREE_INTERIOR
+                  ? reach[nd->light]
+                  : any_reaches(t, node + 1, p, n, reach, not_conservative) |
+                        any_reaches(t, nd->child, p, n, reach, not_conservative);
+    if (any && !(light_tree_node_importance(nd, p, n) > 0.0f)) ++*not_conservative;
+    return any;
+}
+
+/* The importance culls only what cannot contribute: for random receivers (surface points,
+ * and medium points with n = 0) around random points, spots (hard and soft cones), one- and
+ * two-sided quads, (i) every light that can send light to the receiver has pmf > 0 (the
+ * estimator stays unbiased), (ii) a node has importance 0 only when no light below it can
+ * contribute, (iii) the pmf sums to 1 and selections report it bit for bit. */
+static void test_conservative(void) {
+    enum { NL = 600, NCTX = 400 };
+    Light *ls = calloc(NL, sizeof *ls);
+    for (int i = 0; i < NL; ++i) {
+        vec3 c = v3(rndf(-6, 6), rndf(0, 4), rndf(-6, 6));
+        float power = (float)exp(rndf(-2.0f, 2.0f));
+        switch (i % 4) {
+        case 0: ls[i] = point_light(c, power); break;
+        case 1: {
+            float outer = rndf(0.02f, 1.5f);
+            ls[i] = spot_light(c, rnd_dir(), outer, power);
+            if (i % 8 == 1) ls[i].cos_inner = ls[i].cos_outer; /* a hard cone */
+            break;
+        }
+        default:
+            ls[i] = quad_light(c, v3_scale(rnd_dir(), rndf(0.05f, 2.0f)), v3_scale(rnd_dir(), rndf(0.05f, 2.0f)),
+                               rndf(0.5f, 5.0f), i % 4 == 3);
+        }
+    }
+    LightTree t;
+    CHECK(light_tree_build(&t, ls, NL) == 0, "build");
+    int culled = 0, not_conservative = 0, bad_sum = 0, mismatch = 0, contributing = 0;
+    char *reach = malloc(NL);
+    for (int q = 0; q < NCTX; ++q) {
+        LightSampleContext ctx;
+        memset(&ctx, 0, sizeof ctx);
+        ctx.p = v3(rndf(-8, 8), rndf(-1, 5), rndf(-8, 8));
+        ctx.n = q % 4 == 3 ? v3s(0.0f) : rnd_dir();
+        double sum = 0.0;
+        for (uint32_t i = 0; i < NL; ++i) {
+            float pm = light_tree_pmf(&t, &ctx, i);
+            sum += pm;
+            reach[i] = (char)contributes(&ls[i], ctx.p, ctx.n);
+            if (reach[i]) {
+                ++contributing;
+                if (!(pm > 0.0f)) {
+                    if (culled < 5)
+                        fprintf(stderr, "FAIL ctx %d: light %u (type %d) contributes, pmf %g\n", q, i, ls[i].type, pm);
+                    ++culled;
+                }
+            }
+        }
+        if (!(fabs(sum - 1.0) < 1e-4)) ++bad_sum;
+        any_reaches(&t, 0, ctx.p, ctx.n, reach, &not_conservative);
+        for (int s = 0; s < 200; ++s) {
+            float pm;
+            uint32_t i = light_tree_select(&t, &ctx, (float)rnd(), &pm);
+            if (i >= NL || !(pm > 0.0f) || pm != light_tree_pmf(&t, &ctx, i)) ++mismatch;
+        }
+    }
+    fprintf(stderr, "  (d) %d contributing (light, receiver) pairs, %d culled, %d non-conservative nodes\n",
+            contributing, culled, not_conservative);
+    CHECK(contributing > NCTX * NL / 10, "only %d contributing pairs: the test says little", contributing);
+    CHECK(culled == 0, "%d lights that contribute got pmf 0", culled);
+    CHECK(not_conservative == 0, "%d nodes have importance 0 above a light that contributes", not_conservative);
+    CHECK(bad_sum == 0, "%d contexts with a pmf sum away from 1", bad_sum);
+    CHECK(mismatch == 0, "%d selections disagree with light_tree_pmf", mismatch);
+    free(reach);
+    light_tree_free(&t);
+    free_lights(ls, NL);
+}
+
+/* The terms pbrt-v4's LightBounds adds over a plain power / d^2: (i) a spot weighs by its
+ * intensity, not its flux: two spots of one intensity, one 1 degree and one 40 degrees wide,
+ * both aimed at p from the same distance, are equally likely; (ii) a two-sided quad keeps its
+ * normal cone: edge-on it gets only what its angular size allows, from behind it gets what
+ * it gets from the front; (iii) the receiver is one-sided: a light wholly
+ * below the horizon of n gets 0, and the same light for n = 0 (a medium point) does not. */
+static void test_terms(void) {
+    Light two[2];
+    vec3 p = v3(0, 0, 0), up = v3(0, 1, 0);
+    LightSampleContext ctx = {p, up};
+    two[0] = spot_light(v3(-1, 3, 0), v3(1, -3, 0), 1.0f * PI_F / 180.0f, 5.0f);
+    two[1] = spot_light(v3(1, 3, 0), v3(-1, -3, 0), 40.0f * PI_F / 180.0f, 5.0f);
+    expect2("narrow and wide spot", two, ctx, 0.5, 0.5);
+
+    /* a 1 m quad in the plane y = 0 at x = 3 (normal +y), p at the origin: edge-on, only its
+     * angular size theta_b (sin theta_b = r/d, r = |diag|/2) lets it emit towards p: importance
+     * phi sin(theta_b) / d^2, not phi / d^2 as a whole-sphere cone would give */
+    two[0] = quad_light(v3(3, 0, 0), v3(1, 0, 0), v3(0, 0, 1), 1.0f, 1);
+    two[1] = point_light(v3(0, 2, 0), 1.0f);
+    LightSampleContext med = {p, v3s(0.0f)};
+    {
+        double i0 = 2.0 * PI_F * (sqrt(0.5) / 3.0) / 9.0, i1 = 1.0 / 4.0;
+        expect2("two-sided quad edge-on", two, med, i0 / (i0 + i1), i1 / (i0 + i1));
+    }
+    free(two[0].world_vertices); dist1d_free(&two[0].triangles);
+    /* the same quad above p at y = 2, seen from below (its back) and, mirrored, from above */
+    two[0] = quad_light(v3(0, 2, 0), v3(0, 0, 1), v3(1, 0, 0), 1.0f, 1); /* z x x = +y: p is behind */
+    two[1] = quad_light(v3(0, -2, 0), v3(0, 0, 1), v3(1, 0, 0), 1.0f, 1); /* faces +y: p is in front */
+    expect2("two-sided quad front and back", two, med, 0.5, 0.5);
+    free(two[0].world_vertices); dist1d_free(&two[0].triangles);
+    free(two[1].world_vertices); dist1d_free(&two[1].triangles);
+
+    /* a point light below the horizon (and a 0.5 m cluster of two, whose bounding sphere is
+     * below it too): 0 for the surface point, by 1/d^2 for the medium point */
+    two[0] = point_light(v3(1, -1, 0), 1.0f);
+    two[1] = point_light(v3(0, 3, 0), 1.0f);
+    expect2("point below the horizon", two, ctx, 0.0, 1.0);
+    expect2("point below, medium receiver", two, med, 0.5 / (0.5 + 1.0 / 9.0), (1.0 / 9.0) / (0.5 + 1.0 / 9.0));
+    /* (iv) a directional light below the horizon gets no share (the BVH takes it all); the BVH
+     * wholly below the horizon gets none (the directional light takes it all); in a medium
+     * both get pbrt-v4's equal shares */
+    Light dir;
+    memset(&dir, 0, sizeof dir);
+    dir.type = LIGHT_DIRECTIONAL;
+    dir.power = 1.0f;
+    dir.direction = v3(0, 1, 0); /* travels up: lights surfaces facing down */
+    two[0] = dir;
+    two[1] = point_light(v3(0, 3, 0), 1.0f);
+    expect2("directional below the horizon", two, ctx, 0.0, 1.0);
+    expect2("directional, medium receiver", two, med, 0.5, 0.5);
+    two[0].direction = v3(0.3f, -1.0f, 0.0f);
+    two[1] = point_light(v3(0, -3, 0), 1.0f);
+    expect2("BVH below the horizon", two, ctx, 1.0, 0.0);
+}
+
 /* ---------------------------------------------------------------- (c) */
 
 static void test_million(void) {
@@ -320,6 +493,8 @@ static void test_million(void) {
 
 int main(void) {
     test_by_hand();
+    test_terms();
+    test_conservative();
     test_random();
     test_degenerate_layouts();
     test_million();
