@@ -220,4 +220,23 @@ float cachepoints_visibility(const CachePoints *cp, uint32_t point, uint32_t lig
  * (exposed for the anchor-value tests). */
 float cachepoints_visibility_weight(float successes, uint32_t attempts, float r_min);
 
+/* Read-only views for visualisation (inspect.c): a point's build and learning summary. */
+typedef struct CachePointSummary {
+    float pos[3], radius;
+    uint32_t near_count, far_count; /* entries; far_count includes the clusters */
+    uint32_t far_clusters;          /* far entries that are light-tree clusters (cut build) */
+    uint32_t slots;                 /* visibility slots (one per near and far entry) */
+    uint64_t attempts;              /* H_total summed over the slots (§3.2.1) */
+    double successes;               /* H_success summed over the slots (visibility units) */
+    uint32_t sparse_slots;          /* slots with too few attempts for Eq. 6 to leave W = 1 */
+    uint32_t learned_slots;         /* slots whose W' (after the §3.2.2 blur) is not 1 */
+    float mean_w, min_w;            /* W' over the slots (1 without slots) */
+} CachePointSummary;
+void cachepoints_summary(const CachePoints *cp, uint32_t point, CachePointSummary *s);
+/* The entry the vertex weighs most (§3.3: near lights exact, far entries blended by n, with
+ * W'): its light, or with *cluster = 1 the light-tree node of a cluster entry. UINT32_MAX
+ * when every weight is 0 (only the uniform floor selects there). */
+uint32_t cachepoints_top_entry(const CachePoints *cp, const CachePointLights *lights, const float x[3], const float *n,
+                               const CachePointVertex *v, const float *near_w, int *cluster);
+
 #endif

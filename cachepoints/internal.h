@@ -117,6 +117,8 @@ static inline float *cp_cdf(const CachePoints *cp, uint32_t p, int bin, uint32_t
 /* lookup.c: builds the per-point render tables (near_vis, far_cdf) from w_blurred, for every
  * point (all != 0) or for those marked in tables_dirty. */
 void cp_rebuild_tables(CachePoints *cp, int all);
+/* lookup.c: selection's blend of the far bins for a normal (NULL: the fluence bin). */
+void cp_bin_blend(const float *n, float b[CP_FAR_BINS]);
 /* build.c: the parallel-for of the params, or a serial loop (the build and the barrier). */
 void cp_run_parallel(const CachePointParams *p, size_t n, size_t grain, void (*fn)(void *, size_t, size_t, int),
                      void *ctx);

@@ -382,3 +382,6 @@ float cachepoints_pmf(const CachePoints *cp, const CachePointLights *L, const fl
     uint32_t slot;
     return pmf_from(light_weight(cp, L, v->point, x, n, b, light, &slot), total, cp->params.epsilon, L->count);
 }
+
+/* The bin blend of selection, for the read-only views of inspect.c. */
+void cp_bin_blend(const float *n, float b[CP_FAR_BINS]) { bin_blend(n, b); }
