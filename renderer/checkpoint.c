@@ -96,7 +96,8 @@ int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t
                      o->recorder_budget);
     /* cache point extras (cpviz): appended, so the line above stays as it was */
     if (n >= 0 && (size_t)n < sizeof id->text)
-        n += snprintf(id->text + n, sizeof id->text - (size_t)n, " aov_cachepoint=%d", o->aov_selection);
+        n += snprintf(id->text + n, sizeof id->text - (size_t)n, " aov_cachepoint=%d cachepoint_pooling=%d", o->aov_selection,
+                      o->cachepoint_pooling);
     if (n < 0 || (size_t)n >= sizeof id->text) {
         snprintf(err, CANDELA_ERR_LEN, "%s: the render's options are too long for a checkpoint (camera or --env name)",
                  o->scene_path);

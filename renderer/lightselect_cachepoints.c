@@ -604,6 +604,7 @@ static int build(CachePointSampler *s, const Scene *scene, const SceneMedia *med
     cachepoints_default_params(&params);
     params.visibility = !o->cachepoint_no_visibility;
     params.retruncate = o->cachepoint_retruncate;
+    params.pool_visibility = o->cachepoint_pooling;
     params.build_cut = !o->cachepoint_build_linear;
     if (o->cachepoint_cut_size) params.cut_size = o->cachepoint_cut_size;
     params.parallel_for = pool_parallel_for;

@@ -85,6 +85,8 @@ static const char *USAGE =
     "                            paper: every light estimated at every point)\n"
     "  --cachepoint-cut-size N   cut build: far entries per cache point (default 128)\n"
     "  --cachepoint-retruncate   linear build: re-apply the 97%/256 rule after the blur (less memory)\n"
+    "  --cachepoint-pooling on|off  pool the visibility counters of slots with too few attempts\n"
+    "                            over the 16 neighbouring points (default off)\n"
     "  --aov cachepoint          add cachepoint.RGB and cachepoint_light.RGB to the EXR (false colours\n"
     "                            of each first hit's cache point and of the entry it weighs most) and\n"
     "                            write NAME.cachepoint.png, NAME.cachepoint_light.png beside the PNG\n"
