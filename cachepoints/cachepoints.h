@@ -77,8 +77,9 @@ typedef struct CachePointParams {
     float epsilon;            /* 0.03: probability of a uniform pick among all lights (§3.3, which gives
                                * no value; bins keep 97% of their energy) */
     int visibility;           /* learn visibility (§3.2); 0 = --no-visibility */
-    int pool_visibility;      /* 1: a slot with too few attempts for Eq. 6 pools its neighbours' counters
-                               * (pool.c, beyond the paper); 0: the paper's per-slot counts */
+    int pool_visibility;      /* 1: a slot with too few attempts for Eq. 6 pools its neighbours' counters;
+                               * 2: and then, cut build, those of its point's slots below an ancestor of
+                               * its key in the light tree (pool.c, beyond the paper); 0: the paper's */
     int retruncate;           /* linear: re-apply 97% / 4..256 per bin after the blur (bounds memory; off = paper) */
     int build_cut;            /* 1: far entries are a cut through lights->tree (needs the tree); 0: linear */
     uint32_t cut_size;        /* cut build: far entries per point (clusters or single lights) */

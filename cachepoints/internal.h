@@ -74,6 +74,7 @@ struct CachePoints {
     VisCounter *vis_count;     /* atomics (see VisCounter); a slot's two counters share a cache line */
     float *w_blurred;              /* W' (Eq. 6, then the §3.2.2 blur) used at render time */
     float *w_pool;                 /* pooled W per slot at the barrier (params.pool_visibility; pool.c), else NULL */
+    uint32_t *key_parent;          /* pool.c mode 2 (cut build): per key, its parent in the light tree */
     uint8_t *vis_low;              /* per point: a slot has W < 1 (this barrier) */
     uint8_t *vis_active;           /* per point: some W' != 1 (its tables are not the W = 1 ones) */
     uint8_t *tables_dirty;         /* per point: W' changed, rebuild its tables */

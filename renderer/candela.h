@@ -60,7 +60,8 @@ typedef struct CandelaOptions {
     int cachepoint_build_linear;  /* 1: the paper's build (every light at every point); 0: a cut
                                    * through the light tree (the default) */
     uint32_t cachepoint_cut_size; /* cut build: far entries per point; 0: default */
-    int cachepoint_pooling;       /* 1: slots with too few attempts pool their neighbours' visibility counters */
+    int cachepoint_pooling;       /* 1: slots with too few attempts pool their neighbours' visibility counters;
+                                   * 2: and then (cut build) their point's counters of nearby lights */
     /* set non-zero (e.g. from a signal handler) to stop after the current batch (the rest of the
      * iteration is abandoned; with checkpoint_path its state is written): the image of the
      * samples done is returned and CandelaStats.interrupted set. NULL: never. */

@@ -85,8 +85,8 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
     } else if (strcmp(a, "--cachepoint-cut-size") == 0) {
         if ((rc = parse_long(a, v, 1, 1 << 20, &n, err)) == 0) o->cachepoint_cut_size = (uint32_t)n;
     } else if (strcmp(a, "--cachepoint-pooling") == 0) {
-        static const char *const names[] = {"on", "off", NULL};
-        static const int values[] = {1, 0};
+        static const char *const names[] = {"off", "points", "lights", NULL};
+        static const int values[] = {0, 1, 2};
         if ((rc = parse_choice(a, v, names, values, &c, NULL, err)) == 0) o->cachepoint_pooling = c;
     } else if (strcmp(a, "--cachepoint-build") == 0) {
         static const char *const names[] = {"cut", "linear", NULL};

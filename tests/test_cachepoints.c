@@ -300,6 +300,38 @@ static void pooled_visibility(const CachePointLights *L, const float *cand, uint
         }
         fprintf(stderr, "%s: pooling: %u of %u slots below W' = 1 after 10 failures each (0 without)\n", mode, low_on, v);
     }
+    /* mode 2 (cut build): one failure per slot is too little for the spatial pooling alone
+     * (about 9 pooled attempts); the light tree's levels bring in the nearby lights' */
+    if (rc == 0 && P0->build_cut) {
+        CachePointParams M = Q, Mr = Q;
+        M.pool_visibility = 2;
+        Mr.pool_visibility = 2;
+        Mr.parallel_for = reverse_parallel_for;
+        CachePoints *m1 = NULL, *m2 = NULL, *m2r = NULL;
+        int r2 = cachepoints_build(&m1, cand, nc, L, &cam, &Q, NULL) | cachepoints_build(&m2, cand, nc, L, &cam, &M, NULL) |
+                 cachepoints_build(&m2r, cand, nc, L, &cam, &Mr, NULL);
+        CHECK(r2 == 0, "%s: mode 2 builds", mode);
+        if (r2 == 0) {
+            record_everywhere(m1, 1, 0.0f);
+            record_everywhere(m2, 1, 0.0f);
+            record_everywhere(m2r, 1, 0.0f);
+            cachepoints_update_visibility(m1);
+            cachepoints_update_visibility(m2);
+            cachepoints_update_visibility(m2r);
+            uint32_t v = m1->vis_off[m1->n], low1 = 0, low2 = 0, above = 0;
+            for (uint32_t s = 0; s < v; ++s) {
+                low1 += m1->w_pool[s] < 1.0f;
+                low2 += m2->w_pool[s] < 1.0f;
+                above += m2->w_pool[s] > m1->w_pool[s]; /* more failures pooled: never a higher W */
+            }
+            fprintf(stderr, "%s: 1 failure per slot: %u slots pooled below W = 1 over points, %u over points and lights\n",
+                    mode, low1, low2);
+            CHECK(low2 > low1 && low2 > v / 4 && above == 0, "%s: light pooling: %u vs %u low, %u higher", mode, low2,
+                  low1, above);
+            CHECK(memcmp(m2->w_blurred, m2r->w_blurred, v * sizeof(float)) == 0, "%s: mode 2 depends on the order", mode);
+        }
+        cachepoints_free(m1); cachepoints_free(m2); cachepoints_free(m2r);
+    }
     cachepoints_free(off); cachepoints_free(on); cachepoints_free(rev); cachepoints_free(own); cachepoints_free(res);
 }
 
