@@ -77,6 +77,9 @@ typedef struct CachePointParams {
     float epsilon;            /* 0.03: probability of a uniform pick among all lights (§3.3, which gives
                                * no value; bins keep 97% of their energy) */
     int visibility;           /* learn visibility (§3.2); 0 = --no-visibility */
+    int pool_visibility;      /* 1: a slot with too few attempts for Eq. 6 pools its neighbours' counters;
+                               * 2: and then, cut build, those of its point's slots below an ancestor of
+                               * its key in the light tree (pool.c, beyond the paper); 0: the paper's */
     int retruncate;           /* linear: re-apply 97% / 4..256 per bin after the blur (bounds memory; off = paper) */
     int build_cut;            /* 1: far entries are a cut through lights->tree (needs the tree); 0: linear */
     uint32_t cut_size;        /* cut build: far entries per point (clusters or single lights) */
@@ -219,5 +222,24 @@ float cachepoints_visibility(const CachePoints *cp, uint32_t point, uint32_t lig
 /* Eqs. 5-6: W for `successes` (the summed visibility of the attempts) out of `attempts`
  * (exposed for the anchor-value tests). */
 float cachepoints_visibility_weight(float successes, uint32_t attempts, float r_min);
+
+/* Read-only views for visualisation (inspect.c): a point's build and learning summary. */
+typedef struct CachePointSummary {
+    float pos[3], radius;
+    uint32_t near_count, far_count; /* entries; far_count includes the clusters */
+    uint32_t far_clusters;          /* far entries that are light-tree clusters (cut build) */
+    uint32_t slots;                 /* visibility slots (one per near and far entry) */
+    uint64_t attempts;              /* H_total summed over the slots (§3.2.1) */
+    double successes;               /* H_success summed over the slots (visibility units) */
+    uint32_t sparse_slots;          /* slots with too few attempts for Eq. 6 to leave W = 1 */
+    uint32_t learned_slots;         /* slots whose W' (after the §3.2.2 blur) is not 1 */
+    float mean_w, min_w;            /* W' over the slots (1 without slots) */
+} CachePointSummary;
+void cachepoints_summary(const CachePoints *cp, uint32_t point, CachePointSummary *s);
+/* The entry the vertex weighs most (§3.3: near lights exact, far entries blended by n, with
+ * W'): its light, or with *cluster = 1 the light-tree node of a cluster entry. UINT32_MAX
+ * when every weight is 0 (only the uniform floor selects there). */
+uint32_t cachepoints_top_entry(const CachePoints *cp, const CachePointLights *lights, const float x[3], const float *n,
+                               const CachePointVertex *v, const float *near_w, int *cluster);
 
 #endif

@@ -73,6 +73,8 @@ struct CachePoints {
     uint32_t *vis_off, *vis_key;
     VisCounter *vis_count;     /* atomics (see VisCounter); a slot's two counters share a cache line */
     float *w_blurred;              /* W' (Eq. 6, then the §3.2.2 blur) used at render time */
+    float *w_pool;                 /* pooled W per slot at the barrier (params.pool_visibility; pool.c), else NULL */
+    uint32_t *key_parent;          /* pool.c mode 2 (cut build): per key, its parent in the light tree */
     uint8_t *vis_low;              /* per point: a slot has W < 1 (this barrier) */
     uint8_t *vis_active;           /* per point: some W' != 1 (its tables are not the W = 1 ones) */
     uint8_t *tables_dirty;         /* per point: W' changed, rebuild its tables */
@@ -117,6 +119,12 @@ static inline float *cp_cdf(const CachePoints *cp, uint32_t p, int bin, uint32_t
 /* lookup.c: builds the per-point render tables (near_vis, far_cdf) from w_blurred, for every
  * point (all != 0) or for those marked in tables_dirty. */
 void cp_rebuild_tables(CachePoints *cp, int all);
+/* lookup.c: selection's blend of the far bins for a normal (NULL: the fluence bin). */
+void cp_bin_blend(const float *n, float b[CP_FAR_BINS]);
+/* pool.c: W of every slot from its own counters, or for a slot with fewer attempts than Eq. 6
+ * needs from the counters pooled over its blur neighbours, into w_pool (allocated on first use).
+ * 0 ok, -1 out of memory. */
+int cp_pool_visibility(CachePoints *cp);
 /* build.c: the parallel-for of the params, or a serial loop (the build and the barrier). */
 void cp_run_parallel(const CachePointParams *p, size_t n, size_t grain, void (*fn)(void *, size_t, size_t, int),
                      void *ctx);

@@ -68,6 +68,7 @@ typedef struct VisCtx { CachePoints *cp; uint32_t max_slots; int failed; } VisCt
  * exactly when it holds k); W = 1 without a division while too few attempts were made for
  * R to reach R_min (R >= 1 / (attempts + 1)). */
 static inline float slot_weight(const CachePoints *cp, uint32_t s) {
+    if (cp->w_pool) return cp->w_pool[s]; /* pooled at this barrier (pool.c) */
     uint32_t t = cp->vis_count[s].total;
     if ((float)t * cp->params.r_min + cp->params.r_min < 0.999f) return 1.0f;
     return cachepoints_visibility_weight((float)cp->vis_count[s].success / (float)CP_VIS_ONE, t, cp->params.r_min);
@@ -186,8 +187,9 @@ void cachepoints_update_visibility(CachePoints *cp) {
         uint32_t s = cp->vis_off[p + 1] - cp->vis_off[p];
         if (s > c.max_slots) c.max_slots = s;
     }
-    cp_run_parallel(&cp->params, cp->n, 256, vis_low_range, &c);
-    cp_run_parallel(&cp->params, cp->n, 256, vis_blur_range, &c);
+    if (cp->params.pool_visibility && cp_pool_visibility(cp) != 0) c.failed = 1;
+    if (!c.failed) cp_run_parallel(&cp->params, cp->n, 256, vis_low_range, &c);
+    if (!c.failed) cp_run_parallel(&cp->params, cp->n, 256, vis_blur_range, &c);
     if (c.failed) { /* out of memory: W' = 1 everywhere rather than half-updated weights */
         for (uint32_t s = 0; s < cp->vis_off[cp->n]; ++s) cp->w_blurred[s] = 1.0f;
         memset(cp->vis_active, 0, cp->n);
@@ -382,3 +384,6 @@ float cachepoints_pmf(const CachePoints *cp, const CachePointLights *L, const fl
     uint32_t slot;
     return pmf_from(light_weight(cp, L, v->point, x, n, b, light, &slot), total, cp->params.epsilon, L->count);
 }
+
+/* The bin blend of selection, for the read-only views of inspect.c. */
+void cp_bin_blend(const float *n, float b[CP_FAR_BINS]) { bin_blend(n, b); }

@@ -70,6 +70,8 @@ typedef struct CandelaOptions {
     int cachepoint_build_linear;  /* 1: the paper's build (every light at every point); 0: a cut
                                    * through the light tree (the default) */
     uint32_t cachepoint_cut_size; /* cut build: far entries per point; 0: default */
+    int cachepoint_pooling;       /* 1: slots with too few attempts pool their neighbours' visibility counters;
+                                   * 2: and then (cut build) their point's counters of nearby lights */
     /* set non-zero (e.g. from a signal handler) to stop after the current batch (the rest of the
      * iteration is abandoned; with checkpoint_path its state is written): the image of the
      * samples done is returned and CandelaStats.interrupted set. NULL: never. */
@@ -86,6 +88,8 @@ typedef struct CandelaOptions {
     int guide_spatial_filter;   /* Müller 2019's stochastic spatial box filter for training (0: off) */
     int guide_training_spp;     /* guiding trains on this many spp, then only renders; 0: default (spp / 8, at least 22) */
     int aov_recorder_debug;     /* --aov recorder-debug: the recorder's primary samples rebuild the image */
+    int aov_selection;          /* --aov cachepoint: false colours of each first hit's cache point and its top entry */
+    const char *cachepoint_dump_path; /* --dump-cachepoints FILE.ply: the points after the render (NULL: none) */
     uint32_t recorder_mb;       /* the radiance recorder's vertex storage bound; 0: default (256) */
     int recorder_budget;        /* vertices per path before skipping (path and vertex); 0: none; -1: default (4) */
     /* checkpoints (renderer/checkpoint.c): write the film and learned state to this file at the
@@ -182,6 +186,9 @@ typedef struct CandelaImage {
     float *recorder_debug; /* 3 per pixel with --aov recorder-debug (else NULL): the recorder's
                             * primary training samples times their throughput, plus what the
                             * camera ray found itself; converges to rgb */
+    float *selection_point;  /* 3 per pixel with --aov cachepoint (else NULL): the mean false colour of
+                              * the cache point each first hit used (black: none, e.g. a miss) */
+    float *selection_light;  /* 3 per pixel with --aov cachepoint: that of the entry it weighed most */
 } CandelaImage;
 
 /* Every ray a render traced, for the bare-Embree replay of `candela bench`: at most
@@ -204,6 +211,9 @@ void candela_ray_log_free(CandelaRayLog *log);
  * preview. Both go to a temporary name first and are renamed when complete. */
 int candela_write_outputs(const CandelaImage *image, const char *exr_path, const char *png_path,
                           char err[CANDELA_ERR_LEN]);
+/* With --aov cachepoint, the PNGs beside the preview: png_path NAME.png -> NAME.cachepoint.png
+ * and NAME.cachepoint_light.png (out: IO_PATH_MAX bytes each). */
+void candela_cachepoint_png_paths(const char *png_path, char *point_png, char *light_png, size_t len);
 
 /* Replays a ray log through bare Embree on the scene (closest hit for bounce rays,
  * occlusion for shadow rays); returns the seconds spent tracing. */

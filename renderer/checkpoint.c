@@ -94,6 +94,10 @@ int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t
                      (double)o->guide_spatial_threshold, (double)o->path_regularization,
                      o->guide_spatial_filter, o->guide_training_spp, o->aov_recorder_debug, o->recorder_mb,
                      o->recorder_budget);
+    /* cache point extras (cpviz): appended, so the line above stays as it was */
+    if (n >= 0 && (size_t)n < sizeof id->text)
+        n += snprintf(id->text + n, sizeof id->text - (size_t)n, " aov_cachepoint=%d cachepoint_pooling=%d", o->aov_selection,
+                      o->cachepoint_pooling);
     if (n < 0 || (size_t)n >= sizeof id->text) {
         snprintf(err, CANDELA_ERR_LEN, "%s: the render's options are too long for a checkpoint (camera or --env name)",
                  o->scene_path);
@@ -355,6 +359,7 @@ static void film_add(Film *dst, const Film *src) {
         dst->normal[i] += src->normal[i];
         if (dst->recorder) dst->recorder[i] += src->recorder[i];
     }
+    for (size_t i = 0; dst->sel_aov && i < 6 * n; ++i) dst->sel_aov[i] += src->sel_aov[i];
     for (size_t i = 0; i < n; ++i) {
         dst->depth[i] += src->depth[i];
         dst->hits[i] += src->hits[i];
@@ -367,6 +372,10 @@ static int film_alloc_like(Film *f, const Header *h, int recorder) {
     if (recorder) {
         f->recorder = calloc(3 * (size_t)h->width * h->height, sizeof(double));
         if (!f->recorder) { film_free(f); return -1; }
+    }
+    if (strstr(h->id.text, " aov_cachepoint=1")) {
+        f->sel_aov = calloc(6 * (size_t)h->width * h->height, sizeof(double));
+        if (!f->sel_aov) { film_free(f); return -1; }
     }
     return 0;
 }

@@ -27,6 +27,7 @@ int film_alloc(Film *f, int w, int h) {
 void film_free(Film *f) {
     free(f->sum); free(f->sum2); free(f->albedo); free(f->normal); free(f->depth); free(f->hits); free(f->count);
     free(f->recorder);
+    free(f->sel_aov);
     memset(f, 0, sizeof *f);
 }
 
@@ -51,6 +52,10 @@ void film_add_paths(Film *f, const PathState *ps, uint32_t count) {
             add3(f->normal + 3 * (size_t)px, ps->aov_normal[i]);
             f->depth[px] += ps->aov_depth[i];
             f->hits[px]++;
+            if (f->sel_aov) {
+                add3(f->sel_aov + 6 * (size_t)px, ps->aov_sel_point[i]);
+                add3(f->sel_aov + 6 * (size_t)px + 3, ps->aov_sel_light[i]);
+            }
         }
     }
 }
@@ -86,6 +91,17 @@ int film_resolve(const Film *f, CandelaImage *img) {
         for (size_t i = 0; i < 3 * n; ++i)
             img->recorder_debug[i] = f->count[i / 3] ? (float)(f->recorder[i] / f->count[i / 3]) : 0.0f;
     }
+    if (f->sel_aov) {
+        img->selection_point = malloc(3 * n * sizeof(float));
+        img->selection_light = malloc(3 * n * sizeof(float));
+        if (!img->selection_point || !img->selection_light) { candela_image_free(img); return -1; }
+        for (size_t i = 0; i < n; ++i)
+            for (int k = 0; k < 3; ++k) {
+                double h = f->hits[i];
+                img->selection_point[3 * i + k] = h > 0 ? (float)(f->sel_aov[6 * i + k] / h) : 0.0f;
+                img->selection_light[3 * i + k] = h > 0 ? (float)(f->sel_aov[6 * i + 3 + k] / h) : 0.0f;
+            }
+    }
     return 0;
 }
 
@@ -100,6 +116,7 @@ void candela_iteration_mean(const CandelaIterationInfo *info, float *rgb) {
 
 void candela_image_free(CandelaImage *img) {
     free(img->rgb); free(img->variance); free(img->albedo); free(img->normal); free(img->depth); free(img->recorder_debug);
+    free(img->selection_point); free(img->selection_light);
     memset(img, 0, sizeof *img);
 }
 
@@ -111,23 +128,26 @@ void candela_image_free(CandelaImage *img) {
 /* Every Film array: the sums of L and L^2, counts, AOV sums and the recorder AOV. */
 int film_save(const Film *f, FILE *out) {
     size_t n = (size_t)f->width * (size_t)f->height;
-    int32_t head[3] = {f->width, f->height, f->recorder != NULL};
+    int32_t head[3] = {f->width, f->height, (f->recorder != NULL) | (f->sel_aov != NULL) << 1};
     return ckpt_put_tag(out, FILM_TAG, FILM_VERSION) | ckpt_put(out, head, sizeof head) |
            ckpt_put(out, f->sum, 3 * n * sizeof(double)) | ckpt_put(out, f->sum2, 3 * n * sizeof(double)) |
            ckpt_put(out, f->albedo, 3 * n * sizeof(double)) | ckpt_put(out, f->normal, 3 * n * sizeof(double)) |
            ckpt_put(out, f->depth, n * sizeof(double)) | ckpt_put(out, f->hits, n * sizeof(uint32_t)) |
            ckpt_put(out, f->count, n * sizeof(uint32_t)) |
-           (f->recorder ? ckpt_put(out, f->recorder, 3 * n * sizeof(double)) : 0);
+           (f->recorder ? ckpt_put(out, f->recorder, 3 * n * sizeof(double)) : 0) |
+           (f->sel_aov ? ckpt_put(out, f->sel_aov, 6 * n * sizeof(double)) : 0);
 }
 
 int film_load(Film *f, FILE *in) {
     size_t n = (size_t)f->width * (size_t)f->height;
     int32_t head[3];
     if (ckpt_get_tag(in, FILM_TAG, FILM_VERSION) || ckpt_get(in, head, sizeof head)) return -1;
-    if (head[0] != f->width || head[1] != f->height || head[2] != (f->recorder != NULL)) return -1;
+    if (head[0] != f->width || head[1] != f->height || head[2] != ((f->recorder != NULL) | (f->sel_aov != NULL) << 1))
+        return -1;
     return ckpt_get(in, f->sum, 3 * n * sizeof(double)) | ckpt_get(in, f->sum2, 3 * n * sizeof(double)) |
            ckpt_get(in, f->albedo, 3 * n * sizeof(double)) | ckpt_get(in, f->normal, 3 * n * sizeof(double)) |
            ckpt_get(in, f->depth, n * sizeof(double)) | ckpt_get(in, f->hits, n * sizeof(uint32_t)) |
            ckpt_get(in, f->count, n * sizeof(uint32_t)) |
-           (f->recorder ? ckpt_get(in, f->recorder, 3 * n * sizeof(double)) : 0);
+           (f->recorder ? ckpt_get(in, f->recorder, 3 * n * sizeof(double)) : 0) |
+           (f->sel_aov ? ckpt_get(in, f->sel_aov, 6 * n * sizeof(double)) : 0);
 }

@@ -84,6 +84,10 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
         if ((rc = parse_long(a, v, 0, 1 << 24, &n, err)) == 0) o->texture_budget_mb = (uint32_t)n;
     } else if (strcmp(a, "--cachepoint-cut-size") == 0) {
         if ((rc = parse_long(a, v, 1, 1 << 20, &n, err)) == 0) o->cachepoint_cut_size = (uint32_t)n;
+    } else if (strcmp(a, "--cachepoint-pooling") == 0) {
+        static const char *const names[] = {"off", "points", "lights", NULL};
+        static const int values[] = {0, 1, 2};
+        if ((rc = parse_choice(a, v, names, values, &c, NULL, err)) == 0) o->cachepoint_pooling = c;
     } else if (strcmp(a, "--cachepoint-build") == 0) {
         static const char *const names[] = {"cut", "linear", NULL};
         static const int values[] = {0, 1};
@@ -117,9 +121,20 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
     } else if (strcmp(a, "--guide-spatial-threshold") == 0) {
         if ((rc = parse_float(a, v, 1.0f, 1e9f, &f, err)) == 0) o->guide_spatial_threshold = f;
     } else if (strcmp(a, "--aov") == 0) {
-        static const char *const names[] = {"recorder-debug", NULL};
-        static const int values[] = {1};
-        if ((rc = parse_choice(a, v, names, values, &c, "AOV", err)) == 0) o->aov_recorder_debug = c;
+        static const char *const names[] = {"recorder-debug", "cachepoint", NULL};
+        static const int values[] = {1, 2};
+        if ((rc = parse_choice(a, v, names, values, &c, "AOV", err)) == 0) { /* repeatable: one AOV each */
+            if (c == 1) o->aov_recorder_debug = 1;
+            else o->aov_selection = 1;
+        }
+    } else if (strcmp(a, "--dump-cachepoints") == 0) {
+        if (!v) return missing(a, err);
+        size_t len = strlen(v);
+        if (len < 5 || strcmp(v + len - 4, ".ply") != 0) {
+            snprintf(err, CANDELA_ERR_LEN, "invalid value '%.200s' for --dump-cachepoints (expected FILE.ply)", v);
+            return -1;
+        }
+        o->cachepoint_dump_path = v;
     } else if (strcmp(a, "--recorder-budget") == 0) {
         if ((rc = parse_long(a, v, 0, 1 << 20, &n, err)) == 0) o->recorder_budget = (int)n;
     } else if (strcmp(a, "--recorder-mb") == 0) {
@@ -180,6 +195,11 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
 int candela_options_check(const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
     if (o->volume_inscatter_sampling == 1 && o->light_sampler != CANDELA_LIGHT_SAMPLER_CACHEPOINTS) {
         snprintf(err, CANDELA_ERR_LEN, "--volume-cachepoint-scatter on needs --light-sampler cachepoints");
+        return -1;
+    }
+    if ((o->aov_selection || o->cachepoint_dump_path) && o->light_sampler != CANDELA_LIGHT_SAMPLER_CACHEPOINTS) {
+        snprintf(err, CANDELA_ERR_LEN, "%s needs --light-sampler cachepoints",
+                 o->aov_selection ? "--aov cachepoint" : "--dump-cachepoints");
         return -1;
     }
     return 0;

@@ -46,6 +46,8 @@ typedef struct Film {
     double *depth;           /* per pixel: sum of first-hit distances */
     uint32_t *hits, *count;  /* per pixel: camera rays that hit; samples */
     double *recorder;        /* 3 per pixel (--aov recorder-debug; else NULL): sums of the recorder's splats */
+    double *sel_aov;         /* 6 per pixel (the light sampler's AOV, CandelaOptions.aov_selection; else NULL):
+                              * sums over the hits of its two false colours (light_sampler_aov) */
 } Film;
 
 int film_alloc(Film *f, int width, int height);

@@ -59,6 +59,12 @@ typedef struct LightSamplerOps {
      * at x for distance sampling along camera rays (the summed scattering weights of x's
      * cache point) and in *radius the distance over which it holds; hint as for prepare */
     float (*inscatter_weight)(const void *state, const float x[3], uint32_t *hint, float *radius);
+    /* optional (--aov cachepoint): false colours of what a prepared vertex uses (cache points:
+     * its point, and the entry it weighs most); black where the strategy has none */
+    void (*aov)(const void *state, const LightSampleContext *ctx, vec3 *point_rgb, vec3 *light_rgb);
+    /* optional: at the end of a render, the strategy's own outputs its options asked for (cache
+     * points: --dump-cachepoints). 0 ok; -1 with err */
+    int (*finish)(const void *state, char err[CANDELA_ERR_LEN]);
     /* optional: the strategy's build statistics */
     void (*report)(const void *state, CandelaStats *stats);
     void (*destroy)(void *state);
@@ -130,6 +136,15 @@ static inline int light_sampler_has_inscatter(const LightSampler *s) { return s-
 static inline float light_sampler_inscatter_weight(const LightSampler *s, const float x[3], uint32_t *hint,
                                                    float *radius) {
     return s->ops->inscatter_weight(s->state, x, hint, radius);
+}
+
+static inline void light_sampler_aov(const LightSampler *s, const LightSampleContext *ctx, vec3 *point_rgb,
+                                     vec3 *light_rgb) {
+    *point_rgb = *light_rgb = v3s(0.0f);
+    if (s->ops->aov && ctx->vertex.word) s->ops->aov(s->state, ctx, point_rgb, light_rgb);
+}
+static inline int light_sampler_finish(const LightSampler *s, char err[CANDELA_ERR_LEN]) {
+    return s->ops->finish ? s->ops->finish(s->state, err) : 0;
 }
 
 static inline void light_sampler_report(const LightSampler *s, CandelaStats *stats) {

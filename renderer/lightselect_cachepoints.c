@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "cachepoint_viz.h"
 #include "cachepoints.h"
 #include "clock.h"
 #include "light_sampler.h"
@@ -49,6 +50,7 @@ typedef struct CachePointSampler {
     int grid_dims[3];
     vec3 grid_lo, grid_cell;
     float grid_step;
+    const char *dump_path;       /* --dump-cachepoints (NULL: none), written by cp_finish */
 } CachePointSampler;
 
 static void cp_estimate7(const void *user, uint32_t light, const float x[3], float out[7]) {
@@ -499,6 +501,26 @@ static int cp_load_learned(void *state, FILE *in) {
     return cachepoints_load_learned(((CachePointSampler *)state)->cp, in);
 }
 
+/* --aov cachepoint: the colour of the vertex's point, and of the entry it weighs most (a
+ * light, or a light-tree cluster in a palette of its own). */
+static void cp_aov(const void *state, const LightSampleContext *ctx, vec3 *point_rgb, vec3 *light_rgb) {
+    const CachePointSampler *s = state;
+    float x[3], n[3];
+    const float *np;
+    CachePointVertex v;
+    vertex_of(s, ctx, x, n, &np, &v);
+    *point_rgb = cachepoint_false_colour(v.point, CACHEPOINT_COLOUR_POINT);
+    int cluster;
+    uint32_t top = cachepoints_top_entry(s->cp, &s->view, x, np, &v, ctx->scratch, &cluster);
+    *light_rgb = top == UINT32_MAX ? v3s(0.0f)
+                                   : cachepoint_false_colour(top, cluster ? CACHEPOINT_COLOUR_CLUSTER : CACHEPOINT_COLOUR_LIGHT);
+}
+
+static int cp_finish(const void *state, char err[CANDELA_ERR_LEN]) {
+    const CachePointSampler *s = state;
+    return s->dump_path ? cachepoint_write_ply(s->cp, s->dump_path, err) : 0;
+}
+
 static void cp_report(const void *state, CandelaStats *st) {
     const CachePointSampler *s = state;
     st->time_cachepoints = s->build_seconds;
@@ -527,13 +549,13 @@ static void cp_destroy(void *state) {
 static const LightSamplerOps CACHEPOINT_OPS = {
     .name = "cachepoints", .prepare = cp_prepare, .select = cp_select, .pmf = cp_pmf, .record = cp_record,
     .prefetch_outcome = cp_prefetch_outcome, .barrier = cp_barrier, .save_learned = cp_save_learned,
-    .load_learned = cp_load_learned, .report = cp_report, .destroy = cp_destroy};
+    .load_learned = cp_load_learned, .report = cp_report, .destroy = cp_destroy, .aov = cp_aov, .finish = cp_finish};
 /* with the §4.2 scattering weights (scenes with media, in-scattering sampling not off) */
 static const LightSamplerOps CACHEPOINT_INSCATTER_OPS = {
     .name = "cachepoints", .prepare = cp_prepare, .select = cp_select, .pmf = cp_pmf, .record = cp_record,
     .prefetch_outcome = cp_prefetch_outcome, .barrier = cp_barrier, .save_learned = cp_save_learned,
     .load_learned = cp_load_learned, .report = cp_report, .destroy = cp_destroy,
-    .inscatter_weight = cp_inscatter_weight};
+    .inscatter_weight = cp_inscatter_weight, .aov = cp_aov, .finish = cp_finish};
 
 /* ---------------------------------------------------------------- build */
 
@@ -582,6 +604,7 @@ static int build(CachePointSampler *s, const Scene *scene, const SceneMedia *med
     cachepoints_default_params(&params);
     params.visibility = !o->cachepoint_no_visibility;
     params.retruncate = o->cachepoint_retruncate;
+    params.pool_visibility = o->cachepoint_pooling;
     params.build_cut = !o->cachepoint_build_linear;
     if (o->cachepoint_cut_size) params.cut_size = o->cachepoint_cut_size;
     params.parallel_for = pool_parallel_for;
@@ -604,6 +627,7 @@ int light_sampler_cachepoints_create(LightSampler *ls, const Lights *lights, con
         CachePointSampler *s = calloc(1, sizeof *s);
         if (!s) goto oom;
         s->lights = lights;
+        s->dump_path = o->cachepoint_dump_path;
         int rc_build = build(s, scene, media, pool, o);
         if (rc_build != 0) {
             cp_destroy(s);
@@ -626,7 +650,14 @@ int light_sampler_cachepoints_create(LightSampler *ls, const Lights *lights, con
         fprintf(stderr, "%s: warning: fewer than 10 cache points; using optimal light selection\n", o->scene_path);
     }
     rc = light_sampler_optimal_create(ls, lights, scene, o->optimal_occlusion);
-    if (rc == 0) return 0;
+    if (rc == 0) {
+        /* no points (no lights, or the fallback): the dump says so with an empty file, now */
+        if (o->cachepoint_dump_path && cachepoint_write_ply(NULL, o->cachepoint_dump_path, err) != 0) {
+            light_sampler_free(ls);
+            return -1;
+        }
+        return 0;
+    }
 oom:
     snprintf(err, CANDELA_ERR_LEN, "%s: out of memory building cache points", o->scene_path);
     return -1;

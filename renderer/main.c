@@ -85,6 +85,14 @@ static const char *USAGE =
     "                            paper: every light estimated at every point)\n"
     "  --cachepoint-cut-size N   cut build: far entries per cache point (default 128)\n"
     "  --cachepoint-retruncate   linear build: re-apply the 97%/256 rule after the blur (less memory)\n"
+    "  --cachepoint-pooling off|points|lights  visibility counters of slots with too few attempts\n"
+    "                            pooled over the 16 neighbouring points (points), then over the\n"
+    "                            lights next to the slot's in the light tree (lights; default off)\n"
+    "  --aov cachepoint          add cachepoint.RGB and cachepoint_light.RGB to the EXR (false colours\n"
+    "                            of each first hit's cache point and of the entry it weighs most) and\n"
+    "                            write NAME.cachepoint.png, NAME.cachepoint_light.png beside the PNG\n"
+    "  --dump-cachepoints FILE.ply  write the cache points after the render as an ASCII PLY\n"
+    "                            (position, radius, near/far counts, learned visibility, colour)\n"
     "  --optimal-occlusion       optimal sampler: one shadow ray per light per vertex\n"
     "  --light-units U           blender (default: cd/683, lux/683) | raw (W/sr, W/m^2)\n"
     "  --light-model M           gltf (default: glTF's spot cone ramp) | blender3 (Cycles 3.4's\n"
@@ -447,6 +455,10 @@ int main(int argc, char **argv) {
         fprintf(stderr, "candela: %s: the output must be an .exr file (the PNG preview goes to --png)\n", out);
         return 2;
     }
+    if (o.cachepoint_dump_path && (batch.frames || compare)) {
+        fprintf(stderr, "candela: --dump-cachepoints writes one render's points (not with --frames or compare)\n");
+        return 2;
+    }
     if (batch.frames && (compare || bench || dump)) {
         fprintf(stderr, "candela: --frames belongs to candela render\n");
         return 2;
@@ -496,13 +508,18 @@ int main(int argc, char **argv) {
                     strerror(errno));
             return 1;
         }
-        const char *outputs[5] = {out, png, stats_json, batch.stats_jsonl, o.checkpoint_path};
+        if (o.cachepoint_dump_path && ensure_parent_dir(o.cachepoint_dump_path, 0) != 0) {
+            fprintf(stderr, "candela: %s: output directory does not exist or is not writable (%s)\n",
+                    o.cachepoint_dump_path, strerror(errno));
+            return 1;
+        }
+        const char *outputs[6] = {out, png, stats_json, batch.stats_jsonl, o.checkpoint_path, o.cachepoint_dump_path};
         if (batch.stats_jsonl && ensure_parent_dir(batch.stats_jsonl, 0) != 0) {
             fprintf(stderr, "candela: %s: output directory does not exist or is not writable (%s)\n", batch.stats_jsonl,
                     strerror(errno));
             return 1;
         }
-        for (int k = 0; k < 5; ++k)
+        for (int k = 0; k < 6; ++k)
             if (outputs[k] && io_output_path(outputs[k], resolved, ioerr) != 0) {
                 fprintf(stderr, "candela: %s\n", ioerr);
                 return 1;

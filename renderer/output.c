@@ -16,11 +16,19 @@ static float srgb_encode(float x) {
     return x <= 0.0031308f ? 12.92f * x : 1.055f * powf(x, 1.0f / 2.4f) - 0.055f;
 }
 
+void candela_cachepoint_png_paths(const char *png_path, char *point_png, char *light_png, size_t len) {
+    size_t base = strlen(png_path);
+    if (base >= 4 && strcmp(png_path + base - 4, ".png") == 0) base -= 4;
+    snprintf(point_png, len, "%.*s.cachepoint.png", (int)base, png_path);
+    snprintf(light_png, len, "%.*s.cachepoint_light.png", (int)base, png_path);
+}
+
 int candela_write_outputs(const CandelaImage *img, const char *exr_path, const char *png_path,
                           char err[CANDELA_ERR_LEN]) {
     size_t n = (size_t)img->width * (size_t)img->height;
     int nch = img->recorder_debug ? 17 : 14;
-    float *planes = malloc((size_t)nch * n * sizeof(float));
+    int ncp = img->selection_point ? 6 : 0; /* cachepoint.RGB, cachepoint_light.RGB after the others */
+    float *planes = malloc((size_t)(nch + ncp) * n * sizeof(float));
     if (!planes) { snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", exr_path); return -1; }
     /* planar copies: R G B A albedo.RGB N.XYZ Z variance.RGB */
     for (size_t i = 0; i < n; ++i) {
@@ -34,8 +42,12 @@ int candela_write_outputs(const CandelaImage *img, const char *exr_path, const c
         planes[10 * n + i] = img->depth[i];
         if (img->recorder_debug)
             for (int k = 0; k < 3; ++k) planes[(14 + k) * n + i] = img->recorder_debug[3 * i + k];
+        for (int k = 0; k < 3 && ncp; ++k) {
+            planes[(nch + k) * n + i] = img->selection_point[3 * i + k];
+            planes[(nch + 3 + k) * n + i] = img->selection_light[3 * i + k];
+        }
     }
-    IoExrChannel ch[17] = {
+    IoExrChannel ch[23] = {
         {"R", planes}, {"G", planes + n}, {"B", planes + 2 * n}, {"A", planes + 3 * n},
         {"albedo.R", planes + 4 * n}, {"albedo.G", planes + 5 * n}, {"albedo.B", planes + 6 * n},
         {"N.X", planes + 7 * n}, {"N.Y", planes + 8 * n}, {"N.Z", planes + 9 * n},
@@ -43,8 +55,11 @@ int candela_write_outputs(const CandelaImage *img, const char *exr_path, const c
         {"variance.R", planes + 11 * n}, {"variance.G", planes + 12 * n}, {"variance.B", planes + 13 * n},
         {"recorder_debug.R", planes + 14 * n}, {"recorder_debug.G", planes + 15 * n}, {"recorder_debug.B", planes + 16 * n},
     };
+    static const char *const cp_names[6] = {"cachepoint.R", "cachepoint.G", "cachepoint.B",
+                                            "cachepoint_light.R", "cachepoint_light.G", "cachepoint_light.B"};
+    for (int k = 0; k < ncp; ++k) ch[nch + k] = (IoExrChannel){cp_names[k], planes + (size_t)(nch + k) * n};
     char ioerr[IO_ERR_LEN];
-    int rc = io_write_exr(exr_path, img->width, img->height, ch, nch, ioerr);
+    int rc = io_write_exr(exr_path, img->width, img->height, ch, nch + ncp, ioerr);
     free(planes);
     if (rc != 0) { snprintf(err, CANDELA_ERR_LEN, "%s", ioerr); return -1; }
     if (png_path) {
@@ -53,6 +68,12 @@ int candela_write_outputs(const CandelaImage *img, const char *exr_path, const c
         /* preview: linear radiance clipped to [0,1] and sRGB-encoded (Blender's "Standard") */
         for (size_t i = 0; i < 3 * n; ++i) rgb[i] = srgb_encode(img->rgb[i]);
         rc = io_write_png(png_path, img->width, img->height, rgb, ioerr);
+        if (rc == 0 && img->selection_point) { /* the false colours as they are (no transfer curve) */
+            char point_png[IO_PATH_MAX], light_png[IO_PATH_MAX];
+            candela_cachepoint_png_paths(png_path, point_png, light_png, sizeof point_png);
+            rc = io_write_png(point_png, img->width, img->height, img->selection_point, ioerr);
+            if (rc == 0) rc = io_write_png(light_png, img->width, img->height, img->selection_light, ioerr);
+        }
         free(rgb);
         if (rc != 0) { snprintf(err, CANDELA_ERR_LEN, "%s", ioerr); return -1; }
     }

@@ -70,7 +70,9 @@
     F(vec3, aov_albedo, N)                                                                       \
     F(vec3, aov_normal, N)                                                                       \
     F(float, aov_depth, N)          /* first-hit distance; INFINITY: the camera ray escaped */   \
-    F(vec3, aov_recorder, N)        /* --aov recorder-debug: this path's splat */
+    F(vec3, aov_recorder, N)        /* --aov recorder-debug: this path's splat */                \
+    F(vec3, aov_sel_point, N)       /* the light sampler's AOV at the first hit (two colours) */ \
+    F(vec3, aov_sel_light, N)
 
 typedef struct PathState {
     uint32_t capacity;

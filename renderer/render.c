@@ -322,6 +322,11 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
         render_free_frame(r);
         return -1;
     }
+    /* the light sampler's own outputs of the finished render (a dump of what it learned) */
+    if (light_sampler_finish(&r->sampler, err) != 0) {
+        render_free_frame(r);
+        return -1;
+    }
     int rc = film_resolve(&ig->film, image);
     if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s: out of memory resolving the film", o->scene_path);
     stats->peak_memory_bytes = peak_rss_bytes();

@@ -222,6 +222,8 @@ void stage_surface(const Integrator *ig, Slice *s) {
         LightSampleContext lc = {h.p, scatter_light_normal(&sc), {0, 0.0f}, scratch, &s->volume};
         int delta = scatter_is_delta(&sc);
         if (!delta) light_sampler_prepare(ig->light_sampler, &lc, &hint); /* once per vertex */
+        if (depth == 0 && ig->film.sel_aov) /* the light sampler's AOV: what the first hit's selection uses */
+            light_sampler_aov(ig->light_sampler, &lc, &ps->aov_sel_point[p], &ps->aov_sel_light[p]);
         if (!delta && ig->lights->count > 0) surface_direct_light(ig, s, p, &h, &sc, &lc);
         int continued = surface_continuation(ig, s, p, &h, &sc, &lc);
         if (ig->record.active) { /* the scattering event is done with the incoming vertex */

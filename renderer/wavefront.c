@@ -140,6 +140,10 @@ int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene,
         ig->film.recorder = calloc(3 * (size_t)ig->npixels, sizeof(double));
         fail = !ig->film.recorder;
     }
+    if (!fail && o->aov_selection) {
+        ig->film.sel_aov = calloc(6 * (size_t)ig->npixels, sizeof(double));
+        fail = !ig->film.sel_aov;
+    }
     if (fail) { integrator_free(ig); return -1; }
     return 0;
 }

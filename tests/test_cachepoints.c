@@ -225,6 +225,116 @@ static void fractional_visibility(const CachePointLights *L, const float *cand, 
     cachepoints_free(z);
 }
 
+/* Pooled visibility (pool.c): 10 failed attempts per slot leave every W' = 1 without pooling
+ * (Eq. 6 needs 25); with it a slot's W is Eq. 6 on its counters pooled over its blur
+ * neighbours holding the same key (checked against the sums computed here), below 1; a slot
+ * with 25+ attempts of its own keeps its own W; bit-identical for a reversed parallel-for and
+ * after a checkpoint save / load. */
+static void pooled_visibility(const CachePointLights *L, const float *cand, uint32_t nc, const CachePointParams *P0,
+                              const char *mode) {
+    CachePointCamera cam = {{5.0f, 5.0f, 40.0f}, 2.0f * 0.4f / 64.0f, 0.0f};
+    CachePointParams P = *P0, Q = *P0;
+    Q.pool_visibility = 1;
+    CachePointParams R = Q;
+    R.parallel_for = reverse_parallel_for;
+    CachePoints *off = NULL, *on = NULL, *rev = NULL, *own = NULL, *res = NULL;
+    int rc = cachepoints_build(&off, cand, nc, L, &cam, &P, NULL) | cachepoints_build(&on, cand, nc, L, &cam, &Q, NULL) |
+             cachepoints_build(&rev, cand, nc, L, &cam, &R, NULL) | cachepoints_build(&own, cand, nc, L, &cam, &Q, NULL) |
+             cachepoints_build(&res, cand, nc, L, &cam, &Q, NULL);
+    CHECK(rc == 0, "%s: pooled builds", mode);
+    if (rc == 0) {
+        record_everywhere(off, 10, 0.0f);
+        record_everywhere(on, 10, 0.0f);
+        record_everywhere(rev, 10, 0.0f);
+        cachepoints_update_visibility(off);
+        cachepoints_update_visibility(on);
+        cachepoints_update_visibility(rev);
+        uint32_t v = on->vis_off[on->n], low_off = 0, low_on = 0, exact = 0, checked = 0;
+        for (uint32_t s = 0; s < v; ++s) {
+            low_off += off->w_blurred[s] < 1.0f;
+            low_on += on->w_blurred[s] < 1.0f;
+        }
+        CHECK(low_off == 0, "%s: without pooling %u slots learned from 10 attempts", mode, low_off);
+        CHECK(low_on > v / 2, "%s: with pooling only %u of %u slots learned", mode, low_on, v);
+        CHECK(memcmp(on->w_blurred, rev->w_blurred, v * sizeof(float)) == 0 &&
+                  memcmp(on->w_pool, rev->w_pool, v * sizeof(float)) == 0,
+              "%s: pooled W differs with the parallel-for order", mode);
+        /* the pooled W of every slot against the sums recomputed here */
+        uint32_t K = on->params.blur_neighbours;
+        for (uint32_t p = 0; p < on->n; ++p)
+            for (uint32_t s = on->vis_off[p]; s < on->vis_off[p + 1]; ++s) {
+                double T = 10.0;
+                for (uint32_t j = 0; j < K; ++j) {
+                    uint32_t nb = on->nbr[p * K + j];
+                    if (nb == UINT32_MAX) continue;
+                    for (uint32_t q = on->vis_off[nb]; q < on->vis_off[nb + 1]; ++q)
+                        if (on->vis_key[q] == on->vis_key[s]) T += (double)on->nbr_w[p * K + j] / on->self_w[p] * 10.0;
+                }
+                float r = (float)(1.0 / (T + 1.0)), w = r <= 0.04f ? (r / 0.04f) * (r / 0.04f) : 1.0f;
+                exact += fabsf(on->w_pool[s] - w) <= 1e-6f * w;
+                ++checked;
+            }
+        CHECK(exact == checked, "%s: %u of %u pooled W match the recomputed sums", mode, exact, checked);
+        /* a slot with 30 visible attempts of its own among failing neighbours keeps W = 1 */
+        record_everywhere(own, 10, 0.0f);
+        const float x0[3] = {5, 5, 5};
+        uint32_t p0 = cachepoints_nearest(own, x0), s0 = own->vis_off[p0];
+        own->vis_count[s0].total = 30;
+        own->vis_count[s0].success = 30 * 256;
+        cachepoints_update_visibility(own);
+        CHECK(own->w_pool[s0] == 1.0f, "%s: a slot with 30 visible attempts pooled to %g", mode, own->w_pool[s0]);
+        /* checkpoint: save after one barrier, load into a fresh build, go on: the same W' */
+        FILE *f = tmpfile();
+        CHECK(f && cachepoints_save_learned(on, f) == 0, "%s: save", mode);
+        if (f) {
+            rewind(f);
+            CHECK(cachepoints_load_learned(res, f) == 0, "%s: load", mode);
+            fclose(f);
+            record_everywhere(on, 5, 1.0f);
+            record_everywhere(res, 5, 1.0f);
+            cachepoints_update_visibility(on);
+            cachepoints_update_visibility(res);
+            CHECK(memcmp(on->w_blurred, res->w_blurred, v * sizeof(float)) == 0 &&
+                      memcmp(on->far_cdf, res->far_cdf, (size_t)on->far_off[on->n] * 7 * sizeof(float)) == 0,
+                  "%s: pooled learning differs after a checkpoint", mode);
+        }
+        fprintf(stderr, "%s: pooling: %u of %u slots below W' = 1 after 10 failures each (0 without)\n", mode, low_on, v);
+    }
+    /* mode 2 (cut build): one failure per slot is too little for the spatial pooling alone
+     * (about 9 pooled attempts); the light tree's levels bring in the nearby lights' */
+    if (rc == 0 && P0->build_cut) {
+        CachePointParams M = Q, Mr = Q;
+        M.pool_visibility = 2;
+        Mr.pool_visibility = 2;
+        Mr.parallel_for = reverse_parallel_for;
+        CachePoints *m1 = NULL, *m2 = NULL, *m2r = NULL;
+        int r2 = cachepoints_build(&m1, cand, nc, L, &cam, &Q, NULL) | cachepoints_build(&m2, cand, nc, L, &cam, &M, NULL) |
+                 cachepoints_build(&m2r, cand, nc, L, &cam, &Mr, NULL);
+        CHECK(r2 == 0, "%s: mode 2 builds", mode);
+        if (r2 == 0) {
+            record_everywhere(m1, 1, 0.0f);
+            record_everywhere(m2, 1, 0.0f);
+            record_everywhere(m2r, 1, 0.0f);
+            cachepoints_update_visibility(m1);
+            cachepoints_update_visibility(m2);
+            cachepoints_update_visibility(m2r);
+            uint32_t v = m1->vis_off[m1->n], low1 = 0, low2 = 0, above = 0;
+            for (uint32_t s = 0; s < v; ++s) {
+                low1 += m1->w_pool[s] < 1.0f;
+                low2 += m2->w_pool[s] < 1.0f;
+                above += m2->w_pool[s] > m1->w_pool[s]; /* more failures pooled: never a higher W */
+            }
+            fprintf(stderr, "%s: 1 failure per slot: %u slots pooled below W = 1 over points, %u over points and lights\n",
+                    mode, low1, low2);
+            CHECK(low2 > low1 && low2 > v / 4 && above == 0, "%s: light pooling: %u vs %u low, %u higher", mode, low2,
+                  low1, above);
+            CHECK(memcmp(m2->w_blurred, m2r->w_blurred, v * sizeof(float)) == 0, "%s: mode 2 depends on the order", mode);
+        }
+        cachepoints_free(m1); cachepoints_free(m2); cachepoints_free(m2r);
+    }
+    cachepoints_free(off); cachepoints_free(on); cachepoints_free(rev); cachepoints_free(own); cachepoints_free(res);
+}
+
 /* §4.2 scattering weights with simple callbacks: mu_s = 2 above z = 5, 0 below; every light
  * sample returns the light's intensity (so s(p, e) / I_e is the same for every near light of a
  * point: 2 x the fraction of its 4 ball points above z = 5). */
@@ -402,6 +512,7 @@ static void run(const CachePointLights *L, const float *cand, uint32_t nc, int c
     cachepoints_free(b);
     P.parallel_for = NULL;
     fractional_visibility(L, cand, nc, &P, mode);
+    pooled_visibility(L, cand, nc, &P, mode);
 }
 
 /* Return codes: -2 for parameters the build cannot run with, 1 for too few points or no

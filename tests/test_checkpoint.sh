@@ -39,8 +39,10 @@ expect_error() {
 }
 
 # --- schedule, identity of images with checkpoints, resume from the last checkpoint
-for mode in default mis; do
+# (cpaov: the cache point AOV's film sums are saved and resumed too)
+for mode in default mis cpaov; do
   extra=(); [ $mode = mis ] && extra=(--guiding mis)
+  [ $mode = cpaov ] && extra=(--light-sampler cachepoints --aov cachepoint)
   "$bin" "${base[@]}" --spp 64 "${extra[@]}" -o "$tmp/full-$mode.exr" --quiet || bad "full render ($mode)"
   "$bin" "${base[@]}" --spp 64 "${extra[@]}" -o "$tmp/ck-$mode.exr" --checkpoint "$tmp/$mode.ckpt" 2>"$tmp/log-$mode" ||
     bad "render with --checkpoint ($mode)"

@@ -18,6 +18,7 @@ typedef struct Strategy {
     CandelaLightSampler s;
     int occlusion, novis, retrunc, linear;
     uint32_t cut_size;
+    int pooling;
 } Strategy;
 
 static int render(const char *dir, const char *scene, const Strategy *k, int spp, uint64_t seed, int threads,
@@ -39,6 +40,7 @@ static int render(const char *dir, const char *scene, const Strategy *k, int spp
     o.cachepoint_retruncate = k->retrunc;
     o.cachepoint_build_linear = k->linear;
     o.cachepoint_cut_size = k->cut_size;
+    o.cachepoint_pooling = k->pooling;
     char err[CANDELA_ERR_LEN];
     int rc = candela_render(&o, img, st, NULL, err);
     CHECK(rc == 0, "%s: %s", scene, err);
@@ -77,6 +79,7 @@ int main(int argc, char **argv) {
         {"cachepoints-novis", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 1, 0, 0, 0},
         {"cachepoints-cut4", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 0, 4},
         {"cachepoints-linear", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 1, 0},
+        {"cachepoints-pooled", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 0, 0, 1},
         {"cachepoints-lin-novis", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 1, 0, 1, 0},
         {"cachepoints-lin-retrunc", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 1, 1, 0},
     };
@@ -132,9 +135,9 @@ int main(int argc, char **argv) {
             candela_image_free(&img);
         }
     }
-    /* determinism of the cache point build and of learning, both builds: 1 vs 2 threads */
-    for (int linear = 0; linear < 2; ++linear) {
-        const Strategy *k = &strategies[linear ? 7 : 4];
+    /* determinism of the cache point build and of learning, both builds and pooled: 1 vs 2 threads */
+    for (int variant = 0; variant < 3; ++variant) {
+        const Strategy *k = &strategies[variant == 0 ? 4 : variant == 1 ? 7 : 8];
         CandelaImage a, b;
         CandelaStats sa, sb;
         if (render(argv[1], scenes[1], k, 16, 5, 1, &a, &sa) != 0) continue;
