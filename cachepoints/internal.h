@@ -79,6 +79,10 @@ struct CachePoints {
     /* 16 nearest neighbours and normalised Eq. 4 weights, shared by both blurs */
     uint32_t *nbr;
     float *nbr_w, *self_w;
+    /* per point: the squared distance within which a query's nearest point is the point or
+     * one of its nbr (0.49^2 of the K-th neighbour's squared distance; INFINITY when it has
+     * fewer than K), the render-time lookup's shortcut around the kd-tree */
+    float *nbr_clear2;
     /* §4.2 scattering sample weights (scatter.c; NULL until cachepoints_build_scatter) */
     float *scatter_near;       /* s(p, e) of each near entry */
     float *scatter_far, *scatter_total; /* per point: the far lists' part, and near + far */
@@ -117,6 +121,8 @@ static inline float *cp_cdf(const CachePoints *cp, uint32_t p, int bin, uint32_t
 /* lookup.c: builds the per-point render tables (near_vis, far_cdf) from w_blurred, for every
  * point (all != 0) or for those marked in tables_dirty. */
 void cp_rebuild_tables(CachePoints *cp, int all);
+/* lookup.c: the nearest point to x (ties: lowest index), hint any point index or CP_NONE. */
+uint32_t cp_nearest_point(const CachePoints *cp, const float x[3], uint32_t hint);
 /* build.c: the parallel-for of the params, or a serial loop (the build and the barrier). */
 void cp_run_parallel(const CachePointParams *p, size_t n, size_t grain, void (*fn)(void *, size_t, size_t, int),
                      void *ctx);

@@ -156,7 +156,7 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
     } else if (strcmp(a, "--light-sampler") == 0) {
         if (!v) return missing(a, err);
         if (candela_light_sampler_parse(v, &o->light_sampler) != 0) {
-            snprintf(err, CANDELA_ERR_LEN, "unknown light sampler '%.200s' (uniform, power, tree, optimal, cachepoints)", v);
+            snprintf(err, CANDELA_ERR_LEN, "unknown light sampler '%.200s' (auto, uniform, power, tree, optimal, cachepoints)", v);
             return -1;
         }
     } else if (strcmp(a, "--light-units") == 0) {
@@ -172,7 +172,8 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
 }
 
 int candela_options_check(const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
-    if (o->volume_inscatter_sampling == 1 && o->light_sampler != CANDELA_LIGHT_SAMPLER_CACHEPOINTS) {
+    if (o->volume_inscatter_sampling == 1 && o->light_sampler != CANDELA_LIGHT_SAMPLER_CACHEPOINTS &&
+        o->light_sampler != CANDELA_LIGHT_SAMPLER_AUTO) { /* auto then picks cache points */
         snprintf(err, CANDELA_ERR_LEN, "--volume-cachepoint-scatter on needs --light-sampler cachepoints");
         return -1;
     }

@@ -9,6 +9,7 @@
  * receiver cosine; the environment is integrated once over its cells (position-independent)
  * and blended over the six planes by max(0, n.a_i)^2, which sums to 1 for a unit n.
  * Every estimate is a deterministic function of (light, p, n). */
+#include <stdlib.h>
 #include <string.h>
 
 #include "lights.h"
@@ -63,6 +64,84 @@ static int area_estimate_samples(const Light *l, vec3 p, vec3 dirs[AREA_ESTIMATE
         ++count;
     }
     return count;
+}
+
+/* --- the estimate table: the same estimates with the position-independent part done once */
+
+int light_estimate_table_build(LightEstimateTable *t, const Lights *ls) {
+    memset(t, 0, sizeof *t);
+    t->first = malloc(((size_t)ls->count + 1) * sizeof *t->first);
+    t->lum = malloc(((size_t)ls->count + 1) * sizeof *t->lum);
+    uint32_t points = 0;
+    for (uint32_t i = 0; t->first && i < ls->count; ++i) {
+        t->first[i] = points;
+        if (ls->lights[i].type == LIGHT_AREA && v3_luminance(ls->lights[i].emission) > 0.0f) points += AREA_ESTIMATE_SAMPLES;
+    }
+    t->point = malloc(((size_t)points + 1) * sizeof *t->point);
+    if (!t->first || !t->lum || !t->point) { light_estimate_table_free(t); return -1; }
+    t->first[ls->count] = points;
+    for (uint32_t i = 0; i < ls->count; ++i) {
+        const Light *l = &ls->lights[i];
+        t->lum[i] = l->type == LIGHT_AREA ? v3_luminance(l->emission) : v3_luminance(l->intensity);
+        LightEstimatePoint *e = t->point + t->first[i];
+        for (uint32_t k = 0; k < t->first[i + 1] - t->first[i]; ++k) {
+            /* exactly area_estimate_samples' points and normals */
+            float u0 = ((float)k + 0.5f) / AREA_ESTIMATE_SAMPLES;
+            float u1 = (float)((k * 7 + 3) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
+            float u2 = (float)((k * 11 + 5) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
+            float tri_pmf, u_tri;
+            uint32_t tri = dist1d_sample_discrete(&l->triangles, u0, &tri_pmf, &u_tri);
+            const float *v = l->world_vertices + 9 * (size_t)tri;
+            vec3 a = v3(v[0], v[1], v[2]), b = v3(v[3], v[4], v[5]), c = v3(v[6], v[7], v[8]);
+            vec2 bc = sample_uniform_triangle(u1, u2);
+            e[k].y = v3_add(v3_add(v3_scale(a, 1.0f - bc.x - bc.y), v3_scale(b, bc.x)), v3_scale(c, bc.y));
+            e[k].ng = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+        }
+    }
+    return 0;
+}
+
+void light_estimate_table_free(LightEstimateTable *t) {
+    free(t->first);
+    free(t->lum);
+    free(t->point);
+    memset(t, 0, sizeof *t);
+}
+
+/* Bit for bit light_contribution_estimate (the same float operations in the same order), with
+ * the area light's 16 points and the luminances read from the table. */
+float light_contribution_estimate_table(const Lights *ls, const LightEstimateTable *t, uint32_t light, vec3 p, vec3 n) {
+    const Light *l = &ls->lights[light];
+    switch (l->type) {
+    case LIGHT_POINT: {
+        vec3 d = v3_sub(l->position, p);
+        float d2 = v3_dot(d, d);
+        if (!(d2 > 0.0f)) return 0.0f;
+        vec3 w = v3_scale(d, 1.0f / sqrtf(d2));
+        return t->lum[light] * receiver_cos(n, w) / d2;
+    }
+    case LIGHT_AREA: {
+        float L = t->lum[light];
+        if (!(L > 0.0f)) return 0.0f;
+        float sum = 0.0f;
+        const LightEstimatePoint *e = t->point + t->first[light];
+        uint32_t count = t->first[light + 1] - t->first[light];
+        for (uint32_t k = 0; k < count; ++k) {
+            vec3 d = v3_sub(e[k].y, p);
+            float d2 = v3_dot(d, d);
+            if (!(d2 > 1e-12f)) continue;
+            vec3 w = v3_scale(d, 1.0f / sqrtf(d2));
+            float cos_l = -v3_dot(e[k].ng, w);
+            if (l->two_sided) cos_l = fabsf(cos_l);
+            if (!(cos_l > 0.0f)) continue;
+            float contrib = L * cos_l / d2 * l->area / AREA_ESTIMATE_SAMPLES;
+            sum += contrib * receiver_cos(n, w);
+        }
+        return sum;
+    }
+    default:
+        return light_contribution_estimate(ls, l, p, n);
+    }
 }
 
 float light_contribution_estimate(const Lights *ls, const Light *l, vec3 p, vec3 n) {

@@ -78,6 +78,14 @@ int light_sampler_create(LightSampler *s, const Lights *lights, const struct Sce
                          char err[CANDELA_ERR_LEN]);
 void light_sampler_free(LightSampler *s);
 
+/* `auto` (the default): the strategy light_sampler_create builds for these lights (never
+ * CANDELA_LIGHT_SAMPLER_AUTO): cache points when in-scattering sampling may run (media, §4.2),
+ * power for one light, optimal (exact per-vertex estimates, no build) up to
+ * LIGHT_SAMPLER_AUTO_EXACT_MAX lights, cache points above. */
+#define LIGHT_SAMPLER_AUTO_EXACT_MAX 16
+CandelaLightSampler light_sampler_auto_choice(const Lights *lights, const struct SceneMedia *media,
+                                              const CandelaOptions *o);
+
 /* The strategies' constructors (light_sampler_create dispatches to them). */
 int light_sampler_uniform_create(LightSampler *s, const Lights *lights);
 int light_sampler_power_create(LightSampler *s, const Lights *lights);

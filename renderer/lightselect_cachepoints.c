@@ -36,6 +36,7 @@ typedef struct CachePointSampler {
     uint8_t *infinite;
     CachePointStats stats;
     double build_seconds;
+    LightEstimateTable estimates; /* the per-vertex near-light weights' precomputed part */
     /* the cut build: the light tree and its view (CachePointTree) */
     LightTree tree;
     CachePointTree tree_view;
@@ -57,9 +58,9 @@ static void cp_estimate7(const void *user, uint32_t light, const float x[3], flo
 }
 
 static float cp_estimate(const void *user, uint32_t light, const float x[3], const float *n) {
-    const Lights *ls = ((const CachePointSampler *)user)->lights;
+    const CachePointSampler *s = user;
     vec3 nn = n ? v3(n[0], n[1], n[2]) : v3s(0.0f);
-    return light_contribution_estimate(ls, &ls->lights[light], v3(x[0], x[1], x[2]), nn);
+    return light_contribution_estimate_table(s->lights, &s->estimates, light, v3(x[0], x[1], x[2]), nn);
 }
 
 /* --- the light tree as the cut build sees it (CachePointTree) */
@@ -521,6 +522,7 @@ static void cp_destroy(void *state) {
     free(s->leaf_light);
     free(s->light_leaf);
     free(s->scatter_grid);
+    light_estimate_table_free(&s->estimates);
     free(s);
 }
 
@@ -544,7 +546,7 @@ static int build(CachePointSampler *s, const Scene *scene, const SceneMedia *med
     const Lights *ls = s->lights;
     s->centroid = malloc((size_t)ls->count * 3 * sizeof(float));
     s->infinite = malloc(ls->count);
-    if (!s->centroid || !s->infinite) return -1;
+    if (!s->centroid || !s->infinite || light_estimate_table_build(&s->estimates, ls) != 0) return -1;
     for (uint32_t i = 0; i < ls->count; ++i) {
         const Light *l = &ls->lights[i];
         vec3 c = l->position;
