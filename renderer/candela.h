@@ -61,6 +61,8 @@ typedef struct CandelaOptions {
     int cachepoint_build_linear;  /* 1: the paper's build (every light at every point); 0: a cut
                                    * through the light tree (the default) */
     uint32_t cachepoint_cut_size; /* cut build: far entries per point; 0: default */
+    uint32_t cachepoint_candidates; /* candidates in object boxes (§3.1.1); 0: scaled with the image */
+    uint32_t cachepoint_pilots;     /* pilot paths (§3.1.1); 0: scaled with the image */
     /* set non-zero (e.g. from a signal handler) to stop after the current batch (the rest of the
      * iteration is abandoned; with checkpoint_path its state is written): the image of the
      * samples done is returned and CandelaStats.interrupted set. NULL: never. */
@@ -139,6 +141,7 @@ typedef struct CandelaStats {
     CandelaLightSampler light_sampler_used; /* the strategy that ran (what `auto` chose; optimal
                                              * when cache points fell back, §3.1.1) */
     double time_cachepoints;       /* cache point build (inside time_build) */
+    double cpu_cachepoints;        /* its CPU seconds, all threads (steadier on a busy machine) */
     uint32_t num_cachepoints, cachepoint_candidates;
     size_t cachepoint_bytes;
     double cachepoint_mean_near, cachepoint_mean_far, cachepoint_mean_clusters; /* entries per point */

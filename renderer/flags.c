@@ -84,6 +84,10 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
         if ((rc = parse_long(a, v, 0, 1 << 24, &n, err)) == 0) o->texture_budget_mb = (uint32_t)n;
     } else if (strcmp(a, "--cachepoint-cut-size") == 0) {
         if ((rc = parse_long(a, v, 1, 1 << 20, &n, err)) == 0) o->cachepoint_cut_size = (uint32_t)n;
+    } else if (strcmp(a, "--cachepoint-candidates") == 0) {
+        if ((rc = parse_long(a, v, 0, 10000000, &n, err)) == 0) o->cachepoint_candidates = (uint32_t)n;
+    } else if (strcmp(a, "--cachepoint-pilots") == 0) {
+        if ((rc = parse_long(a, v, 0, 4000000, &n, err)) == 0) o->cachepoint_pilots = (uint32_t)n;
     } else if (strcmp(a, "--cachepoint-build") == 0) {
         static const char *const names[] = {"cut", "linear", NULL};
         static const int values[] = {0, 1};

@@ -7,6 +7,7 @@
  * record = the visibility counters (§3.2.1), barrier = Eqs. 5-6 and the visibility blur
  * (§3.2.2). The per-vertex token (LightVertex) is the point + 1 and the near lights' summed
  * weight, so the MIS pdf at the next wave costs one light's weight. */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -21,8 +22,17 @@
 #include "sort.h"
 #include "threads.h"
 
+/* Candidates (§3.1.1): the paper's 100,000 in object boxes and 65,536 stratified pilot paths
+ * (§3.1.1 leaves their count open) at CANDIDATE_FULL_PIXELS or more, in proportion to the
+ * pixels below (at least the minima). The merge passes keep about one point per pixel
+ * footprint (pass 1) and per 3 pixels (pass 2's floor, §3.1.4), so a smaller image keeps
+ * fewer points from the same candidates: the rest was build time spent on points merged
+ * away (160x90 on the street: most of its fixed cost). */
 #define BBOX_CANDIDATES 100000u
-#define PILOT_GRID 256u           /* 65,536 stratified pilot paths (§3.1.1 leaves the count open) */
+#define BBOX_CANDIDATES_MIN 10000u
+#define PILOT_GRID 256u           /* at full size: 256 x 256 pilot paths */
+#define PILOT_PATHS_MIN 4096u
+#define CANDIDATE_FULL_PIXELS (640.0 * 360.0)
 #define PILOT_KEEP 0.5f
 #define PILOT_CAP 1000000u
 #define CANDIDATE_SEED_SALT 0xcac4e9017ull
@@ -35,7 +45,7 @@ typedef struct CachePointSampler {
     float *centroid;
     uint8_t *infinite;
     CachePointStats stats;
-    double build_seconds;
+    double build_seconds, build_cpu_seconds;
     LightEstimateTable estimates; /* the per-vertex near-light weights' precomputed part */
     /* the cut build: the light tree and its view (CachePointTree) */
     LightTree tree;
@@ -166,10 +176,22 @@ static int push(Candidates *c, vec3 p) {
     return 0;
 }
 
-/* 100,000 points in the instances' world boxes in proportion to (padded) volume; budget split
+/* The candidate counts for this render: the options', else scaled with the image (above). */
+static void candidate_counts(const Scene *scene, const CandelaOptions *o, uint32_t *bbox, uint32_t *pilot_grid) {
+    double f = (double)scene->camera.width * (double)scene->camera.height / CANDIDATE_FULL_PIXELS;
+    if (!(f < 1.0)) f = 1.0;
+    double b = o->cachepoint_candidates ? (double)o->cachepoint_candidates : fmax(BBOX_CANDIDATES * f, BBOX_CANDIDATES_MIN);
+    double paths = o->cachepoint_pilots ? (double)o->cachepoint_pilots
+                                        : fmax((double)PILOT_GRID * PILOT_GRID * f, PILOT_PATHS_MIN);
+    *bbox = (uint32_t)lrint(b);
+    *pilot_grid = (uint32_t)lrint(ceil(sqrt(paths))); /* a square grid of strata over the image */
+    if (*pilot_grid < 1) *pilot_grid = 1;
+}
+
+/* `budget` points in the instances' world boxes in proportion to (padded) volume; budget split
  * by largest remainder in instance order; positions from the counter-based RNG keyed by
  * (seed, instance, k), so they never depend on threads (§3.1.1). */
-static int bbox_candidates(const Scene *scene, const SceneMedia *media, uint64_t seed, Candidates *c) {
+static int bbox_candidates(const Scene *scene, const SceneMedia *media, uint64_t seed, uint32_t budget, Candidates *c) {
     /* the boxes: instances, then VDB volumes (a medium's vertices need points inside it) */
     uint32_t ni = scene->io.num_instances, n = ni + (media ? media->num_vdb : 0);
     if (n == 0) return 0;
@@ -197,12 +219,12 @@ static int bbox_candidates(const Scene *scene, const SceneMedia *media, uint64_t
     }
     uint32_t assigned = 0;
     for (uint32_t i = 0; i < n && total > 0.0; ++i) {
-        double share = BBOX_CANDIDATES * vol[i] / total;
+        double share = budget * vol[i] / total;
         quota[i] = (uint32_t)share;
         rem[i] = share - quota[i];
         assigned += quota[i];
     }
-    while (total > 0.0 && assigned < BBOX_CANDIDATES) { /* largest remainder, lowest index wins ties */
+    while (total > 0.0 && assigned < budget) { /* largest remainder, lowest index wins ties */
         uint32_t best = 0;
         for (uint32_t i = 1; i < n; ++i) if (rem[i] > rem[best]) best = i;
         if (!(rem[best] > 0.0)) break;
@@ -229,14 +251,14 @@ static int bbox_candidates(const Scene *scene, const SceneMedia *media, uint64_t
 /* Pilot paths (§3.1.1): a stratified grid of camera rays, their first hit and one cosine
  * bounce, and where the camera ray crosses a VDB volume a point in it; each vertex kept with
  * probability 1/2 (fewer paths than §3.1.1 uses, half kept: the merge passes thin them anyway). */
-static int pilot_candidates(const Scene *scene, const SceneMedia *media, uint64_t seed, Candidates *c) {
+static int pilot_candidates(const Scene *scene, const SceneMedia *media, uint64_t seed, uint32_t grid, Candidates *c) {
     const Camera *cam = &scene->camera;
     uint32_t kept = 0;
-    for (uint32_t j = 0; j < PILOT_GRID; ++j) {
-        for (uint32_t i = 0; i < PILOT_GRID; ++i) {
-            uint64_t key = rng_path_key(seed ^ (CANDIDATE_SEED_SALT + 1), j * PILOT_GRID + i, 0);
-            float fx = ((float)i + rng_uniform(key, 0)) / PILOT_GRID * (float)cam->width;
-            float fy = ((float)j + rng_uniform(key, 1)) / PILOT_GRID * (float)cam->height;
+    for (uint32_t j = 0; j < grid; ++j) {
+        for (uint32_t i = 0; i < grid; ++i) {
+            uint64_t key = rng_path_key(seed ^ (CANDIDATE_SEED_SALT + 1), j * grid + i, 0);
+            float fx = ((float)i + rng_uniform(key, 0)) / (float)grid * (float)cam->width;
+            float fy = ((float)j + rng_uniform(key, 1)) / (float)grid * (float)cam->height;
             vec3 o, d;
             camera_generate_ray(cam, fx, fy, &o, &d);
             for (int bounce = 0; bounce < 2; ++bounce) {
@@ -503,6 +525,7 @@ static int cp_load_learned(void *state, FILE *in) {
 static void cp_report(const void *state, CandelaStats *st) {
     const CachePointSampler *s = state;
     st->time_cachepoints = s->build_seconds;
+    st->cpu_cachepoints = s->build_cpu_seconds;
     st->num_cachepoints = cachepoints_count(s->cp);
     st->cachepoint_candidates = s->stats.candidates;
     st->cachepoint_bytes = s->stats.bytes;
@@ -569,7 +592,10 @@ static int build(CachePointSampler *s, const Scene *scene, const SceneMedia *med
     if (!o->cachepoint_build_linear && setup_tree_view(s) != 0) return -1;
 
     Candidates cand = {0};
-    if (bbox_candidates(scene, media, o->seed, &cand) != 0 || pilot_candidates(scene, media, o->seed, &cand) != 0 ||
+    uint32_t bbox_count, pilot_grid;
+    candidate_counts(scene, o, &bbox_count, &pilot_grid);
+    if (bbox_candidates(scene, media, o->seed, bbox_count, &cand) != 0 ||
+        pilot_candidates(scene, media, o->seed, pilot_grid, &cand) != 0 ||
         sort_candidates(&cand) != 0) {
         free(cand.xyz);
         return -1;
@@ -602,7 +628,7 @@ int light_sampler_cachepoints_create(LightSampler *ls, const Lights *lights, con
                                      char err[CANDELA_ERR_LEN]) {
     int rc = 0;
     if (lights->count > 0) {
-        double t0 = clock_seconds();
+        double t0 = clock_seconds(), c0 = clock_cpu_seconds();
         CachePointSampler *s = calloc(1, sizeof *s);
         if (!s) goto oom;
         s->lights = lights;
@@ -619,6 +645,7 @@ int light_sampler_cachepoints_create(LightSampler *ls, const Lights *lights, con
             if (rc_scatter != 0) { cp_destroy(s); goto oom; }
         }
         s->build_seconds = clock_seconds() - t0;
+        s->build_cpu_seconds = clock_cpu_seconds() - c0;
         if (s->cp) {
             *ls = (LightSampler){inscatter ? &CACHEPOINT_INSCATTER_OPS : &CACHEPOINT_OPS, s, lights->count};
             return 0;

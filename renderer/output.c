@@ -94,9 +94,9 @@ static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s) 
     fprintf(f, "  \"textures\": {\"count\": %u, \"count_8bit\": %u, \"bytes\": %llu},\n", s->num_textures,
             s->num_textures_8bit, (unsigned long long)s->texture_bytes);
     fprintf(f,
-            "  \"cachepoints\": {\"build\": \"%s\", \"build_seconds\": %.6f, \"candidates\": %u, \"points\": %u, "
+            "  \"cachepoints\": {\"build\": \"%s\", \"build_seconds\": %.6f, \"build_cpu_seconds\": %.6f, \"candidates\": %u, \"points\": %u, "
             "\"bytes\": %zu, \"mean_near\": %.3f, \"mean_far\": %.3f, \"mean_clusters\": %.3f},\n",
-            o->cachepoint_build_linear ? "linear" : "cut", s->time_cachepoints, s->cachepoint_candidates,
+            o->cachepoint_build_linear ? "linear" : "cut", s->time_cachepoints, s->cpu_cachepoints, s->cachepoint_candidates,
             s->num_cachepoints, s->cachepoint_bytes, s->cachepoint_mean_near, s->cachepoint_mean_far,
             s->cachepoint_mean_clusters);
     fprintf(f, "  \"volumes\": {\"count\": %u, \"collisions\": %llu, \"capped_walks\": %llu},\n", s->num_volumes,
