@@ -116,11 +116,12 @@ void light_contribution_estimate7(const Lights *ls, const Light *l, vec3 p, floa
  * points and normals, the luminances): light_contribution_estimate_table returns bit for bit
  * light_contribution_estimate, at a fraction of the cost for area lights (per-vertex users:
  * the optimal strategy, cache points' near lists). 0 ok, -1 out of memory. */
-typedef struct LightEstimatePoint { vec3 y, ng; } LightEstimatePoint;
+/* an area light's 16 estimate points and their triangles' normals, SoA (one vector loop) */
+typedef struct LightEstimatePoints { float y[3][16], ng[3][16]; } LightEstimatePoints;
 typedef struct LightEstimateTable {
-    uint32_t *first;            /* per light + 1: its points are point[first[i], first[i + 1]) */
+    uint32_t *slot;             /* per light: its entry in points (UINT32_MAX: not an area light) */
     float *lum;                 /* per light: luminance of the emission (area) or intensity */
-    LightEstimatePoint *point;
+    LightEstimatePoints *points;
 } LightEstimateTable;
 int light_estimate_table_build(LightEstimateTable *t, const Lights *ls);
 void light_estimate_table_free(LightEstimateTable *t);
