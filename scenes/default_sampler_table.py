@@ -84,12 +84,14 @@ def render(args, scene, out, sampler, spp, seed):
 
 
 def oiio_mean(args):
-    r = subprocess.run(["oiiotool"] + args + ["--printstats"], capture_output=True, text=True)
+    """Mean over the pixels and channels (oiiotool prints 6 decimals: the values are scaled by
+    1e9 first, so variances of 1e-6 keep their digits)."""
+    r = subprocess.run(["oiiotool"] + args + ["--mulc", "1e9", "--printstats"], capture_output=True, text=True)
     m = re.search(r"Stats Avg: ([0-9.eE+\-naif ]+)", r.stdout)
     if not m:
         sys.exit("oiiotool gave no stats for %s:\n%s" % (" ".join(args), r.stdout + r.stderr))
     vals = [float(x) for x in m.group(1).split()]
-    return sum(vals) / len(vals)
+    return sum(vals) / len(vals) * 1e-9
 
 
 def mse(a, b):
