@@ -82,9 +82,15 @@ CandelaLightSampler light_sampler_auto_choice(const Lights *lights, const struct
     /* one light (or none): every strategy picks it with probability 1; power does no work */
     if (lights->count <= 1) return CANDELA_LIGHT_SAMPLER_POWER;
     /* few lights: every light's exact estimate per vertex (the distribution cache points
-     * approximate; the paper itself falls back to it below 10 points, §3.1.1), without a build */
-    if (lights->count <= LIGHT_SAMPLER_AUTO_EXACT_MAX) return CANDELA_LIGHT_SAMPLER_OPTIMAL;
-    return CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
+     * approximate, narrow spot cones included; the paper itself falls back to it below 10
+     * points, §3.1.1), without a build, while that costs less per vertex than about
+     * LIGHT_SAMPLER_AUTO_EXACT_COST point lights (an area light's estimate sums 16 points:
+     * it counts LIGHT_SAMPLER_AUTO_AREA_COST) */
+    if (lights->count > LIGHT_SAMPLER_SCRATCH) return CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
+    uint32_t cost = 0;
+    for (uint32_t i = 0; i < lights->count; ++i)
+        cost += lights->lights[i].type == LIGHT_AREA ? LIGHT_SAMPLER_AUTO_AREA_COST : 1u;
+    return cost <= LIGHT_SAMPLER_AUTO_EXACT_COST ? CANDELA_LIGHT_SAMPLER_OPTIMAL : CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
 }
 
 /* ---------------------------------------------------------------- dispatch */

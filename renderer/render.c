@@ -203,8 +203,6 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
         return -1;
     }
     r->have_sampler = 1;
-    if (candela_light_sampler_parse(r->sampler.ops->name, &stats->light_sampler_used) != 0)
-        stats->light_sampler_used = o->light_sampler;
     light_sampler_report(&r->sampler, stats);
     if (integrator_init(&r->ig, o, &r->scene, &r->lights, &r->media, &r->sampler, batch) != 0) {
         snprintf(err, CANDELA_ERR_LEN, "%s: out of memory allocating the %dx%d film and %u paths in flight",
