@@ -32,6 +32,11 @@ static void blur_weights(CachePoints *cp, size_t i) {
         z += w[j];
     }
     cp->self_w[i] = 1.0f / z;
+    /* render-time 1-NN shortcut (lookup.c, nearest_point): a query closer to point i than
+     * 0.49 of its K-th neighbour's distance has its nearest point among i and the K (any
+     * nearer point q has |q - i| <= 2 |x - i| < 0.98 d_K, so q is one of them); with fewer
+     * than K other points every point is one of them */
+    cp->nbr_clear2[i] = k < K ? INFINITY : 0.2401f * dfar2;
     for (uint32_t j = 0; j < K; ++j) {
         cp->nbr[i * K + j] = j < k ? nb[j] : CP_NONE;
         cp->nbr_w[i * K + j] = j < k ? w[j] / z : 0.0f;
@@ -225,7 +230,8 @@ int cp_blur_far(CachePoints *cp, const Dist *dist, Dist *blurred) {
     cp->nbr = malloc(n * K * sizeof(uint32_t) + 1);
     cp->nbr_w = malloc(n * K * sizeof(float) + 1);
     cp->self_w = malloc(n * sizeof(float));
-    if (!cp->nbr || !cp->nbr_w || !cp->self_w) return -1;
+    cp->nbr_clear2 = malloc(n * sizeof(float) + 1);
+    if (!cp->nbr || !cp->nbr_w || !cp->self_w || !cp->nbr_clear2) return -1;
     BlurCtx bc = {cp, dist, blurred, 0};
     cp_run_parallel(&cp->params, n, 64, cp->params.build_cut ? blur_cut_range : blur_linear_range, &bc);
     return bc.failed ? -1 : 0;

@@ -81,6 +81,10 @@ struct CachePoints {
     /* 16 nearest neighbours and normalised Eq. 4 weights, shared by both blurs */
     uint32_t *nbr;
     float *nbr_w, *self_w;
+    /* per point: the squared distance within which a query's nearest point is the point or
+     * one of its nbr (0.49^2 of the K-th neighbour's squared distance; INFINITY when it has
+     * fewer than K), the render-time lookup's shortcut around the kd-tree */
+    float *nbr_clear2;
     /* §4.2 scattering sample weights (scatter.c; NULL until cachepoints_build_scatter) */
     float *scatter_near;       /* s(p, e) of each near entry */
     float *scatter_far, *scatter_total; /* per point: the far lists' part, and near + far */
@@ -125,6 +129,8 @@ void cp_bin_blend(const float *n, float b[CP_FAR_BINS]);
  * needs from the counters pooled over its blur neighbours, into w_pool (allocated on first use).
  * 0 ok, -1 out of memory. */
 int cp_pool_visibility(CachePoints *cp);
+/* lookup.c: the nearest point to x (ties: lowest index), hint any point index or CP_NONE. */
+uint32_t cp_nearest_point(const CachePoints *cp, const float x[3], uint32_t hint);
 /* build.c: the parallel-for of the params, or a serial loop (the build and the barrier). */
 void cp_run_parallel(const CachePointParams *p, size_t n, size_t grain, void (*fn)(void *, size_t, size_t, int),
                      void *ctx);

@@ -265,9 +265,34 @@ static void vertex_near(const CachePoints *cp, const CachePointLights *L, const 
     v->near_total = t;
 }
 
+/* The nearest point to x (ties: lowest index), exactly kdtree_nearest_hint's answer. Hits
+ * arrive sorted, so x is usually near the hint (the previous vertex's point): inside the
+ * hint's clearance, among the hint and its blur neighbours (nbr_clear2, see blur.c), which
+ * costs K + 1 distances instead of a tree walk; else the tree, bounded by the hint. The
+ * distances are kd_dist2's float formula (kdtree.h), so ties resolve as the tree's do. */
+uint32_t cp_nearest_point(const CachePoints *cp, const float x[3], uint32_t hint) {
+    if (hint < cp->n && cp->nbr_clear2) {
+        const float *h = cp->pos + 3 * (size_t)hint;
+        float dx = h[0] - x[0], dy = h[1] - x[1], dz = h[2] - x[2];
+        float best_d = dx * dx + dy * dy + dz * dz;
+        if (best_d < cp->nbr_clear2[hint]) {
+            uint32_t K = cp->params.blur_neighbours, best = hint;
+            const uint32_t *nb = cp->nbr + (size_t)hint * K;
+            for (uint32_t j = 0; j < K && nb[j] != CP_NONE; ++j) {
+                const float *q = cp->pos + 3 * (size_t)nb[j];
+                float ex = q[0] - x[0], ey = q[1] - x[1], ez = q[2] - x[2];
+                float d = ex * ex + ey * ey + ez * ez;
+                if (d < best_d || (d == best_d && nb[j] < best)) { best_d = d; best = nb[j]; }
+            }
+            return best;
+        }
+    }
+    return kdtree_nearest_hint(&cp->kd, x, hint, NULL);
+}
+
 void cachepoints_vertex(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
                         uint32_t hint, CachePointVertex *v, float *near_w) {
-    v->point = kdtree_nearest_hint(&cp->kd, x, hint, NULL);
+    v->point = cp_nearest_point(cp, x, hint);
     vertex_near(cp, L, x, n, v, near_w);
 }
 

@@ -74,12 +74,8 @@ static void neighbour_range(void *vctx, size_t b, size_t e, int thread) {
     }
 }
 
-static int greedy_merge(const CachePointParams *P, const float *pts, const KdTree *kd, uint32_t n,
-                        const float *radius, const CachePointCamera *camera, uint8_t *deleted) {
-    uint32_t *nbr = malloc((size_t)n * P->knn * sizeof *nbr);
-    if (!nbr) return -1;
-    NeighbourCtx c = {pts, kd, P->knn, radius, camera, nbr};
-    cp_run_parallel(P, n, 512, neighbour_range, &c);
+/* The sequential thinning over a neighbour table (knn per point, UINT32_MAX padded). */
+static void thin(const CachePointParams *P, const uint32_t *nbr, uint32_t n, uint8_t *deleted) {
     for (uint32_t i = 0; i < n; ++i) {
         if (deleted[i]) continue;
         for (uint32_t j = 0; j < P->knn; ++j) {
@@ -87,6 +83,15 @@ static int greedy_merge(const CachePointParams *P, const float *pts, const KdTre
             if (q != UINT32_MAX && q > i) deleted[q] = 1;
         }
     }
+}
+
+static int greedy_merge(const CachePointParams *P, const float *pts, const KdTree *kd, uint32_t n,
+                        const float *radius, const CachePointCamera *camera, uint8_t *deleted) {
+    uint32_t *nbr = malloc((size_t)n * P->knn * sizeof *nbr);
+    if (!nbr) return -1;
+    NeighbourCtx c = {pts, kd, P->knn, radius, camera, nbr};
+    cp_run_parallel(P, n, 512, neighbour_range, &c);
+    thin(P, nbr, n, deleted);
     free(nbr);
     return 0;
 }
@@ -160,27 +165,50 @@ typedef struct Pass2Ctx {
     float r0_fallback;
     float *r0;
     float *radius;
+    /* the kNN of every point, found once by the r0 pass and reused by the M_avg pass and the
+     * merge (knn per point: indices UINT32_MAX padded, squared distances; the count) */
+    uint32_t *nbr;
+    float *nbr_d2;
+    uint8_t *nbr_count;
 } Pass2Ctx;
 
 static void pass2_range(void *vctx, size_t b, size_t e, int thread) {
     (void)thread;
     Pass2Ctx *c = vctx;
-    uint32_t nb[64];
-    float d2[64];
     for (size_t i = b; i < e; ++i) {
         const float *x = c->pts + 3 * i;
-        uint32_t k = kdtree_knn(c->kd, x, c->knn, INFINITY, (uint32_t)i, nb, d2);
+        uint32_t *nb = c->nbr + i * c->knn;
+        float *d2 = c->nbr_d2 + i * c->knn;
+        uint32_t k;
         if (!c->omni) {
+            k = kdtree_knn(c->kd, x, c->knn, INFINITY, (uint32_t)i, nb, d2);
+            c->nbr_count[i] = (uint8_t)k;
             float s = 0.0f;
             for (uint32_t j = 0; j < k; ++j) s += sqrtf(d2[j]);
             c->r0[i] = k ? s / (float)k : c->r0_fallback;
             continue;
         }
+        k = c->nbr_count[i];
         float msum = 0.0f;
         for (uint32_t j = 0; j < k; ++j) msum += similarity(&c->omni[i], &c->omni[nb[j]]);
         float mavg = k ? msum / (float)k : 1.0f, r0 = c->r0[i];
         /* r_p = r0 M_avg, limited to 25% of r0 and to at least 3 pixels (§3.1.4) */
         c->radius[i] = fmaxf(fmaxf(r0 * mavg, 0.25f * r0), 3.0f * pixel_footprint(c->camera, x));
+    }
+}
+
+/* The merge's neighbours within r_p: the prefix of the stored kNN (sorted by distance, then
+ * index) with d^2 <= r_p^2, exactly what a kNN query limited to that radius returns (the knn
+ * nearest within r are the nearest knn when they all lie within r). */
+static void pass2_within_radius(void *vctx, size_t b, size_t e, int thread) {
+    (void)thread;
+    Pass2Ctx *c = vctx;
+    for (size_t i = b; i < e; ++i) {
+        uint32_t *nb = c->nbr + i * c->knn;
+        const float *d2 = c->nbr_d2 + i * c->knn;
+        float r = c->radius[i], r2 = r * r;
+        for (uint32_t j = 0; j < c->knn; ++j)
+            if (j >= c->nbr_count[i] || !(d2[j] <= r2)) nb[j] = UINT32_MAX;
     }
 }
 
@@ -191,20 +219,27 @@ int cp_merge_pass2(const CachePoints *keys, const CachePointLights *L, const Cac
     float *r0 = malloc(n * sizeof(float));
     OmniDist *omni = calloc(n, sizeof *omni);
     uint8_t *deleted = calloc(n, 1);
+    uint32_t *nbr = malloc((size_t)n * P->knn * sizeof *nbr + 1);
+    float *nbr_d2 = malloc((size_t)n * P->knn * sizeof *nbr_d2 + 1);
+    uint8_t *nbr_count = malloc((size_t)n + 1);
     KdTree kd;
-    int failed = !r0 || !omni || !deleted || kdtree_build(&kd, pts, n) != 0;
+    int failed = !r0 || !omni || !deleted || !nbr || !nbr_d2 || !nbr_count || kdtree_build(&kd, pts, n) != 0;
     if (!failed) {
-        Pass2Ctx p2 = {pts, &kd, camera, NULL, P->knn, 0.01f * scene_scale, r0, radius};
+        Pass2Ctx p2 = {pts, &kd, camera, NULL, P->knn, 0.01f * scene_scale, r0, radius, nbr, nbr_d2, nbr_count};
         cp_run_parallel(P, n, 512, pass2_range, &p2);
+        kdtree_free(&kd); /* the neighbours are stored: no query follows */
         DistCtx oc = {pts, r0, L, P, keys, dist, omni, 0};
         failed = cp_build_distributions(&oc, n) != 0;
         if (!failed) {
             p2.omni = omni;
             cp_run_parallel(P, n, 256, pass2_range, &p2);
-            failed = greedy_merge(P, pts, &kd, n, radius, camera, deleted) != 0;
+            cp_run_parallel(P, n, 512, pass2_within_radius, &p2);
+            thin(P, nbr, n, deleted);
         }
-        kdtree_free(&kd);
     }
+    free(nbr);
+    free(nbr_d2);
+    free(nbr_count);
     for (uint32_t i = 0; omni && i < n; ++i) { free(omni[i].key); free(omni[i].p); }
     free(omni);
     if (!failed) *survivors = compact(pts, radius, deleted, n);

@@ -147,7 +147,7 @@ float cachepoints_scatter_far(const CachePoints *cp, uint32_t point) {
 }
 
 uint32_t cachepoints_nearest_hint(const CachePoints *cp, const float x[3], uint32_t hint, float *radius) {
-    uint32_t p = kdtree_nearest_hint(&cp->kd, x, hint, NULL);
+    uint32_t p = cp_nearest_point(cp, x, hint);
     if (radius) *radius = cp->radius[p];
     return p;
 }

@@ -16,7 +16,8 @@ typedef enum {
     CANDELA_LIGHT_SAMPLER_POWER = 1,
     CANDELA_LIGHT_SAMPLER_TREE = 2,  /* light BVH (Conty Estevez & Kulla 2018), renderer/lighttree.h */
     CANDELA_LIGHT_SAMPLER_OPTIMAL = 3, /* every light's estimate per vertex: the paper's reference */
-    CANDELA_LIGHT_SAMPLER_CACHEPOINTS = 4 /* cache points (Li et al. 2024), cachepoints/ */
+    CANDELA_LIGHT_SAMPLER_CACHEPOINTS = 4, /* cache points (Li et al. 2024), cachepoints/ */
+    CANDELA_LIGHT_SAMPLER_AUTO = 5 /* the default: one of the above chosen per scene (light_sampler.c) */
 } CandelaLightSampler;
 
 /* --guiding: directional sampling at surfaces (and media) from the learned guiding field */
@@ -72,6 +73,8 @@ typedef struct CandelaOptions {
     uint32_t cachepoint_cut_size; /* cut build: far entries per point; 0: default */
     int cachepoint_pooling;       /* 1: slots with too few attempts pool their neighbours' visibility counters;
                                    * 2: and then (cut build) their point's counters of nearby lights */
+    uint32_t cachepoint_candidates; /* candidates in object boxes (§3.1.1); 0: scaled with the image */
+    uint32_t cachepoint_pilots;     /* pilot paths (§3.1.1); 0: scaled with the image */
     /* set non-zero (e.g. from a signal handler) to stop after the current batch (the rest of the
      * iteration is abandoned; with checkpoint_path its state is written): the image of the
      * samples done is returned and CandelaStats.interrupted set. NULL: never. */
@@ -129,7 +132,7 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
 int candela_options_check(const CandelaOptions *o, char err[CANDELA_ERR_LEN]);
 
 void candela_options_default(CandelaOptions *o);
-/* "uniform", "power", "tree", "optimal", "cachepoints" */
+/* "uniform", "power", "tree", "optimal", "cachepoints", "auto" */
 const char *candela_light_sampler_name(CandelaLightSampler s);
 int candela_light_sampler_parse(const char *name, CandelaLightSampler *s); /* 0 ok */
 
@@ -149,7 +152,10 @@ typedef struct CandelaStats {
      * counts: 8-bit files at 4 bytes per texel, the others at 16 */
     uint32_t num_textures, num_textures_8bit;
     uint64_t texture_bytes;
+    CandelaLightSampler light_sampler_used; /* the strategy that ran (what `auto` chose; optimal
+                                             * when cache points fell back, §3.1.1) */
     double time_cachepoints;       /* cache point build (inside time_build) */
+    double cpu_cachepoints;        /* its CPU seconds, all threads (steadier on a busy machine) */
     uint32_t num_cachepoints, cachepoint_candidates;
     size_t cachepoint_bytes;
     double cachepoint_mean_near, cachepoint_mean_far, cachepoint_mean_clusters; /* entries per point */

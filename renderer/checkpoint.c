@@ -82,7 +82,7 @@ int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t
                      "max_volume_bounces=%d volume_emission_sampling=%d volume_cachepoint_scatter=%d "
                      "light_sampler=%s light_units=%d env=%s env_strength=%a max_iteration_spp=%d "
                      "optimal_occlusion=%d cachepoint_visibility=%d cachepoint_retruncate=%d cachepoint_build=%s "
-                     "cachepoint_cut_size=%u guiding=%s guide_spatial_threshold=%a path_regularization=%a "
+                     "cachepoint_cut_size=%u cachepoint_candidates=%u cachepoint_pilots=%u guiding=%s guide_spatial_threshold=%a path_regularization=%a "
                      "guide_spatial_filter=%d guide_training_spp=%d aov_recorder_debug=%d recorder_mb=%u "
                      "recorder_budget=%d",
                      h, width, height, o->spp, o->seed, o->camera_name ? o->camera_name : "-", o->max_depth,
@@ -90,7 +90,7 @@ int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t
                      candela_light_sampler_name(o->light_sampler), (int)o->light_units, o->env_path ? o->env_path : "-",
                      (double)o->env_strength, o->max_iteration_spp, o->optimal_occlusion, !o->cachepoint_no_visibility,
                      o->cachepoint_retruncate, o->cachepoint_build_linear ? "linear" : "cut", o->cachepoint_cut_size,
-                     o->guiding == CANDELA_GUIDING_MIS ? "mis" : o->guiding == CANDELA_GUIDING_RIS ? "ris" : "off",
+                     o->cachepoint_candidates, o->cachepoint_pilots, o->guiding == CANDELA_GUIDING_MIS ? "mis" : o->guiding == CANDELA_GUIDING_RIS ? "ris" : "off",
                      (double)o->guide_spatial_threshold, (double)o->path_regularization,
                      o->guide_spatial_filter, o->guide_training_spp, o->aov_recorder_debug, o->recorder_mb,
                      o->recorder_budget);

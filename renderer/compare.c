@@ -341,14 +341,15 @@ static void reference_key(const CandelaOptions *o, char *key, size_t size) {
     snprintf(key, size,
              "candela %s; scene %s %lld %lld.%09ld; camera %s; res %dx%d; spp %d; seed %llu; depth %d; volume bounces %d; "
              "emission sampling %d; inscatter %d; sampler %d; units %d; env %s %lld %lld.%09ld x %.9g; iteration cap %d; "
-             "occlusion %d; no visibility %d; retruncate %d; linear %d; cut %u; guiding %d; threshold %.9g; "
+             "occlusion %d; no visibility %d; retruncate %d; linear %d; cut %u; candidates %u; pilots %u; guiding %d; threshold %.9g; "
              "regularization %.9g; filter %d; training %d; recorder %d %u; textures %u\n",
              CANDELA_VERSION, o->scene_path, (long long)sc.st_size, (long long)sc.st_mtim.tv_sec, sc.st_mtim.tv_nsec,
              o->camera_name ? o->camera_name : "-", o->width, o->height, o->spp, (unsigned long long)o->seed, o->max_depth,
              o->max_volume_bounces, o->volume_emission_sampling, o->volume_inscatter_sampling, (int)o->light_sampler,
              (int)o->light_units, o->env_path ? o->env_path : "-", (long long)env.st_size, (long long)env.st_mtim.tv_sec,
              env.st_mtim.tv_nsec, o->env_strength, o->max_iteration_spp, o->optimal_occlusion, o->cachepoint_no_visibility,
-             o->cachepoint_retruncate, o->cachepoint_build_linear, o->cachepoint_cut_size, (int)o->guiding,
+             o->cachepoint_retruncate, o->cachepoint_build_linear, o->cachepoint_cut_size, o->cachepoint_candidates,
+             o->cachepoint_pilots, (int)o->guiding,
              o->guide_spatial_threshold, o->path_regularization, o->guide_spatial_filter, o->guide_training_spp,
              o->recorder_budget, o->recorder_mb, o->texture_budget_mb);
     /* issue 14's image-changing options, before the newline */

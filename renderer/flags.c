@@ -88,6 +88,10 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
         static const char *const names[] = {"off", "points", "lights", NULL};
         static const int values[] = {0, 1, 2};
         if ((rc = parse_choice(a, v, names, values, &c, NULL, err)) == 0) o->cachepoint_pooling = c;
+    } else if (strcmp(a, "--cachepoint-candidates") == 0) {
+        if ((rc = parse_long(a, v, 0, 10000000, &n, err)) == 0) o->cachepoint_candidates = (uint32_t)n;
+    } else if (strcmp(a, "--cachepoint-pilots") == 0) {
+        if ((rc = parse_long(a, v, 0, 4000000, &n, err)) == 0) o->cachepoint_pilots = (uint32_t)n;
     } else if (strcmp(a, "--cachepoint-build") == 0) {
         static const char *const names[] = {"cut", "linear", NULL};
         static const int values[] = {0, 1};
@@ -173,7 +177,7 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
     } else if (strcmp(a, "--light-sampler") == 0) {
         if (!v) return missing(a, err);
         if (candela_light_sampler_parse(v, &o->light_sampler) != 0) {
-            snprintf(err, CANDELA_ERR_LEN, "unknown light sampler '%.200s' (uniform, power, tree, optimal, cachepoints)", v);
+            snprintf(err, CANDELA_ERR_LEN, "unknown light sampler '%.200s' (auto, uniform, power, tree, optimal, cachepoints)", v);
             return -1;
         }
     } else if (strcmp(a, "--light-model") == 0) {
@@ -193,12 +197,14 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
 }
 
 int candela_options_check(const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
-    if (o->volume_inscatter_sampling == 1 && o->light_sampler != CANDELA_LIGHT_SAMPLER_CACHEPOINTS) {
+    if (o->volume_inscatter_sampling == 1 && o->light_sampler != CANDELA_LIGHT_SAMPLER_CACHEPOINTS &&
+        o->light_sampler != CANDELA_LIGHT_SAMPLER_AUTO) { /* auto then picks cache points */
         snprintf(err, CANDELA_ERR_LEN, "--volume-cachepoint-scatter on needs --light-sampler cachepoints");
         return -1;
     }
-    if ((o->aov_selection || o->cachepoint_dump_path) && o->light_sampler != CANDELA_LIGHT_SAMPLER_CACHEPOINTS) {
-        snprintf(err, CANDELA_ERR_LEN, "%s needs --light-sampler cachepoints",
+    if ((o->aov_selection || o->cachepoint_dump_path) && o->light_sampler != CANDELA_LIGHT_SAMPLER_CACHEPOINTS &&
+        o->light_sampler != CANDELA_LIGHT_SAMPLER_AUTO) { /* auto: a warning when it chooses another */
+        snprintf(err, CANDELA_ERR_LEN, "%s needs --light-sampler cachepoints (or auto)",
                  o->aov_selection ? "--aov cachepoint" : "--dump-cachepoints");
         return -1;
     }

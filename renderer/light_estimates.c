@@ -9,6 +9,7 @@
  * receiver cosine; the environment is integrated once over its cells (position-independent)
  * and blended over the six planes by max(0, n.a_i)^2, which sums to 1 for a unit n.
  * Every estimate is a deterministic function of (light, p, n). */
+#include <stdlib.h>
 #include <string.h>
 
 #include "lights.h"
@@ -63,6 +64,113 @@ static int area_estimate_samples(const Light *l, vec3 p, vec3 dirs[AREA_ESTIMATE
         ++count;
     }
     return count;
+}
+
+/* --- the estimate table: the same estimates with the position-independent part done once */
+
+int light_estimate_table_build(LightEstimateTable *t, const Lights *ls) {
+    memset(t, 0, sizeof *t);
+    t->slot = malloc(((size_t)ls->count + 1) * sizeof *t->slot);
+    t->lum = malloc(((size_t)ls->count + 1) * sizeof *t->lum);
+    uint32_t areas = 0;
+    for (uint32_t i = 0; t->slot && i < ls->count; ++i) {
+        int area = ls->lights[i].type == LIGHT_AREA && v3_luminance(ls->lights[i].emission) > 0.0f;
+        t->slot[i] = area ? areas++ : UINT32_MAX;
+    }
+    t->points = malloc(((size_t)areas + 1) * sizeof *t->points);
+    if (!t->slot || !t->lum || !t->points) { light_estimate_table_free(t); return -1; }
+    for (uint32_t i = 0; i < ls->count; ++i) {
+        const Light *l = &ls->lights[i];
+        t->lum[i] = l->type == LIGHT_AREA ? v3_luminance(l->emission) : v3_luminance(l->intensity);
+        if (t->slot[i] == UINT32_MAX) continue;
+        LightEstimatePoints *e = &t->points[t->slot[i]];
+        for (uint32_t k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) {
+            /* exactly area_estimate_samples' points and normals */
+            float u0 = ((float)k + 0.5f) / AREA_ESTIMATE_SAMPLES;
+            float u1 = (float)((k * 7 + 3) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
+            float u2 = (float)((k * 11 + 5) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
+            float tri_pmf, u_tri;
+            uint32_t tri = dist1d_sample_discrete(&l->triangles, u0, &tri_pmf, &u_tri);
+            const float *v = l->world_vertices + 9 * (size_t)tri;
+            vec3 a = v3(v[0], v[1], v[2]), b = v3(v[3], v[4], v[5]), c = v3(v[6], v[7], v[8]);
+            vec2 bc = sample_uniform_triangle(u1, u2);
+            vec3 y = v3_add(v3_add(v3_scale(a, 1.0f - bc.x - bc.y), v3_scale(b, bc.x)), v3_scale(c, bc.y));
+            vec3 ng = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+            e->y[0][k] = y.x; e->y[1][k] = y.y; e->y[2][k] = y.z;
+            e->ng[0][k] = ng.x; e->ng[1][k] = ng.y; e->ng[2][k] = ng.z;
+        }
+    }
+    return 0;
+}
+
+void light_estimate_table_free(LightEstimateTable *t) {
+    free(t->slot);
+    free(t->lum);
+    free(t->points);
+    memset(t, 0, sizeof *t);
+}
+
+/* An area light's estimate over its table points: each point's term in its own lane (the
+ * loop has no branches, so it vectorises; two_sided and omni are constants in each copy),
+ * then the terms added in point order. Bit for bit light_contribution_estimate: every lane
+ * does its float operations in the same order, a skipped point adds +0 to a sum that is never
+ * -0. */
+#if defined(__GNUC__) && !defined(__clang__)
+/* GCC vectorises the selections only without trapping math, which changes no result (no
+ * operation is reordered or contracted; only whether a NaN comparison may trap) */
+#define AREA_LANES_ATTR __attribute__((optimize("no-trapping-math")))
+#else
+#define AREA_LANES_ATTR
+#endif
+AREA_LANES_ATTR
+static float area_estimate_lanes(const LightEstimatePoints *e, float L, float area, vec3 p, vec3 n,
+                                 const int two_sided, const int omni) {
+    float term[AREA_ESTIMATE_SAMPLES];
+    for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) {
+        float dx = e->y[0][k] - p.x, dy = e->y[1][k] - p.y, dz = e->y[2][k] - p.z;
+        float d2 = dx * dx + dy * dy + dz * dz;
+        float inv = 1.0f / sqrtf(d2);
+        float wx = dx * inv, wy = dy * inv, wz = dz * inv;
+        float cos_l = -(e->ng[0][k] * wx + e->ng[1][k] * wy + e->ng[2][k] * wz);
+        if (two_sided) cos_l = fabsf(cos_l);
+        float contrib = L * cos_l / d2 * area / AREA_ESTIMATE_SAMPLES;
+        /* every operation unconditional, only selections after (trapping math forbids
+         * if-converting a conditional float operation) */
+        float dot = n.x * wx + n.y * wy + n.z * wz;
+        float rc = omni ? 1.0f : (dot > 0.0f ? dot : 0.0f);
+        float t = contrib * rc;
+        int valid = (d2 > 1e-12f) & (cos_l > 0.0f);
+        term[k] = valid ? t : 0.0f;
+    }
+    float sum = 0.0f;
+    for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) sum += term[k];
+    return sum;
+}
+
+static float area_estimate_table(const Light *l, const LightEstimatePoints *e, float L, vec3 p, vec3 n) {
+    int omni = v3_is_black(n);
+    if (l->two_sided) return omni ? area_estimate_lanes(e, L, l->area, p, n, 1, 1) : area_estimate_lanes(e, L, l->area, p, n, 1, 0);
+    return omni ? area_estimate_lanes(e, L, l->area, p, n, 0, 1) : area_estimate_lanes(e, L, l->area, p, n, 0, 0);
+}
+
+/* Bit for bit light_contribution_estimate (the same float operations in the same order), with
+ * the area light's 16 points and the luminances read from the table. */
+float light_contribution_estimate_table(const Lights *ls, const LightEstimateTable *t, uint32_t light, vec3 p, vec3 n) {
+    const Light *l = &ls->lights[light];
+    switch (l->type) {
+    case LIGHT_POINT: {
+        vec3 d = v3_sub(l->position, p);
+        float d2 = v3_dot(d, d);
+        if (!(d2 > 0.0f)) return 0.0f;
+        vec3 w = v3_scale(d, 1.0f / sqrtf(d2));
+        return t->lum[light] * receiver_cos(n, w) / d2;
+    }
+    case LIGHT_AREA:
+        if (t->slot[light] == UINT32_MAX) return 0.0f; /* no emission */
+        return area_estimate_table(l, &t->points[t->slot[light]], t->lum[light], p, n);
+    default:
+        return light_contribution_estimate(ls, l, p, n);
+    }
 }
 
 float light_contribution_estimate(const Lights *ls, const Light *l, vec3 p, vec3 n) {

@@ -1,6 +1,7 @@
 /* renderer/light_sampler.c: the light-selection protocol's dispatch (light_sampler.h) and its
  * two context-free strategies, uniform and power. */
 #include "light_sampler.h"
+#include "media.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -71,17 +72,41 @@ int light_sampler_power_create(LightSampler *s, const Lights *lights) {
     return 0;
 }
 
+/* ---------------------------------------------------------------- auto (the default) */
+
+CandelaLightSampler light_sampler_auto_choice(const Lights *lights, const struct SceneMedia *media,
+                                              const CandelaOptions *o) {
+    /* in-scattering sampling along camera rays (§4.2) exists only with cache points */
+    if (o->volume_inscatter_sampling == 1 || (o->volume_inscatter_sampling != 0 && media && media_any(media)))
+        return CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
+    /* one light (or none): every strategy picks it with probability 1; power does no work */
+    if (lights->count <= 1) return CANDELA_LIGHT_SAMPLER_POWER;
+    /* few lights: every light's exact estimate per vertex (the distribution cache points
+     * approximate, narrow spot cones included; the paper itself falls back to it below 10
+     * points, §3.1.1), without a build, while that costs less per vertex than about
+     * LIGHT_SAMPLER_AUTO_EXACT_COST point lights (an area light's estimate sums 16 points:
+     * it counts LIGHT_SAMPLER_AUTO_AREA_COST) */
+    if (lights->count > LIGHT_SAMPLER_SCRATCH) return CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
+    uint32_t cost = 0;
+    for (uint32_t i = 0; i < lights->count; ++i)
+        cost += lights->lights[i].type == LIGHT_AREA ? LIGHT_SAMPLER_AUTO_AREA_COST : 1u;
+    return cost <= LIGHT_SAMPLER_AUTO_EXACT_COST ? CANDELA_LIGHT_SAMPLER_OPTIMAL : CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
+}
+
 /* ---------------------------------------------------------------- dispatch */
 
 int light_sampler_create(LightSampler *s, const Lights *lights, const struct Scene *scene,
                          const struct SceneMedia *media, struct ThreadPool *pool, const CandelaOptions *o,
                          char err[CANDELA_ERR_LEN]) {
     int rc;
-    switch (o->light_sampler) {
+    CandelaLightSampler which = o->light_sampler;
+    if (which == CANDELA_LIGHT_SAMPLER_AUTO) which = light_sampler_auto_choice(lights, media, o);
+    switch (which) {
     case CANDELA_LIGHT_SAMPLER_POWER: rc = light_sampler_power_create(s, lights); break;
     case CANDELA_LIGHT_SAMPLER_TREE: rc = light_sampler_tree_create(s, lights); break;
     case CANDELA_LIGHT_SAMPLER_OPTIMAL:
-        rc = light_sampler_optimal_create(s, lights, scene, o->optimal_occlusion);
+        /* auto never adds occlusion rays (a shadow ray per light per vertex) */
+        rc = light_sampler_optimal_create(s, lights, scene, o->light_sampler == which && o->optimal_occlusion);
         break;
     case CANDELA_LIGHT_SAMPLER_CACHEPOINTS:
         return light_sampler_cachepoints_create(s, lights, scene, media, pool, o, err); /* its own messages */

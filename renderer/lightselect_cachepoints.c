@@ -7,6 +7,7 @@
  * record = the visibility counters (§3.2.1), barrier = Eqs. 5-6 and the visibility blur
  * (§3.2.2). The per-vertex token (LightVertex) is the point + 1 and the near lights' summed
  * weight, so the MIS pdf at the next wave costs one light's weight. */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -22,8 +23,19 @@
 #include "sort.h"
 #include "threads.h"
 
+/* Candidates (§3.1.1): the paper's 100,000 in object boxes at CANDIDATE_FULL_PIXELS or more,
+ * in proportion to the pixels below, at least BBOX_CANDIDATES_MIN; and 65,536 stratified
+ * pilot paths (§3.1.1 leaves their count open) at any size. The merge passes keep about one
+ * point per pixel footprint (pass 1) and per 3 pixels (pass 2's floor, §3.1.4), so a smaller
+ * image keeps fewer points from the same box candidates: the rest was build time spent on
+ * points merged away. Measured at equal spp (variance of the mean, 2-3 seeds): a quarter of
+ * the box and pilot candidates at 640x360 changed city, street, windows and emissive_mesh by
+ * -1.1 % to +0.2 %; at 160x90, 4,096 pilot paths raised city's by 2 % (10,000 box candidates
+ * with them: 7.6 %), so the pilots keep their count. */
 #define BBOX_CANDIDATES 100000u
-#define PILOT_GRID 256u           /* 65,536 stratified pilot paths (§3.1.1 leaves the count open) */
+#define BBOX_CANDIDATES_MIN 25000u
+#define PILOT_GRID 256u           /* 256 x 256 pilot paths */
+#define CANDIDATE_FULL_PIXELS (1280.0 * 720.0)
 #define PILOT_KEEP 0.5f
 #define PILOT_CAP 1000000u
 #define CANDIDATE_SEED_SALT 0xcac4e9017ull
@@ -36,7 +48,8 @@ typedef struct CachePointSampler {
     float *centroid;
     uint8_t *infinite;
     CachePointStats stats;
-    double build_seconds;
+    double build_seconds, build_cpu_seconds;
+    LightEstimateTable estimates; /* the per-vertex near-light weights' precomputed part */
     /* the cut build: the light tree and its view (CachePointTree) */
     LightTree tree;
     CachePointTree tree_view;
@@ -59,9 +72,9 @@ static void cp_estimate7(const void *user, uint32_t light, const float x[3], flo
 }
 
 static float cp_estimate(const void *user, uint32_t light, const float x[3], const float *n) {
-    const Lights *ls = ((const CachePointSampler *)user)->lights;
+    const CachePointSampler *s = user;
     vec3 nn = n ? v3(n[0], n[1], n[2]) : v3s(0.0f);
-    return light_contribution_estimate(ls, &ls->lights[light], v3(x[0], x[1], x[2]), nn);
+    return light_contribution_estimate_table(s->lights, &s->estimates, light, v3(x[0], x[1], x[2]), nn);
 }
 
 /* --- the light tree as the cut build sees it (CachePointTree) */
@@ -167,10 +180,21 @@ static int push(Candidates *c, vec3 p) {
     return 0;
 }
 
-/* 100,000 points in the instances' world boxes in proportion to (padded) volume; budget split
+/* The candidate counts for this render: the options', else scaled with the image (above). */
+static void candidate_counts(const Scene *scene, const CandelaOptions *o, uint32_t *bbox, uint32_t *pilot_grid) {
+    double f = (double)scene->camera.width * (double)scene->camera.height / CANDIDATE_FULL_PIXELS;
+    if (!(f < 1.0)) f = 1.0;
+    double b = o->cachepoint_candidates ? (double)o->cachepoint_candidates : fmax(BBOX_CANDIDATES * f, BBOX_CANDIDATES_MIN);
+    double paths = o->cachepoint_pilots ? (double)o->cachepoint_pilots : (double)PILOT_GRID * PILOT_GRID;
+    *bbox = (uint32_t)lrint(b);
+    *pilot_grid = (uint32_t)lrint(ceil(sqrt(paths))); /* a square grid of strata over the image */
+    if (*pilot_grid < 1) *pilot_grid = 1;
+}
+
+/* `budget` points in the instances' world boxes in proportion to (padded) volume; budget split
  * by largest remainder in instance order; positions from the counter-based RNG keyed by
  * (seed, instance, k), so they never depend on threads (§3.1.1). */
-static int bbox_candidates(const Scene *scene, const SceneMedia *media, uint64_t seed, Candidates *c) {
+static int bbox_candidates(const Scene *scene, const SceneMedia *media, uint64_t seed, uint32_t budget, Candidates *c) {
     /* the boxes: instances, then VDB volumes (a medium's vertices need points inside it) */
     uint32_t ni = scene->io.num_instances, n = ni + (media ? media->num_vdb : 0);
     if (n == 0) return 0;
@@ -198,12 +222,12 @@ static int bbox_candidates(const Scene *scene, const SceneMedia *media, uint64_t
     }
     uint32_t assigned = 0;
     for (uint32_t i = 0; i < n && total > 0.0; ++i) {
-        double share = BBOX_CANDIDATES * vol[i] / total;
+        double share = budget * vol[i] / total;
         quota[i] = (uint32_t)share;
         rem[i] = share - quota[i];
         assigned += quota[i];
     }
-    while (total > 0.0 && assigned < BBOX_CANDIDATES) { /* largest remainder, lowest index wins ties */
+    while (total > 0.0 && assigned < budget) { /* largest remainder, lowest index wins ties */
         uint32_t best = 0;
         for (uint32_t i = 1; i < n; ++i) if (rem[i] > rem[best]) best = i;
         if (!(rem[best] > 0.0)) break;
@@ -230,14 +254,14 @@ static int bbox_candidates(const Scene *scene, const SceneMedia *media, uint64_t
 /* Pilot paths (§3.1.1): a stratified grid of camera rays, their first hit and one cosine
  * bounce, and where the camera ray crosses a VDB volume a point in it; each vertex kept with
  * probability 1/2 (fewer paths than §3.1.1 uses, half kept: the merge passes thin them anyway). */
-static int pilot_candidates(const Scene *scene, const SceneMedia *media, uint64_t seed, Candidates *c) {
+static int pilot_candidates(const Scene *scene, const SceneMedia *media, uint64_t seed, uint32_t grid, Candidates *c) {
     const Camera *cam = &scene->camera;
     uint32_t kept = 0;
-    for (uint32_t j = 0; j < PILOT_GRID; ++j) {
-        for (uint32_t i = 0; i < PILOT_GRID; ++i) {
-            uint64_t key = rng_path_key(seed ^ (CANDIDATE_SEED_SALT + 1), j * PILOT_GRID + i, 0);
-            float fx = ((float)i + rng_uniform(key, 0)) / PILOT_GRID * (float)cam->width;
-            float fy = ((float)j + rng_uniform(key, 1)) / PILOT_GRID * (float)cam->height;
+    for (uint32_t j = 0; j < grid; ++j) {
+        for (uint32_t i = 0; i < grid; ++i) {
+            uint64_t key = rng_path_key(seed ^ (CANDIDATE_SEED_SALT + 1), j * grid + i, 0);
+            float fx = ((float)i + rng_uniform(key, 0)) / (float)grid * (float)cam->width;
+            float fy = ((float)j + rng_uniform(key, 1)) / (float)grid * (float)cam->height;
             vec3 o, d;
             camera_generate_ray(cam, fx, fy, &o, &d);
             for (int bounce = 0; bounce < 2; ++bounce) {
@@ -524,6 +548,7 @@ static int cp_finish(const void *state, char err[CANDELA_ERR_LEN]) {
 static void cp_report(const void *state, CandelaStats *st) {
     const CachePointSampler *s = state;
     st->time_cachepoints = s->build_seconds;
+    st->cpu_cachepoints = s->build_cpu_seconds;
     st->num_cachepoints = cachepoints_count(s->cp);
     st->cachepoint_candidates = s->stats.candidates;
     st->cachepoint_bytes = s->stats.bytes;
@@ -543,6 +568,7 @@ static void cp_destroy(void *state) {
     free(s->leaf_light);
     free(s->light_leaf);
     free(s->scatter_grid);
+    light_estimate_table_free(&s->estimates);
     free(s);
 }
 
@@ -566,7 +592,7 @@ static int build(CachePointSampler *s, const Scene *scene, const SceneMedia *med
     const Lights *ls = s->lights;
     s->centroid = malloc((size_t)ls->count * 3 * sizeof(float));
     s->infinite = malloc(ls->count);
-    if (!s->centroid || !s->infinite) return -1;
+    if (!s->centroid || !s->infinite || light_estimate_table_build(&s->estimates, ls) != 0) return -1;
     for (uint32_t i = 0; i < ls->count; ++i) {
         const Light *l = &ls->lights[i];
         vec3 c = l->position;
@@ -589,7 +615,10 @@ static int build(CachePointSampler *s, const Scene *scene, const SceneMedia *med
     if (!o->cachepoint_build_linear && setup_tree_view(s) != 0) return -1;
 
     Candidates cand = {0};
-    if (bbox_candidates(scene, media, o->seed, &cand) != 0 || pilot_candidates(scene, media, o->seed, &cand) != 0 ||
+    uint32_t bbox_count, pilot_grid;
+    candidate_counts(scene, o, &bbox_count, &pilot_grid);
+    if (bbox_candidates(scene, media, o->seed, bbox_count, &cand) != 0 ||
+        pilot_candidates(scene, media, o->seed, pilot_grid, &cand) != 0 ||
         sort_candidates(&cand) != 0) {
         free(cand.xyz);
         return -1;
@@ -623,7 +652,7 @@ int light_sampler_cachepoints_create(LightSampler *ls, const Lights *lights, con
                                      char err[CANDELA_ERR_LEN]) {
     int rc = 0;
     if (lights->count > 0) {
-        double t0 = clock_seconds();
+        double t0 = clock_seconds(), c0 = clock_cpu_seconds();
         CachePointSampler *s = calloc(1, sizeof *s);
         if (!s) goto oom;
         s->lights = lights;
@@ -641,6 +670,7 @@ int light_sampler_cachepoints_create(LightSampler *ls, const Lights *lights, con
             if (rc_scatter != 0) { cp_destroy(s); goto oom; }
         }
         s->build_seconds = clock_seconds() - t0;
+        s->build_cpu_seconds = clock_cpu_seconds() - c0;
         if (s->cp) {
             *ls = (LightSampler){inscatter ? &CACHEPOINT_INSCATTER_OPS : &CACHEPOINT_OPS, s, lights->count};
             return 0;

@@ -6,8 +6,12 @@
  *     p(e | x) = (1 - eps) w_e / W + eps / N,   W = sum_e w_e;   p = 1/N when W == 0.
  * Every estimate is a deterministic function of (light, p, n): select and pmf recompute the
  * same numbers in the same order, so the PMF select reports equals the pmf bit for bit.
- * Cost is O(N) per call, which is the point of the paper: this is the reference that cache
- * points compress. */
+ * Cost is O(N) per vertex, which is the point of the paper: this is the reference that cache
+ * points compress. Without occlusion rays and with at most LIGHT_SAMPLER_SCRATCH lights,
+ * prepare evaluates the N weights once per vertex into the caller's scratch and keeps their
+ * sum W in the vertex token, so select reads them back and the MIS pdf at the next wave costs
+ * one light's weight (the same numbers in the same order: the image does not change). That
+ * makes it the `auto` sampler's choice for scenes with few lights (light_sampler.c). */
 #include <stdlib.h>
 
 #include "light_sampler.h"
@@ -19,6 +23,8 @@ typedef struct OptimalSampler {
     const Lights *lights;
     const Scene *scene;  /* for the occlusion rays */
     int occlusion;
+    int per_vertex;      /* prepare evaluates the weights (no occlusion, N <= the scratch) */
+    LightEstimateTable table;
 } OptimalSampler;
 
 /* One shadow ray from p towards the light's reference point (point/spot position, the
@@ -57,7 +63,7 @@ trace:;
 
 static inline float optimal_weight(const OptimalSampler *s, uint32_t i, const LightSampleContext *ctx) {
     const Light *l = &s->lights->lights[i];
-    float w = light_contribution_estimate(s->lights, l, ctx->p, ctx->n);
+    float w = light_contribution_estimate_table(s->lights, &s->table, i, ctx->p, ctx->n);
     if (!(w > 0.0f) || !isfinite(w)) return 0.0f;
     if (s->occlusion && !light_visible(s->scene, l, ctx->p, ctx->n)) return 0.0f;
     return w;
@@ -69,9 +75,25 @@ static inline float optimal_pmf_from(float w, float total, uint32_t count) {
 }
 
 static float optimal_total(const OptimalSampler *s, const LightSampleContext *ctx) {
+    if (ctx->vertex.word) return ctx->vertex.value; /* prepared: the sum below, kept in the token */
     float total = 0.0f;
     for (uint32_t i = 0; i < s->lights->count; ++i) total += optimal_weight(s, i, ctx);
     return total;
+}
+
+/* Every light's weight into the scratch and their sum (in light order, as optimal_total adds
+ * them) into the token. */
+static void optimal_prepare(const void *state, LightSampleContext *ctx, uint32_t *hint) {
+    (void)hint;
+    const OptimalSampler *s = state;
+    if (!s->per_vertex) return;
+    float total = 0.0f;
+    for (uint32_t i = 0; i < s->lights->count; ++i) {
+        float w = optimal_weight(s, i, ctx);
+        if (ctx->scratch) ctx->scratch[i] = w;
+        total += w;
+    }
+    ctx->vertex = (LightVertex){1u, total};
 }
 
 static uint32_t optimal_select(const void *state, const LightSampleContext *ctx, float u, float u1, float *pmf,
@@ -80,28 +102,30 @@ static uint32_t optimal_select(const void *state, const LightSampleContext *ctx,
     (void)outcome;
     const OptimalSampler *s = state;
     uint32_t count = s->lights->count;
+    /* the weights prepare left in the scratch, valid for the vertex it prepared */
+    const float *wv = ctx->vertex.word && ctx->scratch ? ctx->scratch : NULL;
     float total = optimal_total(s, ctx);
     uint32_t pick;
     if (!(total > 0.0f) || u < OPTIMAL_EPSILON) {
         float uu = total > 0.0f ? u / OPTIMAL_EPSILON : u;
         pick = (uint32_t)(uu * (float)count);
         if (pick >= count) pick = count - 1;
-        *pmf = optimal_pmf_from(optimal_weight(s, pick, ctx), total, count);
+        *pmf = optimal_pmf_from(wv ? wv[pick] : optimal_weight(s, pick, ctx), total, count);
         return pick;
     }
     float target = (u - OPTIMAL_EPSILON) / (1.0f - OPTIMAL_EPSILON) * total;
     float cum = 0.0f, w = 0.0f;
     pick = count - 1;
     for (uint32_t i = 0; i < count; ++i) {
-        w = optimal_weight(s, i, ctx);
+        w = wv ? wv[i] : optimal_weight(s, i, ctx);
         cum += w;
         if (w > 0.0f && target < cum) { pick = i; break; }
     }
     /* rounding can leave target >= cum at the end: take the last light with weight */
     if (!(target < cum)) {
-        while (pick > 0 && !(optimal_weight(s, pick, ctx) > 0.0f)) --pick;
+        while (pick > 0 && !((wv ? wv[pick] : optimal_weight(s, pick, ctx)) > 0.0f)) --pick;
     }
-    *pmf = optimal_pmf_from(optimal_weight(s, pick, ctx), total, count);
+    *pmf = optimal_pmf_from(wv ? wv[pick] : optimal_weight(s, pick, ctx), total, count);
     return pick;
 }
 
@@ -111,13 +135,22 @@ static float optimal_pmf(const void *state, const LightSampleContext *ctx, uint3
     return optimal_pmf_from(optimal_weight(s, light, ctx), total, s->lights->count);
 }
 
+static void optimal_destroy(void *state) {
+    OptimalSampler *s = state;
+    if (!s) return;
+    light_estimate_table_free(&s->table);
+    free(s);
+}
+
 static const LightSamplerOps OPTIMAL_OPS = {
-    .name = "optimal", .select = optimal_select, .pmf = optimal_pmf, .destroy = free};
+    .name = "optimal", .prepare = optimal_prepare, .select = optimal_select, .pmf = optimal_pmf,
+    .destroy = optimal_destroy};
 
 int light_sampler_optimal_create(LightSampler *ls, const Lights *lights, const Scene *scene, int occlusion) {
     OptimalSampler *s = malloc(sizeof *s);
     if (!s) return -1;
-    *s = (OptimalSampler){lights, scene, occlusion};
+    *s = (OptimalSampler){lights, scene, occlusion, !occlusion && lights->count <= LIGHT_SAMPLER_SCRATCH, {0}};
+    if (light_estimate_table_build(&s->table, lights) != 0) { free(s); return -1; }
     *ls = (LightSampler){&OPTIMAL_OPS, s, lights->count};
     return 0;
 }

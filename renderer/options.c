@@ -13,7 +13,7 @@ void candela_options_default(CandelaOptions *o) {
     o->volume_emission_sampling = 2;  /* auto (scenes/volume_equal_time.py: never measurably worse) */
     o->volume_inscatter_sampling = 2; /* auto */
     o->texture_budget_mb = 8192;      /* 8 GiB of decoded texels (README "Limits") */
-    o->light_sampler = CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
+    o->light_sampler = CANDELA_LIGHT_SAMPLER_AUTO;   /* optimal with few lights, else cache points */
     o->light_units = CANDELA_LIGHT_UNITS_BLENDER;
     o->env_strength = 1.0f;
     o->env_rotation_deg = NAN;        /* not given: the scene's candela_environment.rotation */
@@ -21,7 +21,7 @@ void candela_options_default(CandelaOptions *o) {
     o->recorder_budget = -1;          /* the seed's soft budget of 4 vertices per path */
 }
 
-static const char *const LIGHT_SAMPLER_NAMES[] = {"uniform", "power", "tree", "optimal", "cachepoints"};
+static const char *const LIGHT_SAMPLER_NAMES[] = {"uniform", "power", "tree", "optimal", "cachepoints", "auto"};
 
 const char *candela_light_sampler_name(CandelaLightSampler s) {
     return (unsigned)s < sizeof LIGHT_SAMPLER_NAMES / sizeof LIGHT_SAMPLER_NAMES[0] ? LIGHT_SAMPLER_NAMES[s] : "unknown";

@@ -100,6 +100,7 @@ static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s) 
     fprintf(f, ",\n  \"spp\": %d,\n  \"seed\": %llu,\n  \"max_depth\": %d,\n", o->spp, (unsigned long long)o->seed,
             o->max_depth);
     fprintf(f, "  \"light_sampler\": \"%s\",\n", candela_light_sampler_name(o->light_sampler));
+    fprintf(f, "  \"light_sampler_used\": \"%s\",\n", candela_light_sampler_name(s->light_sampler_used));
     fprintf(f, "  \"time_seconds\": {\"load\": %.6f, \"build\": %.6f, \"generate\": %.6f, \"sort\": %.6f, "
                "\"trace\": %.6f, \"medium\": %.6f, \"shade\": %.6f, \"shadow\": %.6f, \"film\": %.6f, \"total\": %.6f},\n",
             s->time_load, s->time_build, s->time_generate, s->time_sort, s->time_trace, s->time_medium, s->time_shade,
@@ -114,9 +115,9 @@ static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s) 
     fprintf(f, "  \"textures\": {\"count\": %u, \"count_8bit\": %u, \"bytes\": %llu},\n", s->num_textures,
             s->num_textures_8bit, (unsigned long long)s->texture_bytes);
     fprintf(f,
-            "  \"cachepoints\": {\"build\": \"%s\", \"build_seconds\": %.6f, \"candidates\": %u, \"points\": %u, "
+            "  \"cachepoints\": {\"build\": \"%s\", \"build_seconds\": %.6f, \"build_cpu_seconds\": %.6f, \"candidates\": %u, \"points\": %u, "
             "\"bytes\": %zu, \"mean_near\": %.3f, \"mean_far\": %.3f, \"mean_clusters\": %.3f},\n",
-            o->cachepoint_build_linear ? "linear" : "cut", s->time_cachepoints, s->cachepoint_candidates,
+            o->cachepoint_build_linear ? "linear" : "cut", s->time_cachepoints, s->cpu_cachepoints, s->cachepoint_candidates,
             s->num_cachepoints, s->cachepoint_bytes, s->cachepoint_mean_near, s->cachepoint_mean_far,
             s->cachepoint_mean_clusters);
     fprintf(f, "  \"volumes\": {\"count\": %u, \"collisions\": %llu, \"capped_walks\": %llu},\n", s->num_volumes,

@@ -15,6 +15,8 @@ rather than committed. Blender light units (cd, lux; the renderer divides by 683
                        360 lights are occluded (the paper's occlusion case)
   emissive_mesh.gltf   an emissive mesh of 102,400 triangles among 64 point lights
   spotlights.gltf      96 narrow spot lights (1 to 8 degree cones) over a large floor
+  street.gltf          the night street of issue 12: the city with 20,000 lights (18,000 on
+                       facades, 2,000 street lights), seen from its street camera
 
 usage: make_manylights.py [OUT_DIR] [--only NAME ...]
 """
@@ -219,6 +221,7 @@ def main():
         ('windows', lambda: windows(out)),
         ('emissive_mesh', lambda: emissive_mesh(out)),
         ('spotlights', lambda: spotlights(out)),
+        ('street', lambda: city(out, 'street', 20000)),
         ('city_1k', lambda: city(out, 'city_1k', 1000)),
         ('city_10k', lambda: city(out, 'city_10k', 10000)),
         ('city_100k', lambda: city(out, 'city_100k', 100000)),

@@ -389,6 +389,29 @@ static void check_scatter(CachePoints *a, CachePoints *b, const CachePointLights
         bad_reuse += v.point != cachepoints_nearest(a, outside);
     }
     CHECK(bad_reuse == 0, "%s: %d vertices reused the wrong point", mode, bad_reuse);
+    /* the lookup's shortcut (a query near the hint: the nearest among the hint and its blur
+     * neighbours) gives exactly the kd-tree's nearest point, for queries at, near and between
+     * points, with the hint right, a neighbour of the right one, or far away */
+    int bad_hint = 0, queries = 0;
+    uint32_t n_pts = cachepoints_count(a);
+    for (uint32_t i = 0; i < n_pts; i += 3) {
+        float c[3], r, o[3];
+        cachepoints_point(a, i, c, &r);
+        cachepoints_point(a, (i * 7919u + 13u) % n_pts, o, &r);
+        for (int t = 0; t < 8; ++t) {
+            float f = 0.0625f * (float)t; /* from the point towards another one */
+            float x[3] = {c[0] + f * (o[0] - c[0]), c[1] + f * (o[1] - c[1]), c[2] + f * (o[2] - c[2])};
+            uint32_t want = cachepoints_nearest(a, x);
+            const uint32_t hints[3] = {i, want, (i + n_pts / 2) % n_pts};
+            for (int h = 0; h < 3; ++h) {
+                CachePointVertex v;
+                cachepoints_vertex(a, L, x, NULL, hints[h], &v, NULL);
+                bad_hint += v.point != want;
+                ++queries;
+            }
+        }
+    }
+    CHECK(bad_hint == 0, "%s: %d of %d hinted lookups missed the nearest point", mode, bad_hint, queries);
 }
 
 static void run(const CachePointLights *L, const float *cand, uint32_t nc, int cut) {

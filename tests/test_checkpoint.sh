@@ -4,7 +4,8 @@
 #   on the guided schedule (cumulative 1..8, 10, 14, 22, 38, 54, 64), never the last barrier;
 #   the course's example at 128 guided spp: 4, 8, 14, 22, 54;
 # - writing checkpoints does not change the image; resuming from one gives the uninterrupted
-#   render's EXR bit for bit (cache points, the default light sampler, and --guiding mis);
+#   render's EXR bit for bit (cache points, whose learned visibility the checkpoint carries,
+#   and --guiding mis);
 # - a render killed with SIGKILL after a checkpoint and resumed: bit-identical, and it left no
 #   finished-looking file; SIGTERM stops after the current batch (mid-iteration), writes the
 #   checkpoint and with --save-partial only NAME.partial.*; resuming that: bit-identical;
@@ -22,7 +23,8 @@ bad() { fail=$((fail + 1)); echo "FAIL: $*" >&2; }
 same() { if cmp -s "$1" "$2"; then ok; else bad "$3: $1 and $2 differ"; fi; }
 
 scene=$root/scenes/default.gltf
-base=(render "$scene" --res 32x24 --no-png)
+# cache points (the default, auto, picks optimal for this scene's 4 lights: nothing learned)
+base=(render "$scene" --res 32x24 --no-png --light-sampler cachepoints)
 
 # expect_error NAME PATTERN -- ARGS...: non-zero exit below 128, one stderr line with PATTERN,
 # and $tmp/keep.exr (a finished image from before) untouched
@@ -99,9 +101,9 @@ fi
 
 # --- bad input: one line, nothing overwritten
 ck=$tmp/default.ckpt
-expect_error "another resolution" "res 32x24 there, 16x16 here" -- render "$scene" --res 16x16 --spp 64 --no-png \
+expect_error "another resolution" "res 32x24 there, 16x16 here" -- render "$scene" --res 16x16 --spp 64 --no-png --light-sampler cachepoints \
   -o "$tmp/keep.exr" --resume-from "$ck" --quiet
-expect_error "another scene" "scene file's content differs" -- render "$root/tests/scenes/two_lights.gltf" --res 32x24 \
+expect_error "another scene" "scene file's content differs" -- render "$root/tests/scenes/two_lights.gltf" --res 32x24 --light-sampler cachepoints \
   --spp 64 --no-png -o "$tmp/keep.exr" --resume-from "$ck" --quiet
 expect_error "another spp" "spp 64 there, 32 here" -- "${base[@]}" --spp 32 -o "$tmp/keep.exr" --resume-from "$ck" --quiet
 expect_error "another seed" "seed 0 there, 5 here" -- "${base[@]}" --spp 64 --seed 5 -o "$tmp/keep.exr" --resume-from "$ck" --quiet

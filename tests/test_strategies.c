@@ -5,7 +5,8 @@
  * sample descends a cluster) each converge to the same image as uniform. Tolerances come
  * from the renders' own per-pixel variances: the image-mean difference within 5 standard
  * errors, and the mean squared per-pixel z-score near 1. Also: cache point renders are
- * bit-identical for 1 and 2 threads, with either build. argv[1]: tests/scenes. */
+ * bit-identical for 1 and 2 threads, with either build; auto (the default) reports and renders
+ * exactly the strategy it chose. argv[1]: tests/scenes. */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -82,6 +83,7 @@ int main(int argc, char **argv) {
         {"cachepoints-pooled", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 0, 0, 1},
         {"cachepoints-lin-novis", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 1, 0, 1, 0},
         {"cachepoints-lin-retrunc", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 1, 1, 0},
+        {"auto", CANDELA_LIGHT_SAMPLER_AUTO, 0, 0, 0, 0, 0},
     };
     for (int sc = 0; sc < 2; ++sc) {
         CandelaImage ref;
@@ -133,6 +135,30 @@ int main(int argc, char **argv) {
             if (e == 0) CHECK(sum == 0.0, "%s with %s: not black (%g)", edge[e], strategies[k].name, sum);
             else CHECK(sum > 0.0, "%s with %s: black", edge[e], strategies[k].name);
             candela_image_free(&img);
+        }
+    }
+    /* auto (the default) is the strategy it reports, and renders exactly that strategy's image:
+     * power for one light, optimal for two (two_lights) and for 32 point lights and an area
+     * light (occluded_lights); test_lights checks the choice over light counts */
+    {
+        const char *auto_scenes[3] = {"single_light.gltf", "two_lights.gltf", "occluded_lights.gltf"};
+        const CandelaLightSampler expect[3] = {CANDELA_LIGHT_SAMPLER_POWER, CANDELA_LIGHT_SAMPLER_OPTIMAL,
+                                               CANDELA_LIGHT_SAMPLER_OPTIMAL};
+        for (int e = 0; e < 3; ++e) {
+            const Strategy a = {"auto", CANDELA_LIGHT_SAMPLER_AUTO, 0, 0, 0, 0, 0};
+            const Strategy b = {candela_light_sampler_name(expect[e]), expect[e], 0, 0, 0, 0, 0};
+            CandelaImage ia, ib;
+            CandelaStats sa, sb;
+            if (render(argv[1], auto_scenes[e], &a, 8, 9, 2, &ia, &sa) != 0) continue;
+            if (render(argv[1], auto_scenes[e], &b, 8, 9, 2, &ib, &sb) != 0) { candela_image_free(&ia); continue; }
+            CHECK(sa.light_sampler_used == expect[e], "%s: auto used %s, expected %s", auto_scenes[e],
+                  candela_light_sampler_name(sa.light_sampler_used), candela_light_sampler_name(expect[e]));
+            CHECK(sb.light_sampler_used == expect[e], "%s: %s reported as %s", auto_scenes[e],
+                  candela_light_sampler_name(expect[e]), candela_light_sampler_name(sb.light_sampler_used));
+            CHECK(memcmp(ia.rgb, ib.rgb, sizeof(float) * 3 * (size_t)ia.width * ia.height) == 0,
+                  "%s: auto's image differs from %s's", auto_scenes[e], candela_light_sampler_name(expect[e]));
+            candela_image_free(&ia);
+            candela_image_free(&ib);
         }
     }
     /* determinism of the cache point build and of learning, both builds and pooled: 1 vs 2 threads */
