@@ -101,6 +101,10 @@ int light_sampler_create(LightSampler *s, const Lights *lights, const struct Sce
     int rc;
     CandelaLightSampler which = o->light_sampler;
     if (which == CANDELA_LIGHT_SAMPLER_AUTO) which = light_sampler_auto_choice(lights, media, o);
+    if ((o->aov_selection || o->cachepoint_dump_path) && which != CANDELA_LIGHT_SAMPLER_CACHEPOINTS && !o->no_warnings)
+        fprintf(stderr, "%s: warning: --light-sampler auto chose %s for this scene: %s (give --light-sampler "
+                "cachepoints to see cache points)\n", o->scene_path, candela_light_sampler_name(which),
+                o->aov_selection ? "the cachepoint AOV stays black" : "the cache point dump is empty");
     switch (which) {
     case CANDELA_LIGHT_SAMPLER_POWER: rc = light_sampler_power_create(s, lights); break;
     case CANDELA_LIGHT_SAMPLER_TREE: rc = light_sampler_tree_create(s, lights); break;

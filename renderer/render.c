@@ -210,11 +210,6 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
     }
     r->have_sampler = 1;
     light_sampler_report(&r->sampler, stats);
-    if ((o->aov_selection || o->cachepoint_dump_path) && stats->light_sampler_used != CANDELA_LIGHT_SAMPLER_CACHEPOINTS &&
-        !o->no_warnings)
-        fprintf(stderr, "%s: warning: --light-sampler auto chose %s for this scene: %s (give --light-sampler "
-                "cachepoints to see cache points)\n", o->scene_path, candela_light_sampler_name(stats->light_sampler_used),
-                o->aov_selection ? "the cachepoint AOV stays black" : "the cache point dump is empty");
     if (integrator_init(&r->ig, o, &r->scene, &r->lights, &r->media, &r->sampler, batch) != 0) {
         snprintf(err, CANDELA_ERR_LEN, "%s: out of memory allocating the %dx%d film and %u paths in flight",
                  o->scene_path, cam->width, cam->height, batch);
