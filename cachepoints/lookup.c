@@ -382,3 +382,179 @@ float cachepoints_pmf(const CachePoints *cp, const CachePointLights *L, const fl
     uint32_t slot;
     return pmf_from(light_weight(cp, L, v->point, x, n, b, light, &slot), total, cp->params.epsilon, L->count);
 }
+
+/* ---------------------------------------------------------------- light linking (§3.3) */
+
+/* The near weights with the disabled lights at 0. */
+static void vertex_near_linked(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
+                               const CachePointLink *link, CachePointVertex *v, float *near_w) {
+    float t = 0.0f;
+    uint32_t k0 = cp->near_off[v->point];
+    for (uint32_t k = k0; k < cp->near_off[v->point + 1]; ++k) {
+        float w = link->enabled[cp->near_light[k]] ? near_weight(cp, L, k, x, n) : 0.0f;
+        if (near_w) near_w[k - k0] = w;
+        t += w;
+    }
+    v->near_total = t;
+}
+
+void cachepoints_vertex_linked(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
+                               uint32_t hint, const CachePointLink *link, CachePointVertex *v, float *near_w) {
+    v->point = kdtree_nearest_hint(&cp->kd, x, hint, NULL);
+    vertex_near_linked(cp, L, x, n, link, v, near_w);
+}
+
+void cachepoints_vertex_reuse_linked(const CachePoints *cp, const CachePointLights *L, const float x[3],
+                                     const float *n, uint32_t point, const CachePointLink *link, CachePointVertex *v,
+                                     float *near_w) {
+    if (point < cp->n) {
+        const float *c = cp->pos + 3 * (size_t)point;
+        float d2 = (x[0] - c[0]) * (x[0] - c[0]) + (x[1] - c[1]) * (x[1] - c[1]) + (x[2] - c[2]) * (x[2] - c[2]);
+        if (d2 <= cp->radius[point] * cp->radius[point]) {
+            v->point = point;
+            vertex_near_linked(cp, L, x, n, link, v, near_w);
+            return;
+        }
+    }
+    cachepoints_vertex_linked(cp, L, x, n, point < cp->n ? point : UINT32_MAX, link, v, near_w);
+}
+
+/* Whether far entry k is a single light the vertex may not use. */
+static inline int far_disabled(const CachePoints *cp, uint32_t k, const CachePointLink *link) {
+    uint32_t l = cp_key_light(cp, cp->far[k].key);
+    return l != CP_NONE && l < cp->num_lights && !link->enabled[l];
+}
+
+/* The step of bin i's running sums at far entry k (its weight in that bin). */
+static inline float far_step(const CachePoints *cp, uint32_t p, int i, uint32_t k) {
+    const float *c = cp_cdf(cp, p, i, k);
+    return k > cp->far_off[p] ? c[0] - c[-1] : c[0];
+}
+
+/* The bin totals of point p without its disabled single-light entries (one pass over the far
+ * list: the disabled lights are found where they are, whatever their number). */
+static void far_bin_totals_linked(const CachePoints *cp, uint32_t p, const float b[CP_FAR_BINS],
+                                  const CachePointLink *link, float bt[CP_FAR_BINS]) {
+    const float *t = cp->far_bin_total + (size_t)p * CP_BIN_STRIDE;
+    float dis[CP_FAR_BINS] = {0};
+    for (uint32_t k = cp->far_off[p]; k < cp->far_off[p + 1]; ++k) {
+        if (!far_disabled(cp, k, link)) continue;
+        for (int i = 0; i < CP_FAR_BINS; ++i)
+            if (b[i] > 0.0f) dis[i] += far_step(cp, p, i, k);
+    }
+    for (int i = 0; i < CP_FAR_BINS; ++i) bt[i] = b[i] > 0.0f ? fmaxf(t[i] - dis[i], 0.0f) : 0.0f;
+}
+
+static float far_total_linked(const float b[CP_FAR_BINS], const float bt[CP_FAR_BINS]) {
+    float t = 0.0f;
+    for (int i = 0; i < CP_FAR_BINS; ++i)
+        if (b[i] > 0.0f) t += b[i] * bt[i];
+    return t;
+}
+
+/* Weight of an enabled `light` at the vertex (as light_weight; 0 for a disabled one). */
+static float light_weight_linked(const CachePoints *cp, const CachePointLights *L, uint32_t p, const float x[3],
+                                 const float *n, const float b[CP_FAR_BINS], const CachePointLink *link,
+                                 uint32_t light, uint32_t *slot) {
+    *slot = CP_NONE;
+    if (light >= L->count || !link->enabled[light]) return 0.0f;
+    return light_weight(cp, L, p, x, n, b, light, slot);
+}
+
+uint32_t cachepoints_select_linked(const CachePoints *cp, const CachePointLights *L, const float x[3],
+                                   const float *n, const CachePointVertex *v, const float *near_w,
+                                   const CachePointLink *link, float u, float u_descend, float *pmf, uint32_t *slot) {
+    uint32_t N = link->count, p = v->point;
+    float eps = cp->params.epsilon;
+    *slot = CP_NONE;
+    if (!N) { *pmf = 0.0f; return 0; }
+    float b[CP_FAR_BINS], bt[CP_FAR_BINS];
+    bin_blend(n, b);
+    far_bin_totals_linked(cp, p, b, link, bt);
+    float ft = far_total_linked(b, bt), total = v->near_total + ft;
+    uint32_t pick = CP_NONE;
+    float w = 0.0f;
+    if (total > 0.0f && u >= eps) {
+        float target = (u - eps) / (1.0f - eps) * total;
+        if (target < v->near_total) {
+            float cum = 0.0f;
+            for (uint32_t k = cp->near_off[p]; k < cp->near_off[p + 1]; ++k) {
+                float wk = near_w ? near_w[k - cp->near_off[p]]
+                                  : (link->enabled[cp->near_light[k]] ? near_weight(cp, L, k, x, n) : 0.0f);
+                if (!(wk > 0.0f)) continue;
+                cum += wk;
+                pick = cp->near_light[k];
+                w = wk;
+                *slot = cp->near_slot[k];
+                if (target < cum) break;
+            }
+        }
+        if (pick == CP_NONE && ft > 0.0f) {
+            float t = target > v->near_total ? target - v->near_total : 0.0f;
+            int bin = -1;
+            float cum = 0.0f;
+            for (int i = 0; i < CP_FAR_BINS; ++i) {
+                float wi = b[i] > 0.0f ? b[i] * bt[i] : 0.0f;
+                if (!(wi > 0.0f)) continue;
+                bin = i;
+                if (t < cum + wi) break;
+                cum += wi;
+            }
+            if (bin >= 0) {
+                uint32_t f0 = cp->far_off[p], f1 = cp->far_off[p + 1];
+                const float *cdf = cp_cdf(cp, p, bin, f0);
+                /* a position in the bin without the disabled entries, carried past each disabled
+                 * entry's interval (in entry order) into the bin's own running sums */
+                float tb = fminf((t - cum) / b[bin], bt[bin]);
+                for (uint32_t k = f0; k < f1; ++k) {
+                    if (!far_disabled(cp, k, link)) continue;
+                    float start = k > f0 ? cdf[k - f0 - 1] : 0.0f;
+                    if (tb >= start) tb += cdf[k - f0] - start;
+                }
+                uint32_t lo = 0, hi = f1 - f0;
+                while (lo < hi) {
+                    uint32_t mid = lo + (hi - lo) / 2;
+                    if (cdf[mid] <= tb) lo = mid + 1;
+                    else hi = mid;
+                }
+                if (lo >= f1 - f0) lo = f1 - f0 - 1;
+                /* rounding may land on a zero-weight or disabled entry: step back to a usable one */
+                while (lo > 0 && (!(cdf[lo] > cdf[lo - 1]) || far_disabled(cp, f0 + lo, link))) --lo;
+                uint32_t k = f0 + lo, key = cp->far[k].key;
+                if (!far_disabled(cp, k, link) && (lo > 0 ? cdf[lo] > cdf[lo - 1] : cdf[0] > 0.0f)) {
+                    w = far_weight(cp, p, k, b);
+                    *slot = cp->far_slot[k];
+                    pick = cp_key_light(cp, key);
+                    if (pick == CP_NONE) { /* a cluster: descend below it; it may hold disabled lights */
+                        float pd;
+                        pick = L->tree->descend(L->user, key, x, n, u_descend, &pd);
+                        if (pick >= L->count || !link->enabled[pick]) { *slot = CP_NONE; *pmf = 0.0f; return 0; }
+                        w *= pd;
+                    }
+                }
+            }
+        }
+    }
+    if (pick == CP_NONE || pick >= L->count) {
+        /* the uniform floor over the enabled lights (or rounding at the end of the tables) */
+        float uu = total > 0.0f && u < eps ? u / eps : u;
+        uint32_t i = (uint32_t)(uu * (float)N);
+        if (i >= N) i = N - 1;
+        pick = link->lights[i];
+        w = light_weight_linked(cp, L, p, x, n, b, link, pick, slot);
+    }
+    *pmf = pmf_from(w, total, eps, N);
+    return pick;
+}
+
+float cachepoints_pmf_linked(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
+                             const CachePointVertex *v, const CachePointLink *link, uint32_t light) {
+    if (light >= L->count || !link->enabled[light] || !link->count) return 0.0f;
+    float b[CP_FAR_BINS], bt[CP_FAR_BINS];
+    bin_blend(n, b);
+    far_bin_totals_linked(cp, v->point, b, link, bt);
+    float total = v->near_total + far_total_linked(b, bt);
+    uint32_t slot;
+    return pmf_from(light_weight_linked(cp, L, v->point, x, n, b, link, light, &slot), total, cp->params.epsilon,
+                    link->count);
+}
