@@ -163,11 +163,19 @@ float cachepoints_pmf(const CachePoints *cp, const CachePointLights *lights, con
  * the others. A far *cluster* (cut build) holding disabled lights is kept whole: its descent
  * may land on a disabled light, and then select reports pmf 0 and no slot (the caller takes
  * no sample); the probabilities of enabled lights stay exact (pmf agrees with select). The
- * vertex's near_total is the linked one: use the linked functions throughout for the vertex. */
+ * vertex's near_total is the linked one: use the linked functions throughout for the vertex.
+ * "... and add back in any lights that are marked as exclusive to the current path vertex":
+ * an exclusive light (one whose include list names the vertex's object) that no entry of the
+ * point holds is weighed exactly at the vertex as a near light is (without a visibility
+ * slot), so an object lit only by its own lights does not depend on the floor for them (the
+ * first CACHEPOINTS_MAX_EXCLUSIVE of them; more rely on the entries and the floor). */
+#define CACHEPOINTS_MAX_EXCLUSIVE 64
 typedef struct CachePointLink {
-    const uint8_t *enabled;  /* per light: 1 when it may illuminate the vertex */
-    const uint32_t *lights;  /* the enabled lights, ascending (the uniform floor's choices) */
+    const uint8_t *enabled;   /* per light: 1 when it may illuminate the vertex */
+    const uint32_t *lights;   /* the enabled lights, ascending (the uniform floor's choices) */
     uint32_t count;
+    const uint32_t *exclusive; /* the exclusive lights, ascending */
+    uint32_t num_exclusive;
 } CachePointLink;
 void cachepoints_vertex_linked(const CachePoints *cp, const CachePointLights *lights, const float x[3],
                                const float *n, uint32_t hint, const CachePointLink *link, CachePointVertex *v,

@@ -385,7 +385,22 @@ float cachepoints_pmf(const CachePoints *cp, const CachePointLights *L, const fl
 
 /* ---------------------------------------------------------------- light linking (§3.3) */
 
-/* The near weights with the disabled lights at 0. */
+/* The added-back weight of exclusive light j of the link at the vertex: its exact estimate when
+ * no entry of point p holds it, else 0 (it is sampled through its entry). */
+static float exclusive_weight(const CachePoints *cp, const CachePointLights *L, uint32_t p, const float x[3],
+                              const float *n, const CachePointLink *link, uint32_t j) {
+    int near;
+    uint32_t at, light = link->exclusive[j];
+    if (light >= L->count || locate(cp, p, light, &near, &at)) return 0.0f;
+    float w = L->estimate(L->user, light, x, n);
+    return w > 0.0f && isfinite(w) ? w : 0.0f;
+}
+
+static inline uint32_t num_exclusive(const CachePointLink *link) {
+    return link->num_exclusive < CACHEPOINTS_MAX_EXCLUSIVE ? link->num_exclusive : CACHEPOINTS_MAX_EXCLUSIVE;
+}
+
+/* The near weights with the disabled lights at 0, plus the added-back exclusive lights. */
 static void vertex_near_linked(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
                                const CachePointLink *link, CachePointVertex *v, float *near_w) {
     float t = 0.0f;
@@ -395,6 +410,7 @@ static void vertex_near_linked(const CachePoints *cp, const CachePointLights *L,
         if (near_w) near_w[k - k0] = w;
         t += w;
     }
+    for (uint32_t j = 0; j < num_exclusive(link); ++j) t += exclusive_weight(cp, L, v->point, x, n, link, j);
     v->near_total = t;
 }
 
@@ -458,6 +474,18 @@ static float light_weight_linked(const CachePoints *cp, const CachePointLights *
                                  uint32_t light, uint32_t *slot) {
     *slot = CP_NONE;
     if (light >= L->count || !link->enabled[light]) return 0.0f;
+    int near;
+    uint32_t at;
+    if (!locate(cp, p, light, &near, &at)) { /* an added-back exclusive light, or none */
+        uint32_t lo = 0, hi = num_exclusive(link);
+        while (lo < hi) {
+            uint32_t mid = lo + (hi - lo) / 2;
+            if (link->exclusive[mid] < light) lo = mid + 1;
+            else hi = mid;
+        }
+        return lo < num_exclusive(link) && link->exclusive[lo] == light ? exclusive_weight(cp, L, p, x, n, link, lo)
+                                                                        : 0.0f;
+    }
     return light_weight(cp, L, p, x, n, b, light, slot);
 }
 
@@ -488,6 +516,16 @@ uint32_t cachepoints_select_linked(const CachePoints *cp, const CachePointLights
                 *slot = cp->near_slot[k];
                 if (target < cum) break;
             }
+            if (!(target < cum)) /* then the added-back exclusive lights (no visibility slot) */
+                for (uint32_t j = 0; j < num_exclusive(link); ++j) {
+                    float wj = exclusive_weight(cp, L, p, x, n, link, j);
+                    if (!(wj > 0.0f)) continue;
+                    cum += wj;
+                    pick = link->exclusive[j];
+                    w = wj;
+                    *slot = CP_NONE;
+                    if (target < cum) break;
+                }
         }
         if (pick == CP_NONE && ft > 0.0f) {
             float t = target > v->near_total ? target - v->near_total : 0.0f;

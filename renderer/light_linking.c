@@ -46,6 +46,8 @@ void lights_free_linking(Lights *ls) {
     free(k->enabled_lights);
     free(k->disabled_off);
     free(k->disabled_lights);
+    free(k->exclusive_off);
+    free(k->exclusive_lights);
     free(k->shadow_mask);
     free(k);
     ls->link = NULL;
@@ -160,6 +162,19 @@ int lights_build_linking(Lights *ls, const Scene *scene, char *err, size_t err_l
     }
     k->enabled_off[C] = e;
     k->disabled_off[C] = d;
+    /* the exclusive lights: enabled ones whose receivers list is an include list */
+    k->exclusive_off = calloc((size_t)C + 1, sizeof(uint32_t));
+    k->exclusive_lights = malloc(((size_t)e + 1) * sizeof(uint32_t));
+    if (!k->exclusive_off || !k->exclusive_lights) goto oom;
+    uint32_t x = 0;
+    for (uint32_t c = 0; c < C; ++c) {
+        k->exclusive_off[c] = x;
+        for (uint32_t j = k->enabled_off[c]; j < k->enabled_off[c + 1] && c > 0; ++j) {
+            const Light *L = &ls->lights[k->enabled_lights[j]];
+            if (L->link >= 0 && io->light_links[L->link].receivers == IO_LINK_INCLUDE) k->exclusive_lights[x++] = k->enabled_lights[j];
+        }
+    }
+    k->exclusive_off[C] = x;
     free(off); free(members); free(order); free(group);
     return 0;
 oom:

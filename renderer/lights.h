@@ -95,6 +95,8 @@ typedef struct LightLinking {
     uint8_t *enabled;             /* num_classes x count: 1 when the light reaches the class */
     uint32_t *enabled_off, *enabled_lights;   /* per class (num_classes + 1 offsets): its lights, ascending */
     uint32_t *disabled_off, *disabled_lights; /* per class: the lights that do not reach it, ascending */
+    uint32_t *exclusive_off, *exclusive_lights; /* per class: its lights that have an include list
+                                                 * naming it ("exclusive" to it, §3.3), ascending */
     uint32_t *shadow_mask;        /* per light: its shadow rays' ray mask (NULL: no shadow linking) */
 } LightLinking;
 

@@ -728,16 +728,18 @@ def light_linking():
       linking_include    lamp_a: receivers include ['right_floor', 'plate'] (= linking_receivers);
       linking_both_links lamp_a: both lists at once;
       linking_many_*     noA, both, receivers with 48 more weak point lights (cache point far
-                         entries and clusters).
+                         entries and clusters); noC (lamp_c dark) and exclusive (lamp_a includes
+                         the right floor and the plate, lamp_c excludes the right floor: the
+                         right floor's class has an exclusive light, §3.3's add-back).
     The camera looks straight down from between the lamps (it sees their unlit backs)."""
     out = os.path.join(ROOT, 'tests', 'scenes')
 
-    def make(name, a_emits=True, others_emit=True, plate=True, links=None, many=False):
+    def make(name, a_emits=True, others_emit=True, plate=True, links=None, many=False, c_emits=True, c_links=None):
         g = Gltf()
         m = g.material('lambert_half', **LAMBERT_WHITE)
         emit = g.material('emitter', base=(0.0, 0.0, 0.0), lambert=True, emissive=(1.0, 1.0, 1.0), strength=4.0)
         emit_c = g.material('emitter_c', base=(0.0, 0.0, 0.0), lambert=True, emissive=(1.0, 0.8, 0.6),
-                            strength=3.0 if others_emit else 0.0)
+                            strength=3.0 if others_emit and c_emits else 0.0)
         dark = g.material('dark', base=(0.0, 0.0, 0.0), lambert=True)
         # the left group: a parent node without a mesh, two children
         g.doc['meshes'].append({'name': 'left_floor',
@@ -759,8 +761,10 @@ def light_linking():
             g.doc['nodes'][a]['extras'] = {'candela_light_linking': links}
         g.light('point_b', 'point', 1.0 if others_emit else 0.0, translation=(-1.0, 1.0, 0.6))
         c = 0.2
-        g.mesh('lamp_c', 'lamp_c', quad((-0.8 - c, 1.1, -0.9 - c), (-0.8 + c, 1.1, -0.9 - c), (-0.8 + c, 1.1, -0.9 + c),
+        lc = g.mesh('lamp_c', 'lamp_c', quad((-0.8 - c, 1.1, -0.9 - c), (-0.8 + c, 1.1, -0.9 - c), (-0.8 + c, 1.1, -0.9 + c),
                                         (-0.8 - c, 1.1, -0.9 + c)), emit_c)
+        if c_links is not None:
+            g.doc['nodes'][lc]['extras'] = {'candela_light_linking': c_links}
         if many:  # 48 weak point lights: cache points get far entries and clusters (cut size 4)
             import random
             rng = random.Random(3)
@@ -780,6 +784,9 @@ def light_linking():
     make('linking_many_noA', a_emits=False, many=True)
     make('linking_many_both', many=True)
     make('linking_many_receivers', links={'receivers': {'exclude': ['left']}}, many=True)
+    make('linking_many_noC', c_emits=False, many=True)
+    make('linking_many_exclusive', links={'receivers': {'include': ['right_floor', 'plate']}},
+         c_links={'receivers': {'exclude': ['right_floor']}}, many=True)
 
 
 def light_edge_cases():

@@ -32,7 +32,7 @@
 typedef struct Sampler { const char *name; CandelaLightSampler s; int exact; } Sampler;
 
 static int render_cut(const char *dir, const char *scene, CandelaLightSampler s, int threads, uint32_t cut,
-                      CandelaImage *img) {
+                      int linear, CandelaImage *img) {
     char path[1024];
     snprintf(path, sizeof path, "%s/linking_%s.gltf", dir, scene);
     CandelaOptions o;
@@ -47,6 +47,7 @@ static int render_cut(const char *dir, const char *scene, CandelaLightSampler s,
     o.light_units = CANDELA_LIGHT_UNITS_RAW;
     o.light_sampler = s;
     o.cachepoint_cut_size = cut;
+    o.cachepoint_build_linear = linear;
     char err[CANDELA_ERR_LEN];
     CandelaStats st;
     int rc = candela_render(&o, img, &st, NULL, err);
@@ -55,7 +56,7 @@ static int render_cut(const char *dir, const char *scene, CandelaLightSampler s,
 }
 
 static int render(const char *dir, const char *scene, CandelaLightSampler s, int threads, CandelaImage *img) {
-    return render_cut(dir, scene, s, threads, 0, img);
+    return render_cut(dir, scene, s, threads, 0, 0, img);
 }
 
 /* Pixel regions (the camera looks down at x, z in [-2, 2]; image right = +x, up = -z). */
@@ -159,19 +160,32 @@ int main(int argc, char **argv) {
         }
         /* 48 more lights: far entries (single lights and, with a cut of 4, clusters that hold
          * lamp_a) are what cache points must drop or descend around */
-        CandelaImage many[3];
-        memset(many, 0, sizeof many);
-        const char *mnames[3] = {"many_noA", "many_both", "many_receivers"};
-        int mok = 1;
-        for (int v = 0; v < 3 && mok; ++v) mok = render_cut(dir, mnames[v], S->s, 2, 4, &many[v]) == 0;
-        if (mok && S->exact) {
-            same("48 more lights: left = without lamp_a", S->name, &many[2], &many[0], REGION_LEFT);
-            same("48 more lights: right = no linking", S->name, &many[2], &many[1], REGION_RIGHT);
-        } else if (mok) {
-            agree("48 more lights, cut 4: left = without lamp_a", S->name, &many[2], &many[0], NULL, REGION_LEFT);
-            agree("48 more lights, cut 4: right = no linking", S->name, &many[2], &many[1], NULL, REGION_RIGHT);
+        for (int linear = 0; linear <= !S->exact; ++linear) {
+            enum { M_NOA, M_BOTH, M_RECV, M_NOC, M_EXCL, MN };
+            CandelaImage many[MN];
+            memset(many, 0, sizeof many);
+            const char *mnames[MN] = {"many_noA", "many_both", "many_receivers", "many_noC", "many_exclusive"};
+            const char *tag = linear ? "linear build" : "cut 4";
+            int mok = 1;
+            for (int v = 0; v < MN && mok; ++v) mok = render_cut(dir, mnames[v], S->s, 2, 4, linear, &many[v]) == 0;
+            char what[4][96];
+            snprintf(what[0], sizeof what[0], "48 more lights, %s: left = without lamp_a", tag);
+            snprintf(what[1], sizeof what[1], "48 more lights, %s: right = no linking", tag);
+            snprintf(what[2], sizeof what[2], "exclusive, %s: left = without lamp_a", tag);
+            snprintf(what[3], sizeof what[3], "exclusive, %s: right = without lamp_c", tag);
+            if (mok && S->exact) {
+                same(what[0], S->name, &many[M_RECV], &many[M_NOA], REGION_LEFT);
+                same(what[1], S->name, &many[M_RECV], &many[M_BOTH], REGION_RIGHT);
+                same(what[2], S->name, &many[M_EXCL], &many[M_NOA], REGION_LEFT);
+                same(what[3], S->name, &many[M_EXCL], &many[M_NOC], REGION_RIGHT);
+            } else if (mok) {
+                agree(what[0], S->name, &many[M_RECV], &many[M_NOA], NULL, REGION_LEFT);
+                agree(what[1], S->name, &many[M_RECV], &many[M_BOTH], NULL, REGION_RIGHT);
+                agree(what[2], S->name, &many[M_EXCL], &many[M_NOA], NULL, REGION_LEFT);
+                agree(what[3], S->name, &many[M_EXCL], &many[M_NOC], NULL, REGION_RIGHT);
+            }
+            for (int v = 0; v < MN; ++v) candela_image_free(&many[v]);
         }
-        for (int v = 0; v < 3; ++v) candela_image_free(&many[v]);
         if (!S->exact && ok) { /* determinism with linking: 1 and 2 threads */
             CandelaImage one;
             memset(&one, 0, sizeof one);
