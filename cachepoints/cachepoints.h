@@ -176,6 +176,8 @@ typedef struct CachePointLink {
     uint32_t count;
     const uint32_t *exclusive; /* the exclusive lights, ascending */
     uint32_t num_exclusive;
+    const uint32_t *disabled;  /* the disabled lights, ascending (far clusters' cuts) */
+    uint32_t num_disabled;
 } CachePointLink;
 void cachepoints_vertex_linked(const CachePoints *cp, const CachePointLights *lights, const float x[3],
                                const float *n, uint32_t hint, const CachePointLink *link, CachePointVertex *v,

@@ -435,6 +435,16 @@ void cachepoints_vertex_reuse_linked(const CachePoints *cp, const CachePointLigh
     cachepoints_vertex_linked(cp, L, x, n, point < cp->n ? point : UINT32_MAX, link, v, near_w);
 }
 
+/* A further uniform in [0, 1) from u and an attempt number (a 32-bit finaliser of u's bits):
+ * deterministic, so select is a function of its arguments. */
+static inline float rehash_uniform(float u, uint32_t a) {
+    uint32_t h;
+    memcpy(&h, &u, sizeof h);
+    h ^= a * 0x9e3779b9u;
+    h ^= h >> 16; h *= 0x7feb352du; h ^= h >> 15; h *= 0x846ca68bu; h ^= h >> 16;
+    return (float)(h >> 8) * 0x1p-24f;
+}
+
 /* Whether far entry k is a single light the vertex may not use. */
 static inline int far_disabled(const CachePoints *cp, uint32_t k, const CachePointLink *link) {
     uint32_t l = cp_key_light(cp, cp->far[k].key);
@@ -447,10 +457,56 @@ static inline float far_step(const CachePoints *cp, uint32_t p, int i, uint32_t 
     return k > cp->far_off[p] ? c[0] - c[-1] : c[0];
 }
 
-/* The bin totals of point p without its disabled single-light entries (one pass over the far
- * list: the disabled lights are found where they are, whatever their number). */
+/* A far cluster of the point that holds disabled lights, and their share d of its descent at
+ * the vertex (the descent's probability of ending on one of them). */
+typedef struct ClusterCut { uint32_t k; float d; } ClusterCut;
+
+/* The vertex's cluster cuts, sorted by entry (none when the class disables more than
+ * CP_LINK_MAX_CUT lights: clusters are then kept whole, and a descent onto a disabled light
+ * takes no sample). For each disabled light held by a cluster of p, its descent pmf. */
+#define CP_LINK_MAX_CUT 64
+#define CP_LINK_ATTEMPTS 4 /* descents per cluster pick before giving up (no sample) */
+static uint32_t cluster_cuts(const CachePoints *cp, const CachePointLights *L, uint32_t p, const float x[3],
+                             const float *n, const CachePointLink *link, ClusterCut cut[CP_LINK_MAX_CUT]) {
+    if (!cp->key_light || !L->tree || !link->disabled || link->num_disabled > CP_LINK_MAX_CUT) return 0;
+    uint32_t m = 0;
+    for (uint32_t j = 0; j < link->num_disabled; ++j) {
+        int near;
+        uint32_t at, d = link->disabled[j];
+        if (!locate(cp, p, d, &near, &at) || near || cp_key_light(cp, cp->far[at].key) != CP_NONE) continue;
+        float pd = L->tree->descend_pmf(L->user, cp->far[at].key, x, n, d);
+        if (!(pd > 0.0f)) continue;
+        uint32_t i = 0;
+        while (i < m && cut[i].k < at) ++i;
+        if (i < m && cut[i].k == at) { cut[i].d += pd; continue; }
+        memmove(cut + i + 1, cut + i, (m - i) * sizeof *cut);
+        cut[i] = (ClusterCut){at, pd};
+        ++m;
+    }
+    for (uint32_t i = 0; i < m; ++i) cut[i].d = fminf(fmaxf(cut[i].d, 0.0f), 1.0f);
+    return m;
+}
+
+static float cut_of(const ClusterCut *cut, uint32_t m, uint32_t k) {
+    for (uint32_t i = 0; i < m; ++i)
+        if (cut[i].k == k) return cut[i].d;
+    return 0.0f;
+}
+
+/* The cluster is picked with its enabled share (1 - d) of its weight, and CP_LINK_ATTEMPTS
+ * descents end on `light` with probability p_descend(light) (1 + d + d^2 + d^3): its weight at
+ * the vertex is the entry's times p_descend(light) times this, 1 - d^4. */
+static inline float attempts_gain(float d) {
+    float dm = d * d;
+    return d > 0.0f ? 1.0f - dm * dm : 1.0f;
+}
+
+/* The bin totals of point p without its disabled single-light entries and without the disabled
+ * shares of its clusters (one pass over the far list: the disabled singles are found where
+ * they are, whatever their number). */
 static void far_bin_totals_linked(const CachePoints *cp, uint32_t p, const float b[CP_FAR_BINS],
-                                  const CachePointLink *link, float bt[CP_FAR_BINS]) {
+                                  const CachePointLink *link, const ClusterCut *cut, uint32_t ncut,
+                                  float bt[CP_FAR_BINS]) {
     const float *t = cp->far_bin_total + (size_t)p * CP_BIN_STRIDE;
     float dis[CP_FAR_BINS] = {0};
     for (uint32_t k = cp->far_off[p]; k < cp->far_off[p + 1]; ++k) {
@@ -458,6 +514,9 @@ static void far_bin_totals_linked(const CachePoints *cp, uint32_t p, const float
         for (int i = 0; i < CP_FAR_BINS; ++i)
             if (b[i] > 0.0f) dis[i] += far_step(cp, p, i, k);
     }
+    for (uint32_t c = 0; c < ncut; ++c)
+        for (int i = 0; i < CP_FAR_BINS; ++i)
+            if (b[i] > 0.0f) dis[i] += far_step(cp, p, i, cut[c].k) * cut[c].d;
     for (int i = 0; i < CP_FAR_BINS; ++i) bt[i] = b[i] > 0.0f ? fmaxf(t[i] - dis[i], 0.0f) : 0.0f;
 }
 
@@ -471,7 +530,7 @@ static float far_total_linked(const float b[CP_FAR_BINS], const float bt[CP_FAR_
 /* Weight of an enabled `light` at the vertex (as light_weight; 0 for a disabled one). */
 static float light_weight_linked(const CachePoints *cp, const CachePointLights *L, uint32_t p, const float x[3],
                                  const float *n, const float b[CP_FAR_BINS], const CachePointLink *link,
-                                 uint32_t light, uint32_t *slot) {
+                                 const ClusterCut *cut, uint32_t ncut, uint32_t light, uint32_t *slot) {
     *slot = CP_NONE;
     if (light >= L->count || !link->enabled[light]) return 0.0f;
     int near;
@@ -486,7 +545,11 @@ static float light_weight_linked(const CachePoints *cp, const CachePointLights *
         return lo < num_exclusive(link) && link->exclusive[lo] == light ? exclusive_weight(cp, L, p, x, n, link, lo)
                                                                         : 0.0f;
     }
-    return light_weight(cp, L, p, x, n, b, light, slot);
+    float w = light_weight(cp, L, p, x, n, b, light, slot);
+    /* a cluster with disabled lights: picked with its enabled share, then up to
+     * CP_LINK_ATTEMPTS descents until one ends on an enabled light */
+    if (!near && ncut) w *= attempts_gain(cut_of(cut, ncut, at));
+    return w;
 }
 
 uint32_t cachepoints_select_linked(const CachePoints *cp, const CachePointLights *L, const float x[3],
@@ -498,7 +561,9 @@ uint32_t cachepoints_select_linked(const CachePoints *cp, const CachePointLights
     if (!N) { *pmf = 0.0f; return 0; }
     float b[CP_FAR_BINS], bt[CP_FAR_BINS];
     bin_blend(n, b);
-    far_bin_totals_linked(cp, p, b, link, bt);
+    ClusterCut cut[CP_LINK_MAX_CUT];
+    uint32_t ncut = cluster_cuts(cp, L, p, x, n, link, cut);
+    far_bin_totals_linked(cp, p, b, link, cut, ncut, bt);
     float ft = far_total_linked(b, bt), total = v->near_total + ft;
     uint32_t pick = CP_NONE;
     float w = 0.0f;
@@ -544,10 +609,15 @@ uint32_t cachepoints_select_linked(const CachePoints *cp, const CachePointLights
                 /* a position in the bin without the disabled entries, carried past each disabled
                  * entry's interval (in entry order) into the bin's own running sums */
                 float tb = fminf((t - cum) / b[bin], bt[bin]);
-                for (uint32_t k = f0; k < f1; ++k) {
-                    if (!far_disabled(cp, k, link)) continue;
-                    float start = k > f0 ? cdf[k - f0 - 1] : 0.0f;
-                    if (tb >= start) tb += cdf[k - f0] - start;
+                for (uint32_t k = f0, c = 0; k < f1; ++k) {
+                    float start = k > f0 ? cdf[k - f0 - 1] : 0.0f, step = cdf[k - f0] - start;
+                    if (far_disabled(cp, k, link)) {
+                        if (tb >= start) tb += step;
+                    } else if (c < ncut && cut[c].k == k) { /* the cluster's disabled share: its interval's tail */
+                        float keep = step * (1.0f - cut[c].d);
+                        if (tb >= start + keep) tb += step - keep;
+                        ++c;
+                    }
                 }
                 uint32_t lo = 0, hi = f1 - f0;
                 while (lo < hi) {
@@ -564,10 +634,14 @@ uint32_t cachepoints_select_linked(const CachePoints *cp, const CachePointLights
                     *slot = cp->far_slot[k];
                     pick = cp_key_light(cp, key);
                     if (pick == CP_NONE) { /* a cluster: descend below it; it may hold disabled lights */
-                        float pd;
+                        float pd, d = cut_of(cut, ncut, k);
                         pick = L->tree->descend(L->user, key, x, n, u_descend, &pd);
+                        /* a cut cluster: further descents (their numbers hashed from u_descend)
+                         * until one ends on an enabled light; attempts_gain is what that gives */
+                        for (uint32_t a = 1; d > 0.0f && a < CP_LINK_ATTEMPTS && (pick >= L->count || !link->enabled[pick]); ++a)
+                            pick = L->tree->descend(L->user, key, x, n, rehash_uniform(u_descend, a), &pd);
                         if (pick >= L->count || !link->enabled[pick]) { *slot = CP_NONE; *pmf = 0.0f; return 0; }
-                        w *= pd;
+                        w *= pd * attempts_gain(d);
                     }
                 }
             }
@@ -579,7 +653,7 @@ uint32_t cachepoints_select_linked(const CachePoints *cp, const CachePointLights
         uint32_t i = (uint32_t)(uu * (float)N);
         if (i >= N) i = N - 1;
         pick = link->lights[i];
-        w = light_weight_linked(cp, L, p, x, n, b, link, pick, slot);
+        w = light_weight_linked(cp, L, p, x, n, b, link, cut, ncut, pick, slot);
     }
     *pmf = pmf_from(w, total, eps, N);
     return pick;
@@ -590,9 +664,11 @@ float cachepoints_pmf_linked(const CachePoints *cp, const CachePointLights *L, c
     if (light >= L->count || !link->enabled[light] || !link->count) return 0.0f;
     float b[CP_FAR_BINS], bt[CP_FAR_BINS];
     bin_blend(n, b);
-    far_bin_totals_linked(cp, v->point, b, link, bt);
+    ClusterCut cut[CP_LINK_MAX_CUT];
+    uint32_t ncut = cluster_cuts(cp, L, v->point, x, n, link, cut);
+    far_bin_totals_linked(cp, v->point, b, link, cut, ncut, bt);
     float total = v->near_total + far_total_linked(b, bt);
     uint32_t slot;
-    return pmf_from(light_weight_linked(cp, L, v->point, x, n, b, link, light, &slot), total, cp->params.epsilon,
-                    link->count);
+    return pmf_from(light_weight_linked(cp, L, v->point, x, n, b, link, cut, ncut, light, &slot), total,
+                    cp->params.epsilon, link->count);
 }

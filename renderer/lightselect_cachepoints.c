@@ -631,7 +631,9 @@ int light_sampler_cachepoints_create(LightSampler *ls, const Lights *lights, con
                 s->links[c] = (CachePointLink){k->enabled + (size_t)c * lights->count, k->enabled_lights + k->enabled_off[c],
                                                k->enabled_off[c + 1] - k->enabled_off[c],
                                                k->exclusive_lights + k->exclusive_off[c],
-                                               k->exclusive_off[c + 1] - k->exclusive_off[c]};
+                                               k->exclusive_off[c + 1] - k->exclusive_off[c],
+                                               k->disabled_lights + k->disabled_off[c],
+                                               k->disabled_off[c + 1] - k->disabled_off[c]};
         }
         int rc_build = build(s, scene, media, pool, o);
         if (rc_build != 0) {
