@@ -70,8 +70,8 @@ int direct_light_sample_u(const Integrator *ig, vec3 beta, const Scatter *sc, co
     ls->cost = 0.0f;
     if (!(pmf > 0.0f)) return 0;
     const Light *light = &ig->lights->lights[li];
-    /* light linking: every strategy gives unlinked lights probability 0; a cluster descent
-     * of the cache points may still land on one (lightselect_cachepoints.c): no sample */
+    /* light linking: every strategy gives unlinked lights probability 0 (a strategy that
+     * could still land on one reports pmf 0 there): a guard, no sample */
     if (lc->link_class && !light_reaches(ig->lights, lc->link_class, li)) return 0;
     /* an emissive volume whose emission sampling is off (auto): found by tracking alone */
     if (light->type == LIGHT_VOLUME && !ig->emission_auto.on[light->medium]) return 0;
