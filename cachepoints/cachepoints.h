@@ -157,6 +157,43 @@ uint32_t cachepoints_select(const CachePoints *cp, const CachePointLights *light
 /* Exactly the probability cachepoints_select gives `light` at the vertex. */
 float cachepoints_pmf(const CachePoints *cp, const CachePointLights *lights, const float x[3], const float *n,
                       const CachePointVertex *v, uint32_t light);
+/* Light linking (§3.3: "we then remove any lights that are disabled for the current path
+ * vertex through light linking"): the lights that may illuminate a vertex. The *_linked
+ * functions are the ones above for such a vertex: disabled near lights weigh 0, disabled far
+ * entries that are single lights leave the far distribution (their weights are subtracted
+ * per bin and the search skips them), and the uniform floor epsilon spreads over the enabled
+ * lights only, so p(e | x) = (1 - eps) w_e / W' + eps / N_link for enabled lights and 0 for
+ * the others. A far *cluster* (cut build) holding disabled lights is kept whole: its descent
+ * may land on a disabled light, and then select reports pmf 0 and no slot (the caller takes
+ * no sample); the probabilities of enabled lights stay exact (pmf agrees with select). The
+ * vertex's near_total is the linked one: use the linked functions throughout for the vertex.
+ * "... and add back in any lights that are marked as exclusive to the current path vertex":
+ * an exclusive light (one whose include list names the vertex's object) that no entry of the
+ * point holds is weighed exactly at the vertex as a near light is (without a visibility
+ * slot), so an object lit only by its own lights does not depend on the floor for them (the
+ * first CACHEPOINTS_MAX_EXCLUSIVE of them; more rely on the entries and the floor). */
+#define CACHEPOINTS_MAX_EXCLUSIVE 64
+typedef struct CachePointLink {
+    const uint8_t *enabled;   /* per light: 1 when it may illuminate the vertex */
+    const uint32_t *lights;   /* the enabled lights, ascending (the uniform floor's choices) */
+    uint32_t count;
+    const uint32_t *exclusive; /* the exclusive lights, ascending */
+    uint32_t num_exclusive;
+    const uint32_t *disabled;  /* the disabled lights, ascending (far clusters' cuts) */
+    uint32_t num_disabled;
+} CachePointLink;
+void cachepoints_vertex_linked(const CachePoints *cp, const CachePointLights *lights, const float x[3],
+                               const float *n, uint32_t hint, const CachePointLink *link, CachePointVertex *v,
+                               float *near_w);
+void cachepoints_vertex_reuse_linked(const CachePoints *cp, const CachePointLights *lights, const float x[3],
+                                     const float *n, uint32_t point, const CachePointLink *link, CachePointVertex *v,
+                                     float *near_w);
+uint32_t cachepoints_select_linked(const CachePoints *cp, const CachePointLights *lights, const float x[3],
+                                   const float *n, const CachePointVertex *v, const float *near_w,
+                                   const CachePointLink *link, float u, float u_descend, float *pmf, uint32_t *slot);
+float cachepoints_pmf_linked(const CachePoints *cp, const CachePointLights *lights, const float x[3], const float *n,
+                             const CachePointVertex *v, const CachePointLink *link, uint32_t light);
+
 /* The cache point a vertex at x uses (the nearest; ties: lowest index). */
 uint32_t cachepoints_nearest(const CachePoints *cp, const float x[3]);
 

@@ -412,3 +412,293 @@ float cachepoints_pmf(const CachePoints *cp, const CachePointLights *L, const fl
 
 /* The bin blend of selection, for the read-only views of inspect.c. */
 void cp_bin_blend(const float *n, float b[CP_FAR_BINS]) { bin_blend(n, b); }
+
+/* ---------------------------------------------------------------- light linking (§3.3) */
+
+/* The added-back weight of exclusive light j of the link at the vertex: its exact estimate when
+ * no entry of point p holds it, else 0 (it is sampled through its entry). */
+static float exclusive_weight(const CachePoints *cp, const CachePointLights *L, uint32_t p, const float x[3],
+                              const float *n, const CachePointLink *link, uint32_t j) {
+    int near;
+    uint32_t at, light = link->exclusive[j];
+    if (light >= L->count || locate(cp, p, light, &near, &at)) return 0.0f;
+    float w = L->estimate(L->user, light, x, n);
+    return w > 0.0f && isfinite(w) ? w : 0.0f;
+}
+
+static inline uint32_t num_exclusive(const CachePointLink *link) {
+    return link->num_exclusive < CACHEPOINTS_MAX_EXCLUSIVE ? link->num_exclusive : CACHEPOINTS_MAX_EXCLUSIVE;
+}
+
+/* The near weights with the disabled lights at 0, plus the added-back exclusive lights. */
+static void vertex_near_linked(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
+                               const CachePointLink *link, CachePointVertex *v, float *near_w) {
+    float t = 0.0f;
+    uint32_t k0 = cp->near_off[v->point];
+    for (uint32_t k = k0; k < cp->near_off[v->point + 1]; ++k) {
+        float w = link->enabled[cp->near_light[k]] ? near_weight(cp, L, k, x, n) : 0.0f;
+        if (near_w) near_w[k - k0] = w;
+        t += w;
+    }
+    for (uint32_t j = 0; j < num_exclusive(link); ++j) t += exclusive_weight(cp, L, v->point, x, n, link, j);
+    v->near_total = t;
+}
+
+void cachepoints_vertex_linked(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
+                               uint32_t hint, const CachePointLink *link, CachePointVertex *v, float *near_w) {
+    v->point = cp_nearest_point(cp, x, hint);
+    vertex_near_linked(cp, L, x, n, link, v, near_w);
+}
+
+void cachepoints_vertex_reuse_linked(const CachePoints *cp, const CachePointLights *L, const float x[3],
+                                     const float *n, uint32_t point, const CachePointLink *link, CachePointVertex *v,
+                                     float *near_w) {
+    if (point < cp->n) {
+        const float *c = cp->pos + 3 * (size_t)point;
+        float d2 = (x[0] - c[0]) * (x[0] - c[0]) + (x[1] - c[1]) * (x[1] - c[1]) + (x[2] - c[2]) * (x[2] - c[2]);
+        if (d2 <= cp->radius[point] * cp->radius[point]) {
+            v->point = point;
+            vertex_near_linked(cp, L, x, n, link, v, near_w);
+            return;
+        }
+    }
+    cachepoints_vertex_linked(cp, L, x, n, point < cp->n ? point : UINT32_MAX, link, v, near_w);
+}
+
+/* A further uniform in [0, 1) from u and an attempt number (a 32-bit finaliser of u's bits):
+ * deterministic, so select is a function of its arguments. */
+static inline float rehash_uniform(float u, uint32_t a) {
+    uint32_t h;
+    memcpy(&h, &u, sizeof h);
+    h ^= a * 0x9e3779b9u;
+    h ^= h >> 16; h *= 0x7feb352du; h ^= h >> 15; h *= 0x846ca68bu; h ^= h >> 16;
+    return (float)(h >> 8) * 0x1p-24f;
+}
+
+/* Whether far entry k is a single light the vertex may not use. */
+static inline int far_disabled(const CachePoints *cp, uint32_t k, const CachePointLink *link) {
+    uint32_t l = cp_key_light(cp, cp->far[k].key);
+    return l != CP_NONE && l < cp->num_lights && !link->enabled[l];
+}
+
+/* The step of bin i's running sums at far entry k (its weight in that bin). */
+static inline float far_step(const CachePoints *cp, uint32_t p, int i, uint32_t k) {
+    const float *c = cp_cdf(cp, p, i, k);
+    return k > cp->far_off[p] ? c[0] - c[-1] : c[0];
+}
+
+/* A far cluster of the point that holds disabled lights, and their share d of its descent at
+ * the vertex (the descent's probability of ending on one of them). */
+typedef struct ClusterCut { uint32_t k; float d; } ClusterCut;
+
+/* The vertex's cluster cuts, sorted by entry (none when the class disables more than
+ * CP_LINK_MAX_CUT lights: clusters are then kept whole, and a descent onto a disabled light
+ * takes no sample). For each disabled light held by a cluster of p, its descent pmf. */
+#define CP_LINK_MAX_CUT 64
+#define CP_LINK_ATTEMPTS 4 /* descents per cluster pick before giving up (no sample) */
+static uint32_t cluster_cuts(const CachePoints *cp, const CachePointLights *L, uint32_t p, const float x[3],
+                             const float *n, const CachePointLink *link, ClusterCut cut[CP_LINK_MAX_CUT]) {
+    if (!cp->key_light || !L->tree || !link->disabled || link->num_disabled > CP_LINK_MAX_CUT) return 0;
+    uint32_t m = 0;
+    for (uint32_t j = 0; j < link->num_disabled; ++j) {
+        int near;
+        uint32_t at, d = link->disabled[j];
+        if (!locate(cp, p, d, &near, &at) || near || cp_key_light(cp, cp->far[at].key) != CP_NONE) continue;
+        float pd = L->tree->descend_pmf(L->user, cp->far[at].key, x, n, d);
+        if (!(pd > 0.0f)) continue;
+        uint32_t i = 0;
+        while (i < m && cut[i].k < at) ++i;
+        if (i < m && cut[i].k == at) { cut[i].d += pd; continue; }
+        memmove(cut + i + 1, cut + i, (m - i) * sizeof *cut);
+        cut[i] = (ClusterCut){at, pd};
+        ++m;
+    }
+    for (uint32_t i = 0; i < m; ++i) cut[i].d = fminf(fmaxf(cut[i].d, 0.0f), 1.0f);
+    return m;
+}
+
+static float cut_of(const ClusterCut *cut, uint32_t m, uint32_t k) {
+    for (uint32_t i = 0; i < m; ++i)
+        if (cut[i].k == k) return cut[i].d;
+    return 0.0f;
+}
+
+/* The cluster is picked with its enabled share (1 - d) of its weight, and CP_LINK_ATTEMPTS
+ * descents end on `light` with probability p_descend(light) (1 + d + d^2 + d^3): its weight at
+ * the vertex is the entry's times p_descend(light) times this, 1 - d^4. */
+static inline float attempts_gain(float d) {
+    float dm = d * d;
+    return d > 0.0f ? 1.0f - dm * dm : 1.0f;
+}
+
+/* The bin totals of point p without its disabled single-light entries and without the disabled
+ * shares of its clusters (one pass over the far list: the disabled singles are found where
+ * they are, whatever their number). */
+static void far_bin_totals_linked(const CachePoints *cp, uint32_t p, const float b[CP_FAR_BINS],
+                                  const CachePointLink *link, const ClusterCut *cut, uint32_t ncut,
+                                  float bt[CP_FAR_BINS]) {
+    const float *t = cp->far_bin_total + (size_t)p * CP_BIN_STRIDE;
+    float dis[CP_FAR_BINS] = {0};
+    for (uint32_t k = cp->far_off[p]; k < cp->far_off[p + 1]; ++k) {
+        if (!far_disabled(cp, k, link)) continue;
+        for (int i = 0; i < CP_FAR_BINS; ++i)
+            if (b[i] > 0.0f) dis[i] += far_step(cp, p, i, k);
+    }
+    for (uint32_t c = 0; c < ncut; ++c)
+        for (int i = 0; i < CP_FAR_BINS; ++i)
+            if (b[i] > 0.0f) dis[i] += far_step(cp, p, i, cut[c].k) * cut[c].d;
+    for (int i = 0; i < CP_FAR_BINS; ++i) bt[i] = b[i] > 0.0f ? fmaxf(t[i] - dis[i], 0.0f) : 0.0f;
+}
+
+static float far_total_linked(const float b[CP_FAR_BINS], const float bt[CP_FAR_BINS]) {
+    float t = 0.0f;
+    for (int i = 0; i < CP_FAR_BINS; ++i)
+        if (b[i] > 0.0f) t += b[i] * bt[i];
+    return t;
+}
+
+/* Weight of an enabled `light` at the vertex (as light_weight; 0 for a disabled one). */
+static float light_weight_linked(const CachePoints *cp, const CachePointLights *L, uint32_t p, const float x[3],
+                                 const float *n, const float b[CP_FAR_BINS], const CachePointLink *link,
+                                 const ClusterCut *cut, uint32_t ncut, uint32_t light, uint32_t *slot) {
+    *slot = CP_NONE;
+    if (light >= L->count || !link->enabled[light]) return 0.0f;
+    int near;
+    uint32_t at;
+    if (!locate(cp, p, light, &near, &at)) { /* an added-back exclusive light, or none */
+        uint32_t lo = 0, hi = num_exclusive(link);
+        while (lo < hi) {
+            uint32_t mid = lo + (hi - lo) / 2;
+            if (link->exclusive[mid] < light) lo = mid + 1;
+            else hi = mid;
+        }
+        return lo < num_exclusive(link) && link->exclusive[lo] == light ? exclusive_weight(cp, L, p, x, n, link, lo)
+                                                                        : 0.0f;
+    }
+    float w = light_weight(cp, L, p, x, n, b, light, slot);
+    /* a cluster with disabled lights: picked with its enabled share, then up to
+     * CP_LINK_ATTEMPTS descents until one ends on an enabled light */
+    if (!near && ncut) w *= attempts_gain(cut_of(cut, ncut, at));
+    return w;
+}
+
+uint32_t cachepoints_select_linked(const CachePoints *cp, const CachePointLights *L, const float x[3],
+                                   const float *n, const CachePointVertex *v, const float *near_w,
+                                   const CachePointLink *link, float u, float u_descend, float *pmf, uint32_t *slot) {
+    uint32_t N = link->count, p = v->point;
+    float eps = cp->params.epsilon;
+    *slot = CP_NONE;
+    if (!N) { *pmf = 0.0f; return 0; }
+    float b[CP_FAR_BINS], bt[CP_FAR_BINS];
+    bin_blend(n, b);
+    ClusterCut cut[CP_LINK_MAX_CUT];
+    uint32_t ncut = cluster_cuts(cp, L, p, x, n, link, cut);
+    far_bin_totals_linked(cp, p, b, link, cut, ncut, bt);
+    float ft = far_total_linked(b, bt), total = v->near_total + ft;
+    uint32_t pick = CP_NONE;
+    float w = 0.0f;
+    if (total > 0.0f && u >= eps) {
+        float target = (u - eps) / (1.0f - eps) * total;
+        if (target < v->near_total) {
+            float cum = 0.0f;
+            for (uint32_t k = cp->near_off[p]; k < cp->near_off[p + 1]; ++k) {
+                float wk = near_w ? near_w[k - cp->near_off[p]]
+                                  : (link->enabled[cp->near_light[k]] ? near_weight(cp, L, k, x, n) : 0.0f);
+                if (!(wk > 0.0f)) continue;
+                cum += wk;
+                pick = cp->near_light[k];
+                w = wk;
+                *slot = cp->near_slot[k];
+                if (target < cum) break;
+            }
+            if (!(target < cum)) /* then the added-back exclusive lights (no visibility slot) */
+                for (uint32_t j = 0; j < num_exclusive(link); ++j) {
+                    float wj = exclusive_weight(cp, L, p, x, n, link, j);
+                    if (!(wj > 0.0f)) continue;
+                    cum += wj;
+                    pick = link->exclusive[j];
+                    w = wj;
+                    *slot = CP_NONE;
+                    if (target < cum) break;
+                }
+        }
+        if (pick == CP_NONE && ft > 0.0f) {
+            float t = target > v->near_total ? target - v->near_total : 0.0f;
+            int bin = -1;
+            float cum = 0.0f;
+            for (int i = 0; i < CP_FAR_BINS; ++i) {
+                float wi = b[i] > 0.0f ? b[i] * bt[i] : 0.0f;
+                if (!(wi > 0.0f)) continue;
+                bin = i;
+                if (t < cum + wi) break;
+                cum += wi;
+            }
+            if (bin >= 0) {
+                uint32_t f0 = cp->far_off[p], f1 = cp->far_off[p + 1];
+                const float *cdf = cp_cdf(cp, p, bin, f0);
+                /* a position in the bin without the disabled entries, carried past each disabled
+                 * entry's interval (in entry order) into the bin's own running sums */
+                float tb = fminf((t - cum) / b[bin], bt[bin]);
+                for (uint32_t k = f0, c = 0; k < f1; ++k) {
+                    float start = k > f0 ? cdf[k - f0 - 1] : 0.0f, step = cdf[k - f0] - start;
+                    if (far_disabled(cp, k, link)) {
+                        if (tb >= start) tb += step;
+                    } else if (c < ncut && cut[c].k == k) { /* the cluster's disabled share: its interval's tail */
+                        float keep = step * (1.0f - cut[c].d);
+                        if (tb >= start + keep) tb += step - keep;
+                        ++c;
+                    }
+                }
+                uint32_t lo = 0, hi = f1 - f0;
+                while (lo < hi) {
+                    uint32_t mid = lo + (hi - lo) / 2;
+                    if (cdf[mid] <= tb) lo = mid + 1;
+                    else hi = mid;
+                }
+                if (lo >= f1 - f0) lo = f1 - f0 - 1;
+                /* rounding may land on a zero-weight or disabled entry: step back to a usable one */
+                while (lo > 0 && (!(cdf[lo] > cdf[lo - 1]) || far_disabled(cp, f0 + lo, link))) --lo;
+                uint32_t k = f0 + lo, key = cp->far[k].key;
+                if (!far_disabled(cp, k, link) && (lo > 0 ? cdf[lo] > cdf[lo - 1] : cdf[0] > 0.0f)) {
+                    w = far_weight(cp, p, k, b);
+                    *slot = cp->far_slot[k];
+                    pick = cp_key_light(cp, key);
+                    if (pick == CP_NONE) { /* a cluster: descend below it; it may hold disabled lights */
+                        float pd, d = cut_of(cut, ncut, k);
+                        pick = L->tree->descend(L->user, key, x, n, u_descend, &pd);
+                        /* a cut cluster: further descents (their numbers hashed from u_descend)
+                         * until one ends on an enabled light; attempts_gain is what that gives */
+                        for (uint32_t a = 1; d > 0.0f && a < CP_LINK_ATTEMPTS && (pick >= L->count || !link->enabled[pick]); ++a)
+                            pick = L->tree->descend(L->user, key, x, n, rehash_uniform(u_descend, a), &pd);
+                        if (pick >= L->count || !link->enabled[pick]) { *slot = CP_NONE; *pmf = 0.0f; return 0; }
+                        w *= pd * attempts_gain(d);
+                    }
+                }
+            }
+        }
+    }
+    if (pick == CP_NONE || pick >= L->count) {
+        /* the uniform floor over the enabled lights (or rounding at the end of the tables) */
+        float uu = total > 0.0f && u < eps ? u / eps : u;
+        uint32_t i = (uint32_t)(uu * (float)N);
+        if (i >= N) i = N - 1;
+        pick = link->lights[i];
+        w = light_weight_linked(cp, L, p, x, n, b, link, cut, ncut, pick, slot);
+    }
+    *pmf = pmf_from(w, total, eps, N);
+    return pick;
+}
+
+float cachepoints_pmf_linked(const CachePoints *cp, const CachePointLights *L, const float x[3], const float *n,
+                             const CachePointVertex *v, const CachePointLink *link, uint32_t light) {
+    if (light >= L->count || !link->enabled[light] || !link->count) return 0.0f;
+    float b[CP_FAR_BINS], bt[CP_FAR_BINS];
+    bin_blend(n, b);
+    ClusterCut cut[CP_LINK_MAX_CUT];
+    uint32_t ncut = cluster_cuts(cp, L, v->point, x, n, link, cut);
+    far_bin_totals_linked(cp, v->point, b, link, cut, ncut, bt);
+    float total = v->near_total + far_total_linked(b, bt);
+    uint32_t slot;
+    return pmf_from(light_weight_linked(cp, L, v->point, x, n, b, link, cut, ncut, light, &slot), total,
+                    cp->params.epsilon, link->count);
+}

@@ -10,6 +10,7 @@
 #include "io_internal.hpp"
 
 #include <tiny_gltf.h>
+#include <nlohmann/json.hpp>
 
 #include <sys/stat.h>
 
@@ -484,6 +485,9 @@ class Loader {
     void convert_animations();
     void convert_channel(const tinygltf::Animation &anim, size_t ai, size_t ci);
     void load_volume(const tinygltf::Node &node, const std::string &what, const Mat4 &world);
+    void convert_light_links();
+    std::vector<IoLightLink> light_links_;
+    std::vector<uint32_t> link_instances_;
     void load_grid(const std::string &vdb, const std::string &grid, const std::string &what, IoVolumeGrid *out);
     void environment(IoScene *out);
     void transfer(IoScene *out);
@@ -1258,6 +1262,98 @@ void Loader::flatten_nodes() {
     }
 }
 
+// extras.candela_light_linking (io.h, IoLightLink). Read from the extras' original JSON text:
+// tinygltf drops empty arrays and objects from extras, and an empty "include" list (a light
+// that illuminates nothing) must not read as no list at all.
+void Loader::convert_light_links() {
+    std::map<std::string, std::vector<int32_t>> by_name; // node name -> walk indices
+    for (size_t w = 0; w < nodes_.size(); ++w)
+        by_name[m_.nodes[size_t(nodes_[w].gltf_node)].name].push_back(int32_t(w));
+    std::vector<int32_t> instances_of_node(nodes_.size(), -1); // first instance of a node (one per node)
+    for (size_t i = 0; i < instances_.size(); ++i)
+        if (instances_of_node[size_t(instances_[i].node)] < 0) instances_of_node[size_t(instances_[i].node)] = int32_t(i);
+    for (size_t w = 0; w < nodes_.size(); ++w) {
+        const int gi = nodes_[w].gltf_node;
+        const tinygltf::Node &node = m_.nodes[size_t(gi)];
+        if (!raw_member_start(node.extras_json_string, "candela_light_linking")) continue;
+        const std::string what = strf("node %d ('%s'): extras.candela_light_linking", gi, node.name.c_str());
+        nlohmann::json extras;
+        try {
+            extras = nlohmann::json::parse(node.extras_json_string);
+        } catch (const std::exception &) {
+            fail(what + ": malformed JSON");
+        }
+        const nlohmann::json &ll = extras["candela_light_linking"];
+        if (ll.is_null()) continue;
+        if (!ll.is_object()) fail(what + " must be an object");
+        IoLightLink link{};
+        link.node = int32_t(w);
+        // a list of node names -> the instances of their subtrees, sorted, without duplicates
+        auto resolve = [&](const nlohmann::json &list, const std::string &key, uint32_t *first, uint32_t *count) {
+            if (!list.is_array()) fail(what + "." + key + " must be an array of node names");
+            std::vector<char> named(nodes_.size(), 0);
+            for (const nlohmann::json &e : list) {
+                if (!e.is_string()) fail(what + "." + key + " must be an array of node names (strings)");
+                auto it = by_name.find(e.get<std::string>());
+                if (it == by_name.end())
+                    fail(what + "." + key + ": no node named '" + e.get<std::string>() + "' in the scene");
+                for (int32_t n : it->second) named[size_t(n)] = 1;
+            }
+            *first = uint32_t(link_instances_.size());
+            for (size_t i = 0; i < instances_.size(); ++i) {
+                bool in = false;
+                for (int32_t n = instances_[i].node; n >= 0 && !in; n = nodes_[size_t(n)].parent) in = named[size_t(n)];
+                if (in) link_instances_.push_back(uint32_t(i));
+            }
+            *count = uint32_t(link_instances_.size()) - *first;
+        };
+        for (auto it = ll.begin(); it != ll.end(); ++it) {
+            const std::string &k = it.key();
+            const nlohmann::json &v = it.value();
+            if (k == "receivers") {
+                if (v.is_null()) continue;
+                if (!v.is_object()) fail(what + ".receivers must be an object with \"include\" or \"exclude\"");
+                const bool inc = v.contains("include"), exc = v.contains("exclude");
+                if (inc && exc) fail(what + ".receivers has both \"include\" and \"exclude\" (give one)");
+                if (!inc && !exc) fail(what + ".receivers needs \"include\" or \"exclude\"");
+                for (auto r = v.begin(); r != v.end(); ++r)
+                    if (r.key() != "include" && r.key() != "exclude")
+                        warn(what + ".receivers: unknown key '" + r.key() + "' ignored");
+                link.receivers = inc ? IO_LINK_INCLUDE : IO_LINK_EXCLUDE;
+                resolve(v[inc ? "include" : "exclude"], inc ? "receivers.include" : "receivers.exclude",
+                        &link.first_receiver, &link.num_receivers);
+            } else if (k == "blockers") {
+                if (v.is_null()) continue;
+                if (!v.is_object() || !v.contains("exclude"))
+                    fail(what + ".blockers must be an object with \"exclude\"");
+                for (auto r = v.begin(); r != v.end(); ++r)
+                    if (r.key() != "exclude") {
+                        if (r.key() == "include") fail(what + ".blockers takes only \"exclude\"");
+                        warn(what + ".blockers: unknown key '" + r.key() + "' ignored");
+                    }
+                resolve(v["exclude"], "blockers.exclude", &link.first_blocker, &link.num_blockers);
+            } else {
+                warn(what + ": unknown key '" + k + "' ignored");
+            }
+        }
+        // the lights it applies to: the node's punctual light, or its mesh if it emits
+        bool has_light = extension(node.extensions, "KHR_lights_punctual") != nullptr;
+        if (!has_light && instances_of_node[w] >= 0) {
+            const IoMesh &mesh = meshes_[instances_[size_t(instances_of_node[w])].mesh];
+            for (uint32_t k = 0; k < mesh.num_primitives && !has_light; ++k) {
+                const int32_t mi = prims_[mesh.first_primitive + k].material;
+                if (mi < 0 || size_t(mi) >= materials_.size()) continue;
+                const IoMaterial &mat = materials_[size_t(mi)];
+                has_light = (mat.emissive[0] > 0.0f || mat.emissive[1] > 0.0f || mat.emissive[2] > 0.0f) &&
+                            mat.emissive_strength > 0.0f;
+            }
+        }
+        if (!has_light) warn(what + ": the node has no punctual light and no emissive mesh; ignored");
+        if (link.receivers == IO_LINK_ALL && link.num_blockers == 0) continue;
+        light_links_.push_back(link);
+    }
+}
+
 // The file's animations (io.h, IoAnimChannel): every sampler checked against the glTF 2.0
 // rules the evaluation relies on, every failure one line naming the animation and channel.
 void Loader::convert_animations() {
@@ -1476,7 +1572,10 @@ void Loader::transfer(IoScene *out) {
         s.volumes = c_array(volumes_);
         s.nodes = c_array(nodes_);
         s.channels = c_array(channels_);
+        s.light_links = c_array(light_links_);
+        s.link_instances = c_array(link_instances_);
     } catch (...) {
+        std::free(s.light_links); std::free(s.link_instances);
         std::free(s.primitives); std::free(s.meshes); std::free(s.instances);
         std::free(s.materials); std::free(s.images); std::free(s.lights); std::free(s.cameras);
         std::free(s.volumes); std::free(s.nodes); std::free(s.channels);
@@ -1492,6 +1591,8 @@ void Loader::transfer(IoScene *out) {
     out->volumes = s.volumes;       out->num_volumes = uint32_t(volumes_.size());
     out->nodes = s.nodes;           out->num_nodes = uint32_t(nodes_.size());
     out->channels = s.channels;     out->num_channels = uint32_t(channels_.size());
+    out->light_links = s.light_links; out->num_light_links = uint32_t(light_links_.size());
+    out->link_instances = s.link_instances; out->num_link_instances = uint32_t(link_instances_.size());
     out->anim_start = anim_start_;
     out->anim_end = anim_end_;
     std::snprintf(out->path, sizeof out->path, "%s", path_.c_str());
@@ -1512,6 +1613,7 @@ void Loader::run(IoScene *out) {
     convert_meshes();
     convert_materials();
     flatten_nodes();
+    convert_light_links();
     convert_animations();
     if (prims_.size() > UINT32_MAX || instances_.size() > UINT32_MAX) fail("scene too large");
     IoScene tmp{};
@@ -1602,5 +1704,7 @@ extern "C" void io_scene_free(IoScene *scene) {
     }
     std::free(scene->channels);
     std::free(scene->nodes);
+    std::free(scene->light_links);
+    std::free(scene->link_instances);
     std::memset(scene, 0, sizeof *scene);
 }

@@ -304,6 +304,25 @@ typedef struct IoAnimChannel {
 
 
 
+/* ---------------------------------------------------------------- light linking
+ * A node's "extras": {"candela_light_linking": {"receivers": {"include": [NAMES]} or
+ * {"exclude": [NAMES]}, "blockers": {"exclude": [NAMES]}}} on a node that carries a punctual
+ * light or an emissive mesh (the links apply to those lights). NAMES are node names of the
+ * loaded scene (every node of that name; a node stands for its whole subtree), resolved here
+ * to sorted, duplicate-free lists of instance indices. Load fails with one line naming the
+ * file, the node and the problem for: a value that is not an object, a receivers object with
+ * both or neither of include / exclude, a list that is not an array of strings, a name no
+ * node of the scene has. Unknown keys give a warning, as does the key on a node without a
+ * light. What the renderer does with it: README.md, "Light linking". */
+enum { IO_LINK_ALL = 0, IO_LINK_INCLUDE = 1, IO_LINK_EXCLUDE = 2 };
+
+typedef struct IoLightLink {
+    int32_t node;                 /* index into IoScene.nodes: the node carrying the extras */
+    int32_t receivers;            /* IO_LINK_ALL (no "receivers"), IO_LINK_INCLUDE, IO_LINK_EXCLUDE */
+    uint32_t first_receiver, num_receivers; /* into IoScene.link_instances */
+    uint32_t first_blocker, num_blockers;   /* blockers.exclude, into IoScene.link_instances */
+} IoLightLink;
+
 typedef struct IoScene {
     IoPrimitive *primitives; uint32_t num_primitives;
     IoMesh *meshes;          uint32_t num_meshes;
@@ -322,6 +341,8 @@ typedef struct IoScene {
     uint32_t num_warnings;   /* warnings printed to stderr while loading (e.g. morph targets ignored) */
     IoNode *nodes;           uint32_t num_nodes;    /* the node walk (io_scene_pose) */
     IoAnimChannel *channels; uint32_t num_channels; /* all animations' channels */
+    IoLightLink *light_links; uint32_t num_light_links; /* extras.candela_light_linking, by node */
+    uint32_t *link_instances; uint32_t num_link_instances; /* the links' instance lists */
     double anim_start, anim_end; /* first and last key time of all channels, seconds (0, 0 without) */
     char path[1024];         /* the file it was loaded from (for io_scene_pose's messages) */
 } IoScene;

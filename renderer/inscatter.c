@@ -109,6 +109,7 @@ float inscatter_estimate(const Integrator *ig, Slice *s, uint32_t p, SceneRay ra
     Scatter sc;
     scatter_init_phase(&sc, view->media[pick]->g, v3_neg(ray.dir));
     LightSampleContext lc = {x, v3s(0.0f), {0, 0.0f}, scratch, &s->volume};
+    lc.link_class = lights_media_class(ig->lights); /* a medium vertex belongs to no object */
     light_sampler_prepare(ig->light_sampler, &lc, hint);
     LightLiSample ls;
     vec3 contrib;
@@ -119,7 +120,7 @@ float inscatter_estimate(const Integrator *ig, Slice *s, uint32_t p, SceneRay ra
         float tfar = isinf(ls.distance) ? INFINITY : ls.distance * (1.0f - 1e-3f);
         s->shadow_rays++;
         *cost += 1.0f;
-        if (scene_visible1(ig->scene, (SceneRay){x, 0.0f, ls.wi, tfar})) {
+        if (scene_visible1_masked(ig->scene, (SceneRay){x, 0.0f, ls.wi, tfar}, lights_shadow_mask(ig->lights, ls.light))) {
             RngStream sh = rng_stream(key, depth, RNG_STREAM_INSCATTER_SHADOW + (ps->crossings[p] << 8));
             VolumeRng shr = {rng_stream_next_cb, &sh};
             uint64_t c0 = s->volume.collisions;

@@ -306,6 +306,7 @@ static inline void path_scattered(const PathState *ps, uint32_t p, vec3 pos, con
     ps->prev_light_vertex[p] = lc->vertex;
     ps->prev_scatter_pdf[p] = pdf;
     ps->prev_delta[p] = (uint8_t)delta;
+    ps->prev_link_class[p] = (uint16_t)lc->link_class;
     ps->depth[p] = ps->depth[p] + 1;
 }
 

@@ -8,67 +8,133 @@
 
 /* ---------------------------------------------------------------- uniform */
 
+/* Light linking: a vertex of link class c > 0 picks among the class's lights only
+ * (LightLinking.enabled_lights), so no sample goes to a light that cannot reach it; class 0 is
+ * the unlinked path, unchanged. */
+typedef struct UniformSampler {
+    uint32_t count;
+    const LightLinking *link; /* NULL: no linking */
+} UniformSampler;
+
 static uint32_t uniform_select(const void *state, const LightSampleContext *ctx, float u, float u1, float *pmf,
                                uint32_t *outcome) {
-    (void)ctx; (void)u1; (void)outcome;
-    uint32_t count = *(const uint32_t *)state;
+    (void)u1; (void)outcome;
+    const UniformSampler *us = state;
+    uint32_t count = us->count;
+    const uint32_t *list = NULL;
+    if (ctx->link_class) {
+        const LightLinking *k = us->link;
+        count = k->enabled_off[ctx->link_class + 1] - k->enabled_off[ctx->link_class];
+        list = k->enabled_lights + k->enabled_off[ctx->link_class];
+        if (!count) { *pmf = 0.0f; return 0; }
+    }
     uint32_t i = (uint32_t)(u * (float)count);
     if (i >= count) i = count - 1;
     *pmf = 1.0f / (float)count;
-    return i;
+    return list ? list[i] : i;
 }
 
 static float uniform_pmf(const void *state, const LightSampleContext *ctx, uint32_t light) {
-    (void)ctx; (void)light;
-    return 1.0f / (float)*(const uint32_t *)state;
+    const UniformSampler *us = state;
+    if (ctx->link_class) {
+        const LightLinking *k = us->link;
+        if (!k->enabled[(size_t)ctx->link_class * us->count + light]) return 0.0f;
+        return 1.0f / (float)(k->enabled_off[ctx->link_class + 1] - k->enabled_off[ctx->link_class]);
+    }
+    return 1.0f / (float)us->count;
 }
 
 static const LightSamplerOps UNIFORM_OPS = {
     .name = "uniform", .select = uniform_select, .pmf = uniform_pmf, .destroy = free};
 
 int light_sampler_uniform_create(LightSampler *s, const Lights *lights) {
-    uint32_t *count = malloc(sizeof *count);
-    if (!count) return -1;
-    *count = lights->count;
-    *s = (LightSampler){&UNIFORM_OPS, count, lights->count};
+    UniformSampler *us = malloc(sizeof *us);
+    if (!us) return -1;
+    *us = (UniformSampler){lights->count, lights->link};
+    *s = (LightSampler){&UNIFORM_OPS, us, lights->count};
     return 0;
 }
 
 /* ---------------------------------------------------------------- power */
 
-/* In proportion to each light's power estimate (Light.power), whatever the shading point. */
+/* In proportion to each light's power estimate (Light.power), whatever the shading point; with
+ * light linking, one distribution per link class over the class's lights. */
+typedef struct PowerSampler {
+    Distribution1D all;
+    const LightLinking *link; /* NULL: no linking */
+    Distribution1D *per_class; /* [num_classes]: entry c > 0 over the class's lights */
+} PowerSampler;
+
+/* The position of `light` in class c's ascending list, or UINT32_MAX. */
+static uint32_t class_position(const LightLinking *k, uint32_t c, uint32_t light) {
+    const uint32_t *a = k->enabled_lights + k->enabled_off[c];
+    uint32_t lo = 0, hi = k->enabled_off[c + 1] - k->enabled_off[c];
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo) / 2;
+        if (a[mid] < light) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo < k->enabled_off[c + 1] - k->enabled_off[c] && a[lo] == light ? lo : UINT32_MAX;
+}
+
 static uint32_t power_select(const void *state, const LightSampleContext *ctx, float u, float u1, float *pmf,
                              uint32_t *outcome) {
-    (void)ctx; (void)u1; (void)outcome;
-    return dist1d_sample_discrete(state, u, pmf, NULL);
+    (void)u1; (void)outcome;
+    const PowerSampler *ps = state;
+    if (ctx->link_class) {
+        const Distribution1D *d = &ps->per_class[ctx->link_class];
+        if (!d->n) { *pmf = 0.0f; return 0; }
+        uint32_t i = dist1d_sample_discrete(d, u, pmf, NULL);
+        return ps->link->enabled_lights[ps->link->enabled_off[ctx->link_class] + i];
+    }
+    return dist1d_sample_discrete(&ps->all, u, pmf, NULL);
 }
 
 static float power_pmf(const void *state, const LightSampleContext *ctx, uint32_t light) {
-    (void)ctx;
-    return dist1d_pmf(state, light);
+    const PowerSampler *ps = state;
+    if (ctx->link_class) {
+        uint32_t i = class_position(ps->link, ctx->link_class, light);
+        return i == UINT32_MAX ? 0.0f : dist1d_pmf(&ps->per_class[ctx->link_class], i);
+    }
+    return dist1d_pmf(&ps->all, light);
 }
 
 static void power_destroy(void *state) {
-    dist1d_free(state);
-    free(state);
+    PowerSampler *ps = state;
+    dist1d_free(&ps->all);
+    if (ps->per_class)
+        for (uint32_t c = 1; c < ps->link->num_classes; ++c) dist1d_free(&ps->per_class[c]);
+    free(ps->per_class);
+    free(ps);
 }
 
 static const LightSamplerOps POWER_OPS = {
     .name = "power", .select = power_select, .pmf = power_pmf, .destroy = power_destroy};
 
 int light_sampler_power_create(LightSampler *s, const Lights *lights) {
-    Distribution1D *d = calloc(1, sizeof *d);
-    if (d && lights->count == 0) { /* nothing to select (the protocol never asks) */
-        *s = (LightSampler){&POWER_OPS, d, 0};
+    PowerSampler *ps = calloc(1, sizeof *ps);
+    if (ps && lights->count == 0) { /* nothing to select (the protocol never asks) */
+        *s = (LightSampler){&POWER_OPS, ps, 0};
         return 0;
     }
     float *powers = malloc(((size_t)lights->count + 1) * sizeof(float));
-    if (!d || !powers) { free(d); free(powers); return -1; }
+    if (!ps || !powers) { free(ps); free(powers); return -1; }
     for (uint32_t i = 0; i < lights->count; ++i) powers[i] = lights->lights[i].power;
-    int rc = dist1d_init(d, powers, lights->count);
+    int rc = dist1d_init(&ps->all, powers, lights->count);
+    const LightLinking *k = lights->link;
+    if (rc == 0 && k && k->num_classes > 1) {
+        ps->link = k;
+        ps->per_class = calloc(k->num_classes, sizeof *ps->per_class);
+        if (!ps->per_class) rc = -1;
+        for (uint32_t c = 1; c < k->num_classes && rc == 0; ++c) {
+            uint32_t m = 0;
+            for (uint32_t j = k->enabled_off[c]; j < k->enabled_off[c + 1]; ++j) powers[m++] = lights->lights[k->enabled_lights[j]].power;
+            if (m) rc = dist1d_init(&ps->per_class[c], powers, m);
+        }
+    }
     free(powers);
-    if (rc != 0) { free(d); return -1; }
-    *s = (LightSampler){&POWER_OPS, d, lights->count};
+    if (rc != 0) { power_destroy(ps); return -1; }
+    *s = (LightSampler){&POWER_OPS, ps, lights->count};
     return 0;
 }
 

@@ -98,6 +98,7 @@ static float env_average_luminance(const Scene *scene) {
 int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, CandelaLightUnits units, char *err,
                  size_t err_len) {
     memset(ls, 0, sizeof *ls);
+    int32_t *link_of_node = NULL;
     ls->environment = -1;
     ls->scene = scene;
     ls->media = media;
@@ -105,6 +106,13 @@ int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, Candel
     ls->of_primitive = malloc(((size_t)scene->num_instance_primitives + 1) * sizeof *ls->of_primitive);
     if (!ls->of_primitive) goto oom;
     for (uint32_t i = 0; i < scene->num_instance_primitives; ++i) ls->of_primitive[i] = -1;
+    /* light linking: the link of each node (extras.candela_light_linking) */
+    if (scene->io.num_light_links) {
+        link_of_node = malloc(scene->io.num_nodes * sizeof *link_of_node);
+        if (!link_of_node) goto oom;
+        for (uint32_t k = 0; k < scene->io.num_nodes; ++k) link_of_node[k] = -1;
+        for (uint32_t k = 0; k < scene->io.num_light_links; ++k) link_of_node[scene->io.light_links[k].node] = (int32_t)k;
+    }
     float scale = units == CANDELA_LIGHT_UNITS_BLENDER ? 1.0f / BLENDER_LM_PER_W : 1.0f;
     float r = scene->radius;
     for (uint32_t i = 0; i < scene->io.num_lights; ++i) {
@@ -122,6 +130,7 @@ int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, Candel
             continue;
         }
         float lum = v3_luminance(l.intensity);
+        l.link = link_of_node && il->node >= 0 ? link_of_node[il->node] : -1;
         switch (il->type) {
         case IO_LIGHT_POINT:
             l.type = LIGHT_POINT;
@@ -168,6 +177,7 @@ int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, Candel
             Light l;
             if (build_area_light(scene, i, k, &l) != 0) goto oom;
             if (!(l.area > 0.0f)) { light_area_free(&l); continue; }
+            l.link = link_of_node && scene->io.instances[i].node >= 0 ? link_of_node[scene->io.instances[i].node] : -1;
             ls->of_primitive[inst->primitive_base + k] = (int32_t)ls->count;
             if (push_light(ls, &cap, &l) != 0) { light_area_free(&l); goto oom; }
         }
@@ -184,6 +194,7 @@ int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, Candel
             Light l;
             memset(&l, 0, sizeof l);
             l.type = LIGHT_VOLUME;
+            l.link = -1;
             l.medium = i;
             float c[3];
             medium_emission_centroid(m, c);
@@ -215,13 +226,17 @@ int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, Candel
         Light l;
         memset(&l, 0, sizeof l);
         l.type = LIGHT_ENVIRONMENT;
+        l.link = -1;
         l.power = 4.0f * PI_F * PI_F * r * r * env_average_luminance(scene);
         ls->environment = (int32_t)ls->count;
         if (push_light(ls, &cap, &l) != 0) goto oom;
     }
     if (ls->environment >= 0) light_env_estimates(scene, ls->env_estimate);
+    free(link_of_node);
+    if (lights_build_linking(ls, scene, err, err_len) != 0) { lights_free(ls); return -1; }
     return 0;
 oom:
+    free(link_of_node);
     snprintf(err, err_len, "out of memory while building the light list");
     lights_free(ls);
     return -1;
@@ -235,6 +250,7 @@ void lights_free(Lights *ls) {
     if (ls->environment >= 0) dist2d_free(&ls->env_distribution);
     free(ls->of_primitive);
     free(ls->of_medium);
+    lights_free_linking(ls);
     memset(ls, 0, sizeof *ls);
     ls->environment = -1;
 }

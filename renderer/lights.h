@@ -48,6 +48,7 @@ typedef struct Light {
     uint32_t medium;          /* index into SceneMedia.vdb */
     uint32_t medium_mesh;     /* the mesh medium around it (media.h; 0: none) */
     vec3 bounds_min, bounds_max; /* its world bounds */
+    int32_t link;             /* its IoScene.light_links entry (light linking), or -1 */
 } Light;
 
 /* Area lights with at most this many triangles pick them by area alone (no inner tree). */
@@ -78,7 +79,29 @@ typedef struct LightSampleContext {
      * (zero: none): a strategy may reuse its state while the vertex stays close (cache points
      * reuse the previous point inside its radius, §3.3) */
     LightVertex previous;
+    /* light linking: the vertex's link class (Lights.link), the set of lights that may
+     * illuminate it; 0 = every light (no linking, the camera, objects no link names) */
+    uint32_t link_class;
 } LightSampleContext;
+
+/* Light linking (extras.candela_light_linking, README "Light linking"): receiving objects are
+ * grouped into link classes, the distinct sets of lights that reach them (usually few), so
+ * that every strategy can build its distributions per class and a vertex carries one small
+ * number (LightSampleContext.link_class, kept in the path state for the next wave's MIS pdf).
+ * Class 0 is every light. A vertex in a medium belongs to no object: it is reached by every
+ * light that has no receivers list or an exclude list (media_class). Shadow linking is the
+ * lights' Embree ray masks (scene.h). */
+typedef struct LightLinking {
+    uint32_t num_classes;
+    uint16_t *class_of_instance;  /* per scene instance */
+    uint16_t media_class;         /* medium vertices (no object) */
+    uint8_t *enabled;             /* num_classes x count: 1 when the light reaches the class */
+    uint32_t *enabled_off, *enabled_lights;   /* per class (num_classes + 1 offsets): its lights, ascending */
+    uint32_t *disabled_off, *disabled_lights; /* per class: the lights that do not reach it, ascending */
+    uint32_t *exclusive_off, *exclusive_lights; /* per class: its lights that have an include list
+                                                 * naming it ("exclusive" to it, §3.3), ascending */
+    uint32_t *shadow_mask;        /* per light: its shadow rays' ray mask (NULL: no shadow linking) */
+} LightLinking;
 
 typedef struct Lights {
     Light *lights;
@@ -92,7 +115,26 @@ typedef struct Lights {
     int32_t *of_medium;         /* per SceneMedia.vdb: the volume light it is, or -1 */
     const struct Scene *scene;  /* built from (environment image, emissive materials) */
     const struct SceneMedia *media; /* emissive volumes (NULL: none are lights) */
+    LightLinking *link;         /* NULL: the scene has no light linking */
 } Lights;
+
+/* Whether `light` may illuminate a vertex of link class cls (LightLinking). */
+static inline int light_reaches(const Lights *ls, uint32_t cls, uint32_t light) {
+    return cls == 0 || ls->link->enabled[(size_t)cls * ls->count + light];
+}
+/* The link class of a surface vertex on `instance`, and of a vertex in a medium. */
+static inline uint32_t lights_instance_class(const Lights *ls, uint32_t instance) {
+    return ls->link ? ls->link->class_of_instance[instance] : 0u;
+}
+static inline uint32_t lights_media_class(const Lights *ls) { return ls->link ? ls->link->media_class : 0u; }
+/* The ray mask of a shadow ray towards `light` (1 = SCENE_MASK_SURFACES: no shadow linking). */
+static inline uint32_t lights_shadow_mask(const Lights *ls, uint32_t light) {
+    return ls->link && ls->link->shadow_mask && light < ls->count ? ls->link->shadow_mask[light] : 1u;
+}
+/* light_linking.c: builds ls->link from the scene's links (Light.link set); nothing without
+ * any. 0 ok, -1 out of memory or too many classes (message in err). */
+int lights_build_linking(Lights *ls, const struct Scene *scene, char *err, size_t err_len);
+void lights_free_linking(Lights *ls);
 
 /* Builds the lights of a loaded scene: punctual lights, emissive primitives, environment, and
  * with media != NULL every emissive VDB volume (emission sampling, §4.3). The scene and the

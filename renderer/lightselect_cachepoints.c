@@ -64,7 +64,14 @@ typedef struct CachePointSampler {
     vec3 grid_lo, grid_cell;
     float grid_step;
     const char *dump_path;       /* --dump-cachepoints (NULL: none), written by cp_finish */
+    /* light linking: per link class c > 0, the lights that reach it (§3.3); NULL without */
+    CachePointLink *links;
 } CachePointSampler;
+
+/* The vertex's light linking, or NULL (class 0: every light; the unlinked path, unchanged). */
+static inline const CachePointLink *link_of(const CachePointSampler *s, const LightSampleContext *ctx) {
+    return ctx->link_class ? &s->links[ctx->link_class] : NULL;
+}
 
 static void cp_estimate7(const void *user, uint32_t light, const float x[3], float out[7]) {
     const Lights *ls = ((const CachePointSampler *)user)->lights;
@@ -470,6 +477,7 @@ static void vertex_of(const CachePointSampler *s, const LightSampleContext *ctx,
     n[0] = ctx->n.x; n[1] = ctx->n.y; n[2] = ctx->n.z;
     *np = v3_is_black(ctx->n) ? NULL : n;
     if (ctx->vertex.word) { v->point = ctx->vertex.word - 1u; v->near_total = ctx->vertex.value; }
+    else if (ctx->link_class) cachepoints_vertex_linked(s->cp, &s->view, x, *np, UINT32_MAX, link_of(s, ctx), v, NULL);
     else cachepoints_vertex(s->cp, &s->view, x, *np, UINT32_MAX, v, NULL);
 }
 
@@ -477,7 +485,14 @@ static void cp_prepare(const void *state, LightSampleContext *ctx, uint32_t *hin
     const CachePointSampler *s = state;
     float x[3] = {ctx->p.x, ctx->p.y, ctx->p.z}, n[3] = {ctx->n.x, ctx->n.y, ctx->n.z};
     CachePointVertex v;
-    if (ctx->previous.word) /* a medium walk's next vertex: keep its point while inside it (§3.3) */
+    const CachePointLink *lk = link_of(s, ctx);
+    if (lk && ctx->previous.word)
+        cachepoints_vertex_reuse_linked(s->cp, &s->view, x, v3_is_black(ctx->n) ? NULL : n, ctx->previous.word - 1u, lk,
+                                        &v, ctx->scratch);
+    else if (lk)
+        cachepoints_vertex_linked(s->cp, &s->view, x, v3_is_black(ctx->n) ? NULL : n, hint ? *hint : UINT32_MAX, lk, &v,
+                                  ctx->scratch);
+    else if (ctx->previous.word) /* a medium walk's next vertex: keep its point while inside it (§3.3) */
         cachepoints_vertex_reuse(s->cp, &s->view, x, v3_is_black(ctx->n) ? NULL : n, ctx->previous.word - 1u, &v,
                                  ctx->scratch);
     else
@@ -496,6 +511,8 @@ static uint32_t cp_select(const void *state, const LightSampleContext *ctx, floa
     vertex_of(s, ctx, x, n, &np, &v);
     /* the near weights in the scratch are valid only for the vertex prepare filled them for */
     const float *near_w = ctx->vertex.word ? ctx->scratch : NULL;
+    if (ctx->link_class)
+        return cachepoints_select_linked(s->cp, &s->view, x, np, &v, near_w, link_of(s, ctx), u, u_descend, pmf, outcome);
     return cachepoints_select(s->cp, &s->view, x, np, &v, near_w, u, u_descend, pmf, outcome);
 }
 
@@ -505,6 +522,7 @@ static float cp_pmf(const void *state, const LightSampleContext *ctx, uint32_t l
     const float *np;
     CachePointVertex v;
     vertex_of(s, ctx, x, n, &np, &v);
+    if (ctx->link_class) return cachepoints_pmf_linked(s->cp, &s->view, x, np, &v, link_of(s, ctx), light);
     return cachepoints_pmf(s->cp, &s->view, x, np, &v, light);
 }
 
@@ -569,6 +587,7 @@ static void cp_destroy(void *state) {
     free(s->light_leaf);
     free(s->scatter_grid);
     light_estimate_table_free(&s->estimates);
+    free(s->links);
     free(s);
 }
 
@@ -657,6 +676,18 @@ int light_sampler_cachepoints_create(LightSampler *ls, const Lights *lights, con
         if (!s) goto oom;
         s->lights = lights;
         s->dump_path = o->cachepoint_dump_path;
+        const LightLinking *k = lights->link;
+        if (k && k->num_classes > 1) { /* light linking: each class's lights (§3.3) */
+            s->links = calloc(k->num_classes, sizeof *s->links);
+            if (!s->links) { cp_destroy(s); goto oom; }
+            for (uint32_t c = 1; c < k->num_classes; ++c)
+                s->links[c] = (CachePointLink){k->enabled + (size_t)c * lights->count, k->enabled_lights + k->enabled_off[c],
+                                               k->enabled_off[c + 1] - k->enabled_off[c],
+                                               k->exclusive_lights + k->exclusive_off[c],
+                                               k->exclusive_off[c + 1] - k->exclusive_off[c],
+                                               k->disabled_lights + k->disabled_off[c],
+                                               k->disabled_off[c + 1] - k->disabled_off[c]};
+        }
         int rc_build = build(s, scene, media, pool, o);
         if (rc_build != 0) {
             cp_destroy(s);

@@ -29,7 +29,7 @@ typedef struct OptimalSampler {
 
 /* One shadow ray from p towards the light's reference point (point/spot position, the
  * centroid of the first triangle of an area light, or the direction of a distant light). */
-static int light_visible(const Scene *scene, const Light *l, vec3 p, vec3 n) {
+static int light_visible(const Scene *scene, const Light *l, vec3 p, vec3 n, uint32_t mask) {
     vec3 target;
     float tfar;
     vec3 dir;
@@ -58,20 +58,32 @@ static int light_visible(const Scene *scene, const Light *l, vec3 p, vec3 n) {
     tfar *= 1.0f - 1e-3f;
 trace:;
     vec3 o = v3_is_black(n) ? p : offset_ray_origin(p, v3_dot(dir, n) >= 0.0f ? n : v3_neg(n));
-    return scene_visible1(scene, (SceneRay){o, 0.0f, dir, tfar});
+    return scene_visible1_masked(scene, (SceneRay){o, 0.0f, dir, tfar}, mask); /* shadow linking's mask */
 }
 
 static inline float optimal_weight(const OptimalSampler *s, uint32_t i, const LightSampleContext *ctx) {
     const Light *l = &s->lights->lights[i];
+    if (ctx->link_class && !light_reaches(s->lights, ctx->link_class, i)) return 0.0f; /* light linking */
     float w = light_contribution_estimate_table(s->lights, &s->table, i, ctx->p, ctx->n);
     if (!(w > 0.0f) || !isfinite(w)) return 0.0f;
-    if (s->occlusion && !light_visible(s->scene, l, ctx->p, ctx->n)) return 0.0f;
+    if (s->occlusion && !light_visible(s->scene, l, ctx->p, ctx->n, lights_shadow_mask(s->lights, i))) return 0.0f;
     return w;
 }
 
 static inline float optimal_pmf_from(float w, float total, uint32_t count) {
     if (!(total > 0.0f)) return 1.0f / (float)count;
     return (1.0f - OPTIMAL_EPSILON) * (w / total) + OPTIMAL_EPSILON / (float)count;
+}
+
+/* Light linking: the uniform floor spreads over the vertex's class's lights only (count and
+ * the k-th of them); class 0 is every light. */
+static inline uint32_t class_count(const OptimalSampler *s, const LightSampleContext *ctx) {
+    const LightLinking *k = s->lights->link;
+    return ctx->link_class ? k->enabled_off[ctx->link_class + 1] - k->enabled_off[ctx->link_class] : s->lights->count;
+}
+static inline uint32_t class_light(const OptimalSampler *s, const LightSampleContext *ctx, uint32_t i) {
+    const LightLinking *k = s->lights->link;
+    return ctx->link_class ? k->enabled_lights[k->enabled_off[ctx->link_class] + i] : i;
 }
 
 static float optimal_total(const OptimalSampler *s, const LightSampleContext *ctx) {
@@ -101,8 +113,9 @@ static uint32_t optimal_select(const void *state, const LightSampleContext *ctx,
     (void)u1;
     (void)outcome;
     const OptimalSampler *s = state;
-    uint32_t count = s->lights->count;
-    /* the weights prepare left in the scratch, valid for the vertex it prepared */
+    uint32_t count = class_count(s, ctx);
+    if (!count) { *pmf = 0.0f; return 0; } /* light linking: no light reaches the vertex */
+    /* the weights prepare left in the scratch (per light index), valid for the vertex it prepared */
     const float *wv = ctx->vertex.word && ctx->scratch ? ctx->scratch : NULL;
     float total = optimal_total(s, ctx);
     uint32_t pick;
@@ -110,13 +123,14 @@ static uint32_t optimal_select(const void *state, const LightSampleContext *ctx,
         float uu = total > 0.0f ? u / OPTIMAL_EPSILON : u;
         pick = (uint32_t)(uu * (float)count);
         if (pick >= count) pick = count - 1;
+        pick = class_light(s, ctx, pick);
         *pmf = optimal_pmf_from(wv ? wv[pick] : optimal_weight(s, pick, ctx), total, count);
         return pick;
     }
     float target = (u - OPTIMAL_EPSILON) / (1.0f - OPTIMAL_EPSILON) * total;
     float cum = 0.0f, w = 0.0f;
-    pick = count - 1;
-    for (uint32_t i = 0; i < count; ++i) {
+    pick = s->lights->count - 1;
+    for (uint32_t i = 0; i < s->lights->count; ++i) {
         w = wv ? wv[i] : optimal_weight(s, i, ctx);
         cum += w;
         if (w > 0.0f && target < cum) { pick = i; break; }
@@ -131,8 +145,9 @@ static uint32_t optimal_select(const void *state, const LightSampleContext *ctx,
 
 static float optimal_pmf(const void *state, const LightSampleContext *ctx, uint32_t light) {
     const OptimalSampler *s = state;
+    if (ctx->link_class && !light_reaches(s->lights, ctx->link_class, light)) return 0.0f;
     float total = optimal_total(s, ctx);
-    return optimal_pmf_from(optimal_weight(s, light, ctx), total, s->lights->count);
+    return optimal_pmf_from(optimal_weight(s, light, ctx), total, class_count(s, ctx));
 }
 
 static void optimal_destroy(void *state) {

@@ -442,6 +442,10 @@ static int builder_begin(LightTree *t, Builder *B, uint32_t count) {
 }
 
 int light_tree_build(LightTree *t, const Light *lights, uint32_t count) {
+    return light_tree_build_enabled(t, lights, count, NULL);
+}
+
+int light_tree_build_enabled(LightTree *t, const Light *lights, uint32_t count, const uint8_t *enabled) {
     memset(t, 0, sizeof *t);
     if (count == 0) return 0;
     Builder B = {t, NULL, NULL, NULL};
@@ -449,6 +453,7 @@ int light_tree_build(LightTree *t, const Light *lights, uint32_t count) {
     uint32_t m = 0, ninf = 0;
     for (uint32_t i = 0; i < count; ++i) {
         const Light *l = &lights[i];
+        if (enabled && !enabled[i]) continue; /* light linking: not in this class's tree */
         if (l->type == LIGHT_DIRECTIONAL || l->type == LIGHT_ENVIRONMENT) {
             t->kind[i] = LIGHT_TREE_INFINITE;
             ++ninf;
@@ -686,29 +691,48 @@ void light_tree_node_estimate7(const LightTree *t, uint32_t node, vec3 p, float 
 
 /* ---------------------------------------------------------------- as a strategy */
 
-/* The light BVH as a light-selection strategy (light_sampler.h): one descent per selection. */
+/* The light BVH as a light-selection strategy (light_sampler.h): one descent per selection.
+ * With light linking, one tree per link class over the class's lights (light_tree_build_enabled),
+ * so a descent never ends on a light that cannot reach the vertex; class 0 is the whole tree. */
+typedef struct TreeSampler {
+    LightTree *trees;     /* [num_classes] (1 without linking) */
+    uint32_t num_classes;
+} TreeSampler;
+
 static uint32_t tree_select(const void *state, const LightSampleContext *ctx, float u, float u1, float *pmf,
                             uint32_t *outcome) {
     (void)u1; (void)outcome;
-    return light_tree_select(state, ctx, u, pmf);
+    const TreeSampler *ts = state;
+    return light_tree_select(&ts->trees[ctx->link_class], ctx, u, pmf);
 }
 
 static float tree_pmf(const void *state, const LightSampleContext *ctx, uint32_t light) {
-    return light_tree_pmf(state, ctx, light);
+    const TreeSampler *ts = state;
+    return light_tree_pmf(&ts->trees[ctx->link_class], ctx, light);
 }
 
 static void tree_destroy(void *state) {
-    light_tree_free(state);
-    free(state);
+    TreeSampler *ts = state;
+    for (uint32_t c = 0; c < ts->num_classes; ++c) light_tree_free(&ts->trees[c]);
+    free(ts->trees);
+    free(ts);
 }
 
 static const LightSamplerOps TREE_OPS = {
     .name = "tree", .select = tree_select, .pmf = tree_pmf, .destroy = tree_destroy};
 
 int light_sampler_tree_create(LightSampler *s, const Lights *lights) {
-    LightTree *t = calloc(1, sizeof *t);
-    if (!t) return -1;
-    if (light_tree_build(t, lights->lights, lights->count) != 0) { free(t); return -1; }
-    *s = (LightSampler){&TREE_OPS, t, lights->count};
+    TreeSampler *ts = calloc(1, sizeof *ts);
+    uint32_t classes = lights->link ? lights->link->num_classes : 1;
+    if (!ts || !(ts->trees = calloc(classes, sizeof *ts->trees))) { free(ts); return -1; }
+    for (uint32_t c = 0; c < classes; ++c) {
+        const uint8_t *enabled = c ? lights->link->enabled + (size_t)c * lights->count : NULL;
+        if (light_tree_build_enabled(&ts->trees[c], lights->lights, lights->count, enabled) != 0) {
+            tree_destroy(ts);
+            return -1;
+        }
+        ts->num_classes = c + 1;
+    }
+    *s = (LightSampler){&TREE_OPS, ts, lights->count};
     return 0;
 }

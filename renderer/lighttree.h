@@ -82,6 +82,9 @@ typedef struct LightTree {
 
 /* Build over lights[0..count). 0 ok, -1 out of memory (t is then empty). */
 int light_tree_build(LightTree *t, const Light *lights, uint32_t count);
+/* The same over the lights with enabled[i] != 0 only (NULL: all): light linking's per-class
+ * trees. Light indices stay those of lights[]; the others get probability 0. */
+int light_tree_build_enabled(LightTree *t, const Light *lights, uint32_t count, const uint8_t *enabled);
 /* Inner tree over `count` triangles (world_vertices: 9 floats each) of one emitter with the
  * given emission luminance. Zero-area triangles are left out (probability 0). 0 ok, -1 out
  * of memory (t is then empty). */

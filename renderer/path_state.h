@@ -47,6 +47,7 @@
     F(LightVertex, prev_light_vertex, N) /* the light sampler's token for it, */                 \
     F(float, prev_scatter_pdf, W)   /* the pdf of the direction it sampled, */                   \
     F(uint8_t, prev_delta, W)       /* and 1 if that was a delta lobe (or the camera): no MIS */ \
+    F(uint16_t, prev_link_class, W) /* and its light-linking class (0: every light; the camera) */ \
     /* -- shadow ray of this wave's vertex */                                                    \
     F(SceneRay, shadow_ray, N)                                                                   \
     F(vec3, shadow_contrib, N)      /* the NEE contribution if the shadow ray gets through */    \

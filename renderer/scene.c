@@ -396,6 +396,54 @@ static void scene_bounds(Scene *scene) {
     scene->radius = fmaxf(0.5f * v3_length(v3_sub(scene->bounds_max, scene->bounds_min)), MIN_SCENE_RADIUS);
 }
 
+/* Shadow linking (extras.candela_light_linking.blockers): every distinct blockers list is a
+ * mask bit (2..31); an instance a list names lacks its bit, and the shadow rays of the lights
+ * of that list carry only that bit (scene_rays.c), so they pass through exactly those
+ * instances. *instance_mask stays NULL (every mask at Embree's default) without blockers. */
+static int shadow_link_masks(Scene *scene, uint32_t **instance_mask, char err[CANDELA_ERR_LEN]) {
+    const IoScene *io = &scene->io;
+    uint32_t any = 0;
+    for (uint32_t k = 0; k < io->num_light_links; ++k) any |= io->light_links[k].num_blockers;
+    if (!any) return 0;
+    scene->link_shadow_mask = malloc(io->num_light_links * sizeof *scene->link_shadow_mask);
+    *instance_mask = malloc(((size_t)io->num_instances + 1) * sizeof **instance_mask);
+    uint32_t *first_of_bit = malloc(30 * sizeof *first_of_bit); /* the link that defined each bit */
+    if (!scene->link_shadow_mask || !*instance_mask || !first_of_bit) {
+        free(first_of_bit);
+        set_error(err, "%.400s: out of memory%s", io->path, "");
+        return -1;
+    }
+    for (uint32_t i = 0; i < io->num_instances; ++i) (*instance_mask)[i] = 0xffffffffu;
+    uint32_t bits = 0;
+    for (uint32_t k = 0; k < io->num_light_links; ++k) {
+        const IoLightLink *l = &io->light_links[k];
+        scene->link_shadow_mask[k] = SCENE_MASK_SURFACES;
+        if (!l->num_blockers) continue;
+        uint32_t bit = bits;
+        for (uint32_t b = 0; b < bits && bit == bits; ++b) { /* the same list as an earlier link's */
+            const IoLightLink *o = &io->light_links[first_of_bit[b]];
+            if (o->num_blockers == l->num_blockers &&
+                !memcmp(io->link_instances + o->first_blocker, io->link_instances + l->first_blocker,
+                        l->num_blockers * sizeof(uint32_t)))
+                bit = b;
+        }
+        if (bit == bits) {
+            if (bits == 30) {
+                free(first_of_bit);
+                set_error(err, "%.400s: more than 30 distinct blockers lists in extras.candela_light_linking%s",
+                          io->path, "");
+                return -1;
+            }
+            first_of_bit[bits++] = k;
+            for (uint32_t j = 0; j < l->num_blockers; ++j)
+                (*instance_mask)[io->link_instances[l->first_blocker + j]] &= ~(1u << (2 + bit));
+        }
+        scene->link_shadow_mask[k] = 1u << (2 + bit);
+    }
+    free(first_of_bit);
+    return 0;
+}
+
 int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
     memset(scene, 0, sizeof *scene);
     char ioerr[IO_ERR_LEN];
@@ -476,7 +524,7 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
             memcpy(vb, p->positions, (size_t)p->num_vertices * 3 * sizeof(float));
             if (p->num_triangles) memcpy(ib, p->indices, (size_t)p->num_triangles * 3 * sizeof(unsigned));
             rtcSetGeometryUserData(g, sp);
-            rtcSetGeometryMask(g, sp->medium_boundary ? 2u : 1u); /* scene_rays.c */
+            rtcSetGeometryMask(g, sp->medium_boundary ? 2u : ~2u); /* scene_rays.c (bits 2..31: shadow linking) */
             if (sp->alpha_masked) {
                 rtcSetGeometryIntersectFilterFunction(g, alpha_filter);
                 rtcSetGeometryOccludedFilterFunction(g, alpha_filter);
@@ -488,6 +536,8 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
         }
         rtcCommitScene(ms);
     }
+    uint32_t *instance_mask = NULL;
+    if (shadow_link_masks(scene, &instance_mask, err) != 0) { scene_free(scene); return -1; }
     scene->top = rtcNewScene(scene->device);
     for (uint32_t i = 0; i < io->num_instances; ++i) {
         SceneInstance *si = &scene->instances[i];
@@ -506,10 +556,12 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
         static const float identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
         rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT4X4_COLUMN_MAJOR, si->hidden ? identity : si->xform);
         if (si->hidden) rtcDisableGeometry(g);
+        if (instance_mask) rtcSetGeometryMask(g, instance_mask[i]);
         rtcCommitGeometry(g);
         rtcAttachGeometryByID(scene->top, g, i);
         rtcReleaseGeometry(g);
     }
+    free(instance_mask);
     rtcCommitScene(scene->top);
     if (rtcGetDeviceError(scene->device) != RTC_ERROR_NONE) {
         set_error(err, "%s: Embree failed to build the scene%s", o->scene_path, "");
@@ -612,6 +664,7 @@ void scene_free(Scene *scene) {
     free(scene->mesh_scenes);
     free(scene->prims);
     free(scene->instances);
+    free(scene->link_shadow_mask);
     io_image_free(&scene->env);
     io_scene_free(&scene->io);
     memset(scene, 0, sizeof *scene);

@@ -72,6 +72,11 @@ typedef struct Scene {
     float env_strength;
     float env_rotation_turns;  /* the environment's rotation about +Y in turns, in [0, 1) (scene_env_dir_to_uv) */
     CandelaLightModel light_model; /* how lights_build shapes punctual lights (--light-model) */
+    /* shadow linking (io.light_links' blockers): per IoLightLink, the Embree ray mask of the
+     * shadow rays of its lights (SCENE_MASK_SURFACES when it has no blockers); NULL when no
+     * link has blockers. Each distinct blockers list is one mask bit (2..31) that the
+     * instances it lists lack, so their shadow rays pass through them (scene_rays.c). */
+    uint32_t *link_shadow_mask;
 } Scene;
 
 /* Loads the glTF, applies options (camera choice, resolution, environment) and builds the
@@ -151,12 +156,20 @@ void scene_intersect(const Scene *scene, const SceneRay *rays, const uint32_t *i
 /* Occlusion of n rays (indexed as above): occluded[i] = 1 if anything but an invisible medium
  * boundary lies on ray i within [tnear, tfar]. */
 void scene_occluded(const Scene *scene, const SceneRay *rays, const uint32_t *items, uint32_t n, uint8_t *occluded);
+/* The ray mask of ordinary occlusion rays; a light with shadow linking has its own
+ * (Scene.link_shadow_mask). */
+#define SCENE_MASK_SURFACES 1u
+/* scene_occluded with a ray mask per ray (masks[i] for ray i): shadow linking. */
+void scene_occluded_masked(const Scene *scene, const SceneRay *rays, const uint32_t *items, uint32_t n,
+                           const uint32_t *masks, uint8_t *occluded);
 /* One ray: 1 if it hit (and *hit holds the hit), 0 if it escaped. */
 int scene_intersect1(const Scene *scene, SceneRay ray, SceneHit *hit);
 /* One ray against the invisible medium boundaries only (for the media a segment crosses). */
 int scene_intersect_boundary1(const Scene *scene, SceneRay ray, SceneHit *hit);
 /* One ray: 1 if nothing but invisible medium boundaries lies on it. */
 int scene_visible1(const Scene *scene, SceneRay ray);
+/* The same with a ray mask (SCENE_MASK_SURFACES: scene_visible1; a shadow-linked light's mask). */
+int scene_visible1_masked(const Scene *scene, SceneRay ray, uint32_t mask);
 
 /* Offset a ray origin off the surface along n, scaled to the position's magnitude. */
 static inline vec3 offset_ray_origin(vec3 p, vec3 n) {

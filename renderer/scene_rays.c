@@ -4,7 +4,9 @@
 #include "scene.h"
 
 /* Geometry masks (scene.c): ordinary surfaces 1, invisible medium boundaries 2. Closest-hit
- * rays see both (a path crosses boundaries), occlusion rays only surfaces. */
+ * rays see both (a path crosses boundaries), occlusion rays only surfaces. Shadow linking:
+ * surfaces also carry bits 2..31 and an instance lacks the bit of each blockers list naming
+ * it, so a shadow ray with mask 1 << bit passes through exactly those instances. */
 enum { MASK_SURFACES = 1u, MASK_BOUNDARIES = 2u, MASK_ALL = 0xffffffffu };
 
 static inline void fill_ray(struct RTCRay *r, const SceneRay *s, unsigned id, unsigned mask) {
@@ -50,12 +52,18 @@ void scene_intersect(const Scene *scene, const SceneRay *rays, const uint32_t *i
 }
 
 void scene_occluded(const Scene *scene, const SceneRay *rays, const uint32_t *items, uint32_t n, uint8_t *occluded) {
+    scene_occluded_masked(scene, rays, items, n, NULL, occluded);
+}
+
+void scene_occluded_masked(const Scene *scene, const SceneRay *rays, const uint32_t *items, uint32_t n,
+                           const uint32_t *masks, uint8_t *occluded) {
     struct RTCRay r[SCENE_RAY_PACKET];
     struct RTCIntersectContext ictx;
     rtcInitIntersectContext(&ictx);
     for (uint32_t s = 0; s < n; s += SCENE_RAY_PACKET) {
         unsigned m = n - s < SCENE_RAY_PACKET ? n - s : SCENE_RAY_PACKET;
-        for (unsigned k = 0; k < m; ++k) fill_ray(&r[k], &rays[items ? items[s + k] : s + k], k, MASK_SURFACES);
+        for (unsigned k = 0; k < m; ++k)
+            fill_ray(&r[k], &rays[items ? items[s + k] : s + k], k, masks ? masks[s + k] : MASK_SURFACES);
         rtcOccluded1M(scene->top, &ictx, r, m, sizeof(struct RTCRay));
         for (unsigned k = 0; k < m; ++k) occluded[s + k] = !(r[k].tfar >= 0.0f); /* tfar = -inf when occluded */
     }
@@ -79,11 +87,13 @@ int scene_intersect_boundary1(const Scene *scene, SceneRay ray, SceneHit *hit) {
     return intersect1(scene, ray, hit, MASK_BOUNDARIES);
 }
 
-int scene_visible1(const Scene *scene, SceneRay ray) {
+int scene_visible1(const Scene *scene, SceneRay ray) { return scene_visible1_masked(scene, ray, MASK_SURFACES); }
+
+int scene_visible1_masked(const Scene *scene, SceneRay ray, uint32_t mask) {
     struct RTCRay r;
     struct RTCIntersectContext ictx;
     rtcInitIntersectContext(&ictx);
-    fill_ray(&r, &ray, 0, MASK_SURFACES);
+    fill_ray(&r, &ray, 0, mask);
     rtcOccluded1(scene->top, &ictx, &r);
     return r.tfar >= 0.0f;
 }

@@ -15,6 +15,7 @@ void stage_escaped(const Integrator *ig, Slice *s) {
         float w = 1.0f;
         if (!ps->prev_delta[p]) {
             LightSampleContext lc = {ps->prev_pos[p], ps->prev_normal[p], ps->prev_light_vertex[p]};
+            lc.link_class = ps->prev_link_class[p]; /* (the environment is never linked) */
             float pl = light_sampler_pmf(ig->light_sampler, &lc, (uint32_t)lights->environment) *
                        light_env_pdf_li(lights, d);
             w = power_heuristic(ps->prev_scatter_pdf[p], pl);

@@ -33,6 +33,7 @@ void stage_generate(const Integrator *ig, Slice *s) {
         ps->reg_roughness[p] = 0.0f;
         ps->prev_delta[p] = 1; /* the camera: emission seen directly takes no MIS weight */
         ps->prev_scatter_pdf[p] = 0.0f;
+        ps->prev_link_class[p] = 0; /* the camera sees every emitter (light linking) */
         path_write_aovs(ps, p, v3s(0.0f), v3s(0.0f), INFINITY);
         if (ig->film.sel_aov) ps->aov_sel_point[p] = ps->aov_sel_light[p] = v3s(0.0f);
         record_camera(ig, p, j);

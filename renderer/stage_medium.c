@@ -40,7 +40,7 @@ static float medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec
             ps->shadow_pv[p] =
                 record_child(ig, s, p, ps->pv[p], x, ls.wi, tp, ls.pdf, ls.pdf, 0.0f, PV_FLAG_NEE | PV_FLAG_VOLUME, segment);
         }
-        if (scene_visible1(ig->scene, (SceneRay){x, 0.0f, ls.wi, tfar})) {
+        if (scene_visible1_masked(ig->scene, (SceneRay){x, 0.0f, ls.wi, tfar}, lights_shadow_mask(ig->lights, ls.light))) {
             vec3 T = shadow_transmittance(ig, s, ps->rng_key[p], ps->depth[p], ps->medium[p], x, ls.wi, tfar);
             visibility = clampf(v3_average(T), 0.0f, 1.0f);
             vec3 c = v3_mul(contrib, T);
@@ -87,6 +87,7 @@ static void add_volume_emission(const Integrator *ig, Slice *s, uint32_t p, cons
             int32_t light = lights->of_medium[m - media->vdb];
             if (light >= 0) {
                 LightSampleContext lc = {ps->prev_pos[p], ps->prev_normal[p], ps->prev_light_vertex[p]};
+                lc.link_class = ps->prev_link_class[p]; /* (volume lights are never linked) */
                 float pl = light_sampler_pmf(ig->light_sampler, &lc, (uint32_t)light) *
                            light_volume_pdf_li(lights, &lights->lights[light], ps->prev_pos[p], ray.dir);
                 w = power_heuristic(ps->prev_scatter_pdf[p], pl);
@@ -158,6 +159,7 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         if (ig->guide.active && ps->volume_bounces[p] <= GUIDE_MAX_VOLUME_VERTICES && scatter_guidable(&sc))
             scatter_set_guide(&sc, guide_lookup(ig, x, v3s(0.0f), guide_hints), (ScatterGuideMode)ig->guide.mode);
         LightSampleContext lc = {x, v3s(0.0f), {0, 0.0f}, scratch, &s->volume, walk_previous};
+        lc.link_class = lights_media_class(ig->lights); /* a medium vertex belongs to no object */
         light_sampler_prepare(ig->light_sampler, &lc, hint);
         walk_previous = lc.vertex;
         /* the null-collision technique's NEE, weighed against in-scattering sampling (Eq. 10) */

@@ -17,6 +17,8 @@ void stage_shadow(const Integrator *ig, Slice *s) {
     const LightSampler *sampler = ig->light_sampler;
     int media = media_any(ig->media);
     uint8_t occluded[SCENE_RAY_PACKET];
+    uint32_t masks[SCENE_RAY_PACKET]; /* shadow linking: each ray's mask, from its light */
+    int shadow_linking = ig->lights->link && ig->lights->link->shadow_mask;
     for (uint32_t b = 0; b < s->num_shadows; b += SCENE_RAY_PACKET) {
         uint32_t m = s->num_shadows - b < SCENE_RAY_PACKET ? s->num_shadows - b : SCENE_RAY_PACKET;
         const uint32_t *items = s->shadows + b;
@@ -24,7 +26,12 @@ void stage_shadow(const Integrator *ig, Slice *s) {
         for (uint32_t k = 0; k < m; ++k) light_sampler_prefetch_outcome(sampler, ps->shadow_outcome[items[k]]);
         if (ig->record.active)
             for (uint32_t k = 0; k < m; ++k) recorder_prefetch(ig->record.recorder, ps->shadow_pv[items[k]]);
-        scene_occluded(ig->scene, ps->shadow_ray, items, m, occluded);
+        if (shadow_linking) {
+            for (uint32_t k = 0; k < m; ++k) masks[k] = lights_shadow_mask(ig->lights, ps->shadow_light[items[k]]);
+            scene_occluded_masked(ig->scene, ps->shadow_ray, items, m, masks, occluded);
+        } else {
+            scene_occluded(ig->scene, ps->shadow_ray, items, m, occluded);
+        }
         /* an NEE vertex hands its emission to its parent, which shading left long ago */
         if (ig->record.active)
             for (uint32_t k = 0; k < m; ++k) recorder_prefetch_parent(ig->record.recorder, ps->shadow_pv[items[k]]);

@@ -19,11 +19,16 @@ static void surface_emission(const Integrator *ig, uint32_t p, const SurfaceHit 
     const PathState *ps = &ig->ps;
     int32_t light = lights_of_primitive(ig->lights, h->instance, h->local_prim);
     if (light < 0) return;
+    /* light linking: an emitter that does not illuminate the previous vertex's object adds
+     * nothing there, whichever technique found it (its NEE pmf there is 0) */
+    uint32_t link_class = ps->prev_link_class[p];
+    if (link_class && !light_reaches(ig->lights, link_class, (uint32_t)light)) return;
     vec3 le = scene_emitted_radiance(ig->scene, h, wo);
     if (v3_is_black(le)) return;
     float w = 1.0f;
     if (!ps->prev_delta[p]) {
         LightSampleContext lc = {ps->prev_pos[p], ps->prev_normal[p], ps->prev_light_vertex[p]};
+        lc.link_class = link_class;
         float pl = light_sampler_pmf(ig->light_sampler, &lc, (uint32_t)light) *
                    light_area_pdf_li(&ig->lights->lights[light], &lc, h->triangle, h->p, h->ng);
         w = power_heuristic(ps->prev_scatter_pdf[p], pl);
@@ -65,6 +70,9 @@ int direct_light_sample_u(const Integrator *ig, vec3 beta, const Scatter *sc, co
     ls->cost = 0.0f;
     if (!(pmf > 0.0f)) return 0;
     const Light *light = &ig->lights->lights[li];
+    /* light linking: every strategy gives unlinked lights probability 0 (a strategy that
+     * could still land on one reports pmf 0 there): a guard, no sample */
+    if (lc->link_class && !light_reaches(ig->lights, lc->link_class, li)) return 0;
     /* an emissive volume whose emission sampling is off (auto): found by tracking alone */
     if (light->type == LIGHT_VOLUME && !ig->emission_auto.on[light->medium]) return 0;
     uint64_t collisions = lc->stats ? lc->stats->collisions : 0;
@@ -126,7 +134,7 @@ static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, con
         ps->shadow_outcome[p] = outcome;
         ps->shadow_depth[p] = depth;
         ps->shadow_medium[p] = side_medium(ig, p, h, ls.wi);
-        ps->shadow_light[p] = ls.light;
+        ps->shadow_light[p] = ls.light; /* also its shadow-linking ray mask (stage_shadow.c) */
         if (ig->record.active)
             ps->shadow_pv[p] = record_child(ig, s, p, ps->pv[p], h->p, ls.wi, nee_throughput(contrib, ls.radiance), ls.pdf,
                                             ls.pdf, 0.0f, PV_FLAG_NEE, ps->hit[p].t);
@@ -220,6 +228,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
         /* light-selection context: transmissive surfaces receive light from both sides, so they
          * use the omnidirectional (fluence) estimates, as a point in a medium does */
         LightSampleContext lc = {h.p, scatter_light_normal(&sc), {0, 0.0f}, scratch, &s->volume};
+        lc.link_class = lights_instance_class(ig->lights, hit->instance);
         int delta = scatter_is_delta(&sc);
         if (!delta) light_sampler_prepare(ig->light_sampler, &lc, &hint); /* once per vertex */
         if (depth == 0 && ig->film.sel_aov) /* the light sampler's AOV: what the first hit's selection uses */

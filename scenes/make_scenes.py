@@ -829,6 +829,82 @@ def occluded_lights():
     g.write(os.path.join(ROOT, 'tests', 'scenes', 'occluded_lights.gltf'))
 
 
+def light_linking():
+    """Light linking and shadow linking (tests/test_linking.c; RAW units). A floor in two
+    objects, the left one a group node 'left' (floor and a post, so a name stands for a
+    subtree), the right one 'right_floor'; a plate 'plate' 0.35 m above the right floor;
+    lights: 'lamp_a' (a one-sided emissive quad facing down, so BSDF-sampled hits on it
+    matter), 'point_b' (a point light) and 'lamp_c' (a smaller emissive quad). Variants, same
+    geometry everywhere except where named:
+      linking_both       no linking;
+      linking_noA        lamp_a does not emit;
+      linking_receivers  lamp_a: receivers exclude ['left']  (left as noA, right as both);
+      linking_blockers   lamp_a: blockers exclude ['plate']  (= Aonly_noplate + noA off the plate);
+      linking_Aonly_noplate  only lamp_a emits, no plate;
+      linking_include    lamp_a: receivers include ['right_floor', 'plate'] (= linking_receivers);
+      linking_both_links lamp_a: both lists at once;
+      linking_many_*     noA, both, receivers with 48 more weak point lights (cache point far
+                         entries and clusters); noC (lamp_c dark) and exclusive (lamp_a includes
+                         the right floor and the plate, lamp_c excludes the right floor: the
+                         right floor's class has an exclusive light, §3.3's add-back).
+    The camera looks straight down from between the lamps (it sees their unlit backs)."""
+    out = os.path.join(ROOT, 'tests', 'scenes')
+
+    def make(name, a_emits=True, others_emit=True, plate=True, links=None, many=False, c_emits=True, c_links=None):
+        g = Gltf()
+        m = g.material('lambert_half', **LAMBERT_WHITE)
+        emit = g.material('emitter', base=(0.0, 0.0, 0.0), lambert=True, emissive=(1.0, 1.0, 1.0), strength=4.0)
+        emit_c = g.material('emitter_c', base=(0.0, 0.0, 0.0), lambert=True, emissive=(1.0, 0.8, 0.6),
+                            strength=3.0 if others_emit and c_emits else 0.0)
+        dark = g.material('dark', base=(0.0, 0.0, 0.0), lambert=True)
+        # the left group: a parent node without a mesh, two children
+        g.doc['meshes'].append({'name': 'left_floor',
+                                'primitives': [dict(g.geometry('lf', quad((-2, 0, -2), (-2, 0, 2), (0, 0, 2), (0, 0, -2))),
+                                                    material=m)]})
+        g.doc['nodes'].append({'name': 'left_floor', 'mesh': len(g.doc['meshes']) - 1})
+        lf = len(g.doc['nodes']) - 1
+        g.doc['meshes'].append({'name': 'left_post', 'primitives': [dict(g.geometry('post', box(0.2, 0.3, 0.2)), material=m)]})
+        g.doc['nodes'].append({'name': 'left_post', 'mesh': len(g.doc['meshes']) - 1, 'translation': [-1.4, 0.15, 1.2]})
+        lp = len(g.doc['nodes']) - 1
+        g.node('left', children=[lf, lp])
+        g.mesh('right_floor', 'rf', quad((0, 0, -2), (0, 0, 2), (2, 0, 2), (2, 0, -2)), m)
+        if plate:
+            g.mesh('plate', 'plate', quad((0.6, 0.35, -0.4), (0.6, 0.35, 0.4), (1.2, 0.35, 0.4), (1.2, 0.35, -0.4)), m)
+        s = 0.4
+        a = g.mesh('lamp_a', 'lamp_a', quad((1.4 - s, 1.2, -s), (1.4 + s, 1.2, -s), (1.4 + s, 1.2, s), (1.4 - s, 1.2, s)),
+                   emit if a_emits else dark)
+        if links is not None:
+            g.doc['nodes'][a]['extras'] = {'candela_light_linking': links}
+        g.light('point_b', 'point', 1.0 if others_emit else 0.0, translation=(-1.0, 1.0, 0.6))
+        c = 0.2
+        lc = g.mesh('lamp_c', 'lamp_c', quad((-0.8 - c, 1.1, -0.9 - c), (-0.8 + c, 1.1, -0.9 - c), (-0.8 + c, 1.1, -0.9 + c),
+                                        (-0.8 - c, 1.1, -0.9 + c)), emit_c)
+        if c_links is not None:
+            g.doc['nodes'][lc]['extras'] = {'candela_light_linking': c_links}
+        if many:  # 48 weak point lights: cache points get far entries and clusters (cut size 4)
+            import random
+            rng = random.Random(3)
+            for k in range(48):
+                g.light('many_%d' % k, 'point', (0.02 + 0.05 * rng.random()) if others_emit else 0.0,
+                        translation=(-1.9 + 3.8 * rng.random(), 0.6 + 0.5 * rng.random(), -1.9 + 3.8 * rng.random()))
+        g.orthographic('top', (0.0, 1.15, 0.0), DOWN, 2.0, 2.0, up=(0.0, 0.0, -1.0))
+        g.write(os.path.join(out, name + '.gltf'))
+
+    make('linking_both')
+    make('linking_noA', a_emits=False)
+    make('linking_receivers', links={'receivers': {'exclude': ['left']}})
+    make('linking_blockers', links={'blockers': {'exclude': ['plate']}})
+    make('linking_Aonly_noplate', others_emit=False, plate=False)
+    make('linking_include', links={'receivers': {'include': ['right_floor', 'plate']}})
+    make('linking_both_links', links={'receivers': {'exclude': ['left']}, 'blockers': {'exclude': ['plate']}})
+    make('linking_many_noA', a_emits=False, many=True)
+    make('linking_many_both', many=True)
+    make('linking_many_receivers', links={'receivers': {'exclude': ['left']}}, many=True)
+    make('linking_many_noC', c_emits=False, many=True)
+    make('linking_many_exclusive', links={'receivers': {'include': ['right_floor', 'plate']}},
+         c_links={'receivers': {'exclude': ['right_floor']}}, many=True)
+
+
 def light_edge_cases():
     """Valid but awkward light setups that must render without a crash or a division by zero:
     no lights at all, a zero-intensity light beside a normal one, a light whose intensity
@@ -931,6 +1007,7 @@ def main():
     two_lights()
     occluded_lights()
     light_edge_cases()
+    light_linking()
 
 
 if __name__ == '__main__':
