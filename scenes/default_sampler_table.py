@@ -25,11 +25,11 @@ import argparse
 import glob
 import json
 import os
-import re
-import resource
 import statistics
 import subprocess
 import sys
+
+from image_error import mse, oiio_mean, run_render
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SHARED = os.path.join(os.path.dirname(ROOT), "shared", "assets")
@@ -72,32 +72,9 @@ def render(args, scene, out, sampler, spp, seed):
     if sampler != "default":
         cmd += ["--light-sampler", sampler]
     cmd += args.extra.split()
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    if r.returncode != 0:
-        sys.exit("render failed: %s\n%s" % (" ".join(cmd), r.stderr))
-    with open(stats) as f:
-        st = json.load(f)
-    st["cpu_seconds"] = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return st
+    return run_render(cmd, stats)
 
 
-def oiio_mean(args):
-    """Mean over the pixels and channels (oiiotool prints 6 decimals: the values are scaled by
-    1e9 first, so variances of 1e-6 keep their digits)."""
-    r = subprocess.run(["oiiotool"] + args + ["--mulc", "1e9", "--printstats"], capture_output=True, text=True)
-    m = re.search(r"Stats Avg: ([0-9.eE+\-naif ]+)", r.stdout)
-    if not m:
-        sys.exit("oiiotool gave no stats for %s:\n%s" % (" ".join(args), r.stdout + r.stderr))
-    vals = [float(x) for x in m.group(1).split()]
-    return sum(vals) / len(vals) * 1e-9
-
-
-def mse(a, b):
-    r = subprocess.run(["oiiotool", a, "--ch", "R,G,B", b, "--ch", "R,G,B", "--diff"], capture_output=True, text=True)
-    m = re.search(r"RMS error = ([0-9.eE+-]+)", r.stdout + r.stderr)
-    return float(m.group(1)) ** 2 if m else 0.0
 
 
 def main():

@@ -21,14 +21,11 @@ per guiding update. Prints a Markdown table. Needs oiiotool (Debian openimageio-
 Timings are wall clock: run on an otherwise idle machine and compare ratios within one run.
 """
 import argparse
-import json
 import os
-import re
-import resource
 import subprocess
 import sys
 
-from image_error import mse
+from image_error import mse, oiio_mean, run_render
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENES = {"interior": "scenes/guiding_interior.gltf", "default": "scenes/default.gltf"}
@@ -40,24 +37,8 @@ def render(candela, scene, out, spp, seed, res, extra):
     stats = out[:-4] + ".json"
     cmd = [candela, "render", scene, "--res", res, "--spp", str(spp), "--seed", str(seed), "-o", out,
            "--png", out[:-4] + ".png", "--stats-json", stats, "-q"] + extra
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    if r.returncode != 0:
-        sys.exit("render failed: %s\n%s" % (" ".join(cmd), r.stderr))
-    with open(stats) as f:
-        st = json.load(f)
-    st["cpu_seconds"] = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return st
+    return run_render(cmd, stats)
 
-
-def oiio_mean(args):
-    r = subprocess.run(["oiiotool"] + args + ["--printstats"], capture_output=True, text=True)
-    m = re.search(r"Stats Avg: ([0-9.eE+\- ]+)", r.stdout)
-    if not m:
-        sys.exit("oiiotool gave no stats for %s:\n%s" % (" ".join(args), r.stdout + r.stderr))
-    vals = [float(x) for x in m.group(1).split()]
-    return sum(vals) / len(vals)
 
 
 def main():
