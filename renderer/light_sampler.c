@@ -2,6 +2,7 @@
  * two context-free strategies, uniform and power. */
 #include "light_sampler.h"
 #include "media.h"
+#include "scene.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -159,6 +160,49 @@ CandelaLightSampler light_sampler_auto_choice(const Lights *lights, const struct
     return cost <= LIGHT_SAMPLER_AUTO_EXACT_COST ? CANDELA_LIGHT_SAMPLER_OPTIMAL : CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
 }
 
+float light_sampler_power_moment_ratio(const Lights *lights, const struct Scene *scene) {
+    uint32_t n = lights->count;
+    if (n == 0 || n > LIGHT_SAMPLER_AUTO_PROBE_MAX || !scene) return INFINITY;
+    double power_sum = 0.0;
+    for (uint32_t i = 0; i < n; ++i) power_sum += lights->lights[i].power > 0.0f ? lights->lights[i].power : 0.0f;
+    if (!(power_sum > 0.0)) return INFINITY;
+    float *q = malloc(sizeof(float) * n);
+    if (!q) return INFINITY;
+    enum { GRID = 16 };
+    const Camera *cam = &scene->camera;
+    double num = 0.0, den = 0.0;
+    for (int j = 0; j < GRID; ++j)
+        for (int i = 0; i < GRID; ++i) {
+            vec3 o, d;
+            camera_generate_ray(cam, ((float)i + 0.5f) / GRID * (float)cam->width,
+                                ((float)j + 0.5f) / GRID * (float)cam->height, &o, &d);
+            SceneHit sh;
+            if (!scene_intersect1(scene, (SceneRay){o, 0.0f, d, INFINITY}, &sh)) continue;
+            SurfaceHit h;
+            scene_surface_hit(scene, sh.instance, sh.local_prim, sh.triangle, sh.u, sh.v, &h);
+            vec3 nrm = v3_dot(h.ns, d) < 0.0f ? h.ns : v3_neg(h.ns);
+            double total = 0.0;
+            for (uint32_t e = 0; e < n; ++e) {
+                float w = light_contribution_estimate(lights, &lights->lights[e], h.p, nrm);
+                q[e] = w > 0.0f && isfinite(w) ? w : 0.0f;
+                total += q[e];
+            }
+            if (!(total > 0.0)) continue;
+            double m = 0.0;
+            for (uint32_t e = 0; e < n; ++e) {
+                if (!(q[e] > 0.0f)) continue;
+                double pe = (lights->lights[e].power > 0.0f ? lights->lights[e].power : 0.0f) / power_sum;
+                if (!(pe > 0.0)) { free(q); return INFINITY; } /* power never picks a light that matters */
+                double qe = q[e] / total;
+                m += qe * qe / pe;
+            }
+            num += total * total * m;
+            den += total * total;
+        }
+    free(q);
+    return den > 0.0 ? (float)(num / den) : INFINITY;
+}
+
 /* ---------------------------------------------------------------- dispatch */
 
 int light_sampler_create(LightSampler *s, const Lights *lights, const struct Scene *scene,
@@ -166,7 +210,13 @@ int light_sampler_create(LightSampler *s, const Lights *lights, const struct Sce
                          char err[CANDELA_ERR_LEN]) {
     int rc;
     CandelaLightSampler which = o->light_sampler;
-    if (which == CANDELA_LIGHT_SAMPLER_AUTO) which = light_sampler_auto_choice(lights, media, o);
+    if (which == CANDELA_LIGHT_SAMPLER_AUTO) {
+        which = light_sampler_auto_choice(lights, media, o);
+        if ((which == CANDELA_LIGHT_SAMPLER_OPTIMAL || which == CANDELA_LIGHT_SAMPLER_CACHEPOINTS) &&
+            !(media && media_any(media)) && !lights->link &&
+            light_sampler_power_moment_ratio(lights, scene) <= LIGHT_SAMPLER_AUTO_POWER_RATIO)
+            which = CANDELA_LIGHT_SAMPLER_POWER;
+    }
     if ((o->aov_selection || o->cachepoint_dump_path) && which != CANDELA_LIGHT_SAMPLER_CACHEPOINTS && !o->no_warnings)
         fprintf(stderr, "%s: warning: --light-sampler auto chose %s for this scene: %s (give --light-sampler "
                 "cachepoints to see cache points)\n", o->scene_path, candela_light_sampler_name(which),
