@@ -317,6 +317,20 @@ done:
 /* Below this max(T), Russian roulette: survive with probability max(T) and divide by it. */
 #define RATIO_RR_THRESHOLD 0.1f
 
+/* Russian roulette on a ratio-tracking weight below max(w) = RATIO_RR_THRESHOLD: survive with
+ * probability max(w) and divide by it (unbiased); 0 (and w = 0) when the walk ends. */
+static inline int ratio_roulette(float w[3], VolumeRng *rng) {
+    float mx = vmax3(w);
+    if (!(mx < RATIO_RR_THRESHOLD)) return 1;
+    if (!(mx > 0.0f) || rng->next(rng->state) >= mx) {
+        w[0] = w[1] = w[2] = 0.0f;
+        return 0;
+    }
+    float inv = 1.0f / mx;
+    for (int k = 0; k < 3; ++k) w[k] *= inv;
+    return 1;
+}
+
 /* The ratio-tracking walk of media_ratio_track (the null vertices' product it also returns is
  * that of the free flights' own majorant process, which residual tracking would not give): at
  * every collision of the view's majorant process w *= sigma_n / sigma_maj = 1 - sigma_t /
@@ -348,15 +362,7 @@ static int ratio_walk(const MediaView *v, const float o[3], const float d[3], fl
                 w[k] *= q[k];
             }
             if (null_mis) *null_mis *= (q[0] + q[1] + q[2]) * (1.0f / 3.0f);
-            float mx = vmax3(w);
-            if (mx < RATIO_RR_THRESHOLD) {
-                if (!(mx > 0.0f) || rng->next(rng->state) >= mx) {
-                    w[0] = w[1] = w[2] = 0.0f;
-                    return 1;
-                }
-                float inv = 1.0f / mx;
-                for (int k = 0; k < 3; ++k) w[k] *= inv;
-            }
+            if (!ratio_roulette(w, rng)) return 1;
             depth = sample_depth(rng);
         }
     }
@@ -444,15 +450,7 @@ static int residual_walk(const MediaView *v, int emitter, const float o[3], cons
                 walk_eval(&walk, tn, sa, ss, NULL, NULL, NULL);
             }
             for (int k = 0; k < 3; ++k) w[k] *= vmaxf(1.0f - (sa[k] + ss[k] - ctl) * inv_maj, 0.0f);
-            float mx = vmax3(w);
-            if (mx < RATIO_RR_THRESHOLD) {
-                if (!(mx > 0.0f) || rng->next(rng->state) >= mx) {
-                    w[0] = w[1] = w[2] = 0.0f;
-                    return 1;
-                }
-                float inv = 1.0f / mx;
-                for (int k = 0; k < 3; ++k) w[k] *= inv;
-            }
+            if (!ratio_roulette(w, rng)) return 1;
             depth = sample_depth(rng);
         }
         attenuate(w, sc, end - t_last);
