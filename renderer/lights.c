@@ -420,7 +420,7 @@ int light_sample_li(const Lights *ls, const Light *l, const LightSampleContext *
         for (int k = 0; k < view.count; ++k) if (view.media[k] == m) emitter = k;
         if (emitter < 0) return 0;
         float L[3];
-        media_emission_line(&view, emitter, o, w, t0, t1, &rng, L, ctx->stats);
+        media_emission_line_at(&view, emitter, o, w, t0, t1, VOLUME_LINE_COARSE, &rng, L, ctx->stats);
         s->wi = wi;
         s->distance = t0; /* the shadow ray: occlusion and other media up to the volume */
         s->radiance = v3(L[0], L[1], L[2]);

@@ -22,6 +22,8 @@
 
 typedef enum { WALK_SURFACE, WALK_ESCAPED, WALK_ENDED } WalkEnd;
 
+#define CAMERA_EMISSION_LINES 4
+
 /* NEE from a medium vertex: as at a surface (direct_light_sample), with the phase function and
  * the shadow ray traced now (the walk is depth-first). */
 static float medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec3 x, const Scatter *sc,
@@ -73,11 +75,20 @@ static void add_volume_emission(const Integrator *ig, Slice *s, uint32_t p, cons
     RngStream stream = rng_stream(ps->rng_key[p], ps->depth[p], RNG_STREAM_EMISSION_LINE + (ps->crossings[p] << 8));
     VolumeRng rng = {rng_stream_next_cb, &stream};
     const float o[3] = {ray.org.x, ray.org.y, ray.org.z}, d[3] = {ray.dir.x, ray.dir.y, ray.dir.z};
+    /* a line the pixel sees directly (from the camera, or through delta lobes only) is the
+     * pixel's value: the mean of CAMERA_EMISSION_LINES independent ones (torch_mist, 160x90:
+     * 4 cut the fire pixels' variance 1.3x in the image for 4% more collisions; one walk with
+     * a 4x majorant, 1.15x); a line found from a scattering vertex, one */
+    int lines = ps->prev_delta[p] ? CAMERA_EMISSION_LINES : 1;
     for (int k = 0; k < view->count; ++k) {
         const Medium *m = view->media[k];
         if (!m->emissive) continue;
-        float L[3];
-        media_emission_line(view, k, o, d, 0.0f, tmax, &rng, L, &s->volume);
+        float L[3] = {0.0f, 0.0f, 0.0f};
+        for (int i = 0; i < lines; ++i) {
+            float Li[3];
+            media_emission_line(view, k, o, d, 0.0f, tmax, &rng, Li, &s->volume);
+            for (int c = 0; c < 3; ++c) L[c] += Li[c] * (1.0f / (float)lines);
+        }
         vec3 e = v3(L[0], L[1], L[2]);
         if (v3_is_black(e)) continue;
         float w = 1.0f;

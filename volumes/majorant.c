@@ -133,6 +133,7 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **em
      * emitting medium's walks gather its emission at collisions, which need its whole
      * majorant) */
     mg->sigma_min = m->emissive ? NULL : malloc((size_t)ncells * sizeof(float));
+    mg->sigma_maj_coarse = m->emissive ? malloc((size_t)ncells * sizeof(float)) : NULL;
 
     /* Density block maxima with a ring of one block around the cells: a cell's majorant
      * bounds its voxels and the two-voxel shell around them, i.e. the trilinear footprint of
@@ -145,7 +146,7 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **em
     }
     /* only three z layers of density blocks are alive at a time (a layer of cells needs the
      * layers below, at and above it): the temporary memory is a slab, not the volume */
-    int fail = !mg->sigma_maj || block_table_alloc(&dens, ring_origin, ring_dims, 3, BLK_FACES) ||
+    int fail = !mg->sigma_maj || (m->emissive && !mg->sigma_maj_coarse) || block_table_alloc(&dens, ring_origin, ring_dims, 3, BLK_FACES) ||
                (!m->emissive && (!mg->sigma_min || block_table_alloc(&dmin_table, ring_origin, ring_dims, 3, BLK_FACES)));
     if (!fail && m->emissive && emit_bound) fail = !(bound = calloc((size_t)ncells, sizeof(float)));
 
@@ -172,8 +173,10 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **em
         free(bound);
         free(mg->sigma_maj);
         free(mg->sigma_min);
+        free(mg->sigma_maj_coarse);
         mg->sigma_maj = NULL;
         mg->sigma_min = NULL;
+        mg->sigma_maj_coarse = NULL;
         if (err) snprintf(err, IO_ERR_LEN, "%s: out of memory building the majorant grid", name);
         return -1;
     }
@@ -215,7 +218,7 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **em
                             dmax = vmaxf(dmax, v);
                         }
                 float st = vminf(m->density_scale * dmax, VOLUME_MAX_SIGMA_T);
-                float maj = st;
+                float maj = st, maj_coarse = st;
                 if (m->emissive && st > 0.0f) {
                     /* the cell's box (with its slack) in the aux grid's index space */
                     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
@@ -241,9 +244,12 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **em
                     float e = m->emission.buffer ? amax : (amax >= BLACKBODY_MIN_KELVIN ? 1.0f : 0.0f);
                     float term = st * emit_factor * e; /* kappa = 1 */
                     maj = vmaxf(st, vminf(term, emit_cap));
+                    maj_coarse = vmaxf(st, vminf(term, emit_cap * (1.0f / VOLUME_LINE_COARSE_VOXELS)));
                     if (bound) bound[cx + mg->dims[0] * (cy + mg->dims[1] * cz)] = term;
                 }
                 mg->sigma_maj[cx + mg->dims[0] * (cy + mg->dims[1] * cz)] = maj * VOL_MAJORANT_SLACK;
+                if (mg->sigma_maj_coarse)
+                    mg->sigma_maj_coarse[cx + mg->dims[0] * (cy + mg->dims[1] * cz)] = maj_coarse * VOL_MAJORANT_SLACK;
                 if (mg->sigma_min) {
                     /* the same footprint's minimum: a neighbour's two-voxel face towards the
                      * cell; an edge or corner lies in each of its faces, so the largest of
@@ -465,4 +471,10 @@ void medium_majorant_begin_control(const Medium *m, const float o[3], const floa
                                    MajorantIterator *it) {
     medium_majorant_begin(m, o, d, tmin, tmax, it);
     if (m->kind != MEDIUM_HOMOGENEOUS) it->cells_min = m->majorant.sigma_min;
+}
+
+void medium_majorant_begin_coarse(const Medium *m, const float o[3], const float d[3], float tmin, float tmax,
+                                  MajorantIterator *it) {
+    medium_majorant_begin_control(m, o, d, tmin, tmax, it);
+    if (m->kind != MEDIUM_HOMOGENEOUS && m->majorant.sigma_maj_coarse) it->cells = m->majorant.sigma_maj_coarse;
 }

@@ -311,6 +311,7 @@ void medium_free(Medium *m) {
     if (!m) return;
     free(m->majorant.sigma_maj);
     free(m->majorant.sigma_min);
+    free(m->majorant.sigma_maj_coarse);
     emission_free(m);
     memset(m, 0, sizeof *m);
 }

@@ -29,6 +29,10 @@ typedef struct Walk {
     const float *o, *d;
 } Walk;
 
+/* walk_begin_mode's modes: plain majorants, with controls (residual ratio tracking), with
+ * controls and emitting media's coarse majorants (media_emission_line_at, VOLUME_LINE_COARSE) */
+enum { WALK_PLAIN = 0, WALK_CONTROL = 1, WALK_COARSE = 2 };
+
 static void walk_begin_mode(Walk *w, const MediaView *v, const float o[3], const float d[3], float tmin, float tmax,
                             int control) {
     w->n = v ? (v->count < 0 ? 0 : v->count > VOLUME_MAX_OVERLAP ? VOLUME_MAX_OVERLAP : v->count) : 0;
@@ -44,7 +48,10 @@ static void walk_begin_mode(Walk *w, const MediaView *v, const float o[3], const
         l->cache.ready = 0;
         if (!l->m) continue;
         l->ctl = 0.0f;
-        if (control) {
+        if (control == WALK_COARSE) {
+            medium_majorant_begin_coarse(l->m, o, d, tmin, tmax, &l->it);
+            l->live = medium_majorant_next_control(&l->it, &l->a, &l->b, &l->maj, &l->ctl);
+        } else if (control) {
             medium_majorant_begin_control(l->m, o, d, tmin, tmax, &l->it);
             l->live = medium_majorant_next_control(&l->it, &l->a, &l->b, &l->maj, &l->ctl);
         } else {
@@ -55,7 +62,7 @@ static void walk_begin_mode(Walk *w, const MediaView *v, const float o[3], const
 }
 
 static void walk_begin(Walk *w, const MediaView *v, const float o[3], const float d[3], float tmin, float tmax) {
-    walk_begin_mode(w, v, o, d, tmin, tmax, 0);
+    walk_begin_mode(w, v, o, d, tmin, tmax, WALK_PLAIN);
 }
 
 /* The combined majorant on [w->t, *end] and the lanes present there; 0 once the walk has
@@ -424,9 +431,9 @@ static inline void attenuate(float w[3], const float sc[3], float length) {
  * (the running weight is unbiased for T(tmin, t) at any t fixed before the walk). Russian
  * roulette below max(w) = RATIO_RR_THRESHOLD as ratio tracking. */
 static int residual_walk(const MediaView *v, int emitter, const float o[3], const float d[3], float tmin, float tmax,
-                         VolumeRng *rng, float w[3], float L[3], uint64_t *collisions) {
+                         int mode, VolumeRng *rng, float w[3], float L[3], uint64_t *collisions) {
     Walk walk;
-    walk_begin_mode(&walk, v, o, d, tmin, tmax, 1);
+    walk_begin_mode(&walk, v, o, d, tmin, tmax, mode);
     float end, maj, ctl, sc[3], depth = sample_depth(rng);
     while (walk_interval_residual(&walk, &end, &maj, sc, &ctl)) {
         float t_last = walk.t;
@@ -463,7 +470,7 @@ void media_transmittance(const MediaView *v, const float o[3], const float d[3],
     /* residual ratio tracking (Novák et al. 2014 §5): the walk's weight is the estimate */
     T[0] = T[1] = T[2] = 1.0f;
     uint64_t collisions = 0;
-    if (!residual_walk(v, -1, o, d, tmin, tmax, rng, T, NULL, &collisions)) {
+    if (!residual_walk(v, -1, o, d, tmin, tmax, WALK_CONTROL, rng, T, NULL, &collisions)) {
         if (stats) ++stats->capped_walks;
         T[0] = T[1] = T[2] = 0.0f;
     }
@@ -484,8 +491,8 @@ void media_ratio_track(const MediaView *v, const float o[3], const float d[3], f
 
 /* ---------------------------------------------------------------- emission-optimised tracking */
 
-void media_emission_line(const MediaView *v, int emitter, const float o[3], const float d[3], float tmin, float tmax,
-                         VolumeRng *rng, float L[3], VolumeStats *stats) {
+void media_emission_line_at(const MediaView *v, int emitter, const float o[3], const float d[3], float tmin,
+                            float tmax, VolumeLineDensity density, VolumeRng *rng, float L[3], VolumeStats *stats) {
     /* The cache points paper §4.3, Algorithm 1 (spec §7.4): the majorant process of the
      * view's merged majorants (which carry the emission term) with P_a = P_n = 1: every
      * collision gathers (a collision estimator of the emission integral weighted by the
@@ -495,6 +502,12 @@ void media_emission_line(const MediaView *v, int emitter, const float o[3], cons
     if (emitter < 0 || emitter >= n || !v->media[emitter] || !v->media[emitter]->emissive) return;
     float w[3] = {1.0f, 1.0f, 1.0f};
     uint64_t collisions = 0;
-    if (!residual_walk(v, emitter, o, d, tmin, tmax, rng, w, L, &collisions) && stats) ++stats->capped_walks;
+    if (!residual_walk(v, emitter, o, d, tmin, tmax, density == VOLUME_LINE_COARSE ? WALK_COARSE : WALK_CONTROL, rng,
+                       w, L, &collisions) && stats) ++stats->capped_walks;
     if (stats) stats->collisions += collisions;
+}
+
+void media_emission_line(const MediaView *v, int emitter, const float o[3], const float d[3], float tmin, float tmax,
+                         VolumeRng *rng, float L[3], VolumeStats *stats) {
+    media_emission_line_at(v, emitter, o, d, tmin, tmax, VOLUME_LINE_STANDARD, rng, L, stats);
 }
