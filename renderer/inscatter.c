@@ -6,7 +6,7 @@
  * bright light it rarely scatters where the light is. The cache points know where in-scattered
  * light is strong (their scattering weights, computed in the build), so a second technique
  * draws the vertex's distance from a piecewise-linear density through the weights of the
- * nearest cache points along the segment (stations one radius of influence apart, at most 64,
+ * nearest cache points along the segment (stations one radius of influence apart, at most INSCATTER_STATIONS,
  * plus a defensive uniform part), ratio-tracks the transmittance to it and does NEE there.
  * Both techniques estimate the single-scattered direct light of the segment; each weighs its
  * sample by the balance heuristic over the pair with the density ratio of Eq. 10 (corrected in
@@ -18,7 +18,7 @@
 #include "rng.h"
 #include "scatter.h"
 
-#define INSCATTER_STATIONS 64
+#define INSCATTER_STATIONS 16 /* torch_mist, 160x90: 64 cost 0.07 G instructions per spp more (+14%) at the same variance */
 #define INSCATTER_DELTA 0.1f /* the defensive uniform share (spec §7.2) */
 
 int inscatter_table(const Integrator *ig, SceneRay ray, float tmax, const MediaView *view, uint32_t *hint,

@@ -22,7 +22,7 @@
 
 typedef enum { WALK_SURFACE, WALK_ESCAPED, WALK_ENDED } WalkEnd;
 
-#define CAMERA_EMISSION_LINES 4
+#define CAMERA_EMISSION_LINES 8
 
 /* NEE from a medium vertex: as at a surface (direct_light_sample), with the phase function and
  * the shadow ray traced now (the walk is depth-first). */
@@ -76,9 +76,11 @@ static void add_volume_emission(const Integrator *ig, Slice *s, uint32_t p, cons
     VolumeRng rng = {rng_stream_next_cb, &stream};
     const float o[3] = {ray.org.x, ray.org.y, ray.org.z}, d[3] = {ray.dir.x, ray.dir.y, ray.dir.z};
     /* a line the pixel sees directly (from the camera, or through delta lobes only) is the
-     * pixel's value: the mean of CAMERA_EMISSION_LINES independent ones (torch_mist, 160x90:
-     * 4 cut the fire pixels' variance 1.3x in the image for 4% more collisions; one walk with
-     * a 4x majorant, 1.15x); a line found from a scattering vertex, one */
+     * pixel's value: the mean of CAMERA_EMISSION_LINES independent ones; a line found from a
+     * scattering vertex, one. torch_mist, 160x90, where the fire's pixels hold 86% of the
+     * image's variance: 4 lines cut the image variance 1.3x for 4% more collisions (one walk
+     * with a 4x majorant only 1.15x: its transmittance through the mist is still one estimate),
+     * 16 lines 1.46x for 5% more instructions than 4 */
     int lines = ps->prev_delta[p] ? CAMERA_EMISSION_LINES : 1;
     for (int k = 0; k < view->count; ++k) {
         const Medium *m = view->media[k];
