@@ -328,6 +328,10 @@ int direct_light_sample(const Integrator *ig, uint32_t p, const struct Scatter *
  * (a technique with its own random numbers: in-scattering sampling). */
 int direct_light_sample_u(const Integrator *ig, vec3 beta, const struct Scatter *sc, const LightSampleContext *lc,
                           const float u[6], LightLiSample *ls, vec3 *contrib, uint32_t *outcome);
+/* stage_surface.c: the shape lights (spheres, rects, disks; suns when the ray escapes, tmax
+ * INFINITY) that path p's ray crosses before tmax add their radiance, MIS-weighted against NEE
+ * from the previous vertex (README "Light shapes"; lights are transparent to rays, as in Cycles). */
+void path_shape_emission(const Integrator *ig, uint32_t p, float tmax);
 
 /* inscatter.c: in-scattering sampling along camera rays (the paper's §4.2, spec §7.2-7.3), for
  * light samplers that provide scattering weights (light_sampler_inscatter_weight). A camera

@@ -67,6 +67,62 @@ static int build_area_light(const Scene *scene, uint32_t instance, uint32_t loca
     return 0;
 }
 
+/* A rect or disk area light (io.h IoLight, README "Light shapes"): its plane, the dual basis of
+ * its half-extent vectors, radiance power / (pi A) x colour over its world area A (Cycles'
+ * convention: the one-sided lambertian emitter's flux pi A L is the power), and the triangles the
+ * estimates' fixed points lie on (2 for a rect, an inscribed fan of 16 for a disk), wound so that
+ * their normals are the emission direction. 0 ok, -1 out of memory. */
+#define DISK_ESTIMATE_FAN 16
+static int build_shape_area(const IoLight *il, Light *l, vec3 color) {
+    l->type = il->type == IO_LIGHT_RECT ? LIGHT_RECT : LIGHT_DISK;
+    l->axis_u = v3(il->axis_u[0], il->axis_u[1], il->axis_u[2]);
+    l->axis_v = v3(il->axis_v[0], il->axis_v[1], il->axis_v[2]);
+    vec3 cr = v3_cross(l->axis_u, l->axis_v);
+    float len = v3_length(cr);
+    if (!(len > 0.0f) || !isfinite(len) || !v3_is_finite(l->axis_u) || !v3_is_finite(l->axis_v)) return 0; /* area 0 */
+    vec3 ng = v3_scale(cr, 1.0f / len);
+    /* the emitting side is the node's -Z side (its plane normal pointing there) */
+    if (v3_dot(ng, l->direction) < 0.0f) ng = v3_neg(ng);
+    l->direction = ng;
+    /* dual basis: (y - c) . dual_u = a, (y - c) . dual_v = b for y = c + a u + b v in the plane */
+    vec3 vn = v3_cross(l->axis_v, ng), nu = v3_cross(ng, l->axis_u);
+    l->dual_u = v3_scale(vn, 1.0f / v3_dot(l->axis_u, vn));
+    l->dual_v = v3_scale(nu, 1.0f / v3_dot(l->axis_v, nu));
+    l->area = l->type == LIGHT_RECT ? 4.0f * len : PI_F * len;
+    float power = finite_or_zero(il->intensity);
+    l->emission = v3_scale(color, power / (PI_F * l->area));
+    if (!v3_is_finite(l->emission)) { l->area = 0.0f; return 0; }
+    l->power = PI_F * l->area * v3_luminance(l->emission);
+    uint32_t nt = l->type == LIGHT_RECT ? 2u : DISK_ESTIMATE_FAN;
+    l->world_vertices = malloc((size_t)nt * 9 * sizeof(float));
+    float areas[DISK_ESTIMATE_FAN];
+    if (!l->world_vertices) return -1;
+    vec3 c = l->position, u = l->axis_u, v = l->axis_v;
+    for (uint32_t t = 0; t < nt; ++t) {
+        vec3 w[3];
+        if (l->type == LIGHT_RECT) {
+            vec3 p00 = v3_sub(v3_sub(c, u), v), p10 = v3_sub(v3_add(c, u), v), p11 = v3_add(v3_add(c, u), v),
+                 p01 = v3_add(v3_sub(c, u), v);
+            w[0] = p00; w[1] = t ? p11 : p10; w[2] = t ? p01 : p11;
+        } else {
+            float a0 = 2.0f * PI_F * (float)t / (float)nt, a1 = 2.0f * PI_F * (float)(t + 1) / (float)nt;
+            w[0] = c;
+            w[1] = v3_add(c, v3_add(v3_scale(u, cosf(a0)), v3_scale(v, sinf(a0))));
+            w[2] = v3_add(c, v3_add(v3_scale(u, cosf(a1)), v3_scale(v, sinf(a1))));
+        }
+        vec3 n = v3_cross(v3_sub(w[1], w[0]), v3_sub(w[2], w[0]));
+        if (v3_dot(n, ng) < 0.0f) { vec3 tmp = w[1]; w[1] = w[2]; w[2] = tmp; }
+        for (int k = 0; k < 3; ++k) {
+            l->world_vertices[9 * t + 3 * k] = w[k].x;
+            l->world_vertices[9 * t + 3 * k + 1] = w[k].y;
+            l->world_vertices[9 * t + 3 * k + 2] = w[k].z;
+        }
+        areas[t] = 0.5f * v3_length(n);
+    }
+    if (dist1d_init(&l->triangles, areas, nt) != 0) { free(l->world_vertices); l->world_vertices = NULL; return -1; }
+    return 0;
+}
+
 int light_area_tree_build(Light *l) {
     memset(&l->tri_tree, 0, sizeof l->tri_tree);
     if (l->type != LIGHT_AREA || l->triangles.n <= LIGHT_AREA_TREE_MAX_CDF || !l->world_vertices) return 0;
@@ -131,6 +187,36 @@ int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, Candel
         }
         float lum = v3_luminance(l.intensity);
         l.link = link_of_node && il->node >= 0 ? link_of_node[il->node] : -1;
+        if (il->type == IO_LIGHT_RECT || il->type == IO_LIGHT_DISK) {
+            /* an area light: power in Blender's watts, whatever the light units */
+            vec3 c = v3_max(color, v3s(0.0f));
+            if (build_shape_area(il, &l, c) != 0) goto oom;
+            if (!(l.area > 0.0f) || !isfinite(l.area)) {
+                light_area_free(&l);
+                fprintf(stderr, "candela: warning: area light '%s' has no area; ignored\n", il->name);
+                continue;
+            }
+            if (push_light(ls, &cap, &l) != 0) { light_area_free(&l); goto oom; }
+            continue;
+        }
+        /* a sphere of radius r with the point light's intensity I in every direction (far field):
+         * radiance I / (pi r^2), the same power (Cycles' point light radius keeps the power) */
+        float radius = il->type != IO_LIGHT_DIRECTIONAL ? finite_or_zero(il->radius) : 0.0f;
+        if (radius > 0.0f) {
+            l.radius = radius;
+            l.emission = v3_scale(l.intensity, 1.0f / (PI_F * radius * radius));
+            if (!v3_is_finite(l.emission)) { l.radius = 0.0f; l.emission = v3s(0.0f); }
+        }
+        float angle = il->type == IO_LIGHT_DIRECTIONAL ? finite_or_zero(il->angle) : 0.0f;
+        if (angle > 0.0f && angle < PI_F) {
+            /* a sun of angular diameter `angle`: uniform radiance over the cone of half-angle h,
+             * E = L * pi sin^2 h on a perpendicular plane (solid angle 2 pi (1 - cos h) times the
+             * mean cosine (1 + cos h) / 2), E the glTF irradiance */
+            double h = 0.5 * (double)angle, sh = sin(0.5 * h);
+            l.sun_omc = (float)(2.0 * sh * sh); /* 1 - cos h without cancellation */
+            double s2 = sin(h) * sin(h);
+            l.emission = v3_scale(l.intensity, (float)(1.0 / (PI_F * s2)));
+        }
         switch (il->type) {
         case IO_LIGHT_POINT:
             l.type = LIGHT_POINT;
@@ -232,6 +318,14 @@ int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, Candel
         if (push_light(ls, &cap, &l) != 0) goto oom;
     }
     if (ls->environment >= 0) light_env_estimates(scene, ls->env_estimate);
+    for (uint32_t i = 0; i < ls->count; ++i) ls->num_shapes += light_is_shape(&ls->lights[i]) ? 1u : 0u;
+    if (ls->num_shapes) {
+        ls->shapes = malloc(ls->num_shapes * sizeof *ls->shapes);
+        if (!ls->shapes) goto oom;
+        uint32_t k = 0;
+        for (uint32_t i = 0; i < ls->count; ++i)
+            if (light_is_shape(&ls->lights[i])) ls->shapes[k++] = i;
+    }
     free(link_of_node);
     if (lights_build_linking(ls, scene, err, err_len) != 0) { lights_free(ls); return -1; }
     return 0;
@@ -244,9 +338,10 @@ oom:
 
 void lights_free(Lights *ls) {
     for (uint32_t i = 0; i < ls->count; ++i) {
-        if (ls->lights[i].type == LIGHT_AREA) light_area_free(&ls->lights[i]);
+        if (light_is_areal(&ls->lights[i])) light_area_free(&ls->lights[i]);
     }
     free(ls->lights);
+    free(ls->shapes);
     if (ls->environment >= 0) dist2d_free(&ls->env_distribution);
     free(ls->of_primitive);
     free(ls->of_medium);
@@ -329,12 +424,224 @@ float light_env_pdf_li(const Lights *ls, vec3 d) {
     return dist2d_pdf(&ls->env_distribution, uv) / (2.0f * PI_F * PI_F * sin_theta);
 }
 
+/* ---------------------------------------------------------------- light shapes */
+
+/* The cone a sphere subtends from p (pbrt-v4 Sphere::Sample(ctx), "Sampling Spheres"): sin^2 and
+ * 1 - cos of its half-angle, the latter from sin^2 / 2 below 1.5 degrees where 1 - cos loses its
+ * digits (sampling and light_shape_pdf_li both use this). 0 when p is inside the sphere. */
+static int sphere_cone(const Light *l, vec3 p, float *sin2_max, float *omc_max) {
+    vec3 d = v3_sub(l->position, p);
+    float dc2 = v3_dot(d, d), r2 = l->radius * l->radius;
+    if (!(dc2 > r2)) return 0;
+    float s2 = r2 / dc2;
+    *sin2_max = s2;
+    *omc_max = s2 < 0.00068523f ? 0.5f * s2 : 1.0f - safe_sqrtf(1.0f - s2);
+    return 1;
+}
+
+/* A sphere light's radiance towards receiver p: a spot's falloff on the direction from the
+ * centre (Cycles evaluates the cone from the light's centre). */
+static vec3 sphere_radiance(const Light *l, vec3 p) {
+    if (l->type != LIGHT_SPOT) return l->emission;
+    vec3 w = v3_sub(p, l->position);
+    float len = v3_length(w);
+    if (!(len > 0.0f)) return v3s(0.0f);
+    return v3_scale(l->emission, light_spot_falloff(l, v3_scale(w, 1.0f / len)));
+}
+
+/* A unit vector at angle theta from axis z (cos_t, sin_t given), azimuth 2 pi u. */
+static vec3 cone_dir(vec3 z, float cos_t, float sin_t, float u) {
+    vec3 t, b;
+    onb_from_normal(z, &t, &b);
+    float phi = 2.0f * PI_F * u;
+    return v3_add(v3_scale(z, cos_t), v3_add(v3_scale(t, sin_t * cosf(phi)), v3_scale(b, sin_t * sinf(phi))));
+}
+
+static int sample_sphere(const Light *l, vec3 p, float u0, float u1, LightLiSample *s) {
+    vec3 c = l->position;
+    float r = l->radius;
+    float sin2_max, omc_max;
+    vec3 y, ny;
+    if (!sphere_cone(l, p, &sin2_max, &omc_max)) {
+        /* p inside the sphere: area sampling (the sphere is seen all around, every direction
+         * reaching exactly one point: where a ray from p leaves it) */
+        ny = sample_uniform_sphere(u0, u1);
+        y = v3_madd(c, ny, r);
+        vec3 d = v3_sub(y, p);
+        float d2 = v3_dot(d, d);
+        if (!(d2 > 0.0f)) return 0;
+        float dist = sqrtf(d2);
+        s->wi = v3_scale(d, 1.0f / dist);
+        s->distance = dist;
+        float cos_l = fabsf(v3_dot(ny, s->wi));
+        s->pdf = cos_l > 0.0f ? d2 / (cos_l * 4.0f * PI_F * r * r) : 0.0f;
+    } else {
+        /* uniform in the cone of the visible cap; the point on the sphere from the angle alpha
+         * at the centre (pbrt-v4: accurate for small cones, where ray-sphere intersection is not) */
+        float dc = v3_length(v3_sub(c, p));
+        float sin_max = safe_sqrtf(sin2_max);
+        float sin2_t, cos_t;
+        if (sin2_max < 0.00068523f) {
+            sin2_t = sin2_max * u0;
+            cos_t = safe_sqrtf(1.0f - sin2_t);
+        } else {
+            cos_t = 1.0f - u0 * omc_max;
+            sin2_t = fmaxf(0.0f, 1.0f - cos_t * cos_t);
+        }
+        float cos_a = sin2_t / sin_max + cos_t * safe_sqrtf(1.0f - sin2_t / sin2_max);
+        float sin_a = safe_sqrtf(1.0f - cos_a * cos_a);
+        vec3 z = v3_scale(v3_sub(c, p), 1.0f / dc);
+        /* the normal at the point: angle alpha from -z */
+        ny = cone_dir(v3_neg(z), cos_a, sin_a, u1);
+        y = v3_madd(c, ny, r);
+        vec3 d = v3_sub(y, p);
+        float dist = v3_length(d);
+        if (!(dist > 0.0f)) return 0;
+        s->wi = v3_scale(d, 1.0f / dist);
+        s->distance = dist;
+        s->pdf = 1.0f / (2.0f * PI_F * omc_max);
+    }
+    s->radiance = sphere_radiance(l, p);
+    s->is_delta = 0;
+    return s->pdf > 0.0f && isfinite(s->pdf) && !v3_is_black(s->radiance);
+}
+
+static int sample_sun(const Light *l, float u0, float u1, LightLiSample *s) {
+    /* uniform in the cone: 1 - cos theta = u omc, sin theta from it without cancellation */
+    float omc = u0 * l->sun_omc;
+    float sin_t = safe_sqrtf(omc * (2.0f - omc));
+    s->wi = v3_normalize(cone_dir(v3_neg(l->direction), 1.0f - omc, sin_t, u1));
+    s->distance = INFINITY;
+    s->radiance = l->emission;
+    s->pdf = 1.0f / (2.0f * PI_F * l->sun_omc);
+    s->is_delta = 0;
+    return isfinite(s->pdf) && !v3_is_black(s->radiance);
+}
+
+/* Rects and disks by area (uniform over the parallelogram, concentric map for the ellipse),
+ * converted to solid angle: exact, and simple enough that the pdf of a BSDF hit is the same
+ * arithmetic. */
+static int sample_planar(const Light *l, vec3 p, float u0, float u1, LightLiSample *s) {
+    float a, b;
+    if (l->type == LIGHT_RECT) {
+        a = 2.0f * u0 - 1.0f;
+        b = 2.0f * u1 - 1.0f;
+    } else {
+        vec2 q = sample_concentric_disk(u0, u1);
+        a = q.x;
+        b = q.y;
+    }
+    vec3 y = v3_add(l->position, v3_add(v3_scale(l->axis_u, a), v3_scale(l->axis_v, b)));
+    vec3 d = v3_sub(y, p);
+    float d2 = v3_dot(d, d);
+    if (!(d2 > 0.0f)) return 0;
+    float dist = sqrtf(d2);
+    s->wi = v3_scale(d, 1.0f / dist);
+    s->distance = dist;
+    float cos_l = -v3_dot(s->wi, l->direction); /* one-sided: it emits along direction */
+    if (!(cos_l > 0.0f)) return 0;
+    s->pdf = d2 / (cos_l * l->area);
+    s->radiance = l->emission;
+    s->is_delta = 0;
+    return s->pdf > 0.0f && isfinite(s->pdf) && !v3_is_black(s->radiance);
+}
+
+int light_shape_hit(const Light *l, vec3 o, vec3 d, float tmin, float tmax, vec3 receiver, float *t, vec3 *radiance) {
+    switch (l->type) {
+    case LIGHT_DIRECTIONAL: {
+        if (!isinf(tmax) || !(l->sun_omc > 0.0f)) return 0;
+        /* inside the cone: sin^2 of the angle to the axis below sin^2 h (no 1 - cos cancellation) */
+        vec3 axis = v3_neg(l->direction);
+        float c = v3_dot(d, axis);
+        if (!(c > 0.0f)) return 0;
+        vec3 x = v3_cross(d, axis);
+        float s2 = v3_dot(x, x), omc = l->sun_omc;
+        if (!(s2 <= omc * (2.0f - omc))) return 0;
+        *t = INFINITY;
+        *radiance = l->emission;
+        return 1;
+    }
+    case LIGHT_POINT:
+    case LIGHT_SPOT: {
+        if (!(l->radius > 0.0f)) return 0;
+        /* |o + t d - c|^2 = r^2 with the half-b form on f = o - c, and the far root from the near
+         * one's product, as pbrt does to keep digits for small spheres far away */
+        vec3 f = v3_sub(o, l->position);
+        float b = v3_dot(f, d);
+        vec3 perp = v3_sub(f, v3_scale(d, b));
+        float r2 = l->radius * l->radius;
+        float disc = r2 - v3_dot(perp, perp);
+        if (!(disc >= 0.0f)) return 0;
+        float sq = sqrtf(disc);
+        float q = b > 0.0f ? -(b + sq) : -(b - sq);
+        float c0 = v3_dot(f, f) - r2;
+        float t0 = q, t1 = q != 0.0f ? c0 / q : 0.0f;
+        if (t0 > t1) { float tmp = t0; t0 = t1; t1 = tmp; }
+        /* an origin outside sees the entry point, one inside the exit point */
+        float th = c0 > 0.0f ? t0 : t1;
+        if (!(th > tmin && th < tmax)) return 0;
+        *t = th;
+        *radiance = sphere_radiance(l, receiver);
+        return !v3_is_black(*radiance);
+    }
+    case LIGHT_RECT:
+    case LIGHT_DISK: {
+        float dn = v3_dot(d, l->direction);
+        if (!(dn < 0.0f)) return 0; /* one-sided: seen only against its emission direction */
+        float th = v3_dot(v3_sub(l->position, o), l->direction) / dn;
+        if (!(th > tmin && th < tmax)) return 0;
+        vec3 r = v3_sub(v3_madd(o, d, th), l->position);
+        float a = v3_dot(r, l->dual_u), b = v3_dot(r, l->dual_v);
+        int inside = l->type == LIGHT_RECT ? (fabsf(a) <= 1.0f && fabsf(b) <= 1.0f) : (a * a + b * b <= 1.0f);
+        if (!inside) return 0;
+        *t = th;
+        *radiance = l->emission;
+        return 1;
+    }
+    default:
+        return 0;
+    }
+}
+
+float light_shape_pdf_li(const Light *l, vec3 p, vec3 d, float t) {
+    switch (l->type) {
+    case LIGHT_DIRECTIONAL:
+        return l->sun_omc > 0.0f ? 1.0f / (2.0f * PI_F * l->sun_omc) : 0.0f;
+    case LIGHT_POINT:
+    case LIGHT_SPOT: {
+        if (!(l->radius > 0.0f)) return 0.0f;
+        float sin2_max, omc_max;
+        if (sphere_cone(l, p, &sin2_max, &omc_max)) return 1.0f / (2.0f * PI_F * omc_max);
+        /* inside: area sampling at the exit point */
+        vec3 y = v3_madd(p, d, t);
+        vec3 ny = v3_normalize(v3_sub(y, l->position));
+        float cos_l = fabsf(v3_dot(ny, d));
+        return cos_l > 0.0f ? t * t / (cos_l * 4.0f * PI_F * l->radius * l->radius) : 0.0f;
+    }
+    case LIGHT_RECT:
+    case LIGHT_DISK: {
+        float cos_l = -v3_dot(d, l->direction);
+        return cos_l > 0.0f ? t * t / (cos_l * l->area) : 0.0f;
+    }
+    default:
+        return 0.0f;
+    }
+}
+
 int light_sample_li(const Lights *ls, const Light *l, const LightSampleContext *ctx, float u0, float u1, float u2,
                     float u3, LightLiSample *s) {
     const Scene *scene = ls->scene;
     vec3 p = ctx->p;
     s->triangle = 0;
+    if (light_is_shape(l)) {
+        if (l->type == LIGHT_DIRECTIONAL) return sample_sun(l, u0, u1, s);
+        if (l->type == LIGHT_RECT || l->type == LIGHT_DISK) return sample_planar(l, p, u0, u1, s);
+        return sample_sphere(l, p, u0, u1, s);
+    }
     switch (l->type) {
+    case LIGHT_RECT:
+    case LIGHT_DISK:
+        return 0; /* no area (not built) */
     case LIGHT_POINT:
     case LIGHT_SPOT: {
         vec3 d = v3_sub(l->position, p);

@@ -78,9 +78,27 @@ static int light_bounds(const Light *l, LB *b) {
     b->two_sided = 0;
     switch (l->type) {
     case LIGHT_POINT:
-        b->bmin = b->bmax = l->position;
+        /* a sphere light: its box (the importance's distance and horizon bounds then cover
+         * every point of it) */
+        b->bmin = v3_sub(l->position, v3s(l->radius));
+        b->bmax = v3_add(l->position, v3s(l->radius));
         b->cos_o = -1.0f; /* theta_o = pi */
         break;
+    case LIGHT_RECT:
+    case LIGHT_DISK: {
+        /* one-sided and flat: its exact box, the normal cone of its plane, theta_e = pi/2 */
+        vec3 ext = v3(sqrtf(l->axis_u.x * l->axis_u.x + l->axis_v.x * l->axis_v.x),
+                      sqrtf(l->axis_u.y * l->axis_u.y + l->axis_v.y * l->axis_v.y),
+                      sqrtf(l->axis_u.z * l->axis_u.z + l->axis_v.z * l->axis_v.z));
+        if (l->type == LIGHT_RECT) /* the corners' extent: |u_i| + |v_i| */
+            ext = v3(fabsf(l->axis_u.x) + fabsf(l->axis_v.x), fabsf(l->axis_u.y) + fabsf(l->axis_v.y),
+                     fabsf(l->axis_u.z) + fabsf(l->axis_v.z));
+        b->bmin = v3_sub(l->position, ext);
+        b->bmax = v3_add(l->position, ext);
+        b->w = l->direction;
+        b->cos_o = 1.0f;
+        break;
+    }
     case LIGHT_VOLUME: /* emits in every direction from anywhere in its box */
         b->bmin = l->bounds_min;
         b->bmax = l->bounds_max;
@@ -91,7 +109,8 @@ static int light_bounds(const Light *l, LB *b) {
          * theta_e = theta_outer - theta_inner beyond it */
         b->phi = 4.0f * PI_F * v3_luminance(l->intensity);
         if (!(b->phi > 0.0f) || !isfinite(b->phi)) return 0;
-        b->bmin = b->bmax = l->position;
+        b->bmin = v3_sub(l->position, v3s(l->radius)); /* a sphere spot: its box (the cone is */
+        b->bmax = v3_add(l->position, v3s(l->radius)); /* evaluated from the centre, inside it) */
         b->w = v3_normalize(l->direction);
         float ci = clampf(l->cos_inner, -1.0f, 1.0f), co = clampf(l->cos_outer, -1.0f, 1.0f);
         if (ci < co) ci = co;

@@ -36,6 +36,34 @@ static void surface_emission(const Integrator *ig, uint32_t p, const SurfaceHit 
     path_add_radiance(ig, p, v3_scale(v3_mul(ps->throughput[p], le), w), RADIANCE_EMISSION);
 }
 
+void path_shape_emission(const Integrator *ig, uint32_t p, float tmax) {
+    const Lights *lights = ig->lights;
+    if (!lights->num_shapes) return;
+    const PathState *ps = &ig->ps;
+    const SceneRay ray = ps->ray[p];
+    uint32_t link_class = ps->prev_link_class[p];
+    vec3 prev = ps->prev_pos[p];
+    for (uint32_t k = 0; k < lights->num_shapes; ++k) {
+        uint32_t light = lights->shapes[k];
+        const Light *l = &lights->lights[light];
+        /* light linking: a light that does not reach the previous vertex adds nothing there */
+        if (link_class && !light_reaches(lights, link_class, light)) continue;
+        float t;
+        vec3 le;
+        if (!light_shape_hit(l, ray.org, ray.dir, ray.tnear, tmax, prev, &t, &le)) continue;
+        float w = 1.0f;
+        if (!ps->prev_delta[p]) {
+            LightSampleContext lc = {prev, ps->prev_normal[p], ps->prev_light_vertex[p]};
+            lc.link_class = link_class;
+            /* the pdf from the previous vertex (a crossed medium boundary started this ray later) */
+            float tp = isinf(t) ? INFINITY : v3_length(v3_sub(v3_madd(ray.org, ray.dir, t), prev));
+            float pl = light_sampler_pmf(ig->light_sampler, &lc, light) * light_shape_pdf_li(l, prev, ray.dir, tp);
+            w = power_heuristic(ps->prev_scatter_pdf[p], pl);
+        }
+        path_add_radiance(ig, p, v3_scale(v3_mul(ps->throughput[p], le), w), RADIANCE_EMISSION);
+    }
+}
+
 /* The mesh medium on the side of the surface a ray in direction d leaves into: the surface's
  * own medium when it is a transmissive medium boundary and d points inside, outside of it when
  * d points out, else the medium the path is in. */
@@ -193,6 +221,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
             recorder_prefetch(ig->record.recorder, ps->pv[s->hits[i + SHADE_PREFETCH / 2]]);
         uint32_t p = s->hits[i];
         const SceneHit *hit = &ps->hit[p];
+        path_shape_emission(ig, p, hit->t);
         if (scene->prims[scene->io.meshes[scene->instances[hit->instance].mesh].first_primitive + hit->local_prim]
                 .medium_boundary) {
             if (!cross_boundary(ig, s, p, hit)) path_end(ig, s, p);
