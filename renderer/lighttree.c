@@ -488,11 +488,14 @@ int light_tree_build_enabled(LightTree *t, const Light *lights, uint32_t count, 
     if (ninf) {
         t->infinite = malloc(ninf * sizeof *t->infinite);
         t->inf_dir = malloc(ninf * sizeof *t->inf_dir);
-        if (!t->infinite || !t->inf_dir) goto oom;
+        t->inf_sin = malloc(ninf * sizeof *t->inf_sin);
+        if (!t->infinite || !t->inf_dir || !t->inf_sin) goto oom;
         for (uint32_t i = 0; i < count; ++i) {
             if (t->kind[i] != LIGHT_TREE_INFINITE) continue;
             vec3 d = lights[i].type == LIGHT_DIRECTIONAL ? lights[i].direction : v3s(0.0f);
             t->inf_dir[t->num_infinite] = v3_is_finite(d) ? d : v3s(0.0f);
+            float omc = lights[i].type == LIGHT_DIRECTIONAL ? lights[i].sun_omc : 0.0f; /* a sun's cone */
+            t->inf_sin[t->num_infinite] = sqrtf(fmaxf(omc * (2.0f - omc), 0.0f));
             t->infinite[t->num_infinite++] = i;
         }
     }
@@ -559,6 +562,7 @@ void light_tree_free(LightTree *t) {
     free(t->kind);
     free(t->infinite);
     free(t->inf_dir);
+    free(t->inf_sin);
     memset(t, 0, sizeof *t);
 }
 
@@ -575,7 +579,8 @@ typedef struct InfSplit { float p_inf, p_bvh, pmf_inf; uint32_t alive; } InfSpli
 static inline int infinite_reaches(const LightTree *t, uint32_t k, vec3 n) {
     vec3 d = t->inf_dir[k]; /* zero: the environment, which may light every direction */
     if (v3_is_black(n) || v3_is_black(d)) return 1;
-    return -v3_dot(d, n) > 0.0f;
+    /* a sun reaches while any of its cone is above the horizon: the axis above -sin h */
+    return -v3_dot(d, n) > -t->inf_sin[k];
 }
 
 __attribute__((noinline)) static InfSplit infinite_split(const LightTree *t, const LightSampleContext *ctx) {

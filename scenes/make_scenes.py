@@ -1019,7 +1019,9 @@ def light_shapes():
         g.write(os.path.join(out, name + '.gltf'))
 
     g = Gltf()
-    g.mesh('plane', 'plane', PLANE, g.material('glossy', base=(0.6, 0.6, 0.6), metallic=0.5, roughness=0.3))
+    # a 6 m plane: the scene's radius sets the sun's power (the power sampler's weight)
+    g.mesh('plane', 'plane', quad((-3.0, 0.0, -3.0), (-3.0, 0.0, 3.0), (3.0, 0.0, 3.0), (3.0, 0.0, -3.0)),
+           g.material('glossy', base=(0.6, 0.6, 0.6), metallic=0.5, roughness=0.3))
     n = g.light('sphere', 'point', 3.0, color=(1.0, 0.8, 0.6), translation=(-0.6, 0.5, 0.3))
     g.doc['nodes'][n]['extras'] = {'candela_light': {'radius': 0.15}}
     n = g.light('spot_sphere', 'spot', 6.0, translation=(0.6, 1.2, -0.4),
