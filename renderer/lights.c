@@ -68,8 +68,10 @@ static int build_area_light(const Scene *scene, uint32_t instance, uint32_t loca
 }
 
 /* A rect or disk area light (io.h IoLight, README "Light shapes"): its plane, the dual basis of
- * its half-extent vectors, radiance power / (pi A) x colour over its world area A (Cycles'
- * convention: the one-sided lambertian emitter's flux pi A L is the power), and the triangles the
+ * its half-extent vectors, radiance power / (4 A) x colour over its world area A (Cycles 3.4's
+ * convention, measured with Blender 3.4.1: its area light's eval_fac is invarea / 4, so a "watt"
+ * of area light emits pi/4 W of flux; a 1 m^2 square of 2 pi W over a plane renders pi/4 of what
+ * power / (pi A) would give), and the triangles the
  * estimates' fixed points lie on (2 for a rect, an inscribed fan of 16 for a disk), wound so that
  * their normals are the emission direction. 0 ok, -1 out of memory. */
 #define DISK_ESTIMATE_FAN 16
@@ -90,7 +92,7 @@ static int build_shape_area(const IoLight *il, Light *l, vec3 color) {
     l->dual_v = v3_scale(nu, 1.0f / v3_dot(l->axis_v, nu));
     l->area = l->type == LIGHT_RECT ? 4.0f * len : PI_F * len;
     float power = finite_or_zero(il->intensity);
-    l->emission = v3_scale(color, power / (PI_F * l->area));
+    l->emission = v3_scale(color, power / (4.0f * l->area));
     if (!v3_is_finite(l->emission)) { l->area = 0.0f; return 0; }
     l->power = PI_F * l->area * v3_luminance(l->emission);
     uint32_t nt = l->type == LIGHT_RECT ? 2u : DISK_ESTIMATE_FAN;
@@ -216,6 +218,15 @@ int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, Candel
             l.sun_omc = (float)(2.0 * sh * sh); /* 1 - cos h without cancellation */
             double s2 = sin(h) * sin(h);
             l.emission = v3_scale(l.intensity, (float)(1.0 / (PI_F * s2)));
+            /* Cycles 3.4 samples a sun as a disk of radius tan h at unit distance with eval_fac =
+             * pdf, so its perpendicular irradiance is the strength times the mean cosine of that
+             * disk's directions, 2 cos h / (1 + cos h) (measured with Blender 3.4.1: 0.99233 at
+             * 20 degrees); --light-model blender3 keeps that (uniform radiance: the same irradiance
+             * on any plane that sees the whole cone) */
+            if (scene->light_model == CANDELA_LIGHT_MODEL_BLENDER3) {
+                double ch = cos(h);
+                l.emission = v3_scale(l.emission, (float)(2.0 * ch / (1.0 + ch)));
+            }
         }
         switch (il->type) {
         case IO_LIGHT_POINT:

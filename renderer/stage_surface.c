@@ -40,6 +40,9 @@ void path_shape_emission(const Integrator *ig, uint32_t p, float tmax) {
     const Lights *lights = ig->lights;
     if (!lights->num_shapes) return;
     const PathState *ps = &ig->ps;
+    /* camera rays do not see them: Blender 3.4's lights have visible_camera off (Cycles then
+     * skips them for camera rays), and they are Blender's lights */
+    if (ps->depth[p] == 0) return;
     const SceneRay ray = ps->ray[p];
     uint32_t link_class = ps->prev_link_class[p];
     vec3 prev = ps->prev_pos[p];

@@ -968,8 +968,9 @@ def light_shapes():
     sun_plane      directional_plane's sun with an angular diameter of 20 degrees: the cone stays
                    above the horizon, so E = E_perp cos 30 exactly (L = 0.8660254).
     rect_plane     area_plane's square as a candela_area_light rect (side 1, y = 1, facing down,
-                   power 2 pi W: radiance 2), plus a rect facing up (must add nothing).
-    disk_plane     a disk of diameter 1 at y = 1 facing down, radiance 2 (power 2 pi * pi/4 W).
+                   power 8 W: radiance power / (4 A) = 2, Cycles' convention), plus a rect facing
+                   up (must add nothing).
+    disk_plane     a disk of diameter 1 at y = 1 facing down, radiance 2 (power 8 pi/4 W).
     lamp_slab      a sphere light (radius 0.1) centred inside a 4 cm slab (a lamp head, 1 m up):
                    the plane below is lit through the part of the sphere below the slab
                    (lamp_slab_point: the same with radius 0, black).
@@ -995,15 +996,15 @@ def light_shapes():
 
     g = Gltf()
     g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
-    area_light_node(g, 'rect_down', 'rect', (1.0, 1.0), 2 * math.pi, (0.0, 1.0, 0.0), down)
-    area_light_node(g, 'rect_up_backfacing', 'rect', (1.0, 1.0), 2 * math.pi, (3.0, 2.0, 0.0),
+    area_light_node(g, 'rect_down', 'rect', (1.0, 1.0), 8.0, (0.0, 1.0, 0.0), down)
+    area_light_node(g, 'rect_up_backfacing', 'rect', (1.0, 1.0), 8.0, (3.0, 2.0, 0.0),
                     look_rotation((0.0, 1.0, 0.0), (0.0, 0.0, -1.0)))
     top_ortho(g, height=0.5)
     g.write(os.path.join(out, 'rect_plane.gltf'))
 
     g = Gltf()
     g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
-    area_light_node(g, 'disk_down', 'disk', (1.0, 1.0), 2 * math.pi * math.pi / 4, (0.0, 1.0, 0.0), down)
+    area_light_node(g, 'disk_down', 'disk', (1.0, 1.0), 2 * math.pi, (0.0, 1.0, 0.0), down)
     top_ortho(g, height=0.5)
     g.write(os.path.join(out, 'disk_plane.gltf'))
 

@@ -22,7 +22,8 @@
  *    (the tree's bounds must be conservative for spheres, rects and disks).
  * 3. Renders against closed forms (test_analytic's method: pixel footprints integrated 16x16, 6
  *    sigma per pixel for 99% of them, the image mean within 5 standard errors): sphere_plane,
- *    sun_plane, rect_plane (with a back-facing rect), disk_plane; the light samplers agree on
+ *    sun_plane (and with --light-model blender3: Cycles 3.4's 2 cos h / (1 + cos h) of it),
+ *    rect_plane (with a back-facing rect), disk_plane; the light samplers agree on
  *    shapes_mix (glossy plane, every shape: z statistics against uniform); lamp_slab: a sphere
  *    light inside a thin slab lights the plane below (lamp_slab_point, radius 0: black);
  *    shapes_mix bit-identical for 1 and 2 threads (tree and cache points). */
@@ -395,6 +396,7 @@ typedef struct RenderSpec {
     CandelaLightSampler sampler;
     uint64_t seed;
     int threads;
+    CandelaLightModel light_model;
 } RenderSpec;
 
 static int render(const RenderSpec *s, CandelaImage *img) {
@@ -410,6 +412,7 @@ static int render(const RenderSpec *s, CandelaImage *img) {
     o.light_units = CANDELA_LIGHT_UNITS_RAW;
     o.seed = s->seed;
     o.threads = s->threads ? s->threads : 2;
+    o.light_model = s->light_model;
     o.quiet = 1;
     memset(img, 0, sizeof *img);
     CandelaStats st;
@@ -489,6 +492,11 @@ static double sphere_E(double x, double z) {
     return 32 * M_PI * h / (r2 * sqrt(r2));
 }
 static double sun_E(double x, double z) { (void)x; (void)z; return 2 * M_PI * cos(M_PI / 6); }
+/* the same sun under --light-model blender3: Cycles 3.4's 2 cos h / (1 + cos h) of it (h = 10 deg) */
+static double sun_cycles_E(double x, double z) {
+    double ch = cos(10.0 * M_PI / 180.0);
+    return sun_E(x, z) * 2.0 * ch / (1.0 + ch);
+}
 static double rect_E(double x, double z) {
     const double v[4][3] = {{-0.5, 1, -0.5}, {0.5, 1, -0.5}, {0.5, 1, 0.5}, {-0.5, 1, 0.5}};
     double p[3] = {x, 0, z}, n[3] = {0, 1, 0};
@@ -512,6 +520,14 @@ static void test_planes(void) {
         }
         candela_image_free(&img);
     }
+    RenderSpec s = {"sun_plane.gltf", 32, 32, 64, CANDELA_LIGHT_SAMPLER_POWER, 9, 2, CANDELA_LIGHT_MODEL_BLENDER3};
+    CandelaImage img;
+    if (render(&s, &img) == 0) {
+        double *e = plane_exact(32, 32, sun_cycles_E);
+        compare("sun_plane (blender3)", &img, e);
+        free(e);
+    }
+    candela_image_free(&img);
 }
 
 /* Two independent renders agree: per pixel z = (a - b) / sqrt(va + vb), mean z^2 within
