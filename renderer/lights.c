@@ -7,7 +7,7 @@
 
 #include "media.h"
 #include "rng.h"
-#include "scene.h"
+#include "scene.h" /* (Embree: the shape lights' BVH) */
 
 /* Luminous efficacy used by Blender's glTF importer in its default ("standard") lighting
  * mode: point/spot W/sr = cd / 683, sun W/m^2 = lux / 683. */
@@ -153,6 +153,146 @@ static float env_average_luminance(const Scene *scene) {
     return wsum > 0.0 ? (float)(sum / wsum) * scene->env_strength : 0.0f;
 }
 
+/* ---------------------------------------------------------------- the shape lights' BVH */
+
+typedef struct ShapeBvh {
+    RTCScene scene;
+    const Light *lights;
+    uint32_t *prim_light; /* primitive -> light index */
+} ShapeBvh;
+
+/* A query: Embree's context first (the intersection callback gets it back), then the ray as the
+ * caller gave it (light_shape_hit sees exactly the floats the linear path would) and the crossings
+ * found, up to SHAPE_QUERY_MAX (more: the caller falls back to the list). */
+#define SHAPE_QUERY_MAX 64
+typedef struct ShapeQuery {
+    struct RTCIntersectContext ctx;
+    const ShapeBvh *bvh;
+    vec3 o, d, receiver;
+    float tmin, tmax;
+    uint32_t n, overflow;
+    uint32_t light[SHAPE_QUERY_MAX];
+    float t[SHAPE_QUERY_MAX];
+    vec3 radiance[SHAPE_QUERY_MAX];
+} ShapeQuery;
+
+static void shape_box(const Light *l, vec3 *lo, vec3 *hi) {
+    vec3 ext = v3s(l->radius);
+    if (l->type == LIGHT_RECT || l->type == LIGHT_DISK) /* |u_i| + |v_i| covers both */
+        ext = v3(fabsf(l->axis_u.x) + fabsf(l->axis_v.x), fabsf(l->axis_u.y) + fabsf(l->axis_v.y),
+                 fabsf(l->axis_u.z) + fabsf(l->axis_v.z));
+    /* a little wider: the box is only a filter, light_shape_hit decides */
+    ext = v3_add(v3_scale(ext, 1.0f + 1e-4f), v3s(1e-6f * (fabsf(l->position.x) + fabsf(l->position.y) + fabsf(l->position.z))));
+    *lo = v3_sub(l->position, ext);
+    *hi = v3_add(l->position, ext);
+}
+
+static void shape_bounds_fn(const struct RTCBoundsFunctionArguments *args) {
+    const ShapeBvh *b = args->geometryUserPtr;
+    vec3 lo, hi;
+    shape_box(&b->lights[b->prim_light[args->primID]], &lo, &hi);
+    args->bounds_o->lower_x = lo.x; args->bounds_o->lower_y = lo.y; args->bounds_o->lower_z = lo.z;
+    args->bounds_o->upper_x = hi.x; args->bounds_o->upper_y = hi.y; args->bounds_o->upper_z = hi.z;
+}
+
+static void shape_intersect_fn(const struct RTCIntersectFunctionNArguments *args) {
+    if (!args->valid[0]) return;
+    ShapeQuery *q = (ShapeQuery *)args->context;
+    uint32_t light = q->bvh->prim_light[args->primID];
+    float t;
+    vec3 le;
+    if (!light_shape_hit(&q->bvh->lights[light], q->o, q->d, q->tmin, q->tmax, q->receiver, &t, &le)) return;
+    if (q->n == SHAPE_QUERY_MAX) { q->overflow = 1; return; }
+    q->light[q->n] = light;
+    q->t[q->n] = t;
+    q->radiance[q->n] = le;
+    ++q->n;
+    /* no hit reported: the traversal goes on to every other crossing */
+}
+
+static void shape_occluded_fn(const struct RTCOccludedFunctionNArguments *args) { (void)args; }
+
+static void shape_bvh_free(void *p) {
+    ShapeBvh *b = p;
+    if (!b) return;
+    if (b->scene) rtcReleaseScene(b->scene);
+    free(b->prim_light);
+    free(b);
+}
+
+/* 0 ok, -1 out of memory. */
+static int shape_bvh_build(Lights *ls, const Scene *scene) {
+    ShapeBvh *b = calloc(1, sizeof *b);
+    if (!b) return -1;
+    uint32_t n = ls->num_shapes - ls->num_suns, k = 0;
+    b->prim_light = malloc(n * sizeof *b->prim_light);
+    if (!b->prim_light) { free(b); return -1; }
+    for (uint32_t i = 0; i < ls->num_shapes; ++i)
+        if (ls->lights[ls->shapes[i]].type != LIGHT_DIRECTIONAL) b->prim_light[k++] = ls->shapes[i];
+    b->lights = ls->lights;
+    b->scene = rtcNewScene(scene->device);
+    RTCGeometry g = rtcNewGeometry(scene->device, RTC_GEOMETRY_TYPE_USER);
+    rtcSetGeometryUserPrimitiveCount(g, n);
+    rtcSetGeometryUserData(g, b);
+    rtcSetGeometryBoundsFunction(g, shape_bounds_fn, NULL);
+    rtcSetGeometryIntersectFunction(g, shape_intersect_fn);
+    rtcSetGeometryOccludedFunction(g, shape_occluded_fn);
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(b->scene, g);
+    rtcReleaseGeometry(g);
+    rtcCommitScene(b->scene);
+    ls->shape_bvh = b;
+    return 0;
+}
+
+void lights_shape_crossings(const Lights *ls, vec3 o, vec3 d, float tmin, float tmax, vec3 receiver,
+                            void (*fn)(void *user, uint32_t light, float t, vec3 radiance), void *user) {
+    const ShapeBvh *b = ls->shape_bvh;
+    float t;
+    vec3 le;
+    if (b) {
+        ShapeQuery q;
+        rtcInitIntersectContext(&q.ctx);
+        q.bvh = b;
+        q.o = o; q.d = d; q.receiver = receiver;
+        q.tmin = tmin; q.tmax = tmax;
+        q.n = q.overflow = 0;
+        struct RTCRayHit rh;
+        rh.ray.org_x = o.x; rh.ray.org_y = o.y; rh.ray.org_z = o.z;
+        rh.ray.dir_x = d.x; rh.ray.dir_y = d.y; rh.ray.dir_z = d.z;
+        rh.ray.tnear = fmaxf(tmin, 0.0f);
+        rh.ray.tfar = isinf(tmax) ? INFINITY : tmax * (1.0f + 1e-5f) + 1e-6f;
+        rh.ray.time = 0.0f;
+        rh.ray.mask = 0xFFFFFFFFu;
+        rh.ray.id = 0;
+        rh.ray.flags = 0;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(b->scene, &q.ctx, &rh);
+        if (!q.overflow) {
+            /* the suns (escaping rays), then everything in light order */
+            for (uint32_t k = 0; k < ls->num_suns && isinf(tmax); ++k)
+                if (light_shape_hit(&ls->lights[ls->suns[k]], o, d, tmin, tmax, receiver, &t, &le)) {
+                    if (q.n == SHAPE_QUERY_MAX) { q.overflow = 1; break; }
+                    q.light[q.n] = ls->suns[k]; q.t[q.n] = t; q.radiance[q.n] = le; ++q.n;
+                }
+        }
+        if (!q.overflow) {
+            for (uint32_t i = 1; i < q.n; ++i) /* insertion sort by light index */
+                for (uint32_t j = i; j > 0 && q.light[j - 1] > q.light[j]; --j) {
+                    uint32_t tl = q.light[j]; q.light[j] = q.light[j - 1]; q.light[j - 1] = tl;
+                    float tt = q.t[j]; q.t[j] = q.t[j - 1]; q.t[j - 1] = tt;
+                    vec3 tr = q.radiance[j]; q.radiance[j] = q.radiance[j - 1]; q.radiance[j - 1] = tr;
+                }
+            for (uint32_t k = 0; k < q.n; ++k) fn(user, q.light[k], q.t[k], q.radiance[k]);
+            return;
+        }
+    }
+    /* the list, in light order (few shapes, or more crossings than a query holds) */
+    for (uint32_t k = 0; k < ls->num_shapes; ++k)
+        if (light_shape_hit(&ls->lights[ls->shapes[k]], o, d, tmin, tmax, receiver, &t, &le)) fn(user, ls->shapes[k], t, le);
+}
+
 int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, CandelaLightUnits units, char *err,
                  size_t err_len) {
     memset(ls, 0, sizeof *ls);
@@ -206,6 +346,9 @@ int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, Candel
         float radius = il->type != IO_LIGHT_DIRECTIONAL ? finite_or_zero(il->radius) : 0.0f;
         if (radius > 0.0f) {
             l.radius = radius;
+            /* Cycles 3.4 (point_light_sample, ray_aligned_disk_intersect): a disk facing the
+             * shading point; Blender 4 made it the sphere that is the default here */
+            l.sphere_disk = scene->light_model == CANDELA_LIGHT_MODEL_BLENDER3;
             l.emission = v3_scale(l.intensity, 1.0f / (PI_F * radius * radius));
             if (!v3_is_finite(l.emission)) { l.radius = 0.0f; l.emission = v3s(0.0f); }
         }
@@ -332,10 +475,15 @@ int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, Candel
     for (uint32_t i = 0; i < ls->count; ++i) ls->num_shapes += light_is_shape(&ls->lights[i]) ? 1u : 0u;
     if (ls->num_shapes) {
         ls->shapes = malloc(ls->num_shapes * sizeof *ls->shapes);
-        if (!ls->shapes) goto oom;
+        ls->suns = malloc(ls->num_shapes * sizeof *ls->suns);
+        if (!ls->shapes || !ls->suns) goto oom;
         uint32_t k = 0;
-        for (uint32_t i = 0; i < ls->count; ++i)
-            if (light_is_shape(&ls->lights[i])) ls->shapes[k++] = i;
+        for (uint32_t i = 0; i < ls->count; ++i) {
+            if (!light_is_shape(&ls->lights[i])) continue;
+            ls->shapes[k++] = i;
+            if (ls->lights[i].type == LIGHT_DIRECTIONAL) ls->suns[ls->num_suns++] = i;
+        }
+        if (ls->num_shapes - ls->num_suns > LIGHT_SHAPE_BVH_MIN && shape_bvh_build(ls, scene) != 0) goto oom;
     }
     free(link_of_node);
     if (lights_build_linking(ls, scene, err, err_len) != 0) { lights_free(ls); return -1; }
@@ -353,6 +501,8 @@ void lights_free(Lights *ls) {
     }
     free(ls->lights);
     free(ls->shapes);
+    free(ls->suns);
+    shape_bvh_free(ls->shape_bvh);
     if (ls->environment >= 0) dist2d_free(&ls->env_distribution);
     free(ls->of_primitive);
     free(ls->of_medium);
@@ -468,7 +618,32 @@ static vec3 cone_dir(vec3 z, float cos_t, float sin_t, float u) {
     return v3_add(v3_scale(z, cos_t), v3_add(v3_scale(t, sin_t * cosf(phi)), v3_scale(b, sin_t * sinf(phi))));
 }
 
+/* --light-model blender3's point radius: a disk of radius r centred at the light, facing the
+ * receiver p, sampled by area with the concentric map (Cycles 3.4's disk_light_sample). */
+static int sample_facing_disk(const Light *l, vec3 p, float u0, float u1, LightLiSample *s) {
+    vec3 to = v3_sub(p, l->position);
+    float dc = v3_length(to);
+    if (!(dc > 0.0f)) return 0;
+    vec3 nd = v3_scale(to, 1.0f / dc), t, b;
+    onb_from_normal(nd, &t, &b);
+    vec2 q = sample_concentric_disk(u0, u1);
+    vec3 y = v3_add(l->position, v3_scale(v3_add(v3_scale(t, q.x), v3_scale(b, q.y)), l->radius));
+    vec3 d = v3_sub(y, p);
+    float d2 = v3_dot(d, d);
+    if (!(d2 > 0.0f)) return 0;
+    float dist = sqrtf(d2);
+    s->wi = v3_scale(d, 1.0f / dist);
+    s->distance = dist;
+    float cos_l = -v3_dot(s->wi, nd);
+    if (!(cos_l > 0.0f)) return 0;
+    s->pdf = d2 / (cos_l * PI_F * l->radius * l->radius);
+    s->radiance = sphere_radiance(l, p);
+    s->is_delta = 0;
+    return s->pdf > 0.0f && isfinite(s->pdf) && !v3_is_black(s->radiance);
+}
+
 static int sample_sphere(const Light *l, vec3 p, float u0, float u1, LightLiSample *s) {
+    if (l->sphere_disk) return sample_facing_disk(l, p, u0, u1, s);
     vec3 c = l->position;
     float r = l->radius;
     float sin2_max, omc_max;
@@ -575,6 +750,22 @@ int light_shape_hit(const Light *l, vec3 o, vec3 d, float tmin, float tmax, vec3
     case LIGHT_POINT:
     case LIGHT_SPOT: {
         if (!(l->radius > 0.0f)) return 0;
+        if (l->sphere_disk) {
+            /* the disk facing the receiver (the vertex whose NEE would have sampled it) */
+            vec3 nd = v3_sub(receiver, l->position);
+            float len = v3_length(nd);
+            if (!(len > 0.0f)) return 0;
+            nd = v3_scale(nd, 1.0f / len);
+            float dn = v3_dot(d, nd);
+            if (!(dn < 0.0f)) return 0;
+            float th = v3_dot(v3_sub(l->position, o), nd) / dn;
+            if (!(th > tmin && th < tmax)) return 0;
+            vec3 r = v3_sub(v3_madd(o, d, th), l->position);
+            if (!(v3_dot(r, r) <= l->radius * l->radius)) return 0;
+            *t = th;
+            *radiance = sphere_radiance(l, receiver);
+            return !v3_is_black(*radiance);
+        }
         /* |o + t d - c|^2 = r^2 with the half-b form on f = o - c, and the far root from the near
          * one's product, as pbrt does to keep digits for small spheres far away */
         vec3 f = v3_sub(o, l->position);
@@ -621,6 +812,11 @@ float light_shape_pdf_li(const Light *l, vec3 p, vec3 d, float t) {
     case LIGHT_POINT:
     case LIGHT_SPOT: {
         if (!(l->radius > 0.0f)) return 0.0f;
+        if (l->sphere_disk) {
+            vec3 nd = v3_normalize(v3_sub(p, l->position));
+            float cos_l = -v3_dot(d, nd);
+            return cos_l > 0.0f ? t * t / (cos_l * PI_F * l->radius * l->radius) : 0.0f;
+        }
         float sin2_max, omc_max;
         if (sphere_cone(l, p, &sin2_max, &omc_max)) return 1.0f / (2.0f * PI_F * omc_max);
         /* inside: area sampling at the exit point */

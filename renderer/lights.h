@@ -60,6 +60,8 @@ typedef struct Light {
      * and disk also fill triangles / world_vertices (2 triangles; a 16-triangle inscribed fan for
      * the disk): only the estimates' fixed points use them, sampling and hits are exact. */
     float radius;             /* point, spot: sphere radius (0: a delta point) */
+    int sphere_disk;          /* --light-model blender3: the radius is Cycles 3.4's disk of that radius
+                               * facing the receiver, not a sphere (same radiance) */
     float sun_omc;            /* directional: 1 - cos(half-angle) (0: a delta direction) */
     vec3 axis_u, axis_v;      /* rect, disk: world half-extent vectors */
     vec3 dual_u, dual_v;      /* rect, disk: (y - position) . dual = the point's local coordinates */
@@ -146,6 +148,10 @@ typedef struct Lights {
      * (lights_shape_hit); suns only on rays that escape */
     uint32_t *shapes;
     uint32_t num_shapes;
+    uint32_t *suns;             /* the suns among them (found by escaping rays only) */
+    uint32_t num_suns;
+    void *shape_bvh;            /* lights.c ShapeBvh: an Embree BVH over the finite shapes, or NULL
+                                 * (few shapes: the list is tested linearly) */
 } Lights;
 
 /* Whether `light` may illuminate a vertex of link class cls (LightLinking). */
@@ -248,6 +254,14 @@ void light_area_free(Light *l);
  * crossed once: where the ray enters it, or leaves it for an origin inside. Rects and disks are
  * one-sided: only a ray against `direction` sees them. */
 int light_shape_hit(const Light *l, vec3 o, vec3 d, float tmin, float tmax, vec3 receiver, float *t, vec3 *radiance);
+/* Every shape light the ray o + t d crosses in (tmin, tmax) (light_shape_hit; suns only when tmax
+ * is INFINITY), passed to fn in ascending light order whatever the traversal (so sums are the
+ * same bit for bit with or without the BVH). Above LIGHT_SHAPE_BVH_MIN finite shapes the
+ * candidates come from an Embree BVH over their bounds (user geometry whose intersection
+ * callback runs light_shape_hit and never reports a hit, so traversal visits every crossing). */
+#define LIGHT_SHAPE_BVH_MIN 8
+void lights_shape_crossings(const Lights *ls, vec3 o, vec3 d, float tmin, float tmax, vec3 receiver,
+                            void (*fn)(void *user, uint32_t light, float t, vec3 radiance), void *user);
 /* Solid-angle pdf (given the light) that light_sample_li samples the direction d (unit) from p,
  * for a shape light that d reaches (light_shape_hit true at distance t). */
 float light_shape_pdf_li(const Light *l, vec3 p, vec3 d, float t);

@@ -36,6 +36,30 @@ static void surface_emission(const Integrator *ig, uint32_t p, const SurfaceHit 
     path_add_radiance(ig, p, v3_scale(v3_mul(ps->throughput[p], le), w), RADIANCE_EMISSION);
 }
 
+/* One crossed shape light: its radiance with its MIS weight against NEE from the previous vertex. */
+typedef struct ShapeEmission { const Integrator *ig; uint32_t p; } ShapeEmission;
+static void shape_emission_add(void *user, uint32_t light, float t, vec3 le) {
+    const ShapeEmission *se = user;
+    const Integrator *ig = se->ig;
+    const PathState *ps = &ig->ps;
+    uint32_t p = se->p, link_class = ps->prev_link_class[p];
+    /* light linking: a light that does not reach the previous vertex adds nothing there */
+    if (link_class && !light_reaches(ig->lights, link_class, light)) return;
+    float w = 1.0f;
+    if (!ps->prev_delta[p]) {
+        vec3 prev = ps->prev_pos[p];
+        LightSampleContext lc = {prev, ps->prev_normal[p], ps->prev_light_vertex[p]};
+        lc.link_class = link_class;
+        /* the pdf from the previous vertex (a crossed medium boundary started this ray later) */
+        const SceneRay *ray = &ps->ray[p];
+        float tp = isinf(t) ? INFINITY : v3_length(v3_sub(v3_madd(ray->org, ray->dir, t), prev));
+        float pl = light_sampler_pmf(ig->light_sampler, &lc, light) *
+                   light_shape_pdf_li(&ig->lights->lights[light], prev, ray->dir, tp);
+        w = power_heuristic(ps->prev_scatter_pdf[p], pl);
+    }
+    path_add_radiance(ig, p, v3_scale(v3_mul(ps->throughput[p], le), w), RADIANCE_EMISSION);
+}
+
 void path_shape_emission(const Integrator *ig, uint32_t p, float tmax) {
     const Lights *lights = ig->lights;
     if (!lights->num_shapes) return;
@@ -44,27 +68,8 @@ void path_shape_emission(const Integrator *ig, uint32_t p, float tmax) {
      * skips them for camera rays), and they are Blender's lights */
     if (ps->depth[p] == 0) return;
     const SceneRay ray = ps->ray[p];
-    uint32_t link_class = ps->prev_link_class[p];
-    vec3 prev = ps->prev_pos[p];
-    for (uint32_t k = 0; k < lights->num_shapes; ++k) {
-        uint32_t light = lights->shapes[k];
-        const Light *l = &lights->lights[light];
-        /* light linking: a light that does not reach the previous vertex adds nothing there */
-        if (link_class && !light_reaches(lights, link_class, light)) continue;
-        float t;
-        vec3 le;
-        if (!light_shape_hit(l, ray.org, ray.dir, ray.tnear, tmax, prev, &t, &le)) continue;
-        float w = 1.0f;
-        if (!ps->prev_delta[p]) {
-            LightSampleContext lc = {prev, ps->prev_normal[p], ps->prev_light_vertex[p]};
-            lc.link_class = link_class;
-            /* the pdf from the previous vertex (a crossed medium boundary started this ray later) */
-            float tp = isinf(t) ? INFINITY : v3_length(v3_sub(v3_madd(ray.org, ray.dir, t), prev));
-            float pl = light_sampler_pmf(ig->light_sampler, &lc, light) * light_shape_pdf_li(l, prev, ray.dir, tp);
-            w = power_heuristic(ps->prev_scatter_pdf[p], pl);
-        }
-        path_add_radiance(ig, p, v3_scale(v3_mul(ps->throughput[p], le), w), RADIANCE_EMISSION);
-    }
+    ShapeEmission se = {ig, p};
+    lights_shape_crossings(lights, ray.org, ray.dir, ray.tnear, tmax, ps->prev_pos[p], shape_emission_add, &se);
 }
 
 /* The mesh medium on the side of the surface a ray in direction d leaves into: the surface's

@@ -32,6 +32,7 @@ tests/test_analytic.c.
 import base64
 import json
 import math
+import random
 import os
 import struct
 
@@ -1038,6 +1039,30 @@ def light_shapes():
                     look_rotation((-0.5, -1.0, 0.0), (0.0, 0.0, -1.0)))
     g.perspective('camera', (0.0, 2.2, 2.2), (0.0, 0.2, 0.0), 60.0, aspect=1.0)
     g.write(os.path.join(out, 'shapes_mix.gltf'))
+
+    # shapes_many: 40 shapes (above LIGHT_SHAPE_BVH_MIN: rays find them through the BVH) and a sun
+    rnd = random.Random(14)
+    g = Gltf()
+    g.mesh('plane', 'plane', quad((-3.0, 0.0, -3.0), (-3.0, 0.0, 3.0), (3.0, 0.0, 3.0), (3.0, 0.0, -3.0)),
+           g.material('glossy', base=(0.6, 0.6, 0.6), metallic=0.5, roughness=0.3))
+    for i in range(40):
+        pos = (rnd.uniform(-2.0, 2.0), rnd.uniform(0.2, 1.5), rnd.uniform(-2.0, 2.0))
+        col = (rnd.uniform(0.3, 1.0), rnd.uniform(0.3, 1.0), rnd.uniform(0.3, 1.0))
+        if i % 5 < 3:
+            kind = 'spot' if i % 5 == 2 else 'point'
+            n = g.light('s%d' % i, kind, rnd.uniform(0.2, 1.0), color=col, translation=pos,
+                        rotation=look_rotation((rnd.uniform(-0.5, 0.5), -1.0, rnd.uniform(-0.5, 0.5)), (0.0, 0.0, -1.0)),
+                        inner=0.3 if kind == 'spot' else None, outer=0.7 if kind == 'spot' else None)
+            g.doc['nodes'][n]['extras'] = {'candela_light': {'radius': r(rnd.uniform(0.03, 0.2))}}
+        else:
+            area_light_node(g, 'a%d' % i, 'rect' if i % 5 == 3 else 'disk',
+                            (rnd.uniform(0.1, 0.5), rnd.uniform(0.1, 0.5)), rnd.uniform(0.5, 2.0), pos,
+                            look_rotation((rnd.uniform(-0.7, 0.7), -1.0, rnd.uniform(-0.7, 0.7)), (0.0, 0.0, -1.0)),
+                            color=col)
+    n = g.light('sun', 'directional', 0.5, translation=(0.0, 10.0, 0.0), rotation=look_rotation((0.3, -0.8, 0.5)))
+    g.doc['nodes'][n]['extras'] = {'candela_light': {'angle': 5.0}}
+    g.perspective('camera', (0.0, 3.0, 3.5), (0.0, 0.3, 0.0), 60.0, aspect=1.0)
+    g.write(os.path.join(out, 'shapes_many.gltf'))
 
 
 def bad_inputs():

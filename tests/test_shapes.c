@@ -26,7 +26,10 @@
  *    rect_plane (with a back-facing rect), disk_plane; the light samplers agree on
  *    shapes_mix (glossy plane, every shape: z statistics against uniform); lamp_slab: a sphere
  *    light inside a thin slab lights the plane below (lamp_slab_point, radius 0: black);
- *    shapes_mix bit-identical for 1 and 2 threads (tree and cache points). */
+ *    shapes_mix bit-identical for 1 and 2 threads (tree and cache points).
+ * 4. Above LIGHT_SHAPE_BVH_MIN shapes (shapes_many: 40 and a sun), the BVH finds exactly the
+ *    crossings the list does (same lights, t and radiance, bit for bit, 200000 random rays); the
+ *    tree and cache points agree with uniform there, and it renders the same on 1 and 2 threads. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -98,10 +101,12 @@ static double exact_irradiance(const Light *l, const Receiver *r) {
     case LIGHT_POINT:
     case LIGHT_SPOT: {
         double sin_max = l->radius / d, cb = v3_dot(v3_scale(to, (float)(1.0 / d)), r->n);
-        if (!(sin_max < 1.0) || acos(fmin(cb, 1.0)) + asin(sin_max) >= 0.5 * M_PI) return NAN;
+        double half = l->sphere_disk ? atan(l->radius / d) : asin(fmin(sin_max, 1.0));
+        if ((!l->sphere_disk && !(sin_max < 1.0)) || acos(fmin(cb, 1.0)) + half >= 0.5 * M_PI) return NAN;
         double I = l->intensity.x;
         if (l->type == LIGHT_SPOT) I *= light_spot_falloff(l, v3_scale(to, (float)(-1.0 / d)));
-        return I * cb / (d * d);
+        /* Cycles 3.4's disk facing p: a cone of tan = r / d, E = pi L sin^2 cos = I cos / (r^2 + d^2) */
+        return l->sphere_disk ? I * cb / (l->radius * l->radius + d * d) : I * cb / (d * d);
     }
     case LIGHT_DIRECTIONAL: {
         double h = acos(1.0 - l->sun_omc), ct = -v3_dot(l->direction, r->n);
@@ -238,10 +243,11 @@ static void check_light_receiver(const Lights *ls, uint32_t li, const Receiver *
     if (r->closed) CHECK(!isnan(ex), "%s: no closed form applies (the test's receiver is misplaced)", name);
 }
 
-static int load_lights(const char *file, Scene *scene, Lights *lights, CandelaOptions *o) {
+static int load_lights(const char *file, Scene *scene, Lights *lights, CandelaOptions *o, CandelaLightModel model) {
     static char path[4096];
     snprintf(path, sizeof path, "%s/%s", g_dir, file);
     candela_options_default(o);
+    o->light_model = model;
     o->scene_path = path;
     o->light_units = CANDELA_LIGHT_UNITS_RAW;
     o->width = o->height = 16;
@@ -271,7 +277,7 @@ static void test_light_level(void) {
     Scene scene;
     Lights ls;
     CandelaOptions o;
-    if (load_lights("shapes_mix.gltf", &scene, &ls, &o) != 0) return;
+    if (load_lights("shapes_mix.gltf", &scene, &ls, &o, CANDELA_LIGHT_MODEL_GLTF) != 0) return;
     CHECK(ls.count == 6 && ls.num_shapes == 6, "shapes_mix: %u lights, %u shapes (want 6, 6)", ls.count, ls.num_shapes);
     uint32_t sphere = find_light(&ls, LIGHT_POINT, 0), spot = find_light(&ls, LIGHT_SPOT, 0),
              sun = find_light(&ls, LIGHT_DIRECTIONAL, 0), rect = find_light(&ls, LIGHT_RECT, 0),
@@ -386,6 +392,71 @@ static void test_light_level(void) {
     threadpool_destroy(pool);
     lights_free(&ls);
     scene_free(&scene);
+
+    /* --light-model blender3: the point radius is Cycles 3.4's disk facing the receiver */
+    if (load_lights("shapes_mix.gltf", &scene, &ls, &o, CANDELA_LIGHT_MODEL_BLENDER3) != 0) return;
+    for (uint32_t li = 0; li < 2 && li < ls.count; ++li) {
+        const Light *l = &ls.lights[li];
+        CHECK(l->sphere_disk && l->radius > 0.0f, "blender3: light %u is not a facing disk", li);
+        vec3 below = v3_add(l->position, v3(0.1f, -0.9f, 0.05f));
+        Receiver rb[] = {
+            {below, v3_normalize(v3_sub(l->position, below)), "blender3 disk, facing it", 1},
+            {v3_add(l->position, v3(0.0f, -0.2f, 0.0f)), v3(0, 1, 0), "blender3 disk, near", 0},
+            {v3_add(l->position, v3(0.02f, -0.03f, 0.0f)), v3(0, 1, 0), "blender3 disk, inside r", 0},
+        };
+        for (size_t k = 0; k < sizeof rb / sizeof rb[0]; ++k) check_light_receiver(&ls, li, &rb[k], 600 + 10 * li + k);
+    }
+    lights_free(&ls);
+    scene_free(&scene);
+}
+
+/* Above LIGHT_SHAPE_BVH_MIN finite shapes, rays find them through the BVH: the crossings it
+ * reports (in light order) are exactly the list's, for random rays from the plane, from inside
+ * the light cluster, short and escaping. */
+typedef struct Crossings { uint32_t n, light[256]; float t[256]; vec3 le[256]; } Crossings;
+static void collect(void *user, uint32_t light, float t, vec3 le) {
+    Crossings *c = user;
+    if (c->n < 256) { c->light[c->n] = light; c->t[c->n] = t; c->le[c->n] = le; }
+    ++c->n;
+}
+
+static void test_shape_bvh(void) {
+    Scene scene;
+    Lights ls;
+    CandelaOptions o;
+    if (load_lights("shapes_many.gltf", &scene, &ls, &o, CANDELA_LIGHT_MODEL_GLTF) != 0) return;
+    CHECK(ls.shape_bvh != NULL && ls.num_shapes == 41 && ls.num_suns == 1, "shapes_many: %u shapes, %u suns, bvh %p",
+          ls.num_shapes, ls.num_suns, ls.shape_bvh);
+    uint64_t key = rng_path_key(77, 0, 0);
+    int differ = 0;
+    long crossings = 0;
+    for (int q = 0; q < 200000; ++q) {
+        float u[8];
+        for (int k = 0; k < 8; ++k) u[k] = rng_uniform(key, 8 * (uint32_t)q + (uint32_t)k);
+        vec3 o = q % 2 ? v3(4.0f * u[0] - 2.0f, 0.01f, 4.0f * u[1] - 2.0f) : v3(4.0f * u[0] - 2.0f, 1.5f * u[2], 4.0f * u[1] - 2.0f);
+        vec3 d = sample_uniform_sphere(u[3], u[4]);
+        if (q % 2) d.y = fabsf(d.y);
+        float tmax = u[5] < 0.5f ? INFINITY : 3.0f * u[6];
+        vec3 recv = v3_sub(o, v3_scale(d, 0.1f * u[7]));
+        Crossings a = {0}, b = {0};
+        lights_shape_crossings(&ls, o, d, 0.0f, tmax, recv, collect, &a);
+        for (uint32_t k = 0; k < ls.num_shapes; ++k) { /* the list by hand */
+            float t;
+            vec3 le;
+            if (light_shape_hit(&ls.lights[ls.shapes[k]], o, d, 0.0f, tmax, recv, &t, &le)) collect(&b, ls.shapes[k], t, le);
+        }
+        crossings += a.n;
+        int same = a.n == b.n;
+        for (uint32_t k = 0; same && k < a.n && k < 256; ++k)
+            same = a.light[k] == b.light[k] && memcmp(&a.t[k], &b.t[k], sizeof(float)) == 0 &&
+                   memcmp(&a.le[k], &b.le[k], sizeof(vec3)) == 0;
+        differ += !same;
+    }
+    fprintf(stderr, "  shape BVH: 200000 rays, %ld crossings, %d rays differ from the list\n", crossings, differ);
+    CHECK(differ == 0 && crossings > 1000, "shape BVH: %d of 200000 rays cross other lights than the list (%ld crossings)",
+          differ, crossings);
+    lights_free(&ls);
+    scene_free(&scene);
 }
 
 /* ------------------------------------------------------------------ renders */
@@ -492,6 +563,12 @@ static double sphere_E(double x, double z) {
     return 32 * M_PI * h / (r2 * sqrt(r2));
 }
 static double sun_E(double x, double z) { (void)x; (void)z; return 2 * M_PI * cos(M_PI / 6); }
+/* sphere_plane under --light-model blender3: Cycles 3.4's disk of radius a = 0.5 facing each point,
+ * E = I cos(beta) / (a^2 + d^2) */
+static double sphere_cycles_E(double x, double z) {
+    double h = 4.0, r2 = h * h + x * x + z * z;
+    return 32 * M_PI * (h / sqrt(r2)) / (0.25 + r2);
+}
 /* the same sun under --light-model blender3: Cycles 3.4's 2 cos h / (1 + cos h) of it (h = 10 deg) */
 static double sun_cycles_E(double x, double z) {
     double ch = cos(10.0 * M_PI / 180.0);
@@ -520,14 +597,18 @@ static void test_planes(void) {
         }
         candela_image_free(&img);
     }
-    RenderSpec s = {"sun_plane.gltf", 32, 32, 64, CANDELA_LIGHT_SAMPLER_POWER, 9, 2, CANDELA_LIGHT_MODEL_BLENDER3};
-    CandelaImage img;
-    if (render(&s, &img) == 0) {
-        double *e = plane_exact(32, 32, sun_cycles_E);
-        compare("sun_plane (blender3)", &img, e);
-        free(e);
+    struct { const char *file; PlaneFn f; const char *name; } cycles[] = {
+        {"sun_plane.gltf", sun_cycles_E, "sun_plane (blender3)"}, {"sphere_plane.gltf", sphere_cycles_E, "sphere_plane (blender3)"}};
+    for (size_t k = 0; k < 2; ++k) {
+        RenderSpec s = {cycles[k].file, 32, 32, 64, CANDELA_LIGHT_SAMPLER_POWER, 9 + k, 2, CANDELA_LIGHT_MODEL_BLENDER3};
+        CandelaImage img;
+        if (render(&s, &img) == 0) {
+            double *e = plane_exact(32, 32, cycles[k].f);
+            compare(cycles[k].name, &img, e);
+            free(e);
+        }
+        candela_image_free(&img);
     }
-    candela_image_free(&img);
 }
 
 /* Two independent renders agree: per pixel z = (a - b) / sqrt(va + vb), mean z^2 within
@@ -574,14 +655,34 @@ static void test_samplers(void) {
         candela_image_free(&img);
     }
     candela_image_free(&ref);
+    /* 41 shapes through the BVH: the tree and cache points against uniform */
+    RenderSpec mu = {"shapes_many.gltf", 24, 24, 256, CANDELA_LIGHT_SAMPLER_UNIFORM, 41, 2};
+    CandelaImage mref;
+    if (render(&mu, &mref) == 0 && all_finite("shapes_many uniform", &mref)) {
+        const CandelaLightSampler many[] = {CANDELA_LIGHT_SAMPLER_TREE, CANDELA_LIGHT_SAMPLER_CACHEPOINTS};
+        for (size_t k = 0; k < 2; ++k) {
+            RenderSpec s = mu;
+            s.sampler = many[k];
+            s.seed = 42 + k;
+            CandelaImage img;
+            if (render(&s, &img) == 0 && all_finite("shapes_many", &img)) {
+                char what[64];
+                snprintf(what, sizeof what, "shapes_many %s vs uniform", candela_light_sampler_name(many[k]));
+                compare_renders(what, &mref, &img);
+            }
+            candela_image_free(&img);
+        }
+    }
+    candela_image_free(&mref);
     /* 1 vs 2 threads, bit for bit */
-    const CandelaLightSampler det[] = {CANDELA_LIGHT_SAMPLER_TREE, CANDELA_LIGHT_SAMPLER_CACHEPOINTS};
-    for (size_t k = 0; k < 2; ++k) {
-        RenderSpec s1 = {"shapes_mix.gltf", 24, 24, 16, det[k], 9, 1}, s2 = s1;
+    const CandelaLightSampler det[] = {CANDELA_LIGHT_SAMPLER_TREE, CANDELA_LIGHT_SAMPLER_CACHEPOINTS,
+                                       CANDELA_LIGHT_SAMPLER_CACHEPOINTS};
+    for (size_t k = 0; k < 3; ++k) {
+        RenderSpec s1 = {k == 2 ? "shapes_many.gltf" : "shapes_mix.gltf", 24, 24, 16, det[k], 9, 1}, s2 = s1;
         s2.threads = 2;
         CandelaImage a, b;
         if (render(&s1, &a) == 0 && render(&s2, &b) == 0)
-            CHECK(memcmp(a.rgb, b.rgb, sizeof(float) * 3 * 24 * 24) == 0, "shapes_mix %s: 1 and 2 threads differ",
+            CHECK(memcmp(a.rgb, b.rgb, sizeof(float) * 3 * 24 * 24) == 0, "%s %s: 1 and 2 threads differ", s1.file,
                   candela_light_sampler_name(det[k]));
         candela_image_free(&a);
         candela_image_free(&b);
@@ -623,6 +724,7 @@ static void test_lamp_slab(void) {
 int main(int argc, char **argv) {
     if (argc > 1) g_dir = argv[1];
     test_light_level();
+    test_shape_bvh();
     test_planes();
     test_samplers();
     test_lamp_slab();
