@@ -91,6 +91,8 @@ static int build_shape_area(const IoLight *il, Light *l, vec3 color) {
     l->dual_u = v3_scale(vn, 1.0f / v3_dot(l->axis_u, vn));
     l->dual_v = v3_scale(nu, 1.0f / v3_dot(l->axis_v, nu));
     l->area = l->type == LIGHT_RECT ? 4.0f * len : PI_F * len;
+    l->rect_ortho = l->type == LIGHT_RECT &&
+                    fabsf(v3_dot(l->axis_u, l->axis_v)) <= 1e-6f * v3_length(l->axis_u) * v3_length(l->axis_v);
     float power = finite_or_zero(il->intensity);
     l->emission = v3_scale(color, power / (4.0f * l->area));
     if (!v3_is_finite(l->emission)) { l->area = 0.0f; return 0; }
@@ -704,11 +706,111 @@ static int sample_sun(const Light *l, float u0, float u1, LightLiSample *s) {
     return isfinite(s->pdf) && !v3_is_black(s->radiance);
 }
 
-/* Rects and disks by area (uniform over the parallelogram, concentric map for the ellipse),
- * converted to solid angle: exact, and simple enough that the pdf of a BSDF hit is the same
- * arithmetic. */
+/* Spherical rectangle sampling (Ureña, Fajardo and King 2013, "An Area-Preserving
+ * Parametrization for Spherical Rectangles", §4; as pbrt-v4's SampleSphericalRectangle): the
+ * rectangle's frame seen from p, its solid angle, and the point for (u0, u1), uniform in solid
+ * angle. Set up in double (the solid angle is a difference of angles near 2 pi). */
+typedef struct SphRect {
+    double ex[3], ey[3], ez[3]; /* the local frame (x along axis_u, y along axis_v, z towards p's side flipped) */
+    double x0, y0, z0, x1, y1;  /* the rectangle's extent in it, relative to p */
+    double n0z, n2z, g0, g1, g2, g3;
+    double omega;               /* solid angle */
+} SphRect;
+
+static double d3dot(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+static void d3cross_unit(const double a[3], const double b[3], double out[3]) {
+    double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+    double len = sqrt(d3dot(c, c));
+    for (int k = 0; k < 3; ++k) out[k] = len > 0.0 ? c[k] / len : 0.0;
+}
+static double angle_between(const double a[3], const double b[3]) { /* of unit vectors, -a and b */
+    double dt = -d3dot(a, b);
+    return acos(dt < -1.0 ? -1.0 : dt > 1.0 ? 1.0 : dt);
+}
+
+static double sph_rect_setup(const Light *l, vec3 p, SphRect *r) {
+    double ul = v3_length(l->axis_u), vl = v3_length(l->axis_v);
+    for (int k = 0; k < 3; ++k) {
+        r->ex[k] = (double)(k == 0 ? l->axis_u.x : k == 1 ? l->axis_u.y : l->axis_u.z) / ul;
+        r->ey[k] = (double)(k == 0 ? l->axis_v.x : k == 1 ? l->axis_v.y : l->axis_v.z) / vl;
+    }
+    r->ez[0] = r->ex[1] * r->ey[2] - r->ex[2] * r->ey[1];
+    r->ez[1] = r->ex[2] * r->ey[0] - r->ex[0] * r->ey[2];
+    r->ez[2] = r->ex[0] * r->ey[1] - r->ex[1] * r->ey[0];
+    /* the corner c - u - v relative to p, in the frame */
+    double s[3] = {(double)l->position.x - l->axis_u.x - l->axis_v.x - p.x, (double)l->position.y - l->axis_u.y - l->axis_v.y - p.y,
+                   (double)l->position.z - l->axis_u.z - l->axis_v.z - p.z};
+    r->x0 = d3dot(s, r->ex);
+    r->y0 = d3dot(s, r->ey);
+    r->z0 = d3dot(s, r->ez);
+    if (r->z0 > 0.0) { for (int k = 0; k < 3; ++k) r->ez[k] = -r->ez[k]; r->z0 = -r->z0; }
+    r->x1 = r->x0 + 2.0 * ul;
+    r->y1 = r->y0 + 2.0 * vl;
+    double v00[3] = {r->x0, r->y0, r->z0}, v01[3] = {r->x0, r->y1, r->z0}, v10[3] = {r->x1, r->y0, r->z0},
+           v11[3] = {r->x1, r->y1, r->z0};
+    double n0[3], n1[3], n2[3], n3[3];
+    d3cross_unit(v00, v10, n0);
+    d3cross_unit(v10, v11, n1);
+    d3cross_unit(v11, v01, n2);
+    d3cross_unit(v01, v00, n3);
+    r->g0 = angle_between(n0, n1);
+    r->g1 = angle_between(n1, n2);
+    r->g2 = angle_between(n2, n3);
+    r->g3 = angle_between(n3, n0);
+    r->n0z = n0[2];
+    r->n2z = n2[2];
+    r->omega = r->g0 + r->g1 + r->g2 + r->g3 - 2.0 * 3.14159265358979323846;
+    return r->omega;
+}
+
+/* Whether the rect is sampled by solid angle from p (pbrt-v4's window: above 3e-4 sr, where
+ * the angles still resolve it, below 6.22 sr, where it is nearly a hemisphere and area sampling
+ * does as well); sampling and the pdf of a BSDF hit decide with this same function. */
+#define SPH_RECT_MIN 3e-4
+#define SPH_RECT_MAX 6.22
+__attribute__((noinline)) static int rect_spherical(const Light *l, vec3 p, SphRect *r) {
+    if (!l->rect_ortho) return 0;
+    double omega = sph_rect_setup(l, p, r);
+    return omega > SPH_RECT_MIN && omega < SPH_RECT_MAX && r->z0 < 0.0;
+}
+
+static vec3 sph_rect_sample(const SphRect *r, vec3 p, float u0, float u1) {
+    const double pi = 3.14159265358979323846;
+    double au = u0 * (r->g0 + r->g1 - 2.0 * pi) + (u0 - 1.0) * (r->g2 + r->g3);
+    double fu = (cos(au) * r->n0z - r->n2z) / sin(au);
+    double cu = copysign(1.0 / sqrt(fu * fu + r->n0z * r->n0z), fu);
+    cu = cu < -(1.0 - 1e-12) ? -(1.0 - 1e-12) : cu > 1.0 - 1e-12 ? 1.0 - 1e-12 : cu;
+    double xu = -(cu * r->z0) / sqrt(fmax(0.0, 1.0 - cu * cu));
+    xu = xu < r->x0 ? r->x0 : xu > r->x1 ? r->x1 : xu;
+    double dd = sqrt(xu * xu + r->z0 * r->z0);
+    double h0 = r->y0 / sqrt(dd * dd + r->y0 * r->y0), h1 = r->y1 / sqrt(dd * dd + r->y1 * r->y1);
+    double hv = h0 + u1 * (h1 - h0), hv2 = hv * hv;
+    double yv = hv2 < 1.0 - 1e-12 ? hv * dd / sqrt(1.0 - hv2) : r->y1;
+    yv = yv < r->y0 ? r->y0 : yv > r->y1 ? r->y1 : yv;
+    double q[3];
+    for (int k = 0; k < 3; ++k) q[k] = xu * r->ex[k] + yv * r->ey[k] + r->z0 * r->ez[k];
+    return v3((float)(p.x + q[0]), (float)(p.y + q[1]), (float)(p.z + q[2]));
+}
+
+/* Rects by solid angle where it pays (rect_spherical), else uniformly by area (any parallelogram
+ * a sheared node makes); disks by area with the concentric map (an ellipse for x != y); area
+ * densities converted to solid angle. */
 static int sample_planar(const Light *l, vec3 p, float u0, float u1, LightLiSample *s) {
     float a, b;
+    SphRect sr;
+    if (l->type == LIGHT_RECT && rect_spherical(l, p, &sr)) {
+        vec3 y = sph_rect_sample(&sr, p, u0, u1);
+        vec3 d = v3_sub(y, p);
+        float dist = v3_length(d);
+        if (!(dist > 0.0f)) return 0;
+        s->wi = v3_scale(d, 1.0f / dist);
+        s->distance = dist;
+        if (!(v3_dot(s->wi, l->direction) < 0.0f)) return 0; /* one-sided */
+        s->pdf = (float)(1.0 / sr.omega);
+        s->radiance = l->emission;
+        s->is_delta = 0;
+        return s->pdf > 0.0f && isfinite(s->pdf) && !v3_is_black(s->radiance);
+    }
     if (l->type == LIGHT_RECT) {
         a = 2.0f * u0 - 1.0f;
         b = 2.0f * u1 - 1.0f;
@@ -828,7 +930,10 @@ float light_shape_pdf_li(const Light *l, vec3 p, vec3 d, float t) {
     case LIGHT_RECT:
     case LIGHT_DISK: {
         float cos_l = -v3_dot(d, l->direction);
-        return cos_l > 0.0f ? t * t / (cos_l * l->area) : 0.0f;
+        if (!(cos_l > 0.0f)) return 0.0f;
+        SphRect sr;
+        if (l->type == LIGHT_RECT && rect_spherical(l, p, &sr)) return (float)(1.0 / sr.omega);
+        return t * t / (cos_l * l->area);
     }
     default:
         return 0.0f;

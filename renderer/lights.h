@@ -65,6 +65,7 @@ typedef struct Light {
     float sun_omc;            /* directional: 1 - cos(half-angle) (0: a delta direction) */
     vec3 axis_u, axis_v;      /* rect, disk: world half-extent vectors */
     vec3 dual_u, dual_v;      /* rect, disk: (y - position) . dual = the point's local coordinates */
+    int rect_ortho;           /* rect: its sides are perpendicular (spherical-rectangle sampling applies) */
 } Light;
 
 /* Whether a light has an extent that rays can hit (a sphere, a sun, a rect or a disk): NEE
