@@ -1003,6 +1003,14 @@ def light_shapes():
     top_ortho(g, height=0.5)
     g.write(os.path.join(out, 'rect_plane.gltf'))
 
+    # rect_plane with light linking: the rect's receivers exclude the plane (it must go black)
+    g = Gltf()
+    g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
+    n = area_light_node(g, 'rect_down', 'rect', (1.0, 1.0), 8.0, (0.0, 1.0, 0.0), down)
+    g.doc['nodes'][n]['extras']['candela_light_linking'] = {'receivers': {'exclude': ['plane']}}
+    top_ortho(g, height=0.5)
+    g.write(os.path.join(out, 'rect_plane_unlinked.gltf'))
+
     g = Gltf()
     g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
     area_light_node(g, 'disk_down', 'disk', (1.0, 1.0), 2 * math.pi, (0.0, 1.0, 0.0), down)

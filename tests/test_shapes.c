@@ -693,6 +693,24 @@ static void test_samplers(void) {
  * sphere below the slab lights the plane (the issue's lamp post). The plane right below sees
  * the cap under the slab (y in [0.9, 0.98]): between the cap's and the whole lower half's
  * point-light bounds. */
+/* Light linking reaches shapes: rect_plane's rect with the plane excluded from its receivers
+ * leaves the plane black (NEE and BSDF hits alike), for every sampler. */
+static void test_linking(void) {
+    const CandelaLightSampler all[] = {CANDELA_LIGHT_SAMPLER_UNIFORM, CANDELA_LIGHT_SAMPLER_TREE,
+                                       CANDELA_LIGHT_SAMPLER_OPTIMAL, CANDELA_LIGHT_SAMPLER_CACHEPOINTS};
+    for (size_t k = 0; k < sizeof all / sizeof all[0]; ++k) {
+        RenderSpec s = {"rect_plane_unlinked.gltf", 16, 16, 16, all[k], 4, 2};
+        CandelaImage img;
+        if (render(&s, &img) == 0) {
+            double mx = 0;
+            for (int i = 0; i < 3 * 16 * 16; ++i) mx = fmax(mx, img.rgb[i]);
+            CHECK(mx == 0.0, "rect_plane_unlinked %s: the unlinked rect lights the plane (max %g)",
+                  candela_light_sampler_name(all[k]), mx);
+        }
+        candela_image_free(&img);
+    }
+}
+
 static void test_lamp_slab(void) {
     RenderSpec s = {"lamp_slab.gltf", 32, 32, 64, CANDELA_LIGHT_SAMPLER_POWER, 3, 2};
     CandelaImage lit, dark;
@@ -728,5 +746,6 @@ int main(int argc, char **argv) {
     test_planes();
     test_samplers();
     test_lamp_slab();
+    test_linking();
     return test_exit();
 }
