@@ -837,7 +837,7 @@ static int sample_planar(const Light *l, vec3 p, float u0, float u1, LightLiSamp
 int light_shape_hit(const Light *l, vec3 o, vec3 d, float tmin, float tmax, vec3 receiver, float *t, vec3 *radiance) {
     switch (l->type) {
     case LIGHT_DIRECTIONAL: {
-        if (!isinf(tmax) || !(l->sun_omc > 0.0f)) return 0;
+        if (!isinf(tmax) || isinf(tmin) || !(l->sun_omc > 0.0f)) return 0; /* (tmin infinite: counted) */
         /* inside the cone: sin^2 of the angle to the axis below sin^2 h (no 1 - cos cancellation) */
         vec3 axis = v3_neg(l->direction);
         float c = v3_dot(d, axis);

@@ -1003,6 +1003,17 @@ def light_shapes():
     top_ortho(g, height=0.5)
     g.write(os.path.join(out, 'rect_plane.gltf'))
 
+    # rect_plane inside an absorbing fog box (sigma_a 0.5, no scattering; camera inside too): the
+    # rays that find the rect weigh it by the transmittance up to it (closed form by quadrature)
+    g = Gltf()
+    g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
+    fog = g.material('fog', base=(1.0, 1.0, 1.0))
+    g.doc['materials'][fog]['extras'] = {'candela_medium': {'sigma_a': [0.5, 0.5, 0.5], 'sigma_s': [0.0, 0.0, 0.0]}}
+    g.mesh('fog', 'fog', box(8.0, 4.0, 8.0, center=(0.0, 0.5, 0.0)), fog)
+    area_light_node(g, 'rect_down', 'rect', (1.0, 1.0), 8.0, (0.0, 1.0, 0.0), down)
+    top_ortho(g, height=0.5)
+    g.write(os.path.join(out, 'rect_fog.gltf'))
+
     # rect_plane with light linking: the rect's receivers exclude the plane (it must go black)
     g = Gltf()
     g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
