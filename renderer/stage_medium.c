@@ -147,7 +147,7 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         ps->throughput[p] = beta;
         if (!v3_is_finite(beta) || v3_is_black(beta)) return WALK_ENDED;
         if (ev.type == VOLUME_EVENT_PASSED) {
-            ps->ray[p].tnear = tmax; /* its light shapes are counted */
+            if (ig->lights->num_shapes) ps->ray[p].tnear = tmax; /* its light shapes are counted */
             return isinf(tmax) ? WALK_ESCAPED : WALK_SURFACE;
         }
 
