@@ -188,6 +188,13 @@ int io_scene_pose(IoScene *scene, double seconds, char err[IO_ERR_LEN]) {
         l->position[0] = (float)w[12];
         l->position[1] = (float)w[13];
         l->position[2] = (float)w[14];
+        if (l->type == IO_LIGHT_RECT || l->type == IO_LIGHT_DISK) {
+            /* an area light's extents follow the node's X and Y axes (io.h, IoLight) */
+            for (int c = 0; c < 3; ++c) {
+                l->axis_u[c] = (float)(w[c] * 0.5 * l->size[0]);
+                l->axis_v[c] = (float)(w[4 + c] * 0.5 * l->size[1]);
+            }
+        }
         double dir[3] = {-w[8], -w[9], -w[10]};
         double len = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
         if (len > 0.0 && isfinite(len)) {

@@ -485,6 +485,8 @@ class Loader {
     void convert_animations();
     void convert_channel(const tinygltf::Animation &anim, size_t ai, size_t ci);
     void load_volume(const tinygltf::Node &node, const std::string &what, const Mat4 &world);
+    void light_shape_extras(const tinygltf::Node &node, const std::string &what, IoLight &d);
+    void load_area_light(const tinygltf::Node &node, const std::string &what, const Mat4 &world, int32_t walk_index);
     void convert_light_links();
     std::vector<IoLightLink> light_links_;
     std::vector<uint32_t> link_instances_;
@@ -1154,7 +1156,7 @@ void Loader::flatten_nodes() {
             largest = std::max(largest, std::fabs(e));
         }
         const bool places = node.mesh >= 0 || node.camera >= 0 || extension(node.extensions, "KHR_lights_punctual") ||
-                            member(node.extras, "candela_volume");
+                            member(node.extras, "candela_volume") || raw_member_start(node.extras_json_string, "candela_area_light");
         if (places && (!finite || largest > IO_MAX_COORDINATE))
             fail(strf("%s: transform out of range (an entry is %s; the limit is %g)", what.c_str(),
                       finite ? strf("%g", largest).c_str() : "not finite", IO_MAX_COORDINATE));
@@ -1256,10 +1258,122 @@ void Loader::flatten_nodes() {
                 d.direction[2] = -1.0f;
             }
             d.node = walk_index;
+            light_shape_extras(node, what, d);
             lights_.push_back(d);
+        } else if (raw_member_start(node.extras_json_string, "candela_light")) {
+            warn(what + ": extras.candela_light on a node without a KHR_lights_punctual light; ignored");
         }
+        if (raw_member_start(node.extras_json_string, "candela_area_light")) load_area_light(node, what, world, walk_index);
         for (size_t k = node.children.size(); k-- > 0;) stack.push_back({node.children[k], world, walk_index, animated});
     }
+}
+
+// extras.candela_light {"radius": r} on a point or spot light, {"angle": deg} on a directional
+// light (io.h, IoLight; README "Light shapes"). Read from the extras' JSON text (nlohmann), so a
+// value of the wrong type is reported rather than dropped.
+void Loader::light_shape_extras(const tinygltf::Node &node, const std::string &what0, IoLight &d) {
+    if (!raw_member_start(node.extras_json_string, "candela_light")) return;
+    const std::string what = what0 + ": extras.candela_light";
+    nlohmann::json extras;
+    try {
+        extras = nlohmann::json::parse(node.extras_json_string);
+    } catch (const std::exception &) {
+        fail(what + ": malformed JSON");
+    }
+    const nlohmann::json &cl = extras["candela_light"];
+    if (cl.is_null()) return;
+    if (!cl.is_object()) fail(what + " must be an object");
+    for (auto it = cl.begin(); it != cl.end(); ++it) {
+        const std::string &k = it.key();
+        const nlohmann::json &v = it.value();
+        if (k == "radius") {
+            if (d.type == IO_LIGHT_DIRECTIONAL)
+                fail(what + ".radius applies to point and spot lights (a directional light takes \"angle\")");
+            if (!v.is_number() || !std::isfinite(v.get<double>()) || v.get<double>() < 0.0 ||
+                !std::isfinite(float(v.get<double>())) || v.get<double>() > IO_MAX_COORDINATE)
+                fail(what + ".radius must be a finite number >= 0 (got " + v.dump() + ")");
+            d.radius = float(v.get<double>());
+        } else if (k == "angle") {
+            if (d.type != IO_LIGHT_DIRECTIONAL)
+                fail(what + ".angle applies to directional lights (a point or spot light takes \"radius\")");
+            if (!v.is_number() || !(v.get<double>() >= 0.0 && v.get<double>() < 180.0))
+                fail(what + ".angle must be a number of degrees in [0, 180) (got " + v.dump() + ")");
+            d.angle = float(v.get<double>() * (3.14159265358979323846 / 180.0));
+        } else {
+            warn(what + ": unknown key '" + k + "' ignored");
+        }
+    }
+}
+
+// extras.candela_area_light {"shape": "rect"|"disk", "size": [x, y], "color": [r, g, b],
+// "power": W} (io.h, IoLight; README "Light shapes"): a light of its own, placed by the node.
+void Loader::load_area_light(const tinygltf::Node &node, const std::string &what0, const Mat4 &world,
+                             int32_t walk_index) {
+    const std::string what = what0 + ": extras.candela_area_light";
+    nlohmann::json extras;
+    try {
+        extras = nlohmann::json::parse(node.extras_json_string);
+    } catch (const std::exception &) {
+        fail(what + ": malformed JSON");
+    }
+    const nlohmann::json &al = extras["candela_area_light"];
+    if (al.is_null()) return;
+    if (!al.is_object()) fail(what + " must be an object");
+    IoLight d{};
+    copy_name(d.name, node.name);
+    d.color[0] = d.color[1] = d.color[2] = 1.0f;
+    bool have_shape = false, have_size = false, have_power = false;
+    auto finite = [](const nlohmann::json &v) {
+        return v.is_number() && std::isfinite(v.get<double>()) && std::isfinite(float(v.get<double>()));
+    };
+    for (auto it = al.begin(); it != al.end(); ++it) {
+        const std::string &k = it.key();
+        const nlohmann::json &v = it.value();
+        if (k == "shape") {
+            if (!v.is_string() || (v.get<std::string>() != "rect" && v.get<std::string>() != "disk"))
+                fail(what + ".shape must be \"rect\" or \"disk\" (got " + v.dump() + ")");
+            d.type = v.get<std::string>() == "rect" ? IO_LIGHT_RECT : IO_LIGHT_DISK;
+            have_shape = true;
+        } else if (k == "size") {
+            bool ok = v.is_array() && v.size() == 2;
+            for (size_t i = 0; ok && i < 2; ++i) ok = finite(v[i]) && v[i].get<double>() > 0.0;
+            if (!ok) fail(what + ".size must be an array of 2 finite numbers > 0 (got " + v.dump() + ")");
+            for (size_t i = 0; i < 2; ++i) d.size[i] = float(v[i].get<double>());
+            have_size = true;
+        } else if (k == "color") {
+            bool ok = v.is_array() && v.size() == 3;
+            for (size_t i = 0; ok && i < 3; ++i) ok = finite(v[i]) && v[i].get<double>() >= 0.0;
+            if (!ok) fail(what + ".color must be an array of 3 finite numbers >= 0 (got " + v.dump() + ")");
+            for (size_t i = 0; i < 3; ++i) d.color[i] = float(v[i].get<double>());
+        } else if (k == "power") {
+            if (!finite(v) || v.get<double>() < 0.0)
+                fail(what + ".power must be a finite number >= 0 (watts; got " + v.dump() + ")");
+            d.intensity = float(v.get<double>());
+            have_power = true;
+        } else {
+            warn(what + ": unknown key '" + k + "' ignored");
+        }
+    }
+    if (!have_shape) fail(what + " has no \"shape\" (\"rect\" or \"disk\", required)");
+    if (!have_size) fail(what + " has no \"size\" ([x, y], required)");
+    if (!have_power) fail(what + " has no \"power\" (watts, required)");
+    for (int c = 0; c < 3; ++c) {
+        const double e = double(d.intensity) * double(d.color[c]);
+        if (!(e <= IO_MAX_EMISSION))
+            fail(strf("%s: power out of range (power x colour = %g; the limit is %g)", what.c_str(), e, IO_MAX_EMISSION));
+    }
+    const double *m = world.m;
+    for (int c = 0; c < 3; ++c) {
+        d.position[c] = float(m[12 + c]);
+        d.axis_u[c] = float(m[c] * 0.5 * d.size[0]);
+        d.axis_v[c] = float(m[4 + c] * 0.5 * d.size[1]);
+    }
+    double dir[3] = {-m[8], -m[9], -m[10]};
+    double len = std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+    if (!(len > 0.0) || !std::isfinite(len)) fail(what + ": singular node transform (a zero scale)");
+    for (int c = 0; c < 3; ++c) d.direction[c] = float(dir[c] / len);
+    d.node = walk_index;
+    lights_.push_back(d);
 }
 
 // extras.candela_light_linking (io.h, IoLightLink). Read from the extras' original JSON text:
@@ -1337,7 +1451,8 @@ void Loader::convert_light_links() {
             }
         }
         // the lights it applies to: the node's punctual light, or its mesh if it emits
-        bool has_light = extension(node.extensions, "KHR_lights_punctual") != nullptr;
+        bool has_light = extension(node.extensions, "KHR_lights_punctual") != nullptr ||
+                         raw_member_start(node.extras_json_string, "candela_area_light");
         if (!has_light && instances_of_node[w] >= 0) {
             const IoMesh &mesh = meshes_[instances_[size_t(instances_of_node[w])].mesh];
             for (uint32_t k = 0; k < mesh.num_primitives && !has_light; ++k) {

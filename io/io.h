@@ -188,10 +188,17 @@ typedef struct IoInstance {
     int32_t hidden;
 } IoInstance;
 
-enum { IO_LIGHT_POINT = 0, IO_LIGHT_SPOT = 1, IO_LIGHT_DIRECTIONAL = 2 };
+enum { IO_LIGHT_POINT = 0, IO_LIGHT_SPOT = 1, IO_LIGHT_DIRECTIONAL = 2, IO_LIGHT_RECT = 3, IO_LIGHT_DISK = 4 };
 
 /* KHR_lights_punctual light placed by its node, in world space. Intensity is as written in
- * the file (candela for point/spot, lux for directional); unit conversion is the renderer's. */
+ * the file (candela for point/spot, lux for directional); unit conversion is the renderer's.
+ * Light shapes (README "Light shapes"): extras.candela_light {"radius": r} makes a point or spot
+ * light a sphere of radius r (world units, 0: a point), {"angle": deg} a directional light a
+ * sun of that angular diameter (radians here, 0: a delta direction). A node with
+ * extras.candela_area_light is an IO_LIGHT_RECT / IO_LIGHT_DISK: intensity is its power (W,
+ * Blender's), size its full extents along the node's local X and Y (before the node's scale),
+ * axis_u / axis_v the world half-extent vectors (node X and Y scaled by size / 2), direction
+ * the node's -Z (it emits along it, one-sided). */
 typedef struct IoLight {
     char name[64];
     int32_t type;
@@ -203,6 +210,10 @@ typedef struct IoLight {
     float position[3];      /* world */
     float direction[3];     /* world, unit: the direction light travels (node's -Z) */
     int32_t node;           /* index into IoScene.nodes */
+    float radius;           /* point, spot: sphere radius (0: a point) */
+    float angle;            /* directional: angular diameter, radians (0: delta) */
+    float size[2];          /* rect, disk: full extents along local X, Y */
+    float axis_u[3], axis_v[3]; /* rect, disk: world half-extent vectors (io_scene_pose updates them) */
 } IoLight;
 
 enum { IO_CAMERA_PERSPECTIVE = 0, IO_CAMERA_ORTHOGRAPHIC = 1 };

@@ -328,6 +328,13 @@ int direct_light_sample(const Integrator *ig, uint32_t p, const struct Scatter *
  * (a technique with its own random numbers: in-scattering sampling). */
 int direct_light_sample_u(const Integrator *ig, vec3 beta, const struct Scatter *sc, const LightSampleContext *lc,
                           const float u[6], LightLiSample *ls, vec3 *contrib, uint32_t *outcome);
+/* stage_surface.c: the shape lights (spheres, rects, disks; suns when the ray escapes, tmax
+ * INFINITY) that path p's ray crosses between its tnear and tmax add their radiance,
+ * MIS-weighted against NEE from the previous vertex (README "Light shapes"; lights are
+ * transparent to rays and invisible to camera rays, as Blender 3.4's lights are in Cycles).
+ * in_medium: the medium walk gathers a segment's lights before its free flight, each times the
+ * transmittance up to it, and then moves the ray's tnear past the segment. */
+void path_shape_emission(const Integrator *ig, Slice *s, uint32_t p, float tmax, int in_medium);
 
 /* inscatter.c: in-scattering sampling along camera rays (the paper's §4.2, spec §7.2-7.3), for
  * light samplers that provide scattering weights (light_sampler_inscatter_weight). A camera

@@ -74,14 +74,14 @@ int light_estimate_table_build(LightEstimateTable *t, const Lights *ls) {
     t->lum = malloc(((size_t)ls->count + 1) * sizeof *t->lum);
     uint32_t areas = 0;
     for (uint32_t i = 0; t->slot && i < ls->count; ++i) {
-        int area = ls->lights[i].type == LIGHT_AREA && v3_luminance(ls->lights[i].emission) > 0.0f;
+        int area = light_is_areal(&ls->lights[i]) && v3_luminance(ls->lights[i].emission) > 0.0f;
         t->slot[i] = area ? areas++ : UINT32_MAX;
     }
     t->points = malloc(((size_t)areas + 1) * sizeof *t->points);
     if (!t->slot || !t->lum || !t->points) { light_estimate_table_free(t); return -1; }
     for (uint32_t i = 0; i < ls->count; ++i) {
         const Light *l = &ls->lights[i];
-        t->lum[i] = l->type == LIGHT_AREA ? v3_luminance(l->emission) : v3_luminance(l->intensity);
+        t->lum[i] = light_is_areal(l) ? v3_luminance(l->emission) : v3_luminance(l->intensity);
         if (t->slot[i] == UINT32_MAX) continue;
         LightEstimatePoints *e = &t->points[t->slot[i]];
         for (uint32_t k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) {
@@ -157,6 +157,7 @@ static float area_estimate_table(const Light *l, const LightEstimatePoints *e, f
  * the area light's 16 points and the luminances read from the table. */
 float light_contribution_estimate_table(const Lights *ls, const LightEstimateTable *t, uint32_t light, vec3 p, vec3 n) {
     const Light *l = &ls->lights[light];
+    if (light_is_shape(l) && !light_is_areal(l)) return light_contribution_estimate(ls, l, p, n);
     switch (l->type) {
     case LIGHT_POINT: {
         vec3 d = v3_sub(l->position, p);
@@ -165,6 +166,8 @@ float light_contribution_estimate_table(const Lights *ls, const LightEstimateTab
         vec3 w = v3_scale(d, 1.0f / sqrtf(d2));
         return t->lum[light] * receiver_cos(n, w) / d2;
     }
+    case LIGHT_RECT:
+    case LIGHT_DISK:
     case LIGHT_AREA:
         if (t->slot[light] == UINT32_MAX) return 0.0f; /* no emission */
         return area_estimate_table(l, &t->points[t->slot[light]], t->lum[light], p, n);
@@ -173,7 +176,36 @@ float light_contribution_estimate_table(const Lights *ls, const LightEstimateTab
     }
 }
 
+/* The receiver cosine of the direction in a cone (axis w, sin^2 of its half-angle s2) nearest
+ * to n: cos(max(theta_n - theta_max, 0)), so a sphere or sun partly above the horizon keeps a
+ * weight (1 for an omnidirectional receiver). */
+static float receiver_cos_cone(vec3 n, vec3 w, float s2) {
+    if (v3_is_black(n)) return 1.0f;
+    float c = clampf(v3_dot(n, w), -1.0f, 1.0f), sn = sqrtf(fmaxf(0.0f, 1.0f - c * c));
+    float cm = sqrtf(fmaxf(0.0f, 1.0f - s2)), sm = sqrtf(fminf(fmaxf(s2, 0.0f), 1.0f));
+    if (c >= cm) return 1.0f; /* the normal inside the cone */
+    return maxf(c * cm + sn * sm, 0.0f);
+}
+
+/* A sphere (radius r) seen from p: its intensity towards p over d^2 (never nearer than r), with
+ * the receiver cosine of the nearest direction in its cone (the estimates' point formula, made
+ * smooth and nonzero wherever part of the sphere is above p's horizon). */
+static float sphere_estimate(const Light *l, vec3 p, vec3 n, int falloff) {
+    vec3 d = v3_sub(l->position, p);
+    float r2 = l->radius * l->radius;
+    float d2 = maxf(v3_dot(d, d), r2);
+    vec3 w = v3_scale(d, 1.0f / sqrtf(d2));
+    float I = v3_luminance(l->intensity);
+    if (falloff && l->type == LIGHT_SPOT) I *= light_spot_falloff(l, v3_neg(w));
+    return I * receiver_cos_cone(n, w, r2 / d2) / d2;
+}
+
 float light_contribution_estimate(const Lights *ls, const Light *l, vec3 p, vec3 n) {
+    if ((l->type == LIGHT_POINT || l->type == LIGHT_SPOT) && l->radius > 0.0f) return sphere_estimate(l, p, n, 1);
+    if (l->type == LIGHT_DIRECTIONAL && l->sun_omc > 0.0f) {
+        float omc = l->sun_omc;
+        return v3_luminance(l->intensity) * receiver_cos_cone(n, v3_neg(l->direction), omc * (2.0f - omc));
+    }
     switch (l->type) {
     case LIGHT_POINT:
     case LIGHT_SPOT: {
@@ -194,6 +226,8 @@ float light_contribution_estimate(const Lights *ls, const Light *l, vec3 p, vec3
         return v3_luminance(l->intensity) * receiver_cos(n, v3_neg(l->direction));
     case LIGHT_ENVIRONMENT:
         return env_irradiance_estimate(ls, n);
+    case LIGHT_RECT:
+    case LIGHT_DISK:
     case LIGHT_AREA: {
         /* (A/16) sum L cos_l max(0, n.w) / r^2 over the 16 stratified points */
         vec3 dirs[AREA_ESTIMATE_SAMPLES];
@@ -256,6 +290,8 @@ void light_contribution_estimate7(const Lights *ls, const Light *l, vec3 p, floa
         count = 1;
         break;
     }
+    case LIGHT_RECT:
+    case LIGHT_DISK:
     case LIGHT_AREA: {
         count = area_estimate_samples(l, p, dirs, contrib);
         break;
@@ -279,6 +315,8 @@ float light_peak_intensity(const Light *l) {
     case LIGHT_POINT:
     case LIGHT_SPOT:
     case LIGHT_VOLUME: return v3_luminance(l->intensity);
+    case LIGHT_RECT:
+    case LIGHT_DISK:
     case LIGHT_AREA: return v3_luminance(l->emission) * l->area; /* a flat emitter seen face on */
     default: return 0.0f;
     }

@@ -156,7 +156,7 @@ CandelaLightSampler light_sampler_auto_choice(const Lights *lights, const struct
     if (lights->count > LIGHT_SAMPLER_SCRATCH) return CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
     uint32_t cost = 0;
     for (uint32_t i = 0; i < lights->count; ++i)
-        cost += lights->lights[i].type == LIGHT_AREA ? LIGHT_SAMPLER_AUTO_AREA_COST : 1u;
+        cost += light_is_areal(&lights->lights[i]) ? LIGHT_SAMPLER_AUTO_AREA_COST : 1u;
     return cost <= LIGHT_SAMPLER_AUTO_EXACT_COST ? CANDELA_LIGHT_SAMPLER_OPTIMAL : CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
 }
 

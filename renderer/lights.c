@@ -7,7 +7,7 @@
 
 #include "media.h"
 #include "rng.h"
-#include "scene.h"
+#include "scene.h" /* (Embree: the shape lights' BVH) */
 
 /* Luminous efficacy used by Blender's glTF importer in its default ("standard") lighting
  * mode: point/spot W/sr = cd / 683, sun W/m^2 = lux / 683. */
@@ -67,6 +67,66 @@ static int build_area_light(const Scene *scene, uint32_t instance, uint32_t loca
     return 0;
 }
 
+/* A rect or disk area light (io.h IoLight, README "Light shapes"): its plane, the dual basis of
+ * its half-extent vectors, radiance power / (4 A) x colour over its world area A (Cycles 3.4's
+ * convention, measured with Blender 3.4.1: its area light's eval_fac is invarea / 4, so a "watt"
+ * of area light emits pi/4 W of flux; a 1 m^2 square of 2 pi W over a plane renders pi/4 of what
+ * power / (pi A) would give), and the triangles the
+ * estimates' fixed points lie on (2 for a rect, an inscribed fan of 16 for a disk), wound so that
+ * their normals are the emission direction. 0 ok, -1 out of memory. */
+#define DISK_ESTIMATE_FAN 16
+static int build_shape_area(const IoLight *il, Light *l, vec3 color) {
+    l->type = il->type == IO_LIGHT_RECT ? LIGHT_RECT : LIGHT_DISK;
+    l->axis_u = v3(il->axis_u[0], il->axis_u[1], il->axis_u[2]);
+    l->axis_v = v3(il->axis_v[0], il->axis_v[1], il->axis_v[2]);
+    vec3 cr = v3_cross(l->axis_u, l->axis_v);
+    float len = v3_length(cr);
+    if (!(len > 0.0f) || !isfinite(len) || !v3_is_finite(l->axis_u) || !v3_is_finite(l->axis_v)) return 0; /* area 0 */
+    vec3 ng = v3_scale(cr, 1.0f / len);
+    /* the emitting side is the node's -Z side (its plane normal pointing there) */
+    if (v3_dot(ng, l->direction) < 0.0f) ng = v3_neg(ng);
+    l->direction = ng;
+    /* dual basis: (y - c) . dual_u = a, (y - c) . dual_v = b for y = c + a u + b v in the plane */
+    vec3 vn = v3_cross(l->axis_v, ng), nu = v3_cross(ng, l->axis_u);
+    l->dual_u = v3_scale(vn, 1.0f / v3_dot(l->axis_u, vn));
+    l->dual_v = v3_scale(nu, 1.0f / v3_dot(l->axis_v, nu));
+    l->area = l->type == LIGHT_RECT ? 4.0f * len : PI_F * len;
+    l->rect_ortho = l->type == LIGHT_RECT &&
+                    fabsf(v3_dot(l->axis_u, l->axis_v)) <= 1e-6f * v3_length(l->axis_u) * v3_length(l->axis_v);
+    float power = finite_or_zero(il->intensity);
+    l->emission = v3_scale(color, power / (4.0f * l->area));
+    if (!v3_is_finite(l->emission)) { l->area = 0.0f; return 0; }
+    l->power = PI_F * l->area * v3_luminance(l->emission);
+    uint32_t nt = l->type == LIGHT_RECT ? 2u : DISK_ESTIMATE_FAN;
+    l->world_vertices = malloc((size_t)nt * 9 * sizeof(float));
+    float areas[DISK_ESTIMATE_FAN];
+    if (!l->world_vertices) return -1;
+    vec3 c = l->position, u = l->axis_u, v = l->axis_v;
+    for (uint32_t t = 0; t < nt; ++t) {
+        vec3 w[3];
+        if (l->type == LIGHT_RECT) {
+            vec3 p00 = v3_sub(v3_sub(c, u), v), p10 = v3_sub(v3_add(c, u), v), p11 = v3_add(v3_add(c, u), v),
+                 p01 = v3_add(v3_sub(c, u), v);
+            w[0] = p00; w[1] = t ? p11 : p10; w[2] = t ? p01 : p11;
+        } else {
+            float a0 = 2.0f * PI_F * (float)t / (float)nt, a1 = 2.0f * PI_F * (float)(t + 1) / (float)nt;
+            w[0] = c;
+            w[1] = v3_add(c, v3_add(v3_scale(u, cosf(a0)), v3_scale(v, sinf(a0))));
+            w[2] = v3_add(c, v3_add(v3_scale(u, cosf(a1)), v3_scale(v, sinf(a1))));
+        }
+        vec3 n = v3_cross(v3_sub(w[1], w[0]), v3_sub(w[2], w[0]));
+        if (v3_dot(n, ng) < 0.0f) { vec3 tmp = w[1]; w[1] = w[2]; w[2] = tmp; }
+        for (int k = 0; k < 3; ++k) {
+            l->world_vertices[9 * t + 3 * k] = w[k].x;
+            l->world_vertices[9 * t + 3 * k + 1] = w[k].y;
+            l->world_vertices[9 * t + 3 * k + 2] = w[k].z;
+        }
+        areas[t] = 0.5f * v3_length(n);
+    }
+    if (dist1d_init(&l->triangles, areas, nt) != 0) { free(l->world_vertices); l->world_vertices = NULL; return -1; }
+    return 0;
+}
+
 int light_area_tree_build(Light *l) {
     memset(&l->tri_tree, 0, sizeof l->tri_tree);
     if (l->type != LIGHT_AREA || l->triangles.n <= LIGHT_AREA_TREE_MAX_CDF || !l->world_vertices) return 0;
@@ -93,6 +153,146 @@ static float env_average_luminance(const Scene *scene) {
         }
     }
     return wsum > 0.0 ? (float)(sum / wsum) * scene->env_strength : 0.0f;
+}
+
+/* ---------------------------------------------------------------- the shape lights' BVH */
+
+typedef struct ShapeBvh {
+    RTCScene scene;
+    const Light *lights;
+    uint32_t *prim_light; /* primitive -> light index */
+} ShapeBvh;
+
+/* A query: Embree's context first (the intersection callback gets it back), then the ray as the
+ * caller gave it (light_shape_hit sees exactly the floats the linear path would) and the crossings
+ * found, up to SHAPE_QUERY_MAX (more: the caller falls back to the list). */
+#define SHAPE_QUERY_MAX 64
+typedef struct ShapeQuery {
+    struct RTCIntersectContext ctx;
+    const ShapeBvh *bvh;
+    vec3 o, d, receiver;
+    float tmin, tmax;
+    uint32_t n, overflow;
+    uint32_t light[SHAPE_QUERY_MAX];
+    float t[SHAPE_QUERY_MAX];
+    vec3 radiance[SHAPE_QUERY_MAX];
+} ShapeQuery;
+
+static void shape_box(const Light *l, vec3 *lo, vec3 *hi) {
+    vec3 ext = v3s(l->radius);
+    if (l->type == LIGHT_RECT || l->type == LIGHT_DISK) /* |u_i| + |v_i| covers both */
+        ext = v3(fabsf(l->axis_u.x) + fabsf(l->axis_v.x), fabsf(l->axis_u.y) + fabsf(l->axis_v.y),
+                 fabsf(l->axis_u.z) + fabsf(l->axis_v.z));
+    /* a little wider: the box is only a filter, light_shape_hit decides */
+    ext = v3_add(v3_scale(ext, 1.0f + 1e-4f), v3s(1e-6f * (fabsf(l->position.x) + fabsf(l->position.y) + fabsf(l->position.z))));
+    *lo = v3_sub(l->position, ext);
+    *hi = v3_add(l->position, ext);
+}
+
+static void shape_bounds_fn(const struct RTCBoundsFunctionArguments *args) {
+    const ShapeBvh *b = args->geometryUserPtr;
+    vec3 lo, hi;
+    shape_box(&b->lights[b->prim_light[args->primID]], &lo, &hi);
+    args->bounds_o->lower_x = lo.x; args->bounds_o->lower_y = lo.y; args->bounds_o->lower_z = lo.z;
+    args->bounds_o->upper_x = hi.x; args->bounds_o->upper_y = hi.y; args->bounds_o->upper_z = hi.z;
+}
+
+static void shape_intersect_fn(const struct RTCIntersectFunctionNArguments *args) {
+    if (!args->valid[0]) return;
+    ShapeQuery *q = (ShapeQuery *)args->context;
+    uint32_t light = q->bvh->prim_light[args->primID];
+    float t;
+    vec3 le;
+    if (!light_shape_hit(&q->bvh->lights[light], q->o, q->d, q->tmin, q->tmax, q->receiver, &t, &le)) return;
+    if (q->n == SHAPE_QUERY_MAX) { q->overflow = 1; return; }
+    q->light[q->n] = light;
+    q->t[q->n] = t;
+    q->radiance[q->n] = le;
+    ++q->n;
+    /* no hit reported: the traversal goes on to every other crossing */
+}
+
+static void shape_occluded_fn(const struct RTCOccludedFunctionNArguments *args) { (void)args; }
+
+static void shape_bvh_free(void *p) {
+    ShapeBvh *b = p;
+    if (!b) return;
+    if (b->scene) rtcReleaseScene(b->scene);
+    free(b->prim_light);
+    free(b);
+}
+
+/* 0 ok, -1 out of memory. */
+static int shape_bvh_build(Lights *ls, const Scene *scene) {
+    ShapeBvh *b = calloc(1, sizeof *b);
+    if (!b) return -1;
+    uint32_t n = ls->num_shapes - ls->num_suns, k = 0;
+    b->prim_light = malloc(n * sizeof *b->prim_light);
+    if (!b->prim_light) { free(b); return -1; }
+    for (uint32_t i = 0; i < ls->num_shapes; ++i)
+        if (ls->lights[ls->shapes[i]].type != LIGHT_DIRECTIONAL) b->prim_light[k++] = ls->shapes[i];
+    b->lights = ls->lights;
+    b->scene = rtcNewScene(scene->device);
+    RTCGeometry g = rtcNewGeometry(scene->device, RTC_GEOMETRY_TYPE_USER);
+    rtcSetGeometryUserPrimitiveCount(g, n);
+    rtcSetGeometryUserData(g, b);
+    rtcSetGeometryBoundsFunction(g, shape_bounds_fn, NULL);
+    rtcSetGeometryIntersectFunction(g, shape_intersect_fn);
+    rtcSetGeometryOccludedFunction(g, shape_occluded_fn);
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(b->scene, g);
+    rtcReleaseGeometry(g);
+    rtcCommitScene(b->scene);
+    ls->shape_bvh = b;
+    return 0;
+}
+
+void lights_shape_crossings(const Lights *ls, vec3 o, vec3 d, float tmin, float tmax, vec3 receiver,
+                            void (*fn)(void *user, uint32_t light, float t, vec3 radiance), void *user) {
+    const ShapeBvh *b = ls->shape_bvh;
+    float t;
+    vec3 le;
+    if (b) {
+        ShapeQuery q;
+        rtcInitIntersectContext(&q.ctx);
+        q.bvh = b;
+        q.o = o; q.d = d; q.receiver = receiver;
+        q.tmin = tmin; q.tmax = tmax;
+        q.n = q.overflow = 0;
+        struct RTCRayHit rh;
+        rh.ray.org_x = o.x; rh.ray.org_y = o.y; rh.ray.org_z = o.z;
+        rh.ray.dir_x = d.x; rh.ray.dir_y = d.y; rh.ray.dir_z = d.z;
+        rh.ray.tnear = fmaxf(tmin, 0.0f);
+        rh.ray.tfar = isinf(tmax) ? INFINITY : tmax * (1.0f + 1e-5f) + 1e-6f;
+        rh.ray.time = 0.0f;
+        rh.ray.mask = 0xFFFFFFFFu;
+        rh.ray.id = 0;
+        rh.ray.flags = 0;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(b->scene, &q.ctx, &rh);
+        if (!q.overflow) {
+            /* the suns (escaping rays), then everything in light order */
+            for (uint32_t k = 0; k < ls->num_suns && isinf(tmax); ++k)
+                if (light_shape_hit(&ls->lights[ls->suns[k]], o, d, tmin, tmax, receiver, &t, &le)) {
+                    if (q.n == SHAPE_QUERY_MAX) { q.overflow = 1; break; }
+                    q.light[q.n] = ls->suns[k]; q.t[q.n] = t; q.radiance[q.n] = le; ++q.n;
+                }
+        }
+        if (!q.overflow) {
+            for (uint32_t i = 1; i < q.n; ++i) /* insertion sort by light index */
+                for (uint32_t j = i; j > 0 && q.light[j - 1] > q.light[j]; --j) {
+                    uint32_t tl = q.light[j]; q.light[j] = q.light[j - 1]; q.light[j - 1] = tl;
+                    float tt = q.t[j]; q.t[j] = q.t[j - 1]; q.t[j - 1] = tt;
+                    vec3 tr = q.radiance[j]; q.radiance[j] = q.radiance[j - 1]; q.radiance[j - 1] = tr;
+                }
+            for (uint32_t k = 0; k < q.n; ++k) fn(user, q.light[k], q.t[k], q.radiance[k]);
+            return;
+        }
+    }
+    /* the list, in light order (few shapes, or more crossings than a query holds) */
+    for (uint32_t k = 0; k < ls->num_shapes; ++k)
+        if (light_shape_hit(&ls->lights[ls->shapes[k]], o, d, tmin, tmax, receiver, &t, &le)) fn(user, ls->shapes[k], t, le);
 }
 
 int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, CandelaLightUnits units, char *err,
@@ -131,6 +331,48 @@ int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, Candel
         }
         float lum = v3_luminance(l.intensity);
         l.link = link_of_node && il->node >= 0 ? link_of_node[il->node] : -1;
+        if (il->type == IO_LIGHT_RECT || il->type == IO_LIGHT_DISK) {
+            /* an area light: power in Blender's watts, whatever the light units */
+            vec3 c = v3_max(color, v3s(0.0f));
+            if (build_shape_area(il, &l, c) != 0) goto oom;
+            if (!(l.area > 0.0f) || !isfinite(l.area)) {
+                light_area_free(&l);
+                fprintf(stderr, "candela: warning: area light '%s' has no area; ignored\n", il->name);
+                continue;
+            }
+            if (push_light(ls, &cap, &l) != 0) { light_area_free(&l); goto oom; }
+            continue;
+        }
+        /* a sphere of radius r with the point light's intensity I in every direction (far field):
+         * radiance I / (pi r^2), the same power (Cycles' point light radius keeps the power) */
+        float radius = il->type != IO_LIGHT_DIRECTIONAL ? finite_or_zero(il->radius) : 0.0f;
+        if (radius > 0.0f) {
+            l.radius = radius;
+            /* Cycles 3.4 (point_light_sample, ray_aligned_disk_intersect): a disk facing the
+             * shading point; Blender 4 made it the sphere that is the default here */
+            l.sphere_disk = scene->light_model == CANDELA_LIGHT_MODEL_BLENDER3;
+            l.emission = v3_scale(l.intensity, 1.0f / (PI_F * radius * radius));
+            if (!v3_is_finite(l.emission)) { l.radius = 0.0f; l.emission = v3s(0.0f); }
+        }
+        float angle = il->type == IO_LIGHT_DIRECTIONAL ? finite_or_zero(il->angle) : 0.0f;
+        if (angle > 0.0f && angle < PI_F) {
+            /* a sun of angular diameter `angle`: uniform radiance over the cone of half-angle h,
+             * E = L * pi sin^2 h on a perpendicular plane (solid angle 2 pi (1 - cos h) times the
+             * mean cosine (1 + cos h) / 2), E the glTF irradiance */
+            double h = 0.5 * (double)angle, sh = sin(0.5 * h);
+            l.sun_omc = (float)(2.0 * sh * sh); /* 1 - cos h without cancellation */
+            double s2 = sin(h) * sin(h);
+            l.emission = v3_scale(l.intensity, (float)(1.0 / (PI_F * s2)));
+            /* Cycles 3.4 samples a sun as a disk of radius tan h at unit distance with eval_fac =
+             * pdf, so its perpendicular irradiance is the strength times the mean cosine of that
+             * disk's directions, 2 cos h / (1 + cos h) (measured with Blender 3.4.1: 0.99233 at
+             * 20 degrees); --light-model blender3 keeps that (uniform radiance: the same irradiance
+             * on any plane that sees the whole cone) */
+            if (scene->light_model == CANDELA_LIGHT_MODEL_BLENDER3) {
+                double ch = cos(h);
+                l.emission = v3_scale(l.emission, (float)(2.0 * ch / (1.0 + ch)));
+            }
+        }
         switch (il->type) {
         case IO_LIGHT_POINT:
             l.type = LIGHT_POINT;
@@ -232,6 +474,19 @@ int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, Candel
         if (push_light(ls, &cap, &l) != 0) goto oom;
     }
     if (ls->environment >= 0) light_env_estimates(scene, ls->env_estimate);
+    for (uint32_t i = 0; i < ls->count; ++i) ls->num_shapes += light_is_shape(&ls->lights[i]) ? 1u : 0u;
+    if (ls->num_shapes) {
+        ls->shapes = malloc(ls->num_shapes * sizeof *ls->shapes);
+        ls->suns = malloc(ls->num_shapes * sizeof *ls->suns);
+        if (!ls->shapes || !ls->suns) goto oom;
+        uint32_t k = 0;
+        for (uint32_t i = 0; i < ls->count; ++i) {
+            if (!light_is_shape(&ls->lights[i])) continue;
+            ls->shapes[k++] = i;
+            if (ls->lights[i].type == LIGHT_DIRECTIONAL) ls->suns[ls->num_suns++] = i;
+        }
+        if (ls->num_shapes - ls->num_suns > LIGHT_SHAPE_BVH_MIN && shape_bvh_build(ls, scene) != 0) goto oom;
+    }
     free(link_of_node);
     if (lights_build_linking(ls, scene, err, err_len) != 0) { lights_free(ls); return -1; }
     return 0;
@@ -244,9 +499,12 @@ oom:
 
 void lights_free(Lights *ls) {
     for (uint32_t i = 0; i < ls->count; ++i) {
-        if (ls->lights[i].type == LIGHT_AREA) light_area_free(&ls->lights[i]);
+        if (light_is_areal(&ls->lights[i])) light_area_free(&ls->lights[i]);
     }
     free(ls->lights);
+    free(ls->shapes);
+    free(ls->suns);
+    shape_bvh_free(ls->shape_bvh);
     if (ls->environment >= 0) dist2d_free(&ls->env_distribution);
     free(ls->of_primitive);
     free(ls->of_medium);
@@ -329,12 +587,373 @@ float light_env_pdf_li(const Lights *ls, vec3 d) {
     return dist2d_pdf(&ls->env_distribution, uv) / (2.0f * PI_F * PI_F * sin_theta);
 }
 
+/* ---------------------------------------------------------------- light shapes */
+
+/* The cone a sphere subtends from p (pbrt-v4 Sphere::Sample(ctx), "Sampling Spheres"): sin^2 and
+ * 1 - cos of its half-angle, the latter from sin^2 / 2 below 1.5 degrees where 1 - cos loses its
+ * digits (sampling and light_shape_pdf_li both use this). 0 when p is inside the sphere. */
+static int sphere_cone(const Light *l, vec3 p, float *sin2_max, float *omc_max) {
+    vec3 d = v3_sub(l->position, p);
+    float dc2 = v3_dot(d, d), r2 = l->radius * l->radius;
+    if (!(dc2 > r2)) return 0;
+    float s2 = r2 / dc2;
+    *sin2_max = s2;
+    *omc_max = s2 < 0.00068523f ? 0.5f * s2 : 1.0f - safe_sqrtf(1.0f - s2);
+    return 1;
+}
+
+/* A sphere light's radiance towards receiver p: a spot's falloff on the direction from the
+ * centre (Cycles evaluates the cone from the light's centre). */
+static vec3 sphere_radiance(const Light *l, vec3 p) {
+    if (l->type != LIGHT_SPOT) return l->emission;
+    vec3 w = v3_sub(p, l->position);
+    float len = v3_length(w);
+    if (!(len > 0.0f)) return v3s(0.0f);
+    return v3_scale(l->emission, light_spot_falloff(l, v3_scale(w, 1.0f / len)));
+}
+
+/* A unit vector at angle theta from axis z (cos_t, sin_t given), azimuth 2 pi u. */
+static vec3 cone_dir(vec3 z, float cos_t, float sin_t, float u) {
+    vec3 t, b;
+    onb_from_normal(z, &t, &b);
+    float phi = 2.0f * PI_F * u;
+    return v3_add(v3_scale(z, cos_t), v3_add(v3_scale(t, sin_t * cosf(phi)), v3_scale(b, sin_t * sinf(phi))));
+}
+
+/* --light-model blender3's point radius: a disk of radius r centred at the light, facing the
+ * receiver p, sampled by area with the concentric map (Cycles 3.4's disk_light_sample). */
+static int sample_facing_disk(const Light *l, vec3 p, float u0, float u1, LightLiSample *s) {
+    vec3 to = v3_sub(p, l->position);
+    float dc = v3_length(to);
+    if (!(dc > 0.0f)) return 0;
+    vec3 nd = v3_scale(to, 1.0f / dc), t, b;
+    onb_from_normal(nd, &t, &b);
+    vec2 q = sample_concentric_disk(u0, u1);
+    vec3 y = v3_add(l->position, v3_scale(v3_add(v3_scale(t, q.x), v3_scale(b, q.y)), l->radius));
+    vec3 d = v3_sub(y, p);
+    float d2 = v3_dot(d, d);
+    if (!(d2 > 0.0f)) return 0;
+    float dist = sqrtf(d2);
+    s->wi = v3_scale(d, 1.0f / dist);
+    s->distance = dist;
+    float cos_l = -v3_dot(s->wi, nd);
+    if (!(cos_l > 0.0f)) return 0;
+    s->pdf = d2 / (cos_l * PI_F * l->radius * l->radius);
+    s->radiance = sphere_radiance(l, p);
+    s->is_delta = 0;
+    return s->pdf > 0.0f && isfinite(s->pdf) && !v3_is_black(s->radiance);
+}
+
+static int sample_sphere(const Light *l, vec3 p, float u0, float u1, LightLiSample *s) {
+    if (l->sphere_disk) return sample_facing_disk(l, p, u0, u1, s);
+    vec3 c = l->position;
+    float r = l->radius;
+    float sin2_max, omc_max;
+    vec3 y, ny;
+    if (!sphere_cone(l, p, &sin2_max, &omc_max)) {
+        /* p inside the sphere: area sampling (the sphere is seen all around, every direction
+         * reaching exactly one point: where a ray from p leaves it) */
+        ny = sample_uniform_sphere(u0, u1);
+        y = v3_madd(c, ny, r);
+        vec3 d = v3_sub(y, p);
+        float d2 = v3_dot(d, d);
+        if (!(d2 > 0.0f)) return 0;
+        float dist = sqrtf(d2);
+        s->wi = v3_scale(d, 1.0f / dist);
+        s->distance = dist;
+        float cos_l = fabsf(v3_dot(ny, s->wi));
+        s->pdf = cos_l > 0.0f ? d2 / (cos_l * 4.0f * PI_F * r * r) : 0.0f;
+    } else {
+        /* uniform in the cone of the visible cap; the point on the sphere from the angle alpha
+         * at the centre (pbrt-v4: accurate for small cones, where ray-sphere intersection is not) */
+        float dc = v3_length(v3_sub(c, p));
+        float sin_max = safe_sqrtf(sin2_max);
+        float sin2_t, cos_t;
+        if (sin2_max < 0.00068523f) {
+            sin2_t = sin2_max * u0;
+            cos_t = safe_sqrtf(1.0f - sin2_t);
+        } else {
+            cos_t = 1.0f - u0 * omc_max;
+            sin2_t = fmaxf(0.0f, 1.0f - cos_t * cos_t);
+        }
+        float cos_a = sin2_t / sin_max + cos_t * safe_sqrtf(1.0f - sin2_t / sin2_max);
+        float sin_a = safe_sqrtf(1.0f - cos_a * cos_a);
+        vec3 z = v3_scale(v3_sub(c, p), 1.0f / dc);
+        /* the normal at the point: angle alpha from -z */
+        ny = cone_dir(v3_neg(z), cos_a, sin_a, u1);
+        y = v3_madd(c, ny, r);
+        vec3 d = v3_sub(y, p);
+        float dist = v3_length(d);
+        if (!(dist > 0.0f)) return 0;
+        s->wi = v3_scale(d, 1.0f / dist);
+        s->distance = dist;
+        s->pdf = 1.0f / (2.0f * PI_F * omc_max);
+    }
+    s->radiance = sphere_radiance(l, p);
+    s->is_delta = 0;
+    return s->pdf > 0.0f && isfinite(s->pdf) && !v3_is_black(s->radiance);
+}
+
+static int sample_sun(const Light *l, float u0, float u1, LightLiSample *s) {
+    /* uniform in the cone: 1 - cos theta = u omc, sin theta from it without cancellation */
+    float omc = u0 * l->sun_omc;
+    float sin_t = safe_sqrtf(omc * (2.0f - omc));
+    s->wi = v3_normalize(cone_dir(v3_neg(l->direction), 1.0f - omc, sin_t, u1));
+    s->distance = INFINITY;
+    s->radiance = l->emission;
+    s->pdf = 1.0f / (2.0f * PI_F * l->sun_omc);
+    s->is_delta = 0;
+    return isfinite(s->pdf) && !v3_is_black(s->radiance);
+}
+
+/* Spherical rectangle sampling (Ureña, Fajardo and King 2013, "An Area-Preserving
+ * Parametrization for Spherical Rectangles", §4; as pbrt-v4's SampleSphericalRectangle): the
+ * rectangle's frame seen from p, its solid angle, and the point for (u0, u1), uniform in solid
+ * angle. Set up in double (the solid angle is a difference of angles near 2 pi). */
+typedef struct SphRect {
+    double ex[3], ey[3], ez[3]; /* the local frame (x along axis_u, y along axis_v, z towards p's side flipped) */
+    double x0, y0, z0, x1, y1;  /* the rectangle's extent in it, relative to p */
+    double n0z, n2z, g0, g1, g2, g3;
+    double omega;               /* solid angle */
+} SphRect;
+
+static double d3dot(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+static void d3cross_unit(const double a[3], const double b[3], double out[3]) {
+    double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+    double len = sqrt(d3dot(c, c));
+    for (int k = 0; k < 3; ++k) out[k] = len > 0.0 ? c[k] / len : 0.0;
+}
+static double angle_between(const double a[3], const double b[3]) { /* of unit vectors, -a and b */
+    double dt = -d3dot(a, b);
+    return acos(dt < -1.0 ? -1.0 : dt > 1.0 ? 1.0 : dt);
+}
+
+static double sph_rect_setup(const Light *l, vec3 p, SphRect *r) {
+    double ul = v3_length(l->axis_u), vl = v3_length(l->axis_v);
+    for (int k = 0; k < 3; ++k) {
+        r->ex[k] = (double)(k == 0 ? l->axis_u.x : k == 1 ? l->axis_u.y : l->axis_u.z) / ul;
+        r->ey[k] = (double)(k == 0 ? l->axis_v.x : k == 1 ? l->axis_v.y : l->axis_v.z) / vl;
+    }
+    r->ez[0] = r->ex[1] * r->ey[2] - r->ex[2] * r->ey[1];
+    r->ez[1] = r->ex[2] * r->ey[0] - r->ex[0] * r->ey[2];
+    r->ez[2] = r->ex[0] * r->ey[1] - r->ex[1] * r->ey[0];
+    /* the corner c - u - v relative to p, in the frame */
+    double s[3] = {(double)l->position.x - l->axis_u.x - l->axis_v.x - p.x, (double)l->position.y - l->axis_u.y - l->axis_v.y - p.y,
+                   (double)l->position.z - l->axis_u.z - l->axis_v.z - p.z};
+    r->x0 = d3dot(s, r->ex);
+    r->y0 = d3dot(s, r->ey);
+    r->z0 = d3dot(s, r->ez);
+    if (r->z0 > 0.0) { for (int k = 0; k < 3; ++k) r->ez[k] = -r->ez[k]; r->z0 = -r->z0; }
+    r->x1 = r->x0 + 2.0 * ul;
+    r->y1 = r->y0 + 2.0 * vl;
+    double v00[3] = {r->x0, r->y0, r->z0}, v01[3] = {r->x0, r->y1, r->z0}, v10[3] = {r->x1, r->y0, r->z0},
+           v11[3] = {r->x1, r->y1, r->z0};
+    double n0[3], n1[3], n2[3], n3[3];
+    d3cross_unit(v00, v10, n0);
+    d3cross_unit(v10, v11, n1);
+    d3cross_unit(v11, v01, n2);
+    d3cross_unit(v01, v00, n3);
+    r->g0 = angle_between(n0, n1);
+    r->g1 = angle_between(n1, n2);
+    r->g2 = angle_between(n2, n3);
+    r->g3 = angle_between(n3, n0);
+    r->n0z = n0[2];
+    r->n2z = n2[2];
+    r->omega = r->g0 + r->g1 + r->g2 + r->g3 - 2.0 * 3.14159265358979323846;
+    return r->omega;
+}
+
+/* Whether the rect is sampled by solid angle from p (pbrt-v4's window: above 3e-4 sr, where
+ * the angles still resolve it, below 6.22 sr, where it is nearly a hemisphere and area sampling
+ * does as well); sampling and the pdf of a BSDF hit decide with this same function. */
+#define SPH_RECT_MIN 3e-4
+#define SPH_RECT_MAX 6.22
+__attribute__((noinline)) static int rect_spherical(const Light *l, vec3 p, SphRect *r) {
+    if (!l->rect_ortho) return 0;
+    double omega = sph_rect_setup(l, p, r);
+    return omega > SPH_RECT_MIN && omega < SPH_RECT_MAX && r->z0 < 0.0;
+}
+
+static vec3 sph_rect_sample(const SphRect *r, vec3 p, float u0, float u1) {
+    const double pi = 3.14159265358979323846;
+    double au = u0 * (r->g0 + r->g1 - 2.0 * pi) + (u0 - 1.0) * (r->g2 + r->g3);
+    double fu = (cos(au) * r->n0z - r->n2z) / sin(au);
+    double cu = copysign(1.0 / sqrt(fu * fu + r->n0z * r->n0z), fu);
+    cu = cu < -(1.0 - 1e-12) ? -(1.0 - 1e-12) : cu > 1.0 - 1e-12 ? 1.0 - 1e-12 : cu;
+    double xu = -(cu * r->z0) / sqrt(fmax(0.0, 1.0 - cu * cu));
+    xu = xu < r->x0 ? r->x0 : xu > r->x1 ? r->x1 : xu;
+    double dd = sqrt(xu * xu + r->z0 * r->z0);
+    double h0 = r->y0 / sqrt(dd * dd + r->y0 * r->y0), h1 = r->y1 / sqrt(dd * dd + r->y1 * r->y1);
+    double hv = h0 + u1 * (h1 - h0), hv2 = hv * hv;
+    double yv = hv2 < 1.0 - 1e-12 ? hv * dd / sqrt(1.0 - hv2) : r->y1;
+    yv = yv < r->y0 ? r->y0 : yv > r->y1 ? r->y1 : yv;
+    double q[3];
+    for (int k = 0; k < 3; ++k) q[k] = xu * r->ex[k] + yv * r->ey[k] + r->z0 * r->ez[k];
+    return v3((float)(p.x + q[0]), (float)(p.y + q[1]), (float)(p.z + q[2]));
+}
+
+/* Rects by solid angle where it pays (rect_spherical), else uniformly by area (any parallelogram
+ * a sheared node makes); disks by area with the concentric map (an ellipse for x != y); area
+ * densities converted to solid angle. */
+static int sample_planar(const Light *l, vec3 p, float u0, float u1, LightLiSample *s) {
+    float a, b;
+    SphRect sr;
+    if (l->type == LIGHT_RECT && rect_spherical(l, p, &sr)) {
+        vec3 y = sph_rect_sample(&sr, p, u0, u1);
+        vec3 d = v3_sub(y, p);
+        float dist = v3_length(d);
+        if (!(dist > 0.0f)) return 0;
+        s->wi = v3_scale(d, 1.0f / dist);
+        s->distance = dist;
+        if (!(v3_dot(s->wi, l->direction) < 0.0f)) return 0; /* one-sided */
+        s->pdf = (float)(1.0 / sr.omega);
+        s->radiance = l->emission;
+        s->is_delta = 0;
+        return s->pdf > 0.0f && isfinite(s->pdf) && !v3_is_black(s->radiance);
+    }
+    if (l->type == LIGHT_RECT) {
+        a = 2.0f * u0 - 1.0f;
+        b = 2.0f * u1 - 1.0f;
+    } else {
+        vec2 q = sample_concentric_disk(u0, u1);
+        a = q.x;
+        b = q.y;
+    }
+    vec3 y = v3_add(l->position, v3_add(v3_scale(l->axis_u, a), v3_scale(l->axis_v, b)));
+    vec3 d = v3_sub(y, p);
+    float d2 = v3_dot(d, d);
+    if (!(d2 > 0.0f)) return 0;
+    float dist = sqrtf(d2);
+    s->wi = v3_scale(d, 1.0f / dist);
+    s->distance = dist;
+    float cos_l = -v3_dot(s->wi, l->direction); /* one-sided: it emits along direction */
+    if (!(cos_l > 0.0f)) return 0;
+    s->pdf = d2 / (cos_l * l->area);
+    s->radiance = l->emission;
+    s->is_delta = 0;
+    return s->pdf > 0.0f && isfinite(s->pdf) && !v3_is_black(s->radiance);
+}
+
+int light_shape_hit(const Light *l, vec3 o, vec3 d, float tmin, float tmax, vec3 receiver, float *t, vec3 *radiance) {
+    switch (l->type) {
+    case LIGHT_DIRECTIONAL: {
+        if (!isinf(tmax) || isinf(tmin) || !(l->sun_omc > 0.0f)) return 0; /* (tmin infinite: counted) */
+        /* inside the cone: sin^2 of the angle to the axis below sin^2 h (no 1 - cos cancellation) */
+        vec3 axis = v3_neg(l->direction);
+        float c = v3_dot(d, axis);
+        if (!(c > 0.0f)) return 0;
+        vec3 x = v3_cross(d, axis);
+        float s2 = v3_dot(x, x), omc = l->sun_omc;
+        if (!(s2 <= omc * (2.0f - omc))) return 0;
+        *t = INFINITY;
+        *radiance = l->emission;
+        return 1;
+    }
+    case LIGHT_POINT:
+    case LIGHT_SPOT: {
+        if (!(l->radius > 0.0f)) return 0;
+        if (l->sphere_disk) {
+            /* the disk facing the receiver (the vertex whose NEE would have sampled it) */
+            vec3 nd = v3_sub(receiver, l->position);
+            float len = v3_length(nd);
+            if (!(len > 0.0f)) return 0;
+            nd = v3_scale(nd, 1.0f / len);
+            float dn = v3_dot(d, nd);
+            if (!(dn < 0.0f)) return 0;
+            float th = v3_dot(v3_sub(l->position, o), nd) / dn;
+            if (!(th > tmin && th < tmax)) return 0;
+            vec3 r = v3_sub(v3_madd(o, d, th), l->position);
+            if (!(v3_dot(r, r) <= l->radius * l->radius)) return 0;
+            *t = th;
+            *radiance = sphere_radiance(l, receiver);
+            return !v3_is_black(*radiance);
+        }
+        /* |o + t d - c|^2 = r^2 with the half-b form on f = o - c, and the far root from the near
+         * one's product, as pbrt does to keep digits for small spheres far away */
+        vec3 f = v3_sub(o, l->position);
+        float b = v3_dot(f, d);
+        vec3 perp = v3_sub(f, v3_scale(d, b));
+        float r2 = l->radius * l->radius;
+        float disc = r2 - v3_dot(perp, perp);
+        if (!(disc >= 0.0f)) return 0;
+        float sq = sqrtf(disc);
+        float q = b > 0.0f ? -(b + sq) : -(b - sq);
+        float c0 = v3_dot(f, f) - r2;
+        float t0 = q, t1 = q != 0.0f ? c0 / q : 0.0f;
+        if (t0 > t1) { float tmp = t0; t0 = t1; t1 = tmp; }
+        /* an origin outside sees the entry point, one inside the exit point */
+        float th = c0 > 0.0f ? t0 : t1;
+        if (!(th > tmin && th < tmax)) return 0;
+        *t = th;
+        *radiance = sphere_radiance(l, receiver);
+        return !v3_is_black(*radiance);
+    }
+    case LIGHT_RECT:
+    case LIGHT_DISK: {
+        float dn = v3_dot(d, l->direction);
+        if (!(dn < 0.0f)) return 0; /* one-sided: seen only against its emission direction */
+        float th = v3_dot(v3_sub(l->position, o), l->direction) / dn;
+        if (!(th > tmin && th < tmax)) return 0;
+        vec3 r = v3_sub(v3_madd(o, d, th), l->position);
+        float a = v3_dot(r, l->dual_u), b = v3_dot(r, l->dual_v);
+        int inside = l->type == LIGHT_RECT ? (fabsf(a) <= 1.0f && fabsf(b) <= 1.0f) : (a * a + b * b <= 1.0f);
+        if (!inside) return 0;
+        *t = th;
+        *radiance = l->emission;
+        return 1;
+    }
+    default:
+        return 0;
+    }
+}
+
+float light_shape_pdf_li(const Light *l, vec3 p, vec3 d, float t) {
+    switch (l->type) {
+    case LIGHT_DIRECTIONAL:
+        return l->sun_omc > 0.0f ? 1.0f / (2.0f * PI_F * l->sun_omc) : 0.0f;
+    case LIGHT_POINT:
+    case LIGHT_SPOT: {
+        if (!(l->radius > 0.0f)) return 0.0f;
+        if (l->sphere_disk) {
+            vec3 nd = v3_normalize(v3_sub(p, l->position));
+            float cos_l = -v3_dot(d, nd);
+            return cos_l > 0.0f ? t * t / (cos_l * PI_F * l->radius * l->radius) : 0.0f;
+        }
+        float sin2_max, omc_max;
+        if (sphere_cone(l, p, &sin2_max, &omc_max)) return 1.0f / (2.0f * PI_F * omc_max);
+        /* inside: area sampling at the exit point */
+        vec3 y = v3_madd(p, d, t);
+        vec3 ny = v3_normalize(v3_sub(y, l->position));
+        float cos_l = fabsf(v3_dot(ny, d));
+        return cos_l > 0.0f ? t * t / (cos_l * 4.0f * PI_F * l->radius * l->radius) : 0.0f;
+    }
+    case LIGHT_RECT:
+    case LIGHT_DISK: {
+        float cos_l = -v3_dot(d, l->direction);
+        if (!(cos_l > 0.0f)) return 0.0f;
+        SphRect sr;
+        if (l->type == LIGHT_RECT && rect_spherical(l, p, &sr)) return (float)(1.0 / sr.omega);
+        return t * t / (cos_l * l->area);
+    }
+    default:
+        return 0.0f;
+    }
+}
+
 int light_sample_li(const Lights *ls, const Light *l, const LightSampleContext *ctx, float u0, float u1, float u2,
                     float u3, LightLiSample *s) {
     const Scene *scene = ls->scene;
     vec3 p = ctx->p;
     s->triangle = 0;
+    if (light_is_shape(l)) {
+        if (l->type == LIGHT_DIRECTIONAL) return sample_sun(l, u0, u1, s);
+        if (l->type == LIGHT_RECT || l->type == LIGHT_DISK) return sample_planar(l, p, u0, u1, s);
+        return sample_sphere(l, p, u0, u1, s);
+    }
     switch (l->type) {
+    case LIGHT_RECT:
+    case LIGHT_DISK:
+        return 0; /* no area (not built) */
     case LIGHT_POINT:
     case LIGHT_SPOT: {
         vec3 d = v3_sub(l->position, p);

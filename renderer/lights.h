@@ -24,7 +24,8 @@
 
 struct Scene;
 
-typedef enum { LIGHT_POINT, LIGHT_SPOT, LIGHT_DIRECTIONAL, LIGHT_AREA, LIGHT_ENVIRONMENT, LIGHT_VOLUME } LightType;
+typedef enum { LIGHT_POINT, LIGHT_SPOT, LIGHT_DIRECTIONAL, LIGHT_AREA, LIGHT_ENVIRONMENT, LIGHT_VOLUME,
+               LIGHT_RECT, LIGHT_DISK } LightType;
 
 typedef struct Light {
     LightType type;
@@ -49,7 +50,35 @@ typedef struct Light {
     uint32_t medium_mesh;     /* the mesh medium around it (media.h; 0: none) */
     vec3 bounds_min, bounds_max; /* its world bounds */
     int32_t link;             /* its IoScene.light_links entry (light linking), or -1 */
+    /* light shapes (README "Light shapes"; light_is_shape): a point or spot light with radius > 0
+     * is a sphere of uniform radiance `emission` (I / (pi r^2); a spot's is scaled by its falloff
+     * towards the receiver, evaluated from the centre); a directional light with sun_omc > 0 a
+     * sun, a cone of half-angle h around -direction (sun_omc = 1 - cos h) of radiance `emission`
+     * (E / (pi sin^2 h): the glTF irradiance E on a perpendicular plane is kept); LIGHT_RECT /
+     * LIGHT_DISK a one-sided parallelogram / ellipse centred at position with half-extent vectors
+     * axis_u, axis_v, emitting `emission` along `direction` (its plane normal), area `area`. Rect
+     * and disk also fill triangles / world_vertices (2 triangles; a 16-triangle inscribed fan for
+     * the disk): only the estimates' fixed points use them, sampling and hits are exact. */
+    float radius;             /* point, spot: sphere radius (0: a delta point) */
+    int sphere_disk;          /* --light-model blender3: the radius is Cycles 3.4's disk of that radius
+                               * facing the receiver, not a sphere (same radiance) */
+    float sun_omc;            /* directional: 1 - cos(half-angle) (0: a delta direction) */
+    vec3 axis_u, axis_v;      /* rect, disk: world half-extent vectors */
+    vec3 dual_u, dual_v;      /* rect, disk: (y - position) . dual = the point's local coordinates */
+    int rect_ortho;           /* rect: its sides are perpendicular (spherical-rectangle sampling applies) */
 } Light;
+
+/* Whether a light has an extent that rays can hit (a sphere, a sun, a rect or a disk): NEE
+ * samples it by solid angle or area (not delta) and BSDF rays find it (lights_shape_hit), MIS. */
+static inline int light_is_shape(const Light *l) {
+    return ((l->type == LIGHT_POINT || l->type == LIGHT_SPOT) && l->radius > 0.0f) ||
+           (l->type == LIGHT_DIRECTIONAL && l->sun_omc > 0.0f) || l->type == LIGHT_RECT || l->type == LIGHT_DISK;
+}
+/* Whether a light's estimates sum fixed points on triangles (world_vertices): emissive meshes,
+ * rects and disks. */
+static inline int light_is_areal(const Light *l) {
+    return l->type == LIGHT_AREA || l->type == LIGHT_RECT || l->type == LIGHT_DISK;
+}
 
 /* Area lights with at most this many triangles pick them by area alone (no inner tree). */
 #define LIGHT_AREA_TREE_MAX_CDF 8
@@ -116,6 +145,14 @@ typedef struct Lights {
     const struct Scene *scene;  /* built from (environment image, emissive materials) */
     const struct SceneMedia *media; /* emissive volumes (NULL: none are lights) */
     LightLinking *link;         /* NULL: the scene has no light linking */
+    /* the shape lights (light_is_shape), ascending: what a camera or BSDF ray may cross
+     * (lights_shape_hit); suns only on rays that escape */
+    uint32_t *shapes;
+    uint32_t num_shapes;
+    uint32_t *suns;             /* the suns among them (found by escaping rays only) */
+    uint32_t num_suns;
+    void *shape_bvh;            /* lights.c ShapeBvh: an Embree BVH over the finite shapes, or NULL
+                                 * (few shapes: the list is tested linearly) */
 } Lights;
 
 /* Whether `light` may illuminate a vertex of link class cls (LightLinking). */
@@ -210,6 +247,25 @@ float light_area_triangle_pmf(const Light *light, const LightSampleContext *ctx,
 int light_area_tree_build(Light *l);
 /* Frees an area light's arrays and tree. */
 void light_area_free(Light *l);
+/* A ray o + t d (d unit) crossing shape light `light` (light_is_shape) at t in (tmin, tmax), tmax
+ * INFINITY for a ray that escapes (only then a sun is crossed, at t = INFINITY): 1 with the
+ * crossing's t and the radiance arriving along -d at `receiver` (the vertex that will weigh it
+ * by MIS: a spot sphere's falloff is evaluated towards it). Lights are transparent to rays
+ * (Cycles continues a ray through the lights it hits), so every crossing counts. A sphere is
+ * crossed once: where the ray enters it, or leaves it for an origin inside. Rects and disks are
+ * one-sided: only a ray against `direction` sees them. */
+int light_shape_hit(const Light *l, vec3 o, vec3 d, float tmin, float tmax, vec3 receiver, float *t, vec3 *radiance);
+/* Every shape light the ray o + t d crosses in (tmin, tmax) (light_shape_hit; suns only when tmax
+ * is INFINITY), passed to fn in ascending light order whatever the traversal (so sums are the
+ * same bit for bit with or without the BVH). Above LIGHT_SHAPE_BVH_MIN finite shapes the
+ * candidates come from an Embree BVH over their bounds (user geometry whose intersection
+ * callback runs light_shape_hit and never reports a hit, so traversal visits every crossing). */
+#define LIGHT_SHAPE_BVH_MIN 8
+void lights_shape_crossings(const Lights *ls, vec3 o, vec3 d, float tmin, float tmax, vec3 receiver,
+                            void (*fn)(void *user, uint32_t light, float t, vec3 radiance), void *user);
+/* Solid-angle pdf (given the light) that light_sample_li samples the direction d (unit) from p,
+ * for a shape light that d reaches (light_shape_hit true at distance t). */
+float light_shape_pdf_li(const Light *l, vec3 p, vec3 d, float t);
 /* Solid-angle pdf of the environment light for direction d. */
 float light_env_pdf_li(const Lights *ls, vec3 d);
 

@@ -36,8 +36,16 @@ static int light_visible(const Scene *scene, const Light *l, vec3 p, vec3 n, uin
     switch (l->type) {
     case LIGHT_POINT:
     case LIGHT_SPOT:
+    case LIGHT_RECT:  /* a sphere's, rect's or disk's centre */
+    case LIGHT_DISK:
     case LIGHT_VOLUME: /* its emission centroid */
         target = l->position;
+        if ((l->type == LIGHT_POINT || l->type == LIGHT_SPOT) && l->radius > 0.0f) {
+            /* a sphere: its point nearest p (a light a little inside an occluder shows there) */
+            vec3 to = v3_sub(p, l->position);
+            float len = v3_length(to);
+            if (len > l->radius) target = v3_madd(l->position, to, l->radius / len);
+        }
         break;
     case LIGHT_AREA: {
         const float *v = l->world_vertices;

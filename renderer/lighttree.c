@@ -78,9 +78,27 @@ static int light_bounds(const Light *l, LB *b) {
     b->two_sided = 0;
     switch (l->type) {
     case LIGHT_POINT:
-        b->bmin = b->bmax = l->position;
+        /* a sphere light: its box (the importance's distance and horizon bounds then cover
+         * every point of it) */
+        b->bmin = v3_sub(l->position, v3s(l->radius));
+        b->bmax = v3_add(l->position, v3s(l->radius));
         b->cos_o = -1.0f; /* theta_o = pi */
         break;
+    case LIGHT_RECT:
+    case LIGHT_DISK: {
+        /* one-sided and flat: its exact box, the normal cone of its plane, theta_e = pi/2 */
+        vec3 ext = v3(sqrtf(l->axis_u.x * l->axis_u.x + l->axis_v.x * l->axis_v.x),
+                      sqrtf(l->axis_u.y * l->axis_u.y + l->axis_v.y * l->axis_v.y),
+                      sqrtf(l->axis_u.z * l->axis_u.z + l->axis_v.z * l->axis_v.z));
+        if (l->type == LIGHT_RECT) /* the corners' extent: |u_i| + |v_i| */
+            ext = v3(fabsf(l->axis_u.x) + fabsf(l->axis_v.x), fabsf(l->axis_u.y) + fabsf(l->axis_v.y),
+                     fabsf(l->axis_u.z) + fabsf(l->axis_v.z));
+        b->bmin = v3_sub(l->position, ext);
+        b->bmax = v3_add(l->position, ext);
+        b->w = l->direction;
+        b->cos_o = 1.0f;
+        break;
+    }
     case LIGHT_VOLUME: /* emits in every direction from anywhere in its box */
         b->bmin = l->bounds_min;
         b->bmax = l->bounds_max;
@@ -91,7 +109,8 @@ static int light_bounds(const Light *l, LB *b) {
          * theta_e = theta_outer - theta_inner beyond it */
         b->phi = 4.0f * PI_F * v3_luminance(l->intensity);
         if (!(b->phi > 0.0f) || !isfinite(b->phi)) return 0;
-        b->bmin = b->bmax = l->position;
+        b->bmin = v3_sub(l->position, v3s(l->radius)); /* a sphere spot: its box (the cone is */
+        b->bmax = v3_add(l->position, v3s(l->radius)); /* evaluated from the centre, inside it) */
         b->w = v3_normalize(l->direction);
         float ci = clampf(l->cos_inner, -1.0f, 1.0f), co = clampf(l->cos_outer, -1.0f, 1.0f);
         if (ci < co) ci = co;
@@ -469,11 +488,14 @@ int light_tree_build_enabled(LightTree *t, const Light *lights, uint32_t count, 
     if (ninf) {
         t->infinite = malloc(ninf * sizeof *t->infinite);
         t->inf_dir = malloc(ninf * sizeof *t->inf_dir);
-        if (!t->infinite || !t->inf_dir) goto oom;
+        t->inf_sin = malloc(ninf * sizeof *t->inf_sin);
+        if (!t->infinite || !t->inf_dir || !t->inf_sin) goto oom;
         for (uint32_t i = 0; i < count; ++i) {
             if (t->kind[i] != LIGHT_TREE_INFINITE) continue;
             vec3 d = lights[i].type == LIGHT_DIRECTIONAL ? lights[i].direction : v3s(0.0f);
             t->inf_dir[t->num_infinite] = v3_is_finite(d) ? d : v3s(0.0f);
+            float omc = lights[i].type == LIGHT_DIRECTIONAL ? lights[i].sun_omc : 0.0f; /* a sun's cone */
+            t->inf_sin[t->num_infinite] = sqrtf(fmaxf(omc * (2.0f - omc), 0.0f));
             t->infinite[t->num_infinite++] = i;
         }
     }
@@ -540,6 +562,7 @@ void light_tree_free(LightTree *t) {
     free(t->kind);
     free(t->infinite);
     free(t->inf_dir);
+    free(t->inf_sin);
     memset(t, 0, sizeof *t);
 }
 
@@ -556,7 +579,8 @@ typedef struct InfSplit { float p_inf, p_bvh, pmf_inf; uint32_t alive; } InfSpli
 static inline int infinite_reaches(const LightTree *t, uint32_t k, vec3 n) {
     vec3 d = t->inf_dir[k]; /* zero: the environment, which may light every direction */
     if (v3_is_black(n) || v3_is_black(d)) return 1;
-    return -v3_dot(d, n) > 0.0f;
+    /* a sun reaches while any of its cone is above the horizon: the axis above -sin h */
+    return -v3_dot(d, n) > -t->inf_sin[k];
 }
 
 __attribute__((noinline)) static InfSplit infinite_split(const LightTree *t, const LightSampleContext *ctx) {

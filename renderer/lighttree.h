@@ -72,6 +72,7 @@ typedef struct LightTree {
     uint8_t *kind;         /* per light: LIGHT_TREE_NONE / _BVH / _INFINITE */
     uint32_t *infinite;    /* light indices of the infinite lights */
     vec3 *inf_dir;         /* per infinite light: a directional light's travel direction (0: environment) */
+    float *inf_sin;        /* per infinite light: sin of a sun's cone half-angle (0: a delta direction) */
     uint32_t num_infinite;
     float p_inf;           /* context-free probability of choosing among the infinite lights */
     float p_bvh;           /* 1 - p_inf: context-free factor every BVH light's pmf starts from */

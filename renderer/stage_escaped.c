@@ -8,6 +8,7 @@ void stage_escaped(const Integrator *ig, Slice *s) {
     const Lights *lights = ig->lights;
     for (uint32_t i = 0; i < s->num_escaped; ++i) {
         uint32_t p = s->escaped[i];
+        path_shape_emission(ig, s, p, INFINITY, 0);
         if (lights->environment < 0) { path_end(ig, s, p); continue; }
         vec3 d = ps->ray[p].dir;
         vec3 le = scene_env_radiance(ig->scene, d);

@@ -150,12 +150,19 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         const float b[3] = {beta.x, beta.y, beta.z};
         VolumeEvent ev;
         add_volume_emission(ig, s, p, &view, ray, tmax, beta);
+        /* the light shapes along the segment, each times the transmittance up to it, whatever
+         * the free flight does next (as the emission above); the surface or escape stage then
+         * starts past the segment (README "Light shapes") */
+        path_shape_emission(ig, s, p, tmax, 1);
         media_sample_event(&view, o, d, 0.0f, tmax, b, &rng, &ev, &s->volume);
         if (ev.type == VOLUME_EVENT_ABSORBED) return WALK_ENDED;
         beta = v3_mul(beta, v3(ev.weight[0], ev.weight[1], ev.weight[2]));
         ps->throughput[p] = beta;
         if (!v3_is_finite(beta) || v3_is_black(beta)) return WALK_ENDED;
-        if (ev.type == VOLUME_EVENT_PASSED) return isinf(tmax) ? WALK_ESCAPED : WALK_SURFACE;
+        if (ev.type == VOLUME_EVENT_PASSED) {
+            if (ig->lights->num_shapes) ps->ray[p].tnear = tmax; /* its light shapes are counted */
+            return isinf(tmax) ? WALK_ESCAPED : WALK_SURFACE;
+        }
 
         /* a real scattering event: this depth's vertex is in the medium */
         if ((int)ps->volume_bounces[p] >= ig->opt->max_volume_bounces) return WALK_ENDED;

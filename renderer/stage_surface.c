@@ -36,6 +36,52 @@ static void surface_emission(const Integrator *ig, uint32_t p, const SurfaceHit 
     path_add_radiance(ig, p, v3_scale(v3_mul(ps->throughput[p], le), w), RADIANCE_EMISSION);
 }
 
+/* One crossed shape light: its radiance with its MIS weight against NEE from the previous vertex
+ * (in a medium walk, times the transmittance up to it: ratio tracking with a sub-stream of its
+ * own per light). */
+typedef struct ShapeEmission { const Integrator *ig; Slice *s; uint32_t p; int in_medium; } ShapeEmission;
+static void shape_emission_add(void *user, uint32_t light, float t, vec3 le) {
+    const ShapeEmission *se = user;
+    const Integrator *ig = se->ig;
+    const PathState *ps = &ig->ps;
+    uint32_t p = se->p, link_class = ps->prev_link_class[p];
+    /* light linking: a light that does not reach the previous vertex adds nothing there */
+    if (link_class && !light_reaches(ig->lights, link_class, light)) return;
+    const SceneRay *ray = &ps->ray[p];
+    float w = 1.0f;
+    if (!ps->prev_delta[p]) {
+        vec3 prev = ps->prev_pos[p];
+        LightSampleContext lc = {prev, ps->prev_normal[p], ps->prev_light_vertex[p]};
+        lc.link_class = link_class;
+        /* the pdf from the previous vertex (a crossed medium boundary started this ray later) */
+        float tp = isinf(t) ? INFINITY : v3_length(v3_sub(v3_madd(ray->org, ray->dir, t), prev));
+        float pl = light_sampler_pmf(ig->light_sampler, &lc, light) *
+                   light_shape_pdf_li(&ig->lights->lights[light], prev, ray->dir, tp);
+        w = power_heuristic(ps->prev_scatter_pdf[p], pl);
+    }
+    vec3 c = v3_scale(v3_mul(ps->throughput[p], le), w);
+    if (se->in_medium && !v3_is_black(c)) {
+        RngStream stream = rng_stream(ps->rng_key[p], ps->depth[p],
+                                      RNG_STREAM_SHADOW + ((light + 1u) << 8) + ((uint32_t)ps->crossings[p] << 24));
+        VolumeRng rng = {rng_stream_next_cb, &stream};
+        vec3 T = media_transmittance_segment(ig->media, ps->medium[p], ray->org, ray->dir, t, &rng, &se->s->volume);
+        c = v3_mul(c, T);
+    }
+    path_add_radiance(ig, p, c, RADIANCE_EMISSION);
+}
+
+void path_shape_emission(const Integrator *ig, Slice *s, uint32_t p, float tmax, int in_medium) {
+    const Lights *lights = ig->lights;
+    if (!lights->num_shapes) return;
+    const PathState *ps = &ig->ps;
+    /* camera rays do not see them: Blender 3.4's lights have visible_camera off (Cycles then
+     * skips them for camera rays), and they are Blender's lights */
+    if (ps->depth[p] == 0) return;
+    const SceneRay ray = ps->ray[p];
+    ShapeEmission se = {ig, s, p, in_medium};
+    lights_shape_crossings(lights, ray.org, ray.dir, ray.tnear, tmax, ps->prev_pos[p], shape_emission_add, &se);
+}
+
 /* The mesh medium on the side of the surface a ray in direction d leaves into: the surface's
  * own medium when it is a transmissive medium boundary and d points inside, outside of it when
  * d points out, else the medium the path is in. */
@@ -193,6 +239,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
             recorder_prefetch(ig->record.recorder, ps->pv[s->hits[i + SHADE_PREFETCH / 2]]);
         uint32_t p = s->hits[i];
         const SceneHit *hit = &ps->hit[p];
+        path_shape_emission(ig, s, p, hit->t, 0);
         if (scene->prims[scene->io.meshes[scene->instances[hit->instance].mesh].first_primitive + hit->local_prim]
                 .medium_boundary) {
             if (!cross_boundary(ig, s, p, hit)) path_end(ig, s, p);

@@ -32,6 +32,7 @@ tests/test_analytic.c.
 import base64
 import json
 import math
+import random
 import os
 import struct
 
@@ -954,6 +955,135 @@ def bench_scene():
     g.write(os.path.join(ROOT, 'scenes', 'bench.gltf'))
 
 
+def area_light_node(g, name, shape, size, power, translation, rotation=None, color=(1.0, 1.0, 1.0)):
+    """A node with extras.candela_area_light (README "Light shapes"): emits along its local -Z."""
+    return g.node(name, translation, rotation, extras={'candela_area_light': {
+        'shape': shape, 'size': rv(size), 'color': rv(color), 'power': r(power)}})
+
+
+def light_shapes():
+    """Light shapes (README "Light shapes"; closed forms in tests/test_analytic.c), RAW units:
+    sphere_plane   a sphere light (radius 0.5, I = 32 pi W/sr) 4 m above the Lambert plane, above
+                   the camera: every plane point sees it whole, where a uniform sphere's irradiance
+                   is exactly the point light's, L(x) = rho/pi I h / r^3 (L(0) = 1).
+    sun_plane      directional_plane's sun with an angular diameter of 20 degrees: the cone stays
+                   above the horizon, so E = E_perp cos 30 exactly (L = 0.8660254).
+    rect_plane     area_plane's square as a candela_area_light rect (side 1, y = 1, facing down,
+                   power 8 W: radiance power / (4 A) = 2, Cycles' convention), plus a rect facing
+                   up (must add nothing).
+    disk_plane     a disk of diameter 1 at y = 1 facing down, radiance 2 (power 8 pi/4 W).
+    lamp_slab      a sphere light (radius 0.1) centred inside a 4 cm slab (a lamp head, 1 m up):
+                   the plane below is lit through the part of the sphere below the slab
+                   (lamp_slab_point: the same with radius 0, black).
+    shapes_mix     every shape (sphere, spot sphere, sun, rect, disk, ellipse) over a glossy
+                   plane, for the light samplers' agreement."""
+    out = os.path.join(ROOT, 'tests', 'scenes')
+    down = look_rotation(DOWN, (0.0, 0.0, -1.0))
+    g = Gltf()
+    g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
+    n = g.light('sphere', 'point', 32 * math.pi, translation=(0.0, 4.0, 0.0))
+    g.doc['nodes'][n]['extras'] = {'candela_light': {'radius': 0.5}}
+    top_ortho(g)
+    g.write(os.path.join(out, 'sphere_plane.gltf'))
+
+    g = Gltf()
+    g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
+    th = math.radians(30.0)
+    n = g.light('sun', 'directional', 2 * math.pi, translation=(0.0, 10.0, 0.0),
+                rotation=look_rotation((-math.sin(th), -math.cos(th), 0.0)))
+    g.doc['nodes'][n]['extras'] = {'candela_light': {'angle': 20.0}}
+    top_ortho(g)
+    g.write(os.path.join(out, 'sun_plane.gltf'))
+
+    g = Gltf()
+    g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
+    area_light_node(g, 'rect_down', 'rect', (1.0, 1.0), 8.0, (0.0, 1.0, 0.0), down)
+    area_light_node(g, 'rect_up_backfacing', 'rect', (1.0, 1.0), 8.0, (3.0, 2.0, 0.0),
+                    look_rotation((0.0, 1.0, 0.0), (0.0, 0.0, -1.0)))
+    top_ortho(g, height=0.5)
+    g.write(os.path.join(out, 'rect_plane.gltf'))
+
+    # rect_plane inside an absorbing fog box (sigma_a 0.5, no scattering; camera inside too): the
+    # rays that find the rect weigh it by the transmittance up to it (closed form by quadrature)
+    g = Gltf()
+    g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
+    fog = g.material('fog', base=(1.0, 1.0, 1.0))
+    g.doc['materials'][fog]['extras'] = {'candela_medium': {'sigma_a': [0.5, 0.5, 0.5], 'sigma_s': [0.0, 0.0, 0.0]}}
+    g.mesh('fog', 'fog', box(8.0, 4.0, 8.0, center=(0.0, 0.5, 0.0)), fog)
+    area_light_node(g, 'rect_down', 'rect', (1.0, 1.0), 8.0, (0.0, 1.0, 0.0), down)
+    top_ortho(g, height=0.5)
+    g.write(os.path.join(out, 'rect_fog.gltf'))
+
+    # rect_plane with light linking: the rect's receivers exclude the plane (it must go black)
+    g = Gltf()
+    g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
+    n = area_light_node(g, 'rect_down', 'rect', (1.0, 1.0), 8.0, (0.0, 1.0, 0.0), down)
+    g.doc['nodes'][n]['extras']['candela_light_linking'] = {'receivers': {'exclude': ['plane']}}
+    top_ortho(g, height=0.5)
+    g.write(os.path.join(out, 'rect_plane_unlinked.gltf'))
+
+    g = Gltf()
+    g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
+    area_light_node(g, 'disk_down', 'disk', (1.0, 1.0), 2 * math.pi, (0.0, 1.0, 0.0), down)
+    top_ortho(g, height=0.5)
+    g.write(os.path.join(out, 'disk_plane.gltf'))
+
+    for name, radius in (('lamp_slab', 0.1), ('lamp_slab_point', 0.0)):
+        g = Gltf()
+        g.mesh('plane', 'plane', PLANE, g.material('lambert_half', **LAMBERT_WHITE))
+        g.mesh('slab', 'slab', box(1.0, 0.04, 1.0, center=(0.0, 1.0, 0.0)),
+               g.material('black', base=(0.0, 0.0, 0.0), lambert=True))
+        n = g.light('lamp', 'point', 2 * math.pi, translation=(0.0, 1.0, 0.0))
+        if radius > 0:
+            g.doc['nodes'][n]['extras'] = {'candela_light': {'radius': radius}}
+        top_ortho(g, mag=2.0)
+        g.write(os.path.join(out, name + '.gltf'))
+
+    g = Gltf()
+    # a 6 m plane: the scene's radius sets the sun's power (the power sampler's weight)
+    g.mesh('plane', 'plane', quad((-3.0, 0.0, -3.0), (-3.0, 0.0, 3.0), (3.0, 0.0, 3.0), (3.0, 0.0, -3.0)),
+           g.material('glossy', base=(0.6, 0.6, 0.6), metallic=0.5, roughness=0.3))
+    n = g.light('sphere', 'point', 3.0, color=(1.0, 0.8, 0.6), translation=(-0.6, 0.5, 0.3))
+    g.doc['nodes'][n]['extras'] = {'candela_light': {'radius': 0.15}}
+    n = g.light('spot_sphere', 'spot', 6.0, translation=(0.6, 1.2, -0.4),
+                rotation=look_rotation((-0.2, -1.0, 0.1), (0.0, 0.0, -1.0)), inner=0.3, outer=0.6)
+    g.doc['nodes'][n]['extras'] = {'candela_light': {'radius': 0.1}}
+    n = g.light('sun', 'directional', 1.0, color=(0.6, 0.7, 1.0), translation=(0.0, 10.0, 0.0),
+                rotation=look_rotation((0.5, -0.8, 0.3)))
+    g.doc['nodes'][n]['extras'] = {'candela_light': {'angle': 8.0}}
+    area_light_node(g, 'rect', 'rect', (0.6, 0.3), 4.0, (0.2, 0.8, 0.5),
+                    look_rotation((0.1, -1.0, -0.3), (0.0, 0.0, -1.0)), color=(0.5, 1.0, 0.5))
+    area_light_node(g, 'disk', 'disk', (0.4, 0.4), 3.0, (-0.4, 0.6, -0.6), down, color=(1.0, 0.5, 0.5))
+    area_light_node(g, 'ellipse', 'disk', (0.8, 0.2), 2.0, (0.7, 0.4, 0.6),
+                    look_rotation((-0.5, -1.0, 0.0), (0.0, 0.0, -1.0)))
+    g.perspective('camera', (0.0, 2.2, 2.2), (0.0, 0.2, 0.0), 60.0, aspect=1.0)
+    g.write(os.path.join(out, 'shapes_mix.gltf'))
+
+    # shapes_many: 40 shapes (above LIGHT_SHAPE_BVH_MIN: rays find them through the BVH) and a sun
+    rnd = random.Random(14)
+    g = Gltf()
+    g.mesh('plane', 'plane', quad((-3.0, 0.0, -3.0), (-3.0, 0.0, 3.0), (3.0, 0.0, 3.0), (3.0, 0.0, -3.0)),
+           g.material('glossy', base=(0.6, 0.6, 0.6), metallic=0.5, roughness=0.3))
+    for i in range(40):
+        pos = (rnd.uniform(-2.0, 2.0), rnd.uniform(0.2, 1.5), rnd.uniform(-2.0, 2.0))
+        col = (rnd.uniform(0.3, 1.0), rnd.uniform(0.3, 1.0), rnd.uniform(0.3, 1.0))
+        if i % 5 < 3:
+            kind = 'spot' if i % 5 == 2 else 'point'
+            n = g.light('s%d' % i, kind, rnd.uniform(0.2, 1.0), color=col, translation=pos,
+                        rotation=look_rotation((rnd.uniform(-0.5, 0.5), -1.0, rnd.uniform(-0.5, 0.5)), (0.0, 0.0, -1.0)),
+                        inner=0.3 if kind == 'spot' else None, outer=0.7 if kind == 'spot' else None)
+            g.doc['nodes'][n]['extras'] = {'candela_light': {'radius': r(rnd.uniform(0.03, 0.2))}}
+        else:
+            area_light_node(g, 'a%d' % i, 'rect' if i % 5 == 3 else 'disk',
+                            (rnd.uniform(0.1, 0.5), rnd.uniform(0.1, 0.5)), rnd.uniform(0.5, 2.0), pos,
+                            look_rotation((rnd.uniform(-0.7, 0.7), -1.0, rnd.uniform(-0.7, 0.7)), (0.0, 0.0, -1.0)),
+                            color=col)
+    n = g.light('sun', 'directional', 0.5, translation=(0.0, 10.0, 0.0), rotation=look_rotation((0.3, -0.8, 0.5)))
+    g.doc['nodes'][n]['extras'] = {'candela_light': {'angle': 5.0}}
+    g.perspective('camera', (0.0, 3.0, 3.5), (0.0, 0.3, 0.0), 60.0, aspect=1.0)
+    g.write(os.path.join(out, 'shapes_many.gltf'))
+
+
 def bad_inputs():
     """Malformed scenes for tests/test_cli.sh, each wrong in exactly one way."""
     out = os.path.join(ROOT, 'tests', 'bad')
@@ -989,6 +1119,24 @@ def bad_inputs():
     g.doc['accessors'][0]['count'] = 3000
     g.write(os.path.join(out, 'accessor_overflow.gltf'))
 
+    # light shapes' extras (README "Light shapes"), one problem each
+    for name, extras in (('light_radius_negative', {'candela_light': {'radius': -0.1}}),
+                         ('light_radius_string', {'candela_light': {'radius': 'big'}})):
+        g = base()
+        g.doc['nodes'][1]['extras'] = extras
+        g.write(os.path.join(out, name + '.gltf'))
+    for name, angle in (('sun_angle_180', 180.0), ('sun_angle_negative', -1.0)):
+        g = base()
+        g.lights[0]['type'] = 'directional'
+        g.doc['nodes'][1]['extras'] = {'candela_light': {'angle': angle}}
+        g.write(os.path.join(out, name + '.gltf'))
+    for name, al in (('area_light_shape', {'shape': 'triangle', 'size': [1, 1], 'power': 10}),
+                     ('area_light_size', {'shape': 'rect', 'size': [1, 0], 'power': 10}),
+                     ('area_light_power', {'shape': 'disk', 'size': [1, 1], 'power': -5})):
+        g = base()
+        g.node('panel', (0.0, 0.0, 2.0), extras={'candela_area_light': al})
+        g.write(os.path.join(out, name + '.gltf'))
+
 
 def main():
     bench_scene()
@@ -1002,6 +1150,7 @@ def main():
     spot_blend_plane()
     directional_plane()
     area_plane()
+    light_shapes()
     env_scenes()
     normalmap_grazing()
     two_lights()

@@ -251,6 +251,14 @@ expect_error "index out of range" "out of range" -- render "$root/tests/bad/inde
 expect_error "missing texture" "missing.png" -- render "$root/tests/bad/missing_texture.gltf" "${common[@]}"
 expect_error "zero-size image" "empty.png" -- render "$root/tests/bad/zero_size_image.gltf" "${common[@]}"
 expect_error "accessor overflow" "exceeds" -- render "$root/tests/bad/accessor_overflow.gltf" "${common[@]}"
+# light shapes' extras (README "Light shapes"): one line naming the file, the node and the problem
+expect_error "negative radius" "node 1 ('point'): extras.candela_light.radius must be a finite number >= 0" -- render "$root/tests/bad/light_radius_negative.gltf" "${common[@]}"
+expect_error "radius not a number" "extras.candela_light.radius must be a finite number >= 0 (got \"big\")" -- render "$root/tests/bad/light_radius_string.gltf" "${common[@]}"
+expect_error "sun angle 180" "extras.candela_light.angle must be a number of degrees in .0, 180) (got 180.0)" -- render "$root/tests/bad/sun_angle_180.gltf" "${common[@]}"
+expect_error "negative sun angle" "extras.candela_light.angle must be a number of degrees in .0, 180) (got -1.0)" -- render "$root/tests/bad/sun_angle_negative.gltf" "${common[@]}"
+expect_error "unknown area shape" "node 2 ('panel'): extras.candela_area_light.shape must be \"rect\" or \"disk\"" -- render "$root/tests/bad/area_light_shape.gltf" "${common[@]}"
+expect_error "zero area size" "extras.candela_area_light.size must be an array of 2 finite numbers > 0" -- render "$root/tests/bad/area_light_size.gltf" "${common[@]}"
+expect_error "negative area power" "extras.candela_area_light.power must be a finite number >= 0" -- render "$root/tests/bad/area_light_power.gltf" "${common[@]}"
 
 # help and version
 "$bin" --help | grep -q "candela render" && ok || bad "--help"
