@@ -199,6 +199,9 @@ static double ggx_lambda_dbl(double x, double y, double z, double alpha) {
 static vec3 principled_fresnel(const Prep *q, float c) {
     float fh = 0.0f;
     if (q->f0_s < 1.0f) fh = ((float)fr_dielectric(c, (double)q->ior_s) - q->f0_s) / (1.0f - q->f0_s);
+    /* in [0, 1]: for a large ior_s (Specular near its bound) the unpolarised Fresnel dips below
+     * its normal-incidence value before grazing, and the blend would go negative */
+    fh = clampf(fh, 0.0f, 1.0f);
     return v3_add(v3_scale(q->cspec0, 1.0f - fh), v3s(fh));
 }
 

@@ -46,7 +46,7 @@
  *   f = (1-m)(1-t) base_color fd  +  (1 - (1-m) t) Fp(h.wi) DV  +  (1-m) t glass  +  coat
  *   fd = [(1 - FV/2)(1 - FL/2) + R (FL + FV + FL FV (R - 1))] / pi,  R = r (1 + wo.wi),
  *        FV = (1 - wo.z)^5, FL = (1 - wi.z)^5                     (Disney diffuse, Cycles' form)
- *   Fp(c) = cspec0 (1 - FH) + FH,  FH = (Fr(c, ior_s) - Fr(1, ior_s)) / (1 - Fr(1, ior_s)),
+ *   Fp(c) = cspec0 (1 - FH) + FH,  FH = (Fr(c, ior_s) - Fr(1, ior_s)) / (1 - Fr(1, ior_s)) in [0, 1],
  *        cspec0 = saturate(0.08 S ((1 - tint) + tint base_color / lum(base_color)) (1-m) + base_color m),
  *        ior_s = 2 / (1 - sqrt(0.08 S)) - 1, Fr the exact dielectric Fresnel
  *   glass = the rough dielectric above with Cycles' weights: reflection Fr(|wo.z|, ior) DV,
