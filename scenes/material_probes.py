@@ -73,6 +73,24 @@ def probe(name):
     return g
 
 
+def block_means(exr, blocks_x, blocks_y, tmp):
+    """Mean RGB of each block of the image (oiiotool's box resize, read back with --dumpdata)."""
+    small = tmp + '.exr'
+    subprocess.run(['oiiotool', exr, '--ch', 'R,G,B', '--resize:filter=box', '%dx%d' % (blocks_x, blocks_y),
+                    '-o', small], check=True)
+    out = subprocess.run(['oiiotool', '--dumpdata', small], check=True, capture_output=True, text=True).stdout
+    os.remove(small)
+    vals = [[float(v) for v in line.split(':')[1].split()] for line in out.splitlines() if 'Pixel (' in line]
+    return [sum(v) / len(v) for v in vals]
+
+
+def block_ratios(test, ref, blocks_x, blocks_y, tmp):
+    """Candela / Cycles per block, over the blocks whose Cycles mean is above 2% of the image's."""
+    a, b = block_means(test, blocks_x, blocks_y, tmp + 'a'), block_means(ref, blocks_x, blocks_y, tmp + 'b')
+    cut = 0.02 * sum(b) / len(b)
+    return [x / y for x, y in zip(a, b) if y > cut]
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--out', default='/tmp/material_probes')
@@ -113,10 +131,15 @@ def main():
         means['cycles'] = oiio_mean([exr, '--ch', 'R,G,B'])
         row = {'probe': name, 'cycles': means['cycles'], 'gltf': means['gltf'], 'blender3': means['blender3'],
                'gltf/cycles': means['gltf'] / means['cycles'], 'blender3/cycles': means['blender3'] / means['cycles']}
+        # 8x8-pixel blocks (the lit ones): the worst ratios to Cycles
+        for model in ('gltf', 'blender3'):
+            r = block_ratios(os.path.join(a.out, '%s.%s.exr' % (name, model)), exr, w // 8, h // 8,
+                             os.path.join(a.out, 'blocks'))
+            row[model + '_blocks'] = [min(r), max(r)]
         rows.append(row)
-        print('%-13s cycles %.5f  gltf %.5f (%.4fx)  blender3 %.5f (%.4fx)' % (
-            name, means['cycles'], means['gltf'], row['gltf/cycles'], means['blender3'], row['blender3/cycles']),
-            flush=True)
+        print('%-13s cycles %.5f  gltf %.5f (%.4fx, 8x8 blocks %.3f..%.3f)  blender3 %.5f (%.4fx, blocks %.3f..%.3f)' % (
+            name, means['cycles'], means['gltf'], row['gltf/cycles'], row['gltf_blocks'][0], row['gltf_blocks'][1],
+            means['blender3'], row['blender3/cycles'], row['blender3_blocks'][0], row['blender3_blocks'][1]), flush=True)
     print('MATERIAL_PROBES ' + json.dumps(rows))
 
 
