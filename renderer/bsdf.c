@@ -80,7 +80,7 @@ void bsdf_blender3_specular(const BsdfParams *p, float *specular, float *specula
     vec3 sc = p->specular_color;
     sc = v3(isfinite(sc.x) ? maxf(sc.x, 0.0f) : 0.0f, isfinite(sc.y) ? maxf(sc.y, 0.0f) : 0.0f,
             isfinite(sc.z) ? maxf(sc.z, 0.0f) : 0.0f);
-    /* t = 1 divides by zero in the importer (the import fails): keep the default then */
+    /* t = 1 divides by zero in the importer: keep the node default then */
     /* the Principled socket takes values above 1 (Blender 3.4.1 keeps 1.5 as set); below 0 it
      * is clamped; 12 keeps Cycles' ior_s = 2 / (1 - sqrt(0.08 S)) - 1 finite (S < 12.5) */
     if (t < 1.0f) *specular = clampf((luminance3(sc) - t) / (1.0f - t) * f0 / 0.08f, 0.0f, 12.0f);

@@ -54,11 +54,13 @@
  *        reflection: exact for Specular Tint 0)
  *   coat = 0.25 clearcoat Fr(h.wi, 1.5) DV_coat, added on top.
  * Principled v1 is NOT energy conserving: the specular lobe is added on top of a diffuse that is
- * not reduced by it (a white plastic reflects about 1 + 0.04 at normal incidence, more at
- * grazing wo where FV raises Fp towards 1), and the coat is added on top of everything. What it
- * does satisfy (tests/test_bsdf.c): the diffuse alone has albedo <= 1 for r = 0 ((1 - FV/2) x
- * its cosine-weighted (1 - FL/2) mean), the specular alone <= 1, so f's albedo is <= 2 + 0.25 c;
- * it is reciprocal (fd, Fp(h.wi) = Fp(h.wo), DV are symmetric) except for glass. */
+ * not reduced by it (a smooth white plastic, Specular 0.5, reflects (1 - FV/2)(1 - 1/42) +
+ * Fr(wo.z, 1.5): 1.016 at normal incidence, 1.155 at wo.z = 0.2), the retro-reflection of a rough
+ * diffuse adds more (albedo 1.036 / 1.057 / 1.245 at roughness 1 and wo.z = 1 / 0.5 / 0.2), and
+ * the coat is added on top of everything. What tests/test_bsdf.c checks instead: those closed
+ * forms, the diffuse alone <= 1 at roughness 0, the metal (cspec0 = 1) equal to the GGX lobe's
+ * albedo (1 when smooth). It is reciprocal (fd, Fp(h.wi) = Fp(h.wo) and DV are symmetric) except
+ * for the glass. */
 #ifndef CANDELA_BSDF_H
 #define CANDELA_BSDF_H
 

@@ -12,6 +12,8 @@ directional, RAW units: Candela --light-units raw = the importer's COMPAT mode),
   metal         a gold sphere (base 1 0.78 0.34, metallic 1, roughness 0.3) on the grey floor
   coat          a blue plastic sphere with KHR_materials_clearcoat 1 (coat roughness 0.05)
                 on the grey floor
+  glass         a rough glass sphere (KHR_materials_transmission 1, ior 1.5, roughness 0.2,
+                base 0.9 0.95 1) on the grey floor
 For each: Cycles renders the glTF as Blender 3.4's glTF importer sets it up
 (../shared/tools/cycles_render.py: importer, box filter, no denoising/clamping, --max-depth
 bounces), Candela renders it with --material-model gltf and blender3 (--max-depth the same),
@@ -19,7 +21,7 @@ and the image means (RGB average) are printed with their ratios to Cycles'.
 
 Usage: python3 scenes/material_probes.py [--out DIR] [--res 160x120] [--spp 256]
            [--candela build/renderer/candela] [--cycles-tool ../shared/tools/cycles_render.py]
-           [--probes plastic,glossy_floor,metal,coat]
+           [--probes plastic,glossy_floor,metal,coat,glass]
 """
 import argparse
 import json
@@ -65,6 +67,8 @@ def probe(name):
         g.use('KHR_materials_clearcoat')
         g.doc['materials'][m]['extensions'] = {'KHR_materials_clearcoat': {'clearcoatFactor': 1.0,
                                                                            'clearcoatRoughnessFactor': 0.05}}
+    elif name == 'glass':
+        m = g.material('rough_glass', base=(0.9, 0.95, 1.0), roughness=0.2, transmission=1.0, ior=1.5)
     else:
         sys.exit('unknown probe %s' % name)
     g.mesh('sphere', 'sphere', uv_sphere(1.0, 64, 32), m, translation=(0.0, 1.0, 0.0))
@@ -100,7 +104,7 @@ def main():
     ap.add_argument('--candela', default=os.path.join(ROOT, 'build', 'renderer', 'candela'))
     ap.add_argument('--cycles-tool', default=os.path.join(ROOT, '..', 'shared', 'tools', 'cycles_render.py'))
     ap.add_argument('--blender', default='blender')
-    ap.add_argument('--probes', default='plastic,glossy_floor,metal,coat')
+    ap.add_argument('--probes', default='plastic,glossy_floor,metal,coat,glass')
     ap.add_argument('--threads', type=int, default=2)
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
