@@ -81,8 +81,10 @@ void bsdf_blender3_specular(const BsdfParams *p, float *specular, float *specula
     sc = v3(isfinite(sc.x) ? maxf(sc.x, 0.0f) : 0.0f, isfinite(sc.y) ? maxf(sc.y, 0.0f) : 0.0f,
             isfinite(sc.z) ? maxf(sc.z, 0.0f) : 0.0f);
     /* t = 1 divides by zero in the importer: keep the node default then */
-    /* the Principled socket takes values above 1 (Blender 3.4.1 keeps 1.5 as set); below 0 it
-     * is clamped; 12 keeps Cycles' ior_s = 2 / (1 - sqrt(0.08 S)) - 1 finite (S < 12.5) */
+    /* the Principled socket keeps any value (Blender 3.4.1 keeps -0.5 and 1e6 as set). Clamped
+     * here to [0, 12]: below 0 a dielectric's lobe is off in Cycles too (ior_s 1, cspec0
+     * saturated to 0; a metal's cspec0 differs slightly), and 12 keeps Cycles'
+     * ior_s = 2 / (1 - sqrt(0.08 S)) - 1 finite (S < 12.5) */
     if (t < 1.0f) *specular = clampf((luminance3(sc) - t) / (1.0f - t) * f0 / 0.08f, 0.0f, 12.0f);
     vec3 b = v3(sane01(p->base_color.x, 0.0f), sane01(p->base_color.y, 0.0f), sane01(p->base_color.z, 0.0f));
     float lb = luminance3(b), ls = luminance3(sc);

@@ -42,7 +42,7 @@
  * then Specular = (lum(specular_color) - transmission) / (1 - transmission) F0_ior / 0.08 and
  * Specular Tint = clamp(lum((norm(specular_color) - 1) / (norm(base_color) - 1)), 0, 1) (lum =
  * 0.3 r + 0.6 g + 0.1 b, norm(c) = c / lum(c), 0/0 -> 0; 1 when norm(base_color) is white; the
- * importer ignores specularFactor). With m = metallic, t = transmission, r = roughness, S = Specular:
+ * importer ignores specularFactor; Specular is clamped to [0, 12] here). With m = metallic, t = transmission, r = roughness, S = Specular:
  *   f = (1-m)(1-t) base_color fd  +  (1 - (1-m) t) Fp(h.wi) DV  +  (1-m) t glass  +  coat
  *   fd = [(1 - FV/2)(1 - FL/2) + R (FL + FV + FL FV (R - 1))] / pi,  R = r (1 + wo.wi),
  *        FV = (1 - wo.z)^5, FL = (1 - wi.z)^5                     (Disney diffuse, Cycles' form)
