@@ -966,6 +966,7 @@ void Loader::convert_materials() {
                           what.c_str(), e, IO_MAX_EMISSION));
         }
         if (const tinygltf::Value *e = extension(src.extensions, "KHR_materials_specular")) {
+            d.has_specular_ext = 1;
             d.specular = float(number_or(*e, "specularFactor", 1.0));
             numbers(*e, "specularColorFactor", d.specular_color, 3);
         }

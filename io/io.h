@@ -121,6 +121,8 @@ typedef struct IoMaterial {
     IoTextureRef emissive_tex;
     float specular;                 /* KHR_materials_specular specularFactor, default 1 */
     float specular_color[3];        /* specularColorFactor, default 1,1,1 */
+    int32_t has_specular_ext;       /* 1 when KHR_materials_specular is present (--material-model
+                                     * blender3 converts it as Blender 3.4's importer does) */
     float transmission;             /* KHR_materials_transmission transmissionFactor, default 0 */
     float ior;                      /* KHR_materials_ior, default 1.5 */
     /* KHR_materials_clearcoat: clearcoatFactor x clearcoatTexture.R (default 0: no coat),

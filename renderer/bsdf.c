@@ -1,28 +1,26 @@
-/* renderer/bsdf.c: the glTF metallic-roughness BSDF (see bsdf.h for the model).
+/* renderer/bsdf.c: the material BSDFs (see bsdf.h for the formulas of both models).
  *
- * Lobes, with their mixture weights in f:
- *   METAL  m            GGX conductor, F = Schlick(base_color, F90 = 1)
- *   SPEC   (1-m)(1-t)   GGX dielectric reflection layer, F = Schlick(F0, F90 = specular),
- *                       F0 = min(((ior-1)/(ior+1))^2 specular_color, 1) * specular
- *   DIFF   (1-m)(1-t)   (1 - max F(|wo.z|)) (1 - max F(|wi.z|)) base_color / pi
- *   GLASS  (1-m) t      rough (Walter 2007) or smooth dielectric, exact Fresnel scaled by
- *                       specular; refraction tinted by base_color and scaled by 1/eta^2
- *   COAT   c            KHR_materials_clearcoat: GGX reflection of its own roughness, F = c
- *                       Schlick(0.04, 1) at the half vector; every lobe above is attenuated by
- *                       (1 - c Fc(|wo.z|)) (1 - c Fc(|wi.z|)), the coat's Fresnel at both ends,
- *                       the same reciprocal product form as the diffuse layer's (below)
+ * Lobes, with their mixture weights in f (glTF model / Principled v1 model):
+ *   METAL    m / -          GGX conductor, F = Schlick(base_color, F90 = 1) at h
+ *   SPEC     (1-m)(1-t) / (1-(1-m)t)   GGX reflection; glTF: s Schlick(F0, 1) at h; Principled:
+ *                           Cycles' white-to-cspec0 blend Fp (metal folded into cspec0)
+ *   DIFFUSE  (1-m)(1-t)     glTF: (1 - s max F(h.wo)) base_color / pi; Principled: Disney diffuse
+ *   GLASS    (1-m) t        rough (Walter 2007) or smooth dielectric, refraction tinted by
+ *                           base_color and scaled by 1/eta^2; glTF: exact Fresnel at the microfacet
+ *                           scaled by s; Principled: exact Fresnel at the macro normal
+ *   COAT     c              glTF: fresnel_coat, everything above scaled by (1 - c Fc(|wo.z|)) and
+ *                           the coat's DV by c Fc(|wo.z|); Principled: 0.25 c Fr(h.wi, 1.5) DV on top
  *
- * The diffuse layer's "1 - specular * max(F)" (glTF) is evaluated at both |wo.z| and |wi.z|
- * rather than at the half vector: glTF's per-half-vector form is reciprocal but reflects far
- * more than 1 at grazing wo (F(wo) -> 1 goes to the mirror lobe while the diffuse keeps
- * nearly all its energy), whereas the product form is reciprocal and keeps the layered albedo
- * <= 1 (tests/test_bsdf.c checks this). At normal incidence the diffuse albedo is
- * (1 - F0)(1 - F_avg) instead of ~(1 - F0).
+ * glTF's diffuse weight uses the Fresnel term at the half vector, so the diffuse term depends on
+ * wi through h: it is sampled from the cosine anyway (its pdf does not need to follow f), and
+ * eval/pdf stay consistent because the pdf is the mixture of the lobes' sampling densities,
+ * whatever f is.
  *
  * Sampling picks one lobe with probabilities that depend only on (params, wo); inside the
- * glass lobe the choice between reflection and refraction uses the Fresnel term of the sampled
- * microfacet (pbrt's DielectricBxDF), reusing the remapped lobe random number. Non-delta
- * samples report f = bsdf_eval and pdf = bsdf_pdf (the full mixture), so they match exactly. */
+ * glass lobe the choice between reflection and refraction uses the lobe's Fresnel term (of the
+ * sampled microfacet for glTF, pbrt's DielectricBxDF; of the macro normal for Principled),
+ * reusing the remapped lobe random number. Non-delta samples report f = bsdf_eval and pdf =
+ * bsdf_pdf (the full mixture), so they match exactly. */
 #include "bsdf.h"
 
 #include <stddef.h>
@@ -41,6 +39,7 @@ enum { LOBE_METAL, LOBE_SPEC, LOBE_DIFFUSE, LOBE_GLASS, LOBE_COAT, LOBE_COUNT };
 #define COAT_F0 0.04f
 
 typedef struct {
+    int model;       /* BSDF_MODEL_* */
     vec3 base;       /* clamped to [0,1] */
     vec3 f0_spec;    /* dielectric layer F0 (includes specular factor) */
     float f90_spec;  /* = specular */
@@ -51,6 +50,13 @@ typedef struct {
     int glass_delta;
     float coat;        /* clearcoat factor; 0: no coat */
     float alpha_coat;  /* >= BSDF_MIN_ALPHA */
+    float glass_fscale; /* the glass Fresnel's scale: specular (glTF) or 1 (Principled) */
+    /* BSDF_MODEL_BLENDER3 (Principled v1) */
+    float p_rough;     /* Disney diffuse roughness (perceptual) */
+    vec3 cspec0;       /* specular colour at normal incidence (metal folded in) */
+    float ior_s;       /* the specular lobe's Fresnel ior, from Specular */
+    float f0_s;        /* Fr(1, ior_s) */
+    float w_spec3;     /* 1 - (1-m) t; 0 when the lobe is off */
 } Prep;
 
 static float sane01(float x, float fallback) {
@@ -58,7 +64,62 @@ static float sane01(float x, float fallback) {
     return clampf(x, 0.0f, 1.0f);
 }
 
+static double fr_dielectric(double cos_i, double eta);
+
+static float luminance3(vec3 c) { return 0.3f * c.x + 0.6f * c.y + 0.1f * c.z; }
+
+void bsdf_blender3_specular(const BsdfParams *p, float *specular, float *specular_tint) {
+    /* Blender 3.4 io_import_scene_gltf2 (KHR_materials_specular.py): without the extension the
+     * Principled node keeps its defaults */
+    *specular = 0.5f;
+    *specular_tint = 0.0f;
+    if (!p->specular_ext) return;
+    float t = sane01(p->transmission, 0.0f);
+    float ior = isfinite(p->ior) && p->ior >= 1.0f ? p->ior : 1.5f;
+    float f0 = sqr((ior - 1.0f) / (ior + 1.0f));
+    vec3 sc = p->specular_color;
+    sc = v3(isfinite(sc.x) ? maxf(sc.x, 0.0f) : 0.0f, isfinite(sc.y) ? maxf(sc.y, 0.0f) : 0.0f,
+            isfinite(sc.z) ? maxf(sc.z, 0.0f) : 0.0f);
+    /* t = 1 divides by zero in the importer: keep the node default then */
+    /* the Principled socket keeps any value (Blender 3.4.1 keeps -0.5 and 1e6 as set). Clamped
+     * here to [0, 12]: below 0 a dielectric's lobe is off in Cycles too (ior_s 1, cspec0
+     * saturated to 0; a metal's cspec0 differs slightly), and 12 keeps Cycles'
+     * ior_s = 2 / (1 - sqrt(0.08 S)) - 1 finite (S < 12.5) */
+    if (t < 1.0f) *specular = clampf((luminance3(sc) - t) / (1.0f - t) * f0 / 0.08f, 0.0f, 12.0f);
+    vec3 b = v3(sane01(p->base_color.x, 0.0f), sane01(p->base_color.y, 0.0f), sane01(p->base_color.z, 0.0f));
+    float lb = luminance3(b), ls = luminance3(sc);
+    vec3 nb = lb > 0.0f ? v3_scale(b, 1.0f / lb) : b;
+    vec3 ns = ls > 0.0f ? v3_scale(sc, 1.0f / ls) : sc;
+    if (nb.x == 1.0f && nb.y == 1.0f && nb.z == 1.0f) { *specular_tint = 1.0f; return; }
+    float r[3], nbv[3] = {nb.x, nb.y, nb.z}, nsv[3] = {ns.x, ns.y, ns.z};
+    for (int k = 0; k < 3; ++k) {
+        float num = nsv[k] - 1.0f, den = nbv[k] - 1.0f;
+        /* numpy's nan_to_num: 0/0 -> 0, x/0 -> +-FLT_MAX (clipped below) */
+        r[k] = den != 0.0f ? num / den : (num == 0.0f ? 0.0f : (num > 0.0f ? 3.0e38f : -3.0e38f));
+    }
+    float tint = 0.3f * r[0] + 0.6f * r[1] + 0.1f * r[2];
+    *specular_tint = isfinite(tint) ? clampf(tint, 0.0f, 1.0f) : (tint > 0.0f ? 1.0f : 0.0f);
+}
+
+static void prepare_blender3(const BsdfParams *p, Prep *q) {
+    float spec, tint;
+    bsdf_blender3_specular(p, &spec, &tint);
+    q->p_rough = sane01(p->roughness, 1.0f);
+    float lb = luminance3(q->base);
+    vec3 ctint = lb > 0.0f ? v3_scale(q->base, 1.0f / lb) : v3s(1.0f);
+    vec3 tmp = v3_add(v3s(1.0f - tint), v3_scale(ctint, tint));
+    vec3 c0 = v3_add(v3_scale(tmp, spec * 0.08f * (1.0f - q->m)), v3_scale(q->base, q->m));
+    q->cspec0 = v3(clampf(c0.x, 0.0f, 1.0f), clampf(c0.y, 0.0f, 1.0f), clampf(c0.z, 0.0f, 1.0f));
+    q->ior_s = 2.0f / (1.0f - sqrtf(maxf(0.08f * spec, 0.0f))) - 1.0f;
+    q->f0_s = (float)fr_dielectric(1.0, (double)q->ior_s);
+    /* svm_closure.h: the specular closure exists when Specular or Metallic is above the cutoff */
+    float w = 1.0f - (1.0f - q->m) * q->t;
+    q->w_spec3 = w > 1e-5f && (spec > 1e-5f || q->m > 1e-5f) ? w : 0.0f;
+    q->glass_fscale = 1.0f;
+}
+
 static void prepare(const BsdfParams *p, Prep *q) {
+    q->model = p->model == BSDF_MODEL_BLENDER3 ? BSDF_MODEL_BLENDER3 : BSDF_MODEL_GLTF;
     q->base = v3(sane01(p->base_color.x, 0.0f), sane01(p->base_color.y, 0.0f), sane01(p->base_color.z, 0.0f));
     q->m = sane01(p->metallic, 0.0f);
     q->t = sane01(p->transmission, 0.0f);
@@ -81,6 +142,8 @@ static void prepare(const BsdfParams *p, Prep *q) {
     q->coat = sane01(p->clearcoat, 0.0f);
     float rc = sane01(p->clearcoat_roughness, 0.0f);
     q->alpha_coat = maxf(rc * rc, BSDF_MIN_ALPHA);
+    q->glass_fscale = q->specular;
+    if (q->model == BSDF_MODEL_BLENDER3) prepare_blender3(p, q);
 }
 
 static float pow5(float x) { float x2 = x * x; return x2 * x2 * x; }
@@ -133,13 +196,34 @@ static double ggx_lambda_dbl(double x, double y, double z, double alpha) {
     return 0.5 * (sqrt(1.0 + alpha * alpha * sin2 / cos2) - 1.0);
 }
 
+/* Cycles' interpolate_fresnel_color: white-to-cspec0 blend by the normalised exact Fresnel of
+ * ior_s at cos c (Principled v1's specular colour). */
+static vec3 principled_fresnel(const Prep *q, float c) {
+    float fh = 0.0f;
+    if (q->f0_s < 1.0f) fh = ((float)fr_dielectric(c, (double)q->ior_s) - q->f0_s) / (1.0f - q->f0_s);
+    /* in [0, 1]: for a large ior_s (Specular near its bound) the unpolarised Fresnel dips below
+     * its normal-incidence value before grazing, and the blend would go negative */
+    fh = clampf(fh, 0.0f, 1.0f);
+    return v3_add(v3_scale(q->cspec0, 1.0f - fh), v3s(fh));
+}
+
 /* Lobe selection probabilities; they depend only on (q, wo). Opaque lobes vanish unless
  * wo.z > 0; the small floors keep a lobe selectable wherever its f can be nonzero. */
 static float lobe_probs(const Prep *q, vec3 wo, float prob[LOBE_COUNT]) {
     /* scalars, not a stack array: partial stores into an array that is then reloaded whole
      * stalled store forwarding and made this the hottest function of the shade stage */
     float w_metal = 0.0f, w_spec = 0.0f, w_diffuse = 0.0f, w_glass = 0.0f, w_coat = 0.0f;
-    if (wo.z > 0.0f) {
+    if (q->model == BSDF_MODEL_BLENDER3) {
+        if (wo.z > 0.0f) {
+            if (q->w_spec3 > 0.0f) {
+                float fs = v3_max_component(principled_fresnel(q, wo.z));
+                w_spec = q->w_spec3 * maxf(fs, 0.02f);
+            }
+            w_diffuse = (1.0f - q->m) * (1.0f - q->t) * v3_max_component(q->base);
+            if (q->coat > 0.0f) w_coat = 0.25f * q->coat * maxf((float)fr_dielectric(wo.z, 1.5), 0.02f);
+        }
+        if (wo.z != 0.0f) w_glass = (1.0f - q->m) * q->t;
+    } else if (wo.z > 0.0f) {
         float c = wo.z;
         if (q->m > 0.0f) {
             vec3 fm = schlick(q->base, 1.0f, c);
@@ -154,8 +238,8 @@ static float lobe_probs(const Prep *q, vec3 wo, float prob[LOBE_COUNT]) {
             w_diffuse = opaque * v3_max_component(q->base) * (1.0f - fs);
         }
     }
-    if (wo.z != 0.0f) w_glass = (1.0f - q->m) * q->t;
-    if (q->coat > 0.0f) {
+    if (q->model == BSDF_MODEL_GLTF && wo.z != 0.0f) w_glass = (1.0f - q->m) * q->t;
+    if (q->model == BSDF_MODEL_GLTF && q->coat > 0.0f) {
         /* the base lobes are seen through the coat; the coat itself from outside only */
         float fc = coat_fresnel(q, wo.z), through = 1.0f - fc;
         w_metal *= through;
@@ -190,7 +274,8 @@ static float ggx_reflect_common(vec3 wo, vec3 wi, float alpha, vec3 *wm_out, flo
     if (!(den > 0.0f) || !(c > 0.0f)) return 0.0f;
     float pr = ggx_pdf_visible_normal(wo, wm, alpha) / (4.0f * c);
     *pdf = isfinite(pr) ? pr : 0.0f;
-    float v = ggx_d(wm, alpha) * ggx_g(wo, wi, alpha) / den;
+    /* separable Smith (glTF Appendix B's V, Cycles 3.4's G1(wo) G1(wi)) */
+    float v = ggx_d(wm, alpha) * ggx_g1(wo, alpha) * ggx_g1(wi, alpha) / den;
     return isfinite(v) ? v : 0.0f;
 }
 
@@ -219,10 +304,11 @@ static float glass_eval_pdf(const Prep *q, vec3 wo_f, vec3 wi_f, double eta, flo
     double dot_o = ox * mx + oy * my + oz * mz, dot_i = ix * mx + iy * my + iz * mz;
     /* Discard back-facing microfacets. */
     if (!(dot_o > 0.0) || dot_i * iz <= 0.0) return 0.0f;
-    double fr = q->specular * fr_dielectric(dot_o, eta);
+    /* glTF: the microfacet's Fresnel; Principled v1 (Cycles): the macro normal's, for both */
+    double fr = q->glass_fscale * fr_dielectric(q->model == BSDF_MODEL_BLENDER3 ? oz : dot_o, eta);
     double d = ggx_d_dbl(mx, my, mz, alpha);
     double lo = ggx_lambda_dbl(ox, oy, oz, alpha), li = ggx_lambda_dbl(ix, iy, iz, alpha);
-    double g = 1.0 / (1.0 + lo + li);
+    double g = 1.0 / ((1.0 + lo) * (1.0 + li)); /* separable Smith, as the reflection lobes */
     /* Visible-normal pdf: G1(wo) (wo.wm) D(wm) / wo.z. */
     double pdf_wm = d * dot_o / ((1.0 + lo) * oz);
     double f, pdf_d;
@@ -246,29 +332,68 @@ static float glass_eval_pdf(const Prep *q, vec3 wo_f, vec3 wi_f, double eta, flo
     return ff;
 }
 
+/* Disney diffuse as Cycles 3.x writes it (bsdf_principled_diffuse.h, PRINCIPLED_DIFFUSE_FULL),
+ * without the base colour: Lambert with the two Schlick weights plus the retro-reflection. */
+static float principled_diffuse(float roughness, vec3 wo, vec3 wi) {
+    float fv = pow5(1.0f - clampf(wo.z, 0.0f, 1.0f)), fl = pow5(1.0f - clampf(wi.z, 0.0f, 1.0f));
+    float rr = roughness * (1.0f + v3_dot(wo, wi));
+    float f = (1.0f - 0.5f * fv) * (1.0f - 0.5f * fl) + rr * (fl + fv + fl * fv * (rr - 1.0f));
+    return f * INV_PI_F;
+}
+
+/* h.wo = h.wi = cos of half the angle between wo and wi: the Fresnel argument of every
+ * reflection lobe, written symmetrically in (wo, wi) so that f stays reciprocal to the bit. */
+static float half_cos(vec3 wo, vec3 wi) { return sqrtf(maxf(0.0f, 0.5f * (1.0f + v3_dot(wo, wi)))); }
+
+/* The opaque reflection lobes (wo.z > 0, wi.z > 0), glTF Appendix B. */
+static vec3 gltf_opaque(const Prep *q, const float prob[LOBE_COUNT], vec3 wo, vec3 wi, float *pdf) {
+    vec3 f = v3s(0.0f);
+    float opaque = (1.0f - q->m) * (1.0f - q->t);
+    int spec = opaque > 0.0f && q->spec_on;
+    float c = half_cos(wo, wi);
+    if (q->m > 0.0f || spec) {
+        vec3 wm = v3(0.0f, 0.0f, 1.0f);
+        float pdf_refl;
+        float dg = ggx_reflect_common(wo, wi, q->alpha, &wm, &pdf_refl);
+        if (q->m > 0.0f) f = v3_madd(f, schlick(q->base, 1.0f, c), q->m * dg);
+        if (spec) f = v3_madd(f, schlick(q->f0_spec, q->f90_spec, c), opaque * dg);
+        *pdf += (prob[LOBE_METAL] + prob[LOBE_SPEC]) * pdf_refl;
+    }
+    if (opaque > 0.0f) {
+        /* KHR_materials_specular's fresnel_mix: the base weighted by 1 - s max(F(h.wo)) */
+        float kd = 1.0f - spec_fmax(q, c);
+        f = v3_madd(f, q->base, opaque * kd * INV_PI_F);
+        *pdf += prob[LOBE_DIFFUSE] * wi.z * INV_PI_F;
+    }
+    return f;
+}
+
+/* The opaque reflection lobes (wo.z > 0, wi.z > 0), Principled v1. */
+static vec3 principled_opaque(const Prep *q, const float prob[LOBE_COUNT], vec3 wo, vec3 wi, float *pdf) {
+    vec3 f = v3s(0.0f);
+    if (q->w_spec3 > 0.0f) {
+        vec3 wm = v3(0.0f, 0.0f, 1.0f);
+        float pdf_refl;
+        float dg = ggx_reflect_common(wo, wi, q->alpha, &wm, &pdf_refl);
+        f = v3_madd(f, principled_fresnel(q, half_cos(wo, wi)), q->w_spec3 * dg);
+        *pdf += prob[LOBE_SPEC] * pdf_refl;
+    }
+    float wd = (1.0f - q->m) * (1.0f - q->t);
+    if (wd > 0.0f) {
+        f = v3_madd(f, q->base, wd * principled_diffuse(q->p_rough, wo, wi));
+        *pdf += prob[LOBE_DIFFUSE] * wi.z * INV_PI_F;
+    }
+    return f;
+}
+
 /* Evaluate f and the mixture pdf (non-delta lobes only). */
 static vec3 eval_pdf(const Prep *q, vec3 wo, vec3 wi, float *pdf_out) {
     vec3 f = v3s(0.0f);
     float pdf = 0.0f;
     float prob[LOBE_COUNT];
     lobe_probs(q, wo, prob);
-    if (wo.z > 0.0f && wi.z > 0.0f) {
-        float opaque = (1.0f - q->m) * (1.0f - q->t);
-        if (q->m > 0.0f || (opaque > 0.0f && q->spec_on)) {
-            vec3 wm = v3(0.0f, 0.0f, 1.0f);
-            float pdf_refl;
-            float dg = ggx_reflect_common(wo, wi, q->alpha, &wm, &pdf_refl);
-            float c = v3_dot(wo, wm);
-            if (q->m > 0.0f) f = v3_madd(f, schlick(q->base, 1.0f, c), q->m * dg);
-            if (opaque > 0.0f && q->spec_on) f = v3_madd(f, schlick(q->f0_spec, q->f90_spec, c), opaque * dg);
-            pdf += (prob[LOBE_METAL] + prob[LOBE_SPEC]) * pdf_refl;
-        }
-        if (opaque > 0.0f) {
-            float kd = (1.0f - spec_fmax(q, wo.z)) * (1.0f - spec_fmax(q, wi.z));
-            f = v3_madd(f, q->base, opaque * kd * INV_PI_F);
-            pdf += prob[LOBE_DIFFUSE] * wi.z * INV_PI_F;
-        }
-    }
+    if (wo.z > 0.0f && wi.z > 0.0f)
+        f = q->model == BSDF_MODEL_BLENDER3 ? principled_opaque(q, prob, wo, wi, &pdf) : gltf_opaque(q, prob, wo, wi, &pdf);
     float wg = (1.0f - q->m) * q->t;
     if (wg > 0.0f && !q->glass_delta && wo.z != 0.0f) {
         float s = wo.z > 0.0f ? 1.0f : -1.0f;
@@ -280,15 +405,18 @@ static vec3 eval_pdf(const Prep *q, vec3 wo, vec3 wi, float *pdf_out) {
         pdf += prob[LOBE_GLASS] * gp;
     }
     if (q->coat > 0.0f) {
-        /* the base through the coat, both ways; then the coat's own reflection */
-        f = v3_scale(f, (1.0f - coat_fresnel(q, wo.z)) * (1.0f - coat_fresnel(q, wi.z)));
-        if (wo.z > 0.0f && wi.z > 0.0f) {
-            vec3 wm = v3(0.0f, 0.0f, 1.0f);
-            float pdf_coat;
-            float dg = ggx_reflect_common(wo, wi, q->alpha_coat, &wm, &pdf_coat);
-            f = v3_add(f, v3s(coat_fresnel(q, v3_dot(wo, wm)) * dg));
-            pdf += prob[LOBE_COAT] * pdf_coat;
+        vec3 wm = v3(0.0f, 0.0f, 1.0f);
+        float pdf_coat = 0.0f, dg = 0.0f;
+        if (wo.z > 0.0f && wi.z > 0.0f) dg = ggx_reflect_common(wo, wi, q->alpha_coat, &wm, &pdf_coat);
+        if (q->model == BSDF_MODEL_BLENDER3) {
+            /* Cycles' clearcoat closure: 0.25 c Fr(h.wi, 1.5) on top of everything */
+            f = v3_add(f, v3s(0.25f * q->coat * (float)fr_dielectric(half_cos(wo, wi), 1.5) * dg));
+        } else {
+            /* KHR_materials_clearcoat's fresnel_coat: mix(base, coat, c Fc(N.V)) */
+            float fc = coat_fresnel(q, wo.z);
+            f = v3_add(v3_scale(f, 1.0f - fc), v3s(fc * dg));
         }
+        pdf += prob[LOBE_COAT] * pdf_coat;
     }
     if (!v3_is_finite(f) || !isfinite(pdf)) {
         f = v3s(0.0f);
@@ -383,7 +511,7 @@ int bsdf_sample(const BsdfParams *p, vec3 wo, float u_lobe, float u1, float u2, 
         vec3 o = v3_scale(wo, sg);
         float wg = (1.0f - q.m) * q.t;
         if (q.glass_delta) {
-            float fr = (float)(q.specular * fr_dielectric(o.z, eta));
+            float fr = (float)(q.glass_fscale * fr_dielectric(o.z, eta));
             vec3 w;
             float pr, weight_f;
             vec3 tint = v3s(1.0f);
@@ -400,7 +528,7 @@ int bsdf_sample(const BsdfParams *p, vec3 wo, float u_lobe, float u1, float u2, 
                 s->flags = BSDF_TRANSMISSION | BSDF_DELTA;
             }
             if (!(fabsf(w.z) > MIN_COS) || !(pr > 0.0f)) return 0;
-            weight_f *= (1.0f - coat_fresnel(&q, o.z)) * (1.0f - coat_fresnel(&q, w.z)); /* through the coat */
+            if (q.model == BSDF_MODEL_GLTF) weight_f *= 1.0f - coat_fresnel(&q, o.z); /* fresnel_coat */
             s->wi = v3_scale(w, sg);
             s->pdf = prob[LOBE_GLASS] * pr;
             /* weight = f |cos| / pdf = wg * weight_f * tint / (prob * pr): the lobe's mixture
@@ -412,7 +540,7 @@ int bsdf_sample(const BsdfParams *p, vec3 wo, float u_lobe, float u1, float u2, 
         vec3 wm = ggx_sample_visible_normal(o, q.alpha_glass, u1, u2);
         float dot_o = v3_dot(o, wm);
         if (!(dot_o > 0.0f)) return 0;
-        float fr = (float)(q.specular * fr_dielectric(dot_o, eta));
+        float fr = (float)(q.glass_fscale * fr_dielectric(q.model == BSDF_MODEL_BLENDER3 ? o.z : dot_o, eta));
         vec3 w;
         if (u_rem < fr) {
             w = reflect_about(o, wm);

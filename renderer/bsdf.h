@@ -1,24 +1,66 @@
-/* renderer/bsdf.h (private): the glTF metallic-roughness BSDF and its dielectric variant.
+/* renderer/bsdf.h (private): the material BSDFs, two models (--material-model).
  *
- * Model (glTF 2.0 spec appendix B, with KHR_materials_specular / _transmission / _ior):
+ * Directions are in the local shading frame (normal = +z), both pointing away from the
+ * surface; wo is the view side (V), wi the light side (L), h = normalize(wo + wi). f excludes
+ * the cosine. Opaque lobes are zero unless wo.z > 0 and wi.z > 0 (the caller flips the frame of
+ * opaque surfaces to face wo). For glass, +z is the outside: wo.z > 0 means the ray arrives from
+ * outside (eta = ior), wo.z < 0 from inside. Refraction carries radiance, so the BTDF includes
+ * the 1/eta^2 factor (pbrt's TransportMode::Radiance). bsdf_eval / bsdf_pdf return 0 for delta
+ * lobes. Both models share the GGX pieces, with the SEPARABLE Smith masking-shadowing term
+ * (what glTF Appendix B / KHR_materials_transmission and Cycles 3.4 both use):
+ *   D(h) = a^2 / (pi ((h.z)^2 (a^2 - 1) + 1)^2),   G1(w) = 2 w.z / (w.z + sqrt(a^2 + (1 - a^2) w.z^2)),
+ *   DV = D(h) G1(wo) G1(wi) / (4 wo.z wi.z),       a = roughness^2 (>= BSDF_MIN_ALPHA).
+ *
+ * BSDF_MODEL_GLTF (default): the glTF 2.0 specification, Appendix B, with its extensions:
  *   f = mix(dielectric, metal, metallic)
- *   metal      = GGX conductor, Fresnel = Schlick(base_color)
- *   dielectric = mix(opaque_dielectric, glass, transmission)
- *   opaque_dielectric = specular_layer(F) + (1 - specular * max(F)) * base_color / pi
- *   glass      = rough dielectric (Walter et al. 2007), reflection F, refraction (1-F) tinted by
- *                base_color; alpha < BSDF_DELTA_ALPHA is an exact delta (smooth glass)
- * with F the Schlick Fresnel of F0 = ((ior-1)/(ior+1))^2 * specular_color * specular and
- * F90 = specular, and alpha = roughness^2, clamped to >= BSDF_MIN_ALPHA for reflection.
- * KHR_materials_clearcoat layers a coat over all of it: f = coat + (1 - c Fc(wo)) (1 - c Fc(wi))
- * f_base, the coat a GGX reflection of alpha = clearcoat_roughness^2 weighted by c Fc(wo.h),
- * Fc the Schlick Fresnel of ior 1.5 (F0 0.04), c the clearcoat factor.
+ *   metal      = Fs(base_color, 1, h.wo) DV                        (conductor_fresnel)
+ *   dielectric = mix(opaque, glass, transmission)
+ *   opaque     = (1 - s max_c Fd_c(h.wo)) base_color / pi  +  s Fd(h.wo) DV
+ *               (KHR_materials_specular's fresnel_mix: Fd = Fs(min(F0_ior specular_color, 1), 1, .),
+ *                F0_ior = ((ior-1)/(ior+1))^2 from KHR_materials_ior, s = specular factor)
+ *   Fs(F0, F90, c) = F0 + (F90 - F0) (1 - c)^5 (Schlick), always at the half vector.
+ *   The diffuse weight depends on h (not on wo alone); f stays reciprocal (h.wo = h.wi) but is
+ *   NOT energy conserving at grazing wo: Fd(h.wo) -> 1 only near the mirror direction, so the
+ *   specular lobe takes almost all the energy there while the diffuse keeps (1 - Fd(h.wo)) ~ 1
+ *   elsewhere; the hemispherical albedo of a white dielectric rises above 1 as wo.z -> 0
+ *   (tests/test_bsdf.c measures it; at normal incidence it stays below 1).
+ *   glass      = rough dielectric (Walter et al. 2007, separable G), reflection s F(m.wo), refraction
+ *                (1 - s F(m.wo)) tinted by base_color, F the exact dielectric Fresnel at the
+ *                microfacet normal m; alpha < BSDF_DELTA_ALPHA is an exact delta (smooth glass).
+ *                This is a solid refracting boundary (with KHR_materials_volume semantics), not
+ *                KHR_materials_transmission's thin-walled Schlick BTDF.
+ *   KHR_materials_clearcoat (fresnel_coat): f = (1 - c Fc(|wo.z|)) f_base + c Fc(|wo.z|) DV_coat,
+ *   Fc = Fs(0.04, 1, .) at the shading normal (N.V, not the half vector), c the clearcoat factor,
+ *   DV_coat of alpha = clearcoat_roughness^2. Not reciprocal (the spec evaluates the coat's
+ *   Fresnel at the view direction); the albedo stays <= that of the base (the mix weights sum
+ *   to 1 and DV's albedo is <= 1).
  *
- * Conventions: directions are in the local shading frame (normal = +z), both pointing away
- * from the surface. f excludes the cosine. Opaque lobes are zero unless wo.z > 0 and
- * wi.z > 0 (the caller flips the frame of opaque surfaces to face wo). For glass, +z is the
- * outside: wo.z > 0 means the ray arrives from outside (eta = ior), wo.z < 0 from inside.
- * Refraction carries radiance, so the BTDF includes the 1/eta^2 factor (pbrt's
- * TransportMode::Radiance). bsdf_eval / bsdf_pdf return 0 for delta lobes. */
+ * BSDF_MODEL_BLENDER3: Blender 3.4's Principled BSDF v1 in Cycles (GGX distribution, the node's
+ * default and what the glTF importer leaves), set up from the glTF material as Blender 3.4's glTF
+ * importer does: Base Color, Metallic, Roughness, Transmission, IOR, Clearcoat and Clearcoat
+ * Roughness copied; Specular 0.5 and Specular Tint 0 unless KHR_materials_specular is present,
+ * then Specular = (lum(specular_color) - transmission) / (1 - transmission) F0_ior / 0.08 and
+ * Specular Tint = clamp(lum((norm(specular_color) - 1) / (norm(base_color) - 1)), 0, 1) (lum =
+ * 0.3 r + 0.6 g + 0.1 b, norm(c) = c / lum(c), 0/0 -> 0; 1 when norm(base_color) is white; the
+ * importer ignores specularFactor; Specular is clamped to [0, 12] here). With m = metallic, t = transmission, r = roughness, S = Specular:
+ *   f = (1-m)(1-t) base_color fd  +  (1 - (1-m) t) Fp(h.wi) DV  +  (1-m) t glass  +  coat
+ *   fd = [(1 - FV/2)(1 - FL/2) + R (FL + FV + FL FV (R - 1))] / pi,  R = r (1 + wo.wi),
+ *        FV = (1 - wo.z)^5, FL = (1 - wi.z)^5                     (Disney diffuse, Cycles' form)
+ *   Fp(c) = cspec0 (1 - FH) + FH,  FH = (Fr(c, ior_s) - Fr(1, ior_s)) / (1 - Fr(1, ior_s)) in [0, 1],
+ *        cspec0 = saturate(0.08 S ((1 - tint) + tint base_color / lum(base_color)) (1-m) + base_color m),
+ *        ior_s = 2 / (1 - sqrt(0.08 S)) - 1, Fr the exact dielectric Fresnel
+ *   glass = the rough dielectric above with Cycles' weights: reflection Fr(|wo.z|, ior) DV,
+ *        refraction base_color (1 - Fr(|wo.z|, ior)) BTDF (Fresnel at the macro normal, untinted
+ *        reflection: exact for Specular Tint 0)
+ *   coat = 0.25 clearcoat Fr(h.wi, 1.5) DV_coat, added on top.
+ * Principled v1 is NOT energy conserving: the specular lobe is added on top of a diffuse that is
+ * not reduced by it (a smooth white plastic, Specular 0.5, reflects (1 - FV/2)(1 - 1/42) +
+ * Fr(wo.z, 1.5): 1.016 at normal incidence, 1.155 at wo.z = 0.2), the retro-reflection of a rough
+ * diffuse adds more (albedo 1.036 / 1.057 / 1.245 at roughness 1 and wo.z = 1 / 0.5 / 0.2), and
+ * the coat is added on top of everything. What tests/test_bsdf.c checks instead: those closed
+ * forms, the diffuse alone <= 1 at roughness 0, the metal (cspec0 = 1) equal to the GGX lobe's
+ * albedo (1 when smooth). It is reciprocal (fd, Fp(h.wi) = Fp(h.wo) and DV are symmetric) except
+ * for the glass. */
 #ifndef CANDELA_BSDF_H
 #define CANDELA_BSDF_H
 
@@ -37,7 +79,15 @@ typedef struct BsdfParams {
     float ior;           /* > 1 (1.5 default); ior == 1 disables the specular layer */
     float clearcoat;     /* KHR_materials_clearcoat: coat weight [0,1]; 0 = no coat */
     float clearcoat_roughness; /* perceptual [0,1], the coat's alpha = roughness^2 */
+    int model;           /* BSDF_MODEL_*; 0 (zero-initialised) = glTF */
+    int specular_ext;    /* 1: KHR_materials_specular was present (BSDF_MODEL_BLENDER3's importer rule) */
 } BsdfParams;
+
+enum { BSDF_MODEL_GLTF = 0, BSDF_MODEL_BLENDER3 = 1 };
+
+/* Blender 3.4's glTF importer: the Principled Specular and Specular Tint it derives from p (see
+ * above). Exposed for the tests. */
+void bsdf_blender3_specular(const BsdfParams *p, float *specular, float *specular_tint);
 
 enum {
     BSDF_REFLECTION = 1,

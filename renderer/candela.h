@@ -39,6 +39,12 @@ typedef enum {
     CANDELA_LIGHT_MODEL_BLENDER3 = 1  /* spot: Cycles 3.4's cos x smoothstep over spot_blend */
 } CandelaLightModel;
 
+/* Which BSDF materials get (issue 14; renderer/bsdf.h has the formulas). */
+typedef enum {
+    CANDELA_MATERIAL_MODEL_GLTF = 0,     /* glTF 2.0 Appendix B + KHR_materials_* as specified */
+    CANDELA_MATERIAL_MODEL_BLENDER3 = 1  /* Blender 3.4's Principled v1 as its glTF importer sets it up */
+} CandelaMaterialModel;
+
 struct CandelaIterationInfo;
 
 typedef struct CandelaOptions {
@@ -58,6 +64,7 @@ typedef struct CandelaOptions {
     CandelaLightSampler light_sampler;
     CandelaLightUnits light_units;
     CandelaLightModel light_model; /* --light-model */
+    CandelaMaterialModel material_model; /* --material-model */
     const char *env_path;      /* overrides the scene's extras; NULL: none */
     float env_strength;
     float env_rotation_deg;    /* --env-rotation: degrees about the vertical, Blender's sign; NaN: the scene's extras (else 0) */

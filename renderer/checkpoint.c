@@ -104,8 +104,8 @@ int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t
         return -1;
     }
     /* issue 14's image-changing options, appended (NaN rotation: the scene's own, in its hash) */
-    int m = snprintf(id->text + n, sizeof id->text - (size_t)n, " env_rotation=%a light_model=%d",
-                     (double)o->env_rotation_deg, (int)o->light_model);
+    int m = snprintf(id->text + n, sizeof id->text - (size_t)n, " env_rotation=%a light_model=%d material_model=%d",
+                     (double)o->env_rotation_deg, (int)o->light_model, (int)o->material_model);
     if (m < 0 || (size_t)m >= sizeof id->text - (size_t)n) {
         snprintf(err, CANDELA_ERR_LEN, "%s: the render's options are too long for a checkpoint (camera or --env name)",
                  o->scene_path);

@@ -354,8 +354,8 @@ static void reference_key(const CandelaOptions *o, char *key, size_t size) {
              o->recorder_budget, o->recorder_mb, o->texture_budget_mb);
     /* issue 14's image-changing options, before the newline */
     size_t len = strlen(key);
-    if (len > 0 && len < size) snprintf(key + len - 1, size - len + 1, "; env rotation %.9g; light model %d\n", o->env_rotation_deg,
-                                             (int)o->light_model);
+    if (len > 0 && len < size) snprintf(key + len - 1, size - len + 1, "; env rotation %.9g; light model %d; material model %d\n",
+                                             o->env_rotation_deg, (int)o->light_model, (int)o->material_model);
 }
 
 /* The cached reference when OUT/reference.key matches key (and its render time), else -1. */

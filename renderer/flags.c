@@ -184,6 +184,11 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
         static const char *const names[] = {"gltf", "blender3", NULL};
         static const int values[] = {CANDELA_LIGHT_MODEL_GLTF, CANDELA_LIGHT_MODEL_BLENDER3};
         if ((rc = parse_choice(a, v, names, values, &c, "light model", err)) == 0) o->light_model = (CandelaLightModel)c;
+    } else if (strcmp(a, "--material-model") == 0) {
+        static const char *const names[] = {"gltf", "blender3", NULL};
+        static const int values[] = {CANDELA_MATERIAL_MODEL_GLTF, CANDELA_MATERIAL_MODEL_BLENDER3};
+        if ((rc = parse_choice(a, v, names, values, &c, "material model", err)) == 0)
+            o->material_model = (CandelaMaterialModel)c;
     } else if (strcmp(a, "--light-units") == 0) {
         static const char *const names[] = {"blender", "raw", NULL};
         static const int values[] = {CANDELA_LIGHT_UNITS_BLENDER, CANDELA_LIGHT_UNITS_RAW};

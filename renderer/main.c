@@ -102,6 +102,8 @@ static const char *USAGE =
     "  --light-units U           blender (default: cd/683, lux/683) | raw (W/sr, W/m^2)\n"
     "  --light-model M           gltf (default: glTF's spot cone ramp) | blender3 (Cycles 3.4's\n"
     "                            spot blend smoothstep, blend = 1 - inner/outer cone angle)\n"
+    "  --material-model M        gltf (default: glTF 2.0 Appendix B BRDF) | blender3 (Blender 3.4's\n"
+    "                            Principled BSDF v1 as its glTF importer sets it up)\n"
     "  --camera NAME             glTF camera by name (default: the first, or a framing view)\n"
     "  --env FILE                lat-long environment map (EXR/HDR/PNG...)\n"
     "  --env-strength S          environment multiplier (default 1)\n"

@@ -212,6 +212,8 @@ void scene_material_at(const Scene *scene, const SurfaceHit *hit, MaterialSample
     }
     m->bsdf.clearcoat = clampf(coat, 0.0f, 1.0f);
     m->bsdf.clearcoat_roughness = clampf(coat_roughness, 0.0f, 1.0f);
+    m->bsdf.model = scene->material_model == CANDELA_MATERIAL_MODEL_BLENDER3 ? BSDF_MODEL_BLENDER3 : BSDF_MODEL_GLTF;
+    m->bsdf.specular_ext = mat->has_specular_ext != 0;
     m->double_sided = mat->double_sided;
 }
 
@@ -575,6 +577,7 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
     const char *env_path = o->env_path ? o->env_path : (io->env_path[0] ? io->env_path : NULL);
     scene->env_strength = o->env_path ? o->env_strength : io->env_strength;
     scene->light_model = o->light_model;
+    scene->material_model = o->material_model;
     /* --env-rotation (NaN when not given) wins over the extras' rotation, with or without --env */
     double rotation_deg = isnan(o->env_rotation_deg) ? (double)io->env_rotation_deg : (double)o->env_rotation_deg;
     double turns = rotation_deg / 360.0;

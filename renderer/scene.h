@@ -72,6 +72,7 @@ typedef struct Scene {
     float env_strength;
     float env_rotation_turns;  /* the environment's rotation about +Y in turns, in [0, 1) (scene_env_dir_to_uv) */
     CandelaLightModel light_model; /* how lights_build shapes punctual lights (--light-model) */
+    CandelaMaterialModel material_model; /* which BSDF scene_material_at sets up (--material-model) */
     /* shadow linking (io.light_links' blockers): per IoLightLink, the Embree ray mask of the
      * shadow rays of its lights (SCENE_MASK_SURFACES when it has no blockers); NULL when no
      * link has blockers. Each distinct blockers list is one mask bit (2..31) that the

@@ -16,6 +16,7 @@ Outputs (paths relative to the repository root):
   tests/scenes/env_constant.gltf       nothing visible, constant environment (env_constant.exr)
   tests/scenes/env_plane.gltf          Lambert plane under the constant environment
   tests/scenes/coat_plane.gltf         env_plane with a smooth clearcoat (KHR_materials_clearcoat)
+  tests/scenes/plastic_plane.gltf      a smooth plastic plane under the environment (--material-model)
   tests/scenes/env_directions.gltf     orthographic cameras looking at texel centres of env_grid.exr
   tests/scenes/env_directions_rot.gltf the same with the environment rotated (extras rotation 75)
   tests/scenes/env_marked.gltf         a camera looking down -Z under env_marked.exr
@@ -695,8 +696,8 @@ def env_scenes():
     g.write(os.path.join(d, 'env_plane.gltf'))
 
     # the same plane with a smooth KHR_materials_clearcoat (factor 1, roughness 0): seen from
-    # straight above, L = (Fc(1) + (1 - Fc(1)) rho (1 - <Fc>)) Lenv with Fc(1) = 0.04 and
-    # <Fc> = 0.04 + 0.96 / 21 (tests/test_analytic.c)
+    # straight above, fresnel_coat gives L = (Fc(1) + (1 - Fc(1)) rho) Lenv with Fc(1) = 0.04
+    # (tests/test_analytic.c)
     g = Gltf()
     m = g.material('lambert_half_coated', **LAMBERT_WHITE)
     g.use('KHR_materials_clearcoat')
@@ -706,6 +707,16 @@ def env_scenes():
     top_ortho(g)
     g.environment('env_constant.exr', 1.0)
     g.write(os.path.join(d, 'coat_plane.gltf'))
+
+    # a smooth plastic plane (base 0.5, roughness 0, glTF's default specular: F0 0.04) under the
+    # same environment, seen from straight above (wo = n): --material-model gltf gives
+    # L = (F(1) + rho int (1 - F(h.n)) cos / pi) Lenv, blender3 (Principled v1, Specular 0.5)
+    # L = (Fr(1, 1.5) + rho (1 - 1/42)) Lenv (tests/test_analytic.c test_material_models)
+    g = Gltf()
+    g.mesh('plane', 'plane', PLANE, g.material('plastic_half_smooth', base=(0.5, 0.5, 0.5), roughness=0.0))
+    top_ortho(g)
+    g.environment('env_constant.exr', 1.0)
+    g.write(os.path.join(d, 'plastic_plane.gltf'))
 
     # orthographic cameras (all rays parallel) looking at texel centres of env_grid.exr: each
     # pixel = that texel exactly (with nearest or bilinear lookup). Camera "texel_i_j" for the

@@ -208,6 +208,8 @@ silent "no lights but an environment" "$root/tests/scenes/no_lights.gltf" --env 
 expect_error "bad env rotation" "--env-rotation" -- render "$scene" --env-rotation 90deg "${common[@]}"
 expect_error "nan env rotation" "--env-rotation" -- render "$scene" --env-rotation nan "${common[@]}"
 expect_error "bad light model" "unknown light model 'blender4'" -- render "$scene" --light-model blender4 "${common[@]}"
+expect_error "bad material model" "unknown material model 'blender4'" -- render "$scene" --material-model blender4 "${common[@]}"
+silent "material model blender3" "$root/tests/scenes/plastic_plane.gltf" --material-model blender3
 rm -f "$tmp/w.exr" "$tmp/w.err"
 
 # volumes: a node whose candela_volume names a missing, a truncated or a non-VDB file, or a
