@@ -41,7 +41,7 @@
 
 #include "build_internal.h"
 
-#define CP_PROGRESSIVE_MIN_ATTEMPTS 8u  /* a point with fewer shadow rays has no visibility rate yet */
+#define CP_PROGRESSIVE_MIN_ATTEMPTS 4u  /* a point with fewer shadow rays has no visibility rate yet */
 #define CP_PROGRESSIVE_MIN_SCORE 0.05f  /* below this a probe is not a discontinuity (noise floor) */
 
 /* ---------------------------------------------------------------- scores */
