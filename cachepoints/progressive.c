@@ -29,7 +29,8 @@
  *     far blur and the flat arrays are rebuilt (cp_build_points, as in the build), so the
  *     old points' lists see their new neighbours (§5.2.1's "update the existing cache
  *     points' distributions"). Learned visibility is kept: each old point's counters move to
- *     the slot of the same key, then the barrier's Eqs. 5-6 and blur run as usual.
+ *     the slot of the same key, a new point starts from its parent's (capped, see
+ *     inherit_range), then the barrier's Eqs. 5-6 and blur run as usual.
  *
  * Everything happens at the iteration barrier (no ray in flight: the paper's §1 read-write
  * lock problem does not arise) and depends only on the counters (integer sums, independent
@@ -133,6 +134,37 @@ static void move_range(void *vctx, size_t b, size_t e, int thread) {
     }
 }
 
+/* A new point starts from the counters of the point its probe used (same key), capped at
+ * CP_INHERIT_ATTEMPTS attempts with the same rate: the vertices that move to it were using
+ * that point's learned visibility, so it keeps that until its own outcomes (which soon
+ * outweigh the cap; Eq. 6 needs 25) say otherwise. Without it a new point would restart at
+ * W = 1 and sample the occluded lights its parent had learned to avoid. */
+#define CP_INHERIT_ATTEMPTS 32u
+typedef struct InheritCtx { CachePoints *nw; const uint32_t *parent; uint32_t first; } InheritCtx;
+
+static void inherit_range(void *vctx, size_t b, size_t e, int thread) {
+    (void)thread;
+    InheritCtx *c = vctx;
+    CachePoints *cp = c->nw;
+    for (size_t j = b; j < e; ++j) {
+        uint32_t p = c->first + (uint32_t)j, par = c->parent[j];
+        uint32_t a = cp->vis_off[p], a1 = cp->vis_off[p + 1], q = cp->vis_off[par], q1 = cp->vis_off[par + 1];
+        while (a < a1 && q < q1) {
+            uint32_t ka = cp->vis_key[a], kq = cp->vis_key[q];
+            if (ka < kq) ++a;
+            else if (ka > kq) ++q;
+            else {
+                VisCounter h = cp->vis_count[q++];
+                if (h.total > CP_INHERIT_ATTEMPTS) {
+                    h.success = (uint32_t)((uint64_t)h.success * CP_INHERIT_ATTEMPTS / h.total);
+                    h.total = CP_INHERIT_ATTEMPTS;
+                }
+                cp->vis_count[a++] = h;
+            }
+        }
+    }
+}
+
 /* Frees what cp_build_points made (the parts a rebuild replaces). */
 static void free_points(CachePoints *cp) {
     kdtree_free(&cp->kd);
@@ -147,9 +179,10 @@ static void free_points(CachePoints *cp) {
 }
 
 /* Appends m points (pos 3m, radius m) and rebuilds; the old points' counters move to their new
- * slots. On failure (-1, out of memory) cp is unchanged. */
+ * slots, and new point j inherits those of old point parent[j] (parent NULL: none, the caller
+ * loads counters). On failure (-1, out of memory) cp is unchanged. */
 static int insert_points(CachePoints *cp, const CachePointLights *L, const float *pos, const float *radius,
-                         uint32_t m, int keep_raw) {
+                         const uint32_t *parent, uint32_t m, int keep_raw) {
     uint32_t n = cp->n, total = n + m;
     CachePoints nw;
     memset(&nw, 0, sizeof nw);
@@ -183,6 +216,10 @@ static int insert_points(CachePoints *cp, const CachePointLights *L, const float
     }
     MoveCtx mc = {cp, &nw};
     cp_run_parallel(&cp->params, n, 256, move_range, &mc);
+    if (parent) {
+        InheritCtx ic = {&nw, parent, n};
+        cp_run_parallel(&cp->params, m, 256, inherit_range, &ic);
+    }
     CachePointStats st = cp->stats;
     st.final_points = total;
     st.bytes = nw.stats.bytes;
@@ -211,7 +248,8 @@ static int insertion_round(CachePoints *cp, const CachePointLights *L, int last,
     uint32_t *pair = malloc(((size_t)np + 1) * 2 * sizeof(uint32_t));
     ValueIndex *order = malloc(((size_t)np + 1) * sizeof(ValueIndex));
     float *new_pos = malloc(((size_t)budget + 1) * 3 * sizeof(float)), *new_r = malloc(((size_t)budget + 1) * sizeof(float));
-    int rc = rate && attempts && score && pair && order && new_pos && new_r ? 0 : -1;
+    uint32_t *parent = malloc(((size_t)budget + 1) * sizeof(uint32_t));
+    int rc = rate && attempts && score && pair && order && new_pos && new_r && parent ? 0 : -1;
     uint32_t m = 0;
     if (rc == 0) {
         RateCtx r = {cp, rate, attempts};
@@ -235,12 +273,13 @@ static int insertion_round(CachePoints *cp, const CachePointLights *L, int last,
             }
             if (close) continue;
             memcpy(new_pos + 3 * (size_t)m, q, 3 * sizeof(float));
+            parent[m] = c;
             new_r[m++] = r;
         }
     }
     free(rate); free(attempts); free(score); free(pair); free(order);
-    if (rc == 0 && m > 0) rc = insert_points(cp, L, new_pos, new_r, m, !last);
-    free(new_pos); free(new_r);
+    if (rc == 0 && m > 0) rc = insert_points(cp, L, new_pos, new_r, parent, m, !last);
+    free(new_pos); free(new_r); free(parent);
     if (rc == 0) *inserted = m;
     return rc;
 }
@@ -291,7 +330,7 @@ int cachepoints_load_inserted(CachePoints *cp, const CachePointLights *lights, F
     if (rc == 0 && (get(in, pos, (size_t)m * 3 * sizeof(float)) || get(in, r, (size_t)m * sizeof(float)))) rc = -1;
     const CachePointParams *P = &cp->params;
     int more = P->progressive_rounds && P->visibility && head[4] + 1 < P->progressive_first + P->progressive_rounds;
-    if (rc == 0 && m > 0 && insert_points(cp, lights, pos, r, m, more) != 0) rc = -3;
+    if (rc == 0 && m > 0 && insert_points(cp, lights, pos, r, NULL, m, more) != 0) rc = -3;
     if (rc == 0 && !more) cp_raw_free(cp);
     if (rc == 0) cp->barriers = head[4];
     free(pos);
