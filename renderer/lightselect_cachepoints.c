@@ -699,11 +699,13 @@ static int build(CachePointSampler *s, const Scene *scene, const SceneMedia *med
     params.pool_visibility = o->cachepoint_pooling;
     params.build_cut = !o->cachepoint_build_linear;
     if (o->cachepoint_cut_size) params.cut_size = o->cachepoint_cut_size;
-    /* progressive insertion: two rounds, after the second and third iterations (2 and 4 spp
-     * of counters), half the budget each */
+    /* progressive insertion: one round, after the third iteration (4 spp of counters: the
+     * visibility rates are reliable enough, most of the render is still to come). Two rounds,
+     * after 2 and 4 spp with half the budget each, gave the same MSE on windows at 16 spp
+     * (1.001x the one-shot build's either way) for twice the rebuild time. */
     if (o->cachepoint_progressive == 1 || (o->cachepoint_progressive == 0 && CACHEPOINT_PROGRESSIVE_DEFAULT)) {
-        params.progressive_rounds = 2;
-        params.progressive_first = 2;
+        params.progressive_rounds = 1;
+        params.progressive_first = 3;
         params.progressive_budget = o->cachepoint_progressive_budget > 0.0f ? o->cachepoint_progressive_budget : 0.15f;
     }
     params.parallel_for = pool_parallel_for;
