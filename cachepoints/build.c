@@ -82,7 +82,7 @@ int cp_build_distributions(const DistCtx *proto, uint32_t n) {
 
 /* Cut build: keys are the tree's nodes, then one per infinite light (see internal.h).
  * 0 ok, -1 out of memory, -2 a tree that is not the layout CachePointTree documents. */
-static int key_space_init(CachePoints *cp, const CachePointLights *L) {
+int cp_key_space_init(CachePoints *cp, const CachePointLights *L) {
     cp->num_lights = L->count;
     cp->num_keys = L->count;
     if (!cp->params.build_cut) return 0;
@@ -139,6 +139,8 @@ void cachepoints_free(CachePoints *cp) {
     free(cp->scatter_near); free(cp->scatter_far); free(cp->scatter_total);
     free(cp->nbr); free(cp->nbr_w); free(cp->self_w); free(cp->nbr_clear2);
     free(cp->w_pool); free(cp->key_parent);
+    free(cp->probe);
+    cp_raw_free(cp);
     free(cp);
 }
 
@@ -249,9 +251,80 @@ static int flatten(CachePoints *cp, Dist *dist, Dist *blurred) {
 
 /* ---------------------------------------------------------------- the build */
 
+/* A deep copy of a distribution (progressive insertion keeps the points' own ones). */
+static int dist_copy(Dist *to, const Dist *from) {
+    memset(to, 0, sizeof *to);
+    if (cp_dist_alloc_near(to, from->near_count) != 0) return -1;
+    memcpy(to->near_key, from->near_key, from->near_count * sizeof(uint32_t));
+    memcpy(to->near_light, from->near_light, from->near_count * sizeof(uint32_t));
+    memcpy(to->near_fluence, from->near_fluence, from->near_count * sizeof(float));
+    to->far_count = from->far_count;
+    to->far = malloc((from->far_count ? from->far_count : 1) * sizeof(FarEntry));
+    if (!to->far) return -1;
+    memcpy(to->far, from->far, from->far_count * sizeof(FarEntry));
+    return 0;
+}
+
+/* The final points' distributions (§3.1.3), kd-tree, far blur (§3.1.5), flat arrays and
+ * render tables: the part of the build after merge pass 2, which progressive.c reruns over
+ * the old and the inserted points. A point's own (unblurred) distribution depends only on
+ * its position and radius, so points [0, cp->num_raw) take theirs from cp->raw (moved out)
+ * and only the others are estimated. With keep_raw, every point's is kept in cp->raw for
+ * the next rebuild. */
+int cp_build_points(CachePoints *cp, const CachePointLights *L, int keep_raw) {
+    uint32_t n = cp->n, reuse = cp->raw && cp->num_raw <= n ? cp->num_raw : 0;
+    const CachePointParams *P = &cp->params;
+    Dist *dist = calloc(n, sizeof *dist);
+    int failed = !dist;
+    if (!failed) {
+        if (reuse) memcpy(dist, cp->raw, reuse * sizeof *dist);
+        free(cp->raw);
+        cp->raw = NULL;
+        cp->num_raw = 0;
+    }
+    /* the seven far bins (§3.1.3) */
+    if (!failed && reuse < n) {
+        DistCtx dc = {cp->pos + 3 * (size_t)reuse, cp->radius + reuse, L, P, cp, dist + reuse, NULL, 0};
+        failed = cp_build_distributions(&dc, n - reuse) != 0;
+    }
+    if (!failed && keep_raw) {
+        cp->raw = calloc(n, sizeof *cp->raw);
+        failed = !cp->raw;
+        for (uint32_t i = 0; i < n && !failed; ++i) failed = dist_copy(&cp->raw[i], &dist[i]) != 0;
+        cp->num_raw = n;
+    }
+    Dist *blurred = NULL;
+    if (!failed) {
+        blurred = calloc(n, sizeof *blurred);
+        failed = !blurred || kdtree_build(&cp->kd, cp->pos, n) != 0 ||
+                 kdtree_build_clearance(&cp->kd) != 0; /* render-time 1-NN shortcut */
+    }
+    if (!failed) {
+        /* blur the far bins out of place (§3.1.5); then the points' own lists are freed
+         * before the flat arrays exist, so the build never holds three copies */
+        failed = cp_blur_far(cp, dist, blurred) != 0;
+        for (uint32_t i = 0; i < n; ++i) { free(dist[i].far); dist[i].far = NULL; dist[i].far_count = 0; }
+    }
+    if (!failed) failed = flatten(cp, dist, blurred) != 0;
+    for (uint32_t i = 0; i < n && dist; ++i) cp_dist_free(&dist[i]);
+    for (uint32_t i = 0; i < n && blurred; ++i) cp_dist_free(&blurred[i]);
+    free(dist);
+    free(blurred);
+    if (failed) return -1;
+    cp_rebuild_tables(cp, 1);
+    return 0;
+}
+
+void cp_raw_free(CachePoints *cp) {
+    for (uint32_t i = 0; cp->raw && i < cp->num_raw; ++i) cp_dist_free(&cp->raw[i]);
+    free(cp->raw);
+    cp->raw = NULL;
+    cp->num_raw = 0;
+}
+
 /* What the build cannot run with (-2): more neighbours than the fixed kNN arrays hold
  * (64), a uniform floor that is not a probability, or a cut build without a usable tree
- * (key_space_init checks its layout). */
+ * (cp_key_space_init checks its layout). */
 static int params_valid(const CachePointParams *P, const CachePointLights *L) {
     if (P->knn > 64 || P->blur_neighbours > 64) return 0;
     if (!(P->epsilon >= 0.0f && P->epsilon <= 1.0f)) return 0;
@@ -274,7 +347,7 @@ int cachepoints_build(CachePoints **out, const float *cand, uint32_t num_candida
     cp->params = *P;
     if (cp->params.max_near > CACHEPOINTS_MAX_NEAR) cp->params.max_near = CACHEPOINTS_MAX_NEAR;
     P = &cp->params;
-    int rc = key_space_init(cp, L);
+    int rc = cp_key_space_init(cp, L);
     if (rc != 0) { cachepoints_free(cp); return rc; }
     /* drop non-finite candidates */
     float *in = malloc(((size_t)num_candidates + 1) * 3 * sizeof(float));
@@ -297,32 +370,15 @@ int cachepoints_build(CachePoints **out, const float *cand, uint32_t num_candida
     Dist *dist = calloc(n1, sizeof *dist);
     cp->radius = malloc(n1 * sizeof(float));
     uint32_t n = 0;
-    failed = !dist || !cp->radius || cp_merge_pass2(cp, L, camera, P, cp->pos, n1, scene_scale, dist, cp->radius, &n) != 0;
-    /* the seven far bins for the survivors (§3.1.3) */
-    if (!failed && n > 0) {
-        DistCtx dc = {cp->pos, cp->radius, L, P, cp, dist, NULL, 0};
-        failed = cp_build_distributions(&dc, n) != 0;
-    }
-    cp->n = n;
-    Dist *blurred = NULL;
-    if (!failed && n > 0) {
-        blurred = calloc(n, sizeof *blurred);
-        failed = !blurred || kdtree_build(&cp->kd, cp->pos, n) != 0 ||
-                 kdtree_build_clearance(&cp->kd) != 0; /* render-time 1-NN shortcut */
-    }
-    if (!failed && n > 0) {
-        /* blur the far bins out of place (§3.1.5); then the points' own lists are freed
-         * before the flat arrays exist, so the build never holds three copies */
-        failed = cp_blur_far(cp, dist, blurred) != 0;
-        for (uint32_t i = 0; i < n; ++i) { free(dist[i].far); dist[i].far = NULL; dist[i].far_count = 0; }
-    }
-    if (!failed && n > 0) failed = flatten(cp, dist, blurred) != 0;
-    for (uint32_t i = 0; i < n1 && dist; ++i) cp_dist_free(&dist[i]);
-    for (uint32_t i = 0; i < n && blurred; ++i) cp_dist_free(&blurred[i]);
+    failed = !dist || !cp->radius ||
+             cp_merge_pass2(cp, L, camera, P, cp->pos, n1, scene_scale, dist, cp->radius, &n,
+                            P->progressive_rounds ? &cp->probe : NULL, &cp->num_probes) != 0;
+    for (uint32_t i = 0; i < n1 && dist; ++i) cp_dist_free(&dist[i]); /* pass 2 leaves them empty */
     free(dist);
-    free(blurred);
+    cp->n = n;
+    cp->n_build = n;
+    if (!failed && n > 0) failed = cp_build_points(cp, L, P->progressive_rounds > 0) != 0;
     if (failed || n == 0) { cachepoints_free(cp); return failed ? -1 : 1; }
-    cp_rebuild_tables(cp, 1);
     st.final_points = n;
     st.bytes = cp->stats.bytes;
     st.mean_near = cp->stats.mean_near;

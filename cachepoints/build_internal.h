@@ -115,10 +115,23 @@ float cp_scene_scale(const float *pts, uint32_t n);
 int cp_merge_pass1(const CachePointParams *P, const CachePointCamera *camera, float *pts, uint32_t n,
                    uint32_t *survivors);
 /* Merge pass 2 (§3.1.4) over pts[0, n): omni distributions (dist[0, n) is scratch, left
- * empty), Eqs. 2-3, the radii r_p, then the merge; pts and radius are compacted in place. */
+ * empty), Eqs. 2-3, the radii r_p, then the merge; pts and radius are compacted in place.
+ * probes (may be NULL): receives the deleted points in index order (malloc'd, *num_probes). */
 int cp_merge_pass2(const CachePoints *keys, const CachePointLights *L, const CachePointCamera *camera,
                    const CachePointParams *P, float *pts, uint32_t n, float scene_scale, Dist *dist, float *radius,
-                   uint32_t *survivors);
+                   uint32_t *survivors, float **probes, uint32_t *num_probes);
+
+/* ---------------------------------------------------------------- build.c, shared with progressive.c */
+
+/* The key space of the cut build (keys = light-tree nodes, then infinite lights). 0 ok, -1
+ * out of memory, -2 a malformed tree. */
+int cp_key_space_init(CachePoints *cp, const CachePointLights *L);
+/* From cp->pos, cp->radius and cp->n (the final points): their distributions (§3.1.3; those
+ * of points [0, cp->num_raw) moved out of cp->raw), the kd-tree, the far blur (§3.1.5), the
+ * flat arrays with W' = 1, the render tables; keep_raw: every point's own distribution is
+ * kept in cp->raw. 0 ok, -1 out of memory (cp->raw is then consumed or freed). */
+int cp_build_points(CachePoints *cp, const CachePointLights *L, int keep_raw);
+void cp_raw_free(CachePoints *cp);
 
 /* ---------------------------------------------------------------- blur.c (§3.1.5) */
 

@@ -83,6 +83,11 @@ typedef struct CachePointParams {
     int retruncate;           /* linear: re-apply 97% / 4..256 per bin after the blur (bounds memory; off = paper) */
     int build_cut;            /* 1: far entries are a cut through lights->tree (needs the tree); 0: linear */
     uint32_t cut_size;        /* cut build: far entries per point (clusters or single lights) */
+    /* progressive insertion (cachepoints_progress, progressive.c; beyond the paper, §5.2.1):
+     * at barriers progressive_first .. progressive_first + progressive_rounds - 1 (1: the
+     * first barrier), up to progressive_budget x the build's points in all; 0 rounds: off */
+    uint32_t progressive_rounds, progressive_first;
+    float progressive_budget;
     CachePointParallelFor parallel_for;
     void *pool;
 } CachePointParams;
@@ -247,6 +252,27 @@ uint32_t cachepoints_slot(const CachePoints *cp, uint32_t point, uint32_t light)
  * keeps R), so the counters never overflow while a slot gets fewer than 2^23 records per
  * iteration. */
 void cachepoints_update_visibility(CachePoints *cp);
+/* Progressive insertion (progressive.c; beyond the paper: §5.2.1's "add new cache points at
+ * later iterations", the cache placement paper's discontinuity-guided sampling as its digest's
+ * section C.3 adapts it). Call at every iteration barrier *before*
+ * cachepoints_update_visibility. It counts the barrier; at the rounds the params name it
+ * scores the probes (the candidates merge pass 2 deleted) by the jump in visibility rate
+ * between the point a probe uses and the next nearest point, inserts the best (a budget per
+ * round, minimum separation), rebuilds distributions, kd-tree and blur over old and new
+ * points, and moves every old point's counters to its new slots. Old points keep their
+ * indices; new ones come after them. Deterministic (counters, build and probe order only).
+ * *inserted receives the count. 0 ok (also when nothing is inserted), -1 out of memory (cp
+ * is unchanged). The caller rebuilds anything derived from the points (scattering weights). */
+int cachepoints_progress(CachePoints *cp, const CachePointLights *lights, uint32_t *inserted);
+/* Points inserted so far (cachepoints_count minus the one-shot build's). */
+uint32_t cachepoints_inserted(const CachePoints *cp);
+/* Checkpoints of progressive insertion: the inserted points and the barrier count. load runs
+ * on a fresh build of the same scene and options, re-inserts the points (the same rebuild),
+ * and must precede cachepoints_load_learned: 0 ok, -1 a short or damaged record, -2 a record
+ * of another build, -3 out of memory. */
+int cachepoints_save_inserted(const CachePoints *cp, FILE *out);
+int cachepoints_load_inserted(CachePoints *cp, const CachePointLights *lights, FILE *in);
+
 /* Checkpoints (checkpoint.c): what visibility learning changed (the counters, W' and the tables
  * built from it), in native byte order with a magic and format version. load expects the same
  * build (a deterministic function of the scene and options): 0 ok, -1 a short or damaged record,

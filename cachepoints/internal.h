@@ -91,6 +91,15 @@ struct CachePoints {
     CachePointParams params;
     CachePointStats stats;
     KdTree kd;
+    /* progressive insertion (progressive.c, params.progressive_rounds > 0): the probe pool
+     * (the candidates merge pass 2 deleted, in index order), the points of the one-shot build
+     * (those after it were inserted), and the barriers seen so far */
+    float *probe;              /* 3 per probe */
+    uint32_t num_probes, n_build, barriers;
+    /* per point, its own distribution before the blur (build_internal.h's Dist), kept while
+     * insertion rounds remain so a rebuild estimates only the new points; NULL otherwise */
+    struct Dist *raw;
+    uint32_t num_raw;
 };
 
 static inline uint32_t cp_key_of_light(const CachePoints *cp, uint32_t light) {

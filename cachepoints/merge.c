@@ -214,8 +214,9 @@ static void pass2_within_radius(void *vctx, size_t b, size_t e, int thread) {
 
 int cp_merge_pass2(const CachePoints *keys, const CachePointLights *L, const CachePointCamera *camera,
                    const CachePointParams *P, float *pts, uint32_t n, float scene_scale, Dist *dist, float *radius,
-                   uint32_t *survivors) {
+                   uint32_t *survivors, float **probes, uint32_t *num_probes) {
     *survivors = 0;
+    if (probes) { *probes = NULL; *num_probes = 0; }
     float *r0 = malloc(n * sizeof(float));
     OmniDist *omni = calloc(n, sizeof *omni);
     uint8_t *deleted = calloc(n, 1);
@@ -242,6 +243,14 @@ int cp_merge_pass2(const CachePoints *keys, const CachePointLights *L, const Cac
     free(nbr_count);
     for (uint32_t i = 0; omni && i < n; ++i) { free(omni[i].key); free(omni[i].p); }
     free(omni);
+    if (!failed && probes) { /* the deleted candidates, in index order: progressive.c's probe pool */
+        uint32_t m = 0;
+        for (uint32_t i = 0; i < n; ++i) m += deleted[i];
+        *probes = malloc(((size_t)m + 1) * 3 * sizeof(float));
+        if (!*probes) failed = 1;
+        for (uint32_t i = 0; i < n && !failed; ++i)
+            if (deleted[i]) memcpy(*probes + 3 * (size_t)(*num_probes)++, pts + 3 * (size_t)i, 3 * sizeof(float));
+    }
     if (!failed) *survivors = compact(pts, radius, deleted, n);
     free(deleted);
     free(r0);

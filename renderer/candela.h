@@ -82,6 +82,8 @@ typedef struct CandelaOptions {
                                    * 2: and then (cut build) their point's counters of nearby lights */
     uint32_t cachepoint_candidates; /* candidates in object boxes (§3.1.1); 0: scaled with the image */
     uint32_t cachepoint_pilots;     /* pilot paths (§3.1.1); 0: scaled with the image */
+    int cachepoint_progressive;     /* --cachepoint-progressive: 0 the default, 1 on, 2 off (cachepoints/progressive.c) */
+    float cachepoint_progressive_budget; /* --cachepoint-progressive-budget: inserted points / built points; 0: default */
     /* set non-zero (e.g. from a signal handler) to stop after the current batch (the rest of the
      * iteration is abandoned; with checkpoint_path its state is written): the image of the
      * samples done is returned and CandelaStats.interrupted set. NULL: never. */
@@ -166,6 +168,8 @@ typedef struct CandelaStats {
     uint32_t num_cachepoints, cachepoint_candidates;
     size_t cachepoint_bytes;
     double cachepoint_mean_near, cachepoint_mean_far, cachepoint_mean_clusters; /* entries per point */
+    uint32_t cachepoints_inserted;   /* of num_cachepoints, inserted between iterations (progressive) */
+    double time_cachepoint_insertion, cpu_cachepoint_insertion; /* their scoring and rebuilds, at the barriers */
     uint32_t num_volumes;
     uint64_t volume_collisions;   /* majorant collisions the media trackers evaluated */
     uint64_t volume_capped_walks; /* tracker calls stopped at their collision cap (a bad medium) */

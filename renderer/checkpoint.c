@@ -98,6 +98,9 @@ int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t
     if (n >= 0 && (size_t)n < sizeof id->text)
         n += snprintf(id->text + n, sizeof id->text - (size_t)n, " aov_cachepoint=%d cachepoint_pooling=%d", o->aov_selection,
                       o->cachepoint_pooling);
+    if (n >= 0 && (size_t)n < sizeof id->text) /* progressive insertion */
+        n += snprintf(id->text + n, sizeof id->text - (size_t)n, " cachepoint_progressive=%d budget=%a",
+                      o->cachepoint_progressive, (double)o->cachepoint_progressive_budget);
     if (n < 0 || (size_t)n >= sizeof id->text) {
         snprintf(err, CANDELA_ERR_LEN, "%s: the render's options are too long for a checkpoint (camera or --env name)",
                  o->scene_path);

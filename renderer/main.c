@@ -93,6 +93,9 @@ static const char *USAGE =
     "  --cachepoint-pooling off|points|lights  visibility counters of slots with too few attempts\n"
     "                            pooled over the 16 neighbouring points (points), then over the\n"
     "                            lights next to the slot's in the light tree (lights; default off)\n"
+    "  --cachepoint-progressive on|off  insert cache points between iterations where neighbouring\n"
+    "                            points' learned visibility jumps (default off)\n"
+    "  --cachepoint-progressive-budget F  inserted points as a fraction of the built ones (default 0.15)\n"
     "  --aov cachepoint          add cachepoint.RGB and cachepoint_light.RGB to the EXR (false colours\n"
     "                            of each first hit's cache point and of the entry it weighs most) and\n"
     "                            write NAME.cachepoint.png, NAME.cachepoint_light.png beside the PNG\n"
@@ -251,6 +254,9 @@ static void print_stats(const CandelaStats *s) {
                 s->num_cachepoints, s->cachepoint_candidates, s->time_cachepoints,
                 (double)s->cachepoint_bytes / (1024.0 * 1024.0), s->cachepoint_mean_near, s->cachepoint_mean_far,
                 s->cachepoint_mean_clusters);
+    if (s->cachepoints_inserted)
+        fprintf(stderr, "  cache points inserted between iterations: %u, in %.3fs\n", s->cachepoints_inserted,
+                s->time_cachepoint_insertion);
     if (s->recorder_bound_bytes)
         fprintf(stderr,
                 "  radiance recorder: %llu vertices for %llu recorded paths (%.2f per path), %llu samples, peak %u live "

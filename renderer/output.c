@@ -116,10 +116,12 @@ static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s) 
             s->num_textures_8bit, (unsigned long long)s->texture_bytes);
     fprintf(f,
             "  \"cachepoints\": {\"build\": \"%s\", \"build_seconds\": %.6f, \"build_cpu_seconds\": %.6f, \"candidates\": %u, \"points\": %u, "
-            "\"bytes\": %zu, \"mean_near\": %.3f, \"mean_far\": %.3f, \"mean_clusters\": %.3f},\n",
+            "\"bytes\": %zu, \"mean_near\": %.3f, \"mean_far\": %.3f, \"mean_clusters\": %.3f, \"inserted\": %u, "
+            "\"insertion_seconds\": %.6f, \"insertion_cpu_seconds\": %.6f},\n",
             o->cachepoint_build_linear ? "linear" : "cut", s->time_cachepoints, s->cpu_cachepoints, s->cachepoint_candidates,
             s->num_cachepoints, s->cachepoint_bytes, s->cachepoint_mean_near, s->cachepoint_mean_far,
-            s->cachepoint_mean_clusters);
+            s->cachepoint_mean_clusters, s->cachepoints_inserted, s->time_cachepoint_insertion,
+            s->cpu_cachepoint_insertion);
     fprintf(f, "  \"volumes\": {\"count\": %u, \"collisions\": %llu, \"capped_walks\": %llu},\n", s->num_volumes,
             (unsigned long long)s->volume_collisions, (unsigned long long)s->volume_capped_walks);
     fprintf(f,

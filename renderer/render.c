@@ -303,6 +303,7 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
         }
     }
     stats->spp_done = spp_done;
+    light_sampler_report(&r->sampler, stats); /* again: what the barriers changed in the strategy */
     if (stopped) {
         /* the image of the samples done is returned (per-pixel counts differ after an abandoned
          * iteration; each pixel's mean is its own samples'), and the state is kept to resume */

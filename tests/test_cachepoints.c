@@ -230,6 +230,8 @@ static void fractional_visibility(const CachePointLights *L, const float *cand, 
  * neighbours holding the same key (checked against the sums computed here), below 1; a slot
  * with 25+ attempts of its own keeps its own W; bit-identical for a reversed parallel-for and
  * after a checkpoint save / load. */
+static void progressive_insertion(const CachePointLights *L, const float *cand, uint32_t nc, const CachePointParams *P0,
+                                  const char *mode);
 static void pooled_visibility(const CachePointLights *L, const float *cand, uint32_t nc, const CachePointParams *P0,
                               const char *mode) {
     CachePointCamera cam = {{5.0f, 5.0f, 40.0f}, 2.0f * 0.4f / 64.0f, 0.0f};
@@ -536,6 +538,161 @@ static void run(const CachePointLights *L, const float *cand, uint32_t nc, int c
     P.parallel_for = NULL;
     fractional_visibility(L, cand, nc, &P, mode);
     pooled_visibility(L, cand, nc, &P, mode);
+    progressive_insertion(L, cand, nc, &P, mode);
+}
+
+/* Every slot of point p gets `count` records of `vis`. */
+static void record_point(CachePoints *cp, uint32_t p, int count, float vis) {
+    for (uint32_t s = cp->vis_off[p]; s < cp->vis_off[p + 1]; ++s)
+        for (int t = 0; t < count; ++t) cachepoints_record(cp, s, vis);
+}
+
+/* A shadow boundary: the points with x < 5 see every light, those with x >= 5 none (20
+ * attempts per slot). */
+static void record_boundary(CachePoints *cp) {
+    for (uint32_t p = 0; p < cachepoints_count(cp); ++p) record_point(cp, p, 20, cp->pos[3 * p] < 5.0f ? 1.0f : 0.0f);
+}
+
+/* Progressive insertion (progressive.c): after a shadow boundary at x = 5 has been learned,
+ * the inserted points lie along it (their mean distance to the plane a small fraction of the
+ * built points'), within the budget, at the round's barrier only; bit-identical for a
+ * reversed parallel-for; the old points keep their positions, radii and every counter of a
+ * key they still hold; PMFs of the new set sum to 1 and select agrees with pmf; uniform
+ * visibility inserts nothing (the noise floor); a checkpoint (inserted points + learned
+ * state) loaded into a fresh build gives the same points and weights. */
+static void progressive_insertion(const CachePointLights *L, const float *cand, uint32_t nc, const CachePointParams *P0,
+                                  const char *mode) {
+    CachePointCamera cam = {{5.0f, 5.0f, 40.0f}, 2.0f * 0.4f / 64.0f, 0.0f};
+    CachePointParams P = *P0;
+    P.progressive_rounds = 1;
+    P.progressive_first = 2; /* the second barrier */
+    P.progressive_budget = 0.3f;
+    CachePointParams R = P;
+    R.parallel_for = reverse_parallel_for;
+    CachePoints *a = NULL, *b = NULL, *u = NULL, *c = NULL;
+    int rc = cachepoints_build(&a, cand, nc, L, &cam, &P, NULL) | cachepoints_build(&b, cand, nc, L, &cam, &R, NULL) |
+             cachepoints_build(&u, cand, nc, L, &cam, &P, NULL) | cachepoints_build(&c, cand, nc, L, &cam, &P, NULL);
+    CHECK(rc == 0, "%s: progressive builds", mode);
+    if (rc != 0) { cachepoints_free(a); cachepoints_free(b); cachepoints_free(u); cachepoints_free(c); return; }
+    uint32_t n0 = cachepoints_count(a), ins = 99, ins_b = 99, ins_u = 99;
+    CHECK(a->num_probes > n0, "%s: %u probes for %u points", mode, a->num_probes, n0);
+    record_boundary(a);
+    record_boundary(b);
+    for (uint32_t p = 0; p < n0; ++p) record_point(u, p, 20, 1.0f);
+    /* the first barrier counts only */
+    CHECK(cachepoints_progress(a, L, &ins) == 0 && ins == 0 && cachepoints_count(a) == n0, "%s: barrier 1 inserted %u",
+          mode, ins);
+    cachepoints_progress(b, L, &ins_b);
+    cachepoints_progress(u, L, &ins_u);
+    cachepoints_update_visibility(a);
+    cachepoints_update_visibility(b);
+    cachepoints_update_visibility(u);
+    /* the old counters, to compare after the rebuild */
+    uint32_t v_old = a->vis_off[n0];
+    uint32_t *off_old = malloc((n0 + 1) * sizeof *off_old), *key_old = malloc((v_old + 1) * sizeof *key_old);
+    VisCounter *cnt_old = malloc((v_old + 1) * sizeof *cnt_old);
+    float *pos_old = malloc(3 * n0 * sizeof *pos_old), *rad_old = malloc(n0 * sizeof *rad_old);
+    memcpy(off_old, a->vis_off, (n0 + 1) * sizeof *off_old);
+    memcpy(key_old, a->vis_key, v_old * sizeof *key_old);
+    memcpy(cnt_old, a->vis_count, v_old * sizeof *cnt_old);
+    memcpy(pos_old, a->pos, 3 * n0 * sizeof *pos_old);
+    memcpy(rad_old, a->radius, n0 * sizeof *rad_old);
+
+    rc = cachepoints_progress(a, L, &ins) | cachepoints_progress(b, L, &ins_b) | cachepoints_progress(u, L, &ins_u);
+    uint32_t budget = (uint32_t)ceil(0.3 * n0);
+    CHECK(rc == 0 && ins > 0 && ins <= budget && cachepoints_count(a) == n0 + ins && cachepoints_inserted(a) == ins,
+          "%s: inserted %u of a budget of %u (%u points)", mode, ins, budget, cachepoints_count(a));
+    CHECK(ins_u == 0 && cachepoints_count(u) == n0, "%s: uniform visibility inserted %u points", mode, ins_u);
+    /* where: along x = 5 */
+    double d_new = 0.0, d_old = 0.0;
+    for (uint32_t i = n0; i < cachepoints_count(a); ++i) d_new += fabs(a->pos[3 * i] - 5.0);
+    for (uint32_t i = 0; i < n0; ++i) d_old += fabs(a->pos[3 * i] - 5.0);
+    d_new /= ins ? ins : 1;
+    d_old /= n0;
+    fprintf(stderr, "%s: progressive: %u points + %u inserted (budget %u) from %u probes; mean |x - 5| %.3f (built points %.3f)\n",
+            mode, n0, ins, budget, a->num_probes, d_new, d_old);
+    CHECK(d_new < 0.25 * d_old, "%s: inserted points lie %.3f from the boundary, the built ones %.3f", mode, d_new, d_old);
+    /* the old points: same place, radius, and counters of every key they still hold */
+    int moved = 0, lost = 0, kept = 0;
+    for (uint32_t p = 0; p < n0; ++p) {
+        moved += memcmp(a->pos + 3 * p, pos_old + 3 * p, 3 * sizeof(float)) != 0 || a->radius[p] != rad_old[p];
+        uint32_t s = off_old[p], q = a->vis_off[p];
+        while (s < off_old[p + 1] && q < a->vis_off[p + 1]) {
+            if (key_old[s] < a->vis_key[q]) ++s;
+            else if (key_old[s] > a->vis_key[q]) ++q;
+            else {
+                lost += memcmp(&cnt_old[s], &a->vis_count[q], sizeof(VisCounter)) != 0;
+                ++kept; ++s; ++q;
+            }
+        }
+    }
+    CHECK(moved == 0 && lost == 0 && kept > (int)(v_old / 2), "%s: old points moved %d, counters lost %d (kept %d of %u)",
+          mode, moved, lost, kept, v_old);
+    /* determinism */
+    uint32_t na = cachepoints_count(a);
+    int same = na == cachepoints_count(b) && memcmp(a->pos, b->pos, 3 * na * sizeof(float)) == 0 &&
+               memcmp(a->radius, b->radius, na * sizeof(float)) == 0 && a->vis_off[na] == b->vis_off[na];
+    cachepoints_update_visibility(a);
+    cachepoints_update_visibility(b);
+    same = same && memcmp(a->w_blurred, b->w_blurred, a->vis_off[na] * sizeof(float)) == 0 &&
+           memcmp(a->far_cdf, b->far_cdf, (size_t)a->far_off[na] * 7 * sizeof(float)) == 0;
+    CHECK(same, "%s: progressive insertion differs with the parallel-for order", mode);
+    /* the new set's PMFs */
+    int mismatch = 0;
+    for (int q = 0; q < 6; ++q) {
+        float x[3], nrm[3];
+        const float *n;
+        random_vertex(x, nrm, &n, q);
+        x[0] = 4.5f + 0.1f * (float)q; /* near the boundary, where the new points are */
+        CachePointVertex v;
+        cachepoints_vertex(a, L, x, n, UINT32_MAX, &v, NULL);
+        double sum = 0.0;
+        for (uint32_t l = 0; l < NL; ++l) sum += cachepoints_pmf(a, L, x, n, &v, l);
+        CHECK(fabs(sum - 1.0) < 1e-4, "%s: after insertion the pmf sums to %.7f", mode, sum);
+        for (int t = 0; t < 2000; ++t) {
+            float pmf;
+            uint32_t slot;
+            uint32_t l = cachepoints_select(a, L, x, n, &v, NULL, (float)rnd(), (float)rnd(), &pmf, &slot);
+            mismatch += l >= NL || pmf != cachepoints_pmf(a, L, x, n, &v, l) || slot != cachepoints_slot(a, v.point, l);
+        }
+    }
+    CHECK(mismatch == 0, "%s: %d selections after insertion disagree with pmf / slot", mode, mismatch);
+    /* later barriers insert nothing (one round) */
+    record_boundary(a);
+    CHECK(cachepoints_progress(a, L, &ins) == 0 && ins == 0 && cachepoints_count(a) == na, "%s: barrier 3 inserted %u",
+          mode, ins);
+    cachepoints_update_visibility(a);
+    /* checkpoint: into a fresh build */
+    FILE *f = tmpfile();
+    CHECK(f && (cachepoints_save_inserted(a, f) | cachepoints_save_learned(a, f)) == 0, "%s: progressive save", mode);
+    if (f) {
+        rewind(f);
+        int rl = cachepoints_load_inserted(c, L, f);
+        CHECK(rl == 0 && cachepoints_load_learned(c, f) == 0, "%s: progressive load (%d)", mode, rl);
+        fclose(f);
+        uint32_t nn = cachepoints_count(c);
+        CHECK(nn == na && memcmp(a->pos, c->pos, 3 * na * sizeof(float)) == 0 && c->vis_off[nn] == a->vis_off[na] &&
+                  memcmp(a->w_blurred, c->w_blurred, a->vis_off[na] * sizeof(float)) == 0,
+              "%s: the checkpoint restores other points (%u vs %u)", mode, nn, na);
+        record_boundary(a);
+        record_boundary(c);
+        cachepoints_progress(a, L, &ins);
+        cachepoints_progress(c, L, &ins_b);
+        cachepoints_update_visibility(a);
+        cachepoints_update_visibility(c);
+        CHECK(ins == ins_b && memcmp(a->far_cdf, c->far_cdf, (size_t)a->far_off[na] * 7 * sizeof(float)) == 0,
+              "%s: learning after the checkpoint differs", mode);
+    }
+    /* a record of another build is refused */
+    f = tmpfile();
+    if (f) {
+        cachepoints_save_inserted(a, f);
+        rewind(f);
+        CHECK(cachepoints_load_inserted(a, L, f) == -2, "%s: a record loaded into a set with inserted points", mode);
+        fclose(f);
+    }
+    free(off_old); free(key_old); free(cnt_old); free(pos_old); free(rad_old);
+    cachepoints_free(a); cachepoints_free(b); cachepoints_free(u); cachepoints_free(c);
 }
 
 /* Return codes: -2 for parameters the build cannot run with, 1 for too few points or no

@@ -58,6 +58,19 @@ for mode in default mis cpaov; do
   same "$tmp/full-$mode.exr" "$tmp/res-$mode.exr" "resumed render ($mode)"
 done
 
+# progressive cache point insertion (at the barrier after 4 spp): the checkpoints after it carry
+# the inserted points, which a resumed render re-inserts before loading the learned state
+prog=(render "$scene" --res 64x48 --no-png --light-sampler cachepoints --cachepoint-progressive on --spp 64)
+"$bin" "${prog[@]}" -o "$tmp/full-prog.exr" 2>"$tmp/log-prog-full" || bad "full render (progressive)"
+grep -q "cache points inserted between iterations: [1-9]" "$tmp/log-prog-full" && ok ||
+  bad "progressive: no points inserted: $(grep 'cache points' "$tmp/log-prog-full")"
+"$bin" "${prog[@]}" -o "$tmp/ck-prog.exr" --checkpoint "$tmp/prog.ckpt" --quiet || bad "render with --checkpoint (progressive)"
+same "$tmp/full-prog.exr" "$tmp/ck-prog.exr" "checkpoints changed the image (progressive)"
+"$bin" "${prog[@]}" -o "$tmp/res-prog.exr" --resume-from "$tmp/prog.ckpt" --quiet || bad "resume (progressive)"
+same "$tmp/full-prog.exr" "$tmp/res-prog.exr" "resumed render (progressive)"
+expect_error "progressive off" "cachepoint_progressive 1 there, 2 here" -- render "$scene" --res 64x48 --no-png --light-sampler cachepoints \
+  --cachepoint-progressive off --spp 64 -o "$tmp/keep.exr" --resume-from "$tmp/prog.ckpt"
+
 # the course's own example (ch. 2 §5.2.2): a guided 128-spp render, cumulative 1..8, 10, 14, 22,
 # 38, 54, 70, ..., 118, 128, checkpoints at 4, 8, 14, 22, 54 (and 128, the end: the image itself)
 "$bin" render "$scene" --res 8x6 --no-png --spp 128 --guiding mis -o "$tmp/g128.exr" --checkpoint "$tmp/g128.ckpt" \

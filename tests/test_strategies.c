@@ -21,6 +21,8 @@ typedef struct Strategy {
     int occlusion, novis, retrunc, linear;
     uint32_t cut_size;
     int pooling;
+    int progressive; /* --cachepoint-progressive: 0 default, 1 on, 2 off */
+    int size;        /* image width and height; 0: 24 */
 } Strategy;
 
 /* the light units of every render: raw, except where the auto cases set what users get */
@@ -33,7 +35,7 @@ static int render(const char *dir, const char *scene, const Strategy *k, int spp
     CandelaOptions o;
     candela_options_default(&o);
     o.scene_path = path;
-    o.width = o.height = 24;
+    o.width = o.height = k->size ? k->size : 24;
     o.spp = spp;
     o.seed = seed;
     o.threads = threads;
@@ -46,6 +48,7 @@ static int render(const char *dir, const char *scene, const Strategy *k, int spp
     o.cachepoint_build_linear = k->linear;
     o.cachepoint_cut_size = k->cut_size;
     o.cachepoint_pooling = k->pooling;
+    o.cachepoint_progressive = k->progressive;
     char err[CANDELA_ERR_LEN];
     int rc = candela_render(&o, img, st, NULL, err);
     CHECK(rc == 0, "%s: %s", scene, err);
@@ -87,6 +90,7 @@ int main(int argc, char **argv) {
         {"cachepoints-pooled", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 0, 0, 1},
         {"cachepoints-lin-novis", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 1, 0, 1, 0},
         {"cachepoints-lin-retrunc", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 1, 1, 0},
+        {"cachepoints-progressive", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 0, 0, 0, 1},
         {"auto", CANDELA_LIGHT_SAMPLER_AUTO, 0, 0, 0, 0, 0},
     };
     for (int sc = 0; sc < 2; ++sc) {
@@ -178,21 +182,44 @@ int main(int argc, char **argv) {
         }
         render_light_units = CANDELA_LIGHT_UNITS_RAW;
     }
-    /* determinism of the cache point build and of learning, both builds and pooled: 1 vs 2 threads */
-    for (int variant = 0; variant < 3; ++variant) {
-        const Strategy *k = &strategies[variant == 0 ? 4 : variant == 1 ? 7 : 8];
+    /* determinism of the cache point build and of learning, both builds, pooled, and progressive
+     * at 64x64 (where it inserts points: at 24x24 few points see enough shadow rays by the
+     * rounds' barriers): 1 vs 2 threads */
+    const Strategy progressive64 = {"cachepoints-progressive", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 0, 0, 0, 1, 64};
+    for (int variant = 0; variant < 4; ++variant) {
+        const Strategy *k = variant == 3 ? &progressive64 : &strategies[variant == 0 ? 4 : variant == 1 ? 7 : 8];
         CandelaImage a, b;
         CandelaStats sa, sb;
         if (render(argv[1], scenes[1], k, 16, 5, 1, &a, &sa) != 0) continue;
         if (render(argv[1], scenes[1], k, 16, 5, 2, &b, &sb) == 0) {
             CHECK(sa.num_cachepoints == sb.num_cachepoints, "%s: cache points: %u vs %u", k->name, sa.num_cachepoints,
                   sb.num_cachepoints);
+            CHECK(k->progressive != 1 || (sa.cachepoints_inserted > 0 && sa.cachepoints_inserted == sb.cachepoints_inserted),
+                  "%s: %u and %u points inserted", k->name, sa.cachepoints_inserted, sb.cachepoints_inserted);
+            if (k->progressive == 1)
+                fprintf(stderr, "  %s: %u of %u cache points inserted\n", k->name, sa.cachepoints_inserted, sa.num_cachepoints);
             size_t bytes = (size_t)a.width * a.height * 3 * sizeof(float);
             CHECK(memcmp(a.rgb, b.rgb, bytes) == 0 && memcmp(a.variance, b.variance, bytes) == 0,
                   "%s: cache point render differs between 1 and 2 threads", k->name);
             candela_image_free(&b);
         }
         candela_image_free(&a);
+    }
+    /* progressive insertion where it inserts points (64x64) converges to the one-shot build's
+     * image: both noisy, so agree() sums their variances */
+    {
+        const Strategy off64 = {"cachepoints-one-shot", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 0, 0, 0, 2, 64};
+        CandelaImage a, b;
+        CandelaStats sa, sb;
+        if (render(argv[1], scenes[1], &off64, 128, 21, 2, &a, &sa) == 0) {
+            if (render(argv[1], scenes[1], &progressive64, 128, 22, 2, &b, &sb) == 0) {
+                CHECK(sa.cachepoints_inserted == 0 && sb.cachepoints_inserted > 0, "64x64: %u and %u points inserted",
+                      sa.cachepoints_inserted, sb.cachepoints_inserted);
+                agree(scenes[1], "progressive vs off", &a, &b);
+                candela_image_free(&b);
+            }
+            candela_image_free(&a);
+        }
     }
     return test_exit();
 }
