@@ -75,6 +75,8 @@ typedef struct CandelaOptions {
                                    * 2: and then (cut build) their point's counters of nearby lights */
     uint32_t cachepoint_candidates; /* candidates in object boxes (§3.1.1); 0: scaled with the image */
     uint32_t cachepoint_pilots;     /* pilot paths (§3.1.1); 0: scaled with the image */
+    int cachepoint_bsdf;            /* --cachepoint-bsdf: 1 weigh entries by the glossy BSDF lobe at glossy vertices
+                                     * (beyond the paper, §6), 0 the normal only */
     /* set non-zero (e.g. from a signal handler) to stop after the current batch (the rest of the
      * iteration is abandoned; with checkpoint_path its state is written): the image of the
      * samples done is returned and CandelaStats.interrupted set. NULL: never. */

@@ -98,6 +98,8 @@ int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t
     if (n >= 0 && (size_t)n < sizeof id->text)
         n += snprintf(id->text + n, sizeof id->text - (size_t)n, " aov_cachepoint=%d cachepoint_pooling=%d", o->aov_selection,
                       o->cachepoint_pooling);
+    if (n >= 0 && (size_t)n < sizeof id->text) /* --cachepoint-bsdf */
+        n += snprintf(id->text + n, sizeof id->text - (size_t)n, " cachepoint_bsdf=%d", o->cachepoint_bsdf);
     if (n < 0 || (size_t)n >= sizeof id->text) {
         snprintf(err, CANDELA_ERR_LEN, "%s: the render's options are too long for a checkpoint (camera or --env name)",
                  o->scene_path);

@@ -93,6 +93,8 @@ static const char *USAGE =
     "  --cachepoint-pooling off|points|lights  visibility counters of slots with too few attempts\n"
     "                            pooled over the 16 neighbouring points (points), then over the\n"
     "                            lights next to the slot's in the light tree (lights; default off)\n"
+    "  --cachepoint-bsdf on|off  at glossy vertices weigh cache point entries by the BSDF lobe\n"
+    "                            too, not only by the normal (default on; diffuse vertices unchanged)\n"
     "  --aov cachepoint          add cachepoint.RGB and cachepoint_light.RGB to the EXR (false colours\n"
     "                            of each first hit's cache point and of the entry it weighs most) and\n"
     "                            write NAME.cachepoint.png, NAME.cachepoint_light.png beside the PNG\n"
