@@ -134,7 +134,7 @@ typedef struct CachePointVertex {
     uint32_t point;
     float near_total;
     /* BSDF-aware selection (cachepoints_vertex_lobe; all 0: the paper's normal-only selection):
-     * the glossy lobe's axis and spherical Gaussian sharpness, its share of the distribution and
+     * the glossy lobe's axis and sharpness lambda, its share of the distribution and
      * the sum of the lobe-weighted weights */
     float lobe_axis[3], lobe_sharpness, lobe_mix, lobe_total;
 } CachePointVertex;
@@ -169,10 +169,11 @@ float cachepoints_pmf(const CachePoints *cp, const CachePointLights *lights, con
 /* BSDF-aware selection at glossy vertices (beyond the paper: §6 names joint BSDF and light
  * selection as future work). The paper weighs a vertex's entries by irradiance on its normal,
  * w_e (near lights exact, far bins blended by n, x W'), which follows a diffuse BSDF. For a
- * glossy lobe whose density toward wi is about a spherical Gaussian D(wi) of sharpness lambda
- * around `axis` (unit), an entry's lobe-weighted weight is w_e x D_e, with D_e the lobe's mean
- * density over the entry's bounding cone (the SG convolved with the cone, itself fitted by an
- * SG; clusters: their tree node's box; needs lights->bound). The distribution becomes the
+ * glossy lobe whose density toward wi is about D(wi) = (1 + 2 lambda) / (4 pi) / (1 + lambda
+ * (1 - cos(wi, axis)))^2 (GGX's profile around the mirror direction `axis`, unit; lookup.c),
+ * an entry's lobe-weighted weight is w_e x D_e, with D_e the lobe's mean density over the
+ * entry's bounding cone (the lobe widened by the cone; clusters: their tree node's box; needs
+ * lights->bound). The distribution becomes the
  * defensive mixture
  *     p(e) = (1 - eps) [(1 - g) w_e / W + g w_e D_e / W_D] + eps / N,
  * W and W_D the two sums, g = kappa W_D / (W + kappa W_D) (kappa: the lobe's weight against
@@ -186,7 +187,7 @@ float cachepoints_pmf(const CachePoints *cp, const CachePointLights *lights, con
 /* The key spheres the lobe needs (call once after the build, with lights->bound set): 0 ok, -1
  * out of memory or no bounds. */
 int cachepoints_prepare_lobes(CachePoints *cp, const CachePointLights *lights);
-#define CACHEPOINTS_LOBE_MAX_MIX 0.75f
+#define CACHEPOINTS_LOBE_MAX_MIX 0.9f
 #define CACHEPOINTS_LOBE_MIN_MIX 0.02f
 void cachepoints_vertex_lobe(const CachePoints *cp, const CachePointLights *lights, const float x[3], const float *n,
                              const float *near_w, const float axis[3], float sharpness, float kappa,

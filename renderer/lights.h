@@ -70,7 +70,7 @@ typedef struct LightVertex {
 } LightVertex;
 
 /* A surface vertex's glossy BSDF lobe as light selection sees it (scatter_light_lobe): f cos
- * toward wi is about rho_d / pi (cos wi) + rho_s D(wi), D a spherical Gaussian density of
+ * toward wi is about rho_d / pi (cos wi) + rho_s D(wi), D a normalised lobe density of
  * sharpness `sharpness` around `axis` (wo mirrored about the shading normal); `weight` is
  * kappa = pi rho_s / (rho_d cos wo), the lobe's weight against the normal-only (irradiance)
  * weights (INFINITY for a pure metal). weight 0: no lobe worth following (diffuse or rough

@@ -10,10 +10,11 @@
  * a sampling weight: nothing here needs to be exact, it needs to be a deterministic function of
  * (the vertex, wo), which it is.
  *
- * The glossy lobe in wi is approximated by a normalised spherical Gaussian around the mirror
- * direction: a GGX NDF of roughness alpha is about an SG of sharpness 2 / alpha^2 in the half
- * vector, and the reflection warp divides it by 4 |wo.n| (Wang et al. 2009, "All-frequency
- * rendering of dynamic, spatially-varying reflectance"), so lambda = 1 / (2 alpha^2 cos_o).
+ * The glossy lobe in wi is a normalised density around the mirror direction of sharpness lambda
+ * (cachepoints/lookup.c gives it GGX's profile): a GGX NDF of roughness alpha has the width of a
+ * spherical Gaussian of sharpness 2 / alpha^2 in the half vector, and the reflection warp divides
+ * it by 4 |wo.n| (Wang et al. 2009, "All-frequency rendering of dynamic, spatially-varying
+ * reflectance"), so lambda = 1 / (2 alpha^2 cos_o).
  * At the peak f_s cos_i = F G D(h) cos_h / (4 cos_o) ~ F x (the lobe's density in wi), so a
  * light of irradiance E (which carries cos_i ~ cos_o) adds about rho_s D(wi) E / cos_o against
  * the diffuse part's rho_d / pi E: the lobe's weight is kappa = pi rho_s / (rho_d cos_o). */
@@ -27,7 +28,7 @@
  * generated scenes' asphalt 0.8 and wood 0.6, and glTF's default 1) therefore take exactly the
  * normal-only path. */
 #define LIGHT_LOBE_MAX_ROUGHNESS 0.5f
-/* The lobe's cosine to wo is clamped to this (grazing views: the SG fit's warp blows up). */
+/* The lobe's cosine to wo is clamped to this (grazing views: the warp's 1 / cos_o blows up). */
 #define LIGHT_LOBE_MIN_COS 0.05f
 /* Sharper lobes than this are treated as this sharp (alpha ~ 0.01 at normal incidence): the
  * quantised axis and the lights' bounds are not more precise than that anyway. */
