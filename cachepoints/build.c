@@ -138,7 +138,7 @@ void cachepoints_free(CachePoints *cp) {
     free(cp->vis_low); free(cp->vis_active); free(cp->tables_dirty);
     free(cp->scatter_near); free(cp->scatter_far); free(cp->scatter_total);
     free(cp->nbr); free(cp->nbr_w); free(cp->self_w); free(cp->nbr_clear2);
-    free(cp->w_pool); free(cp->key_parent);
+    free(cp->w_pool); free(cp->key_parent); free(cp->key_bound);
     free(cp->probe);
     cp_raw_free(cp);
     free(cp);

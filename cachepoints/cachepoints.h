@@ -52,6 +52,11 @@ typedef struct CachePointLights {
     float (*estimate)(const void *user, uint32_t light, const float x[3], const float *n);
     const void *user;
     const CachePointTree *tree; /* NULL: only the linear build is possible */
+    /* Optional, for BSDF-aware selection (cachepoints_vertex_lobe): 4 floats per light, a
+     * bounding sphere (centre, radius; 0 for a point); for an infinite light the unit direction
+     * toward it and its angular radius in radians (>= pi: all around, an environment). NULL: the
+     * lobe is never used. */
+    const float *bound;
 } CachePointLights;
 
 /* Camera footprint for the pixel-sized radii of the merge passes (r_px): pass 1 merges
@@ -133,6 +138,10 @@ void cachepoints_point(const CachePoints *cp, uint32_t i, float pos[3], float *r
 typedef struct CachePointVertex {
     uint32_t point;
     float near_total;
+    /* BSDF-aware selection (cachepoints_vertex_lobe; all 0: the paper's normal-only selection):
+     * the glossy lobe's axis and sharpness lambda, its share of the distribution and
+     * the sum of the lobe-weighted weights */
+    float lobe_axis[3], lobe_sharpness, lobe_mix, lobe_total;
 } CachePointVertex;
 
 /* Near lists hold at most this many lights (CachePointParams.max_near is clamped to it), so
@@ -162,6 +171,32 @@ uint32_t cachepoints_select(const CachePoints *cp, const CachePointLights *light
 /* Exactly the probability cachepoints_select gives `light` at the vertex. */
 float cachepoints_pmf(const CachePoints *cp, const CachePointLights *lights, const float x[3], const float *n,
                       const CachePointVertex *v, uint32_t light);
+/* BSDF-aware selection at glossy vertices (beyond the paper: §6 names joint BSDF and light
+ * selection as future work). The paper weighs a vertex's entries by irradiance on its normal,
+ * w_e (near lights exact, far bins blended by n, x W'), which follows a diffuse BSDF. For a
+ * glossy lobe whose density toward wi is about D(wi) = (1 + 2 lambda) / (4 pi) / (1 + lambda
+ * (1 - cos(wi, axis)))^2 (GGX's profile around the mirror direction `axis`, unit; lookup.c),
+ * an entry's lobe-weighted weight is w_e x D_e, with D_e the lobe's mean density over the
+ * entry's bounding cone (the lobe widened by the cone; clusters: their tree node's box; needs
+ * lights->bound). The distribution becomes the
+ * defensive mixture
+ *     p(e) = (1 - eps) [(1 - g) w_e / W + g w_e D_e / W_D] + eps / N,
+ * W and W_D the two sums, g = kappa W_D / (W + kappa W_D) (kappa: the lobe's weight against
+ * the diffuse part, INFINITY for a metal) clamped to CACHEPOINTS_LOBE_MAX_MIX, so that p never
+ * falls below (1 - g_max) of the paper's. This sets v's lobe fields (lobe_mix g, lobe_total
+ * W_D) for a vertex cachepoints_vertex (or _reuse) prepared with the same x, n (near_w: its
+ * near weights, or NULL); g below CACHEPOINTS_LOBE_MIN_MIX, no normal, no lights->bound or a
+ * zero total leave lobe_mix 0, and select / pmf then are exactly the paper's. Select and pmf
+ * follow the lobe for such a vertex; keep its lobe fields with it (the renderer's token). Not
+ * for light-linked vertices (the _linked functions ignore the lobe). */
+/* The key spheres the lobe needs (call once after the build, with lights->bound set): 0 ok, -1
+ * out of memory or no bounds. */
+int cachepoints_prepare_lobes(CachePoints *cp, const CachePointLights *lights);
+#define CACHEPOINTS_LOBE_MAX_MIX 0.9f
+#define CACHEPOINTS_LOBE_MIN_MIX 0.02f
+void cachepoints_vertex_lobe(const CachePoints *cp, const CachePointLights *lights, const float x[3], const float *n,
+                             const float *near_w, const float axis[3], float sharpness, float kappa,
+                             CachePointVertex *v);
 /* Light linking (§3.3: "we then remove any lights that are disabled for the current path
  * vertex through light linking"): the lights that may illuminate a vertex. The *_linked
  * functions are the ones above for such a vertex: disabled near lights weigh 0, disabled far

@@ -88,6 +88,9 @@ struct CachePoints {
     /* §4.2 scattering sample weights (scatter.c; NULL until cachepoints_build_scatter) */
     float *scatter_near;       /* s(p, e) of each near entry */
     float *scatter_far, *scatter_total; /* per point: the far lists' part, and near + far */
+    /* BSDF-aware selection (cachepoints_prepare_lobes, cut build): per key a bounding sphere
+     * (CachePointLights.bound's layout; clusters: around their tree node's box); NULL: none */
+    float *key_bound;
     CachePointParams params;
     CachePointStats stats;
     KdTree kd;

@@ -84,6 +84,8 @@ typedef struct CandelaOptions {
     uint32_t cachepoint_pilots;     /* pilot paths (§3.1.1); 0: scaled with the image */
     int cachepoint_progressive;     /* --cachepoint-progressive: 0 the default, 1 on, 2 off (cachepoints/progressive.c) */
     float cachepoint_progressive_budget; /* --cachepoint-progressive-budget: inserted points / built points; 0: default */
+    int cachepoint_bsdf;            /* --cachepoint-bsdf: 1 weigh entries by the glossy BSDF lobe at glossy vertices
+                                     * (beyond the paper, §6), 0 the normal only */
     /* set non-zero (e.g. from a signal handler) to stop after the current batch (the rest of the
      * iteration is abandoned; with checkpoint_path its state is written): the image of the
      * samples done is returned and CandelaStats.interrupted set. NULL: never. */

@@ -94,6 +94,10 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
         if ((rc = parse_choice(a, v, names, values, &c, NULL, err)) == 0) o->cachepoint_progressive = c;
     } else if (strcmp(a, "--cachepoint-progressive-budget") == 0) {
         if ((rc = parse_float(a, v, 0.0f, 4.0f, &f, err)) == 0) o->cachepoint_progressive_budget = f;
+    } else if (strcmp(a, "--cachepoint-bsdf") == 0) {
+        static const char *const names[] = {"on", "off", NULL};
+        static const int values[] = {1, 0};
+        if ((rc = parse_choice(a, v, names, values, &c, NULL, err)) == 0) o->cachepoint_bsdf = c;
     } else if (strcmp(a, "--cachepoint-candidates") == 0) {
         if ((rc = parse_long(a, v, 0, 10000000, &n, err)) == 0) o->cachepoint_candidates = (uint32_t)n;
     } else if (strcmp(a, "--cachepoint-pilots") == 0) {

@@ -74,6 +74,9 @@ typedef struct LightSampler {
     const LightSamplerOps *ops;
     void *state;
     uint32_t light_count;
+    /* 1: select / pmf follow LightSampleContext.lobe (cache points with --cachepoint-bsdf on):
+     * callers fill it (scatter_light_lobe); 0: the strategy ignores it, callers may leave it 0 */
+    int uses_lobe;
 } LightSampler;
 
 /* Builds the strategy o->light_sampler over the lights (the optimal strategy's occlusion rays
@@ -159,6 +162,7 @@ static inline int light_sampler_load_learned(const LightSampler *s, FILE *in) {
 }
 
 static inline int light_sampler_learns(const LightSampler *s) { return s->ops->record != NULL; }
+static inline int light_sampler_uses_lobe(const LightSampler *s) { return s->uses_lobe; }
 static inline int light_sampler_has_barrier(const LightSampler *s) { return s->ops->barrier != NULL; }
 
 static inline int light_sampler_has_inscatter(const LightSampler *s) { return s->ops->inscatter_weight != NULL; }

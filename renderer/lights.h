@@ -91,7 +91,24 @@ static inline int light_is_areal(const Light *l) {
 typedef struct LightVertex {
     uint32_t word;
     float value;
+    /* BSDF-aware selection (cache points with --cachepoint-bsdf): the glossy lobe the vertex's
+     * distribution followed, as prepare quantised it (the axis octahedral in 2 x 16 bits), its
+     * share of the distribution and the lobe-weighted total; lobe_mix 0: the normal alone */
+    uint32_t lobe_axis;
+    float lobe_sharpness, lobe_mix, lobe_total;
 } LightVertex;
+
+/* A surface vertex's glossy BSDF lobe as light selection sees it (scatter_light_lobe): f cos
+ * toward wi is about rho_d / pi (cos wi) + rho_s D(wi), D a normalised lobe density of
+ * sharpness `sharpness` around `axis` (wo mirrored about the shading normal); `weight` is
+ * kappa = pi rho_s / (rho_d cos wo), the lobe's weight against the normal-only (irradiance)
+ * weights (INFINITY for a pure metal). weight 0: no lobe worth following (diffuse or rough
+ * surfaces, transmissive ones, media); a strategy may ignore the lobe. */
+typedef struct LightLobe {
+    vec3 axis;
+    float sharpness;
+    float weight;
+} LightLobe;
 
 /* Where light arrives: a point with a shading normal, or (n = 0) an omnidirectional receiver
  * (a point in a medium, a transmissive surface), for which strategies use fluence. */
@@ -111,6 +128,9 @@ typedef struct LightSampleContext {
     /* light linking: the vertex's link class (Lights.link), the set of lights that may
      * illuminate it; 0 = every light (no linking, the camera, objects no link names) */
     uint32_t link_class;
+    /* the vertex's glossy lobe (zero: none), set by the caller like link_class; strategies
+     * that follow it keep what they need of it in the vertex token */
+    LightLobe lobe;
 } LightSampleContext;
 
 /* Light linking (extras.candela_light_linking, README "Light linking"): receiving objects are

@@ -73,6 +73,8 @@ typedef struct CachePointSampler {
     uint64_t seed;
     ThreadPool *grid_pool;
     double insert_seconds, insert_cpu_seconds;
+    /* --cachepoint-bsdf: each light's bounding sphere (CachePointLights.bound); NULL: off */
+    float *bound;
 } CachePointSampler;
 
 /* The vertex's light linking, or NULL (class 0: every light; the unlinked path, unchanged). */
@@ -477,15 +479,65 @@ static const LightSamplerOps CACHEPOINT_INSCATTER_OPS;
 
 /* ---------------------------------------------------------------- the protocol */
 
+/* --cachepoint-bsdf: the lobe's axis travels in the token octahedrally encoded in 2 x 16 bits
+ * (a step of ~1e-4 rad, below the sharpest lobe's width); prepare weighs the entries with the
+ * decoded axis, so the next wave's pmf, which decodes the same bits, sees the same lobe. */
+static uint32_t oct_encode(vec3 d) {
+    float l1 = fabsf(d.x) + fabsf(d.y) + fabsf(d.z);
+    float u = d.x / l1, v = d.y / l1;
+    if (d.z < 0.0f) {
+        float tu = (1.0f - fabsf(v)) * (u >= 0.0f ? 1.0f : -1.0f), tv = (1.0f - fabsf(u)) * (v >= 0.0f ? 1.0f : -1.0f);
+        u = tu;
+        v = tv;
+    }
+    uint32_t qu = (uint32_t)lrintf(clampf(u * 0.5f + 0.5f, 0.0f, 1.0f) * 65535.0f);
+    uint32_t qv = (uint32_t)lrintf(clampf(v * 0.5f + 0.5f, 0.0f, 1.0f) * 65535.0f);
+    return qu | qv << 16;
+}
+
+static void oct_decode(uint32_t e, float a[3]) {
+    float u = (float)(e & 0xffffu) / 65535.0f * 2.0f - 1.0f, v = (float)(e >> 16) / 65535.0f * 2.0f - 1.0f;
+    float z = 1.0f - fabsf(u) - fabsf(v);
+    if (z < 0.0f) {
+        float tu = (1.0f - fabsf(v)) * (u >= 0.0f ? 1.0f : -1.0f), tv = (1.0f - fabsf(u)) * (v >= 0.0f ? 1.0f : -1.0f);
+        u = tu;
+        v = tv;
+    }
+    float inv = 1.0f / sqrtf(u * u + v * v + z * z);
+    a[0] = u * inv; a[1] = v * inv; a[2] = z * inv;
+}
+
+/* The lobe of an unlinked vertex with a normal (v prepared for x, n; near_w its near weights or
+ * NULL): sets v's lobe fields and returns the axis's code (0 and no lobe when it has none). */
+static uint32_t vertex_lobe(const CachePointSampler *s, const LightSampleContext *ctx, const float x[3],
+                            const float *np, const float *near_w, CachePointVertex *v) {
+    if (!s->bound || !np || ctx->link_class || !(ctx->lobe.weight > 0.0f)) return 0;
+    uint32_t code = oct_encode(ctx->lobe.axis);
+    float axis[3];
+    oct_decode(code, axis);
+    cachepoints_vertex_lobe(s->cp, &s->view, x, np, near_w, axis, ctx->lobe.sharpness, ctx->lobe.weight, v);
+    return v->lobe_mix > 0.0f ? code : 0;
+}
+
 /* The cache point vertex of a context: from its token when prepared, else looked up. */
 static void vertex_of(const CachePointSampler *s, const LightSampleContext *ctx, float x[3], float n[3],
                       const float **np, CachePointVertex *v) {
     x[0] = ctx->p.x; x[1] = ctx->p.y; x[2] = ctx->p.z;
     n[0] = ctx->n.x; n[1] = ctx->n.y; n[2] = ctx->n.z;
     *np = v3_is_black(ctx->n) ? NULL : n;
-    if (ctx->vertex.word) { v->point = ctx->vertex.word - 1u; v->near_total = ctx->vertex.value; }
-    else if (ctx->link_class) cachepoints_vertex_linked(s->cp, &s->view, x, *np, UINT32_MAX, link_of(s, ctx), v, NULL);
-    else cachepoints_vertex(s->cp, &s->view, x, *np, UINT32_MAX, v, NULL);
+    if (ctx->vertex.word) {
+        *v = (CachePointVertex){.point = ctx->vertex.word - 1u, .near_total = ctx->vertex.value};
+        if (ctx->vertex.lobe_mix > 0.0f) { /* the lobe prepare followed */
+            oct_decode(ctx->vertex.lobe_axis, v->lobe_axis);
+            v->lobe_sharpness = ctx->vertex.lobe_sharpness;
+            v->lobe_mix = ctx->vertex.lobe_mix;
+            v->lobe_total = ctx->vertex.lobe_total;
+        }
+    } else if (ctx->link_class) cachepoints_vertex_linked(s->cp, &s->view, x, *np, UINT32_MAX, link_of(s, ctx), v, NULL);
+    else {
+        cachepoints_vertex(s->cp, &s->view, x, *np, UINT32_MAX, v, NULL);
+        vertex_lobe(s, ctx, x, *np, NULL, v);
+    }
 }
 
 static void cp_prepare(const void *state, LightSampleContext *ctx, uint32_t *hint) {
@@ -506,7 +558,14 @@ static void cp_prepare(const void *state, LightSampleContext *ctx, uint32_t *hin
         cachepoints_vertex(s->cp, &s->view, x, v3_is_black(ctx->n) ? NULL : n, hint ? *hint : UINT32_MAX, &v,
                            ctx->scratch);
     if (hint) *hint = v.point;
+    uint32_t code = vertex_lobe(s, ctx, x, v3_is_black(ctx->n) ? NULL : n, ctx->scratch, &v);
     ctx->vertex = (LightVertex){v.point + 1u, v.near_total};
+    if (v.lobe_mix > 0.0f) {
+        ctx->vertex.lobe_axis = code;
+        ctx->vertex.lobe_sharpness = v.lobe_sharpness;
+        ctx->vertex.lobe_mix = v.lobe_mix;
+        ctx->vertex.lobe_total = v.lobe_total;
+    }
 }
 
 static uint32_t cp_select(const void *state, const LightSampleContext *ctx, float u, float u_descend, float *pmf,
@@ -632,6 +691,7 @@ static void cp_destroy(void *state) {
     free(s->scatter_grid);
     light_estimate_table_free(&s->estimates);
     free(s->links);
+    free(s->bound);
     free(s);
 }
 
@@ -647,6 +707,51 @@ static const LightSamplerOps CACHEPOINT_INSCATTER_OPS = {
     .inscatter_weight = cp_inscatter_weight, .aov = cp_aov, .finish = cp_finish};
 
 /* ---------------------------------------------------------------- build */
+
+/* --cachepoint-bsdf: every light's bounding sphere around its centroid (CachePointLights.bound):
+ * a point or spot light its position (a sphere light its radius); an area light the farthest
+ * triangle vertex; a rect or disk its farthest corner; a volume the farthest corner of its
+ * bounds; a directional light its direction (toward the light), angular radius 0 (a sun its
+ * half-angle); the environment all around. 0 ok, -1 out of memory. */
+static int build_bounds(CachePointSampler *s) {
+    const Lights *ls = s->lights;
+    s->bound = malloc(((size_t)ls->count + 1) * 4 * sizeof(float));
+    if (!s->bound) return -1;
+    for (uint32_t i = 0; i < ls->count; ++i) {
+        const Light *l = &ls->lights[i];
+        float *b = s->bound + 4 * (size_t)i;
+        vec3 c = v3(s->centroid[3 * i], s->centroid[3 * i + 1], s->centroid[3 * i + 2]);
+        float r2 = 0.0f;
+        if (l->type == LIGHT_DIRECTIONAL || l->type == LIGHT_ENVIRONMENT) {
+            vec3 d = l->type == LIGHT_DIRECTIONAL ? v3_normalize(v3_neg(l->direction)) : v3(0.0f, 0.0f, 1.0f);
+            b[0] = d.x; b[1] = d.y; b[2] = d.z;
+            b[3] = l->type == LIGHT_DIRECTIONAL ? acosf(clampf(1.0f - l->sun_omc, -1.0f, 1.0f)) /* a sun's half-angle */
+                                                : 4.0f; /* >= pi: every direction */
+            continue;
+        }
+        if (l->type == LIGHT_RECT || l->type == LIGHT_DISK) { /* corners (the ellipse lies inside them) */
+            r2 = fmaxf(v3_dot(v3_add(l->axis_u, l->axis_v), v3_add(l->axis_u, l->axis_v)),
+                       v3_dot(v3_sub(l->axis_u, l->axis_v), v3_sub(l->axis_u, l->axis_v)));
+        } else if (l->type == LIGHT_POINT || l->type == LIGHT_SPOT) {
+            r2 = l->radius * l->radius; /* a sphere light (0: a point) */
+        }
+        if (l->type == LIGHT_AREA) {
+            for (size_t k = 0; k < 3 * (size_t)l->triangles.n; ++k) {
+                const float *v = l->world_vertices + 3 * k;
+                { vec3 e = v3_sub(v3(v[0], v[1], v[2]), c); r2 = fmaxf(r2, v3_dot(e, e)); }
+            }
+        } else if (l->type == LIGHT_VOLUME) {
+            for (int k = 0; k < 8; ++k) {
+                vec3 q = v3(k & 1 ? l->bounds_max.x : l->bounds_min.x, k & 2 ? l->bounds_max.y : l->bounds_min.y,
+                            k & 4 ? l->bounds_max.z : l->bounds_min.z);
+                { vec3 e = v3_sub(q, c); r2 = fmaxf(r2, v3_dot(e, e)); }
+            }
+        }
+        b[0] = c.x; b[1] = c.y; b[2] = c.z;
+        b[3] = sqrtf(r2);
+    }
+    return 0;
+}
 
 /* Fills s->cp (NULL when fewer than 10 points exist). 0 ok, -1 out of memory, -2 invalid
  * cache point parameters. */
@@ -675,6 +780,10 @@ static int build(CachePointSampler *s, const Scene *scene, const SceneMedia *med
     }
     s->view = (CachePointLights){.count = ls->count, .centroid = s->centroid, .infinite = s->infinite,
                                  .estimate7 = cp_estimate7, .estimate = cp_estimate, .user = s, .tree = NULL};
+    if (o->cachepoint_bsdf) {
+        if (build_bounds(s) != 0) return -1;
+        s->view.bound = s->bound;
+    }
     if (!o->cachepoint_build_linear && setup_tree_view(s) != 0) return -1;
 
     Candidates cand = {0};
@@ -758,8 +867,10 @@ int light_sampler_cachepoints_create(LightSampler *ls, const Lights *lights, con
         }
         s->build_seconds = clock_seconds() - t0;
         s->build_cpu_seconds = clock_cpu_seconds() - c0;
+        if (s->cp && s->bound && cachepoints_prepare_lobes(s->cp, &s->view) != 0) { cp_destroy(s); goto oom; }
         if (s->cp) {
             *ls = (LightSampler){inscatter ? &CACHEPOINT_INSCATTER_OPS : &CACHEPOINT_OPS, s, lights->count};
+            ls->uses_lobe = s->bound != NULL; /* --cachepoint-bsdf */
             return 0;
         }
         cp_destroy(s);

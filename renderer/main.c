@@ -96,6 +96,8 @@ static const char *USAGE =
     "  --cachepoint-progressive on|off  insert cache points between iterations where neighbouring\n"
     "                            points' learned visibility jumps (default off)\n"
     "  --cachepoint-progressive-budget F  inserted points as a fraction of the built ones (default 0.15)\n"
+    "  --cachepoint-bsdf on|off  at glossy vertices weigh cache point entries by the BSDF lobe\n"
+    "                            too, not only by the normal (default on; diffuse vertices unchanged)\n"
     "  --aov cachepoint          add cachepoint.RGB and cachepoint_light.RGB to the EXR (false colours\n"
     "                            of each first hit's cache point and of the entry it weighs most) and\n"
     "                            write NAME.cachepoint.png, NAME.cachepoint_light.png beside the PNG\n"

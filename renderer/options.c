@@ -19,6 +19,7 @@ void candela_options_default(CandelaOptions *o) {
     o->env_rotation_deg = NAN;        /* not given: the scene's candela_environment.rotation */
     o->guiding = CANDELA_GUIDING_OFF;
     o->recorder_budget = -1;          /* the seed's soft budget of 4 vertices per path */
+    o->cachepoint_bsdf = 1;           /* BSDF-aware cache point selection at glossy vertices (README) */
 }
 
 static const char *const LIGHT_SAMPLER_NAMES[] = {"uniform", "power", "tree", "optimal", "cachepoints", "auto"};

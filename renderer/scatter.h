@@ -15,6 +15,7 @@
 
 #include "bsdf.h"
 #include "guiding.h"
+#include "lights.h"
 #include "scene.h"
 #include "vecmath.h"
 
@@ -89,6 +90,9 @@ static inline int scatter_is_delta(const Scatter *s) { return s->kind == SCATTER
 static inline vec3 scatter_light_normal(const Scatter *s) {
     return s->kind == SCATTER_PHASE || s->transmissive ? v3s(0.0f) : s->frame.n;
 }
+/* The glossy lobe light selection may weigh lights by (scatter_lobe.c; light_sampler_uses_lobe):
+ * zero weight for diffuse and rough surfaces, transmissive ones and phase functions. */
+void scatter_light_lobe(const Scatter *s, LightLobe *lobe);
 /* The side of the surface a ray in direction d leaves from, for offsetting its origin. */
 static inline vec3 scatter_side_normal(const Scatter *s, vec3 d) {
     return v3_dot(d, s->ng) > 0.0f ? s->ng : v3_neg(s->ng);

@@ -277,6 +277,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
         LightSampleContext lc = {h.p, scatter_light_normal(&sc), {0, 0.0f}, scratch, &s->volume};
         lc.link_class = lights_instance_class(ig->lights, hit->instance);
         int delta = scatter_is_delta(&sc);
+        if (!delta && light_sampler_uses_lobe(ig->light_sampler)) scatter_light_lobe(&sc, &lc.lobe); /* a strategy that weighs lights by the BSDF */
         if (!delta) light_sampler_prepare(ig->light_sampler, &lc, &hint); /* once per vertex */
         if (depth == 0 && ig->film.sel_aov) /* the light sampler's AOV: what the first hit's selection uses */
             light_sampler_aov(ig->light_sampler, &lc, &ps->aov_sel_point[p], &ps->aov_sel_light[p]);

@@ -17,6 +17,9 @@ rather than committed. Blender light units (cd, lux; the renderer divides by 683
   spotlights.gltf      96 narrow spot lights (1 to 8 degree cones) over a large floor
   street.gltf          the night street of issue 12: the city with 20,000 lights (18,000 on
                        facades, 2,000 street lights), seen from its street camera
+  glossy.gltf          a wet night plaza (issue 12, BSDF-aware selection): 4x4 blocks, a glossy
+                       wet floor (roughness 0.15), polished metal facades (roughness 0.3) on half
+                       the buildings, diffuse concrete on the rest; 4,000 window and street lights
 
 usage: make_manylights.py [OUT_DIR] [--only NAME ...]
 """
@@ -208,6 +211,63 @@ def spotlights(out, seed=4):
     write_compact(g, os.path.join(out, 'spotlights.gltf'))
 
 
+def glossy(out, seed=5):
+    """4x4 blocks of 12 m with 10 m streets; buildings 8-30 m tall, alternately polished metal
+    (metallic 1, roughness 0.3) and concrete (diffuse); the floor is wet stone (dark dielectric,
+    roughness 0.15, whose Fresnel reflection dominates at the camera's grazing view). 3,600
+    window lights 0.25 m in front of the facades (40-400 cd, warm or cool) and 400 street lights
+    at 5 m (1500 cd). The camera stands in a street at 1.7 m, looking along it."""
+    rng = random.Random(seed)
+    g = Gltf('candela scenes/make_manylights.py')
+    wet = g.material('wet_stone', base=(0.05, 0.05, 0.055), roughness=0.15)
+    metal = g.material('polished_metal', base=(0.85, 0.85, 0.88), metallic=1.0, roughness=0.3)
+    concrete = g.material('concrete', base=(0.45, 0.43, 0.4), lambert=True)
+    B, S, N = 12.0, 10.0, 4
+    span = N * B + (N + 1) * S
+    h = span / 2.0
+    g.mesh('ground', 'ground', quad((-h, 0, -h), (-h, 0, h), (h, 0, h), (h, 0, -h)), wet)
+    buildings = []
+    for i in range(N):
+        for j in range(N):
+            x0 = -h + S + i * (B + S)
+            z0 = -h + S + j * (B + S)
+            height = 8.0 + 22.0 * rng.random()
+            buildings.append((x0, z0, height))
+            mat = metal if (i + j) % 2 == 0 else concrete
+            g.mesh('building_%d_%d' % (i, j), 'unit_box_%d' % mat, box(1.0, 1.0, 1.0), mat)
+            node = g.doc['nodes'][-1]
+            node['translation'] = rv((x0 + B / 2, height / 2, z0 + B / 2))
+            node['scale'] = rv((B, height, B))
+    warm = [light_def(g, 'point', 40.0 + 360.0 * k / 7.0, (1.0, 0.75, 0.45)) for k in range(8)]
+    cool = [light_def(g, 'point', 40.0 + 360.0 * k / 7.0, (0.7, 0.8, 1.0)) for k in range(8)]
+    street = light_def(g, 'point', 1500.0, (1.0, 0.85, 0.6))
+    for _ in range(3600):
+        x0, z0, height = buildings[rng.randrange(len(buildings))]
+        face = rng.randrange(4)
+        t = rng.random() * B
+        y = 1.0 + rng.random() * (height - 1.5)
+        off = 0.25
+        if face == 0:
+            p = (x0 + t, y, z0 - off)
+        elif face == 1:
+            p = (x0 + t, y, z0 + B + off)
+        elif face == 2:
+            p = (x0 - off, y, z0 + t)
+        else:
+            p = (x0 + B + off, y, z0 + t)
+        pal = warm if rng.random() < 0.7 else cool
+        light_node(g, pal[rng.randrange(8)], p)
+    for k in range(400):
+        street_i = rng.randrange(N + 1)
+        along = -h + rng.random() * span
+        across = -h + S / 2 + street_i * (B + S) + (rng.random() - 0.5) * S * 0.8
+        p = (across, 5.0, along) if k % 2 == 0 else (along, 5.0, across)
+        light_node(g, street, p)
+    street_x = -h + S / 2 + 2 * (B + S)
+    g.perspective('street', (street_x, 1.7, h - 4.0), (street_x + 2.0, 3.0, -h / 2), 60.0, aspect=16 / 9)
+    write_compact(g, os.path.join(out, 'glossy.gltf'))
+
+
 def main():
     args = sys.argv[1:]
     out = os.path.join(ROOT, 'build', 'scenes')
@@ -222,6 +282,7 @@ def main():
         ('emissive_mesh', lambda: emissive_mesh(out)),
         ('spotlights', lambda: spotlights(out)),
         ('street', lambda: city(out, 'street', 20000)),
+        ('glossy', lambda: glossy(out)),
         ('city_1k', lambda: city(out, 'city_1k', 1000)),
         ('city_10k', lambda: city(out, 'city_10k', 10000)),
         ('city_100k', lambda: city(out, 'city_100k', 100000)),

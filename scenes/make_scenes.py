@@ -22,6 +22,8 @@ Outputs (paths relative to the repository root):
   tests/scenes/env_marked.gltf         a camera looking down -Z under env_marked.exr
   tests/scenes/normalmap_grazing.gltf  normal-mapped planes (normalmap_stripes.exr) seen at 85 degrees
   tests/scenes/two_lights.gltf         floor + wall, 1 emissive quad, 3 point lights of very different power
+  tests/scenes/glossy_lights.gltf      glossy floor, polished metal wall, a clear-coated sphere, 40 point
+                                       lights, 2 emissive panels, a sun (BSDF-aware cache point selection)
   tests/scenes/env_constant.exr        16x8 FLOAT EXR, every pixel (0.5, 0.75, 1.0)
   tests/scenes/env_grid.exr            8x4 FLOAT EXR, texel (i, j) = ((i+1)/8, (j+1)/4, 0.25 + 0.5*((i+j)%2))
   tests/scenes/env_marked.exr          64x32 FLOAT EXR, 0 but texel (18, 14) = 1
@@ -841,6 +843,38 @@ def occluded_lights():
     g.write(os.path.join(ROOT, 'tests', 'scenes', 'occluded_lights.gltf'))
 
 
+def glossy_lights():
+    """BSDF-aware cache point selection in miniature (RAW units): a 6 x 4 m floor of a dark glossy
+    dielectric (roughness 0.2), a polished metal back wall (roughness 0.3), a Lambert side wall,
+    a diffuse sphere under a smooth clear coat (coat roughness 0.1); 40 point lights (0.1-1
+    W/sr), two one-sided emissive panels (Le 3) the floor reflects (so BSDF-sampled rays from
+    glossy vertices hit emitters: MIS with the lobe-weighted pmf) and a weak sun. No analytic
+    value: every light sampler must agree with uniform (tests/test_strategies.c)."""
+    import random
+    rng = random.Random(11)
+    g = Gltf()
+    floor = g.material('wet_floor', base=(0.1, 0.1, 0.1), roughness=0.2)
+    metal = g.material('polished_metal', base=(0.9, 0.85, 0.8), metallic=1.0, roughness=0.3)
+    side = g.material('lambert_half', **LAMBERT_WHITE)
+    coated = g.material('coated', base=(0.6, 0.2, 0.2), lambert=True)
+    g.use('KHR_materials_clearcoat')
+    g.doc['materials'][coated]['extensions']['KHR_materials_clearcoat'] = {'clearcoatFactor': 1.0,
+                                                                           'clearcoatRoughnessFactor': 0.1}
+    g.mesh('floor', 'floor', quad((-3, 0, -2), (-3, 0, 2), (3, 0, 2), (3, 0, -2)), floor)
+    g.mesh('back', 'back', quad((-3, 0, -2), (3, 0, -2), (3, 3, -2), (-3, 3, -2)), metal)
+    g.mesh('left', 'left', quad((-3, 0, -2), (-3, 3, -2), (-3, 3, 2), (-3, 0, 2)), side)
+    g.mesh('ball', 'sphere', uv_sphere(0.5, segments=24, rings=12), coated, translation=(0.8, 0.5, -0.6))
+    emit = g.material('panel', base=(0.0, 0.0, 0.0), lambert=True, emissive=(1.0, 0.9, 0.7), strength=3.0)
+    g.mesh('panel_a', 'panel_a', quad((-1.5, 2.2, -1.2), (-0.9, 2.2, -1.2), (-0.9, 2.2, -0.6), (-1.5, 2.2, -0.6)), emit)
+    g.mesh('panel_b', 'panel_b', quad((1.6, 1.0, -1.99), (2.2, 1.0, -1.99), (2.2, 1.6, -1.99), (1.6, 1.6, -1.99)), emit)
+    for k in range(40):
+        g.light('p_%d' % k, 'point', 0.1 + 0.9 * rng.random(), color=(1.0, 0.8 + 0.2 * rng.random(), 0.6 + 0.4 * rng.random()),
+                translation=(-2.7 + 5.4 * rng.random(), 0.3 + 2.5 * rng.random(), -1.8 + 3.0 * rng.random()))
+    g.light('sun', 'directional', 0.3, rotation=quat_axis_angle((1.0, 0.0, 0.0), -0.9))
+    g.perspective('camera', (0.0, 0.9, 2.8), (0.0, 0.6, -2.0), 60.0, aspect=1.0)
+    g.write(os.path.join(ROOT, 'tests', 'scenes', 'glossy_lights.gltf'))
+
+
 def light_linking():
     """Light linking and shadow linking (tests/test_linking.c; RAW units). A floor in two
     objects, the left one a group node 'left' (floor and a post, so a name stands for a
@@ -1166,6 +1200,7 @@ def main():
     normalmap_grazing()
     two_lights()
     occluded_lights()
+    glossy_lights()
     light_edge_cases()
     light_linking()
 

@@ -5,7 +5,11 @@
  * determinism (serial vs a parallel-for that runs chunks in reverse order), PMFs that sum
  * to one, select/pmf agreement and selection frequencies, visibility learning pushing down
  * a light that is never visible, and fractional visibility outcomes (fixed-point counters,
- * exact for 0/1 outcomes, and their rescale). */
+ * exact for 0/1 outcomes, and their rescale). BSDF-aware selection (cachepoints_vertex_lobe):
+ * pmfs sum to one, select reports exactly pmf() (with and without the prepared near weights),
+ * selection frequencies follow pmf, no light falls below (1 - CACHEPOINTS_LOBE_MAX_MIX) of its
+ * normal-only probability, the lobe moves probability toward lights along its axis, and a vertex
+ * the lobe leaves alone selects bit for bit as without it. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -416,6 +420,111 @@ static void check_scatter(CachePoints *a, CachePoints *b, const CachePointLights
     CHECK(bad_hint == 0, "%s: %d of %d hinted lookups missed the nearest point", mode, bad_hint, queries);
 }
 
+/* Bounding spheres of the lights for the lobe (CachePointLights.bound): every third point light
+ * a sphere of radius 0.3, the others points; the directional lights their direction, one with
+ * an angular radius of 0.1. */
+static float light_bound[4 * NL];
+
+static void setup_bounds(void) {
+    for (uint32_t l = 0; l < NL; ++l) {
+        memcpy(light_bound + 4 * l, light_pos + 3 * l, 3 * sizeof(float));
+        if (light_inf[l]) {
+            float *d = light_bound + 4 * l, len = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+            for (int k = 0; k < 3; ++k) d[k] /= len;
+            light_bound[4 * l + 3] = l == NL - 1 ? 0.1f : 0.0f;
+        } else {
+            light_bound[4 * l + 3] = l % 3 == 0 ? 0.3f : 0.0f;
+        }
+    }
+}
+
+/* cos of the angle between a and the direction from x to light l */
+static double light_cos(const float a[3], const float x[3], uint32_t l) {
+    double d[3];
+    for (int k = 0; k < 3; ++k) d[k] = light_inf[l] ? light_pos[3 * l + k] : (double)light_pos[3 * l + k] - x[k];
+    double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    return len > 0.0 ? (a[0] * d[0] + a[1] * d[1] + a[2] * d[2]) / len : 0.0;
+}
+
+static void check_lobe(CachePoints *a, const CachePointLights *L0, const char *mode) {
+    CachePointLights Lb = *L0;
+    Lb.bound = light_bound;
+    const CachePointLights *L = &Lb;
+    CHECK(cachepoints_prepare_lobes(a, L) == 0, "%s: cachepoints_prepare_lobes failed", mode);
+    int mismatch = 0, below = 0, lobed = 0, toward = 0, same = 0;
+    for (int q = 0; q < 12; ++q) {
+        float x[3], nrm[3], axis[3];
+        const float *n;
+        random_vertex(x, nrm, &n, 1); /* always with a normal */
+        /* a lobe around a direction in the normal's hemisphere */
+        for (int k = 0; k < 3; ++k) axis[k] = (float)(rnd() - 0.5);
+        float dn = axis[0] * n[0] + axis[1] * n[1] + axis[2] * n[2];
+        for (int k = 0; k < 3; ++k) axis[k] += (fabsf(dn) + 0.3f) * n[k];
+        float al = sqrtf(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]);
+        for (int k = 0; k < 3; ++k) axis[k] /= al;
+        const float sharp[4] = {3.0f, 30.0f, 300.0f, 3000.0f}, kappa[3] = {0.3f, 3.0f, INFINITY};
+        float near_w[CACHEPOINTS_MAX_NEAR];
+        CachePointVertex v0, v;
+        cachepoints_vertex(a, L, x, n, UINT32_MAX, &v0, near_w);
+        v = v0;
+        cachepoints_vertex_lobe(a, L, x, n, near_w, axis, sharp[q % 4], kappa[q % 3], &v);
+        CHECK(v.lobe_mix == 0.0f || (v.lobe_mix >= CACHEPOINTS_LOBE_MIN_MIX && v.lobe_mix <= CACHEPOINTS_LOBE_MAX_MIX),
+              "%s: lobe mix %g outside [%g, %g]", mode, v.lobe_mix, CACHEPOINTS_LOBE_MIN_MIX, CACHEPOINTS_LOBE_MAX_MIX);
+        if (v.lobe_mix > 0.0f) ++lobed;
+        double sum = 0.0, cos_lobe = 0.0, cos_normal = 0.0;
+        for (uint32_t l = 0; l < NL; ++l) {
+            float p = cachepoints_pmf(a, L, x, n, &v, l), p0 = cachepoints_pmf(a, L, x, n, &v0, l);
+            sum += p;
+            if (p < (1.0f - CACHEPOINTS_LOBE_MAX_MIX) * p0 * (1.0f - 1e-5f)) ++below;
+            cos_lobe += p * light_cos(axis, x, l);
+            cos_normal += p0 * light_cos(axis, x, l);
+        }
+        CHECK(fabs(sum - 1.0) < 1e-4, "%s: lobe pmf sums to %.7f", mode, sum);
+        if (v.lobe_mix > 0.0f && cos_lobe > cos_normal) ++toward;
+        enum { S = 20000 };
+        static uint32_t hist[NL];
+        memset(hist, 0, sizeof hist);
+        for (int s = 0; s < S; ++s) {
+            float pmf;
+            uint32_t slot;
+            uint32_t l = cachepoints_select(a, L, x, n, &v, q % 2 ? near_w : NULL, (float)rnd(), (float)rnd(), &pmf, &slot);
+            if (l >= NL || pmf != cachepoints_pmf(a, L, x, n, &v, l) || slot != cachepoints_slot(a, v.point, l)) ++mismatch;
+            else hist[l]++;
+        }
+        static double obs[NL], expv[NL];
+        for (uint32_t l = 0; l < NL; ++l) {
+            obs[l] = hist[l];
+            expv[l] = S * (double)cachepoints_pmf(a, L, x, n, &v, l);
+        }
+        int dof;
+        double chi2, pv = chi2_pvalue(obs, expv, NL, &dof, &chi2);
+        CHECK(dof <= 0 || pv > 1e-5, "%s: lobe selection chi2 %.1f (dof %d), p = %.2g", mode, chi2, dof, pv);
+        /* a lobe too weak to matter: the vertex stays the paper's, bit for bit */
+        CachePointVertex vw = v0;
+        cachepoints_vertex_lobe(a, L, x, n, near_w, axis, 3.0f, 1e-4f, &vw);
+        int eq = vw.lobe_mix == 0.0f;
+        for (int s = 0; s < 200 && eq; ++s) {
+            float u0 = (float)rnd(), u1 = (float)rnd(), p1, p2;
+            uint32_t s1, s2;
+            eq = cachepoints_select(a, L, x, n, &vw, near_w, u0, u1, &p1, &s1) ==
+                     cachepoints_select(a, L, x, n, &v0, near_w, u0, u1, &p2, &s2) &&
+                 p1 == p2 && s1 == s2;
+        }
+        same += eq;
+        /* no normal: no lobe */
+        CachePointVertex vn;
+        cachepoints_vertex(a, L, x, NULL, UINT32_MAX, &vn, NULL);
+        cachepoints_vertex_lobe(a, L, x, NULL, NULL, axis, 300.0f, 3.0f, &vn);
+        CHECK(vn.lobe_mix == 0.0f, "%s: a vertex without a normal got a lobe", mode);
+    }
+    fprintf(stderr, "%s: lobe: %d of 12 vertices follow it, %d of them move toward its axis\n", mode, lobed, toward);
+    CHECK(mismatch == 0, "%s: %d lobe selections disagree with cachepoints_pmf / cachepoints_slot", mode, mismatch);
+    CHECK(below == 0, "%s: %d lights below (1 - g_max) of their normal-only probability", mode, below);
+    CHECK(lobed >= 8, "%s: only %d of 12 vertices follow the lobe", mode, lobed);
+    CHECK(toward == lobed, "%s: the lobe moved probability away from its axis at %d vertices", mode, lobed - toward);
+    CHECK(same == 12, "%s: a weak lobe changed the selection at %d vertices", mode, 12 - same);
+}
+
 static void run(const CachePointLights *L, const float *cand, uint32_t nc, int cut) {
     const char *mode = cut ? "cut" : "linear";
     CachePointCamera cam = {{5.0f, 5.0f, 40.0f}, 2.0f * 0.4f / 64.0f, 0.0f};
@@ -495,6 +604,7 @@ static void run(const CachePointLights *L, const float *cand, uint32_t nc, int c
     }
     CHECK(mismatch == 0, "%s: %d selections disagree with cachepoints_pmf / cachepoints_slot", mode, mismatch);
     CHECK(differ == 0, "%s: %d pmfs differ between the serial and parallel builds", mode, differ);
+    check_lobe(a, L, mode);
 
     /* visibility learning: the most probable light at x0 that has a slot of its own always
      * fails, every other slot always succeeds */
@@ -781,6 +891,7 @@ int main(void) {
         light_leaf[NPOINT + j] = UINT32_MAX;
     }
     build_node(0, NPOINT, 0);
+    setup_bounds();
     enum { NC = 6000 };
     static float cand[3 * NC];
     for (int i = 0; i < NC; ++i)

@@ -31,6 +31,8 @@ expect_error "bad spp" "--spp" -- render "$scene" --spp 0 -o "$tmp/out.exr"
 expect_error "bad res" "--res" -- render "$scene" --res 100000x2 -o "$tmp/out.exr"
 expect_error "nan res" "--res" -- render "$scene" --res axb -o "$tmp/out.exr"
 expect_error "bad sampler" "light sampler" -- render "$scene" --light-sampler best "${common[@]}"
+expect_error "bad cachepoint-bsdf" "--cachepoint-bsdf" -- render "$scene" --cachepoint-bsdf maybe "${common[@]}"
+expect_error "missing cachepoint-bsdf" "--cachepoint-bsdf" -- render "$scene" --cachepoint-bsdf
 expect_error "missing scene" "nonexistent.gltf" -- render "$tmp/nonexistent.gltf" "${common[@]}"
 expect_error "unknown command" "unknown command" -- paint "$scene"
 expect_error "missing env" "nope.exr" -- render "$scene" --env "$tmp/nope.exr" "${common[@]}"
