@@ -194,6 +194,7 @@ static int insert_points(CachePoints *cp, const CachePointLights *L, const float
     nw.key_end = cp->key_end;
     nw.key_light = cp->key_light;
     nw.key_parent = cp->key_parent;
+    nw.key_bound = cp->key_bound; /* the lobe bounds of the keys (cachepoints_prepare_lobes) */
     nw.raw = cp->raw; /* the old points' own distributions: moved, only the new ones are estimated */
     nw.num_raw = cp->num_raw;
     cp->raw = NULL;
