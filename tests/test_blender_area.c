@@ -6,6 +6,10 @@
  * reference statistics stored beside it (rendered on a machine with Blender; CI never runs
  * Blender) within 3% per channel.
  *
+ * The same program checks area_nolights.gltf (the scene without its lights: the add-on's constant
+ * world EXR, its Specular 0 materials and the metal sphere under the world alone) against
+ * area_nolights.cycles_lambert.json; meson passes the scene and the reference (tests/meson.build).
+ *
  * Reference: area.cycles_lambert.json, Cycles with the non-metallic Principled BSDFs replaced by
  * Lambert (as ../shared/tools/cycles_render.py --lambert): the scene's dielectrics have Specular 0
  * and the comparison is about the lights, not Blender's Disney diffuse (the material models are
@@ -63,7 +67,7 @@ static char *read_text(const char *path) {
 
 int main(int argc, char **argv) {
     if (argc < 3) {
-        fprintf(stderr, "usage: test_blender_area SCENE.gltf REFERENCE.json\n");
+        fprintf(stderr, "usage: test_blender_area SCENE.gltf REFERENCE.json (scenes/blender_area)\n");
         return 2;
     }
     char *json = read_text(argv[2]);

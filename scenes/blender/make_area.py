@@ -19,6 +19,9 @@ camera; the lights are out of frame (Cycles 3.4 does not show lights to camera r
                             Principled diffuse is Disney's, not Lambert): what Candela's glTF
                             model renders for Specular 0 (KHR_materials_specular factor 0), so the
                             lights alone are compared (tests/test_blender_area.c).
+It also writes area_nolights.gltf, the scene without its lights (the dim world alone), and with
+--reference its area_nolights.cycles_lambert.json: the world, the materials (Specular 0 as the add-on
+writes it) and the constant-colour world EXR checked apart from the lights.
 """
 import math
 import os
@@ -91,6 +94,16 @@ def main():
         bc.to_lambert()
         bc.render_reference(os.path.join(out, "area.cycles_lambert.json"), WIDTH, HEIGHT, spp, seeds, depth,
                             note="make_area.py, non-metallic Principled BSDFs replaced by Lambert")
+    # the same scene without its lights: the world, materials and geometry alone, which Candela
+    # renders without the area lights (tests/test_blender_area.c checks both)
+    build()
+    for obj in [o for o in bpy.context.scene.objects if o.type == "LIGHT"]:
+        bpy.data.objects.remove(obj)
+    bc.export_gltf(os.path.join(out, "area_nolights.gltf"))
+    if reference:
+        bc.to_lambert()
+        bc.render_reference(os.path.join(out, "area_nolights.cycles_lambert.json"), WIDTH, HEIGHT, spp, seeds,
+                            depth, note="make_area.py without its lights (the dim world alone), Lambert as above")
 
 
 main()
