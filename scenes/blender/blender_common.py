@@ -9,7 +9,8 @@ Cycles gets max_bounces = depth - 1 in every kind.
 
 Reference statistics (JSON): the image is rendered as K independent Cycles seeds of spp/K
 samples; the JSON holds their average's mean per channel, its standard error (from the spread of
-the K seeds' means), and the mean per channel of every 32x32 block (rows top to bottom).
+the K seeds' means), and the mean per channel of every 32x32 block (rows top to bottom) with its
+standard error (the same way).
 """
 import json
 import math
@@ -291,12 +292,16 @@ def render_reference(json_path, width, height, spp, seeds, max_depth, threads=2,
     means = np.array(means)
     mean = img.reshape(-1, 3).mean(axis=0)
     se = means.std(axis=0, ddof=1) / math.sqrt(seeds) if seeds > 1 else np.zeros(3)
-    blocks = []
+    blocks, blocks_se = [], []
     for by in range(0, height - BLOCK + 1, BLOCK):
-        row = []
+        row, row_se = [], []
         for bx in range(0, width - BLOCK + 1, BLOCK):
             row.append([round(float(v), 7) for v in img[by:by + BLOCK, bx:bx + BLOCK].reshape(-1, 3).mean(axis=0)])
+            seed_blocks = np.array([im[by:by + BLOCK, bx:bx + BLOCK].reshape(-1, 3).mean(axis=0) for im in images])
+            bse = seed_blocks.std(axis=0, ddof=1) / math.sqrt(seeds) if seeds > 1 else np.zeros(3)
+            row_se.append([round(float(v), 7) for v in bse])
         blocks.append(row)
+        blocks_se.append(row_se)
     if exr_path:
         save_exr("reference", width, height, img.tolist(), exr_path)
     out = {
@@ -309,7 +314,7 @@ def render_reference(json_path, width, height, spp, seeds, max_depth, threads=2,
         "mean": [round(float(v), 7) for v in mean],
         "mean_se": [round(float(v), 7) for v in se],
         "seed_means": [[round(float(v), 7) for v in m] for m in means],
-        "block": BLOCK, "blocks": blocks,
+        "block": BLOCK, "blocks": blocks, "blocks_se": blocks_se,
     }
     with open(json_path, "w") as f:
         json.dump(out, f, indent=1)
