@@ -18,7 +18,13 @@
  * Tolerance: 3%, or 5 standard errors of the ratio if the noise of the two means allows no
  * tighter test (Candela's standard error from its per-pixel variance of the mean, Cycles' from
  * the spread of its independent seeds, stored in the JSON). With 64 spp both are about 0.1% of
- * the mean, so the test is the 3%; the test fails if the noise would make 3% meaningless. */
+ * the mean, so the test is the 3%; the test fails if the noise would make 3% meaningless.
+ *
+ * Measured (scratch merge of branches shapes 8356af9 + materials 1b9ffa2 + addon): ratios 0.9989,
+ * 0.9992, 0.9996 per channel (64 spp); with an area radiance of power / (pi A) instead of Cycles'
+ * power / (4 A) it was 1.26. A Candela without candela_area_light support (main before shapes)
+ * loads only the world: with the optional third argument (the scene's light count, the world
+ * included) the test skips then instead of failing. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -67,7 +73,8 @@ static char *read_text(const char *path) {
 
 int main(int argc, char **argv) {
     if (argc < 3) {
-        fprintf(stderr, "usage: test_blender_area SCENE.gltf REFERENCE.json (scenes/blender_area)\n");
+        fprintf(stderr, "usage: test_blender_area SCENE.gltf REFERENCE.json [LIGHTS] (scenes/blender_area; LIGHTS:\n"
+                        "  skip when fewer lights load, i.e. Candela ignores candela_area_light)\n");
         return 2;
     }
     char *json = read_text(argv[2]);
@@ -101,6 +108,13 @@ int main(int argc, char **argv) {
     CHECK(rc == 0, "%s: %s", argv[1], err);
     if (rc != 0) return test_exit();
 
+    /* A Candela that predates candela_area_light (before branch "shapes") loads the area scene with
+     * its world as the only light: nothing to compare, skip (meson's 77) rather than fail. */
+    if (argc > 3 && st.num_lights < (unsigned)atoi(argv[3])) {
+        candela_image_free(&img);
+        SKIP("%s: %u lights loaded, the scene has %s: this Candela ignores candela_area_light", argv[1],
+             st.num_lights, argv[3]);
+    }
     size_t n = (size_t)img.width * (size_t)img.height;
     double sum[3] = {0, 0, 0}, var[3] = {0, 0, 0};
     for (size_t i = 0; i < n; ++i)

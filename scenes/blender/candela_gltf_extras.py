@@ -8,8 +8,7 @@ say (issue 14). It writes, as `extras` (the keys Candela's loader reads, README 
   * area lights, which the exporter drops (it keeps their node but no light):
         "candela_area_light": {"shape": "rect"|"disk", "size": [x, y], "color": [r, g, b], "power": W}
     on the light's node. Square and Rectangle are "rect", Disk and Ellipse are "disk" (an ellipse
-    keeps both diameters in "size"; Candela's disk is round when x == y, and the add-on warns when
-    it is not). "size" is Blender's Size / Size X, Size Y in the light's local axes; the node keeps
+    keeps both diameters in "size": Candela's disk is the ellipse of those diameters). "size" is Blender's Size / Size X, Size Y in the light's local axes; the node keeps
     the object's transform (Blender 3.4's exporter folds a -90 degree X rotation into light nodes
     so that the glTF node's local axes are Blender's local light axes: local -Z is the emission
     direction, one-sided, and local X/Y span the light). "power" is Blender's Power in watts
@@ -109,10 +108,7 @@ def _area_light(light):
     elif shape == "DISK":
         kind, size = "disk", [light.size, light.size]
     else:  # ELLIPSE
-        kind, size = "disk", [light.size, light.size_y]
-        if light.size != light.size_y:
-            _warn("area light '%s': an ellipse (%g x %g) is written as a disk with both diameters"
-                  % (light.name, light.size, light.size_y))
+        kind, size = "disk", [light.size, light.size_y]  # Candela's disk is an ellipse of these diameters
     spread = getattr(light, "spread", math.pi)
     if abs(spread - math.pi) > 1e-6:
         _warn("area light '%s': spread %.1f degrees is not exported (Candela's area lights emit over "
