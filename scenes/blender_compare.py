@@ -4,7 +4,7 @@ compares it with the Cycles 3.4 reference statistics stored beside it (NAME.cycl
 
     python3 scenes/blender_compare.py scenes/blender_interior/interior.gltf [--json FILE]
         [--candela build/renderer/candela] [--spp N] [--seed S] [--threads N] [--png FILE]
-        [--max-mean-diff PCT] -- [candela flags, e.g. --material-model blender3 --light-model blender3]
+        [--blocks] [--max-mean-diff PCT] -- [candela flags, e.g. --material-model blender3 --light-model blender3]
 
 Candela renders at the reference's resolution, spp and --max-depth (its JSON says which) with the
 flags after `--`. Printed: the image mean per channel of both renders, the ratio Candela / Cycles of
@@ -50,6 +50,7 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--png", default=None, help="also keep Candela's preview PNG here")
+    ap.add_argument("--blocks", action="store_true", help="print every block's ratio and its standard error")
     ap.add_argument("--max-mean-diff", type=float, default=None, help="exit 1 if the mean differs by more (percent)")
     a = ap.parse_args(argv)
     ref_path = a.json or os.path.splitext(a.gltf)[0] + ".cycles.json"
@@ -102,6 +103,8 @@ def main():
             yse = math.sqrt(sum(e * e for e in ref["blocks_se"][by][bx])) / 3 if "blocks_se" in ref else 0.0
             qse = q * math.sqrt((cse / cb) ** 2 + (yse / yv) ** 2) if cb > 0 and yv > 0 else float("inf")
             count += 1
+            if a.blocks:
+                print("block      (%d, %d) %.4f +- %.4f" % (bx, by, q, qse))
             outside += abs(q - 1) > 0.10
             noisy += 3 * qse > 0.10
             if worst is None or abs(q - 1) > abs(worst[0] - 1):
