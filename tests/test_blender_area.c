@@ -20,7 +20,7 @@
  * the spread of its independent seeds, stored in the JSON). With 64 spp both are about 0.1% of
  * the mean, so the test is the 3%; the test fails if the noise would make 3% meaningless.
  *
- * Measured (scratch merge of branches shapes 8356af9 + materials 1b9ffa2 + addon): ratios 0.9989,
+ * Measured (scratch merges of branches shapes 8356af9 / a96eece + materials + addon): ratios 0.9989,
  * 0.9992, 0.9996 per channel (64 spp); with an area radiance of power / (pi A) instead of Cycles'
  * power / (4 A) it was 1.26. A Candela without candela_area_light support (main before shapes)
  * loads only the world: with the optional third argument (the scene's light count, the world
