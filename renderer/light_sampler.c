@@ -160,6 +160,41 @@ CandelaLightSampler light_sampler_auto_choice(const Lights *lights, const struct
     return cost <= LIGHT_SAMPLER_AUTO_EXACT_COST ? CANDELA_LIGHT_SAMPLER_OPTIMAL : CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
 }
 
+/* The within-pixel variance of what the camera sees directly (emitters and the environment):
+ * at AUTO_SEEN_GRID^2 pixels spread over the image, 2x2 stratified positions per pixel, the
+ * unbiased sample variance of the seen radiance's luminance, averaged over the pixels. */
+enum { AUTO_SEEN_GRID = 64 };
+static double seen_emission_variance(const Scene *scene) {
+    const Camera *cam = &scene->camera;
+    double acc = 0.0;
+    for (int j = 0; j < AUTO_SEEN_GRID; ++j)
+        for (int i = 0; i < AUTO_SEEN_GRID; ++i) {
+            float px = floorf(((float)i + 0.5f) / AUTO_SEEN_GRID * (float)cam->width);
+            float py = floorf(((float)j + 0.5f) / AUTO_SEEN_GRID * (float)cam->height);
+            double x[4], mean = 0.0;
+            for (int k = 0; k < 4; ++k) {
+                vec3 o, d;
+                camera_generate_ray(cam, px + 0.25f + 0.5f * (float)(k & 1), py + 0.25f + 0.5f * (float)(k >> 1), &o, &d);
+                SceneHit sh;
+                vec3 le;
+                if (scene_intersect1(scene, (SceneRay){o, 0.0f, d, INFINITY}, &sh)) {
+                    SurfaceHit h;
+                    scene_surface_hit(scene, sh.instance, sh.local_prim, sh.triangle, sh.u, sh.v, &h);
+                    le = scene_emitted_radiance(scene, &h, v3_neg(d));
+                } else {
+                    le = scene_env_radiance(scene, d);
+                }
+                float l = v3_luminance(le);
+                x[k] = isfinite(l) ? (double)l : 0.0;
+                mean += 0.25 * x[k];
+            }
+            double v = 0.0;
+            for (int k = 0; k < 4; ++k) v += (x[k] - mean) * (x[k] - mean);
+            acc += v / 3.0;
+        }
+    return acc / ((double)AUTO_SEEN_GRID * AUTO_SEEN_GRID);
+}
+
 float light_sampler_power_moment_ratio(const Lights *lights, const struct Scene *scene) {
     uint32_t n = lights->count;
     if (n == 0 || n > LIGHT_SAMPLER_AUTO_PROBE_MAX || !scene) return INFINITY;
@@ -181,6 +216,11 @@ float light_sampler_power_moment_ratio(const Lights *lights, const struct Scene 
             SurfaceHit h;
             scene_surface_hit(scene, sh.instance, sh.local_prim, sh.triangle, sh.u, sh.v, &h);
             vec3 nrm = v3_dot(h.ns, d) < 0.0f ? h.ns : v3_neg(h.ns);
+            /* the estimates are irradiance: a diffuse reflectance turns them into the radiance
+             * the pixel sees, the unit of the seen emission's variance below */
+            MaterialSample ms;
+            scene_material_at(scene, &h, &ms);
+            double rho = (double)v3_luminance(ms.bsdf.base_color) * (1.0 - (double)ms.bsdf.metallic) / PI_F;
             double total = 0.0;
             for (uint32_t e = 0; e < n; ++e) {
                 float w = light_contribution_estimate(lights, &lights->lights[e], h.p, nrm);
@@ -196,11 +236,18 @@ float light_sampler_power_moment_ratio(const Lights *lights, const struct Scene 
                 double qe = q[e] / total;
                 m += qe * qe / pe;
             }
-            num += total * total * m;
-            den += total * total;
+            double t2 = rho * rho * total * total;
+            num += t2 * m;
+            den += t2;
         }
     free(q);
-    return den > 0.0 ? (float)(num / den) : INFINITY;
+    if (!(den > 0.0)) return INFINITY;
+    /* per pixel: the NEE estimates' second moments plus what the camera sees directly, which
+     * no light sampler changes (the emitters' edges can hold most of an image's variance:
+     * cornell_many_lights, 94 % in the panel rows) */
+    double seen = seen_emission_variance(scene);
+    double ratio = (num / (GRID * GRID) + seen) / (den / (GRID * GRID) + seen);
+    return (float)ratio;
 }
 
 /* ---------------------------------------------------------------- dispatch */
@@ -214,7 +261,9 @@ int light_sampler_create(LightSampler *s, const Lights *lights, const struct Sce
         which = light_sampler_auto_choice(lights, media, o);
         if ((which == CANDELA_LIGHT_SAMPLER_OPTIMAL || which == CANDELA_LIGHT_SAMPLER_CACHEPOINTS) &&
             !(media && media_any(media)) && !lights->link &&
-            light_sampler_power_moment_ratio(lights, scene) <= LIGHT_SAMPLER_AUTO_POWER_RATIO)
+            light_sampler_power_moment_ratio(lights, scene) <=
+                (which == CANDELA_LIGHT_SAMPLER_OPTIMAL ? LIGHT_SAMPLER_AUTO_POWER_RATIO
+                                                        : LIGHT_SAMPLER_AUTO_POWER_RATIO_CACHEPOINTS))
             which = CANDELA_LIGHT_SAMPLER_POWER;
     }
     if ((o->aov_selection || o->cachepoint_dump_path) && which != CANDELA_LIGHT_SAMPLER_CACHEPOINTS && !o->no_warnings)

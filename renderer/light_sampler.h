@@ -104,16 +104,24 @@ CandelaLightSampler light_sampler_auto_choice(const Lights *lights, const struct
  * important wherever the camera looks (every light visible and of similar power: the cornell
  * boxes), `power` samples them as well as any per-vertex strategy at none of the cost. At the
  * first hits of a 16 x 16 grid of camera rays through pixel centres (deterministic), q_e = each
- * light's unoccluded estimate / their sum; power's second moment relative to sampling q exactly
- * is sum_e q_e^2 / p_e (p_e: power's pmf), and this returns its mean weighted by the squared
- * total (the pixels' second moments), 1 when power is as good as exact selection, INFINITY when
- * power misses a light that matters. Scenes with more than LIGHT_SAMPLER_AUTO_PROBE_MAX lights
- * are not probed (INFINITY). */
+ * light's unoccluded estimate times the hit's diffuse reflectance / pi; power's second moment
+ * there is (sum_e q_e)^2 sum_e (q_e / sum q)^2 / p_e (p_e: power's pmf), exact selection's
+ * (sum_e q_e)^2. To both (per pixel, averaged over the grid) is added what no light sampler
+ * changes: the within-pixel variance of the radiance the camera sees directly (emitters, the
+ * environment; 64 x 64 pixels, 2 x 2 positions each), which holds 94 % of cornell_many_lights'
+ * image variance (its panels' edges). The ratio (power / exact) is 1 when power is as good as
+ * exact selection and INFINITY when power misses a light that matters. Scenes with more than
+ * LIGHT_SAMPLER_AUTO_PROBE_MAX lights are not probed (INFINITY). */
 #define LIGHT_SAMPLER_AUTO_PROBE_MAX 4096u
-/* Power is chosen when the ratio is at most this: optimal's per-vertex work costs 1.2-1.3x power's
- * time per sample with 4-5 lights (callgrind on bench: 737M vs 567M instructions), cache points'
- * build and lookup more. */
+/* Power is chosen when the ratio is at most the alternative's cost per sample relative to
+ * power's: optimal's per-vertex work costs 1.2-1.3x power's time per sample with 4-5 lights
+ * (callgrind on bench: 737M vs 567M instructions); cache points' 1.47x on cornell_many_lights
+ * (320x180, CPU seconds between 16 and 64 spp), their build on top. Probe ratios measured
+ * (320x180): cornell_lights 1.000, cornell_1k_lights 1.04, cornell_many_lights 1.22 (power's
+ * measured per-sample variance there: 1.14x cache points'), animation 1.66, emissive_mesh 2.29,
+ * bench 2.36, default 2.49, windows 49, spotlights 56, city_1k 793, glossy 1602. */
 #define LIGHT_SAMPLER_AUTO_POWER_RATIO 1.10f
+#define LIGHT_SAMPLER_AUTO_POWER_RATIO_CACHEPOINTS 1.50f
 float light_sampler_power_moment_ratio(const Lights *lights, const struct Scene *scene);
 
 /* The strategies' constructors (light_sampler_create dispatches to them). */
