@@ -38,26 +38,7 @@ enum { LOBE_METAL, LOBE_SPEC, LOBE_DIFFUSE, LOBE_GLASS, LOBE_COAT, LOBE_COUNT };
 /* KHR_materials_clearcoat's coat: a dielectric of ior 1.5 (F0 = 0.04) */
 #define COAT_F0 0.04f
 
-typedef struct {
-    int model;       /* BSDF_MODEL_* */
-    vec3 base;       /* clamped to [0,1] */
-    vec3 f0_spec;    /* dielectric layer F0 (includes specular factor) */
-    float f90_spec;  /* = specular */
-    int spec_on;     /* dielectric specular layer active (ior != 1 and specular > 0) */
-    float m, t, specular, ior;
-    float alpha;     /* opaque lobes, >= BSDF_MIN_ALPHA */
-    float alpha_glass;
-    int glass_delta;
-    float coat;        /* clearcoat factor; 0: no coat */
-    float alpha_coat;  /* >= BSDF_MIN_ALPHA */
-    float glass_fscale; /* the glass Fresnel's scale: specular (glTF) or 1 (Principled) */
-    /* BSDF_MODEL_BLENDER3 (Principled v1) */
-    float p_rough;     /* Disney diffuse roughness (perceptual) */
-    vec3 cspec0;       /* specular colour at normal incidence (metal folded in) */
-    float ior_s;       /* the specular lobe's Fresnel ior, from Specular */
-    float f0_s;        /* Fr(1, ior_s) */
-    float w_spec3;     /* 1 - (1-m) t; 0 when the lobe is off */
-} Prep;
+typedef BsdfPrepared Prep;
 
 static float sane01(float x, float fallback) {
     if (isnan(x)) return fallback;
@@ -125,6 +106,7 @@ static void prepare(const BsdfParams *p, Prep *q) {
     q->t = sane01(p->transmission, 0.0f);
     q->specular = sane01(p->specular, 0.0f);
     float r = sane01(p->roughness, 1.0f);
+    q->roughness = r;
     float ior = p->ior;
     if (!(ior >= 1.0f) || !isfinite(ior)) ior = isinf(ior) && ior > 0.0f ? 1e4f : 1.0f;
     q->ior = minf(ior, 1e4f);
@@ -426,6 +408,8 @@ static vec3 eval_pdf(const Prep *q, vec3 wo, vec3 wi, float *pdf_out) {
     return f;
 }
 
+void bsdf_prepare(const BsdfParams *p, BsdfPrepared *q) { prepare(p, q); }
+
 vec3 bsdf_eval(const BsdfParams *p, vec3 wo, vec3 wi) {
     Prep q;
     prepare(p, &q);
@@ -437,6 +421,8 @@ vec3 bsdf_eval_pdf(const BsdfParams *p, vec3 wo, vec3 wi, float *pdf) {
     prepare(p, &q);
     return eval_pdf(&q, wo, wi, pdf);
 }
+
+vec3 bsdf_prepared_eval_pdf(const BsdfPrepared *q, vec3 wo, vec3 wi, float *pdf) { return eval_pdf(q, wo, wi, pdf); }
 
 float bsdf_pdf(const BsdfParams *p, vec3 wo, vec3 wi) {
     Prep q;
@@ -461,6 +447,10 @@ static int refract_about(vec3 wo, vec3 n, float eta, vec3 *wt) {
 int bsdf_sample(const BsdfParams *p, vec3 wo, float u_lobe, float u1, float u2, BsdfSample *s) {
     Prep q;
     prepare(p, &q);
+    return bsdf_prepared_sample(&q, wo, u_lobe, u1, u2, s);
+}
+
+int bsdf_prepared_sample(const BsdfPrepared *qp, vec3 wo, float u_lobe, float u1, float u2, BsdfSample *s) {
     s->wi = v3(0.0f, 0.0f, 1.0f);
     s->f = v3s(0.0f);
     s->pdf = 0.0f;
@@ -471,7 +461,7 @@ int bsdf_sample(const BsdfParams *p, vec3 wo, float u_lobe, float u1, float u2, 
     u2 = clampf(isnan(u2) ? 0.0f : u2, 0.0f, 0x1.fffffep-1f);
 
     float prob[LOBE_COUNT];
-    if (!(lobe_probs(&q, wo, prob) > 0.0f)) return 0;
+    if (!(lobe_probs(qp, wo, prob) > 0.0f)) return 0;
     int lobe = -1;
     float acc = 0.0f, u_rem = 0.0f;
     for (int k = 0; k < LOBE_COUNT; ++k) {
@@ -487,14 +477,14 @@ int bsdf_sample(const BsdfParams *p, vec3 wo, float u_lobe, float u1, float u2, 
     switch (lobe) {
     case LOBE_METAL:
     case LOBE_SPEC: {
-        vec3 wm = ggx_sample_visible_normal(wo, q.alpha, u1, u2);
+        vec3 wm = ggx_sample_visible_normal(wo, qp->alpha, u1, u2);
         wi = reflect_about(wo, wm);
         if (!(wi.z > MIN_COS)) return 0;
         s->flags = BSDF_REFLECTION;
         break;
     }
     case LOBE_COAT: {
-        vec3 wm = ggx_sample_visible_normal(wo, q.alpha_coat, u1, u2);
+        vec3 wm = ggx_sample_visible_normal(wo, qp->alpha_coat, u1, u2);
         wi = reflect_about(wo, wm);
         if (!(wi.z > MIN_COS)) return 0;
         s->flags = BSDF_REFLECTION;
@@ -507,11 +497,11 @@ int bsdf_sample(const BsdfParams *p, vec3 wo, float u_lobe, float u1, float u2, 
         break;
     default: { /* LOBE_GLASS */
         float sg = wo.z > 0.0f ? 1.0f : -1.0f;
-        float eta = wo.z > 0.0f ? q.ior : 1.0f / q.ior;
+        float eta = wo.z > 0.0f ? qp->ior : 1.0f / qp->ior;
         vec3 o = v3_scale(wo, sg);
-        float wg = (1.0f - q.m) * q.t;
-        if (q.glass_delta) {
-            float fr = (float)(q.glass_fscale * fr_dielectric(o.z, eta));
+        float wg = (1.0f - qp->m) * qp->t;
+        if (qp->glass_delta) {
+            float fr = (float)(qp->glass_fscale * fr_dielectric(o.z, eta));
             vec3 w;
             float pr, weight_f;
             vec3 tint = v3s(1.0f);
@@ -524,11 +514,11 @@ int bsdf_sample(const BsdfParams *p, vec3 wo, float u_lobe, float u1, float u2, 
                 if (!refract_about(o, v3(0.0f, 0.0f, 1.0f), eta, &w)) return 0;
                 pr = 1.0f - fr;
                 weight_f = (1.0f - fr) / (eta * eta);
-                tint = q.base;
+                tint = qp->base;
                 s->flags = BSDF_TRANSMISSION | BSDF_DELTA;
             }
             if (!(fabsf(w.z) > MIN_COS) || !(pr > 0.0f)) return 0;
-            if (q.model == BSDF_MODEL_GLTF) weight_f *= 1.0f - coat_fresnel(&q, o.z); /* fresnel_coat */
+            if (qp->model == BSDF_MODEL_GLTF) weight_f *= 1.0f - coat_fresnel(qp, o.z); /* fresnel_coat */
             s->wi = v3_scale(w, sg);
             s->pdf = prob[LOBE_GLASS] * pr;
             /* weight = f |cos| / pdf = wg * weight_f * tint / (prob * pr): the lobe's mixture
@@ -537,10 +527,10 @@ int bsdf_sample(const BsdfParams *p, vec3 wo, float u_lobe, float u1, float u2, 
             if (!(s->pdf > 0.0f) || !v3_is_finite(s->f)) return 0;
             return 1;
         }
-        vec3 wm = ggx_sample_visible_normal(o, q.alpha_glass, u1, u2);
+        vec3 wm = ggx_sample_visible_normal(o, qp->alpha_glass, u1, u2);
         float dot_o = v3_dot(o, wm);
         if (!(dot_o > 0.0f)) return 0;
-        float fr = (float)(q.glass_fscale * fr_dielectric(q.model == BSDF_MODEL_BLENDER3 ? o.z : dot_o, eta));
+        float fr = (float)(qp->glass_fscale * fr_dielectric(qp->model == BSDF_MODEL_BLENDER3 ? o.z : dot_o, eta));
         vec3 w;
         if (u_rem < fr) {
             w = reflect_about(o, wm);
@@ -556,7 +546,7 @@ int bsdf_sample(const BsdfParams *p, vec3 wo, float u_lobe, float u1, float u2, 
     }
     }
     float pdf;
-    vec3 f = eval_pdf(&q, wo, wi, &pdf);
+    vec3 f = eval_pdf(qp, wo, wi, &pdf);
     if (!(pdf > 0.0f) || !v3_is_finite(f)) return 0;
     vec3 weight = v3_scale(f, fabsf(wi.z) / pdf);
     if (!v3_is_finite(weight)) return 0;
@@ -566,22 +556,32 @@ int bsdf_sample(const BsdfParams *p, vec3 wo, float u_lobe, float u1, float u2, 
     return 1;
 }
 
+int bsdf_prepared_guidable(const BsdfPrepared *q) {
+    if (q->t > 0.0f && q->glass_delta) return 0; /* a delta lobe, which a guide never samples */
+    /* the seed's ch. 1 §3.1: the roughest lobe above 0.05 (a diffuse base is the roughest) */
+    return (1.0f - q->m) * (1.0f - q->t) > 0.0f || q->roughness > BSDF_GUIDE_MIN_ROUGHNESS;
+}
+
+int bsdf_prepared_is_delta(const BsdfPrepared *q) {
+    return q->m == 0.0f && q->t == 1.0f && q->glass_delta && q->coat == 0.0f;
+}
+
+int bsdf_prepared_has_transmission(const BsdfPrepared *q) { return q->t > 0.0f && q->m < 1.0f; }
+
 int bsdf_guidable(const BsdfParams *p) {
     Prep q;
     prepare(p, &q);
-    if (q.t > 0.0f && q.glass_delta) return 0; /* a delta lobe, which a guide never samples */
-    /* the seed's ch. 1 §3.1: the roughest lobe above 0.05 (a diffuse base is the roughest) */
-    return (1.0f - q.m) * (1.0f - q.t) > 0.0f || sane01(p->roughness, 1.0f) > BSDF_GUIDE_MIN_ROUGHNESS;
+    return bsdf_prepared_guidable(&q);
 }
 
 int bsdf_is_delta(const BsdfParams *p) {
     Prep q;
     prepare(p, &q);
-    return q.m == 0.0f && q.t == 1.0f && q.glass_delta && q.coat == 0.0f;
+    return bsdf_prepared_is_delta(&q);
 }
 
 int bsdf_has_transmission(const BsdfParams *p) {
     Prep q;
     prepare(p, &q);
-    return q.t > 0.0f && q.m < 1.0f;
+    return bsdf_prepared_has_transmission(&q);
 }

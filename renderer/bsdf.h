@@ -102,6 +102,38 @@ typedef struct BsdfSample {
     int flags;     /* BSDF_* */
 } BsdfSample;
 
+/* The parameters' derived constants (clamped inputs, Fresnel F0s, alphas, the Principled v1
+ * specular colour): what every call below computes first. A vertex that samples and
+ * evaluates its BSDF several times (NEE, the bounce, MIS pdfs) prepares once and calls the
+ * bsdf_prepared_* forms, which give bit for bit the same results. The fields are bsdf.c's. */
+typedef struct BsdfPrepared {
+    int model;       /* BSDF_MODEL_* */
+    vec3 base;       /* clamped to [0,1] */
+    vec3 f0_spec;    /* dielectric layer F0 (includes specular factor) */
+    float f90_spec;  /* = specular */
+    int spec_on;     /* dielectric specular layer active (ior != 1 and specular > 0) */
+    float m, t, specular, ior;
+    float roughness; /* perceptual, clamped to [0,1] */
+    float alpha;     /* opaque lobes, >= BSDF_MIN_ALPHA */
+    float alpha_glass;
+    int glass_delta;
+    float coat;        /* clearcoat factor; 0: no coat */
+    float alpha_coat;  /* >= BSDF_MIN_ALPHA */
+    float glass_fscale; /* the glass Fresnel's scale: specular (glTF) or 1 (Principled) */
+    /* BSDF_MODEL_BLENDER3 (Principled v1) */
+    float p_rough;     /* Disney diffuse roughness (perceptual) */
+    vec3 cspec0;       /* specular colour at normal incidence (metal folded in) */
+    float ior_s;       /* the specular lobe's Fresnel ior, from Specular */
+    float f0_s;        /* Fr(1, ior_s) */
+    float w_spec3;     /* 1 - (1-m) t; 0 when the lobe is off */
+} BsdfPrepared;
+void bsdf_prepare(const BsdfParams *p, BsdfPrepared *q);
+int bsdf_prepared_sample(const BsdfPrepared *q, vec3 wo, float u_lobe, float u1, float u2, BsdfSample *s);
+vec3 bsdf_prepared_eval_pdf(const BsdfPrepared *q, vec3 wo, vec3 wi, float *pdf);
+int bsdf_prepared_is_delta(const BsdfPrepared *q);
+int bsdf_prepared_guidable(const BsdfPrepared *q);
+int bsdf_prepared_has_transmission(const BsdfPrepared *q);
+
 /* The weight of a sample is f * |wi.z| / pdf. Returns 0 when no direction was produced. */
 int bsdf_sample(const BsdfParams *p, vec3 wo, float u_lobe, float u1, float u2, BsdfSample *s);
 vec3 bsdf_eval(const BsdfParams *p, vec3 wo, vec3 wi);

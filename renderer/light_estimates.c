@@ -110,19 +110,49 @@ void light_estimate_table_free(LightEstimateTable *t) {
     memset(t, 0, sizeof *t);
 }
 
-/* An area light's estimate over its table points: each point's term in its own lane (the
- * loop has no branches, so it vectorises; two_sided and omni are constants in each copy),
- * then the terms added in point order. Bit for bit light_contribution_estimate: every lane
- * does its float operations in the same order, a skipped point adds +0 to a sum that is never
- * -0. */
-#if defined(__GNUC__) && !defined(__clang__)
-/* GCC vectorises the selections only without trapping math, which changes no result (no
- * operation is reordered or contracted; only whether a NaN comparison may trap) */
-#define AREA_LANES_ATTR __attribute__((optimize("no-trapping-math")))
+/* An area light's estimate over its table points: each point's term in its own lane, then
+ * the terms added in point order. Bit for bit light_contribution_estimate: every lane does its
+ * float operations in the same order (no contraction: SSE2 has no fused multiply-add), a
+ * skipped point adds +0 to a sum that is never -0 (test_lights compares the bits). With SSE2
+ * (every x86-64) four points at a time in explicit vector registers (GCC left the plain loop
+ * scalar: it was a fifth of the shade stage's instructions on scenes/bench.gltf with the
+ * default sampler); elsewhere the same loop in scalars. */
+#if defined(__SSE2__)
+#include <emmintrin.h>
+static float area_estimate_lanes(const LightEstimatePoints *e, float L, float area, vec3 p, vec3 n,
+                                 const int two_sided, const int omni) {
+    float term[AREA_ESTIMATE_SAMPLES];
+    const __m128 px = _mm_set1_ps(p.x), py = _mm_set1_ps(p.y), pz = _mm_set1_ps(p.z);
+    const __m128 nx = _mm_set1_ps(n.x), ny = _mm_set1_ps(n.y), nz = _mm_set1_ps(n.z);
+    const __m128 one = _mm_set1_ps(1.0f), zero = _mm_setzero_ps(), eps = _mm_set1_ps(1e-12f);
+    const __m128 vL = _mm_set1_ps(L), varea = _mm_set1_ps(area), vcount = _mm_set1_ps((float)AREA_ESTIMATE_SAMPLES);
+    const __m128 sign = _mm_set1_ps(-0.0f);
+    for (int k = 0; k < AREA_ESTIMATE_SAMPLES; k += 4) {
+        __m128 dx = _mm_sub_ps(_mm_loadu_ps(&e->y[0][k]), px);
+        __m128 dy = _mm_sub_ps(_mm_loadu_ps(&e->y[1][k]), py);
+        __m128 dz = _mm_sub_ps(_mm_loadu_ps(&e->y[2][k]), pz);
+        __m128 d2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
+        __m128 inv = _mm_div_ps(one, _mm_sqrt_ps(d2));
+        __m128 wx = _mm_mul_ps(dx, inv), wy = _mm_mul_ps(dy, inv), wz = _mm_mul_ps(dz, inv);
+        __m128 cl = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_loadu_ps(&e->ng[0][k]), wx), _mm_mul_ps(_mm_loadu_ps(&e->ng[1][k]), wy)),
+                               _mm_mul_ps(_mm_loadu_ps(&e->ng[2][k]), wz));
+        cl = _mm_xor_ps(cl, sign);                   /* -(...) */
+        if (two_sided) cl = _mm_andnot_ps(sign, cl); /* fabsf */
+        __m128 contrib = _mm_div_ps(_mm_mul_ps(_mm_div_ps(_mm_mul_ps(vL, cl), d2), varea), vcount);
+        __m128 rc = one;
+        if (!omni) {
+            __m128 dot = _mm_add_ps(_mm_add_ps(_mm_mul_ps(nx, wx), _mm_mul_ps(ny, wy)), _mm_mul_ps(nz, wz));
+            rc = _mm_and_ps(_mm_cmpgt_ps(dot, zero), dot); /* dot > 0 ? dot : +0 (NaN: +0) */
+        }
+        __m128 t = _mm_mul_ps(contrib, rc);
+        __m128 valid = _mm_and_ps(_mm_cmpgt_ps(d2, eps), _mm_cmpgt_ps(cl, zero));
+        _mm_storeu_ps(&term[k], _mm_and_ps(valid, t));
+    }
+    float sum = 0.0f;
+    for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) sum += term[k];
+    return sum;
+}
 #else
-#define AREA_LANES_ATTR
-#endif
-AREA_LANES_ATTR
 static float area_estimate_lanes(const LightEstimatePoints *e, float L, float area, vec3 p, vec3 n,
                                  const int two_sided, const int omni) {
     float term[AREA_ESTIMATE_SAMPLES];
@@ -134,8 +164,6 @@ static float area_estimate_lanes(const LightEstimatePoints *e, float L, float ar
         float cos_l = -(e->ng[0][k] * wx + e->ng[1][k] * wy + e->ng[2][k] * wz);
         if (two_sided) cos_l = fabsf(cos_l);
         float contrib = L * cos_l / d2 * area / AREA_ESTIMATE_SAMPLES;
-        /* every operation unconditional, only selections after (trapping math forbids
-         * if-converting a conditional float operation) */
         float dot = n.x * wx + n.y * wy + n.z * wz;
         float rc = omni ? 1.0f : (dot > 0.0f ? dot : 0.0f);
         float t = contrib * rc;
@@ -146,6 +174,7 @@ static float area_estimate_lanes(const LightEstimatePoints *e, float L, float ar
     for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) sum += term[k];
     return sum;
 }
+#endif
 
 static float area_estimate_table(const Light *l, const LightEstimatePoints *e, float L, vec3 p, vec3 n) {
     int omni = v3_is_black(n);

@@ -37,7 +37,8 @@ void scatter_init_surface(Scatter *s, const SurfaceHit *h, const BsdfParams *bsd
     s->guide_mode = SCATTER_GUIDE_NONE;
     s->kind = SCATTER_BSDF;
     s->bsdf = *bsdf;
-    s->transmissive = bsdf_has_transmission(bsdf);
+    bsdf_prepare(bsdf, &s->prep); /* once per vertex: every sample and evaluation below reuses it */
+    s->transmissive = bsdf_prepared_has_transmission(&s->prep);
     vec3 ng = h->ng, ns = h->ns;
     /* opaque surfaces are shaded on the side they are seen from; glass keeps +z outside */
     if (!s->transmissive && v3_dot(wo_world, ng) < 0.0f) { ng = v3_neg(ng); ns = v3_neg(ns); }
@@ -82,7 +83,7 @@ int scatter_sample(const Scatter *s, float u_lobe, float u1, float u2, ScatterSa
         return 1;
     }
     BsdfSample bs;
-    if (!bsdf_sample(&s->bsdf, s->wo, u_lobe, u1, u2, &bs)) return 0;
+    if (!bsdf_prepared_sample(&s->prep, s->wo, u_lobe, u1, u2, &bs)) return 0;
     vec3 wi = v3_normalize(frame_to_world(&s->frame, bs.wi));
     float side_g = v3_dot(wi, s->ng);
     if (!(side_g * bs.wi.z > 0.0f) || !(bs.pdf > 0.0f)) return 0;
@@ -114,11 +115,11 @@ static vec3 function_eval(const Scatter *s, vec3 wi, float *pdf) {
     float side_g = v3_dot(wi, s->ng);
     *pdf = 0.0f;
     if (!(side_g * wi_l.z > 0.0f)) return v3s(0.0f);
-    return v3_scale(bsdf_eval_pdf(&s->bsdf, s->wo, wi_l, pdf), fabsf(wi_l.z));
+    return v3_scale(bsdf_prepared_eval_pdf(&s->prep, s->wo, wi_l, pdf), fabsf(wi_l.z));
 }
 
 int scatter_guidable(const Scatter *s) {
-    return s->kind == SCATTER_PHASE ? fabsf(s->g) < SCATTER_PHASE_GUIDE_MAX_G : bsdf_guidable(&s->bsdf);
+    return s->kind == SCATTER_PHASE ? fabsf(s->g) < SCATTER_PHASE_GUIDE_MAX_G : bsdf_prepared_guidable(&s->prep);
 }
 
 void scatter_set_guide(Scatter *s, const GuideDistribution *d, ScatterGuideMode mode) {

@@ -44,6 +44,7 @@ typedef struct Scatter {
     vec3 ng;           /* geometric normal, turned like frame.n */
     vec3 wo;           /* outgoing direction in the local frame */
     BsdfParams bsdf;
+    BsdfPrepared prep; /* bsdf's derived constants (bsdf_prepare), computed once per vertex */
     int transmissive;  /* has a transmission lobe: receives light from both sides */
     int wo_outside;    /* wo is on the geometric normal's side (refraction enters the surface) */
     const GuideDistribution *guide; /* the learned incident radiance here (NULL: not guided) */
@@ -84,7 +85,7 @@ void scatter_set_guide(Scatter *s, const GuideDistribution *d, ScatterGuideMode 
  * light's NEE needs no MIS weight: a guided Scatter then skips its guide's pdf). */
 vec3 scatter_eval(const Scatter *s, vec3 wi, float *pdf);
 /* 1 if every lobe is a delta: no direction can be evaluated, so NEE is useless. */
-static inline int scatter_is_delta(const Scatter *s) { return s->kind == SCATTER_BSDF && bsdf_is_delta(&s->bsdf); }
+static inline int scatter_is_delta(const Scatter *s) { return s->kind == SCATTER_BSDF && bsdf_prepared_is_delta(&s->prep); }
 /* The normal of the light-selection context: the shading normal, or zero (an omnidirectional
  * receiver, as in a medium) for a surface that transmits light from both sides. */
 static inline vec3 scatter_light_normal(const Scatter *s) {
