@@ -28,6 +28,28 @@ def script_args():
     return sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 
 
+def generator_args(script, default_out):
+    """The make_*.py scripts' shared arguments (after Blender's `--`): returns
+    (out, spp, seeds, max_depth, reference, preview)."""
+    args = script_args()
+    out, spp, seeds, depth, reference, preview = default_out, 256, 8, 8, False, None
+    valued = {"--out": str, "--spp": int, "--seeds": int, "--max-depth": int, "--preview": str}
+    values = {}
+    i = 0
+    while i < len(args):
+        a = args[i]
+        if a in valued and i + 1 < len(args):
+            values[a] = valued[a](args[i + 1])
+            i += 1
+        elif a == "--reference":
+            reference = True
+        else:
+            sys.exit("%s: unknown argument %s" % (script, a))
+        i += 1
+    return (values.get("--out", out), values.get("--spp", spp), values.get("--seeds", seeds),
+            values.get("--max-depth", depth), reference, values.get("--preview", preview))
+
+
 def reset():
     bpy.ops.wm.read_factory_settings(use_empty=True)
     # Debian bookworm's numpy 1.24 removed np.bool, which io_scene_gltf2 3.4.50 still uses

@@ -63,27 +63,8 @@ def build():
 
 
 def main():
-    args = bc.script_args()
-    out = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "blender_area")
-    spp, seeds, depth, reference, preview = 256, 8, 8, False, None
-    i = 0
-    while i < len(args):
-        a = args[i]
-        if a == "--out":
-            out, i = args[i + 1], i + 1
-        elif a == "--spp":
-            spp, i = int(args[i + 1]), i + 1
-        elif a == "--seeds":
-            seeds, i = int(args[i + 1]), i + 1
-        elif a == "--max-depth":
-            depth, i = int(args[i + 1]), i + 1
-        elif a == "--preview":
-            preview, i = args[i + 1], i + 1
-        elif a == "--reference":
-            reference = True
-        else:
-            sys.exit("make_area.py: unknown argument %s" % a)
-        i += 1
+    out, spp, seeds, depth, reference, preview = bc.generator_args(
+        "make_area.py", os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "blender_area"))
     build()
     bc.export_gltf(os.path.join(out, "area.gltf"))
     if preview:

@@ -178,27 +178,8 @@ def build(texdir):
 
 
 def main():
-    args = bc.script_args()
-    out = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "blender_interior")
-    spp, seeds, depth, reference, preview = 256, 8, 8, False, None
-    i = 0
-    while i < len(args):
-        a = args[i]
-        if a == "--out":
-            out, i = args[i + 1], i + 1
-        elif a == "--spp":
-            spp, i = int(args[i + 1]), i + 1
-        elif a == "--seeds":
-            seeds, i = int(args[i + 1]), i + 1
-        elif a == "--max-depth":
-            depth, i = int(args[i + 1]), i + 1
-        elif a == "--preview":
-            preview, i = args[i + 1], i + 1
-        elif a == "--reference":
-            reference = True
-        else:
-            sys.exit("make_interior.py: unknown argument %s" % a)
-        i += 1
+    out, spp, seeds, depth, reference, preview = bc.generator_args(
+        "make_interior.py", os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "blender_interior"))
     with tempfile.TemporaryDirectory() as texdir:
         build(texdir)
         bc.export_gltf(os.path.join(out, "interior.gltf"))
