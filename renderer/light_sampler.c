@@ -203,6 +203,10 @@ float light_sampler_power_moment_ratio(const Lights *lights, const struct Scene 
     if (!(power_sum > 0.0)) return INFINITY;
     float *q = malloc(sizeof(float) * n);
     if (!q) return INFINITY;
+    /* the estimates through the table: the same bits as light_contribution_estimate, with an
+     * area light's points precomputed (1,024 area lights at 256 points: 0.1 s without it) */
+    LightEstimateTable table;
+    if (light_estimate_table_build(&table, lights) != 0) { free(q); return INFINITY; }
     enum { GRID = 16 };
     const Camera *cam = &scene->camera;
     double num = 0.0, den = 0.0;
@@ -223,7 +227,7 @@ float light_sampler_power_moment_ratio(const Lights *lights, const struct Scene 
             double rho = (double)v3_luminance(ms.bsdf.base_color) * (1.0 - (double)ms.bsdf.metallic) / PI_F;
             double total = 0.0;
             for (uint32_t e = 0; e < n; ++e) {
-                float w = light_contribution_estimate(lights, &lights->lights[e], h.p, nrm);
+                float w = light_contribution_estimate_table(lights, &table, e, h.p, nrm);
                 q[e] = w > 0.0f && isfinite(w) ? w : 0.0f;
                 total += q[e];
             }
@@ -232,7 +236,11 @@ float light_sampler_power_moment_ratio(const Lights *lights, const struct Scene 
             for (uint32_t e = 0; e < n; ++e) {
                 if (!(q[e] > 0.0f)) continue;
                 double pe = (lights->lights[e].power > 0.0f ? lights->lights[e].power : 0.0f) / power_sum;
-                if (!(pe > 0.0)) { free(q); return INFINITY; } /* power never picks a light that matters */
+                if (!(pe > 0.0)) { /* power never picks a light that matters */
+                    free(q);
+                    light_estimate_table_free(&table);
+                    return INFINITY;
+                }
                 double qe = q[e] / total;
                 m += qe * qe / pe;
             }
@@ -241,6 +249,7 @@ float light_sampler_power_moment_ratio(const Lights *lights, const struct Scene 
             den += t2;
         }
     free(q);
+    light_estimate_table_free(&table);
     if (!(den > 0.0)) return INFINITY;
     /* per pixel: the NEE estimates' second moments plus what the camera sees directly, which
      * no light sampler changes (the emitters' edges can hold most of an image's variance:
