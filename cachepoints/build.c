@@ -127,18 +127,26 @@ void cachepoints_point(const CachePoints *cp, uint32_t i, float pos[3], float *r
     *radius = cp->radius[i];
 }
 
-void cachepoints_free(CachePoints *cp) {
-    if (!cp) return;
+/* What cp_build_points makes: every per-point array (a progressive rebuild replaces them; the
+ * key space, the probes and the raw distributions stay). One list, so that a rebuild and
+ * cachepoints_free cannot disagree about what a point owns. */
+void cp_points_free(CachePoints *cp) {
     kdtree_free(&cp->kd);
     free(cp->pos); free(cp->radius);
-    free(cp->light_key); free(cp->key_end); free(cp->key_light);
     free(cp->near_off); free(cp->near_key); free(cp->near_light); free(cp->near_slot); free(cp->near_vis);
     free(cp->far_off); free(cp->far); free(cp->far_slot); free(cp->far_cdf);
     free(cp->vis_off); free(cp->vis_key); free(cp->vis_count); free(cp->far_bin_total); free(cp->w_blurred);
     free(cp->vis_low); free(cp->vis_active); free(cp->tables_dirty);
     free(cp->scatter_near); free(cp->scatter_far); free(cp->scatter_total);
     free(cp->nbr); free(cp->nbr_w); free(cp->self_w); free(cp->nbr_clear2);
-    free(cp->w_pool); free(cp->key_parent); free(cp->key_bound);
+    free(cp->w_pool);
+}
+
+void cachepoints_free(CachePoints *cp) {
+    if (!cp) return;
+    cp_points_free(cp);
+    /* the key space (shared by every rebuild) */
+    free(cp->light_key); free(cp->key_end); free(cp->key_light); free(cp->key_parent); free(cp->key_bound);
     free(cp->probe);
     cp_raw_free(cp);
     free(cp);

@@ -132,6 +132,8 @@ int cp_key_space_init(CachePoints *cp, const CachePointLights *L);
  * kept in cp->raw. 0 ok, -1 out of memory (cp->raw is then consumed or freed). */
 int cp_build_points(CachePoints *cp, const CachePointLights *L, int keep_raw);
 void cp_raw_free(CachePoints *cp);
+/* Frees the per-point arrays cp_build_points made (build.c), not the key space. */
+void cp_points_free(CachePoints *cp);
 
 /* ---------------------------------------------------------------- blur.c (§3.1.5) */
 

@@ -165,19 +165,6 @@ static void inherit_range(void *vctx, size_t b, size_t e, int thread) {
     }
 }
 
-/* Frees what cp_build_points made (the parts a rebuild replaces). */
-static void free_points(CachePoints *cp) {
-    kdtree_free(&cp->kd);
-    free(cp->pos); free(cp->radius);
-    free(cp->near_off); free(cp->near_key); free(cp->near_light); free(cp->near_slot); free(cp->near_vis);
-    free(cp->far_off); free(cp->far); free(cp->far_slot); free(cp->far_cdf);
-    free(cp->vis_off); free(cp->vis_key); free(cp->vis_count); free(cp->far_bin_total); free(cp->w_blurred);
-    free(cp->vis_low); free(cp->vis_active); free(cp->tables_dirty);
-    free(cp->scatter_near); free(cp->scatter_far); free(cp->scatter_total);
-    free(cp->nbr); free(cp->nbr_w); free(cp->self_w); free(cp->nbr_clear2);
-    free(cp->w_pool);
-}
-
 /* Appends m points (pos 3m, radius m) and rebuilds; the old points' counters move to their new
  * slots, and new point j inherits those of old point parent[j] (parent NULL: none, the caller
  * loads counters). On failure (-1, out of memory) cp is unchanged. */
@@ -211,7 +198,7 @@ static int insert_points(CachePoints *cp, const CachePointLights *L, const float
         failed = cp_build_points(&nw, L, keep_raw) != 0;
     }
     if (failed) { /* cp keeps its points (without its kept distributions: a later rebuild estimates all) */
-        free_points(&nw);
+        cp_points_free(&nw);
         cp_raw_free(&nw);
         return -1;
     }
@@ -232,7 +219,7 @@ static int insert_points(CachePoints *cp, const CachePointLights *L, const float
     nw.num_probes = cp->num_probes;
     nw.n_build = cp->n_build;
     nw.barriers = cp->barriers;
-    free_points(cp);
+    cp_points_free(cp);
     *cp = nw;
     return 0;
 }
