@@ -622,6 +622,18 @@ static vec3 cone_dir(vec3 z, float cos_t, float sin_t, float u) {
 
 /* --light-model blender3's point radius: a disk of radius r centred at the light, facing the
  * receiver p, sampled by area with the concentric map (Cycles 3.4's disk_light_sample). */
+/* The direction and distance from p to the light point y into s (wi, distance); returns the
+ * squared distance, 0 (nothing written that matters) when y is p. */
+static inline float li_toward(vec3 p, vec3 y, LightLiSample *s) {
+    vec3 d = v3_sub(y, p);
+    float d2 = v3_dot(d, d);
+    if (!(d2 > 0.0f)) return 0.0f;
+    float dist = sqrtf(d2);
+    s->wi = v3_scale(d, 1.0f / dist);
+    s->distance = dist;
+    return d2;
+}
+
 static int sample_facing_disk(const Light *l, vec3 p, float u0, float u1, LightLiSample *s) {
     vec3 to = v3_sub(p, l->position);
     float dc = v3_length(to);
@@ -630,12 +642,8 @@ static int sample_facing_disk(const Light *l, vec3 p, float u0, float u1, LightL
     onb_from_normal(nd, &t, &b);
     vec2 q = sample_concentric_disk(u0, u1);
     vec3 y = v3_add(l->position, v3_scale(v3_add(v3_scale(t, q.x), v3_scale(b, q.y)), l->radius));
-    vec3 d = v3_sub(y, p);
-    float d2 = v3_dot(d, d);
+    float d2 = li_toward(p, y, s);
     if (!(d2 > 0.0f)) return 0;
-    float dist = sqrtf(d2);
-    s->wi = v3_scale(d, 1.0f / dist);
-    s->distance = dist;
     float cos_l = -v3_dot(s->wi, nd);
     if (!(cos_l > 0.0f)) return 0;
     s->pdf = d2 / (cos_l * PI_F * l->radius * l->radius);
@@ -655,12 +663,8 @@ static int sample_sphere(const Light *l, vec3 p, float u0, float u1, LightLiSamp
          * reaching exactly one point: where a ray from p leaves it) */
         ny = sample_uniform_sphere(u0, u1);
         y = v3_madd(c, ny, r);
-        vec3 d = v3_sub(y, p);
-        float d2 = v3_dot(d, d);
+        float d2 = li_toward(p, y, s);
         if (!(d2 > 0.0f)) return 0;
-        float dist = sqrtf(d2);
-        s->wi = v3_scale(d, 1.0f / dist);
-        s->distance = dist;
         float cos_l = fabsf(v3_dot(ny, s->wi));
         s->pdf = cos_l > 0.0f ? d2 / (cos_l * 4.0f * PI_F * r * r) : 0.0f;
     } else {
@@ -820,12 +824,8 @@ static int sample_planar(const Light *l, vec3 p, float u0, float u1, LightLiSamp
         b = q.y;
     }
     vec3 y = v3_add(l->position, v3_add(v3_scale(l->axis_u, a), v3_scale(l->axis_v, b)));
-    vec3 d = v3_sub(y, p);
-    float d2 = v3_dot(d, d);
+    float d2 = li_toward(p, y, s);
     if (!(d2 > 0.0f)) return 0;
-    float dist = sqrtf(d2);
-    s->wi = v3_scale(d, 1.0f / dist);
-    s->distance = dist;
     float cos_l = -v3_dot(s->wi, l->direction); /* one-sided: it emits along direction */
     if (!(cos_l > 0.0f)) return 0;
     s->pdf = d2 / (cos_l * l->area);
@@ -956,12 +956,8 @@ int light_sample_li(const Lights *ls, const Light *l, const LightSampleContext *
         return 0; /* no area (not built) */
     case LIGHT_POINT:
     case LIGHT_SPOT: {
-        vec3 d = v3_sub(l->position, p);
-        float d2 = v3_dot(d, d);
+        float d2 = li_toward(p, l->position, s);
         if (!(d2 > 0.0f)) return 0;
-        float dist = sqrtf(d2);
-        s->wi = v3_scale(d, 1.0f / dist);
-        s->distance = dist;
         vec3 I = l->intensity;
         if (l->type == LIGHT_SPOT) I = v3_scale(I, light_spot_falloff(l, v3_neg(s->wi)));
         s->radiance = v3_scale(I, 1.0f / d2);
@@ -989,12 +985,8 @@ int light_sample_li(const Lights *ls, const Light *l, const LightSampleContext *
         vec3 a = v3(w[0], w[1], w[2]), b = v3(w[3], w[4], w[5]), c = v3(w[6], w[7], w[8]);
         vec2 bc = sample_uniform_triangle(u1, u2);
         vec3 y = v3_add(v3_add(v3_scale(a, 1.0f - bc.x - bc.y), v3_scale(b, bc.x)), v3_scale(c, bc.y));
-        vec3 d = v3_sub(y, p);
-        float d2 = v3_dot(d, d);
+        float d2 = li_toward(p, y, s);
         if (!(d2 > 0.0f)) return 0;
-        float dist = sqrtf(d2);
-        s->wi = v3_scale(d, 1.0f / dist);
-        s->distance = dist;
         /* radiance leaving y towards p */
         const IoMaterial *mat = scene->prims[l->global_prim].material;
         if (mat->emissive_tex.image >= 0) {
