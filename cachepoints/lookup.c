@@ -272,6 +272,23 @@ static void vertex_near(const CachePoints *cp, const CachePointLights *L, const 
     v->near_total = t;
 }
 
+/* The far bin that running target t falls in (bin weights b[i] times the point's bin totals
+ * bt[i]; non-positive ones skipped), and in *cum the weight before it; -1 when every bin is
+ * empty (light_weight and light_weight_linked walk the bins alike). */
+static inline int far_bin_pick(const float b[CP_FAR_BINS], const float *bt, float t, float *cum) {
+    int bin = -1;
+    float c = 0.0f;
+    for (int i = 0; i < CP_FAR_BINS; ++i) {
+        float wi = b[i] > 0.0f ? b[i] * bt[i] : 0.0f;
+        if (!(wi > 0.0f)) continue;
+        bin = i;
+        if (t < c + wi) break;
+        c += wi;
+    }
+    *cum = c;
+    return bin;
+}
+
 /* The nearest point to x (ties: lowest index), exactly kdtree_nearest_hint's answer. Hits
  * arrive sorted, so x is usually near the hint (the previous vertex's point): inside the
  * hint's clearance, among the hint and its blur neighbours (nbr_clear2, see blur.c), which
@@ -356,17 +373,10 @@ static uint32_t pick_normal(const CachePoints *cp, const CachePointLights *L, co
     if (pick == CP_NONE && ft > 0.0f) {
         /* a bin, then an entry inside it by binary search over the running sums */
         float t = target > v->near_total ? target - v->near_total : 0.0f;
-        int bin = -1;
-        float cum = 0.0f;
+        float cum;
         uint32_t f0 = cp->far_off[p], f1 = cp->far_off[p + 1];
         const float *bt = cp->far_bin_total + (size_t)p * CP_BIN_STRIDE;
-        for (int i = 0; i < CP_FAR_BINS; ++i) {
-            float wi = b[i] > 0.0f ? b[i] * bt[i] : 0.0f;
-            if (!(wi > 0.0f)) continue;
-            bin = i;
-            if (t < cum + wi) break;
-            cum += wi;
-        }
+        int bin = far_bin_pick(b, bt, t, &cum);
         if (bin >= 0) {
             float tb = (t - cum) / b[bin];
             const float *cdf = cp_cdf(cp, p, bin, f0);
@@ -908,15 +918,8 @@ uint32_t cachepoints_select_linked(const CachePoints *cp, const CachePointLights
         }
         if (pick == CP_NONE && ft > 0.0f) {
             float t = target > v->near_total ? target - v->near_total : 0.0f;
-            int bin = -1;
-            float cum = 0.0f;
-            for (int i = 0; i < CP_FAR_BINS; ++i) {
-                float wi = b[i] > 0.0f ? b[i] * bt[i] : 0.0f;
-                if (!(wi > 0.0f)) continue;
-                bin = i;
-                if (t < cum + wi) break;
-                cum += wi;
-            }
+            float cum;
+            int bin = far_bin_pick(b, bt, t, &cum);
             if (bin >= 0) {
                 uint32_t f0 = cp->far_off[p], f1 = cp->far_off[p + 1];
                 const float *cdf = cp_cdf(cp, p, bin, f0);
