@@ -126,6 +126,10 @@ static void prepare(const BsdfParams *p, Prep *q) {
     q->alpha_coat = maxf(rc * rc, BSDF_MIN_ALPHA);
     q->glass_fscale = q->specular;
     if (q->model == BSDF_MODEL_BLENDER3) prepare_blender3(p, q);
+    /* lobe_probs' weights are then w_diffuse = 1 * max(base) * (1 - 0) and nothing else */
+    q->lambert = q->model == BSDF_MODEL_GLTF && q->m == 0.0f && q->t == 0.0f && !q->spec_on && !(q->coat > 0.0f);
+    float w = v3_max_component(q->base);
+    q->lambert_prob = w > 0.0f ? w * (1.0f / w) : 0.0f;
 }
 
 static float pow5(float x) { float x2 = x * x; return x2 * x2 * x; }
@@ -368,8 +372,26 @@ static vec3 principled_opaque(const Prep *q, const float prob[LOBE_COUNT], vec3 
     return f;
 }
 
+/* eval_pdf of a Lambert-only material (q->lambert): gltf_opaque's diffuse term with opaque =
+ * kd = 1 and every other lobe's weight 0, the same operations on the same values. */
+static vec3 lambert_eval_pdf(const Prep *q, vec3 wo, vec3 wi, float *pdf_out) {
+    vec3 f = v3s(0.0f);
+    float pdf = 0.0f;
+    if (wo.z > 0.0f && wi.z > 0.0f) {
+        f = v3_scale(q->base, INV_PI_F);
+        pdf = q->lambert_prob * wi.z * INV_PI_F;
+    }
+    if (!v3_is_finite(f) || !isfinite(pdf)) {
+        f = v3s(0.0f);
+        pdf = 0.0f;
+    }
+    if (pdf_out) *pdf_out = pdf;
+    return f;
+}
+
 /* Evaluate f and the mixture pdf (non-delta lobes only). */
 static vec3 eval_pdf(const Prep *q, vec3 wo, vec3 wi, float *pdf_out) {
+    if (q->lambert) return lambert_eval_pdf(q, wo, wi, pdf_out);
     vec3 f = v3s(0.0f);
     float pdf = 0.0f;
     float prob[LOBE_COUNT];
@@ -460,6 +482,21 @@ int bsdf_prepared_sample(const BsdfPrepared *qp, vec3 wo, float u_lobe, float u1
     u1 = clampf(isnan(u1) ? 0.0f : u1, 0.0f, 0x1.fffffep-1f);
     u2 = clampf(isnan(u2) ? 0.0f : u2, 0.0f, 0x1.fffffep-1f);
 
+    if (qp->lambert) {
+        /* the only lobe with weight: the general path below picks it whatever u_lobe is */
+        if (!(wo.z > 0.0f) || !(qp->lambert_prob > 0.0f)) return 0;
+        vec3 wi = sample_cosine_hemisphere(u1, u2);
+        if (!(wi.z > MIN_COS)) return 0;
+        s->flags = BSDF_REFLECTION;
+        float pdf;
+        vec3 f = lambert_eval_pdf(qp, wo, wi, &pdf);
+        if (!(pdf > 0.0f) || !v3_is_finite(f)) return 0;
+        if (!v3_is_finite(v3_scale(f, fabsf(wi.z) / pdf))) return 0;
+        s->wi = wi;
+        s->f = f;
+        s->pdf = pdf;
+        return 1;
+    }
     float prob[LOBE_COUNT];
     if (!(lobe_probs(qp, wo, prob) > 0.0f)) return 0;
     int lobe = -1;

@@ -126,6 +126,11 @@ typedef struct BsdfPrepared {
     float ior_s;       /* the specular lobe's Fresnel ior, from Specular */
     float f0_s;        /* Fr(1, ior_s) */
     float w_spec3;     /* 1 - (1-m) t; 0 when the lobe is off */
+    /* glTF model with the diffuse lobe alone (no metal, specular layer, transmission or coat):
+     * eval and sample take a short path that does the same float operations, so the results
+     * are bit for bit those of the general mixture */
+    int lambert;
+    float lambert_prob; /* the diffuse lobe's selection probability (w * (1 / w)) when wo.z > 0 */
 } BsdfPrepared;
 void bsdf_prepare(const BsdfParams *p, BsdfPrepared *q);
 int bsdf_prepared_sample(const BsdfPrepared *q, vec3 wo, float u_lobe, float u1, float u2, BsdfSample *s);

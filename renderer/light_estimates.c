@@ -68,6 +68,9 @@ static int area_estimate_samples(const Light *l, vec3 p, vec3 dirs[AREA_ESTIMATE
 
 /* --- the estimate table: the same estimates with the position-independent part done once */
 
+/* the lights light_contribution_estimate_table takes its LIGHT_POINT case for */
+static int table_point_light(const Light *l) { return l->type == LIGHT_POINT && !light_is_shape(l); }
+
 int light_estimate_table_build(LightEstimateTable *t, const Lights *ls) {
     memset(t, 0, sizeof *t);
     t->slot = malloc(((size_t)ls->count + 1) * sizeof *t->slot);
@@ -78,7 +81,25 @@ int light_estimate_table_build(LightEstimateTable *t, const Lights *ls) {
         t->slot[i] = area ? areas++ : UINT32_MAX;
     }
     t->points = malloc(((size_t)areas + 1) * sizeof *t->points);
-    if (!t->slot || !t->lum || !t->points) { light_estimate_table_free(t); return -1; }
+    uint32_t points = 0;
+    for (uint32_t i = 0; i < ls->count; ++i) points += table_point_light(&ls->lights[i]);
+    size_t padded = ((size_t)points + 3) / 4 * 4 + 4;
+    t->point_light = malloc(((size_t)points + 1) * sizeof *t->point_light);
+    t->point_x = calloc(4 * padded, sizeof(float));
+    if (!t->slot || !t->lum || !t->points || !t->point_light || !t->point_x) { light_estimate_table_free(t); return -1; }
+    t->point_y = t->point_x + padded;
+    t->point_z = t->point_y + padded;
+    t->point_lum = t->point_z + padded;
+    for (uint32_t i = 0; i < ls->count; ++i) {
+        const Light *l = &ls->lights[i];
+        if (!table_point_light(l)) continue;
+        uint32_t k = t->num_point_lights++;
+        t->point_light[k] = i;
+        t->point_x[k] = l->position.x;
+        t->point_y[k] = l->position.y;
+        t->point_z[k] = l->position.z;
+        t->point_lum[k] = v3_luminance(l->intensity);
+    }
     for (uint32_t i = 0; i < ls->count; ++i) {
         const Light *l = &ls->lights[i];
         t->lum[i] = light_is_areal(l) ? v3_luminance(l->emission) : v3_luminance(l->intensity);
@@ -107,6 +128,8 @@ void light_estimate_table_free(LightEstimateTable *t) {
     free(t->slot);
     free(t->lum);
     free(t->points);
+    free(t->point_light);
+    free(t->point_x);
     memset(t, 0, sizeof *t);
 }
 
@@ -202,6 +225,57 @@ float light_contribution_estimate_table(const Lights *ls, const LightEstimateTab
         return area_estimate_table(l, &t->points[t->slot[light]], t->lum[light], p, n);
     default:
         return light_contribution_estimate(ls, l, p, n);
+    }
+}
+
+/* Point lights k .. k+3 of the table: light_contribution_estimate_table's LIGHT_POINT case in
+ * four lanes (the same operations in the same order, so the same bits; the padding lanes are
+ * computed and not stored). */
+#if defined(__SSE2__)
+static void point_estimate_lanes(const LightEstimateTable *t, uint32_t k, vec3 p, vec3 n, int omni, float out[4]) {
+    const __m128 zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
+    __m128 dx = _mm_sub_ps(_mm_loadu_ps(t->point_x + k), _mm_set1_ps(p.x));
+    __m128 dy = _mm_sub_ps(_mm_loadu_ps(t->point_y + k), _mm_set1_ps(p.y));
+    __m128 dz = _mm_sub_ps(_mm_loadu_ps(t->point_z + k), _mm_set1_ps(p.z));
+    __m128 d2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
+    __m128 rc = one;
+    if (!omni) {
+        __m128 inv = _mm_div_ps(one, _mm_sqrt_ps(d2));
+        __m128 dot = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(n.x), _mm_mul_ps(dx, inv)),
+                                           _mm_mul_ps(_mm_set1_ps(n.y), _mm_mul_ps(dy, inv))),
+                                _mm_mul_ps(_mm_set1_ps(n.z), _mm_mul_ps(dz, inv)));
+        rc = _mm_and_ps(_mm_cmpgt_ps(dot, zero), dot); /* maxf(dot, 0): NaN and -0 give +0 */
+    }
+    __m128 e = _mm_div_ps(_mm_mul_ps(_mm_loadu_ps(t->point_lum + k), rc), d2);
+    _mm_storeu_ps(out, _mm_and_ps(_mm_cmpgt_ps(d2, zero), e)); /* !(d2 > 0): 0 */
+}
+#else
+static void point_estimate_lanes(const LightEstimateTable *t, uint32_t k, vec3 p, vec3 n, int omni, float out[4]) {
+    for (int j = 0; j < 4; ++j) {
+        float dx = t->point_x[k + j] - p.x, dy = t->point_y[k + j] - p.y, dz = t->point_z[k + j] - p.z;
+        float d2 = dx * dx + dy * dy + dz * dz;
+        float rc = 1.0f;
+        if (!omni) {
+            float inv = 1.0f / sqrtf(d2);
+            rc = maxf(n.x * (dx * inv) + n.y * (dy * inv) + n.z * (dz * inv), 0.0f);
+        }
+        out[j] = d2 > 0.0f ? t->point_lum[k + j] * rc / d2 : 0.0f;
+    }
+}
+#endif
+
+void light_estimate_table_all(const Lights *ls, const LightEstimateTable *t, vec3 p, vec3 n, float *out) {
+    uint32_t next_point = t->num_point_lights ? t->point_light[0] : UINT32_MAX, k = 0;
+    for (uint32_t i = 0; i < ls->count; ++i) {
+        if (i != next_point) { out[i] = light_contribution_estimate_table(ls, t, i, p, n); continue; }
+        next_point = k + 1 < t->num_point_lights ? t->point_light[k + 1] : UINT32_MAX;
+        ++k;
+    }
+    int omni = v3_is_black(n);
+    for (k = 0; k < t->num_point_lights; k += 4) {
+        float e[4];
+        point_estimate_lanes(t, k, p, n, omni, e);
+        for (uint32_t j = 0; j < 4 && k + j < t->num_point_lights; ++j) out[t->point_light[k + j]] = e[j];
     }
 }
 

@@ -225,10 +225,18 @@ typedef struct LightEstimateTable {
     uint32_t *slot;             /* per light: its entry in points (UINT32_MAX: not an area light) */
     float *lum;                 /* per light: luminance of the emission (area) or intensity */
     LightEstimatePoints *points;
+    /* the point lights (LIGHT_POINT, no radius), SoA padded to a multiple of 4: their light
+     * index and position / luminance, for light_estimate_table_all's vector loop */
+    uint32_t num_point_lights;
+    uint32_t *point_light;
+    float *point_x, *point_y, *point_z, *point_lum;
 } LightEstimateTable;
 int light_estimate_table_build(LightEstimateTable *t, const Lights *ls);
 void light_estimate_table_free(LightEstimateTable *t);
 float light_contribution_estimate_table(const Lights *ls, const LightEstimateTable *t, uint32_t light, vec3 p, vec3 n);
+/* Every light's light_contribution_estimate_table (bit for bit) into out[0 .. count), the point
+ * lights four at a time. */
+void light_estimate_table_all(const Lights *ls, const LightEstimateTable *t, vec3 p, vec3 n, float *out);
 /* The environment's estimates (position-independent), computed once by lights_build. */
 void light_env_estimates(const struct Scene *scene, float out[7]);
 /* Peak radiant intensity of a light (luminance, W/sr): what a light-tree cluster estimate sums. */

@@ -106,11 +106,18 @@ static float optimal_total(const OptimalSampler *s, const LightSampleContext *ct
 static void optimal_prepare(const void *state, LightSampleContext *ctx, uint32_t *hint) {
     (void)hint;
     const OptimalSampler *s = state;
-    if (!s->per_vertex) return;
+    if (!s->per_vertex) return; /* no occlusion rays, count <= LIGHT_SAMPLER_SCRATCH */
+    float local[LIGHT_SAMPLER_SCRATCH];
+    float *wv = ctx->scratch ? ctx->scratch : local;
+    /* optimal_weight of every light: the estimates all at once (point lights four at a time),
+     * then its linking and finiteness rules */
+    light_estimate_table_all(s->lights, &s->table, ctx->p, ctx->n, wv);
     float total = 0.0f;
     for (uint32_t i = 0; i < s->lights->count; ++i) {
-        float w = optimal_weight(s, i, ctx);
-        if (ctx->scratch) ctx->scratch[i] = w;
+        float w = wv[i];
+        if (ctx->link_class && !light_reaches(s->lights, ctx->link_class, i)) w = 0.0f;
+        if (!(w > 0.0f) || !isfinite(w)) w = 0.0f;
+        wv[i] = w;
         total += w;
     }
     ctx->vertex = (LightVertex){1u, total};

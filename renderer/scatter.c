@@ -33,11 +33,18 @@ static vec3 shading_normal_valid_for(vec3 ng, vec3 ns, vec3 wo) {
 }
 
 void scatter_init_surface(Scatter *s, const SurfaceHit *h, const BsdfParams *bsdf, vec3 wo_world) {
+    scatter_init_surface_prepared(s, h, bsdf, NULL, wo_world);
+}
+
+void scatter_init_surface_prepared(Scatter *s, const SurfaceHit *h, const BsdfParams *bsdf,
+                                   const BsdfPrepared *prepared, vec3 wo_world) {
     s->guide = NULL;
     s->guide_mode = SCATTER_GUIDE_NONE;
     s->kind = SCATTER_BSDF;
     s->bsdf = *bsdf;
-    bsdf_prepare(bsdf, &s->prep); /* once per vertex: every sample and evaluation below reuses it */
+    /* once per vertex (or per material, when fixed): every sample and evaluation below reuses it */
+    if (prepared) s->prep = *prepared;
+    else bsdf_prepare(bsdf, &s->prep);
     s->transmissive = bsdf_prepared_has_transmission(&s->prep);
     vec3 ng = h->ng, ns = h->ns;
     /* opaque surfaces are shaded on the side they are seen from; glass keeps +z outside */

@@ -66,6 +66,9 @@ typedef struct ScatterSample {
 
 /* The BSDF of a surface hit seen from direction wo_world (unit, pointing away from the hit). */
 void scatter_init_surface(Scatter *s, const SurfaceHit *h, const BsdfParams *bsdf, vec3 wo_world);
+/* The same with the BSDF already prepared from bsdf (scene_material_prepared), or NULL. */
+void scatter_init_surface_prepared(Scatter *s, const SurfaceHit *h, const BsdfParams *bsdf,
+                                   const BsdfPrepared *prepared, vec3 wo_world);
 /* A medium's Henyey-Greenstein phase function at a scattering point seen from wo_world. */
 void scatter_init_phase(Scatter *s, float g, vec3 wo_world);
 /* 1 if a direction was sampled (u_lobe picks a lobe, u1 and u2 the direction in it). Never

@@ -217,6 +217,43 @@ void scene_material_at(const Scene *scene, const SurfaceHit *hit, MaterialSample
     m->double_sided = mat->double_sided;
 }
 
+const BsdfPrepared *scene_material_prepared(const Scene *scene, const SurfaceHit *hit, MaterialSample *m) {
+    const MaterialFixed *f = scene->prims[hit->global_prim].material_fixed;
+    if (f) {
+        *m = f->sample;
+        return &f->prepared;
+    }
+    scene_material_at(scene, hit, m);
+    return NULL;
+}
+
+/* Whether a texture read by scene_material_at varies the material over its surface. */
+static int material_textured(const Scene *scene, const IoMaterial *mat) {
+    return texture_present(scene, &mat->base_color_tex) || texture_present(scene, &mat->metallic_roughness_tex) ||
+           (mat->clearcoat > 0.0f && (texture_present(scene, &mat->clearcoat_tex) ||
+                                      texture_present(scene, &mat->clearcoat_roughness_tex)));
+}
+
+/* The fixed materials' answers (after material_model is set: the BSDF depends on it). */
+static int fix_materials(Scene *scene) {
+    const IoScene *io = &scene->io;
+    free(scene->material_fixed);
+    scene->material_fixed = calloc((size_t)io->num_materials + 1, sizeof *scene->material_fixed);
+    if (!scene->material_fixed) return -1;
+    for (uint32_t i = 0; i < io->num_primitives; ++i) {
+        ScenePrimitive *sp = &scene->prims[i];
+        sp->material_fixed = NULL;
+        if (material_textured(scene, sp->material)) continue;
+        size_t k = sp->material == &scene->default_material ? io->num_materials : (size_t)(sp->material - io->materials);
+        MaterialFixed *f = &scene->material_fixed[k];
+        SurfaceHit h = {.material = sp->material};
+        scene_material_at(scene, &h, &f->sample);
+        bsdf_prepare(&f->sample.bsdf, &f->prepared);
+        sp->material_fixed = f;
+    }
+    return 0;
+}
+
 vec3 scene_emitted_radiance(const Scene *scene, const SurfaceHit *hit, vec3 w) {
     const IoMaterial *mat = hit->material;
     if (mat->emissive[0] <= 0.0f && mat->emissive[1] <= 0.0f && mat->emissive[2] <= 0.0f) return v3s(0.0f);
@@ -578,6 +615,11 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
     scene->env_strength = o->env_path ? o->env_strength : io->env_strength;
     scene->light_model = o->light_model;
     scene->material_model = o->material_model;
+    if (fix_materials(scene) != 0) {
+        set_error(err, "%s: out of memory%s", o->scene_path, "");
+        scene_free(scene);
+        return -1;
+    }
     /* --env-rotation (NaN when not given) wins over the extras' rotation, with or without --env */
     double rotation_deg = isnan(o->env_rotation_deg) ? (double)io->env_rotation_deg : (double)o->env_rotation_deg;
     double turns = rotation_deg / 360.0;
@@ -668,6 +710,7 @@ void scene_free(Scene *scene) {
     free(scene->prims);
     free(scene->instances);
     free(scene->link_shadow_mask);
+    free(scene->material_fixed);
     io_image_free(&scene->env);
     io_scene_free(&scene->io);
     memset(scene, 0, sizeof *scene);

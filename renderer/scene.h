@@ -32,9 +32,23 @@ typedef struct Camera {
 
 /* One glTF primitive as the renderer needs it. Embree's geometry user pointer points here
  * (the alpha-mask filter reads it). */
+/* The material at a hit: BSDF parameters (emission is scene_emitted_radiance's). */
+typedef struct MaterialSample {
+    BsdfParams bsdf;
+    int double_sided;
+} MaterialSample;
+
+/* A material no texture varies: scene_material_at's answer at every hit on it, and its BSDF
+ * prepared (bsdf_prepare), both made once at load. */
+typedef struct MaterialFixed {
+    MaterialSample sample;
+    BsdfPrepared prepared;
+} MaterialFixed;
+
 typedef struct ScenePrimitive {
     const IoPrimitive *io;
     const IoMaterial *material;  /* never NULL (the default material stands in) */
+    const MaterialFixed *material_fixed; /* NULL when a texture varies the material */
     const struct Scene *scene;
     int alpha_masked;
     /* the surface of a medium inside a closed mesh whose material does not transmit: invisible
@@ -78,6 +92,7 @@ typedef struct Scene {
      * link has blockers. Each distinct blockers list is one mask bit (2..31) that the
      * instances it lists lack, so their shadow rays pass through them (scene_rays.c). */
     uint32_t *link_shadow_mask;
+    MaterialFixed *material_fixed; /* io.num_materials + 1 (the default material last) */
 } Scene;
 
 /* Loads the glTF, applies options (camera choice, resolution, environment) and builds the
@@ -106,13 +121,9 @@ typedef struct SurfaceHit {
 void scene_surface_hit(const Scene *scene, uint32_t instance, uint32_t local_prim,
                        uint32_t triangle, float b1, float b2, SurfaceHit *hit);
 
-/* The material at a hit: BSDF parameters (emission is scene_emitted_radiance's). */
-typedef struct MaterialSample {
-    BsdfParams bsdf;
-    int double_sided;
-} MaterialSample;
-
 void scene_material_at(const Scene *scene, const SurfaceHit *hit, MaterialSample *m);
+/* scene_material_at, and the BSDF already prepared when the material is fixed (else NULL). */
+const BsdfPrepared *scene_material_prepared(const Scene *scene, const SurfaceHit *hit, MaterialSample *m);
 
 /* Emitted radiance of the area light at hit towards direction w (pointing away from the
  * surface): zero on the back of single-sided emitters. */

@@ -249,9 +249,10 @@ void stage_surface(const Integrator *ig, Slice *s) {
         SurfaceHit h;
         scene_surface_hit(scene, hit->instance, hit->local_prim, hit->triangle, hit->u, hit->v, &h);
         MaterialSample m;
-        scene_material_at(scene, &h, &m);
+        const BsdfPrepared *prepared = scene_material_prepared(scene, &h, &m);
         float gamma = ig->opt->path_regularization;
         if (gamma > 0.0f) {
+            prepared = NULL; /* the roughness changes below */
             /* path-space regularisation (ch. 1 §7, Eq. 25, OPSR with k = 1): a vertex after a rough
              * one is roughened, alpha' = 1 - (1 - alpha)(1 - gamma alpha'_prev), so guiding can
              * learn caustics (a biased, consistent-in-gamma trade: off unless asked) */
@@ -260,7 +261,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
             ps->reg_roughness[p] = m.bsdf.roughness;
         }
         Scatter sc;
-        scatter_init_surface(&sc, &h, &m.bsdf, wo);
+        scatter_init_surface_prepared(&sc, &h, &m.bsdf, prepared, wo);
         if (ig->guide.active && scatter_guidable(&sc)) scatter_set_guide(&sc, guide_lookup(ig, h.p, sc.ng, guide_hints), (ScatterGuideMode)ig->guide.mode);
         uint32_t depth = ps->depth[p];
         if (depth == 0) path_write_aovs(ps, p, m.bsdf.base_color, sc.frame.n, hit->t);
