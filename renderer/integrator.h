@@ -290,8 +290,9 @@ static inline void path_write_aovs(const PathState *ps, uint32_t p, vec3 albedo,
  * throughput is divided by that. Returns 0 when the path is terminated. */
 #define RR_START_DEPTH 3 /* the first depth whose continuation is subject to the roulette, plus one */
 static inline int russian_roulette(vec3 *beta, double rr_scale, float u) {
-    float q = fmaxf(0.0f, 1.0f - v3_max_component(*beta) * (float)rr_scale);
-    q = fminf(q, 0.95f);
+    /* compares, not libm calls; NaN -> 0 as fmaxf(0, NaN) */
+    float q = maxf(1.0f - v3_max_component(*beta) * (float)rr_scale, 0.0f);
+    q = minf(q, 0.95f);
     if (u < q) return 0;
     *beta = v3_scale(*beta, 1.0f / (1.0f - q));
     return 1;

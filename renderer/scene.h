@@ -185,7 +185,8 @@ int scene_visible1_masked(const Scene *scene, SceneRay ray, uint32_t mask);
 
 /* Offset a ray origin off the surface along n, scaled to the position's magnitude. */
 static inline vec3 offset_ray_origin(vec3 p, vec3 n) {
-    float scale = 1e-4f * (1.0f + fmaxf(fabsf(p.x), fmaxf(fabsf(p.y), fabsf(p.z))));
+    /* maxf (compares), not fmaxf (a libm call): equal for every finite p */
+    float scale = 1e-4f * (1.0f + maxf(fabsf(p.x), maxf(fabsf(p.y), fabsf(p.z))));
     return v3_madd(p, n, scale);
 }
 

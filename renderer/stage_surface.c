@@ -108,10 +108,20 @@ static int cross_boundary(const Integrator *ig, Slice *s, uint32_t p, const Scen
     return 1;
 }
 
-int direct_light_sample_u(const Integrator *ig, vec3 beta, const Scatter *sc, const LightSampleContext *lc,
-                          const float u[6], LightLiSample *ls, vec3 *contrib, uint32_t *outcome) {
+/* Whether light_sample_li draws random numbers for the light (a point, spot or distant light
+ * without a shape is one point, one direction). */
+static int light_sample_uses_u(const Light *l) {
+    return light_is_shape(l) || !(l->type == LIGHT_POINT || l->type == LIGHT_SPOT || l->type == LIGHT_DIRECTIONAL);
+}
+
+/* direct_light_sample_u with the light's four numbers given (u_light) or, when u_light is NULL,
+ * drawn from the path's dimensions only if the selected light uses them: the same numbers
+ * either way, so the same estimate. */
+static int direct_light_sample_core(const Integrator *ig, vec3 beta, const Scatter *sc, const LightSampleContext *lc,
+                                    float u_select, float u_descend, const float *u_light, uint64_t key,
+                                    uint32_t depth, LightLiSample *ls, vec3 *contrib, uint32_t *outcome) {
     float pmf;
-    uint32_t li = light_sampler_select(ig->light_sampler, lc, u[0], u[1], &pmf, outcome);
+    uint32_t li = light_sampler_select(ig->light_sampler, lc, u_select, u_descend, &pmf, outcome);
     ls->light = pmf > 0.0f ? li : UINT32_MAX;
     ls->cost = 0.0f;
     if (!(pmf > 0.0f)) return 0;
@@ -121,8 +131,17 @@ int direct_light_sample_u(const Integrator *ig, vec3 beta, const Scatter *sc, co
     if (lc->link_class && !light_reaches(ig->lights, lc->link_class, li)) return 0;
     /* an emissive volume whose emission sampling is off (auto): found by tracking alone */
     if (light->type == LIGHT_VOLUME && !ig->emission_auto.on[light->medium]) return 0;
+    float u[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+    if (u_light) {
+        for (int k = 0; k < 4; ++k) u[k] = u_light[k];
+    } else if (light_sample_uses_u(light)) {
+        u[0] = rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_U));
+        u[1] = rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_V));
+        u[2] = rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_W));
+        u[3] = rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_X));
+    }
     uint64_t collisions = lc->stats ? lc->stats->collisions : 0;
-    int ok = light_sample_li(ig->lights, light, lc, u[2], u[3], u[4], u[5], ls);
+    int ok = light_sample_li(ig->lights, light, lc, u[0], u[1], u[2], u[3], ls);
     /* a volume light: the line's end (a ray), the pdf's DDA (about a ray), its collisions */
     if (light->type == LIGHT_VOLUME)
         ls->cost = 2.0f + (lc->stats ? 0.1f * (float)(lc->stats->collisions - collisions) : 0.0f);
@@ -136,18 +155,20 @@ int direct_light_sample_u(const Integrator *ig, vec3 beta, const Scatter *sc, co
     return v3_is_finite(*contrib) && !v3_is_black(*contrib);
 }
 
+int direct_light_sample_u(const Integrator *ig, vec3 beta, const Scatter *sc, const LightSampleContext *lc,
+                          const float u[6], LightLiSample *ls, vec3 *contrib, uint32_t *outcome) {
+    return direct_light_sample_core(ig, beta, sc, lc, u[0], u[1], u + 2, 0, 0, ls, contrib, outcome);
+}
+
 int direct_light_sample(const Integrator *ig, uint32_t p, const Scatter *sc, const LightSampleContext *lc,
                         LightLiSample *ls, vec3 *contrib, uint32_t *outcome) {
     const PathState *ps = &ig->ps;
     uint64_t key = ps->rng_key[p];
     uint32_t depth = ps->depth[p];
-    const float u[6] = {rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_SELECT)),
-                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_DESCEND)),
-                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_U)),
-                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_V)),
-                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_W)),
-                        rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_X))};
-    return direct_light_sample_u(ig, ps->throughput[p], sc, lc, u, ls, contrib, outcome);
+    return direct_light_sample_core(ig, ps->throughput[p], sc, lc,
+                                    rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_SELECT)),
+                                    rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_DESCEND)), NULL, key,
+                                    depth, ls, contrib, outcome);
 }
 
 /* Next-event estimation from the vertex: the MIS-weighted contribution pending on a shadow ray
