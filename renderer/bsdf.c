@@ -372,21 +372,21 @@ static vec3 principled_opaque(const Prep *q, const float prob[LOBE_COUNT], vec3 
     return f;
 }
 
-/* eval_pdf of a Lambert-only material (q->lambert): gltf_opaque's diffuse term with opaque =
- * kd = 1 and every other lobe's weight 0, the same operations on the same values. */
-static vec3 lambert_eval_pdf(const Prep *q, vec3 wo, vec3 wi, float *pdf_out) {
-    vec3 f = v3s(0.0f);
-    float pdf = 0.0f;
-    if (wo.z > 0.0f && wi.z > 0.0f) {
-        f = v3_scale(q->base, INV_PI_F);
-        pdf = q->lambert_prob * wi.z * INV_PI_F;
-    }
+/* eval_pdf's result: f and pdf, or zero for both when either is not finite. */
+static vec3 finite_or_zero(vec3 f, float pdf, float *pdf_out) {
     if (!v3_is_finite(f) || !isfinite(pdf)) {
         f = v3s(0.0f);
         pdf = 0.0f;
     }
     if (pdf_out) *pdf_out = pdf;
     return f;
+}
+
+/* eval_pdf of a Lambert-only material (q->lambert): gltf_opaque's diffuse term with opaque =
+ * kd = 1 and every other lobe's weight 0, the same operations on the same values. */
+static vec3 lambert_eval_pdf(const Prep *q, vec3 wo, vec3 wi, float *pdf_out) {
+    if (!(wo.z > 0.0f && wi.z > 0.0f)) return finite_or_zero(v3s(0.0f), 0.0f, pdf_out);
+    return finite_or_zero(v3_scale(q->base, INV_PI_F), q->lambert_prob * wi.z * INV_PI_F, pdf_out);
 }
 
 /* Evaluate f and the mixture pdf (non-delta lobes only). */
@@ -422,12 +422,7 @@ static vec3 eval_pdf(const Prep *q, vec3 wo, vec3 wi, float *pdf_out) {
         }
         pdf += prob[LOBE_COAT] * pdf_coat;
     }
-    if (!v3_is_finite(f) || !isfinite(pdf)) {
-        f = v3s(0.0f);
-        pdf = 0.0f;
-    }
-    if (pdf_out) *pdf_out = pdf;
-    return f;
+    return finite_or_zero(f, pdf, pdf_out);
 }
 
 void bsdf_prepare(const BsdfParams *p, BsdfPrepared *q) { prepare(p, q); }

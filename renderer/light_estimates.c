@@ -228,10 +228,10 @@ float light_contribution_estimate_table(const Lights *ls, const LightEstimateTab
     }
 }
 
+#if defined(__SSE2__)
 /* Point lights k .. k+3 of the table: light_contribution_estimate_table's LIGHT_POINT case in
  * four lanes (the same operations in the same order, so the same bits; the padding lanes are
  * computed and not stored). */
-#if defined(__SSE2__)
 static void point_estimate_lanes(const LightEstimateTable *t, uint32_t k, vec3 p, vec3 n, int omni, float out[4]) {
     const __m128 zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
     __m128 dx = _mm_sub_ps(_mm_loadu_ps(t->point_x + k), _mm_set1_ps(p.x));
@@ -249,19 +249,6 @@ static void point_estimate_lanes(const LightEstimateTable *t, uint32_t k, vec3 p
     __m128 e = _mm_div_ps(_mm_mul_ps(_mm_loadu_ps(t->point_lum + k), rc), d2);
     _mm_storeu_ps(out, _mm_and_ps(_mm_cmpgt_ps(d2, zero), e)); /* !(d2 > 0): 0 */
 }
-#else
-static void point_estimate_lanes(const LightEstimateTable *t, uint32_t k, vec3 p, vec3 n, int omni, float out[4]) {
-    for (int j = 0; j < 4; ++j) {
-        float dx = t->point_x[k + j] - p.x, dy = t->point_y[k + j] - p.y, dz = t->point_z[k + j] - p.z;
-        float d2 = dx * dx + dy * dy + dz * dz;
-        float rc = 1.0f;
-        if (!omni) {
-            float inv = 1.0f / sqrtf(d2);
-            rc = maxf(n.x * (dx * inv) + n.y * (dy * inv) + n.z * (dz * inv), 0.0f);
-        }
-        out[j] = d2 > 0.0f ? t->point_lum[k + j] * rc / d2 : 0.0f;
-    }
-}
 #endif
 
 void light_estimate_table_all(const Lights *ls, const LightEstimateTable *t, vec3 p, vec3 n, float *out) {
@@ -271,12 +258,17 @@ void light_estimate_table_all(const Lights *ls, const LightEstimateTable *t, vec
         next_point = k + 1 < t->num_point_lights ? t->point_light[k + 1] : UINT32_MAX;
         ++k;
     }
+#if defined(__SSE2__)
     int omni = v3_is_black(n);
     for (k = 0; k < t->num_point_lights; k += 4) {
         float e[4];
         point_estimate_lanes(t, k, p, n, omni, e);
         for (uint32_t j = 0; j < 4 && k + j < t->num_point_lights; ++j) out[t->point_light[k + j]] = e[j];
     }
+#else
+    for (k = 0; k < t->num_point_lights; ++k)
+        out[t->point_light[k]] = light_contribution_estimate_table(ls, t, t->point_light[k], p, n);
+#endif
 }
 
 /* The receiver cosine of the direction in a cone (axis w, sin^2 of its half-angle s2) nearest

@@ -69,12 +69,19 @@ trace:;
     return scene_visible1_masked(scene, (SceneRay){o, 0.0f, dir, tfar}, mask); /* shadow linking's mask */
 }
 
-static inline float optimal_weight(const OptimalSampler *s, uint32_t i, const LightSampleContext *ctx) {
-    const Light *l = &s->lights->lights[i];
+/* Light i's unoccluded weight from its estimate w: zero for a light not linked to the vertex
+ * and for a non-positive or non-finite estimate. */
+static inline float optimal_weight_from(const OptimalSampler *s, uint32_t i, const LightSampleContext *ctx, float w) {
     if (ctx->link_class && !light_reaches(s->lights, ctx->link_class, i)) return 0.0f; /* light linking */
-    float w = light_contribution_estimate_table(s->lights, &s->table, i, ctx->p, ctx->n);
-    if (!(w > 0.0f) || !isfinite(w)) return 0.0f;
-    if (s->occlusion && !light_visible(s->scene, l, ctx->p, ctx->n, lights_shadow_mask(s->lights, i))) return 0.0f;
+    return w > 0.0f && isfinite(w) ? w : 0.0f;
+}
+
+static inline float optimal_weight(const OptimalSampler *s, uint32_t i, const LightSampleContext *ctx) {
+    if (ctx->link_class && !light_reaches(s->lights, ctx->link_class, i)) return 0.0f; /* no estimate needed */
+    float w = optimal_weight_from(s, i, ctx, light_contribution_estimate_table(s->lights, &s->table, i, ctx->p, ctx->n));
+    if (w > 0.0f && s->occlusion &&
+        !light_visible(s->scene, &s->lights->lights[i], ctx->p, ctx->n, lights_shadow_mask(s->lights, i)))
+        return 0.0f;
     return w;
 }
 
@@ -109,16 +116,13 @@ static void optimal_prepare(const void *state, LightSampleContext *ctx, uint32_t
     if (!s->per_vertex) return; /* no occlusion rays, count <= LIGHT_SAMPLER_SCRATCH */
     float local[LIGHT_SAMPLER_SCRATCH];
     float *wv = ctx->scratch ? ctx->scratch : local;
-    /* optimal_weight of every light: the estimates all at once (point lights four at a time),
-     * then its linking and finiteness rules */
+    /* optimal_weight of every light (no occlusion here): the estimates all at once (point
+     * lights four at a time), then the same rules */
     light_estimate_table_all(s->lights, &s->table, ctx->p, ctx->n, wv);
     float total = 0.0f;
     for (uint32_t i = 0; i < s->lights->count; ++i) {
-        float w = wv[i];
-        if (ctx->link_class && !light_reaches(s->lights, ctx->link_class, i)) w = 0.0f;
-        if (!(w > 0.0f) || !isfinite(w)) w = 0.0f;
-        wv[i] = w;
-        total += w;
+        wv[i] = optimal_weight_from(s, i, ctx, wv[i]);
+        total += wv[i];
     }
     ctx->vertex = (LightVertex){1u, total};
 }
