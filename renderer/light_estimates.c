@@ -16,6 +16,10 @@
 #include "scene.h"
 
 #define AREA_ESTIMATE_SAMPLES 16
+/* GCC and clang on x86: an AVX version of the area estimate, chosen at run time */
+#if defined(__SSE2__) && defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
+#define AREA_ESTIMATE_AVX 1
+#endif
 
 /* b_i(n) = max(0, n.a_i)^2 over the 6 cardinal axes sums to 1 for a unit n, so the six
  * planes blend into the irradiance on any plane without changing the total. */
@@ -90,6 +94,9 @@ int light_estimate_table_build(LightEstimateTable *t, const Lights *ls) {
     t->point_y = t->point_x + padded;
     t->point_z = t->point_y + padded;
     t->point_lum = t->point_z + padded;
+#if defined(AREA_ESTIMATE_AVX)
+    t->avx = __builtin_cpu_supports("avx");
+#endif
     for (uint32_t i = 0; i < ls->count; ++i) {
         const Light *l = &ls->lights[i];
         if (!table_point_light(l)) continue;
@@ -175,6 +182,46 @@ static float area_estimate_lanes(const LightEstimatePoints *e, float L, float ar
     for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) sum += term[k];
     return sum;
 }
+#if defined(AREA_ESTIMATE_AVX)
+#include <immintrin.h>
+/* The same lanes eight at a time, for CPUs with AVX (chosen at run time: the build targets
+ * every x86-64). AVX without FMA has the same IEEE operations as SSE2 (no contraction), so the
+ * terms, and their sum in point order, are bit for bit the SSE2 version's. */
+__attribute__((target("avx"))) static float area_estimate_lanes8(const LightEstimatePoints *e, float L, float area,
+                                                                  vec3 p, vec3 n, const int two_sided, const int omni) {
+    float term[AREA_ESTIMATE_SAMPLES];
+    const __m256 px = _mm256_set1_ps(p.x), py = _mm256_set1_ps(p.y), pz = _mm256_set1_ps(p.z);
+    const __m256 nx = _mm256_set1_ps(n.x), ny = _mm256_set1_ps(n.y), nz = _mm256_set1_ps(n.z);
+    const __m256 one = _mm256_set1_ps(1.0f), zero = _mm256_setzero_ps(), eps = _mm256_set1_ps(1e-12f);
+    const __m256 vL = _mm256_set1_ps(L), varea = _mm256_set1_ps(area), vcount = _mm256_set1_ps((float)AREA_ESTIMATE_SAMPLES);
+    const __m256 sign = _mm256_set1_ps(-0.0f);
+    for (int k = 0; k < AREA_ESTIMATE_SAMPLES; k += 8) {
+        __m256 dx = _mm256_sub_ps(_mm256_loadu_ps(&e->y[0][k]), px);
+        __m256 dy = _mm256_sub_ps(_mm256_loadu_ps(&e->y[1][k]), py);
+        __m256 dz = _mm256_sub_ps(_mm256_loadu_ps(&e->y[2][k]), pz);
+        __m256 d2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)), _mm256_mul_ps(dz, dz));
+        __m256 inv = _mm256_div_ps(one, _mm256_sqrt_ps(d2));
+        __m256 wx = _mm256_mul_ps(dx, inv), wy = _mm256_mul_ps(dy, inv), wz = _mm256_mul_ps(dz, inv);
+        __m256 cl = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_loadu_ps(&e->ng[0][k]), wx),
+                                                _mm256_mul_ps(_mm256_loadu_ps(&e->ng[1][k]), wy)),
+                                  _mm256_mul_ps(_mm256_loadu_ps(&e->ng[2][k]), wz));
+        cl = _mm256_xor_ps(cl, sign);
+        if (two_sided) cl = _mm256_andnot_ps(sign, cl);
+        __m256 contrib = _mm256_div_ps(_mm256_mul_ps(_mm256_div_ps(_mm256_mul_ps(vL, cl), d2), varea), vcount);
+        __m256 rc = one;
+        if (!omni) {
+            __m256 dot = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(nx, wx), _mm256_mul_ps(ny, wy)), _mm256_mul_ps(nz, wz));
+            rc = _mm256_and_ps(_mm256_cmp_ps(dot, zero, _CMP_GT_OQ), dot);
+        }
+        __m256 t = _mm256_mul_ps(contrib, rc);
+        __m256 valid = _mm256_and_ps(_mm256_cmp_ps(d2, eps, _CMP_GT_OQ), _mm256_cmp_ps(cl, zero, _CMP_GT_OQ));
+        _mm256_storeu_ps(&term[k], _mm256_and_ps(valid, t));
+    }
+    float sum = 0.0f;
+    for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) sum += term[k];
+    return sum;
+}
+#endif
 #else
 static float area_estimate_lanes(const LightEstimatePoints *e, float L, float area, vec3 p, vec3 n,
                                  const int two_sided, const int omni) {
@@ -199,8 +246,17 @@ static float area_estimate_lanes(const LightEstimatePoints *e, float L, float ar
 }
 #endif
 
-static float area_estimate_table(const Light *l, const LightEstimatePoints *e, float L, vec3 p, vec3 n) {
+static float area_estimate_table(const LightEstimateTable *t, const Light *l, const LightEstimatePoints *e, float L,
+                                 vec3 p, vec3 n) {
     int omni = v3_is_black(n);
+#if defined(AREA_ESTIMATE_AVX)
+    if (t->avx) {
+        if (l->two_sided) return omni ? area_estimate_lanes8(e, L, l->area, p, n, 1, 1) : area_estimate_lanes8(e, L, l->area, p, n, 1, 0);
+        return omni ? area_estimate_lanes8(e, L, l->area, p, n, 0, 1) : area_estimate_lanes8(e, L, l->area, p, n, 0, 0);
+    }
+#else
+    (void)t;
+#endif
     if (l->two_sided) return omni ? area_estimate_lanes(e, L, l->area, p, n, 1, 1) : area_estimate_lanes(e, L, l->area, p, n, 1, 0);
     return omni ? area_estimate_lanes(e, L, l->area, p, n, 0, 1) : area_estimate_lanes(e, L, l->area, p, n, 0, 0);
 }
@@ -222,7 +278,7 @@ float light_contribution_estimate_table(const Lights *ls, const LightEstimateTab
     case LIGHT_DISK:
     case LIGHT_AREA:
         if (t->slot[light] == UINT32_MAX) return 0.0f; /* no emission */
-        return area_estimate_table(l, &t->points[t->slot[light]], t->lum[light], p, n);
+        return area_estimate_table(t, l, &t->points[t->slot[light]], t->lum[light], p, n);
     default:
         return light_contribution_estimate(ls, l, p, n);
     }

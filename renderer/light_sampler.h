@@ -77,6 +77,10 @@ typedef struct LightSampler {
     /* 1: select / pmf follow LightSampleContext.lobe (cache points with --cachepoint-bsdf on):
      * callers fill it (scatter_light_lobe); 0: the strategy ignores it, callers may leave it 0 */
     int uses_lobe;
+    /* 1: select reads its second number (u1: cache points' far-bin descent); 0: callers may
+     * pass 0 instead of drawing it (a counter-based generator: skipping a dimension changes
+     * no other number) */
+    int uses_descend;
 } LightSampler;
 
 /* Builds the strategy o->light_sampler over the lights (the optimal strategy's occlusion rays
@@ -171,6 +175,7 @@ static inline int light_sampler_load_learned(const LightSampler *s, FILE *in) {
 
 static inline int light_sampler_learns(const LightSampler *s) { return s->ops->record != NULL; }
 static inline int light_sampler_uses_lobe(const LightSampler *s) { return s->uses_lobe; }
+static inline int light_sampler_uses_descend(const LightSampler *s) { return s->uses_descend; }
 static inline int light_sampler_has_barrier(const LightSampler *s) { return s->ops->barrier != NULL; }
 
 static inline int light_sampler_has_inscatter(const LightSampler *s) { return s->ops->inscatter_weight != NULL; }

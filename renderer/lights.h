@@ -230,6 +230,7 @@ typedef struct LightEstimateTable {
     uint32_t num_point_lights;
     uint32_t *point_light;
     float *point_x, *point_y, *point_z, *point_lum;
+    int avx; /* the CPU runs AVX: an area light's 16 points go eight to a register */
 } LightEstimateTable;
 int light_estimate_table_build(LightEstimateTable *t, const Lights *ls);
 void light_estimate_table_free(LightEstimateTable *t);

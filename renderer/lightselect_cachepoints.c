@@ -871,6 +871,7 @@ int light_sampler_cachepoints_create(LightSampler *ls, const Lights *lights, con
         if (s->cp) {
             *ls = (LightSampler){inscatter ? &CACHEPOINT_INSCATTER_OPS : &CACHEPOINT_OPS, s, lights->count};
             ls->uses_lobe = s->bound != NULL; /* --cachepoint-bsdf */
+            ls->uses_descend = 1;             /* the far bins' descent */
             return 0;
         }
         cp_destroy(s);

@@ -165,10 +165,12 @@ int direct_light_sample(const Integrator *ig, uint32_t p, const Scatter *sc, con
     const PathState *ps = &ig->ps;
     uint64_t key = ps->rng_key[p];
     uint32_t depth = ps->depth[p];
+    /* the descent number only for a sampler that reads it (the others ignore it) */
+    float u_descend = light_sampler_uses_descend(ig->light_sampler)
+                          ? rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_DESCEND)) : 0.0f;
     return direct_light_sample_core(ig, ps->throughput[p], sc, lc,
-                                    rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_SELECT)),
-                                    rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_DESCEND)), NULL, key,
-                                    depth, ls, contrib, outcome);
+                                    rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_SELECT)), u_descend,
+                                    NULL, key, depth, ls, contrib, outcome);
 }
 
 /* Next-event estimation from the vertex: the MIS-weighted contribution pending on a shadow ray
@@ -220,7 +222,8 @@ static int surface_continuation(const Integrator *ig, Slice *s, uint32_t p, cons
     uint64_t key = ps->rng_key[p];
     uint32_t depth = ps->depth[p];
     ScatterSample ss;
-    if (!scatter_sample_guided(sc, (const float[6]){rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_LOBE)),
+    /* the lobe number only where there is a lobe to choose (the others ignore it) */
+    if (!scatter_sample_guided(sc, (const float[6]){scatter_uses_lobe_u(sc) ? rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_LOBE)) : 0.0f,
                                                     rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_U)),
                                                     rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_V)),
                                                     sc->guide ? rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_GUIDE_U)) : 0.0f,
@@ -255,6 +258,9 @@ void stage_surface(const Integrator *ig, Slice *s) {
     s->num_rays = 0; /* the ray queue was consumed by stage_intersect: it now collects the next wave */
     for (uint32_t i = 0; i < s->num_hits; ++i) {
         if (i + SHADE_PREFETCH < s->num_hits) path_state_prefetch_shade(ps, s->hits[i + SHADE_PREFETCH]);
+        /* the hit's mesh data in two steps behind the path state: its indices, then its vertices */
+        if (i + SHADE_PREFETCH / 2 < s->num_hits) scene_prefetch_hit_indices(scene, &ps->hit[s->hits[i + SHADE_PREFETCH / 2]]);
+        if (i + SHADE_PREFETCH / 4 < s->num_hits) scene_prefetch_hit_vertices(scene, &ps->hit[s->hits[i + SHADE_PREFETCH / 4]]);
         /* the recorder vertex the hit's ray carries (its pv was fetched a few hits earlier) */
         if (ig->record.active && i + SHADE_PREFETCH / 2 < s->num_hits)
             recorder_prefetch(ig->record.recorder, ps->pv[s->hits[i + SHADE_PREFETCH / 2]]);
