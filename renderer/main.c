@@ -114,7 +114,7 @@ static const char *USAGE =
     "  --env-strength S          environment multiplier (default 1)\n"
     "  --env-rotation DEG        turn the environment about the vertical, in degrees, with the sign\n"
     "                            of Blender's Mapping-node Z rotation (default: the scene's, else 0)\n"
-    "  --batch N                 paths in flight per batch (default 16384; never changes the image)\n"
+    "  --batch N                 paths in flight per batch (default 2048 per thread; never changes the image)\n"
     "  --stats-json FILE         write render statistics as JSON\n"
     "animation frames (render):\n"
     "  --frames A-B[:step]|LIST  render these frames (e.g. 1-48, 1-48:4, 1,5,10-12) of the glTF\n"
