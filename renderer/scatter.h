@@ -66,12 +66,12 @@ typedef struct ScatterSample {
 
 /* The BSDF of a surface hit seen from direction wo_world (unit, pointing away from the hit). */
 void scatter_init_surface(Scatter *s, const SurfaceHit *h, const BsdfParams *bsdf, vec3 wo_world);
-/* Whether sampling reads its lobe-choice number: a BSDF with more than one lobe (a Lambert-only
- * one and the phase function ignore it, so a caller may pass 0 instead of drawing it). */
-static inline int scatter_uses_lobe_u(const Scatter *s) { return s->kind == SCATTER_BSDF && !s->prep.lambert; }
 /* The same with the BSDF already prepared from bsdf (scene_material_prepared), or NULL. */
 void scatter_init_surface_prepared(Scatter *s, const SurfaceHit *h, const BsdfParams *bsdf,
                                    const BsdfPrepared *prepared, vec3 wo_world);
+/* Whether sampling reads its lobe-choice number: a BSDF with more than one lobe (a Lambert-only
+ * one and the phase function ignore it, so a caller may pass 0 instead of drawing it). */
+static inline int scatter_uses_lobe_u(const Scatter *s) { return s->kind == SCATTER_BSDF && !s->prep.lambert; }
 /* A medium's Henyey-Greenstein phase function at a scattering point seen from wo_world. */
 void scatter_init_phase(Scatter *s, float g, vec3 wo_world);
 /* 1 if a direction was sampled (u_lobe picks a lobe, u1 and u2 the direction in it). Never

@@ -183,18 +183,20 @@ int scene_visible1(const Scene *scene, SceneRay ray);
 /* The same with a ray mask (SCENE_MASK_SURFACES: scene_visible1; a shadow-linked light's mask). */
 int scene_visible1_masked(const Scene *scene, SceneRay ray, uint32_t mask);
 
+/* The glTF primitive a hit lies on (its material, mesh data, medium boundary flag). */
+static inline const ScenePrimitive *scene_hit_primitive(const Scene *scene, const SceneHit *hit) {
+    const SceneInstance *inst = &scene->instances[hit->instance];
+    return &scene->prims[scene->io.meshes[inst->mesh].first_primitive + hit->local_prim];
+}
+
 /* Cache hints for shading a hit a few hits ahead (no effect on results). Embree's traversal
  * reads its own copy of the triangles, so the renderer's mesh buffers are cold when a hit is
  * shaded: the index triple first, then (once it has arrived) the vertices' attributes. */
-static inline const IoPrimitive *scene_hit_primitive(const Scene *scene, const SceneHit *hit) {
-    const SceneInstance *inst = &scene->instances[hit->instance];
-    return scene->prims[scene->io.meshes[inst->mesh].first_primitive + hit->local_prim].io;
-}
 static inline void scene_prefetch_hit_indices(const Scene *scene, const SceneHit *hit) {
-    __builtin_prefetch(scene_hit_primitive(scene, hit)->indices + 3 * (size_t)hit->triangle);
+    __builtin_prefetch(scene_hit_primitive(scene, hit)->io->indices + 3 * (size_t)hit->triangle);
 }
 static inline void scene_prefetch_hit_vertices(const Scene *scene, const SceneHit *hit) {
-    const IoPrimitive *p = scene_hit_primitive(scene, hit);
+    const IoPrimitive *p = scene_hit_primitive(scene, hit)->io;
     const uint32_t *idx = p->indices + 3 * (size_t)hit->triangle;
     for (int k = 0; k < 3; ++k) {
         __builtin_prefetch(p->positions + 3 * (size_t)idx[k]);

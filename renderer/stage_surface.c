@@ -267,8 +267,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
         uint32_t p = s->hits[i];
         const SceneHit *hit = &ps->hit[p];
         path_shape_emission(ig, s, p, hit->t, 0);
-        if (scene->prims[scene->io.meshes[scene->instances[hit->instance].mesh].first_primitive + hit->local_prim]
-                .medium_boundary) {
+        if (scene_hit_primitive(scene, hit)->medium_boundary) {
             if (!cross_boundary(ig, s, p, hit)) path_end(ig, s, p);
             continue;
         }
