@@ -136,6 +136,7 @@ typedef struct Integrator {
     uint32_t *queue_rays, *queue_hits, *queue_escaped, *queue_shadows;
     uint64_t *sort_keys, *sort_keys_tmp;
     uint32_t *sort_items_tmp;
+    vec3 sort_origin, sort_scale; /* the Morton grid of the queue sort keys (sort.c) */
     /* the batch being rendered: paths j = batch_first .. batch_first + batch_count - 1 of the
      * iteration (pixel j mod npixels, sample sample_base + j / npixels) */
     uint64_t batch_first, sample_base;
@@ -173,7 +174,7 @@ typedef struct Slice {
     uint32_t wave;                                 /* 0: the camera rays */
     uint32_t *rays, *hits, *escaped, *shadows;    /* queues (slot indices) */
     uint32_t num_rays, num_hits, num_escaped, num_shadows;
-    uint64_t *keys, *keys_tmp;                   /* sort scratch */
+    uint64_t *keys, *keys_tmp;                   /* keys[i]: the sort key of the queue being built (rays or hits); scratch */
     uint32_t *items_tmp;
     double seconds[STAGE_COUNT];
     uint64_t bounce_rays, shadow_rays;
@@ -210,6 +211,12 @@ void stage_shadow(const Integrator *ig, Slice *s);
  * (glTF primitive, Morton code of the hit point); stable radix sorts. */
 void sort_rays(const Integrator *ig, Slice *s);
 void sort_hits(const Integrator *ig, Slice *s);
+/* The queues' keys are written where a path joins the queue (its ray or hit is in cache
+ * there, not when the sort gathers it in queue order): whoever appends slot p at position i
+ * of the ray (hit) queue sets s->keys[i] = sort_key_ray (sort_key_hit) of p. */
+void sort_init(Integrator *ig);
+uint64_t sort_key_ray(const Integrator *ig, const SceneRay *r);
+uint64_t sort_key_hit(const Integrator *ig, const SceneRay *r, const SceneHit *h);
 
 /* ---------------------------------------------------------------- the radiance funnel */
 

@@ -1,9 +1,11 @@
 /* renderer/sort.c: the wavefront's queue sorts. Rays are sorted by (direction octant, Morton
  * code of the origin) so Embree traces coherent packets; hits by (glTF primitive, Morton code of
  * the hit point) so shading visits one material at a time, and consecutive vertices are near
- * each other (they share the light sampler's per-vertex lookups and texture tiles: a large quad's two triangles say
- * nothing about where on it a hit lies). Both are stable radix sorts, so equal keys keep queue
- * order, which is deterministic. */
+ * each other (they share the light sampler's per-vertex lookups and texture tiles: a large
+ * quad's two triangles say nothing about where on it a hit lies). The keys are made where a path
+ * joins a queue (sort_key_ray, sort_key_hit); both sorts are stable radix sorts of the keys'
+ * leading bits, so equal keys keep queue order, which is deterministic. radix_sort_pairs is the
+ * full sort (the cache point candidates). */
 #include <string.h>
 
 #include "integrator.h"
@@ -38,42 +40,96 @@ void radix_sort_pairs(uint32_t *items, uint64_t *keys, uint32_t n, uint64_t *key
     if (v_in != items) memcpy(items, v_in, n * sizeof *items);
 }
 
-/* 30-bit Morton code of p quantised over the scene bounds (10 bits per axis) */
-static inline uint64_t morton30(const Scene *scene, vec3 p) {
-    vec3 lo = scene->bounds_min;
-    vec3 ext = v3_sub(scene->bounds_max, lo);
-    const float cells = 1024.0f;
-    float f[3] = {(p.x - lo.x) / fmaxf(ext.x, 1e-20f), (p.y - lo.y) / fmaxf(ext.y, 1e-20f),
-                  (p.z - lo.z) / fmaxf(ext.z, 1e-20f)};
-    uint64_t q[3];
-    for (int k = 0; k < 3; ++k) {
-        float v = clampf(f[k], 0.0f, 0.999f) * cells;
-        q[k] = isfinite(v) ? (uint64_t)v : 0;
+/* The queue sorts only need coherence, not a total order: the keys' top QUEUE_KEY_BITS varying
+ * bits are sorted, 8 bits a pass (at most three passes over 256 buckets: a slice holds a few
+ * thousand paths, and 2,048-bucket passes had cost as much in bucket upkeep as in items). Keys
+ * equal in those bits keep queue order, which is deterministic; the image never depends on the
+ * order anyway (each path owns its random numbers and its film slot). */
+#define QUEUE_KEY_BITS 24
+#define QUEUE_DIGIT_BITS 8
+#define QUEUE_BUCKETS (1u << QUEUE_DIGIT_BITS)
+static void radix_sort_queue(uint32_t *items, uint64_t *keys, uint32_t n, uint64_t *keys_tmp, uint32_t *items_tmp) {
+    if (n < 2) return;
+    uint64_t any = 0, all = ~0ull;
+    for (uint32_t i = 0; i < n; ++i) { any |= keys[i]; all &= keys[i]; }
+    uint64_t varying = any ^ all;
+    if (!varying) return;
+    int top = 63 - __builtin_clzll(varying);
+    int low = top + 1 - QUEUE_KEY_BITS > 0 ? top + 1 - QUEUE_KEY_BITS : 0;
+    enum { PASSES = QUEUE_KEY_BITS / QUEUE_DIGIT_BITS };
+    uint32_t count[PASSES][QUEUE_BUCKETS];
+    int shifts[PASSES], passes = 0;
+    for (int shift = low; shift <= top; shift += QUEUE_DIGIT_BITS)
+        if ((varying >> shift) & (QUEUE_BUCKETS - 1)) shifts[passes++] = shift;
+    /* every pass's histogram in one read of the keys */
+    memset(count, 0, sizeof count);
+    for (uint32_t i = 0; i < n; ++i)
+        for (int k = 0; k < passes; ++k) count[k][(keys[i] >> shifts[k]) & (QUEUE_BUCKETS - 1)]++;
+    uint64_t *k_in = keys, *k_out = keys_tmp;
+    uint32_t *v_in = items, *v_out = items_tmp;
+    for (int k = 0; k < passes; ++k) {
+        uint32_t sum = 0, *c = count[k];
+        for (uint32_t b = 0; b < QUEUE_BUCKETS; ++b) { uint32_t x = c[b]; c[b] = sum; sum += x; }
+        const int shift = shifts[k];
+        for (uint32_t i = 0; i < n; ++i) {
+            uint32_t dst = c[(k_in[i] >> shift) & (QUEUE_BUCKETS - 1)]++;
+            k_out[dst] = k_in[i];
+            v_out[dst] = v_in[i];
+        }
+        uint64_t *tk = k_in; k_in = k_out; k_out = tk;
+        uint32_t *tv = v_in; v_in = v_out; v_out = tv;
     }
-    return morton_spread21(q[0]) | morton_spread21(q[1]) << 1 | morton_spread21(q[2]) << 2;
+    if (v_in != items) memcpy(items, v_in, n * sizeof *items);
+}
+
+/* the low 10 bits of x spread to every third bit (four steps in 32 bits; morton_spread21 is
+ * the general one) */
+static inline uint32_t spread10(uint32_t x) {
+    x &= 0x3ffu;
+    x = (x | x << 16) & 0x030000ffu;
+    x = (x | x << 8) & 0x0300f00fu;
+    x = (x | x << 4) & 0x030c30c3u;
+    x = (x | x << 2) & 0x09249249u;
+    return x;
+}
+
+void sort_init(Integrator *ig) {
+    const Scene *scene = ig->scene;
+    vec3 ext = v3_sub(scene->bounds_max, scene->bounds_min);
+    const float cells = 1024.0f;
+    ig->sort_origin = scene->bounds_min;
+    ig->sort_scale = v3(cells / fmaxf(ext.x, 1e-20f), cells / fmaxf(ext.y, 1e-20f), cells / fmaxf(ext.z, 1e-20f));
+}
+
+static inline uint32_t grid10(float c) {
+    float v = clampf(c, 0.0f, 1023.0f);
+    return v == v ? (uint32_t)v : 0; /* NaN compares false: clampf passes it through */
+}
+
+/* 30-bit Morton code of p on a 1024^3 grid over the scene bounds */
+static inline uint64_t morton30(const Integrator *ig, vec3 p) {
+    vec3 f = v3_mul(v3_sub(p, ig->sort_origin), ig->sort_scale);
+    return (uint64_t)(spread10(grid10(f.x)) | spread10(grid10(f.y)) << 1 | spread10(grid10(f.z)) << 2);
+}
+
+uint64_t sort_key_ray(const Integrator *ig, const SceneRay *r) {
+    vec3 d = r->dir;
+    uint64_t oct = (uint64_t)((d.x < 0) | ((d.y < 0) << 1) | ((d.z < 0) << 2));
+    return oct << 30 | morton30(ig, r->org);
+}
+
+uint64_t sort_key_hit(const Integrator *ig, const SceneRay *r, const SceneHit *h) {
+    const Scene *scene = ig->scene;
+    uint64_t primitive = scene->io.meshes[scene->instances[h->instance].mesh].first_primitive + h->local_prim;
+    return primitive << 30 | morton30(ig, v3_madd(r->org, r->dir, h->t));
 }
 
 void sort_rays(const Integrator *ig, Slice *s) {
-    const PathState *ps = &ig->ps;
-    for (uint32_t i = 0; i < s->num_rays; ++i) {
-        const SceneRay *r = &ps->ray[s->rays[i]];
-        vec3 d = r->dir;
-        uint64_t oct = (uint64_t)((d.x < 0) | ((d.y < 0) << 1) | ((d.z < 0) << 2));
-        s->keys[i] = oct << 30 | morton30(ig->scene, r->org);
-    }
-    radix_sort_pairs(s->rays, s->keys, s->num_rays, s->keys_tmp, s->items_tmp);
+    (void)ig;
+    radix_sort_queue(s->rays, s->keys, s->num_rays, s->keys_tmp, s->items_tmp);
 }
 
 void sort_hits(const Integrator *ig, Slice *s) {
-    if (s->num_hits < 2) return;
-    const PathState *ps = &ig->ps;
-    const Scene *scene = ig->scene;
-    for (uint32_t i = 0; i < s->num_hits; ++i) {
-        uint32_t p = s->hits[i];
-        const SceneHit *h = &ps->hit[p];
-        uint64_t primitive = scene->io.meshes[scene->instances[h->instance].mesh].first_primitive + h->local_prim;
-        vec3 hp = v3_madd(ps->ray[p].org, ps->ray[p].dir, h->t);
-        s->keys[i] = primitive << 30 | morton30(scene, hp);
-    }
-    radix_sort_pairs(s->hits, s->keys, s->num_hits, s->keys_tmp, s->items_tmp);
+    (void)ig;
+    radix_sort_queue(s->hits, s->keys, s->num_hits, s->keys_tmp, s->items_tmp);
 }

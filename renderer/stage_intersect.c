@@ -1,5 +1,6 @@
 /* renderer/stage_intersect.c: closest hits of the ray queue (sorted by sort_rays), split into
- * the hit queue and the escaped queue in ray-queue order. */
+ * the hit queue and the escaped queue in ray-queue order; the hit queue's sort keys with it
+ * (the ray keys, read by the sort, are dead by now). */
 #include "integrator.h"
 
 void stage_intersect(const Integrator *ig, Slice *s) {
@@ -13,7 +14,10 @@ void stage_intersect(const Integrator *ig, Slice *s) {
             uint32_t p = s->rays[b + k];
             ps->hit[p] = hits[k];
             if (isinf(hits[k].t)) s->escaped[s->num_escaped++] = p;
-            else s->hits[s->num_hits++] = p;
+            else {
+                s->keys[s->num_hits] = sort_key_hit(ig, &ps->ray[p], &hits[k]);
+                s->hits[s->num_hits++] = p;
+            }
         }
     }
 }

@@ -242,6 +242,8 @@ void stage_medium(const Integrator *ig, Slice *s) {
     }
     memcpy(s->hits, hits, num_hits * sizeof *hits);
     memcpy(s->escaped, escaped, num_escaped * sizeof *escaped);
+    /* a walk may have moved the path's ray and hit: the hit queue's keys afresh */
+    for (uint32_t i = 0; i < num_hits; ++i) s->keys[i] = sort_key_hit(ig, &ig->ps.ray[hits[i]], &ig->ps.hit[hits[i]]);
     s->num_hits = num_hits;
     s->num_escaped = num_escaped;
 }

@@ -104,6 +104,7 @@ static int cross_boundary(const Integrator *ig, Slice *s, uint32_t p, const Scen
     int entering = v3_dot(d, h.ng) < 0.0f;
     ps->medium[p] = entering ? media_of_primitive(ig->media, hit->instance, hit->local_prim) : 0;
     ps->ray[p] = (SceneRay){offset_ray_origin(h.p, entering ? v3_neg(h.ng) : h.ng), 0.0f, d, INFINITY};
+    s->keys[s->num_rays] = sort_key_ray(ig, &ps->ray[p]);
     s->rays[s->num_rays++] = p;
     return 1;
 }
@@ -244,6 +245,7 @@ static int surface_continuation(const Integrator *ig, Slice *s, uint32_t p, cons
                                  (ss.delta ? PV_FLAG_DELTA : 0u) | guide_surface_flags(sc->ng), ps->hit[p].t);
     path_scattered(ps, p, h->p, lc, ss.pdf, ss.delta);
     ps->ray[p] = (SceneRay){offset_ray_origin(h->p, scatter_side_normal(sc, ss.wi)), 0.0f, ss.wi, INFINITY};
+    s->keys[s->num_rays] = sort_key_ray(ig, &ps->ray[p]);
     s->rays[s->num_rays++] = p;
     return 1;
 }

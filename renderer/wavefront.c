@@ -121,6 +121,7 @@ int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene,
     ig->inscatter = o->volume_inscatter_sampling != 0 && media_any(media) && lights->count > 0 &&
                     light_sampler_has_inscatter(sampler);
     ig->npixels = (uint32_t)scene->camera.width * (uint32_t)scene->camera.height;
+    sort_init(ig);
     pthread_mutex_init(&ig->ray_log_mutex, NULL);
     size_t n = batch ? batch : 1;
     ig->queue_rays = malloc(n * sizeof(uint32_t));
