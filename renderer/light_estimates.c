@@ -37,25 +37,49 @@ static inline float receiver_cos(vec3 n, vec3 w) {
     return v3_is_black(n) ? 1.0f : maxf(v3_dot(n, w), 0.0f);
 }
 
-/* The area-light estimate's 16 fixed stratified points (triangles in proportion to area): for
- * each, the direction from p and the unoccluded contribution L cos_l / r^2 * A / 16. The same
- * points for every call, so estimates are deterministic. Returns the number written. */
+/* Point k of an area light's 16 fixed stratified points (triangles in proportion to area) and
+ * its triangle's unit normal: the same points for every call, so estimates are deterministic. */
+static vec3 area_estimate_point(const Light *l, int k, vec3 *ng) {
+    float u0 = ((float)k + 0.5f) / AREA_ESTIMATE_SAMPLES;
+    float u1 = (float)((k * 7 + 3) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
+    float u2 = (float)((k * 11 + 5) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
+    float tri_pmf, u_tri;
+    uint32_t t = dist1d_sample_discrete(&l->triangles, u0, &tri_pmf, &u_tri);
+    const float *v = l->world_vertices + 9 * (size_t)t;
+    vec3 a = v3(v[0], v[1], v[2]), b = v3(v[3], v[4], v[5]), c = v3(v[6], v[7], v[8]);
+    vec2 bc = sample_uniform_triangle(u1, u2);
+    *ng = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+    return v3_add(v3_add(v3_scale(a, 1.0f - bc.x - bc.y), v3_scale(b, bc.x)), v3_scale(c, bc.y));
+}
+
+/* One point's term of the area-light estimate, (A L / 16) cos_l cos_r / r^2 (cos_r = 1 for an
+ * omnidirectional receiver), written with unnormalised d = y - p as (A L / 16) (c / d2) (b / d2)
+ * with c = -ng.d and b = n.d: one division, where normalising d had taken a square root and
+ * three divisions (the estimate was the largest part of the default sampler's shading cost on
+ * scenes/bench.gltf). An omnidirectional receiver's b / d2 is 1 / r = sqrt(1 / d2). Zero where
+ * the point is behind either surface, at p, or beyond float range. scale = A L / 16. The
+ * vector versions below do the same operations in the same order, so the same bits. */
+static inline float area_point_term(float scale, vec3 y, vec3 ng, vec3 p, vec3 n, int two_sided, int omni) {
+    float dx = y.x - p.x, dy = y.y - p.y, dz = y.z - p.z;
+    float d2 = dx * dx + dy * dy + dz * dz;
+    float inv = 1.0f / d2;
+    float c = -(ng.x * dx + ng.y * dy + ng.z * dz);
+    if (two_sided) c = fabsf(c);
+    float b = omni ? sqrtf(inv) : (n.x * dx + n.y * dy + n.z * dz) * inv;
+    float t = scale * (c * inv) * b;
+    int valid = (d2 > 1e-12f) & (d2 < INFINITY) & (c > 0.0f) & (b > 0.0f);
+    return valid ? t : 0.0f;
+}
+
+/* The points seen from p for the seven-bin estimate: for each, the unit direction from p and
+ * the unoccluded contribution L cos_l / r^2 * A / 16. Returns the number written. */
 static int area_estimate_samples(const Light *l, vec3 p, vec3 dirs[AREA_ESTIMATE_SAMPLES],
                                  float contrib[AREA_ESTIMATE_SAMPLES]) {
     float L = v3_luminance(l->emission);
     if (!(L > 0.0f)) return 0;
     int count = 0;
     for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) {
-        float u0 = ((float)k + 0.5f) / AREA_ESTIMATE_SAMPLES;
-        float u1 = (float)((k * 7 + 3) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
-        float u2 = (float)((k * 11 + 5) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
-        float tri_pmf, u_tri;
-        uint32_t t = dist1d_sample_discrete(&l->triangles, u0, &tri_pmf, &u_tri);
-        const float *v = l->world_vertices + 9 * (size_t)t;
-        vec3 a = v3(v[0], v[1], v[2]), b = v3(v[3], v[4], v[5]), c = v3(v[6], v[7], v[8]);
-        vec2 bc = sample_uniform_triangle(u1, u2);
-        vec3 y = v3_add(v3_add(v3_scale(a, 1.0f - bc.x - bc.y), v3_scale(b, bc.x)), v3_scale(c, bc.y));
-        vec3 ng = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+        vec3 ng, y = area_estimate_point(l, k, &ng);
         vec3 d = v3_sub(y, p);
         float d2 = v3_dot(d, d);
         if (!(d2 > 1e-12f)) continue;
@@ -112,18 +136,8 @@ int light_estimate_table_build(LightEstimateTable *t, const Lights *ls) {
         t->lum[i] = light_is_areal(l) ? v3_luminance(l->emission) : v3_luminance(l->intensity);
         if (t->slot[i] == UINT32_MAX) continue;
         LightEstimatePoints *e = &t->points[t->slot[i]];
-        for (uint32_t k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) {
-            /* exactly area_estimate_samples' points and normals */
-            float u0 = ((float)k + 0.5f) / AREA_ESTIMATE_SAMPLES;
-            float u1 = (float)((k * 7 + 3) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
-            float u2 = (float)((k * 11 + 5) % AREA_ESTIMATE_SAMPLES) / AREA_ESTIMATE_SAMPLES + 0.5f / AREA_ESTIMATE_SAMPLES;
-            float tri_pmf, u_tri;
-            uint32_t tri = dist1d_sample_discrete(&l->triangles, u0, &tri_pmf, &u_tri);
-            const float *v = l->world_vertices + 9 * (size_t)tri;
-            vec3 a = v3(v[0], v[1], v[2]), b = v3(v[3], v[4], v[5]), c = v3(v[6], v[7], v[8]);
-            vec2 bc = sample_uniform_triangle(u1, u2);
-            vec3 y = v3_add(v3_add(v3_scale(a, 1.0f - bc.x - bc.y), v3_scale(b, bc.x)), v3_scale(c, bc.y));
-            vec3 ng = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+        for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) {
+            vec3 ng, y = area_estimate_point(l, k, &ng);
             e->y[0][k] = y.x; e->y[1][k] = y.y; e->y[2][k] = y.z;
             e->ng[0][k] = ng.x; e->ng[1][k] = ng.y; e->ng[2][k] = ng.z;
         }
@@ -140,42 +154,36 @@ void light_estimate_table_free(LightEstimateTable *t) {
     memset(t, 0, sizeof *t);
 }
 
-/* An area light's estimate over its table points: each point's term in its own lane, then
- * the terms added in point order. Bit for bit light_contribution_estimate: every lane does its
- * float operations in the same order (no contraction: SSE2 has no fused multiply-add), a
- * skipped point adds +0 to a sum that is never -0 (test_lights compares the bits). With SSE2
- * (every x86-64) four points at a time in explicit vector registers (GCC left the plain loop
- * scalar: it was a fifth of the shade stage's instructions on scenes/bench.gltf with the
- * default sampler); elsewhere the same loop in scalars. */
+/* An area light's estimate over its table points: each point's area_point_term in its own
+ * lane, then the terms added in point order. Bit for bit light_contribution_estimate: every
+ * lane does its float operations in the same order (no contraction: SSE2 has no fused
+ * multiply-add), an invalid point adds +0 to a sum that is never -0 (test_lights compares the
+ * bits). With SSE2 (every x86-64) four points at a time in explicit vector registers (GCC left
+ * the plain loop scalar); with AVX eight; elsewhere the scalar term. */
 #if defined(__SSE2__)
 #include <emmintrin.h>
-static float area_estimate_lanes(const LightEstimatePoints *e, float L, float area, vec3 p, vec3 n,
-                                 const int two_sided, const int omni) {
+static float area_estimate_lanes(const LightEstimatePoints *e, float scale, vec3 p, vec3 n, const int two_sided,
+                                 const int omni) {
     float term[AREA_ESTIMATE_SAMPLES];
     const __m128 px = _mm_set1_ps(p.x), py = _mm_set1_ps(p.y), pz = _mm_set1_ps(p.z);
     const __m128 nx = _mm_set1_ps(n.x), ny = _mm_set1_ps(n.y), nz = _mm_set1_ps(n.z);
     const __m128 one = _mm_set1_ps(1.0f), zero = _mm_setzero_ps(), eps = _mm_set1_ps(1e-12f);
-    const __m128 vL = _mm_set1_ps(L), varea = _mm_set1_ps(area), vcount = _mm_set1_ps((float)AREA_ESTIMATE_SAMPLES);
-    const __m128 sign = _mm_set1_ps(-0.0f);
+    const __m128 inf = _mm_set1_ps(INFINITY), vscale = _mm_set1_ps(scale), sign = _mm_set1_ps(-0.0f);
     for (int k = 0; k < AREA_ESTIMATE_SAMPLES; k += 4) {
         __m128 dx = _mm_sub_ps(_mm_loadu_ps(&e->y[0][k]), px);
         __m128 dy = _mm_sub_ps(_mm_loadu_ps(&e->y[1][k]), py);
         __m128 dz = _mm_sub_ps(_mm_loadu_ps(&e->y[2][k]), pz);
         __m128 d2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
-        __m128 inv = _mm_div_ps(one, _mm_sqrt_ps(d2));
-        __m128 wx = _mm_mul_ps(dx, inv), wy = _mm_mul_ps(dy, inv), wz = _mm_mul_ps(dz, inv);
-        __m128 cl = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_loadu_ps(&e->ng[0][k]), wx), _mm_mul_ps(_mm_loadu_ps(&e->ng[1][k]), wy)),
-                               _mm_mul_ps(_mm_loadu_ps(&e->ng[2][k]), wz));
-        cl = _mm_xor_ps(cl, sign);                   /* -(...) */
-        if (two_sided) cl = _mm_andnot_ps(sign, cl); /* fabsf */
-        __m128 contrib = _mm_div_ps(_mm_mul_ps(_mm_div_ps(_mm_mul_ps(vL, cl), d2), varea), vcount);
-        __m128 rc = one;
-        if (!omni) {
-            __m128 dot = _mm_add_ps(_mm_add_ps(_mm_mul_ps(nx, wx), _mm_mul_ps(ny, wy)), _mm_mul_ps(nz, wz));
-            rc = _mm_and_ps(_mm_cmpgt_ps(dot, zero), dot); /* dot > 0 ? dot : +0 (NaN: +0) */
-        }
-        __m128 t = _mm_mul_ps(contrib, rc);
-        __m128 valid = _mm_and_ps(_mm_cmpgt_ps(d2, eps), _mm_cmpgt_ps(cl, zero));
+        __m128 inv = _mm_div_ps(one, d2);
+        __m128 c = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_loadu_ps(&e->ng[0][k]), dx), _mm_mul_ps(_mm_loadu_ps(&e->ng[1][k]), dy)),
+                              _mm_mul_ps(_mm_loadu_ps(&e->ng[2][k]), dz));
+        c = _mm_xor_ps(c, sign);                   /* -(...) */
+        if (two_sided) c = _mm_andnot_ps(sign, c); /* fabsf */
+        __m128 b = omni ? _mm_sqrt_ps(inv)
+                        : _mm_mul_ps(_mm_add_ps(_mm_add_ps(_mm_mul_ps(nx, dx), _mm_mul_ps(ny, dy)), _mm_mul_ps(nz, dz)), inv);
+        __m128 t = _mm_mul_ps(_mm_mul_ps(vscale, _mm_mul_ps(c, inv)), b);
+        __m128 valid = _mm_and_ps(_mm_and_ps(_mm_cmpgt_ps(d2, eps), _mm_cmplt_ps(d2, inf)),
+                                  _mm_and_ps(_mm_cmpgt_ps(c, zero), _mm_cmpgt_ps(b, zero)));
         _mm_storeu_ps(&term[k], _mm_and_ps(valid, t));
     }
     float sum = 0.0f;
@@ -187,34 +195,31 @@ static float area_estimate_lanes(const LightEstimatePoints *e, float L, float ar
 /* The same lanes eight at a time, for CPUs with AVX (chosen at run time: the build targets
  * every x86-64). AVX without FMA has the same IEEE operations as SSE2 (no contraction), so the
  * terms, and their sum in point order, are bit for bit the SSE2 version's. */
-__attribute__((target("avx"))) static float area_estimate_lanes8(const LightEstimatePoints *e, float L, float area,
-                                                                  vec3 p, vec3 n, const int two_sided, const int omni) {
+__attribute__((target("avx"))) static float area_estimate_lanes8(const LightEstimatePoints *e, float scale, vec3 p,
+                                                                  vec3 n, const int two_sided, const int omni) {
     float term[AREA_ESTIMATE_SAMPLES];
     const __m256 px = _mm256_set1_ps(p.x), py = _mm256_set1_ps(p.y), pz = _mm256_set1_ps(p.z);
     const __m256 nx = _mm256_set1_ps(n.x), ny = _mm256_set1_ps(n.y), nz = _mm256_set1_ps(n.z);
     const __m256 one = _mm256_set1_ps(1.0f), zero = _mm256_setzero_ps(), eps = _mm256_set1_ps(1e-12f);
-    const __m256 vL = _mm256_set1_ps(L), varea = _mm256_set1_ps(area), vcount = _mm256_set1_ps((float)AREA_ESTIMATE_SAMPLES);
-    const __m256 sign = _mm256_set1_ps(-0.0f);
+    const __m256 inf = _mm256_set1_ps(INFINITY), vscale = _mm256_set1_ps(scale), sign = _mm256_set1_ps(-0.0f);
     for (int k = 0; k < AREA_ESTIMATE_SAMPLES; k += 8) {
         __m256 dx = _mm256_sub_ps(_mm256_loadu_ps(&e->y[0][k]), px);
         __m256 dy = _mm256_sub_ps(_mm256_loadu_ps(&e->y[1][k]), py);
         __m256 dz = _mm256_sub_ps(_mm256_loadu_ps(&e->y[2][k]), pz);
         __m256 d2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)), _mm256_mul_ps(dz, dz));
-        __m256 inv = _mm256_div_ps(one, _mm256_sqrt_ps(d2));
-        __m256 wx = _mm256_mul_ps(dx, inv), wy = _mm256_mul_ps(dy, inv), wz = _mm256_mul_ps(dz, inv);
-        __m256 cl = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_loadu_ps(&e->ng[0][k]), wx),
-                                                _mm256_mul_ps(_mm256_loadu_ps(&e->ng[1][k]), wy)),
-                                  _mm256_mul_ps(_mm256_loadu_ps(&e->ng[2][k]), wz));
-        cl = _mm256_xor_ps(cl, sign);
-        if (two_sided) cl = _mm256_andnot_ps(sign, cl);
-        __m256 contrib = _mm256_div_ps(_mm256_mul_ps(_mm256_div_ps(_mm256_mul_ps(vL, cl), d2), varea), vcount);
-        __m256 rc = one;
-        if (!omni) {
-            __m256 dot = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(nx, wx), _mm256_mul_ps(ny, wy)), _mm256_mul_ps(nz, wz));
-            rc = _mm256_and_ps(_mm256_cmp_ps(dot, zero, _CMP_GT_OQ), dot);
-        }
-        __m256 t = _mm256_mul_ps(contrib, rc);
-        __m256 valid = _mm256_and_ps(_mm256_cmp_ps(d2, eps, _CMP_GT_OQ), _mm256_cmp_ps(cl, zero, _CMP_GT_OQ));
+        __m256 inv = _mm256_div_ps(one, d2);
+        __m256 c = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_loadu_ps(&e->ng[0][k]), dx),
+                                               _mm256_mul_ps(_mm256_loadu_ps(&e->ng[1][k]), dy)),
+                                 _mm256_mul_ps(_mm256_loadu_ps(&e->ng[2][k]), dz));
+        c = _mm256_xor_ps(c, sign);
+        if (two_sided) c = _mm256_andnot_ps(sign, c);
+        __m256 b = omni ? _mm256_sqrt_ps(inv)
+                        : _mm256_mul_ps(_mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(nx, dx), _mm256_mul_ps(ny, dy)),
+                                                      _mm256_mul_ps(nz, dz)),
+                                        inv);
+        __m256 t = _mm256_mul_ps(_mm256_mul_ps(vscale, _mm256_mul_ps(c, inv)), b);
+        __m256 valid = _mm256_and_ps(_mm256_and_ps(_mm256_cmp_ps(d2, eps, _CMP_GT_OQ), _mm256_cmp_ps(d2, inf, _CMP_LT_OQ)),
+                                     _mm256_and_ps(_mm256_cmp_ps(c, zero, _CMP_GT_OQ), _mm256_cmp_ps(b, zero, _CMP_GT_OQ)));
         _mm256_storeu_ps(&term[k], _mm256_and_ps(valid, t));
     }
     float sum = 0.0f;
@@ -223,25 +228,12 @@ __attribute__((target("avx"))) static float area_estimate_lanes8(const LightEsti
 }
 #endif
 #else
-static float area_estimate_lanes(const LightEstimatePoints *e, float L, float area, vec3 p, vec3 n,
-                                 const int two_sided, const int omni) {
-    float term[AREA_ESTIMATE_SAMPLES];
-    for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) {
-        float dx = e->y[0][k] - p.x, dy = e->y[1][k] - p.y, dz = e->y[2][k] - p.z;
-        float d2 = dx * dx + dy * dy + dz * dz;
-        float inv = 1.0f / sqrtf(d2);
-        float wx = dx * inv, wy = dy * inv, wz = dz * inv;
-        float cos_l = -(e->ng[0][k] * wx + e->ng[1][k] * wy + e->ng[2][k] * wz);
-        if (two_sided) cos_l = fabsf(cos_l);
-        float contrib = L * cos_l / d2 * area / AREA_ESTIMATE_SAMPLES;
-        float dot = n.x * wx + n.y * wy + n.z * wz;
-        float rc = omni ? 1.0f : (dot > 0.0f ? dot : 0.0f);
-        float t = contrib * rc;
-        int valid = (d2 > 1e-12f) & (cos_l > 0.0f);
-        term[k] = valid ? t : 0.0f;
-    }
+static float area_estimate_lanes(const LightEstimatePoints *e, float scale, vec3 p, vec3 n, const int two_sided,
+                                 const int omni) {
     float sum = 0.0f;
-    for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) sum += term[k];
+    for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k)
+        sum += area_point_term(scale, v3(e->y[0][k], e->y[1][k], e->y[2][k]), v3(e->ng[0][k], e->ng[1][k], e->ng[2][k]),
+                               p, n, two_sided, omni);
     return sum;
 }
 #endif
@@ -249,16 +241,17 @@ static float area_estimate_lanes(const LightEstimatePoints *e, float L, float ar
 static float area_estimate_table(const LightEstimateTable *t, const Light *l, const LightEstimatePoints *e, float L,
                                  vec3 p, vec3 n) {
     int omni = v3_is_black(n);
+    float scale = L * l->area / AREA_ESTIMATE_SAMPLES;
 #if defined(AREA_ESTIMATE_AVX)
     if (t->avx) {
-        if (l->two_sided) return omni ? area_estimate_lanes8(e, L, l->area, p, n, 1, 1) : area_estimate_lanes8(e, L, l->area, p, n, 1, 0);
-        return omni ? area_estimate_lanes8(e, L, l->area, p, n, 0, 1) : area_estimate_lanes8(e, L, l->area, p, n, 0, 0);
+        if (l->two_sided) return omni ? area_estimate_lanes8(e, scale, p, n, 1, 1) : area_estimate_lanes8(e, scale, p, n, 1, 0);
+        return omni ? area_estimate_lanes8(e, scale, p, n, 0, 1) : area_estimate_lanes8(e, scale, p, n, 0, 0);
     }
 #else
     (void)t;
 #endif
-    if (l->two_sided) return omni ? area_estimate_lanes(e, L, l->area, p, n, 1, 1) : area_estimate_lanes(e, L, l->area, p, n, 1, 0);
-    return omni ? area_estimate_lanes(e, L, l->area, p, n, 0, 1) : area_estimate_lanes(e, L, l->area, p, n, 0, 0);
+    if (l->two_sided) return omni ? area_estimate_lanes(e, scale, p, n, 1, 1) : area_estimate_lanes(e, scale, p, n, 1, 0);
+    return omni ? area_estimate_lanes(e, scale, p, n, 0, 1) : area_estimate_lanes(e, scale, p, n, 0, 0);
 }
 
 /* Bit for bit light_contribution_estimate (the same float operations in the same order), with
@@ -381,11 +374,14 @@ float light_contribution_estimate(const Lights *ls, const Light *l, vec3 p, vec3
     case LIGHT_DISK:
     case LIGHT_AREA: {
         /* (A/16) sum L cos_l max(0, n.w) / r^2 over the 16 stratified points */
-        vec3 dirs[AREA_ESTIMATE_SAMPLES];
-        float contrib[AREA_ESTIMATE_SAMPLES];
-        int count = area_estimate_samples(l, p, dirs, contrib);
-        float sum = 0.0f;
-        for (int k = 0; k < count; ++k) sum += contrib[k] * receiver_cos(n, dirs[k]);
+        float L = v3_luminance(l->emission);
+        if (!(L > 0.0f)) return 0.0f;
+        float scale = L * l->area / AREA_ESTIMATE_SAMPLES, sum = 0.0f;
+        int omni = v3_is_black(n);
+        for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) {
+            vec3 ng, y = area_estimate_point(l, k, &ng);
+            sum += area_point_term(scale, y, ng, p, n, l->two_sided, omni);
+        }
         return sum;
     }
     }
