@@ -71,6 +71,15 @@ static inline float area_point_term(float scale, vec3 y, vec3 ng, vec3 p, vec3 n
     return valid ? t : 0.0f;
 }
 
+/* The 16 terms' sum as a tree, halves first (t[j] + t[j + 8], then + 4, + 2, + 1): what the
+ * vector versions add in their registers, so every version has the same bits. */
+static inline float area_terms_sum(const float t[AREA_ESTIMATE_SAMPLES]) {
+    float s8[8], s4[4];
+    for (int j = 0; j < 8; ++j) s8[j] = t[j] + t[j + 8];
+    for (int j = 0; j < 4; ++j) s4[j] = s8[j] + s8[j + 4];
+    return (s4[0] + s4[2]) + (s4[1] + s4[3]);
+}
+
 /* The points seen from p for the seven-bin estimate: for each, the unit direction from p and
  * the unoccluded contribution L cos_l / r^2 * A / 16. Returns the number written. */
 static int area_estimate_samples(const Light *l, vec3 p, vec3 dirs[AREA_ESTIMATE_SAMPLES],
@@ -113,8 +122,9 @@ int light_estimate_table_build(LightEstimateTable *t, const Lights *ls) {
     for (uint32_t i = 0; i < ls->count; ++i) points += table_point_light(&ls->lights[i]);
     size_t padded = ((size_t)points + 3) / 4 * 4 + 4;
     t->point_light = malloc(((size_t)points + 1) * sizeof *t->point_light);
+    t->other_light = malloc(((size_t)ls->count - points + 1) * sizeof *t->other_light);
     t->point_x = calloc(4 * padded, sizeof(float));
-    if (!t->slot || !t->lum || !t->points || !t->point_light || !t->point_x) { light_estimate_table_free(t); return -1; }
+    if (!t->slot || !t->lum || !t->points || !t->point_light || !t->other_light || !t->point_x) { light_estimate_table_free(t); return -1; }
     t->point_y = t->point_x + padded;
     t->point_z = t->point_y + padded;
     t->point_lum = t->point_z + padded;
@@ -123,7 +133,7 @@ int light_estimate_table_build(LightEstimateTable *t, const Lights *ls) {
 #endif
     for (uint32_t i = 0; i < ls->count; ++i) {
         const Light *l = &ls->lights[i];
-        if (!table_point_light(l)) continue;
+        if (!table_point_light(l)) { t->other_light[t->num_other_lights++] = i; continue; }
         uint32_t k = t->num_point_lights++;
         t->point_light[k] = i;
         t->point_x[k] = l->position.x;
@@ -150,21 +160,22 @@ void light_estimate_table_free(LightEstimateTable *t) {
     free(t->lum);
     free(t->points);
     free(t->point_light);
+    free(t->other_light);
     free(t->point_x);
     memset(t, 0, sizeof *t);
 }
 
 /* An area light's estimate over its table points: each point's area_point_term in its own
- * lane, then the terms added in point order. Bit for bit light_contribution_estimate: every
- * lane does its float operations in the same order (no contraction: SSE2 has no fused
- * multiply-add), an invalid point adds +0 to a sum that is never -0 (test_lights compares the
- * bits). With SSE2 (every x86-64) four points at a time in explicit vector registers (GCC left
+ * lane, then the terms added as area_terms_sum's tree, in the registers. Bit for bit
+ * light_contribution_estimate: every lane does its float operations in the same order (no
+ * contraction: SSE2 has no fused multiply-add), an invalid point's term is +0 in both
+ * (test_lights compares the bits). With SSE2 (every x86-64) four points at a time in explicit vector registers (GCC left
  * the plain loop scalar); with AVX eight; elsewhere the scalar term. */
 #if defined(__SSE2__)
 #include <emmintrin.h>
 static float area_estimate_lanes(const LightEstimatePoints *e, float scale, vec3 p, vec3 n, const int two_sided,
                                  const int omni) {
-    float term[AREA_ESTIMATE_SAMPLES];
+    __m128 term[AREA_ESTIMATE_SAMPLES / 4];
     const __m128 px = _mm_set1_ps(p.x), py = _mm_set1_ps(p.y), pz = _mm_set1_ps(p.z);
     const __m128 nx = _mm_set1_ps(n.x), ny = _mm_set1_ps(n.y), nz = _mm_set1_ps(n.z);
     const __m128 one = _mm_set1_ps(1.0f), zero = _mm_setzero_ps(), eps = _mm_set1_ps(1e-12f);
@@ -184,11 +195,12 @@ static float area_estimate_lanes(const LightEstimatePoints *e, float scale, vec3
         __m128 t = _mm_mul_ps(_mm_mul_ps(vscale, _mm_mul_ps(c, inv)), b);
         __m128 valid = _mm_and_ps(_mm_and_ps(_mm_cmpgt_ps(d2, eps), _mm_cmplt_ps(d2, inf)),
                                   _mm_and_ps(_mm_cmpgt_ps(c, zero), _mm_cmpgt_ps(b, zero)));
-        _mm_storeu_ps(&term[k], _mm_and_ps(valid, t));
+        term[k / 4] = _mm_and_ps(valid, t);
     }
-    float sum = 0.0f;
-    for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) sum += term[k];
-    return sum;
+    /* area_terms_sum: lanes j of (t0 + t8) + (t4 + t12), then j + 2, then j + 1 */
+    __m128 s4 = _mm_add_ps(_mm_add_ps(term[0], term[2]), _mm_add_ps(term[1], term[3]));
+    __m128 s2 = _mm_add_ps(s4, _mm_movehl_ps(s4, s4));
+    return _mm_cvtss_f32(_mm_add_ss(s2, _mm_shuffle_ps(s2, s2, 1)));
 }
 #if defined(AREA_ESTIMATE_AVX)
 #include <immintrin.h>
@@ -197,7 +209,7 @@ static float area_estimate_lanes(const LightEstimatePoints *e, float scale, vec3
  * terms, and their sum in point order, are bit for bit the SSE2 version's. */
 __attribute__((target("avx"))) static float area_estimate_lanes8(const LightEstimatePoints *e, float scale, vec3 p,
                                                                   vec3 n, const int two_sided, const int omni) {
-    float term[AREA_ESTIMATE_SAMPLES];
+    __m256 term[AREA_ESTIMATE_SAMPLES / 8];
     const __m256 px = _mm256_set1_ps(p.x), py = _mm256_set1_ps(p.y), pz = _mm256_set1_ps(p.z);
     const __m256 nx = _mm256_set1_ps(n.x), ny = _mm256_set1_ps(n.y), nz = _mm256_set1_ps(n.z);
     const __m256 one = _mm256_set1_ps(1.0f), zero = _mm256_setzero_ps(), eps = _mm256_set1_ps(1e-12f);
@@ -220,21 +232,23 @@ __attribute__((target("avx"))) static float area_estimate_lanes8(const LightEsti
         __m256 t = _mm256_mul_ps(_mm256_mul_ps(vscale, _mm256_mul_ps(c, inv)), b);
         __m256 valid = _mm256_and_ps(_mm256_and_ps(_mm256_cmp_ps(d2, eps, _CMP_GT_OQ), _mm256_cmp_ps(d2, inf, _CMP_LT_OQ)),
                                      _mm256_and_ps(_mm256_cmp_ps(c, zero, _CMP_GT_OQ), _mm256_cmp_ps(b, zero, _CMP_GT_OQ)));
-        _mm256_storeu_ps(&term[k], _mm256_and_ps(valid, t));
+        term[k / 8] = _mm256_and_ps(valid, t);
     }
-    float sum = 0.0f;
-    for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) sum += term[k];
-    return sum;
+    /* area_terms_sum: lanes j of t0 + t8, then j + 4, j + 2, j + 1 */
+    __m256 s8 = _mm256_add_ps(term[0], term[1]);
+    __m128 s4 = _mm_add_ps(_mm256_castps256_ps128(s8), _mm256_extractf128_ps(s8, 1));
+    __m128 s2 = _mm_add_ps(s4, _mm_movehl_ps(s4, s4));
+    return _mm_cvtss_f32(_mm_add_ss(s2, _mm_shuffle_ps(s2, s2, 1)));
 }
 #endif
 #else
 static float area_estimate_lanes(const LightEstimatePoints *e, float scale, vec3 p, vec3 n, const int two_sided,
                                  const int omni) {
-    float sum = 0.0f;
+    float term[AREA_ESTIMATE_SAMPLES];
     for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k)
-        sum += area_point_term(scale, v3(e->y[0][k], e->y[1][k], e->y[2][k]), v3(e->ng[0][k], e->ng[1][k], e->ng[2][k]),
-                               p, n, two_sided, omni);
-    return sum;
+        term[k] = area_point_term(scale, v3(e->y[0][k], e->y[1][k], e->y[2][k]), v3(e->ng[0][k], e->ng[1][k], e->ng[2][k]),
+                                  p, n, two_sided, omni);
+    return area_terms_sum(term);
 }
 #endif
 
@@ -301,21 +315,17 @@ static void point_estimate_lanes(const LightEstimateTable *t, uint32_t k, vec3 p
 #endif
 
 void light_estimate_table_all(const Lights *ls, const LightEstimateTable *t, vec3 p, vec3 n, float *out) {
-    uint32_t next_point = t->num_point_lights ? t->point_light[0] : UINT32_MAX, k = 0;
-    for (uint32_t i = 0; i < ls->count; ++i) {
-        if (i != next_point) { out[i] = light_contribution_estimate_table(ls, t, i, p, n); continue; }
-        next_point = k + 1 < t->num_point_lights ? t->point_light[k + 1] : UINT32_MAX;
-        ++k;
-    }
+    for (uint32_t k = 0; k < t->num_other_lights; ++k)
+        out[t->other_light[k]] = light_contribution_estimate_table(ls, t, t->other_light[k], p, n);
 #if defined(__SSE2__)
     int omni = v3_is_black(n);
-    for (k = 0; k < t->num_point_lights; k += 4) {
+    for (uint32_t k = 0; k < t->num_point_lights; k += 4) {
         float e[4];
         point_estimate_lanes(t, k, p, n, omni, e);
         for (uint32_t j = 0; j < 4 && k + j < t->num_point_lights; ++j) out[t->point_light[k + j]] = e[j];
     }
 #else
-    for (k = 0; k < t->num_point_lights; ++k)
+    for (uint32_t k = 0; k < t->num_point_lights; ++k)
         out[t->point_light[k]] = light_contribution_estimate_table(ls, t, t->point_light[k], p, n);
 #endif
 }
@@ -376,13 +386,13 @@ float light_contribution_estimate(const Lights *ls, const Light *l, vec3 p, vec3
         /* (A/16) sum L cos_l max(0, n.w) / r^2 over the 16 stratified points */
         float L = v3_luminance(l->emission);
         if (!(L > 0.0f)) return 0.0f;
-        float scale = L * l->area / AREA_ESTIMATE_SAMPLES, sum = 0.0f;
+        float scale = L * l->area / AREA_ESTIMATE_SAMPLES, term[AREA_ESTIMATE_SAMPLES];
         int omni = v3_is_black(n);
         for (int k = 0; k < AREA_ESTIMATE_SAMPLES; ++k) {
             vec3 ng, y = area_estimate_point(l, k, &ng);
-            sum += area_point_term(scale, y, ng, p, n, l->two_sided, omni);
+            term[k] = area_point_term(scale, y, ng, p, n, l->two_sided, omni);
         }
-        return sum;
+        return area_terms_sum(term);
     }
     }
     return 0.0f;

@@ -229,6 +229,8 @@ typedef struct LightEstimateTable {
      * index and position / luminance, for light_estimate_table_all's vector loop */
     uint32_t num_point_lights;
     uint32_t *point_light;
+    uint32_t num_other_lights;  /* every other light, in light order */
+    uint32_t *other_light;
     float *point_x, *point_y, *point_z, *point_lum;
     int avx; /* the CPU runs AVX: an area light's 16 points go eight to a register */
 } LightEstimateTable;

@@ -102,8 +102,9 @@ void sort_init(Integrator *ig) {
 }
 
 static inline uint32_t grid10(float c) {
-    float v = clampf(c, 0.0f, 1023.0f);
-    return v == v ? (uint32_t)v : 0; /* NaN compares false: clampf passes it through */
+    float v = c > 0.0f ? c : 0.0f; /* NaN: 0 (max and min instructions, no branches) */
+    v = v < 1023.0f ? v : 1023.0f;
+    return (uint32_t)v;
 }
 
 /* 30-bit Morton code of p on a 1024^3 grid over the scene bounds */

@@ -117,13 +117,15 @@ static void check_strategy_occl(const char *path, CandelaLightSampler strategy, 
     const Lights *ls = &lights;
     CHECK(ls->count > 1, "lights: %u", ls->count);
     {
-        /* the estimate table (four points per SSE2 register) is bit for bit the reference
-         * estimate, for every light, at random receivers facing any way and omnidirectional */
+        /* the estimate table (area points eight per AVX register where the CPU has AVX, four
+         * per SSE2 register otherwise: both are run) is bit for bit the reference estimate,
+         * for every light, at random receivers facing any way and omnidirectional */
         LightEstimateTable table;
         CHECK(light_estimate_table_build(&table, ls) == 0, "estimate table: out of memory");
         uint64_t tkey = rng_path_key(11, 4, 2);
         int mismatches = 0;
-        for (int i = 0; i < 2000; ++i) {
+        for (int i = 0; i < 4000; ++i) {
+            if (i == 2000) table.avx = 0; /* the second half on the SSE2 (or scalar) lanes */
             vec3 x = v3(rng_uniform(tkey, 6 * i) * 4 - 2, rng_uniform(tkey, 6 * i + 1) * 4 - 1, rng_uniform(tkey, 6 * i + 2) * 4 - 2);
             vec3 nrm = i % 5 == 4 ? v3s(0.0f)
                                   : v3_normalize(v3(rng_uniform(tkey, 6 * i + 3) * 2 - 1, rng_uniform(tkey, 6 * i + 4) * 2 - 1,
