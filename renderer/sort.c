@@ -7,6 +7,9 @@
  * leading bits, so equal keys keep queue order, which is deterministic. radix_sort_pairs is the
  * full sort (the cache point candidates). */
 #include <string.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "integrator.h"
 #include "sort.h"
@@ -82,16 +85,12 @@ static void radix_sort_queue(uint32_t *items, uint64_t *keys, uint32_t n, uint64
     if (v_in != items) memcpy(items, v_in, n * sizeof *items);
 }
 
-/* the low 10 bits of x spread to every third bit (four steps in 32 bits; morton_spread21 is
- * the general one) */
-static inline uint32_t spread10(uint32_t x) {
-    x &= 0x3ffu;
-    x = (x | x << 16) & 0x030000ffu;
-    x = (x | x << 8) & 0x0300f00fu;
-    x = (x | x << 4) & 0x030c30c3u;
-    x = (x | x << 2) & 0x09249249u;
-    return x;
-}
+/* 5 bits spread to every third bit: a 10-bit axis of the Morton codes below is two lookups */
+static const uint16_t SPREAD5[32] = {
+    0x0000, 0x0001, 0x0008, 0x0009, 0x0040, 0x0041, 0x0048, 0x0049, 0x0200, 0x0201, 0x0208,
+    0x0209, 0x0240, 0x0241, 0x0248, 0x0249, 0x1000, 0x1001, 0x1008, 0x1009, 0x1040, 0x1041,
+    0x1048, 0x1049, 0x1200, 0x1201, 0x1208, 0x1209, 0x1240, 0x1241, 0x1248, 0x1249};
+static inline uint32_t spread10(uint32_t q) { return (uint32_t)SPREAD5[q & 31] | (uint32_t)SPREAD5[(q >> 5) & 31] << 15; }
 
 void sort_init(Integrator *ig) {
     const Scene *scene = ig->scene;
@@ -101,16 +100,26 @@ void sort_init(Integrator *ig) {
     ig->sort_scale = v3(cells / fmaxf(ext.x, 1e-20f), cells / fmaxf(ext.y, 1e-20f), cells / fmaxf(ext.z, 1e-20f));
 }
 
-static inline uint32_t grid10(float c) {
-    float v = c > 0.0f ? c : 0.0f; /* NaN: 0 (max and min instructions, no branches) */
-    v = v < 1023.0f ? v : 1023.0f;
-    return (uint32_t)v;
-}
-
-/* 30-bit Morton code of p on a 1024^3 grid over the scene bounds */
+/* 30-bit Morton code of p on a 1024^3 grid over the scene bounds (a point outside, or NaN,
+ * goes to the nearest cell, or cell 0) */
 static inline uint64_t morton30(const Integrator *ig, vec3 p) {
+    uint32_t q[4];
+#if defined(__SSE2__)
+    /* the three axes in one register: max and min instructions return their second operand
+     * for NaN, so NaN lands in cell 0 */
+    __m128 f = _mm_mul_ps(_mm_sub_ps(_mm_setr_ps(p.x, p.y, p.z, 0.0f), _mm_setr_ps(ig->sort_origin.x, ig->sort_origin.y, ig->sort_origin.z, 0.0f)),
+                          _mm_setr_ps(ig->sort_scale.x, ig->sort_scale.y, ig->sort_scale.z, 0.0f));
+    f = _mm_min_ps(_mm_max_ps(f, _mm_setzero_ps()), _mm_set1_ps(1023.0f));
+    _mm_storeu_si128((__m128i *)q, _mm_cvttps_epi32(f));
+#else
     vec3 f = v3_mul(v3_sub(p, ig->sort_origin), ig->sort_scale);
-    return (uint64_t)(spread10(grid10(f.x)) | spread10(grid10(f.y)) << 1 | spread10(grid10(f.z)) << 2);
+    float c[3] = {f.x, f.y, f.z};
+    for (int k = 0; k < 3; ++k) {
+        float v = c[k] > 0.0f ? c[k] : 0.0f;
+        q[k] = (uint32_t)(v < 1023.0f ? v : 1023.0f);
+    }
+#endif
+    return (uint64_t)(spread10(q[0]) | spread10(q[1]) << 1 | spread10(q[2]) << 2);
 }
 
 uint64_t sort_key_ray(const Integrator *ig, const SceneRay *r) {
