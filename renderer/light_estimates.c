@@ -315,8 +315,13 @@ static void point_estimate_lanes(const LightEstimateTable *t, uint32_t k, vec3 p
 #endif
 
 void light_estimate_table_all(const Lights *ls, const LightEstimateTable *t, vec3 p, vec3 n, float *out) {
-    for (uint32_t k = 0; k < t->num_other_lights; ++k)
-        out[t->other_light[k]] = light_contribution_estimate_table(ls, t, t->other_light[k], p, n);
+    for (uint32_t k = 0; k < t->num_other_lights; ++k) {
+        uint32_t i = t->other_light[k];
+        const Light *l = &ls->lights[i];
+        /* light_contribution_estimate_table's area case without its dispatch */
+        if (t->slot[i] != UINT32_MAX) out[i] = area_estimate_table(t, l, &t->points[t->slot[i]], t->lum[i], p, n);
+        else out[i] = light_contribution_estimate_table(ls, t, i, p, n);
+    }
 #if defined(__SSE2__)
     int omni = v3_is_black(n);
     for (uint32_t k = 0; k < t->num_point_lights; k += 4) {

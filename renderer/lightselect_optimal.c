@@ -120,9 +120,18 @@ static void optimal_prepare(const void *state, LightSampleContext *ctx, uint32_t
      * lights four at a time), then the same rules */
     light_estimate_table_all(s->lights, &s->table, ctx->p, ctx->n, wv);
     float total = 0.0f;
-    for (uint32_t i = 0; i < s->lights->count; ++i) {
-        wv[i] = optimal_weight_from(s, i, ctx, wv[i]);
-        total += wv[i];
+    if (ctx->link_class) {
+        for (uint32_t i = 0; i < s->lights->count; ++i) {
+            wv[i] = optimal_weight_from(s, i, ctx, wv[i]);
+            total += wv[i];
+        }
+    } else {
+        /* optimal_weight_from without linking: w > 0 && isfinite(w) is w in (0, inf) */
+        for (uint32_t i = 0; i < s->lights->count; ++i) {
+            float w = wv[i];
+            wv[i] = w > 0.0f && w < INFINITY ? w : 0.0f;
+            total += wv[i];
+        }
     }
     ctx->vertex = (LightVertex){1u, total};
 }

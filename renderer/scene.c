@@ -101,11 +101,12 @@ void scene_surface_hit(const Scene *scene, uint32_t instance, uint32_t local_pri
     float b0 = 1.0f - b1 - b2;
     vec3 p0 = prim_position(p, i0), p1 = prim_position(p, i1), p2 = prim_position(p, i2);
     vec3 po = v3_add(v3_add(v3_scale(p0, b0), v3_scale(p1, b1)), v3_scale(p2, b2));
-    hit->p = xform_point(inst->xform, po);
+    const int moved = !inst->linear_identity; /* else the matrix products below are the identity */
+    hit->p = moved ? xform_point(inst->xform, po) : v3_add(po, v3(inst->xform[12], inst->xform[13], inst->xform[14]));
     vec3 e1 = v3_sub(p1, p0), e2 = v3_sub(p2, p0);
     /* world-space winding: glTF flips the front face of mirrored instances (negative
      * determinant), which the cross product of transformed edges gets right */
-    vec3 ng = v3_normalize(v3_cross(xform_vector(inst->xform, e1), xform_vector(inst->xform, e2)));
+    vec3 ng = v3_normalize(moved ? v3_cross(xform_vector(inst->xform, e1), xform_vector(inst->xform, e2)) : v3_cross(e1, e2));
     hit->ng = ng;
     vec3 ns = ng;
     if (p->normals) {
@@ -113,7 +114,7 @@ void scene_surface_hit(const Scene *scene, uint32_t instance, uint32_t local_pri
         vec3 n1 = v3(p->normals[3 * i1], p->normals[3 * i1 + 1], p->normals[3 * i1 + 2]);
         vec3 n2 = v3(p->normals[3 * i2], p->normals[3 * i2 + 1], p->normals[3 * i2 + 2]);
         vec3 n = v3_add(v3_add(v3_scale(n0, b0), v3_scale(n1, b1)), v3_scale(n2, b2));
-        n = normal_to_world(inst, n);
+        if (moved) n = normal_to_world(inst, n);
         float len = v3_length(n);
         if (len > 1e-12f && isfinite(len)) {
             ns = v3_scale(n, 1.0f / len);
@@ -363,6 +364,14 @@ static void invert_transpose3(const float m[16], float out[9]) {
     for (int i = 0; i < 9; ++i) out[i] = r[i] * inv;
 }
 
+/* The instance's object-to-world matrix and what follows from it. */
+static void instance_set_xform(SceneInstance *si, const float xform[16]) {
+    memcpy(si->xform, xform, sizeof si->xform);
+    invert_transpose3(si->xform, si->normal_xform);
+    static const float identity3[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}; /* columns 0-2, column-major */
+    si->linear_identity = memcmp(si->xform, identity3, sizeof identity3) == 0;
+}
+
 static void default_camera(Scene *scene, Camera *cam) {
     /* Frame the bounding sphere from +Z (glTF's "front"), 40 degree vertical field of view. */
     float fov = 40.0f * PI_F / 180.0f;
@@ -580,8 +589,7 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
     scene->top = rtcNewScene(scene->device);
     for (uint32_t i = 0; i < io->num_instances; ++i) {
         SceneInstance *si = &scene->instances[i];
-        memcpy(si->xform, io->instances[i].xform, sizeof si->xform);
-        invert_transpose3(si->xform, si->normal_xform);
+        instance_set_xform(si, io->instances[i].xform);
         si->mesh = io->instances[i].mesh;
         si->primitive_base = scene->num_instance_primitives;
         scene->num_instance_primitives += io->meshes[si->mesh].num_primitives;
@@ -677,8 +685,7 @@ int scene_pose(Scene *scene, const CandelaOptions *o, double seconds, uint32_t *
         if (!moved && si->hidden == ii->hidden) continue;
         RTCGeometry g = rtcGetGeometry(scene->top, i);
         if (moved) {
-            memcpy(si->xform, ii->xform, sizeof si->xform);
-            invert_transpose3(si->xform, si->normal_xform);
+            instance_set_xform(si, ii->xform);
             rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT4X4_COLUMN_MAJOR, si->xform);
             rtcCommitGeometry(g);
         }

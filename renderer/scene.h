@@ -59,6 +59,8 @@ typedef struct ScenePrimitive {
 typedef struct SceneInstance {
     float xform[16];          /* object to world */
     float normal_xform[9];    /* inverse transpose of the 3x3 part, row-major */
+    int linear_identity;      /* the 3x3 part is the identity (a translation at most): hit
+                               * attributes skip the matrix products */
     uint32_t mesh;
     uint32_t primitive_base;  /* index of (this instance, local primitive 0) among all instance
                                * primitives: per-instance-primitive tables (the area light of
