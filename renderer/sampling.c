@@ -10,21 +10,28 @@
 
 /* ---------------------------------------------------------------- simple warps */
 
+/* sin and cos of x in [-pi/4, pi/4], where no range reduction is needed: the minimax
+ * polynomials of Cephes' sinf and cosf (within 2 ulp there). */
+static inline void sincos_quarter(float x, float *s, float *c) {
+    float z = x * x;
+    *s = ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f) * z * x + x;
+    *c = ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f) * z * z - 0.5f * z + 1.0f;
+}
+
 vec2 sample_concentric_disk(float u1, float u2) {
-    /* Shirley & Chiu 1997, as in pbrt. */
+    /* Shirley & Chiu 1997, as in pbrt: the square's octant picks the angle's range. With
+     * phi = (pi/4) minor / major in [-pi/4, pi/4], theta is phi (x major) or pi/2 - phi (y
+     * major, so cos and sin swap): one short polynomial pair, no library call, and selects
+     * rather than a branch on the octant (taken at random). */
     float ox = 2.0f * u1 - 1.0f, oy = 2.0f * u2 - 1.0f;
     vec2 r = {0.0f, 0.0f};
     if (ox == 0.0f && oy == 0.0f) return r;
-    float radius, theta;
-    if (fabsf(ox) > fabsf(oy)) {
-        radius = ox;
-        theta = (PI_F / 4.0f) * (oy / ox);
-    } else {
-        radius = oy;
-        theta = (PI_F / 2.0f) - (PI_F / 4.0f) * (ox / oy);
-    }
-    r.x = radius * cosf(theta);
-    r.y = radius * sinf(theta);
+    int x_major = fabsf(ox) > fabsf(oy);
+    float radius = x_major ? ox : oy, minor = x_major ? oy : ox;
+    float s, c;
+    sincos_quarter((PI_F / 4.0f) * (minor / radius), &s, &c);
+    r.x = radius * (x_major ? c : s);
+    r.y = radius * (x_major ? s : c);
     return r;
 }
 
