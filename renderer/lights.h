@@ -133,6 +133,22 @@ typedef struct LightSampleContext {
     LightLobe lobe;
 } LightSampleContext;
 
+/* A context with every member set one by one: a per-vertex aggregate initialiser was compiled
+ * to a string store over the whole struct (rep stos, dear for its size) */
+static inline LightSampleContext light_sample_context(vec3 p, vec3 n, float *scratch, struct VolumeStats *stats,
+                                                      uint32_t link_class) {
+    LightSampleContext c;
+    c.p = p;
+    c.n = n;
+    c.vertex = (LightVertex){0u, 0.0f};
+    c.scratch = scratch;
+    c.stats = stats;
+    c.previous = (LightVertex){0u, 0.0f};
+    c.link_class = link_class;
+    c.lobe = (LightLobe){{0.0f, 0.0f, 0.0f}, 0.0f, 0.0f};
+    return c;
+}
+
 /* Light linking (extras.candela_light_linking, README "Light linking"): receiving objects are
  * grouped into link classes, the distinct sets of lights that reach them (usually few), so
  * that every strategy can build its distributions per class and a vertex carries one small

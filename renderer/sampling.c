@@ -1,5 +1,8 @@
 /* renderer/sampling.c: warping functions, GGX microfacet helpers and tabulated distributions.
  * See sampling.h for the contract; tests/test_sampling.c checks every pdf. */
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #include "sampling.h"
 
 #include <float.h>
@@ -26,12 +29,26 @@ vec2 sample_concentric_disk(float u1, float u2) {
     float ox = 2.0f * u1 - 1.0f, oy = 2.0f * u2 - 1.0f;
     vec2 r = {0.0f, 0.0f};
     if (ox == 0.0f && oy == 0.0f) return r;
+    float radius, minor, s, c;
+#if defined(__SSE2__)
+    /* the selects as bit masks (GCC made branches of them) */
+    const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+    __m128 vx = _mm_set_ss(ox), vy = _mm_set_ss(oy);
+    __m128 x_major = _mm_cmpgt_ss(_mm_and_ps(vx, abs_mask), _mm_and_ps(vy, abs_mask));
+    radius = _mm_cvtss_f32(_mm_or_ps(_mm_and_ps(x_major, vx), _mm_andnot_ps(x_major, vy)));
+    minor = _mm_cvtss_f32(_mm_or_ps(_mm_and_ps(x_major, vy), _mm_andnot_ps(x_major, vx)));
+    sincos_quarter((PI_F / 4.0f) * (minor / radius), &s, &c);
+    __m128 vs = _mm_set_ss(s), vc = _mm_set_ss(c);
+    r.x = radius * _mm_cvtss_f32(_mm_or_ps(_mm_and_ps(x_major, vc), _mm_andnot_ps(x_major, vs)));
+    r.y = radius * _mm_cvtss_f32(_mm_or_ps(_mm_and_ps(x_major, vs), _mm_andnot_ps(x_major, vc)));
+#else
     int x_major = fabsf(ox) > fabsf(oy);
-    float radius = x_major ? ox : oy, minor = x_major ? oy : ox;
-    float s, c;
+    radius = x_major ? ox : oy;
+    minor = x_major ? oy : ox;
     sincos_quarter((PI_F / 4.0f) * (minor / radius), &s, &c);
     r.x = radius * (x_major ? c : s);
     r.y = radius * (x_major ? s : c);
+#endif
     return r;
 }
 
@@ -186,12 +203,15 @@ void dist1d_free(Distribution1D *d) {
 
 /* Largest i in [0, n-1] with cdf[i] <= u (cells of zero probability are never returned for
  * u in [0,1), because their start equals the next cell's start). */
+/* The last cell whose cdf is <= u (the cdf is non-decreasing from cdf[0] = 0): a binary search
+ * whose step count depends on n only and whose step is a conditional move, not a branch on
+ * the random u. */
 static uint32_t find_cell(const Distribution1D *d, float u) {
-    uint32_t lo = 0, hi = d->n - 1;
-    while (lo < hi) {
-        uint32_t mid = lo + (hi - lo + 1) / 2;
-        if (d->cdf[mid] <= u) lo = mid;
-        else hi = mid - 1;
+    uint32_t lo = 0, len = d->n;
+    while (len > 1) {
+        uint32_t half = len / 2;
+        lo = d->cdf[lo + half] <= u ? lo + half : lo;
+        len -= half;
     }
     return lo;
 }

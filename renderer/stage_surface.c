@@ -303,8 +303,8 @@ void stage_surface(const Integrator *ig, Slice *s) {
 
         /* light-selection context: transmissive surfaces receive light from both sides, so they
          * use the omnidirectional (fluence) estimates, as a point in a medium does */
-        LightSampleContext lc = {h.p, scatter_light_normal(&sc), {0, 0.0f}, scratch, &s->volume};
-        lc.link_class = lights_instance_class(ig->lights, hit->instance);
+        LightSampleContext lc = light_sample_context(h.p, scatter_light_normal(&sc), scratch, &s->volume,
+                                                     lights_instance_class(ig->lights, hit->instance));
         int delta = scatter_is_delta(&sc);
         if (!delta && light_sampler_uses_lobe(ig->light_sampler)) scatter_light_lobe(&sc, &lc.lobe); /* a strategy that weighs lights by the BSDF */
         if (!delta) light_sampler_prepare(ig->light_sampler, &lc, &hint); /* once per vertex */
