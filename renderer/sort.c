@@ -5,7 +5,7 @@
  * quad's two triangles say nothing about where on it a hit lies). The keys are made where a path
  * joins a queue (sort_key_ray, sort_key_hit); both sorts are stable radix sorts of the keys'
  * leading bits, so equal keys keep queue order, which is deterministic. radix_sort_pairs is the
- * full sort (the cache point candidates). */
+ * full sort, for sort.h's other users. */
 #include <string.h>
 #if defined(__SSE2__)
 #include <emmintrin.h>
