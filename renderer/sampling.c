@@ -52,10 +52,31 @@ vec2 sample_concentric_disk(float u1, float u2) {
     return r;
 }
 
+/* cos and sin of 2 pi u for u in [0, 1): the octant's centre angle from a table, the rest
+ * (|a| <= pi/8) by Taylor polynomials (error below 1e-8 there), rotated by the centre: no
+ * division, branch or library call. */
+static inline void sincos_turn(float u, float *s, float *c) {
+    static const float CENTRE_COS[8] = {0.923879533f, 0.382683432f, -0.382683432f, -0.923879533f,
+                                        -0.923879533f, -0.382683432f, 0.382683432f, 0.923879533f};
+    static const float CENTRE_SIN[8] = {0.382683432f, 0.923879533f, 0.923879533f, 0.382683432f,
+                                        -0.382683432f, -0.923879533f, -0.923879533f, -0.382683432f};
+    float f = u * 8.0f;
+    int k = (int)f;
+    k = k < 0 ? 0 : (k > 7 ? 7 : k);
+    float a = (f - (float)k - 0.5f) * (PI_F / 4.0f), z = a * a;
+    float sa = a + a * z * (-1.0f / 6.0f + z * (1.0f / 120.0f - z * (1.0f / 5040.0f)));
+    float ca = 1.0f - 0.5f * z + z * z * (1.0f / 24.0f - z * (1.0f / 720.0f));
+    *c = ca * CENTRE_COS[k] - sa * CENTRE_SIN[k];
+    *s = sa * CENTRE_COS[k] + ca * CENTRE_SIN[k];
+}
+
 vec3 sample_cosine_hemisphere(float u1, float u2) {
-    vec2 d = sample_concentric_disk(u1, u2);
-    float z = safe_sqrtf(1.0f - d.x * d.x - d.y * d.y);
-    return v3(d.x, d.y, z);
+    /* Malley: a uniform point on the unit disk (polar: r = sqrt(u1), phi = 2 pi u2) lifted to
+     * the hemisphere. The random numbers are independent uniforms (no stratification for the
+     * concentric map to keep), and polar needs neither a division nor an octant branch. */
+    float r = sqrtf(u1 > 0.0f ? u1 : 0.0f), s, c;
+    sincos_turn(u2, &s, &c);
+    return v3(r * c, r * s, safe_sqrtf(1.0f - u1));
 }
 
 float pdf_cosine_hemisphere(vec3 w) { return w.z > 0.0f ? w.z * INV_PI_F : 0.0f; }
