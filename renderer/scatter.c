@@ -59,7 +59,7 @@ void scatter_init_surface_prepared(Scatter *s, const SurfaceHit *h, const BsdfPa
     Frame *f = &s->frame;
     f->n = ns;
     f->t = h->dpdu;
-    if (v3_dot(f->t, ns) != 0.0f) f->t = v3_normalize(v3_sub(f->t, v3_scale(ns, v3_dot(ns, f->t))));
+    if (v3_dot(f->t, ns) != 0.0f) f->t = v3_renormalize(v3_sub(f->t, v3_scale(ns, v3_dot(ns, f->t))));
     f->b = v3_cross(ns, f->t);
     s->wo = frame_to_local(f, wo_world);
 }
@@ -91,7 +91,7 @@ int scatter_sample(const Scatter *s, float u_lobe, float u1, float u2, ScatterSa
     }
     BsdfSample bs;
     if (!bsdf_prepared_sample(&s->prep, s->wo, u_lobe, u1, u2, &bs)) return 0;
-    vec3 wi = v3_normalize(frame_to_world(&s->frame, bs.wi));
+    vec3 wi = v3_renormalize(frame_to_world(&s->frame, bs.wi));
     float side_g = v3_dot(wi, s->ng);
     if (!(side_g * bs.wi.z > 0.0f) || !(bs.pdf > 0.0f)) return 0;
     out->wi = wi;

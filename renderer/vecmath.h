@@ -35,6 +35,15 @@ static inline vec3 v3_normalize(vec3 a) {
     float l = v3_length(a);
     return l > 0.0f ? v3_scale(a, 1.0f / l) : v3(0.0f, 0.0f, 1.0f);
 }
+/* A vector already unit up to rounding (a unit vector through an orthonormal frame) made unit
+ * again by one Newton step of 1/sqrt(d) about 1, (3 - d) / 2: its error is (d - 1)^2, far below
+ * a float's, with no square root or division on a bounce's critical path; anything further
+ * from unit length takes v3_normalize. */
+static inline vec3 v3_renormalize(vec3 a) {
+    float d = v3_dot(a, a);
+    if (!(fabsf(d - 1.0f) < 1e-3f)) return v3_normalize(a);
+    return v3_scale(a, 1.5f - 0.5f * d);
+}
 static inline vec3 v3_lerp(vec3 a, vec3 b, float t) { return v3_add(v3_scale(a, 1.0f - t), v3_scale(b, t)); }
 static inline float v3_max_component(vec3 a) { return maxf(a.x, maxf(a.y, a.z)); }
 static inline vec3 v3_min(vec3 a, vec3 b) { return v3(minf(a.x, b.x), minf(a.y, b.y), minf(a.z, b.z)); }
