@@ -213,7 +213,8 @@ void sort_rays(const Integrator *ig, Slice *s);
 void sort_hits(const Integrator *ig, Slice *s);
 /* The queues' keys are written where a path joins the queue (its ray or hit is in cache
  * there, not when the sort gathers it in queue order): whoever appends slot p at position i
- * of the ray (hit) queue sets s->keys[i] = sort_key_ray (sort_key_hit) of p. */
+ * of the ray (hit) queue sets s->keys[i] = sort_key_ray (sort_key_hit) of p. The camera rays
+ * (wave 0) are not sorted: stage_generate queues them in pixel order, coherent already. */
 void sort_init(Integrator *ig);
 uint64_t sort_key_ray(const Integrator *ig, const SceneRay *r);
 uint64_t sort_key_hit(const Integrator *ig, const SceneRay *r, const SceneHit *h);

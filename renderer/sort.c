@@ -136,6 +136,7 @@ uint64_t sort_key_hit(const Integrator *ig, const SceneRay *r, const SceneHit *h
 
 void sort_rays(const Integrator *ig, Slice *s) {
     (void)ig;
+    if (s->wave == 0) return; /* camera rays, in pixel order (stage_generate makes no keys) */
     radix_sort_queue(s->rays, s->keys, s->num_rays, s->keys_tmp, s->items_tmp);
 }
 

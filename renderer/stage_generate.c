@@ -37,7 +37,6 @@ void stage_generate(const Integrator *ig, Slice *s) {
         path_write_aovs(ps, p, v3s(0.0f), v3s(0.0f), INFINITY);
         if (ig->film.sel_aov) ps->aov_sel_point[p] = ps->aov_sel_light[p] = v3s(0.0f);
         record_camera(ig, p, j);
-        s->keys[s->num_rays] = sort_key_ray(ig, &ps->ray[p]);
-        s->rays[s->num_rays++] = p;
+        s->rays[s->num_rays++] = p; /* pixel order: coherent already, so not sorted (no key) */
     }
 }
