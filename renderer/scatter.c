@@ -41,11 +41,14 @@ void scatter_init_surface_prepared(Scatter *s, const SurfaceHit *h, const BsdfPa
     s->guide = NULL;
     s->guide_mode = SCATTER_GUIDE_NONE;
     s->kind = SCATTER_BSDF;
-    s->bsdf = *bsdf;
+    s->bsdf = bsdf;
     /* once per vertex (or per material, when fixed): every sample and evaluation below reuses it */
-    if (prepared) s->prep = *prepared;
-    else bsdf_prepare(bsdf, &s->prep);
-    s->transmissive = bsdf_prepared_has_transmission(&s->prep);
+    if (!prepared) {
+        bsdf_prepare(bsdf, &s->prep_own);
+        prepared = &s->prep_own;
+    }
+    s->prep = prepared;
+    s->transmissive = bsdf_prepared_has_transmission(s->prep);
     vec3 ng = h->ng, ns = h->ns;
     /* opaque surfaces are shaded on the side they are seen from; glass keeps +z outside */
     if (!s->transmissive && v3_dot(wo_world, ng) < 0.0f) { ng = v3_neg(ng); ns = v3_neg(ns); }
@@ -90,7 +93,7 @@ int scatter_sample(const Scatter *s, float u_lobe, float u1, float u2, ScatterSa
         return 1;
     }
     BsdfSample bs;
-    if (!bsdf_prepared_sample(&s->prep, s->wo, u_lobe, u1, u2, &bs)) return 0;
+    if (!bsdf_prepared_sample(s->prep, s->wo, u_lobe, u1, u2, &bs)) return 0;
     vec3 wi = v3_renormalize(frame_to_world(&s->frame, bs.wi));
     float side_g = v3_dot(wi, s->ng);
     if (!(side_g * bs.wi.z > 0.0f) || !(bs.pdf > 0.0f)) return 0;
@@ -102,7 +105,7 @@ int scatter_sample(const Scatter *s, float u_lobe, float u1, float u2, ScatterSa
     out->rr_factor = 1.0f;
     if (bs.flags & BSDF_TRANSMISSION) {
         /* radiance is scaled by 1/eta^2 across refraction; the roulette looks through it */
-        float eta = s->bsdf.ior;
+        float eta = s->bsdf->ior;
         out->rr_factor = s->wo_outside ? eta * eta : 1.0f / (eta * eta);
     }
     out->scatter_pdf = bs.pdf;
@@ -122,11 +125,11 @@ static vec3 function_eval(const Scatter *s, vec3 wi, float *pdf) {
     float side_g = v3_dot(wi, s->ng);
     *pdf = 0.0f;
     if (!(side_g * wi_l.z > 0.0f)) return v3s(0.0f);
-    return v3_scale(bsdf_prepared_eval_pdf(&s->prep, s->wo, wi_l, pdf), fabsf(wi_l.z));
+    return v3_scale(bsdf_prepared_eval_pdf(s->prep, s->wo, wi_l, pdf), fabsf(wi_l.z));
 }
 
 int scatter_guidable(const Scatter *s) {
-    return s->kind == SCATTER_PHASE ? fabsf(s->g) < SCATTER_PHASE_GUIDE_MAX_G : bsdf_prepared_guidable(&s->prep);
+    return s->kind == SCATTER_PHASE ? fabsf(s->g) < SCATTER_PHASE_GUIDE_MAX_G : bsdf_prepared_guidable(s->prep);
 }
 
 void scatter_set_guide(Scatter *s, const GuideDistribution *d, ScatterGuideMode mode) {
@@ -227,7 +230,7 @@ int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out
         vec3 wi_l = frame_to_local(&s->frame, out->wi);
         out->transmitted = (wi_l.z > 0.0f) != (s->wo.z > 0.0f);
         if (out->transmitted) {
-            float eta = s->bsdf.ior;
+            float eta = s->bsdf->ior;
             out->rr_factor *= s->wo_outside ? eta * eta : 1.0f / (eta * eta);
         }
     }

@@ -43,8 +43,13 @@ typedef struct Scatter {
                         * surface transmits) */
     vec3 ng;           /* geometric normal, turned like frame.n */
     vec3 wo;           /* outgoing direction in the local frame */
-    BsdfParams bsdf;
-    BsdfPrepared prep; /* bsdf's derived constants (bsdf_prepare), computed once per vertex */
+    /* the caller's BSDF parameters and their derived constants (the material's, prepared at
+     * load, or prep_own, computed here once per vertex): pointed to, not copied (the copy
+     * had stalled on the parameters just written field by field); both outlive the Scatter,
+     * which is never copied */
+    const BsdfParams *bsdf;
+    const BsdfPrepared *prep;
+    BsdfPrepared prep_own;
     int transmissive;  /* has a transmission lobe: receives light from both sides */
     int wo_outside;    /* wo is on the geometric normal's side (refraction enters the surface) */
     const GuideDistribution *guide; /* the learned incident radiance here (NULL: not guided) */
@@ -71,7 +76,7 @@ void scatter_init_surface_prepared(Scatter *s, const SurfaceHit *h, const BsdfPa
                                    const BsdfPrepared *prepared, vec3 wo_world);
 /* Whether sampling reads its lobe-choice number: a BSDF with more than one lobe (a Lambert-only
  * one and the phase function ignore it, so a caller may pass 0 instead of drawing it). */
-static inline int scatter_uses_lobe_u(const Scatter *s) { return s->kind == SCATTER_BSDF && !s->prep.lambert; }
+static inline int scatter_uses_lobe_u(const Scatter *s) { return s->kind == SCATTER_BSDF && !s->prep->lambert; }
 /* A medium's Henyey-Greenstein phase function at a scattering point seen from wo_world. */
 void scatter_init_phase(Scatter *s, float g, vec3 wo_world);
 /* 1 if a direction was sampled (u_lobe picks a lobe, u1 and u2 the direction in it). Never
@@ -91,7 +96,7 @@ void scatter_set_guide(Scatter *s, const GuideDistribution *d, ScatterGuideMode 
  * light's NEE needs no MIS weight: a guided Scatter then skips its guide's pdf). */
 vec3 scatter_eval(const Scatter *s, vec3 wi, float *pdf);
 /* 1 if every lobe is a delta: no direction can be evaluated, so NEE is useless. */
-static inline int scatter_is_delta(const Scatter *s) { return s->kind == SCATTER_BSDF && bsdf_prepared_is_delta(&s->prep); }
+static inline int scatter_is_delta(const Scatter *s) { return s->kind == SCATTER_BSDF && bsdf_prepared_is_delta(s->prep); }
 /* The normal of the light-selection context: the shading normal, or zero (an omnidirectional
  * receiver, as in a medium) for a surface that transmits light from both sides. */
 static inline vec3 scatter_light_normal(const Scatter *s) {

@@ -46,7 +46,7 @@ void scatter_light_lobe(const Scatter *s, LightLobe *lobe) {
     if (s->kind != SCATTER_BSDF || s->transmissive) return; /* transmissive: fluence, no normal */
     float cos_o = s->wo.z;
     if (!(cos_o > 0.0f)) return;
-    const BsdfParams *p = &s->bsdf;
+    const BsdfParams *p = s->bsdf;
     float m = clamp01(p->metallic, 0.0f), t = clamp01(p->transmission, 0.0f);
     float spec = clamp01(p->specular, 0.0f), r = clamp01(p->roughness, 1.0f);
     float coat = clamp01(p->clearcoat, 0.0f), rc = clamp01(p->clearcoat_roughness, 0.0f);
