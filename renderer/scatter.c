@@ -17,7 +17,7 @@
  * tilt, crossing t once, at 2a = phi + acos(t / A): the least bending that makes it valid. */
 static vec3 shading_normal_valid_for(vec3 ng, vec3 ns, vec3 wo) {
     float wz = v3_dot(ng, wo);
-    float t = fminf(0.9f * wz, 0.01f);
+    float t = 0.9f * wz < 0.01f ? 0.9f * wz : 0.01f; /* fminf(0.9 wz, 0.01) (NaN: 0.01) without the libm call */
     float won = v3_dot(ns, wo);
     vec3 r = v3_sub(v3_scale(ns, 2.0f * won), wo);
     if (v3_dot(ng, r) >= t) return ns;
