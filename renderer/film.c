@@ -33,11 +33,9 @@ void film_free(Film *f) {
 
 static inline void add3(double *sum, vec3 v) { sum[0] += v.x; sum[1] += v.y; sum[2] += v.z; }
 
-/* The paths whose pixel is in [px_begin, px_end), in path order. */
-static void film_add_pixel_range(Film *f, const PathState *ps, uint32_t count, uint32_t px_begin, uint32_t px_end) {
+void film_add_paths(Film *f, const PathState *ps, uint32_t count) {
     for (uint32_t i = 0; i < count; ++i) {
         uint32_t px = ps->pixel[i];
-        if (px < px_begin || px >= px_end) continue;
         vec3 L = ps->radiance[i];
         if (!v3_is_finite(L)) L = v3s(0.0f); /* never reached in tests; keeps one bad path from poisoning a pixel */
         add3(f->sum + 3 * (size_t)px, L);
@@ -60,28 +58,6 @@ static void film_add_pixel_range(Film *f, const PathState *ps, uint32_t count, u
             }
         }
     }
-}
-
-typedef struct FilmAddCtx { Film *f; const PathState *ps; uint32_t count, parts; } FilmAddCtx;
-
-static void film_add_part(void *vctx, size_t b, size_t e, int thread) {
-    (void)thread;
-    const FilmAddCtx *c = vctx;
-    size_t n = (size_t)c->f->width * (size_t)c->f->height;
-    for (size_t k = b; k < e; ++k)
-        film_add_pixel_range(c->f, c->ps, c->count, (uint32_t)(n * k / c->parts), (uint32_t)(n * (k + 1) / c->parts));
-}
-
-void film_add_paths(Film *f, const PathState *ps, uint32_t count, ThreadPool *pool) {
-    /* each thread owns a range of pixels and adds their paths in path order: every pixel sums
-     * its samples in sample order, whatever the thread count */
-    uint32_t parts = pool ? (uint32_t)threadpool_size(pool) : 1u;
-    if (parts <= 1) {
-        film_add_pixel_range(f, ps, count, 0, UINT32_MAX);
-        return;
-    }
-    FilmAddCtx c = {f, ps, count, parts};
-    threadpool_parallel_for(pool, parts, 1, film_add_part, &c);
 }
 
 int film_resolve(const Film *f, CandelaImage *img) {

@@ -53,9 +53,8 @@ typedef struct Film {
 int film_alloc(Film *f, int width, int height);
 void film_free(Film *f);
 /* Adds paths [0, count) of the batch, in path order, so every pixel sums its samples in
- * sample order whatever the batch size or thread count (on the pool: a range of pixels per
- * thread). */
-void film_add_paths(Film *f, const PathState *ps, uint32_t count, ThreadPool *pool);
+ * sample order whatever the batch size or thread count. */
+void film_add_paths(Film *f, const PathState *ps, uint32_t count);
 /* Mean, variance of the mean (sample variance / n) and AOVs. 0 ok, -1 out of memory. */
 int film_resolve(const Film *f, CandelaImage *img);
 

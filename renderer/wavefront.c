@@ -93,9 +93,9 @@ void integrator_run_batch(Integrator *ig, ThreadPool *pool, CandelaStats *st) {
     guide_train_batch(ig);
     inscatter_probe_batch(ig, slices, n);
     emission_probe_batch(ig, slices, n);
-    /* film: every pixel sums its samples in sample order (a pixel range per thread) */
+    /* film: serial, in path order, so every pixel sums its samples in sample order */
     double t = clock_seconds();
-    film_add_paths(&ig->film, &ig->ps, ig->batch_count, pool);
+    film_add_paths(&ig->film, &ig->ps, ig->batch_count);
     st->time_film += clock_seconds() - t;
 }
 
