@@ -64,7 +64,9 @@ void scene_occluded_masked(const Scene *scene, const SceneRay *rays, const uint3
         unsigned m = n - s < SCENE_RAY_PACKET ? n - s : SCENE_RAY_PACKET;
         for (unsigned k = 0; k < m; ++k)
             fill_ray(&r[k], &rays[items ? items[s + k] : s + k], k, masks ? masks[s + k] : MASK_SURFACES);
-        rtcOccluded1M(scene->top, &ictx, r, m, sizeof(struct RTCRay));
+        /* one call a ray: incoherent shadow rays gain nothing from the stream interface, whose
+         * bookkeeping cost about 3 % of the shadow stage (bench.gltf, 1 thread, min of 5) */
+        for (unsigned k = 0; k < m; ++k) rtcOccluded1(scene->top, &ictx, &r[k]);
         for (unsigned k = 0; k < m; ++k) occluded[s + k] = !(r[k].tfar >= 0.0f); /* tfar = -inf when occluded */
     }
 }
