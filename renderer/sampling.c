@@ -222,11 +222,10 @@ void dist1d_free(Distribution1D *d) {
     d->func_int = 0.0f;
 }
 
-/* Largest i in [0, n-1] with cdf[i] <= u (cells of zero probability are never returned for
- * u in [0,1), because their start equals the next cell's start). */
-/* The last cell whose cdf is <= u (the cdf is non-decreasing from cdf[0] = 0): a binary search
- * whose step count depends on n only and whose step is a conditional move, not a branch on
- * the random u. */
+/* Largest i in [0, n-1] with cdf[i] <= u (the cdf is non-decreasing from cdf[0] = 0; cells of
+ * zero probability are never returned for u in [0,1), because their start equals the next
+ * cell's start): a binary search whose step count depends on n only and whose step is a
+ * conditional move, not a branch on the random u. */
 static uint32_t find_cell(const Distribution1D *d, float u) {
     uint32_t lo = 0, len = d->n;
     while (len > 1) {

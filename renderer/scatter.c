@@ -71,6 +71,8 @@ void scatter_init_phase(Scatter *s, float g, vec3 wo_world) {
     s->guide = NULL;
     s->guide_mode = SCATTER_GUIDE_NONE;
     s->kind = SCATTER_PHASE;
+    s->bsdf = NULL;
+    s->prep = NULL;
     s->g = g;
     s->wo_world = wo_world;
     s->transmissive = 0;
