@@ -14,6 +14,19 @@
 #include "integrator.h"
 #include "sort.h"
 
+/* One LSD pass: the pairs scattered from (k_in, v_in) to (k_out, v_out) by the digit
+ * (key >> shift) & (buckets - 1), whose histogram count[] holds; stable. */
+static void radix_pass(const uint64_t *k_in, const uint32_t *v_in, uint64_t *k_out, uint32_t *v_out, uint32_t n,
+                       int shift, uint32_t *count, uint32_t buckets) {
+    uint32_t sum = 0;
+    for (uint32_t b = 0; b < buckets; ++b) { uint32_t c = count[b]; count[b] = sum; sum += c; }
+    for (uint32_t i = 0; i < n; ++i) {
+        uint32_t dst = count[(k_in[i] >> shift) & (buckets - 1)]++;
+        k_out[dst] = k_in[i];
+        v_out[dst] = v_in[i];
+    }
+}
+
 /* LSD radix sort of (key, item) pairs, 11 bits a pass; digits that are the same in every key
  * are skipped. keys_tmp / items_tmp are scratch of length n. */
 #define RADIX_BITS 11
@@ -30,13 +43,7 @@ void radix_sort_pairs(uint32_t *items, uint64_t *keys, uint32_t n, uint64_t *key
         if (((varying >> shift) & (RADIX_BUCKETS - 1)) == 0) continue;
         memset(count, 0, sizeof count);
         for (uint32_t i = 0; i < n; ++i) count[(k_in[i] >> shift) & (RADIX_BUCKETS - 1)]++;
-        uint32_t sum = 0;
-        for (uint32_t b = 0; b < RADIX_BUCKETS; ++b) { uint32_t c = count[b]; count[b] = sum; sum += c; }
-        for (uint32_t i = 0; i < n; ++i) {
-            uint32_t dst = count[(k_in[i] >> shift) & (RADIX_BUCKETS - 1)]++;
-            k_out[dst] = k_in[i];
-            v_out[dst] = v_in[i];
-        }
+        radix_pass(k_in, v_in, k_out, v_out, n, shift, count, RADIX_BUCKETS);
         uint64_t *tk = k_in; k_in = k_out; k_out = tk;
         uint32_t *tv = v_in; v_in = v_out; v_out = tv;
     }
@@ -71,14 +78,7 @@ static void radix_sort_queue(uint32_t *items, uint64_t *keys, uint32_t n, uint64
     uint64_t *k_in = keys, *k_out = keys_tmp;
     uint32_t *v_in = items, *v_out = items_tmp;
     for (int k = 0; k < passes; ++k) {
-        uint32_t sum = 0, *c = count[k];
-        for (uint32_t b = 0; b < QUEUE_BUCKETS; ++b) { uint32_t x = c[b]; c[b] = sum; sum += x; }
-        const int shift = shifts[k];
-        for (uint32_t i = 0; i < n; ++i) {
-            uint32_t dst = c[(k_in[i] >> shift) & (QUEUE_BUCKETS - 1)]++;
-            k_out[dst] = k_in[i];
-            v_out[dst] = v_in[i];
-        }
+        radix_pass(k_in, v_in, k_out, v_out, n, shifts[k], count[k], QUEUE_BUCKETS);
         uint64_t *tk = k_in; k_in = k_out; k_out = tk;
         uint32_t *tv = v_in; v_in = v_out; v_out = tv;
     }
