@@ -27,6 +27,12 @@ typedef enum {
     CANDELA_GUIDING_RIS = 2  /* RIS with one BSDF and one guide candidate (ch. 1 §3.3) */
 } CandelaGuiding;
 
+/* --sampler: where the numbers of a path's fixed dimensions come from (renderer/sequence.h). */
+typedef enum CandelaSampler {
+    CANDELA_SAMPLER_SOBOL = 0,       /* Owen-scrambled Sobol' (Burley 2020), the default */
+    CANDELA_SAMPLER_INDEPENDENT = 1  /* independent hashed uniforms (the renders before Sobol') */
+} CandelaSampler;
+
 typedef enum {
     CANDELA_LIGHT_UNITS_BLENDER = 0, /* point/spot W/sr = cd/683, sun W/m^2 = lux/683 */
     CANDELA_LIGHT_UNITS_RAW = 1      /* intensities are already radiometric */
@@ -95,6 +101,7 @@ typedef struct CandelaOptions {
     const char *confine_dir;
     uint32_t texture_budget_mb; /* decoded textures in total (8-bit files 4 B/texel, others 16); 0: no limit */
     CandelaGuiding guiding;
+    CandelaSampler sampler;     /* --sampler */
     const char *guide_dump_prefix; /* candela guide-dump: write the learned field at guide_dump_at */
     float guide_dump_at[3];
     float guide_spatial_threshold; /* PPG's c: a leaf splits past c sqrt(spp of the iteration); 0: default */
@@ -145,6 +152,7 @@ int candela_options_check(const CandelaOptions *o, char err[CANDELA_ERR_LEN]);
 void candela_options_default(CandelaOptions *o);
 /* "uniform", "power", "tree", "optimal", "cachepoints", "auto" */
 const char *candela_light_sampler_name(CandelaLightSampler s);
+const char *candela_sampler_name(CandelaSampler s); /* "sobol", "independent" */
 int candela_light_sampler_parse(const char *name, CandelaLightSampler *s); /* 0 ok */
 
 /* Wall-clock seconds per wavefront stage, summed over threads' shared wall time. */

@@ -101,8 +101,9 @@ int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t
     if (n >= 0 && (size_t)n < sizeof id->text) /* progressive insertion */
         n += snprintf(id->text + n, sizeof id->text - (size_t)n, " cachepoint_progressive=%d budget=%a",
                       o->cachepoint_progressive, (double)o->cachepoint_progressive_budget);
-    if (n >= 0 && (size_t)n < sizeof id->text) /* --cachepoint-bsdf */
-        n += snprintf(id->text + n, sizeof id->text - (size_t)n, " cachepoint_bsdf=%d", o->cachepoint_bsdf);
+    if (n >= 0 && (size_t)n < sizeof id->text) /* --cachepoint-bsdf, --sampler */
+        n += snprintf(id->text + n, sizeof id->text - (size_t)n, " cachepoint_bsdf=%d sampler=%s", o->cachepoint_bsdf,
+                      candela_sampler_name(o->sampler));
     if (n < 0 || (size_t)n >= sizeof id->text) {
         snprintf(err, CANDELA_ERR_LEN, "%s: the render's options are too long for a checkpoint (camera or --env name)",
                  o->scene_path);

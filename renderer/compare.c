@@ -356,8 +356,10 @@ static void reference_key(const CandelaOptions *o, char *key, size_t size) {
     size_t len = strlen(key);
     if (len > 0 && len < size) snprintf(key + len - 1, size - len + 1, "; env rotation %.9g; light model %d; material model %d\n",
                                              o->env_rotation_deg, (int)o->light_model, (int)o->material_model);
-    len = strlen(key); /* --cachepoint-bsdf */
-    if (len > 0 && len < size) snprintf(key + len - 1, size - len + 1, "; cachepoint bsdf %d\n", o->cachepoint_bsdf);
+    len = strlen(key); /* --cachepoint-bsdf, --sampler */
+    if (len > 0 && len < size)
+        snprintf(key + len - 1, size - len + 1, "; cachepoint bsdf %d; sequence %s\n", o->cachepoint_bsdf,
+                 candela_sampler_name(o->sampler));
 }
 
 /* The cached reference when OUT/reference.key matches key (and its render time), else -1. */

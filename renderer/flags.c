@@ -120,6 +120,10 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
         if ((rc = parse_choice(a, v, ON_OFF_AUTO, ON_OFF_AUTO_VALUES, &c, NULL, err)) == 0) o->volume_emission_sampling = c;
     } else if (strcmp(a, "--volume-cachepoint-scatter") == 0) {
         if ((rc = parse_choice(a, v, ON_OFF_AUTO, ON_OFF_AUTO_VALUES, &c, NULL, err)) == 0) o->volume_inscatter_sampling = c;
+    } else if (strcmp(a, "--sampler") == 0) {
+        static const char *const names[] = {"sobol", "independent", NULL};
+        static const int values[] = {CANDELA_SAMPLER_SOBOL, CANDELA_SAMPLER_INDEPENDENT};
+        if ((rc = parse_choice(a, v, names, values, &c, "sampler", err)) == 0) o->sampler = (CandelaSampler)c;
     } else if (strcmp(a, "--guiding") == 0) {
         static const char *const names[] = {"off", "mis", "ris", NULL};
         static const int values[] = {CANDELA_GUIDING_OFF, CANDELA_GUIDING_MIS, CANDELA_GUIDING_RIS};

@@ -36,6 +36,7 @@
 #include "media.h"
 #include "path_state.h"
 #include "scene.h"
+#include "sequence.h"
 #include "threads.h"
 
 /* Per-pixel sums over the render (double: thousands of samples per pixel). */
@@ -132,6 +133,8 @@ typedef struct Integrator {
      * NEE samples its emission (on: all; auto: decided after a probe, auto_probe.c) */
     AutoProbe inscatter_auto, emission_auto;
     PathState ps;
+    SobolTables sobol_tables;
+    const SobolTables *sobol; /* --sampler sobol: &sobol_tables; NULL: independent numbers */
     /* queue storage for the whole batch; a slice uses its own [begin, end) part of each */
     uint32_t *queue_rays, *queue_hits, *queue_escaped, *queue_shadows;
     uint64_t *sort_keys, *sort_keys_tmp;
@@ -284,6 +287,12 @@ static inline void path_end(const Integrator *ig, Slice *s, uint32_t p) {
         record_done(ig, s, p, ig->ps.pv[p]);
         ig->ps.pv[p] = PV_CAMERA;
     }
+}
+
+/* What path p draws its fixed dimensions with (sequence.h: dims_camera, dims_bounce). */
+static inline PathDims path_dims(const Integrator *ig, uint32_t p) {
+    PathDims d = {ig->ps.rng_key[p], ig->sobol, ig->ps.scramble[p], ig->ps.sample_rindex[p]};
+    return d;
 }
 
 /* The first-hit AOVs of a path (written once, at depth 0). */

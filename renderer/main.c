@@ -49,6 +49,8 @@ static const char *USAGE =
     "                            sums to -o NAME.film (no EXR); candela merge combines the N films\n"
     "  --spp N                   samples per pixel (default 16)\n"
     "  --seed S                  random seed (default 0)\n"
+    "  --sampler sobol|independent  the numbers of each path: Owen-scrambled Sobol' points\n"
+    "                            (default) or independent uniforms (the renders before 0.2)\n"
     "  --res WxH                 resolution (default: 640 wide, camera aspect)\n"
     "  --threads N               worker threads (default: all cores)\n"
     "  --max-depth N             maximum surface bounces; 1 = direct light only (default 8)\n"

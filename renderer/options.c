@@ -22,6 +22,10 @@ void candela_options_default(CandelaOptions *o) {
     o->cachepoint_bsdf = 1;           /* BSDF-aware cache point selection at glossy vertices (README) */
 }
 
+const char *candela_sampler_name(CandelaSampler s) {
+    return s == CANDELA_SAMPLER_INDEPENDENT ? "independent" : s == CANDELA_SAMPLER_SOBOL ? "sobol" : "unknown";
+}
+
 static const char *const LIGHT_SAMPLER_NAMES[] = {"uniform", "power", "tree", "optimal", "cachepoints", "auto"};
 
 const char *candela_light_sampler_name(CandelaLightSampler s) {

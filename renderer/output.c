@@ -99,6 +99,7 @@ static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s) 
     json_string(f, o->scene_path);
     fprintf(f, ",\n  \"spp\": %d,\n  \"seed\": %llu,\n  \"max_depth\": %d,\n", o->spp, (unsigned long long)o->seed,
             o->max_depth);
+    fprintf(f, "  \"sampler\": \"%s\",\n", candela_sampler_name(o->sampler));
     fprintf(f, "  \"light_sampler\": \"%s\",\n", candela_light_sampler_name(o->light_sampler));
     fprintf(f, "  \"light_sampler_used\": \"%s\",\n", candela_light_sampler_name(s->light_sampler_used));
     fprintf(f, "  \"time_seconds\": {\"load\": %.6f, \"build\": %.6f, \"generate\": %.6f, \"sort\": %.6f, "

@@ -7,10 +7,8 @@
  * where prefetch says whether surface shading, which visits slots in a random order (hits are
  * sorted by primitive), fetches the member ahead: R (read), W (written), N (not).
  *
- * Where what is coming plugs in: a radiance-recorder vertex handle (PVIndex) for path guiding
- * is one member in the "path" group; the volume walk, which draws an unbounded number of random numbers per
- * bounce, uses a sub-stream keyed by (rng_key, depth) (rng.h: rng_stream), so it needs no
- * member at all. */
+ * The volume walk, which draws an unbounded number of random numbers per bounce, uses a
+ * sub-stream keyed by (rng_key, depth) (rng.h: rng_stream), so it needs no member at all. */
 #ifndef CANDELA_PATH_STATE_H
 #define CANDELA_PATH_STATE_H
 
@@ -24,6 +22,8 @@
     /* -- path: identity and accumulation */                                                     \
     F(uint64_t, rng_key, R)         /* counter-based RNG key: (seed, pixel, sample) */           \
     F(uint32_t, pixel, N)           /* the film pixel the path belongs to */                     \
+    F(uint32_t, sample_rindex, R)   /* its sample's index within the pixel, bit-reversed (sequence.h) */ \
+    F(uint32_t, scramble, R)        /* the pixel's Sobol' seed (sequence.h) */                  \
     F(uint32_t, depth, W)           /* the vertex the path shades next: 0 = the camera ray's hit */ \
     F(uint32_t, volume_bounces, W)  /* how many of its vertices so far were in media */          \
     F(uint32_t, medium, W)          /* the mesh medium its ray travels in (media.h; 0: none) */  \

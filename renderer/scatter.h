@@ -17,6 +17,7 @@
 #include "guiding.h"
 #include "lights.h"
 #include "scene.h"
+#include "sequence.h"
 #include "vecmath.h"
 
 typedef enum { SCATTER_BSDF = 0, SCATTER_PHASE = 1 } ScatterKind;
@@ -85,6 +86,19 @@ int scatter_sample(const Scatter *s, float u_lobe, float u1, float u2, ScatterSa
 /* The same with the guide when there is one: u[0..2] as above, u[3], u[4] the guide's
  * direction, u[5] the choice between the two (MIS) or between the candidates (RIS). */
 int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out);
+/* The six numbers of scatter_sample_guided from the vertex's scatter group (DIMS_SCATTER: u, v,
+ * lobe, roulette) and, when the scatter is guided, its guide group (u, v, choice); the lobe
+ * number only where there is a lobe to choose (the others ignore it). */
+static inline void scatter_numbers(const Scatter *s, const DimsGroup *scatter, float u[6]) {
+    u[0] = scatter_uses_lobe_u(s) ? dims_lane(scatter, 2) : 0.0f;
+    u[1] = dims_lane(scatter, 0);
+    u[2] = dims_lane(scatter, 1);
+    u[3] = u[4] = u[5] = 0.0f;
+    if (s->guide) {
+        DimsGroup guide = dims_group(scatter->dims, scatter->depth, DIMS_GUIDE);
+        for (uint32_t l = 0; l < 3; ++l) u[3 + l] = dims_lane(&guide, l);
+    }
+}
 /* 1 where guiding may help (ch. 1 §3.1): surfaces with a lobe rougher than 0.05 and no delta
  * lobe, media with |g| < 0.95. Ask before looking the guide up: the lookup is a tree descent. */
 int scatter_guidable(const Scatter *s);

@@ -1,5 +1,6 @@
 /* renderer/stage_generate.c: camera rays. Path j of the iteration is pixel j mod npixels,
- * sample sample_base + j / npixels; its RNG key is a function of (seed, pixel, sample). */
+ * sample sample_base + j / npixels; its numbers are functions of (seed, pixel, sample)
+ * (sequence.h). */
 #include "integrator.h"
 #include "rng.h"
 
@@ -14,6 +15,8 @@ void stage_generate(const Integrator *ig, Slice *s) {
         uint64_t key = rng_path_key(ig->opt->seed, pixel, sample);
         ps->rng_key[p] = key;
         ps->pixel[p] = pixel;
+        ps->sample_rindex[p] = sequence_reverse_bits((uint32_t)sample); /* below 2^24: --spp is at most 2^20 */
+        ps->scramble[p] = ig->sobol ? sequence_pixel_scramble(ig->opt->seed, pixel) : 0;
         ps->depth[p] = 0;
         ps->volume_bounces[p] = 0;
         ps->medium[p] = ig->camera_medium;
@@ -22,8 +25,9 @@ void stage_generate(const Integrator *ig, Slice *s) {
         ps->probe_null[p] = ps->probe_mis[p] = ps->probe_cost[p] = 0.0f;
         ps->probe_em_medium[p] = 0;
         ps->probe_em_on[p] = ps->probe_em_off[p] = ps->probe_em_cost[p] = 0.0f;
-        float fx = (float)(pixel % (uint32_t)cam->width) + rng_uniform(key, RNG_DIM_PIXEL_X);
-        float fy = (float)(pixel / (uint32_t)cam->width) + rng_uniform(key, RNG_DIM_PIXEL_Y);
+        PathDims dims = path_dims(ig, p);
+        float fx = (float)(pixel % (uint32_t)cam->width) + dims_camera(&dims, RNG_DIM_PIXEL_X);
+        float fy = (float)(pixel / (uint32_t)cam->width) + dims_camera(&dims, RNG_DIM_PIXEL_Y);
         vec3 o, d;
         camera_generate_ray(cam, fx, fy, &o, &d);
         ps->ray[p] = (SceneRay){o, 0.0f, d, INFINITY};

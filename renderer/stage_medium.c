@@ -188,19 +188,16 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
             float c = medium_direct_light(ig, s, p, x, &sc, &lc, w, ev.t);
             if (inscatter) inscatter_probe_null(ig, p, c, w);
         }
-        uint64_t key = ps->rng_key[p];
+        PathDims dims = path_dims(ig, p);
         ScatterSample ss;
-        const float u[6] = {rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_LOBE)),
-                            rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_U)),
-                            rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_V)),
-                            sc.guide ? rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_GUIDE_U)) : 0.0f,
-                            sc.guide ? rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_GUIDE_V)) : 0.0f,
-                            sc.guide ? rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_GUIDE_CHOICE)) : 0.0f};
+        DimsGroup g = dims_group(&dims, depth, DIMS_SCATTER); /* the direction's u, v, the lobe, the roulette */
+        float u[6];
+        scatter_numbers(&sc, &g, u);
         if (!scatter_sample_guided(&sc, u, &ss)) return WALK_ENDED;
         beta = v3_mul(beta, ss.weight);
         ps->rr_scale[p] *= ss.rr_factor;
         if (depth + 1 >= RR_START_DEPTH &&
-            !russian_roulette(&beta, ps->rr_scale[p], rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_RR))))
+            !russian_roulette(&beta, ps->rr_scale[p], dims_lane(&g, 3)))
             return WALK_ENDED;
         ps->throughput[p] = beta;
         if (ig->record.active) { /* the continuation's vertex; the scattering event is done with the incoming one */

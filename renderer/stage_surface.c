@@ -118,12 +118,12 @@ static int light_sample_uses_u(const Light *l) {
     return light_is_shape(l) || !(l->type == LIGHT_POINT || l->type == LIGHT_SPOT || l->type == LIGHT_DIRECTIONAL);
 }
 
-/* direct_light_sample_u with the light's four numbers given (u_light) or, when u_light is NULL,
- * drawn from the path's dimensions only if the selected light uses them: the same numbers
- * either way, so the same estimate. */
+/* direct_light_sample_u with the light's four numbers given (u_light) or, with the vertex's light
+ * group, drawn from the path's dimensions only if the selected light uses them: the same
+ * numbers either way, so the same estimate. */
 static int direct_light_sample_core(const Integrator *ig, vec3 beta, const Scatter *sc, const LightSampleContext *lc,
-                                    float u_select, float u_descend, const float *u_light, uint64_t key,
-                                    uint32_t depth, LightLiSample *ls, vec3 *contrib, uint32_t *outcome) {
+                                    float u_select, float u_descend, const float *u_light, const DimsGroup *group,
+                                    LightLiSample *ls, vec3 *contrib, uint32_t *outcome) {
     float pmf;
     uint32_t li = light_sampler_select(ig->light_sampler, lc, u_select, u_descend, &pmf, outcome);
     ls->light = pmf > 0.0f ? li : UINT32_MAX;
@@ -136,13 +136,13 @@ static int direct_light_sample_core(const Integrator *ig, vec3 beta, const Scatt
     /* an emissive volume whose emission sampling is off (auto): found by tracking alone */
     if (light->type == LIGHT_VOLUME && !ig->emission_auto.on[light->medium]) return 0;
     float u[4] = {0.0f, 0.0f, 0.0f, 0.0f};
-    if (u_light) {
+    if (!group) {
         for (int k = 0; k < 4; ++k) u[k] = u_light[k];
     } else if (light_sample_uses_u(light)) {
-        u[0] = rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_U));
-        u[1] = rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_V));
-        u[2] = rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_W));
-        u[3] = rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_X));
+        u[0] = dims_lane(group, 0);
+        u[1] = dims_lane(group, 1);
+        u[2] = dims_lane(group, 3);
+        u[3] = dims_bounce(group->dims, group->depth, RNG_BOUNCE_LIGHT_X);
     }
     uint64_t collisions = lc->stats ? lc->stats->collisions : 0;
     int ok = light_sample_li(ig->lights, light, lc, u[0], u[1], u[2], u[3], ls);
@@ -161,20 +161,20 @@ static int direct_light_sample_core(const Integrator *ig, vec3 beta, const Scatt
 
 int direct_light_sample_u(const Integrator *ig, vec3 beta, const Scatter *sc, const LightSampleContext *lc,
                           const float u[6], LightLiSample *ls, vec3 *contrib, uint32_t *outcome) {
-    return direct_light_sample_core(ig, beta, sc, lc, u[0], u[1], u + 2, 0, 0, ls, contrib, outcome);
+    return direct_light_sample_core(ig, beta, sc, lc, u[0], u[1], u + 2, NULL, ls, contrib, outcome);
 }
 
 int direct_light_sample(const Integrator *ig, uint32_t p, const Scatter *sc, const LightSampleContext *lc,
                         LightLiSample *ls, vec3 *contrib, uint32_t *outcome) {
     const PathState *ps = &ig->ps;
-    uint64_t key = ps->rng_key[p];
+    PathDims dims = path_dims(ig, p);
     uint32_t depth = ps->depth[p];
+    DimsGroup light = dims_group(&dims, depth, DIMS_LIGHT); /* the light's u, v, the selection, the light's w */
     /* the descent number only for a sampler that reads it (the others ignore it) */
-    float u_descend = light_sampler_uses_descend(ig->light_sampler)
-                          ? rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_DESCEND)) : 0.0f;
-    return direct_light_sample_core(ig, ps->throughput[p], sc, lc,
-                                    rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_LIGHT_SELECT)), u_descend,
-                                    NULL, key, depth, ls, contrib, outcome);
+    float u_descend = light_sampler_uses_descend(ig->light_sampler) ? dims_bounce(&dims, depth, RNG_BOUNCE_LIGHT_DESCEND)
+                                                                     : 0.0f;
+    return direct_light_sample_core(ig, ps->throughput[p], sc, lc, dims_lane(&light, 2), u_descend, NULL, &light, ls,
+                                    contrib, outcome);
 }
 
 /* Next-event estimation from the vertex: the MIS-weighted contribution pending on a shadow ray
@@ -223,23 +223,18 @@ static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, con
 static int surface_continuation(const Integrator *ig, Slice *s, uint32_t p, const SurfaceHit *h,
                                  const Scatter *sc, const LightSampleContext *lc) {
     const PathState *ps = &ig->ps;
-    uint64_t key = ps->rng_key[p];
+    PathDims dims = path_dims(ig, p);
     uint32_t depth = ps->depth[p];
     ScatterSample ss;
-    /* the lobe number only where there is a lobe to choose (the others ignore it) */
-    if (!scatter_sample_guided(sc, (const float[6]){scatter_uses_lobe_u(sc) ? rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_LOBE)) : 0.0f,
-                                                    rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_U)),
-                                                    rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_BSDF_V)),
-                                                    sc->guide ? rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_GUIDE_U)) : 0.0f,
-                                                    sc->guide ? rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_GUIDE_V)) : 0.0f,
-                                                    sc->guide ? rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_GUIDE_CHOICE)) : 0.0f},
-                               &ss))
-        return 0;
+    DimsGroup g = dims_group(&dims, depth, DIMS_SCATTER); /* the direction's u, v, the lobe, the roulette */
+    float u[6];
+    scatter_numbers(sc, &g, u);
+    if (!scatter_sample_guided(sc, u, &ss)) return 0;
     vec3 beta = v3_mul(ps->throughput[p], ss.weight);
     ps->rr_scale[p] *= ss.rr_factor;
     if (!v3_is_finite(beta) || v3_is_black(beta)) return 0;
     if (depth + 1 >= RR_START_DEPTH &&
-        !russian_roulette(&beta, ps->rr_scale[p], rng_uniform(key, rng_bounce_dim(depth, RNG_BOUNCE_RR))))
+        !russian_roulette(&beta, ps->rr_scale[p], dims_lane(&g, 3)))
         return 0;
     ps->throughput[p] = beta;
     if (ss.transmitted) ps->medium[p] = side_medium(ig, p, h, ss.wi);

@@ -121,6 +121,10 @@ int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene,
     ig->inscatter = o->volume_inscatter_sampling != 0 && media_any(media) && lights->count > 0 &&
                     light_sampler_has_inscatter(sampler);
     ig->npixels = (uint32_t)scene->camera.width * (uint32_t)scene->camera.height;
+    if (o->sampler == CANDELA_SAMPLER_SOBOL) {
+        sequence_tables_init(&ig->sobol_tables);
+        ig->sobol = &ig->sobol_tables;
+    }
     sort_init(ig);
     pthread_mutex_init(&ig->ray_log_mutex, NULL);
     size_t n = batch ? batch : 1;
