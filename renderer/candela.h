@@ -53,6 +53,8 @@ typedef enum {
 
 struct CandelaIterationInfo;
 
+#define CANDELA_DEFAULT_MIN_SPP 16
+
 typedef struct CandelaOptions {
     const char *scene_path;
     const char *camera_name;   /* NULL: first camera, or a default view framing the scene */
@@ -102,6 +104,19 @@ typedef struct CandelaOptions {
     uint32_t texture_budget_mb; /* decoded textures in total (8-bit files 4 B/texel, others 16); 0: no limit */
     CandelaGuiding guiding;
     CandelaSampler sampler;     /* --sampler */
+    /* adaptive sampling (--noise-threshold; 0: off): at each iteration barrier past min_spp a
+     * pixel whose estimated error (film.c: film_pixel_error) is below the threshold, and whose
+     * neighbours' are too, stops; spp stays the upper bound */
+    float noise_threshold;
+    int min_spp;                /* --min-spp: no pixel stops before this many samples (0: CANDELA_DEFAULT_MIN_SPP) */
+    double time_limit;          /* --time-limit S: stop at the first iteration barrier past S seconds of
+                                 * the render's wall time, load included (0: none; the one option whose
+                                 * image depends on the machine's speed) */
+    /* --clamp-direct / --clamp-indirect (0: off): every contribution to a path's radiance is
+     * scaled so that its largest channel is at most the limit (hue kept); direct: light that
+     * reaches the camera through at most one scattering vertex, indirect: the rest (biased) */
+    float clamp_direct, clamp_indirect;
+    int aov_spp;                /* --aov spp: the samples each pixel got, as the EXR channel "spp" */
     const char *guide_dump_prefix; /* candela guide-dump: write the learned field at guide_dump_at */
     float guide_dump_at[3];
     float guide_spatial_threshold; /* PPG's c: a leaf splits past c sqrt(spp of the iteration); 0: default */
@@ -194,6 +209,14 @@ typedef struct CandelaStats {
     uint64_t guide_samples;
     uint32_t guide_leaves;
     size_t guide_bytes;
+    /* samples per pixel over the image (they differ with adaptive sampling, and after an
+     * interruption within an iteration): the smallest, the mean, and how many pixels got
+     * [2^k, 2^(k+1)) samples (k = 0..20) */
+    int spp_min;
+    double spp_mean;
+    uint32_t spp_histogram[21];
+    uint32_t adaptive_active_pixels; /* adaptive sampling: pixels still sampling at the end (0: all stopped) */
+    int time_limited;                /* --time-limit stopped the render before --spp */
 } CandelaStats;
 
 /* Seconds spent in the wavefront's stages and the film (the render proper). */
@@ -216,6 +239,7 @@ typedef struct CandelaImage {
     float *selection_point;  /* 3 per pixel with --aov cachepoint (else NULL): the mean false colour of
                               * the cache point each first hit used (black: none, e.g. a miss) */
     float *selection_light;  /* 3 per pixel with --aov cachepoint: that of the entry it weighed most */
+    float *spp;              /* 1 per pixel with --aov spp (else NULL): the samples the pixel got */
 } CandelaImage;
 
 /* Every ray a render traced, for the bare-Embree replay of `candela bench`: at most

@@ -74,7 +74,9 @@ int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t
         return -1;
     }
     /* Every option that changes the image, as key=value (floats in hex: exact). Not here:
-     * threads and batch size (never change the image), output names, quiet, the texture budget
+     * threads and batch size (never change the image), --time-limit (where a render stops, not
+     * what it computes: a time-limited render's checkpoint resumes with any limit), output names,
+     * quiet, the texture budget
      * (refuses a scene, never changes one), guide-dump. The scene's referenced files (buffers,
      * textures, VDBs) are not hashed: the glTF names them, a changed one is the user's doing. */
     int n = snprintf(id->text, sizeof id->text,
@@ -101,9 +103,11 @@ int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t
     if (n >= 0 && (size_t)n < sizeof id->text) /* progressive insertion */
         n += snprintf(id->text + n, sizeof id->text - (size_t)n, " cachepoint_progressive=%d budget=%a",
                       o->cachepoint_progressive, (double)o->cachepoint_progressive_budget);
-    if (n >= 0 && (size_t)n < sizeof id->text) /* --cachepoint-bsdf, --sampler */
-        n += snprintf(id->text + n, sizeof id->text - (size_t)n, " cachepoint_bsdf=%d sampler=%s", o->cachepoint_bsdf,
-                      candela_sampler_name(o->sampler));
+    if (n >= 0 && (size_t)n < sizeof id->text) /* --cachepoint-bsdf, --sampler, adaptive sampling, clamps */
+        n += snprintf(id->text + n, sizeof id->text - (size_t)n,
+                      " cachepoint_bsdf=%d sampler=%s noise_threshold=%a min_spp=%d clamp_direct=%a clamp_indirect=%a",
+                      o->cachepoint_bsdf, candela_sampler_name(o->sampler), (double)o->noise_threshold, o->min_spp,
+                      (double)o->clamp_direct, (double)o->clamp_indirect);
     if (n < 0 || (size_t)n >= sizeof id->text) {
         snprintf(err, CANDELA_ERR_LEN, "%s: the render's options are too long for a checkpoint (camera or --env name)",
                  o->scene_path);

@@ -358,8 +358,10 @@ static void reference_key(const CandelaOptions *o, char *key, size_t size) {
                                              o->env_rotation_deg, (int)o->light_model, (int)o->material_model);
     len = strlen(key); /* --cachepoint-bsdf, --sampler */
     if (len > 0 && len < size)
-        snprintf(key + len - 1, size - len + 1, "; cachepoint bsdf %d; sequence %s\n", o->cachepoint_bsdf,
-                 candela_sampler_name(o->sampler));
+        snprintf(key + len - 1, size - len + 1,
+                 "; cachepoint bsdf %d; sequence %s; noise threshold %.9g min spp %d; clamps %.9g %.9g\n",
+                 o->cachepoint_bsdf, candela_sampler_name(o->sampler), o->noise_threshold, o->min_spp, o->clamp_direct,
+                 o->clamp_indirect);
 }
 
 /* The cached reference when OUT/reference.key matches key (and its render time), else -1. */

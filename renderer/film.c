@@ -28,6 +28,7 @@ void film_free(Film *f) {
     free(f->sum); free(f->sum2); free(f->albedo); free(f->normal); free(f->depth); free(f->hits); free(f->count);
     free(f->recorder);
     free(f->sel_aov);
+    free(f->stopped);
     memset(f, 0, sizeof *f);
 }
 
@@ -91,6 +92,11 @@ int film_resolve(const Film *f, CandelaImage *img) {
         for (size_t i = 0; i < 3 * n; ++i)
             img->recorder_debug[i] = f->count[i / 3] ? (float)(f->recorder[i] / f->count[i / 3]) : 0.0f;
     }
+    if (f->aov_spp) {
+        img->spp = malloc(n * sizeof(float));
+        if (!img->spp) { candela_image_free(img); return -1; }
+        for (size_t i = 0; i < n; ++i) img->spp[i] = (float)f->count[i];
+    }
     if (f->sel_aov) {
         img->selection_point = malloc(3 * n * sizeof(float));
         img->selection_light = malloc(3 * n * sizeof(float));
@@ -105,6 +111,76 @@ int film_resolve(const Film *f, CandelaImage *img) {
     return 0;
 }
 
+/* Per-sample variance of each channel of pixel i (0 with fewer than 2 samples). */
+static void pixel_sample_variance(const Film *f, size_t i, double var[3]) {
+    double n = f->count[i];
+    for (int k = 0; k < 3; ++k) {
+        double mean = n > 0.0 ? f->sum[3 * i + k] / n : 0.0;
+        double v = n > 1.0 ? (f->sum2[3 * i + k] - n * mean * mean) / (n - 1.0) : 0.0;
+        var[k] = v > 0.0 ? v : 0.0;
+    }
+}
+
+/* sum_c sqrt(var_c / n) / sqrt(sum_c mean_c + 1e-4) */
+static double relative_error(const Film *f, size_t i, const double var[3]) {
+    double n = f->count[i], se = 0.0, sum = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        se += sqrt(var[k] / n);
+        sum += f->sum[3 * i + k] / n;
+    }
+    return se / sqrt(fmax(sum, 0.0) + 1e-4);
+}
+
+double film_pixel_error(const Film *f, size_t i) {
+    if (f->count[i] < 2) return INFINITY;
+    int w = f->width, h = f->height, x = (int)(i % (size_t)w), y = (int)(i / (size_t)w);
+    double own[3], pooled[3] = {0, 0, 0}, v[3];
+    pixel_sample_variance(f, i, own);
+    int m = 0;
+    for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+            int nx = x + dx, ny = y + dy;
+            if (nx < 0 || nx >= w || ny < 0 || ny >= h) continue;
+            pixel_sample_variance(f, (size_t)ny * (size_t)w + (size_t)nx, v);
+            for (int k = 0; k < 3; ++k) pooled[k] += v[k];
+            ++m;
+        }
+    for (int k = 0; k < 3; ++k) pooled[k] /= m;
+    return fmax(relative_error(f, i, own), relative_error(f, i, pooled));
+}
+
+uint32_t film_adaptive_update(Film *f, float threshold) {
+    int w = f->width, h = f->height;
+    /* 1: still sampling and noisy; 2: still sampling, converged; 0: stopped before */
+    uint8_t *state = malloc((size_t)w * (size_t)h);
+    if (!state) { /* keep sampling everywhere: the image is right, only slower */
+        uint32_t active = 0;
+        for (size_t i = 0; i < (size_t)w * (size_t)h; ++i) active += !f->stopped[i];
+        return active;
+    }
+    for (size_t i = 0; i < (size_t)w * (size_t)h; ++i)
+        state[i] = f->stopped[i] ? 0 : (film_pixel_error(f, i) >= threshold ? 1 : 2);
+    uint32_t active = 0;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            size_t i = (size_t)y * (size_t)w + (size_t)x;
+            if (state[i] == 0) continue;
+            int noisy = 0;
+            for (int dy = -1; dy <= 1 && !noisy; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) {
+                    int nx = x + dx, ny = y + dy;
+                    if (nx >= 0 && nx < w && ny >= 0 && ny < h && state[(size_t)ny * (size_t)w + (size_t)nx] == 1) {
+                        noisy = 1;
+                        break;
+                    }
+                }
+            if (noisy) ++active;
+            else f->stopped[i] = 1;
+        }
+    free(state);
+    return active;
+}
+
 void candela_iteration_mean(const CandelaIterationInfo *info, float *rgb) {
     const Film *f = info->film;
     size_t n = (size_t)f->width * (size_t)f->height;
@@ -116,7 +192,7 @@ void candela_iteration_mean(const CandelaIterationInfo *info, float *rgb) {
 
 void candela_image_free(CandelaImage *img) {
     free(img->rgb); free(img->variance); free(img->albedo); free(img->normal); free(img->depth); free(img->recorder_debug);
-    free(img->selection_point); free(img->selection_light);
+    free(img->selection_point); free(img->selection_light); free(img->spp);
     memset(img, 0, sizeof *img);
 }
 
@@ -125,29 +201,35 @@ void candela_image_free(CandelaImage *img) {
 #define FILM_TAG CKPT_TAG('F', 'I', 'L', 'M')
 #define FILM_VERSION 1u
 
-/* Every Film array: the sums of L and L^2, counts, AOV sums and the recorder AOV. */
+/* Every Film array: the sums of L and L^2, counts, AOV sums, the recorder AOV and adaptive
+ * sampling's stopped pixels. */
+static int32_t film_arrays(const Film *f) {
+    return (f->recorder != NULL) | (f->sel_aov != NULL) << 1 | (f->stopped != NULL) << 2;
+}
+
 int film_save(const Film *f, FILE *out) {
     size_t n = (size_t)f->width * (size_t)f->height;
-    int32_t head[3] = {f->width, f->height, (f->recorder != NULL) | (f->sel_aov != NULL) << 1};
+    int32_t head[3] = {f->width, f->height, film_arrays(f)};
     return ckpt_put_tag(out, FILM_TAG, FILM_VERSION) | ckpt_put(out, head, sizeof head) |
            ckpt_put(out, f->sum, 3 * n * sizeof(double)) | ckpt_put(out, f->sum2, 3 * n * sizeof(double)) |
            ckpt_put(out, f->albedo, 3 * n * sizeof(double)) | ckpt_put(out, f->normal, 3 * n * sizeof(double)) |
            ckpt_put(out, f->depth, n * sizeof(double)) | ckpt_put(out, f->hits, n * sizeof(uint32_t)) |
            ckpt_put(out, f->count, n * sizeof(uint32_t)) |
            (f->recorder ? ckpt_put(out, f->recorder, 3 * n * sizeof(double)) : 0) |
-           (f->sel_aov ? ckpt_put(out, f->sel_aov, 6 * n * sizeof(double)) : 0);
+           (f->sel_aov ? ckpt_put(out, f->sel_aov, 6 * n * sizeof(double)) : 0) |
+           (f->stopped ? ckpt_put(out, f->stopped, n) : 0);
 }
 
 int film_load(Film *f, FILE *in) {
     size_t n = (size_t)f->width * (size_t)f->height;
     int32_t head[3];
     if (ckpt_get_tag(in, FILM_TAG, FILM_VERSION) || ckpt_get(in, head, sizeof head)) return -1;
-    if (head[0] != f->width || head[1] != f->height || head[2] != ((f->recorder != NULL) | (f->sel_aov != NULL) << 1))
-        return -1;
+    if (head[0] != f->width || head[1] != f->height || head[2] != film_arrays(f)) return -1;
     return ckpt_get(in, f->sum, 3 * n * sizeof(double)) | ckpt_get(in, f->sum2, 3 * n * sizeof(double)) |
            ckpt_get(in, f->albedo, 3 * n * sizeof(double)) | ckpt_get(in, f->normal, 3 * n * sizeof(double)) |
            ckpt_get(in, f->depth, n * sizeof(double)) | ckpt_get(in, f->hits, n * sizeof(uint32_t)) |
            ckpt_get(in, f->count, n * sizeof(uint32_t)) |
            (f->recorder ? ckpt_get(in, f->recorder, 3 * n * sizeof(double)) : 0) |
-           (f->sel_aov ? ckpt_get(in, f->sel_aov, 6 * n * sizeof(double)) : 0);
+           (f->sel_aov ? ckpt_get(in, f->sel_aov, 6 * n * sizeof(double)) : 0) |
+           (f->stopped ? ckpt_get(in, f->stopped, n) : 0);
 }

@@ -139,12 +139,23 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
     } else if (strcmp(a, "--guide-spatial-threshold") == 0) {
         if ((rc = parse_float(a, v, 1.0f, 1e9f, &f, err)) == 0) o->guide_spatial_threshold = f;
     } else if (strcmp(a, "--aov") == 0) {
-        static const char *const names[] = {"recorder-debug", "cachepoint", NULL};
-        static const int values[] = {1, 2};
+        static const char *const names[] = {"recorder-debug", "cachepoint", "spp", NULL};
+        static const int values[] = {1, 2, 3};
         if ((rc = parse_choice(a, v, names, values, &c, "AOV", err)) == 0) { /* repeatable: one AOV each */
             if (c == 1) o->aov_recorder_debug = 1;
-            else o->aov_selection = 1;
+            else if (c == 2) o->aov_selection = 1;
+            else o->aov_spp = 1;
         }
+    } else if (strcmp(a, "--noise-threshold") == 0) {
+        if ((rc = parse_float(a, v, 1e-6f, 100.0f, &f, err)) == 0) o->noise_threshold = f;
+    } else if (strcmp(a, "--min-spp") == 0) {
+        if ((rc = parse_long(a, v, 1, 1 << 20, &n, err)) == 0) o->min_spp = (int)n;
+    } else if (strcmp(a, "--time-limit") == 0) {
+        if ((rc = parse_float(a, v, 1e-6f, 1e9f, &f, err)) == 0) o->time_limit = f;
+    } else if (strcmp(a, "--clamp-direct") == 0) {
+        if ((rc = parse_float(a, v, 1e-9f, 1e30f, &f, err)) == 0) o->clamp_direct = f;
+    } else if (strcmp(a, "--clamp-indirect") == 0) {
+        if ((rc = parse_float(a, v, 1e-9f, 1e30f, &f, err)) == 0) o->clamp_indirect = f;
     } else if (strcmp(a, "--dump-cachepoints") == 0) {
         if (!v) return missing(a, err);
         size_t len = strlen(v);
@@ -225,6 +236,17 @@ int candela_options_check(const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
         o->light_sampler != CANDELA_LIGHT_SAMPLER_AUTO) { /* auto: a warning when it chooses another */
         snprintf(err, CANDELA_ERR_LEN, "%s needs --light-sampler cachepoints (or auto)",
                  o->aov_selection ? "--aov cachepoint" : "--dump-cachepoints");
+        return -1;
+    }
+    /* a shard's samples are a fixed range of every pixel's; stopping them by the shard's own film
+     * (or clock) would give shards that merge into no render's image */
+    if (o->shard_count && (o->noise_threshold > 0.0f || o->time_limit > 0.0)) {
+        snprintf(err, CANDELA_ERR_LEN, "%s cannot be used with --sample-shard (a shard renders a fixed range of samples)",
+                 o->noise_threshold > 0.0f ? "--noise-threshold" : "--time-limit");
+        return -1;
+    }
+    if (o->min_spp && o->noise_threshold <= 0.0f) {
+        snprintf(err, CANDELA_ERR_LEN, "--min-spp needs --noise-threshold (adaptive sampling)");
         return -1;
     }
     return 0;

@@ -128,7 +128,7 @@ float inscatter_estimate(const Integrator *ig, Slice *s, uint32_t p, SceneRay ra
             *cost += 0.1f * (float)(s->volume.collisions - c0);
             visibility = clampf(v3_average(Ts), 0.0f, 1.0f);
             vec3 c = v3_mul(contrib, Ts);
-            path_add_radiance(ig, p, c, RADIANCE_DIRECT);
+            path_add_radiance(ig, p, c, RADIANCE_DIRECT, depth);
             added = v3_luminance(c);
         }
     }

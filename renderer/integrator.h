@@ -49,6 +49,8 @@ typedef struct Film {
     double *recorder;        /* 3 per pixel (--aov recorder-debug; else NULL): sums of the recorder's splats */
     double *sel_aov;         /* 6 per pixel (the light sampler's AOV, CandelaOptions.aov_selection; else NULL):
                               * sums over the hits of its two false colours (light_sampler_aov) */
+    uint8_t *stopped;        /* per pixel with adaptive sampling (else NULL): 1 once it stopped sampling */
+    int aov_spp;             /* film_resolve writes CandelaImage.spp */
 } Film;
 
 int film_alloc(Film *f, int width, int height);
@@ -58,6 +60,19 @@ void film_free(Film *f);
 void film_add_paths(Film *f, const PathState *ps, uint32_t count);
 /* Mean, variance of the mean (sample variance / n) and AOVs. 0 ok, -1 out of memory. */
 int film_resolve(const Film *f, CandelaImage *img);
+/* Adaptive sampling: pixel i's estimated error, sum_c SE_c / sqrt(sum_c mean_c + 1e-4) with SE_c
+ * the standard error of channel c's mean (Cycles' measure, after Dammertz et al. 2010: about the
+ * error after a gamma-2 display transform). SE_c comes from the pixel's own sample variance and,
+ * again, from the per-sample variance pooled over its 3 x 3 neighbourhood; the larger error
+ * counts, so a pixel whose few samples all missed a rare bright path that its neighbours found
+ * does not pass for converged. With Sobol' samples the sample variance overestimates the error:
+ * pixels stop late, not early. INFINITY below 2 samples. */
+double film_pixel_error(const Film *f, size_t i);
+/* At an iteration barrier: a pixel still sampling stops when its error and that of each of its
+ * 8 neighbours still sampling are below the threshold (a noisy neighbour keeps it going, so a
+ * pixel whose samples all missed a rare bright path does not stop alone). Needs f->stopped.
+ * Returns the number of pixels still sampling; 0 ok. A function of the film alone. */
+uint32_t film_adaptive_update(Film *f, float threshold);
 
 /* Work at an iteration barrier, when no ray is in flight: learned state (a light
  * sampler's visibility now; guiding training, volume estimator choices later) changes only here. */
@@ -144,6 +159,11 @@ typedef struct Integrator {
      * iteration (pixel j mod npixels, sample sample_base + j / npixels) */
     uint64_t batch_first, sample_base;
     uint32_t batch_count, npixels;
+    /* adaptive sampling: the pixels of this iteration, in pixel order (path j is pixel
+     * pixel_list[j mod iteration_pixels], sample sample_base + j / iteration_pixels); without
+     * it pixel_list is NULL and iteration_pixels npixels */
+    uint32_t *pixel_list;
+    uint32_t iteration_pixels;
     Film film;
     RecordState record;
     GuideState guide;
@@ -266,10 +286,21 @@ void guide_report(const Integrator *ig, CandelaStats *st);
 int guide_dump(const Integrator *ig, const float at[3], const char *prefix, char err[CANDELA_ERR_LEN]);
 
 /* Every addition to a path's radiance goes through here (throughput and MIS weight already
- * applied): the one place the radiance recorder observes the contributions of a path. An
- * emitter or the environment found by the path's ray goes to that ray's vertex, a shadow
- * ray's contribution to the NEE vertex. */
-static inline void path_add_radiance(const Integrator *ig, uint32_t p, vec3 contribution, RadianceSource source) {
+ * applied): the one place the radiance recorder observes the contributions of a path, and
+ * where --clamp-direct / --clamp-indirect apply. An emitter or the environment found by the
+ * path's ray goes to that ray's vertex, a shadow ray's contribution to the NEE vertex. depth:
+ * that of the ray that found the emitter (emission, environment) or of the vertex that sampled
+ * the light (direct), so the light reaches the camera through depth (depth + 1) scattering
+ * vertices; at most one is "direct" (Cycles' clamps: the camera's emitters, NEE at the first
+ * hit, and the first hit's BSDF samples that find a light), the rest indirect. */
+static inline void path_add_radiance(const Integrator *ig, uint32_t p, vec3 contribution, RadianceSource source,
+                                     uint32_t depth) {
+    uint32_t vertices = source == RADIANCE_DIRECT ? depth + 1 : depth;
+    float limit = vertices <= 1 ? ig->opt->clamp_direct : ig->opt->clamp_indirect;
+    if (limit > 0.0f) { /* the largest channel to the limit, hue kept (biased: off by default) */
+        float m = v3_max_component(contribution);
+        if (m > limit) contribution = v3_scale(contribution, limit / m);
+    }
     ig->ps.radiance[p] = v3_add(ig->ps.radiance[p], contribution);
     if (ig->record.active) record_radiance(ig, p, contribution, source);
 }

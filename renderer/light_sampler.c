@@ -64,6 +64,7 @@ typedef struct PowerSampler {
     Distribution1D all;
     const LightLinking *link; /* NULL: no linking */
     Distribution1D *per_class; /* [num_classes]: entry c > 0 over the class's lights */
+    const Lights *lights;
 } PowerSampler;
 
 /* The position of `light` in class c's ascending list, or UINT32_MAX. */
@@ -112,6 +113,22 @@ static void power_destroy(void *state) {
 static const LightSamplerOps POWER_OPS = {
     .name = "power", .select = power_select, .pmf = power_pmf, .destroy = power_destroy};
 
+/* In-scattering sampling's importance with one light (auto picks power for one light, also with
+ * media): the light's own unoccluded fluence estimate at x (light_estimates.c), so the distance
+ * density along a camera segment follows the light as equiangular sampling would, without a
+ * cache point build. No radius: the stations are spread evenly over the segment. */
+static float power_inscatter_weight(const void *state, const float x[3], uint32_t *hint, float *radius) {
+    (void)hint;
+    const PowerSampler *ps = state;
+    *radius = 0.0f;
+    float w = light_contribution_estimate(ps->lights, &ps->lights->lights[0], v3(x[0], x[1], x[2]), v3s(0.0f));
+    return isfinite(w) && w > 0.0f ? w : 0.0f;
+}
+
+static const LightSamplerOps POWER_ONE_LIGHT_INSCATTER_OPS = {
+    .name = "power", .select = power_select, .pmf = power_pmf, .inscatter_weight = power_inscatter_weight,
+    .destroy = power_destroy};
+
 int light_sampler_power_create(LightSampler *s, const Lights *lights) {
     PowerSampler *ps = calloc(1, sizeof *ps);
     if (ps && lights->count == 0) { /* nothing to select (the protocol never asks) */
@@ -135,7 +152,8 @@ int light_sampler_power_create(LightSampler *s, const Lights *lights) {
     }
     free(powers);
     if (rc != 0) { power_destroy(ps); return -1; }
-    *s = (LightSampler){&POWER_OPS, ps, lights->count};
+    ps->lights = lights;
+    *s = (LightSampler){lights->count == 1 ? &POWER_ONE_LIGHT_INSCATTER_OPS : &POWER_OPS, ps, lights->count};
     return 0;
 }
 
@@ -143,11 +161,12 @@ int light_sampler_power_create(LightSampler *s, const Lights *lights) {
 
 CandelaLightSampler light_sampler_auto_choice(const Lights *lights, const struct SceneMedia *media,
                                               const CandelaOptions *o) {
-    /* in-scattering sampling along camera rays (§4.2) exists only with cache points */
+    /* one light (or none): every strategy picks it with probability 1; power does no work, and
+     * gives in-scattering sampling the light's own estimate (no cache point build) */
+    if (lights->count <= 1) return CANDELA_LIGHT_SAMPLER_POWER;
+    /* in-scattering sampling along camera rays (§4.2) with more lights needs cache points */
     if (o->volume_inscatter_sampling == 1 || (o->volume_inscatter_sampling != 0 && media && media_any(media)))
         return CANDELA_LIGHT_SAMPLER_CACHEPOINTS;
-    /* one light (or none): every strategy picks it with probability 1; power does no work */
-    if (lights->count <= 1) return CANDELA_LIGHT_SAMPLER_POWER;
     /* few lights: every light's exact estimate per vertex (the distribution cache points
      * approximate, narrow spot cones included; the paper itself falls back to it below 10
      * points, §3.1.1), without a build, while that costs less per vertex than about

@@ -51,6 +51,16 @@ static const char *USAGE =
     "  --seed S                  random seed (default 0)\n"
     "  --sampler sobol|independent  the numbers of each path: Owen-scrambled Sobol' points\n"
     "                            (default) or independent uniforms (the renders before 0.2)\n"
+    "  --noise-threshold T       adaptive sampling: a pixel stops once its error estimate (standard\n"
+    "                            errors / sqrt(value), Cycles' measure) and its neighbours' are\n"
+    "                            below T (e.g. 0.01); --spp is the most any pixel gets\n"
+    "  --min-spp N               adaptive sampling: no pixel stops before N samples (default 16)\n"
+    "  --time-limit S            stop at the first iteration barrier past S seconds (load included)\n"
+    "                            and write the image; its spp depend on the machine's speed\n"
+    "  --clamp-direct V          clamp each direct-light contribution's largest channel to V\n"
+    "                            (hue kept; biased; default off)\n"
+    "  --clamp-indirect V        the same for indirect light (two or more bounces)\n"
+    "  --aov spp                 add the channel spp (samples per pixel) to the EXR\n"
     "  --res WxH                 resolution (default: 640 wide, camera aspect)\n"
     "  --threads N               worker threads (default: all cores)\n"
     "  --max-depth N             maximum surface bounces; 1 = direct light only (default 8)\n"
@@ -277,6 +287,11 @@ static void print_stats(const CandelaStats *s) {
                 (double)s->guide_bytes / (1024.0 * 1024.0), s->guide_train_seconds,
                 s->guide_train_seconds / s->guide_updates,
                 s->guide_dropped ? "; WARNING: out of memory, some training was lost" : "");
+    if (s->spp_min != s->spp_done)
+        fprintf(stderr, "  samples per pixel: %d to %d, mean %.1f%s\n", s->spp_min, s->spp_done, s->spp_mean,
+                s->adaptive_active_pixels ? "" : " (adaptive sampling: every pixel reached the noise threshold)");
+    if (s->time_limited)
+        fprintf(stderr, "  --time-limit: stopped at %d spp after %.1fs\n", s->spp_done, s->time_total);
     if (s->num_volumes)
         fprintf(stderr, "  volumes: %llu majorant collisions%s\n", (unsigned long long)s->volume_collisions,
                 s->volume_capped_walks ? "; WARNING: some walks hit the collision cap (an extreme medium): the image is biased there" : "");

@@ -28,7 +28,8 @@ int candela_write_outputs(const CandelaImage *img, const char *exr_path, const c
     size_t n = (size_t)img->width * (size_t)img->height;
     int nch = img->recorder_debug ? 17 : 14;
     int ncp = img->selection_point ? 6 : 0; /* cachepoint.RGB, cachepoint_light.RGB after the others */
-    float *planes = malloc((size_t)(nch + ncp) * n * sizeof(float));
+    int nspp = img->spp ? 1 : 0;            /* spp last */
+    float *planes = malloc((size_t)(nch + ncp + nspp) * n * sizeof(float));
     if (!planes) { snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", exr_path); return -1; }
     /* planar copies: R G B A albedo.RGB N.XYZ Z variance.RGB */
     for (size_t i = 0; i < n; ++i) {
@@ -46,8 +47,9 @@ int candela_write_outputs(const CandelaImage *img, const char *exr_path, const c
             planes[(nch + k) * n + i] = img->selection_point[3 * i + k];
             planes[(nch + 3 + k) * n + i] = img->selection_light[3 * i + k];
         }
+        if (nspp) planes[(size_t)(nch + ncp) * n + i] = img->spp[i];
     }
-    IoExrChannel ch[23] = {
+    IoExrChannel ch[24] = {
         {"R", planes}, {"G", planes + n}, {"B", planes + 2 * n}, {"A", planes + 3 * n},
         {"albedo.R", planes + 4 * n}, {"albedo.G", planes + 5 * n}, {"albedo.B", planes + 6 * n},
         {"N.X", planes + 7 * n}, {"N.Y", planes + 8 * n}, {"N.Z", planes + 9 * n},
@@ -58,8 +60,9 @@ int candela_write_outputs(const CandelaImage *img, const char *exr_path, const c
     static const char *const cp_names[6] = {"cachepoint.R", "cachepoint.G", "cachepoint.B",
                                             "cachepoint_light.R", "cachepoint_light.G", "cachepoint_light.B"};
     for (int k = 0; k < ncp; ++k) ch[nch + k] = (IoExrChannel){cp_names[k], planes + (size_t)(nch + k) * n};
+    if (nspp) ch[nch + ncp] = (IoExrChannel){"spp", planes + (size_t)(nch + ncp) * n};
     char ioerr[IO_ERR_LEN];
-    int rc = io_write_exr(exr_path, img->width, img->height, ch, nch + ncp, ioerr);
+    int rc = io_write_exr(exr_path, img->width, img->height, ch, nch + ncp + nspp, ioerr);
     free(planes);
     if (rc != 0) { snprintf(err, CANDELA_ERR_LEN, "%s", ioerr); return -1; }
     if (png_path) {
@@ -100,6 +103,23 @@ static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s) 
     fprintf(f, ",\n  \"spp\": %d,\n  \"seed\": %llu,\n  \"max_depth\": %d,\n", o->spp, (unsigned long long)o->seed,
             o->max_depth);
     fprintf(f, "  \"sampler\": \"%s\",\n", candela_sampler_name(o->sampler));
+    fprintf(f, "  \"spp_done\": %d,\n  \"spp_min\": %d,\n  \"spp_mean\": %.4f,\n  \"spp_histogram\": {", s->spp_done,
+            s->spp_min, s->spp_mean);
+    for (int k = 0, first = 1; k < 21; ++k)
+        if (s->spp_histogram[k]) {
+            fprintf(f, "%s\"%d-%d\": %u", first ? "" : ", ", 1 << k, (2 << k) - 1, s->spp_histogram[k]);
+            first = 0;
+        }
+    fprintf(f, "},\n");
+    if (o->noise_threshold > 0.0f)
+        fprintf(f, "  \"adaptive\": {\"noise_threshold\": %g, \"min_spp\": %d, \"pixels_still_sampling\": %u},\n",
+                (double)o->noise_threshold, o->min_spp > 0 ? o->min_spp : CANDELA_DEFAULT_MIN_SPP, s->adaptive_active_pixels);
+    if (o->time_limit > 0.0)
+        fprintf(f, "  \"time_limit\": {\"seconds\": %g, \"stopped\": %s},\n", o->time_limit,
+                s->time_limited ? "true" : "false");
+    if (o->clamp_direct > 0.0f || o->clamp_indirect > 0.0f)
+        fprintf(f, "  \"clamp\": {\"direct\": %g, \"indirect\": %g},\n", (double)o->clamp_direct,
+                (double)o->clamp_indirect);
     fprintf(f, "  \"light_sampler\": \"%s\",\n", candela_light_sampler_name(o->light_sampler));
     fprintf(f, "  \"light_sampler_used\": \"%s\",\n", candela_light_sampler_name(s->light_sampler_used));
     fprintf(f, "  \"time_seconds\": {\"load\": %.6f, \"build\": %.6f, \"generate\": %.6f, \"sort\": %.6f, "

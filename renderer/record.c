@@ -101,7 +101,7 @@ uint32_t record_child(const Integrator *ig, Slice *s, uint32_t p, uint32_t paren
     }
     RecorderVertexInit init = {{pos.x, pos.y, pos.z}, {dir.x, dir.y, dir.z}, {tp.x, tp.y, tp.z}, pdf, scatter_pdf, guide_pdf,
                                flags, ps->pixel[p],
-                               (ig->sample_base + (ig->batch_first + p) / ig->npixels) * ig->npixels + ps->pixel[p]};
+                               (ig->sample_base + (ig->batch_first + p) / ig->iteration_pixels) * ig->npixels + ps->pixel[p]};
     return recorder_new_child(rs->recorder, &s->record_cache, parent, &init);
 }
 

@@ -29,6 +29,7 @@
 #define DEFAULT_MAX_ITERATION_SPP 64
 #define GUIDED_MAX_ITERATION_SPP 16
 
+
 /* ---------------------------------------------------------------- progress */
 
 typedef struct Progress {
@@ -91,6 +92,34 @@ static size_t peak_rss_bytes(void) {
 /* ---------------------------------------------------------------- render */
 
 static void light_sampler_barrier_hook(void *sampler) { light_sampler_barrier(sampler); }
+
+/* Adaptive sampling: the next iteration's pixels, those the film has not stopped (in pixel
+ * order, so every pixel still gets its samples in sample order). */
+static void update_pixel_list(Integrator *ig) {
+    if (!ig->pixel_list) return;
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < ig->npixels; ++i)
+        if (!ig->film.stopped[i]) ig->pixel_list[n++] = i;
+    ig->iteration_pixels = n;
+}
+
+/* The samples per pixel the film holds: smallest, mean, power-of-two histogram. */
+static void spp_statistics(const Film *f, CandelaStats *st) {
+    size_t n = (size_t)f->width * (size_t)f->height;
+    uint64_t total = 0;
+    uint32_t lo = UINT32_MAX;
+    memset(st->spp_histogram, 0, sizeof st->spp_histogram);
+    for (size_t i = 0; i < n; ++i) {
+        uint32_t c = f->count[i];
+        total += c;
+        if (c < lo) lo = c;
+        int k = 0;
+        while (k < 20 && (c >> (k + 1)) != 0) ++k;
+        if (c) st->spp_histogram[k]++;
+    }
+    st->spp_min = n ? (int)lo : 0;
+    st->spp_mean = n ? (double)total / (double)n : 0.0;
+}
 
 /* Samples per pixel of iteration i: 1, 1, 2, 4, 8, ... capped, and never past the total. (The
  * shift is bounded: at iteration 32 an unbounded 1 << 31 overflowed and the schedule ran
@@ -225,6 +254,7 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
     ig->ray_log = ray_log;
     ig->pool = r->pool;
     if (light_sampler_has_barrier(&r->sampler)) integrator_add_barrier_hook(ig, light_sampler_barrier_hook, &r->sampler);
+    update_pixel_list(ig); /* adaptive sampling: every pixel to begin with */
     stats->time_build = clock_seconds() - t_loaded;
 
     Progress progress = {o->quiet, isatty(2), clock_seconds(), 0.0}; /* the first report comes at once */
@@ -241,11 +271,14 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
         }
         /* the progress must be a point of this render's schedule (the checksum guards the bytes;
          * this guards a file written by a build with another schedule) */
+        update_pixel_list(ig); /* adaptive sampling: the pixels the checkpoint's film still samples */
         int cumulative = 0, k = 0;
         for (; k < at.iteration && cumulative < o->spp; ++k)
             cumulative += iteration_spp(k, max_iter_spp, o->spp - cumulative, guided);
-        uint64_t iteration_total = (uint64_t)npixels * (uint64_t)iteration_spp(k, max_iter_spp, o->spp - cumulative, guided);
-        if (k != at.iteration || cumulative != at.spp_done || at.spp_done >= o->spp || at.iteration_paths >= iteration_total) {
+        uint64_t iteration_total =
+            (uint64_t)ig->iteration_pixels * (uint64_t)iteration_spp(k, max_iter_spp, o->spp - cumulative, guided);
+        if (k != at.iteration || cumulative != at.spp_done || at.spp_done >= o->spp ||
+            (at.iteration_paths >= iteration_total && at.iteration_paths > 0)) {
             snprintf(err, CANDELA_ERR_LEN, "%s: its progress (iteration %d, %d spp) is not a point of this render's schedule",
                      o->resume_from, at.iteration, at.spp_done);
             render_free_frame(r);
@@ -253,14 +286,15 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
         }
         done_paths = (uint64_t)npixels * (uint64_t)at.spp_done + at.iteration_paths;
     }
-    int spp_done = at.spp_done, iteration = at.iteration, stopped = 0;
+    int spp_done = at.spp_done, iteration = at.iteration, stopped = 0, limited = 0;
     uint64_t resume_paths = at.iteration_paths;
+    int min_spp = o->min_spp > 0 ? o->min_spp : CANDELA_DEFAULT_MIN_SPP;
     ig->spp_done = spp_done;
-    for (; spp_done < o->spp; ++iteration) {
+    for (; spp_done < o->spp && ig->iteration_pixels > 0; ++iteration) {
         int spp_i = iteration_spp(iteration, max_iter_spp, o->spp - spp_done, guided);
         ig->iteration_spp = spp_i;
         ig->sample_base = sample_begin + (uint64_t)spp_done;
-        uint64_t iter_paths = (uint64_t)npixels * (uint64_t)spp_i;
+        uint64_t iter_paths = (uint64_t)ig->iteration_pixels * (uint64_t)spp_i;
         uint64_t first = resume_paths < iter_paths ? resume_paths : 0;
         resume_paths = 0;
         while (first < iter_paths) {
@@ -284,6 +318,13 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
         integrator_barrier(ig); /* no ray in flight: learned state changes here */
         stats->iterations = iteration + 1;
         stats->spp_done = spp_done;
+        /* adaptive sampling decides from the film at the barrier (no clock): deterministic, and
+         * a checkpoint written below holds the decision */
+        if (ig->pixel_list && spp_done >= min_spp && spp_done < o->spp) {
+            film_adaptive_update(&ig->film, o->noise_threshold);
+            update_pixel_list(ig);
+            total_paths = done_paths + (uint64_t)ig->iteration_pixels * (uint64_t)(o->spp - spp_done);
+        }
         report_progress(&progress, done_paths, total_paths, done_paths == total_paths);
         at = (CheckpointProgress){iteration + 1, spp_done, 0};
         if (o->on_iteration) {
@@ -297,6 +338,12 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
             stopped = 1;
             break;
         }
+        /* the one clock that decides anything: where a time-limited render stops */
+        if (o->time_limit > 0.0 && spp_done < o->spp && ig->iteration_pixels > 0 &&
+            clock_seconds() - t_start >= o->time_limit) {
+            limited = 1;
+            break;
+        }
         int next = spp_done + iteration_spp(iteration + 1, max_iter_spp, o->spp - spp_done, guided);
         if (o->checkpoint_path && checkpoint_due(spp_done, next, o->spp)) {
             if (checkpoint_write(o->checkpoint_path, &identity, &at, ig, &r->sampler, 0, err) != 0) {
@@ -307,7 +354,17 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
         }
     }
     stats->spp_done = spp_done;
+    stats->time_limited = limited;
+    stats->adaptive_active_pixels = ig->pixel_list ? ig->iteration_pixels : 0;
+    spp_statistics(&ig->film, stats);
     light_sampler_report(&r->sampler, stats); /* again: what the barriers changed in the strategy */
+    if (limited && o->checkpoint_path) {
+        /* a finished image, and a checkpoint to go on from with more time */
+        if (checkpoint_write(o->checkpoint_path, &identity, &at, ig, &r->sampler, 0, err) != 0) {
+            fprintf(stderr, "candela: warning: %s\n", err);
+            stats->checkpoint_failed = 1;
+        }
+    }
     if (stopped) {
         /* the image of the samples done is returned (per-pixel counts differ after an abandoned
          * iteration; each pixel's mean is its own samples'), and the state is kept to resume */

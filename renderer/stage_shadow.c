@@ -47,7 +47,7 @@ void stage_shadow(const Integrator *ig, Slice *s) {
                 }
                 visibility = media ? clampf(v3_average(T), 0.0f, 1.0f) : 1.0f;
                 vec3 c = v3_mul(ps->shadow_contrib[p], T);
-                path_add_radiance(ig, p, c, RADIANCE_DIRECT);
+                path_add_radiance(ig, p, c, RADIANCE_DIRECT, ps->shadow_depth[p]);
                 if (ig->emission_auto.active) emission_probe_nee(ig, p, ps->shadow_light[p], v3_luminance(c), 0.0f);
             }
             light_sampler_record(sampler, ps->shadow_outcome[p], visibility);

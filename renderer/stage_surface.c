@@ -36,7 +36,7 @@ static void surface_emission(const Integrator *ig, uint32_t p, const SurfaceHit 
                    light_area_pdf_li(&ig->lights->lights[light], &lc, h->triangle, h->p, h->ng);
         w = power_heuristic(ps->prev_scatter_pdf[p], pl);
     }
-    path_add_radiance(ig, p, v3_scale(v3_mul(ps->throughput[p], le), w), RADIANCE_EMISSION);
+    path_add_radiance(ig, p, v3_scale(v3_mul(ps->throughput[p], le), w), RADIANCE_EMISSION, ps->depth[p]);
 }
 
 /* One crossed shape light: its radiance with its MIS weight against NEE from the previous vertex
@@ -70,7 +70,7 @@ static void shape_emission_add(void *user, uint32_t light, float t, vec3 le) {
         vec3 T = media_transmittance_segment(ig->media, ps->medium[p], ray->org, ray->dir, t, &rng, &se->s->volume);
         c = v3_mul(c, T);
     }
-    path_add_radiance(ig, p, c, RADIANCE_EMISSION);
+    path_add_radiance(ig, p, c, RADIANCE_EMISSION, ps->depth[p]);
 }
 
 void path_shape_emission(const Integrator *ig, Slice *s, uint32_t p, float tmax, int in_medium) {
@@ -173,7 +173,8 @@ int direct_light_sample(const Integrator *ig, uint32_t p, const Scatter *sc, con
     /* the descent number only for a sampler that reads it (the others ignore it) */
     float u_descend = light_sampler_uses_descend(ig->light_sampler) ? dims_bounce(&dims, depth, RNG_BOUNCE_LIGHT_DESCEND)
                                                                      : 0.0f;
-    return direct_light_sample_core(ig, ps->throughput[p], sc, lc, dims_lane(&light, 2), u_descend, NULL, &light, ls,
+    float u_select = dims_bounce(&dims, depth, RNG_BOUNCE_LIGHT_SELECT); /* depth 0: in the camera group */
+    return direct_light_sample_core(ig, ps->throughput[p], sc, lc, u_select, u_descend, NULL, &light, ls,
                                     contrib, outcome);
 }
 

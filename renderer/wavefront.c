@@ -121,6 +121,7 @@ int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene,
     ig->inscatter = o->volume_inscatter_sampling != 0 && media_any(media) && lights->count > 0 &&
                     light_sampler_has_inscatter(sampler);
     ig->npixels = (uint32_t)scene->camera.width * (uint32_t)scene->camera.height;
+    ig->iteration_pixels = ig->npixels;
     if (o->sampler == CANDELA_SAMPLER_SOBOL) {
         sequence_tables_init(&ig->sobol_tables);
         ig->sobol = &ig->sobol_tables;
@@ -145,6 +146,12 @@ int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene,
         ig->film.recorder = calloc(3 * (size_t)ig->npixels, sizeof(double));
         fail = !ig->film.recorder;
     }
+    ig->film.aov_spp = o->aov_spp;
+    if (!fail && o->noise_threshold > 0.0f) {
+        ig->film.stopped = calloc(ig->npixels, 1);
+        ig->pixel_list = malloc((size_t)ig->npixels * sizeof(uint32_t));
+        fail = !ig->film.stopped || !ig->pixel_list;
+    }
     if (!fail && o->aov_selection) {
         ig->film.sel_aov = calloc(6 * (size_t)ig->npixels, sizeof(double));
         fail = !ig->film.sel_aov;
@@ -158,6 +165,7 @@ void integrator_free(Integrator *ig) {
     free(ig->queue_rays); free(ig->queue_hits); free(ig->queue_escaped); free(ig->queue_shadows);
     free(ig->sort_keys); free(ig->sort_keys_tmp); free(ig->sort_items_tmp);
     film_free(&ig->film);
+    free(ig->pixel_list);
     auto_probe_free(&ig->inscatter_auto);
     auto_probe_free(&ig->emission_auto);
     record_free(ig);

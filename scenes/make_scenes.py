@@ -525,40 +525,46 @@ def guiding_interior():
     g.write(os.path.join(ROOT, 'scenes', 'guiding_interior.gltf'))
 
 
-def cornell_boxes():
-    """Two Lambert Cornell boxes (5.5 m cube: x, z in [-2.75, 2.75], y in [0, 5.5]; white 0.73,
-    red and green walls, a tall and a short white box), the sample-quality and guiding
-    benchmarks' scenes (issues 25 and 26):
-    - cornell_box.gltf: the classic one, lit by a one-sided 1.3 x 1.05 m emissive quad just
-      below the ceiling facing down (radiance (17, 12, 4)): direct light dominates;
-    - cornell_indirect.gltf: the same quad 0.75 m below the ceiling, facing it, so that everything the
-      camera sees but the ceiling's bright patch is lit indirectly by that patch (the
-      canonical case for path guiding)."""
-    for name, facing_down in (('cornell_box', True), ('cornell_indirect', False)):
-        g = Gltf()
-        white = g.material('white', base=(0.73, 0.73, 0.73), lambert=True)
-        red = g.material('red', base=(0.63, 0.065, 0.05), lambert=True)
-        green = g.material('green', base=(0.14, 0.45, 0.091), lambert=True)
-        glow = g.material('light', base=(0.0, 0.0, 0.0), lambert=True, emissive=(1.0, 12.0 / 17.0, 4.0 / 17.0),
-                          strength=17.0)
-        X, Y, Z = 2.75, 5.5, 2.75
-        g.mesh('floor', 'floor', quad((-X, 0, -Z), (-X, 0, Z), (X, 0, Z), (X, 0, -Z)), white)
-        g.mesh('ceiling', 'ceiling', quad((-X, Y, -Z), (X, Y, -Z), (X, Y, Z), (-X, Y, Z)), white)
-        g.mesh('back_wall', 'back', quad((-X, 0, -Z), (X, 0, -Z), (X, Y, -Z), (-X, Y, -Z)), white)
-        g.mesh('left_wall_red', 'left', quad((-X, 0, -Z), (-X, Y, -Z), (-X, Y, Z), (-X, 0, Z)), red)
-        g.mesh('right_wall_green', 'right', quad((X, 0, -Z), (X, 0, Z), (X, Y, Z), (X, Y, -Z)), green)
+def cornell_room(g, boxes=True, facing_down=True):
+    """The Lambert Cornell box (5.5 m cube: x, z in [-2.75, 2.75], y in [0, 5.5]; white 0.73, red
+    and green walls, optionally a tall and a short white box), its one-sided 1.3 x 1.05 m
+    emissive quad (radiance (17, 12, 4)) just below the ceiling facing down, or 0.75 m below it
+    facing up, and the camera, into g (also used by make_volumes.py's cornell_cloud)."""
+    white = g.material('white', base=(0.73, 0.73, 0.73), lambert=True)
+    red = g.material('red', base=(0.63, 0.065, 0.05), lambert=True)
+    green = g.material('green', base=(0.14, 0.45, 0.091), lambert=True)
+    glow = g.material('light', base=(0.0, 0.0, 0.0), lambert=True, emissive=(1.0, 12.0 / 17.0, 4.0 / 17.0),
+                      strength=17.0)
+    X, Y, Z = 2.75, 5.5, 2.75
+    g.mesh('floor', 'floor', quad((-X, 0, -Z), (-X, 0, Z), (X, 0, Z), (X, 0, -Z)), white)
+    g.mesh('ceiling', 'ceiling', quad((-X, Y, -Z), (X, Y, -Z), (X, Y, Z), (-X, Y, Z)), white)
+    g.mesh('back_wall', 'back', quad((-X, 0, -Z), (X, 0, -Z), (X, Y, -Z), (-X, Y, -Z)), white)
+    g.mesh('left_wall_red', 'left', quad((-X, 0, -Z), (-X, Y, -Z), (-X, Y, Z), (-X, 0, Z)), red)
+    g.mesh('right_wall_green', 'right', quad((X, 0, -Z), (X, 0, Z), (X, Y, Z), (X, Y, -Z)), green)
+    if boxes:
         g.mesh('tall_box', 'tall', box(1.65, 3.3, 1.65), white, translation=(-0.9, 1.65, -0.9),
                rotation=quat_axis_angle((0, 1, 0), math.radians(17)))
         g.mesh('short_box', 'short', box(1.65, 1.65, 1.65), white, translation=(0.95, 0.825, 0.7),
                rotation=quat_axis_angle((0, 1, 0), math.radians(-17)))
-        # facing up, it hangs 0.75 m below the ceiling, so its patch there is broad
-        lx, lz, ly = 0.65, 0.525, Y - (0.02 if facing_down else 0.75)
-        down = quad((-lx, ly, -lz), (lx, ly, -lz), (lx, ly, lz), (-lx, ly, lz))
-        up = quad((-lx, ly, -lz), (-lx, ly, lz), (lx, ly, lz), (lx, ly, -lz))
-        g.mesh('light', 'light_down' if facing_down else 'light_up', down if facing_down else up, glow)
-        g.perspective('camera', (0.0, 2.75, 10.5), (0.0, 2.75, 0.0), 39.3, aspect=1.0)
-        g.write(os.path.join(ROOT, 'scenes', name + '.gltf'))
+    # facing up, it hangs 0.75 m below the ceiling, so its patch there is broad
+    lx, lz, ly = 0.65, 0.525, Y - (0.02 if facing_down else 0.75)
+    down = quad((-lx, ly, -lz), (lx, ly, -lz), (lx, ly, lz), (-lx, ly, lz))
+    up = quad((-lx, ly, -lz), (-lx, ly, lz), (lx, ly, lz), (lx, ly, -lz))
+    g.mesh('light', 'light_down' if facing_down else 'light_up', down if facing_down else up, glow)
+    g.perspective('camera', (0.0, 2.75, 10.5), (0.0, 2.75, 0.0), 39.3, aspect=1.0)
 
+
+def cornell_boxes():
+    """Two Lambert Cornell boxes (cornell_room), the sample-quality and guiding benchmarks'
+    scenes (issues 25 and 26):
+    - cornell_box.gltf: the classic one, lit by the quad facing down: direct light dominates;
+    - cornell_indirect.gltf: the quad 0.75 m below the ceiling, facing it, so that everything the
+      camera sees but the ceiling's bright patch is lit indirectly by that patch (the
+      canonical case for path guiding)."""
+    for name, facing_down in (('cornell_box', True), ('cornell_indirect', False)):
+        g = Gltf()
+        cornell_room(g, facing_down=facing_down)
+        g.write(os.path.join(ROOT, 'scenes', name + '.gltf'))
 
 def top_ortho(g, height=3.0, mag=1.0):
     """Orthographic camera above the origin looking straight down (image right = +x, up = -z),

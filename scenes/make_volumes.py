@@ -46,6 +46,9 @@ Scenes (each with a ground plane, a camera and KHR_lights_punctual lights unless
   camera_in_fog.gltf  the camera inside a closed 30 x 10 x 30 m box whose (non-transmissive)
                    material has candela_medium: homogeneous fog with an invisible boundary;
                    pillars and four point lights inside
+  cornell_cloud.gltf  the dense cloud (4.4 m, density_scale 8, albedo 0.9, g = 0.3) in the
+                   Lambert Cornell box without its boxes, lit by the box's one area light
+                   (the sample-quality benchmark's volume scene)
   sky_constant.exr  16 x 8 FLOAT EXR, every pixel (0.35, 0.45, 0.65)
 """
 
@@ -331,6 +334,18 @@ def cloud_point_env(out):
     g.write(os.path.join(out, 'cloud_point_env.gltf'))
 
 
+def cornell_cloud(out):
+    """The dense cloud scaled to 4.4 m at density_scale 8 (albedo 0.9, mildly forward
+    scattering) in the middle of the Lambert Cornell box (make_scenes.cornell_room, without its
+    two boxes), lit only by the box's area light: one light, multiple scattering and the walls'
+    interreflection."""
+    g = new_gltf()
+    ms.cornell_room(g, boxes=False)
+    volume_node(g, 'cloud', 'dense_cloud.vdb', translation=(0.0, 2.5, 0.0), scale=(2.2, 2.2, 2.2),
+                density_scale=8.0, albedo=(0.9, 0.9, 0.9), anisotropy=0.3)
+    g.write(os.path.join(out, 'cornell_cloud.gltf'))
+
+
 def glass_absorb(out):
     """Coloured glass: a smooth glass sphere (r 0.5 m) whose inside absorbs with candela_medium
     sigma_a (0.3, 2, 4)/m (amber: e^-sigma_a over its 1 m diameter is 0.74, 0.14, 0.02), and a
@@ -384,6 +399,7 @@ def main():
     torch_mist(out)
     spots_atmosphere(out)
     cloud_point_env(out)
+    cornell_cloud(out)
     glass_absorb(out)
     camera_in_fog(out)
     total = sum(os.path.getsize(os.path.join(out, f)) for f in os.listdir(out))

@@ -42,9 +42,13 @@ expect_error() {
 
 # --- schedule, identity of images with checkpoints, resume from the last checkpoint
 # (cpaov: the cache point AOV's film sums are saved and resumed too)
-for mode in default mis cpaov; do
+# (adaptive: the film's stopped pixels are saved, and the pixels a resumed iteration renders
+# are exactly those the checkpoint's film still samples)
+adaptive=(--noise-threshold 0.2 --min-spp 4 --aov spp)
+for mode in default mis cpaov adaptive; do
   extra=(); [ $mode = mis ] && extra=(--guiding mis)
   [ $mode = cpaov ] && extra=(--light-sampler cachepoints --aov cachepoint)
+  [ $mode = adaptive ] && extra=("${adaptive[@]}")
   "$bin" "${base[@]}" --spp 64 "${extra[@]}" -o "$tmp/full-$mode.exr" --quiet || bad "full render ($mode)"
   "$bin" "${base[@]}" --spp 64 "${extra[@]}" -o "$tmp/ck-$mode.exr" --checkpoint "$tmp/$mode.ckpt" 2>"$tmp/log-$mode" ||
     bad "render with --checkpoint ($mode)"
@@ -57,6 +61,8 @@ for mode in default mis cpaov; do
     bad "resume ($mode)"
   same "$tmp/full-$mode.exr" "$tmp/res-$mode.exr" "resumed render ($mode)"
 done
+grep -q "samples per pixel: 4 to 64" "$tmp/log-adaptive" && ok ||
+  bad "adaptive: no pixel stopped early: $(grep 'samples per pixel' "$tmp/log-adaptive")"
 
 # progressive cache point insertion (at the barrier after 4 spp): the checkpoints after it carry
 # the inserted points, which a resumed render re-inserts before loading the learned state
@@ -80,8 +86,9 @@ got=$(sed -n 's/^candela: checkpoint at \([0-9]*\) spp.*/\1/p' "$tmp/log-g128" |
 
 # --- SIGKILL after a checkpoint, then resume (a slower render: one thread, small batches)
 slow=(--spp 192 --threads 1 --batch 64)
-for mode in default mis; do
+for mode in default mis adaptive; do
   extra=(); [ $mode = mis ] && extra=(--guiding mis)
+  [ $mode = adaptive ] && extra=("${adaptive[@]}")
   "$bin" "${base[@]}" "${slow[@]}" "${extra[@]}" -o "$tmp/kfull-$mode.exr" --quiet || bad "full slow render ($mode)"
   rm -f "$tmp/kill.ckpt" "$tmp/kill.exr"
   "$bin" "${base[@]}" "${slow[@]}" "${extra[@]}" -o "$tmp/kill.exr" --checkpoint "$tmp/kill.ckpt" --quiet &
@@ -111,6 +118,19 @@ if [ $rc -eq 130 ]; then
 else
   bad "SIGTERM: exit $rc (want 130; finished before the signal?)"
 fi
+# ... and with adaptive sampling, stopped within an iteration after some pixels stopped
+rm -f "$tmp/aterm.ckpt"; : > "$tmp/aterm.log"
+"$bin" "${base[@]}" "${slow[@]}" "${adaptive[@]}" -o "$tmp/aterm.exr" --checkpoint "$tmp/aterm.ckpt" 2>"$tmp/aterm.log" &
+pid=$!
+for _ in $(seq 1 600); do grep -q "checkpoint at 32 spp" "$tmp/aterm.log" && break; sleep 0.05; done
+kill -TERM $pid; wait $pid; rc=$?
+if [ $rc -eq 130 ]; then
+  "$bin" "${base[@]}" "${slow[@]}" "${adaptive[@]}" -o "$tmp/aterm.exr" --resume-from "$tmp/aterm.ckpt" --quiet ||
+    bad "resume after SIGTERM (adaptive)"
+  same "$tmp/kfull-adaptive.exr" "$tmp/aterm.exr" "resumed after SIGTERM (adaptive)"
+else
+  bad "SIGTERM (adaptive): exit $rc (want 130; finished before the signal?)"
+fi
 
 # --- bad input: one line, nothing overwritten
 ck=$tmp/default.ckpt
@@ -136,6 +156,11 @@ expect_error "checkpoint with compare" "for candela render" -- compare "$scene" 
   --out-dir "$tmp/cmp" --quiet
 expect_error "shard output" "NAME.film" -- "${base[@]}" --spp 8 --sample-shard 0/2 -o "$tmp/keep.exr" --quiet
 expect_error "shard of too few spp" "cannot be split" -- "${base[@]}" --spp 2 --sample-shard 0/4 -o "$tmp/s.film" --quiet
+expect_error "adaptive shard" "cannot be used with --sample-shard" -- "${base[@]}" --spp 8 --sample-shard 0/2 \
+  --noise-threshold 0.01 -o "$tmp/s.film" --quiet
+expect_error "time-limited shard" "cannot be used with --sample-shard" -- "${base[@]}" --spp 8 --sample-shard 0/2 \
+  --time-limit 10 -o "$tmp/s.film" --quiet
+expect_error "min-spp alone" "needs --noise-threshold" -- "${base[@]}" --spp 8 --min-spp 4 -o "$tmp/keep.exr" --quiet
 
 # --- sample shards: the merge is a pure function of the films (any order, bit for bit)
 for i in 0 1 2 3; do

@@ -231,7 +231,9 @@ static void test_consistency(void) {
         for (uint32_t depth = 0; depth < 4; ++depth)
             for (uint32_t g = 0; g < DIMS_GROUPS; ++g) {
                 DimsGroup gr = dims_group(&d, depth, g);
-                for (uint32_t l = 0; l < 4; ++l) differ += dims_lane(&gr, l) != dims_bounce(&d, depth, DIMS_GROUP_WHICH[g][l]);
+                for (uint32_t l = 0; l < 4; ++l)
+                    if (depth > 0 || DIMS_GROUP_WHICH[g][l] != RNG_BOUNCE_LIGHT_SELECT) /* that one: the camera group's */
+                        differ += dims_lane(&gr, l) != dims_bounce(&d, depth, DIMS_GROUP_WHICH[g][l]);
                 PathDims ind = d;
                 ind.sobol = NULL;
                 DimsGroup gi = dims_group(&ind, depth, g);
@@ -240,6 +242,15 @@ static void test_consistency(void) {
             }
     }
     CHECK(differ == 0, "%d numbers differ between the group and single-number calls", differ);
+    /* the first hit's light selection is the camera group's lane 2: stratified with the pixel
+     * position (a 3D net: each 2D projection of the first 2^m samples onto (x, select) and
+     * (y, select) is stratified in 1D per axis at least) */
+    for (uint32_t s = 0; s < 64; ++s) {
+        PathDims d = dims_of(4, 99, s);
+        differ += dims_bounce(&d, 0, RNG_BOUNCE_LIGHT_SELECT) !=
+                  sequence_sobol(&T, d.scramble, d.rindex, 0, RNG_DIM_FIRST_SELECT);
+    }
+    CHECK(differ == 0, "the depth-0 light selection is not the camera group's lane %d", RNG_DIM_FIRST_SELECT);
     /* every per-depth dimension belongs to exactly one group lane */
     int count[RNG_BOUNCE_DIMS] = {0};
     for (int g = 0; g < DIMS_GROUPS; ++g)
