@@ -20,7 +20,7 @@ typedef struct RecorderVertex {
     float dir[3];
     float throughput[3];
     float emission[3];  /* §3.4.1: accumulated emission of the subtree (throughput-weighted) */
-    float pdf, bsdf_pdf, guide_pdf;
+    float pdf, bsdf_pdf, guide_pdf, cosine;
     uint32_t parent;
     uint32_t refcount;  /* 0: free */
     uint32_t flags;
@@ -170,6 +170,7 @@ uint32_t recorder_new_child(Recorder *r, RecorderCache *c, uint32_t parent, cons
     v->pdf = init->pdf;
     v->bsdf_pdf = init->bsdf_pdf;
     v->guide_pdf = init->guide_pdf;
+    v->cosine = init->cosine;
     v->parent = parent;
     v->refcount = 1;
     v->flags = init->flags;
@@ -207,6 +208,7 @@ static void samples_append(RecorderSamples *s, const RecorderVertex *v) {
     o->pdf = v->pdf;
     o->bsdf_pdf = v->bsdf_pdf;
     o->guide_pdf = v->guide_pdf;
+    o->cosine = v->cosine;
     o->flags = v->flags | (v->parent == PV_CAMERA ? RECORDER_SAMPLE_PRIMARY : 0u);
     o->pixel = v->pixel;
     o->path = v->path;

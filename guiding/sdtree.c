@@ -8,9 +8,12 @@
  *   cycling, §3: the cube keeps the leaves close to cubical) and stores the split position, so
  *   lookups reproduce exactly the boxes the update computed. Its two children are consecutive
  *   entries. A leaf names its GuideDistribution in the leaves array.
- * - The D-trees: per leaf a pair of quadtrees over the equal-area square (u, v) = ((cos theta
- *   + 1) / 2, phi / 2 pi), cos theta = dir.z, phi = atan2(dir.y, dir.x) in [0, 2 pi). Equal
- *   area means a density over the square is the solid-angle density times 4 pi. A tree is a
+ * - The D-trees: per leaf a pair of quadtrees over the octahedral square (u, v) (dir_to_uv:
+ *   algebraic, not equal-area; the paper's cylindrical equal-area map needs atan2 and sincos):
+ *   a density over the square is a solid-angle density times the map's factor 4 / |p|^3,
+ *   which sampling and pdf apply. Training adds L / pdf per direction, so a cell's sum estimates
+ *   the flux through its solid angle whatever the map; a cell is sampled by its flux and then
+ *   uniformly over its square. A tree is a
  *   flat array of QuadNode (four quadrant sums, four child indices, 0 meaning "the quadrant is
  *   a leaf"; the root is node 0 and never anybody's child), which copies with one memcpy.
  *   Quadrant q = qx + 2 qy, qx = (u >= 1/2) (columns), qy = (v >= 1/2) (rows), in the node's
@@ -67,8 +70,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define GUIDE_PI 3.14159265358979323846
-#define GUIDE_INV_4PI (1.0 / (4.0 * GUIDE_PI))
 
 enum {
     SPATIAL_MAX_DEPTH = 48,       /* a box 2^-16 of the cube's side per axis */
@@ -77,7 +78,7 @@ enum {
 };
 #define LEAF_LIMIT (1u << 26)     /* keeps 8 * leaves (PLY vertex indices) within int */
 #define DEFAULT_MAX_BYTES ((size_t)256 << 20)
-#define DEFAULT_SPATIAL_THRESHOLD 12000.0f
+#define DEFAULT_SPATIAL_THRESHOLD 3000.0f
 #define DEFAULT_FLUX_THRESHOLD 0.01f
 
 /* ------------------------------------------------------------------ types */
@@ -197,29 +198,49 @@ static inline double clamp_unit_open(double x) { /* [0, 1): the sampling routine
     return x;
 }
 
-/* The cylindrical equal-area map (§3: "world-space cylindrical coordinates"). 0: no
- * direction (zero length or non-finite). */
-static int dir_to_uv(const float dir[3], double *u, double *v) {
+/* The octahedral map between unit directions and the (u, v) square (Praun and Hoppe 2003;
+ * Engelhardt and Dachsbacher 2008): p = dir / (|x| + |y| + |z|) lies on the octahedron; its
+ * upper half (z >= 0) projects to the diamond |a| + |b| <= 1 with (a, b) = (p.x, p.y), the lower
+ * half to the square's corners, folded across the diamond's edges; (u, v) = ((a + 1) / 2,
+ * (b + 1) / 2). Algebraic both ways: no atan2, no sine or cosine on the hot path (the
+ * cylindrical equal-area map's atan2 and sincos were 8% of a guided render's time). It is not
+ * equal-area: a direction's solid angle per unit of (u, v) area is 4 / |p|^3 (the octahedron's
+ * face is tilted by 1/sqrt 3 against the square and lies |p| from the origin), so a density over
+ * the square turns into one over directions times |p|^3 / 4, between 1 / (12 sqrt 3) and 1 / 4
+ * (*jacobian below). The quadtree adapts to the map's density like to any other. */
+static int dir_to_uv(const float dir[3], double *u, double *v, double *jacobian) {
     double x = dir[0], y = dir[1], z = dir[2];
-    double len = sqrt(x * x + y * y + z * z);
-    if (!(len > 0) || !isfinite(len)) return 0;
-    double cos_theta = z / len;
-    if (cos_theta > 1) cos_theta = 1;
-    if (cos_theta < -1) cos_theta = -1;
-    double phi = atan2(y, x); /* double: atan2f moved 1 in 400k sampled directions across a cell boundary */
-    if (phi < 0) phi += 2 * GUIDE_PI;
-    *u = clamp_unit_open(0.5 * (cos_theta + 1));
-    *v = clamp_unit_open(phi * (1 / (2 * GUIDE_PI)));
+    double l1 = fabs(x) + fabs(y) + fabs(z);
+    if (!(l1 > 0) || !isfinite(l1)) return 0;
+    double a = x / l1, b = y / l1;
+    if (z < 0) { /* the lower half, folded out to the corners */
+        double fa = (1 - fabs(b)) * (a >= 0 ? 1 : -1), fb = (1 - fabs(a)) * (b >= 0 ? 1 : -1);
+        a = fa;
+        b = fb;
+    }
+    *u = clamp_unit_open(0.5 * (a + 1));
+    *v = clamp_unit_open(0.5 * (b + 1));
+    if (jacobian) {
+        double p2 = (x * x + y * y + z * z) / (l1 * l1); /* |p|^2 */
+        *jacobian = 0.25 * p2 * sqrt(p2);
+    }
     return 1;
 }
 
-static void uv_to_dir(double u, double v, float dir[3]) {
-    double cos_theta = 2 * u - 1;
-    double sin_theta = sqrt(fmax(0.0, 1 - cos_theta * cos_theta));
-    double phi = 2 * GUIDE_PI * v;
-    dir[0] = (float)(sin_theta * cos(phi));
-    dir[1] = (float)(sin_theta * sin(phi));
-    dir[2] = (float)cos_theta;
+/* The direction of (u, v), and the density factor |p|^3 / 4 of dir_to_uv. */
+static void uv_to_dir(double u, double v, float dir[3], double *jacobian) {
+    double a = 2 * u - 1, b = 2 * v - 1;
+    double z = 1 - fabs(a) - fabs(b);
+    if (z < 0) {
+        double fa = (1 - fabs(b)) * (a >= 0 ? 1 : -1), fb = (1 - fabs(a)) * (b >= 0 ? 1 : -1);
+        a = fa;
+        b = fb;
+    }
+    double p2 = a * a + b * b + z * z, len = sqrt(p2);
+    dir[0] = (float)(a / len);
+    dir[1] = (float)(b / len);
+    dir[2] = (float)(z / len);
+    *jacobian = 0.25 * p2 * len;
 }
 
 /* ------------------------------------------------------------------ quadtrees */
@@ -586,7 +607,7 @@ void guide_field_record(GuideField *f, const GuideTrainingSample *s, size_t n) {
         if (!isfinite(x->pos[0]) || !isfinite(x->pos[1]) || !isfinite(x->pos[2])) continue;
         if (!isfinite(x->radiance) || !(x->pdf > 0) || !isfinite(x->pdf)) continue;
         double u, v;
-        if (!dir_to_uv(x->dir, &u, &v)) continue;
+        if (!dir_to_uv(x->dir, &u, &v, NULL)) continue;
         uint64_t index = f->recorded_total++;
         GuideDistribution *leaf = &f->leaves[field_find_leaf(f, x->pos)];
         if (f->params.spatial_filter) {
@@ -884,21 +905,21 @@ static void flat_sample(const GuideDistribution *d, double u1, double u2, double
 }
 
 float guide_distribution_pdf(const GuideDistribution *d, const float dir[3]) {
-    double u, v;
-    if (!d || !dir || !dir_to_uv(dir, &u, &v)) return 0;
-    return flat_pdf_uv(d, u, v) * (float)GUIDE_INV_4PI;
+    double u, v, jacobian;
+    if (!d || !dir || !dir_to_uv(dir, &u, &v, &jacobian)) return 0;
+    return flat_pdf_uv(d, u, v) * (float)jacobian;
 }
 
 void guide_distribution_sample(const GuideDistribution *d, float u1, float u2, float dir[3], float *pdf) {
-    double u, v;
+    double u, v, jacobian;
     float pdf_uv;
     flat_sample(d, clamp_unit_open(u1), clamp_unit_open(u2), &u, &v, &pdf_uv);
-    uv_to_dir(u, v, dir);
+    uv_to_dir(u, v, dir, &jacobian);
     /* The density of the cell the descent chose: the product guide_distribution_pdf forms for
      * the direction, level by level (they can differ only where the float direction rounds
      * across a cell boundary, a measure-zero set; evaluating the pdf again was a third of
      * guiding's cost). */
-    if (pdf) *pdf = pdf_uv * (float)GUIDE_INV_4PI;
+    if (pdf) *pdf = pdf_uv * (float)jacobian;
 }
 
 const GuideDistribution *guide_field_lookup_hint(const GuideField *f, const float pos[3], const GuideDistribution *hint) {
@@ -931,8 +952,10 @@ void guide_distribution_image(const GuideDistribution *d, int w, int h, float *o
     if (!d || !out || w <= 0 || h <= 0) return;
     for (int row = 0; row < h; ++row)
         for (int col = 0; col < w; ++col) {
-            double u = (col + 0.5) / w, v = (row + 0.5) / h;
-            out[(size_t)row * (size_t)w + (size_t)col] = flat_pdf_uv(d, u, v) * (float)GUIDE_INV_4PI;
+            double u = (col + 0.5) / w, v = (row + 0.5) / h, jacobian;
+            float dir[3];
+            uv_to_dir(u, v, dir, &jacobian);
+            out[(size_t)row * (size_t)w + (size_t)col] = flat_pdf_uv(d, u, v) * (float)jacobian;
         }
 }
 

@@ -112,7 +112,10 @@ static void train_field(GuideState *gs, int k, const RecorderSamples *batch) {
         GuideTrainingSample *t = &gs->train[k][n++];
         memcpy(t->pos, s->pos, sizeof t->pos);
         memcpy(t->dir, s->dir, sizeof t->dir);
-        t->radiance = 0.2126f * s->radiance[0] + 0.7152f * s->radiance[1] + 0.0722f * s->radiance[2];
+        /* surfaces learn L |cos theta| (the product the function's f |cos| multiplies, exact for a
+         * diffuse surface; the fields are per orientation class, so a leaf's vertices share
+         * nearly one normal); media learn L (cosine 1) */
+        t->radiance = (0.2126f * s->radiance[0] + 0.7152f * s->radiance[1] + 0.0722f * s->radiance[2]) * s->cosine;
         t->pdf = s->pdf;
     }
     guide_field_record(gs->fields[k], gs->train[k], n);

@@ -256,9 +256,11 @@ void record_free(Integrator *ig);
 /* A camera ray: its vertex is the camera; path skipping is decided here. */
 void record_camera(const Integrator *ig, uint32_t p, uint64_t path);
 /* A child vertex of `parent` for a ray leaving pos in dir with throughput tp, or the parent
- * continued (too close: `segment` is the distance from the parent's origin; past the budget). */
+ * continued (too close: `segment` is the distance from the parent's origin; past the budget).
+ * cosine: |cos| of dir to the surface's shading normal (1 in media, and for NEE rays, which
+ * guiding does not learn from). */
 uint32_t record_child(const Integrator *ig, Slice *s, uint32_t p, uint32_t parent, vec3 pos, vec3 dir, vec3 tp,
-                      float pdf, float scatter_pdf, float guide_pdf, uint32_t flags, float segment);
+                      float pdf, float scatter_pdf, float guide_pdf, float cosine, uint32_t flags, float segment);
 /* The holder of vertex pv in path p lets go (records and backpropagates at zero). */
 void record_done(const Integrator *ig, Slice *s, uint32_t p, uint32_t pv);
 void record_radiance(const Integrator *ig, uint32_t p, vec3 c, RadianceSource source);

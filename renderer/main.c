@@ -80,7 +80,7 @@ static const char *USAGE =
 "  --guide-training-spp N    guiding learns from the first N spp, then renders with what it\n"
     "                            learned (default: an eighth of --spp, at least 22)\n"
     "  --guide-spatial-threshold C  a guiding leaf splits past C sqrt(spp of the iteration)\n"
-    "                            training samples (default 12000, Mueller et al. 2017)\n"
+    "                            training samples (default 3000)\n"
     "  --path-regularization G   roughen a vertex after a rough one: alpha' = 1 - (1 - alpha)\n"
     "                            (1 - G alpha'_prev) (the course's 0.01 helps guiding find caustics;\n"
     "                            biased; default 0: off)\n"

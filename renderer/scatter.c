@@ -167,19 +167,21 @@ int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out
     const float alpha = SCATTER_GUIDE_ALPHA;
     vec3 fsel; /* f |cos| of the chosen direction */
     if (s->guide_mode == SCATTER_GUIDE_MIS) {
-        /* one-sample MIS (Eq. 4-6): the function's sample with probability alpha, else the guide's */
+        /* one-sample MIS (Eq. 4-6): the function's sample with probability alpha, else the guide's.
+         * u[0] chooses and, rescaled, picks the function's lobe; either technique takes its
+         * direction from u[1], u[2], so both stay stratified (scatter_numbers) */
         vec3 wi, f;
         float p_f, p_g;
-        if (u[5] < alpha) {
+        if (u[0] < alpha) {
             ScatterSample fs;
-            if (!scatter_sample(s, u[0], u[1], u[2], &fs)) return 0;
+            if (!scatter_sample(s, fminf(u[0] / alpha, 0x1.fffffep-1f), u[1], u[2], &fs)) return 0;
             wi = fs.wi;
             p_f = fs.scatter_pdf;
             f = v3_scale(fs.weight, p_f); /* f |cos| */
             p_g = guide_pdf_of(s, wi);
         } else {
             float d[3];
-            guide_distribution_sample(s->guide, u[3], u[4], d, &p_g);
+            guide_distribution_sample(s->guide, u[1], u[2], d, &p_g);
             wi = v3(d[0], d[1], d[2]);
             f = function_eval(s, wi, &p_f);
             if (v3_is_black(f)) return 0; /* the guide proposed a direction the function rejects */
@@ -193,7 +195,9 @@ int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out
         out->scatter_pdf = p_f;
         out->guide_pdf = p_g;
     } else {
-        /* RIS with one candidate of each (Eqs. 8-14): target t = f|cos| (beta/4pi + (1 - beta) g) */
+        /* RIS with one candidate of each (Eqs. 8-14): target t = f|cos| (beta/4pi + (1 - beta) L~),
+         * L~ the guide's radiance: g on media, g / |cos| on surfaces, whose guides learn L |cos|
+         * (renderer/guide.c) */
         const float beta = SCATTER_RIS_UNIFORM_SHARE;
         vec3 wc[2], fc[2];
         float pf[2] = {0, 0}, pg[2] = {0, 0}, w[2] = {0, 0}, t[2] = {0, 0};
@@ -210,7 +214,9 @@ int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out
         fc[1] = function_eval(s, wc[1], &pf[1]);
         for (int k = 0; k < 2; ++k) {
             float p = 0.5f * pf[k] + 0.5f * pg[k];
-            t[k] = v3_luminance(fc[k]) * (beta * (float)(0.25 / M_PI) + (1.0f - beta) * pg[k]);
+            float radiance = pg[k];
+            if (s->kind == SCATTER_BSDF) radiance /= fmaxf(fabsf(v3_dot(wc[k], s->frame.n)), 1e-3f);
+            t[k] = v3_luminance(fc[k]) * (beta * (float)(0.25 / M_PI) + (1.0f - beta) * radiance);
             w[k] = p > 0.0f && t[k] > 0.0f ? t[k] / p : 0.0f;
         }
         float sum = w[0] + w[1];

@@ -83,18 +83,23 @@ void scatter_init_phase(Scatter *s, float g, vec3 wo_world);
 /* 1 if a direction was sampled (u_lobe picks a lobe, u1 and u2 the direction in it). Never
  * guided. */
 int scatter_sample(const Scatter *s, float u_lobe, float u1, float u2, ScatterSample *out);
-/* The same with the guide when there is one: u[0..2] as above, u[3], u[4] the guide's
- * direction, u[5] the choice between the two (MIS) or between the candidates (RIS). */
+/* The same with the guide when there is one: u[0..2] as above; with MIS, u[0] also chooses
+ * between the function and the guide (rescaled for the lobe) and the chosen one takes u[1],
+ * u[2]; with RIS, u[3], u[4] are the guide candidate's direction and u[5] the choice between
+ * the candidates. */
 int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out);
 /* The six numbers of scatter_sample_guided from the vertex's scatter group (DIMS_SCATTER: u, v,
- * lobe, roulette) and, when the scatter is guided, its guide group (u, v, choice); the lobe
- * number only where there is a lobe to choose (the others ignore it). */
+ * lobe, roulette) and, for RIS, its guide group (the guide candidate's u, v and the choice); the
+ * lobe number only where there is a lobe to choose or a guided MIS choice (the others ignore
+ * it). One-sample MIS takes its choice from the lobe lane, so the (u, v) of either technique is
+ * the scatter group's stratified pair and a guided vertex draws no more numbers than an
+ * unguided one (the guide group's three lanes were 20% of a guided render's instructions). */
 static inline void scatter_numbers(const Scatter *s, const DimsGroup *scatter, float u[6]) {
-    u[0] = scatter_uses_lobe_u(s) ? dims_lane(scatter, 2) : 0.0f;
+    u[0] = scatter_uses_lobe_u(s) || s->guide ? dims_lane(scatter, 2) : 0.0f;
     u[1] = dims_lane(scatter, 0);
     u[2] = dims_lane(scatter, 1);
     u[3] = u[4] = u[5] = 0.0f;
-    if (s->guide) {
+    if (s->guide && s->guide_mode == SCATTER_GUIDE_RIS) {
         DimsGroup guide = dims_group(scatter->dims, scatter->depth, DIMS_GUIDE);
         for (uint32_t l = 0; l < 3; ++l) u[3 + l] = dims_lane(&guide, l);
     }

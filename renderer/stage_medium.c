@@ -40,7 +40,7 @@ static float medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec
         if (ig->record.active) { /* the NEE vertex, released below once its ray is traced */
             vec3 tp = nee_throughput(v3_scale(contrib, weight), ls.radiance);
             ps->shadow_pv[p] =
-                record_child(ig, s, p, ps->pv[p], x, ls.wi, tp, ls.pdf, ls.pdf, 0.0f, PV_FLAG_NEE | PV_FLAG_VOLUME, segment);
+                record_child(ig, s, p, ps->pv[p], x, ls.wi, tp, ls.pdf, ls.pdf, 0.0f, 1.0f, PV_FLAG_NEE | PV_FLAG_VOLUME, segment);
         }
         if (scene_visible1_masked(ig->scene, (SceneRay){x, 0.0f, ls.wi, tfar}, lights_shadow_mask(ig->lights, ls.light))) {
             vec3 T = shadow_transmittance(ig, s, ps->rng_key[p], ps->depth[p], ps->medium[p], x, ls.wi, tfar);
@@ -202,7 +202,7 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         ps->throughput[p] = beta;
         if (ig->record.active) { /* the continuation's vertex; the scattering event is done with the incoming one */
             uint32_t incoming = ps->pv[p];
-            ps->pv[p] = record_child(ig, s, p, incoming, x, ss.wi, beta, ss.pdf, ss.scatter_pdf, ss.guide_pdf, PV_FLAG_VOLUME,
+            ps->pv[p] = record_child(ig, s, p, incoming, x, ss.wi, beta, ss.pdf, ss.scatter_pdf, ss.guide_pdf, 1.0f, PV_FLAG_VOLUME,
                                      ev.t);
             record_done(ig, s, p, incoming);
         }

@@ -211,7 +211,7 @@ static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, con
         ps->shadow_light[p] = ls.light; /* also its shadow-linking ray mask (stage_shadow.c) */
         if (ig->record.active)
             ps->shadow_pv[p] = record_child(ig, s, p, ps->pv[p], h->p, ls.wi, nee_throughput(contrib, ls.radiance), ls.pdf,
-                                            ls.pdf, 0.0f, PV_FLAG_NEE, ps->hit[p].t);
+                                            ls.pdf, 0.0f, 1.0f, PV_FLAG_NEE, ps->hit[p].t);
         s->shadows[s->num_shadows++] = p;
         return;
     }
@@ -241,7 +241,8 @@ static int surface_continuation(const Integrator *ig, Slice *s, uint32_t p, cons
     if (ss.transmitted) ps->medium[p] = side_medium(ig, p, h, ss.wi);
     if (ig->record.active)
         ps->pv[p] = record_child(ig, s, p, ps->pv[p], h->p, ss.wi, beta, ss.pdf, ss.scatter_pdf, ss.guide_pdf,
-                                 (ss.delta ? PV_FLAG_DELTA : 0u) | guide_surface_flags(sc->ng), ps->hit[p].t);
+                                 fabsf(v3_dot(ss.wi, sc->frame.n)), (ss.delta ? PV_FLAG_DELTA : 0u) | guide_surface_flags(sc->ng),
+                                 ps->hit[p].t);
     path_scattered(ps, p, h->p, lc, ss.pdf, ss.delta);
     ps->ray[p] = (SceneRay){offset_ray_origin(h->p, scatter_side_normal(sc, ss.wi)), 0.0f, ss.wi, INFINITY};
     s->keys[s->num_rays] = sort_key_ray(ig, &ps->ray[p]);

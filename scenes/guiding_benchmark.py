@@ -1,117 +1,132 @@
 #!/usr/bin/env python3
-"""Path guiding at equal spp (issue 10's benchmark): unguided, guided by one-sample MIS and by
-RIS, all with the default light sampler (cache points), on the indirect-dominated interior
-(scenes/guiding_interior.gltf: a room lit through a small window) and the direct-dominated
-default scene.
+"""The path-guiding benchmark (issues 10 and 25): unguided and guided renders at equal spp on
+the scenes guiding exists for and on scenes it should leave alone.
 
-    python3 scenes/guiding_benchmark.py [--candela build/renderer/candela] [--res 640x480]
-                                        [--spp 256] [--ref-spp 4096] [--out DIR] [--scenes a,b]
-                                        [--light-sampler S] [--reference NAME=FILE.exr] [--ref-res WxH]
-                                        [--repeats N]
+    python3 scenes/guiding_benchmark.py [--candela build/renderer/candela] [--scenes box,interior,...]
+                                        [--res WxH,...] [--spp N] [--configs off,mis,ris,auto]
+                                        [--ref-spp N] [--out DIR] [--repeats N] [--threads N]
 
-Per scene: a reference (guided RIS at --ref-spp with another seed: its noise is independent of
-every render compared, and it is unbiased: tests/test_guiding.c checks that guided and unguided
-converge to the same image), then each configuration at --spp. MSE is against the reference
-over RGB (oiiotool --diff), with the reference's own variance of the mean (its EXR's variance
-channels, averaged) subtracted; time is the render's wall clock without scene loading (the cache
-point build, guiding's training and the recorder are counted); TTUV = MSE x time, lower is
-better; the ratio is unguided's TTUV over the configuration's. Also the mean path length
-(bounce rays per camera ray), the radiance recorder's vertices per path and the training time
-per guiding update. Prints a Markdown table. Needs oiiotool (Debian openimageio-tools).
+Scenes and their default resolutions and sample counts (--res and --spp override them):
+  box        scenes/cornell_indirect.gltf (a Lambert Cornell box lit through the ceiling: its light
+             faces the ceiling), max depth 64, 128x128, 256x256 and 640x480, 256 spp
+  interior   scenes/guiding_interior.gltf (a room lit through a small window), 640x480, 256 spp
+  blender    scenes/blender_interior/interior.gltf (--material-model blender3 --light-model blender3;
+             lit mostly by the lamp's bulb inside its shade), 640x360, 128 spp
+  default    scenes/default.gltf (direct light dominates), 320x240, 64 spp
+  bench      scenes/bench.gltf (direct light), 320x240, 16 spp
+
+Per scene and resolution: a reference (unguided, sobol, a seed no render uses, --ref-spp, at a
+quarter of the resolution per side, compared with 4x4 box-downsampled renders; kept in --out and
+reused while its .key file matches), then each configuration at the same spp. Columns:
+  relMSE      mean over pixels and channels of (x - ref)^2 / (ref^2 + 0.01) of the downsampled
+              render (the guiding literature's metric), and MSE beside it;
+  rel. var.   mean over pixels and channels of the EXR's variance layer / (mean^2 + 0.01) at full
+              resolution (the expected relMSE; with Sobol' samples an upper bound);
+  time        the render's wall clock without the scene load (training, the recorder and the
+              field updates included); the minimum over --repeats;
+  TTUV        relMSE x time, and its ratio to unguided's (lower is better);
+  path len.   bounce rays per camera ray; ns/vertex: time per traced ray (camera + bounce), guided
+              over unguided.
 Timings are wall clock: run on an otherwise idle machine and compare ratios within one run.
 """
 import argparse
+import json
 import os
 import subprocess
 import sys
 
-from image_error import mse, oiio_mean, run_render
+from image_error import mse, run_render
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-SCENES = {"interior": "scenes/guiding_interior.gltf", "default": "scenes/default.gltf"}
-CONFIGS = [("unguided", ["--guiding", "off"]), ("guided MIS", ["--guiding", "mis"]), ("guided RIS", ["--guiding", "ris"])]
+SCENES = {
+    "box": ("scenes/cornell_indirect.gltf", ["--max-depth", "64"], ["128x128", "256x256", "640x480"], 256),
+    "interior": ("scenes/guiding_interior.gltf", [], ["640x480"], 256),
+    "blender": ("scenes/blender_interior/interior.gltf", ["--material-model", "blender3", "--light-model", "blender3"],
+                ["640x360"], 128),
+    "default": ("scenes/default.gltf", [], ["320x240"], 64),
+    "bench": ("scenes/bench.gltf", [], ["320x240"], 16),
+}
 
 
-def render(candela, scene, out, spp, seed, res, extra):
-    """Renders; returns the stats JSON with "cpu_seconds" added (the process's user + system time)."""
+def oiio_stat(args):
+    """Mean over pixels and channels of an oiiotool expression's result."""
+    r = subprocess.run(["oiiotool"] + args + ["--printstats"], capture_output=True, text=True)
+    for line in r.stdout.splitlines():
+        if "Stats Avg" in line:
+            vals = [float(x) for x in line.split(":")[1].split("(")[0].split()]
+            return sum(vals) / len(vals)
+    sys.exit("oiiotool gave no stats for %s:\n%s" % (" ".join(args), r.stdout + r.stderr))
+
+
+def rel_mse(a, ref):
+    return oiio_stat([a, "--ch", "R,G,B", ref, "--ch", "R,G,B", "--sub", "--dup", "--mul", ref, "--ch", "R,G,B", "--dup",
+                      "--mul", "--addc", "0.01", "--div"])
+
+
+def rel_var(a):
+    return oiio_stat([a, "--ch", "variance.R,variance.G,variance.B", a, "--ch", "R,G,B", "--dup", "--mul", "--addc", "0.01",
+                      "--div"])
+
+
+def render(a, scene, out, res, spp, seed, extra):
     stats = out[:-4] + ".json"
-    cmd = [candela, "render", scene, "--res", res, "--spp", str(spp), "--seed", str(seed), "-o", out,
-           "--png", out[:-4] + ".png", "--stats-json", stats, "-q"] + extra
+    cmd = [a.candela, "render", scene, "--res", res, "--spp", str(spp), "--seed", str(seed), "-o", out, "--no-png",
+           "--stats-json", stats, "-q"] + extra + (["--threads", str(a.threads)] if a.threads > 0 else [])
     return run_render(cmd, stats)
-
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--candela", default=os.path.join(ROOT, "build", "renderer", "candela"))
-    ap.add_argument("--res", default="640x480",
-                    help="render resolution (default: the scenes' own, 640 wide; guiding learns from every "
-                         "path, so its gain grows with the paths per iteration)")
-    ap.add_argument("--spp", type=int, default=256)
-    ap.add_argument("--ref-spp", type=int, default=4096)
+    ap.add_argument("--scenes", default="box,interior,blender,default")
+    ap.add_argument("--res", default="", help="resolutions (comma-separated) instead of the scenes' own")
+    ap.add_argument("--spp", type=int, default=0, help="instead of the scenes' own")
+    ap.add_argument("--configs", default="off,mis,ris")
+    ap.add_argument("--ref-spp", type=int, default=8192)
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "guiding_benchmark"))
-    ap.add_argument("--scenes", default="interior,default")
-    ap.add_argument("--reference", action="append", default=[], help="NAME=FILE.exr: reuse a reference")
-    ap.add_argument("--ref-res", default="160x120",
-                    help="render the reference at this lower resolution (an integer fraction of --res) and "
-                         "compare box-downsampled renders with it: a box-filtered pixel is the mean of the "
-                         "pixels it covers, so this measures the renders' error at that scale, for a "
-                         "fraction of the reference's cost")
-    ap.add_argument("--repeats", type=int, default=1,
-                    help="render each configuration this many times (same seed, same image) and keep the "
-                         "shortest time: a shared machine's noise only ever adds time")
-    ap.add_argument("--time", choices=["wall", "cpu"], default="wall",
-                    help="the time of TTUV: the render's wall clock without scene loading (default), or the "
-                         "process's CPU time (user + system; with --threads 1 it is the work done, which a "
-                         "busy shared machine disturbs far less than the wall clock)")
-    ap.add_argument("--threads", type=int, default=0, help="render threads (0: all cores)")
-    ap.add_argument("--light-sampler", default="cachepoints",
-                    help="the light sampler of every render (default cachepoints, the renderer's default)")
+    ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument("--threads", type=int, default=0)
+    ap.add_argument("--extra", default="", help="flags added to every guided render (e.g. '--guide-training-spp 64')")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
-    given = dict(x.split("=", 1) for x in a.reference)
-    print("light sampler: %s, %s, reference %d spp at %s (guided RIS, another seed), time: %s, threads: %s\n" % (
-        a.light_sampler, a.res, a.ref_spp, a.ref_res or a.res, a.time, a.threads or "all"))
-    print("| scene | configuration | spp | time (s) | MSE | TTUV ratio vs unguided | mean path length | recorder vertices/path | training s/update |")
-    print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
+    print("candela %s; reference: unguided, %d spp at a quarter of the resolution\n" % (a.candela, a.ref_spp))
+    print("| scene | res | spp | config | relMSE | MSE | rel. var. | time (s) | TTUV vs off | rel. var. vs off | "
+          "time vs off | path len. | ns/vertex vs off |")
+    print("|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for name in a.scenes.split(","):
-        scene = os.path.join(ROOT, SCENES[name])
-        ref = given.get(name) or os.path.join(a.out, name + "_reference.exr")
-        if name not in given:
-            render(a.candela, scene, ref, a.ref_spp, 1000003, a.ref_res or a.res,
-                   ["--guiding", "ris", "--light-sampler", a.light_sampler])
-        ref_var = oiio_mean([ref, "--ch", "variance.R,variance.G,variance.B"])
-        base = None
-        for label, extra in CONFIGS:
-            out = os.path.join(a.out, "%s_%s_%s.exr" % (name, a.light_sampler, extra[1]))
-            t = None
-            for _ in range(max(a.repeats, 1)):
-                st = render(a.candela, scene, out, a.spp, 0, a.res,
-                            extra + ["--light-sampler", a.light_sampler] +
-                            (["--threads", str(a.threads)] if a.threads > 0 else []))
-                if a.time == "cpu":
-                    ti = st["cpu_seconds"]
-                else:
+        scene, extra, resolutions, spp = SCENES[name]
+        scene = os.path.join(ROOT, scene)
+        spp = a.spp or spp
+        for res in (a.res.split(",") if a.res else resolutions):
+            w, h = (int(x) for x in res.split("x"))
+            ref_res = "%dx%d" % (max(w // 4, 1), max(h // 4, 1))
+            ref = os.path.join(a.out, "%s_%s_reference.exr" % (name, ref_res))
+            key = "%s %s %d %s %s\n" % (scene, ref_res, a.ref_spp, extra, os.path.getmtime(a.candela))
+            if not (os.path.exists(ref) and os.path.exists(ref[:-4] + ".key") and open(ref[:-4] + ".key").read() == key):
+                render(a, scene, ref, ref_res, a.ref_spp, 1000003, extra + ["--guiding", "off"])
+                with open(ref[:-4] + ".key", "w") as f:
+                    f.write(key)
+            base = None
+            for config in a.configs.split(","):
+                out = os.path.join(a.out, "%s_%s_%s.exr" % (name, res, config))
+                flags = extra + ["--guiding", config] + (a.extra.split() if config != "off" and a.extra else [])
+                t = None
+                for _ in range(max(a.repeats, 1)):
+                    st = render(a, scene, out, res, spp, 0, flags)
                     ti = st["time_seconds"]["total"] - st["time_seconds"]["load"]
-                t = ti if t is None else min(t, ti)
-            compared = out
-            if a.ref_res and a.ref_res != a.res:
-                compared = out[:-4] + "_at_ref_res.exr"
-                subprocess.run(["oiiotool", out, "--ch", "R,G,B", "--resize:filter=box", a.ref_res, "-o", compared],
-                               check=True, capture_output=True)
-            err = max(mse(compared, ref) - ref_var, 1e-30)
-            ttuv = err * t
-            if base is None:
-                base = ttuv
-            paths = max(st["paths"], 1)
-            rec = st.get("recorder", {})
-            gd = st.get("guiding", {})
-            vpp = rec.get("vertices", 0) / max(rec.get("paths", 0), 1) if rec.get("paths") else 0.0
-            spu = gd.get("train_seconds", 0.0) / gd["updates"] if gd.get("updates") else 0.0
-            print("| %s | %s | %d | %.2f | %.4g | %.2fx | %.2f | %s | %s |" % (
-                name, label, a.spp, t, err, base / ttuv, st["rays"]["bounce"] / paths,
-                "%.2f" % vpp if vpp else "-", "%.4f" % spu if spu else "-"))
-            sys.stdout.flush()
+                    t = ti if t is None else min(t, ti)
+                small = out[:-4] + "_small.exr"
+                subprocess.run(["oiiotool", out, "--ch", "R,G,B", "--resize:filter=box", ref_res, "-o", small], check=True,
+                               capture_output=True)
+                rm, m, rv = rel_mse(small, ref), mse(small, ref), rel_var(out)
+                rays = st["rays"]["camera"] + st["rays"]["bounce"]
+                row = {"ttuv": rm * t, "rv": rv, "t": t, "ns": t / rays * 1e9}
+                if base is None:
+                    base = row
+                print("| %s | %s | %d | %s | %.4g | %.4g | %.4g | %.2f | %.2fx | %.2fx | %.2fx | %.2f | %.2fx |" % (
+                    name, res, spp, config, rm, m, rv, t, row["ttuv"] / base["ttuv"], base["rv"] / rv, t / base["t"],
+                    st["rays"]["bounce"] / st["rays"]["camera"], row["ns"] / base["ns"]))
+                sys.stdout.flush()
 
 
 if __name__ == "__main__":

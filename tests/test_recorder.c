@@ -13,7 +13,7 @@
 #include "guiding.h"
 
 static RecorderVertexInit vinit(float tp, uint32_t flags, uint64_t path) {
-    RecorderVertexInit v = {{0, 0, 0}, {0, 0, 1}, {tp, 2.0f * tp, 0.5f * tp}, 1.0f, 1.0f, 0.0f, flags, 0, path};
+    RecorderVertexInit v = {{0, 0, 0}, {0, 0, 1}, {tp, 2.0f * tp, 0.5f * tp}, 1.0f, 1.0f, 0.0f, 1.0f, flags, 0, path};
     return v;
 }
 

@@ -37,12 +37,36 @@ static void normalize(float d[3]) {
 
 static float dot(const float a[3], const float b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
-/* The (u, v) of a direction, as guiding.h defines the mapping. */
+/* The (u, v) of a direction, as guiding.h defines the mapping (the octahedral map, written
+ * here again): the direction over its L1 norm, the lower half folded to the corners. */
 static void dir_uv(const float d[3], double *u, double *v) {
-    double phi = atan2(d[1], d[0]);
-    if (phi < 0) phi += 2 * PI;
-    *u = 0.5 * (d[2] + 1);
-    *v = phi / (2 * PI);
+    double l1 = fabs(d[0]) + fabs(d[1]) + fabs(d[2]), a = d[0] / l1, b = d[1] / l1;
+    if (d[2] < 0) {
+        double fa = copysign(1 - fabs(b), a), fb = copysign(1 - fabs(a), b);
+        a = fa;
+        b = fb;
+    }
+    *u = 0.5 * (a + 1);
+    *v = 0.5 * (b + 1);
+}
+
+/* The solid angle per unit of (u, v) area at (u, v): 4 / |p|^3, p the octahedron's point. */
+static double solid_angle_per_uv(double u, double v) {
+    double a = 2 * u - 1, b = 2 * v - 1, z = 1 - fabs(a) - fabs(b);
+    if (z < 0) {
+        double fa = copysign(1 - fabs(b), a), fb = copysign(1 - fabs(a), b);
+        a = fa;
+        b = fb;
+    }
+    double p2 = a * a + b * b + z * z;
+    return 4.0 / (p2 * sqrt(p2));
+}
+
+/* The density an untrained leaf has for direction d: uniform over the (u, v) square. */
+static float map_pdf(const float d[3]) {
+    double u, v;
+    dir_uv(d, &u, &v);
+    return (float)(1.0 / solid_angle_per_uv(u, v));
 }
 
 /* A light field: radiance `bright` inside the cone of half-angle acos(cos_cone) around axis,
@@ -68,13 +92,19 @@ static void train(GuideField *f, uint64_t *rng, const Light *L, int n) {
     }
 }
 
-/* The integral of the pdf over the sphere from the (u, v) image (exact for cells no finer
- * than the image's pixels) and from an equal-area grid of directions. */
+/* The integral of the pdf over the sphere from the (u, v) image (midpoint rule: the pixels'
+ * solid angles from the map's density) and from an equal-area grid of directions. The image
+ * holds solid-angle densities: *img becomes each pixel's probability. */
 static double integral_image(const GuideDistribution *d, int res, float *img) {
     guide_distribution_image(d, res, res, img);
     double sum = 0;
-    for (int i = 0; i < res * res; ++i) sum += img[i];
-    return sum * 4 * PI / ((double)res * res);
+    for (int j = 0; j < res; ++j)
+        for (int i = 0; i < res; ++i) {
+            double w = solid_angle_per_uv((i + 0.5) / res, (j + 0.5) / res) / ((double)res * res);
+            img[j * res + i] = (float)(img[j * res + i] * w);
+            sum += img[j * res + i];
+        }
+    return sum;
 }
 
 static double integral_grid(const GuideDistribution *d, int res) {
@@ -91,7 +121,7 @@ static double integral_grid(const GuideDistribution *d, int res) {
 
 static int bits_equal(float a, float b) { return memcmp(&a, &b, sizeof a) == 0; }
 
-/* ---------------------------------------------------------------- 1. uniform before training */
+/* ---------------------------------------------------------------- 1. uniform over the square before training */
 static void test_uniform(void) {
     float lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
     GuideField *f = guide_field_create(lo, hi, NULL);
@@ -105,25 +135,27 @@ static void test_uniform(void) {
         float pos[3] = {rnd(&rng), rnd(&rng), rnd(&rng)}, dir[3];
         const GuideDistribution *d = guide_field_lookup(f, pos);
         uniform_dir(&rng, dir);
-        bad_pdf += fabsf(guide_distribution_pdf(d, dir) - UNIFORM_PDF) > 1e-6f * UNIFORM_PDF;
+        float want = map_pdf(dir);
+        bad_pdf += fabsf(guide_distribution_pdf(d, dir) - want) > 1e-5f * want;
         float s[3], pdf;
         guide_distribution_sample(d, rnd(&rng), rnd(&rng), s, &pdf);
         bad_len += fabsf(sqrtf(dot(s, s)) - 1) > 1e-5f;
-        bad_sample_pdf += fabsf(pdf - UNIFORM_PDF) > 1e-6f * UNIFORM_PDF;
+        bad_sample_pdf += fabsf(pdf - map_pdf(s)) > 1e-5f * map_pdf(s);
     }
-    CHECK(bad_pdf == 0, "%d pdfs differ from 1/(4 pi)", bad_pdf);
+    CHECK(bad_pdf == 0, "%d pdfs differ from the map's density", bad_pdf);
     CHECK(bad_len == 0, "%d sampled directions not unit length", bad_len);
-    CHECK(bad_sample_pdf == 0, "%d sample pdfs differ from 1/(4 pi)", bad_sample_pdf);
+    CHECK(bad_sample_pdf == 0, "%d sample pdfs differ from the map's density", bad_sample_pdf);
     float img[64];
-    guide_distribution_image(guide_field_lookup(f, lo), 8, 8, img);
+    double total = integral_image(guide_field_lookup(f, lo), 8, img);
     int bad_img = 0;
-    for (int i = 0; i < 64; ++i) bad_img += img[i] != UNIFORM_PDF;
-    CHECK(bad_img == 0, "%d image pixels not uniform", bad_img);
+    for (int i = 0; i < 64; ++i) bad_img += fabsf(img[i] - 1.0f / 64) > 1e-6f; /* equal probability per pixel */
+    CHECK(bad_img == 0, "%d image pixels not uniform over the square", bad_img);
+    CHECK(fabs(total - 1) < 1e-5, "integral %g", total);
     /* An update without samples learns nothing: still uniform. */
     CHECK(guide_field_update(f, 1.0f) == 0, "empty update");
     CHECK(guide_field_iterations(f) == 1, "iterations %d", guide_field_iterations(f));
     float z[3] = {0, 0, 1};
-    CHECK(guide_distribution_pdf(guide_field_lookup(f, lo), z) == UNIFORM_PDF, "uniform after an empty update");
+    CHECK(guide_distribution_pdf(guide_field_lookup(f, lo), z) == map_pdf(z), "uniform after an empty update");
     guide_field_free(f);
 }
 
@@ -134,7 +166,10 @@ static void test_trained(void) {
     normalize(L.axis);
     L.cos_cone = cosf(15.0f * (float)PI / 180.0f);
     float anti[3] = {-L.axis[0], -L.axis[1], -L.axis[2]}, centre[3] = {0.5f, 0.5f, 0.5f};
-    GuideField *f = guide_field_create(lo, hi, NULL);
+    GuideFieldParams c12k; /* PPG's c, which the leaf counts below are worked out for */
+    guide_field_params_default(&c12k);
+    c12k.spatial_threshold = 12000.0f;
+    GuideField *f = guide_field_create(lo, hi, &c12k);
     CHECK(f != NULL, "create");
     if (!f) return;
     uint64_t rng = 42;
@@ -230,11 +265,11 @@ static void test_trained(void) {
         CHECK(mismatch == 0, "%d sample pdfs differ from guide_distribution_pdf", mismatch);
         CHECK(nonpositive == 0, "%d sampled directions with pdf <= 0", nonpositive);
         CHECK(bad_len == 0, "%d sampled directions not unit length", bad_len);
-        /* Expected counts: the pdf integrated over each bin from the image's pixels. */
+        /* Expected counts: the probabilities of each bin's image pixels (integral_image made them so). */
         for (int b = 0; b < BINS * BINS; ++b) expv[b] = 0;
         for (int j = 0; j < RES; ++j)
             for (int i = 0; i < RES; ++i) expv[(j / PER) * BINS + i / PER] += img[j * RES + i];
-        for (int b = 0; b < BINS * BINS; ++b) expv[b] *= n * 4 * PI / ((double)RES * RES);
+        for (int b = 0; b < BINS * BINS; ++b) expv[b] *= n;
         /* The same counts transposed (u and v swapped) and mirrored in v must be rejected:
          * the test can tell a sampler that confuses the axes. */
         for (int j = 0; j < BINS; ++j)
@@ -519,9 +554,9 @@ static void test_bad_input(void) {
     for (int i = 0; i < 200; ++i) {
         float pos[3] = {rnd(&rng), rnd(&rng), rnd(&rng)}, dir[3];
         uniform_dir(&rng, dir);
-        not_uniform += guide_distribution_pdf(guide_field_lookup(f, pos), dir) != UNIFORM_PDF;
+        not_uniform += guide_distribution_pdf(guide_field_lookup(f, pos), dir) != map_pdf(dir);
     }
-    CHECK(not_uniform == 0, "%d pdfs not uniform without flux", not_uniform);
+    CHECK(not_uniform == 0, "%d pdfs not uniform (over the square) without flux", not_uniform);
     guide_field_free(f);
 
     /* Extreme but valid values (FLT_MAX radiance over the smallest pdf) stay finite. */
