@@ -92,35 +92,31 @@ bool is_regular_file(const std::string &p) {
     return ::stat(p.c_str(), &st) == 0 && S_ISREG(st.st_mode);
 }
 
+// The scene file through the one input door (io_open_input: regular files only, never a
+// FIFO's blocking open or /dev/zero's endless bytes; the size checked before reading).
 bool read_whole_file(const std::string &path, std::vector<unsigned char> *out, std::string *problem) {
-    FILE *f = std::fopen(path.c_str(), "rb");
-    if (!f) {
-        *problem = std::string("cannot open: ") + std::strerror(errno);
+    void *data = nullptr;
+    size_t n = 0;
+    char err[IO_ERR_LEN];
+    if (io_read_input(path.c_str(), IO_MAX_SCENE_BYTES, "a scene (4 GiB)", &data, &n, err) != 0) {
+        // io's message starts with the path, which the caller adds again
+        const std::string m(err);
+        *problem = m.compare(0, path.size() + 2, path + ": ") == 0 ? m.substr(path.size() + 2) : m;
         return false;
     }
-    struct stat st;
-    if (::fstat(fileno(f), &st) == 0 && S_ISDIR(st.st_mode)) {
-        std::fclose(f);
-        *problem = "cannot open: is a directory";
-        return false;
-    }
-    unsigned char buf[1 << 16];
-    size_t n;
-    while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) {
-        out->insert(out->end(), buf, buf + n);
-        if (out->size() > 0xFFFFFFF0u) {
-            std::fclose(f);
-            *problem = "file too large (4 GiB limit)";
-            return false;
-        }
-    }
-    bool bad = std::ferror(f) != 0;
-    std::fclose(f);
-    if (bad) {
-        *problem = "read error";
-        return false;
-    }
+    const unsigned char *p = static_cast<const unsigned char *>(data);
+    out->assign(p, p + n);
+    std::free(data);
     return true;
+}
+
+// tinygltf ReadWholeFile callback (buffer files): the same door, so a buffer URI naming a FIFO
+// or a device is refused even if it changed after the FileExists check.
+bool fs_read_whole_file(std::vector<unsigned char> *out, std::string *err, const std::string &path, void *) {
+    std::string problem;
+    if (read_whole_file(path, out, &problem)) return true;
+    if (err) *err = path + ": " + problem;
+    return false;
 }
 
 // The file-reference policy (README "Scene input"): a scene may reference files anywhere,
@@ -133,7 +129,8 @@ bool inside_folder(const std::string &file, const std::string &folder_real) {
     if (!r) return false;
     const std::string real(r);
     std::free(r);
-    return real.compare(0, folder_real.size() + 1, folder_real + "/") == 0;
+    // "/" holds every path ("/" + "/" is the prefix of none)
+    return folder_real == "/" || real.compare(0, folder_real.size() + 1, folder_real + "/") == 0;
 }
 
 struct FsUser {
@@ -505,7 +502,7 @@ void Loader::parse() {
     tg.SetImageLoader(&keep_image_bytes, nullptr);
     tg.SetStoreOriginalJSONForExtrasAndExtensions(true);  // for raw_member_start
     tinygltf::FsCallbacks fs = {&fs_file_exists, &tinygltf::ExpandFilePath,
-                                &tinygltf::ReadWholeFile, &tinygltf::WriteWholeFile, &fs_user_};
+                                &fs_read_whole_file, &tinygltf::WriteWholeFile, &fs_user_};
     tg.SetFsCallbacks(fs);
 
     std::string err, warn_s;
@@ -1759,7 +1756,11 @@ extern "C" int io_load_gltf_opts(const char *path, const IoLoadOptions *opts, Io
         return 1;
     }
     std::string problem, confine;
-    if (confine_dir && *confine_dir) {
+    if (confine_dir && !*confine_dir) { // a farm script's unset variable must not mean "no confinement"
+        set_err(err, path, "the confinement folder (--confine-to) is an empty name");
+        return 1;
+    }
+    if (confine_dir) {
         char *r = ::realpath(confine_dir, nullptr);
         if (!r) {
             set_err(err, confine_dir, "confinement folder (--confine-to) not found");

@@ -11,6 +11,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -37,6 +38,51 @@ void io_remove_stale_temps(const char *path);
 int io_output_path(const char *path, char resolved[IO_PATH_MAX], char err[IO_ERR_LEN]);
 void io_temp_end(void);
 void io_remove_active_temp(void);
+
+/* ---------------------------------------------------------------- files (io/files.c)
+ * Inputs: every file the program reads itself (a scene and its buffers, variant lists,
+ * checkpoints, shard films, a comparison's reference and key) is opened by io_open_input: a
+ * symbolic link is followed, and anything but a regular file (a FIFO, which would block in
+ * open(), a device such as /dev/zero, which never ends, a directory) is refused before a byte
+ * is read, as is a file larger than max_bytes (0: no limit), from its size before reading.
+ * `what` names the input in that message ("a scene", ...). 0 ok, -1 with "PATH: problem". */
+int io_open_input(const char *path, uint64_t max_bytes, const char *what, int *fd, uint64_t *size,
+                  char err[IO_ERR_LEN]);
+/* The same as a stdio stream (NULL on failure). */
+FILE *io_open_input_file(const char *path, uint64_t max_bytes, const char *what, uint64_t *size, char err[IO_ERR_LEN]);
+/* The whole file into *data (malloc'd, with a zero byte after the *size bytes), read no further
+ * than max_bytes even if it grows meanwhile. */
+int io_read_input(const char *path, uint64_t max_bytes, const char *what, void **data, size_t *size,
+                  char err[IO_ERR_LEN]);
+/* The largest scene file (glTF JSON or GLB) and the largest buffer file a scene references. */
+#define IO_MAX_SCENE_BYTES ((uint64_t)0xFFFFFFF0u)
+
+/* Which file a path names, to tell whether two paths are one file (an output must never be an
+ * input or another output of the same run): an existing file by device and inode (after
+ * symbolic links), one that does not exist yet by its folder's real path and its name (a
+ * dangling link by its target's). io_file_id returns -1 when the folder does not exist (the
+ * id then holds the path as given). */
+typedef struct IoFileId {
+    int exists;
+    uint64_t dev, ino;
+    char path[IO_PATH_MAX];
+} IoFileId;
+int io_file_id(const char *path, IoFileId *id);
+int io_same_file(const IoFileId *a, const IoFileId *b);
+/* 1 when path resolves (symbolic links and .. followed) inside folder ("/" holds every path). */
+int io_path_inside(const char *path, const char *folder);
+
+/* One writer per output: io_lock_output takes an exclusive lock (flock) on OUTPUT.lock beside
+ * the output's resolved path, and fails with "OUTPUT: another candela (pid P) is writing it"
+ * when another process holds it. A dead process's lock is free (the kernel drops it), so a
+ * lock file a SIGKILL left is simply taken over; io_unlock_output removes the file. On a file
+ * system without locks, writing goes on unlocked (fd -1). */
+typedef struct IoLock {
+    int fd;
+    char path[IO_PATH_MAX + 8];
+} IoLock;
+int io_lock_output(const char *output, IoLock *lock, char err[IO_ERR_LEN]);
+void io_unlock_output(IoLock *lock);
 /* The largest magnitude of a node's world transform entry (and so of a coordinate it places):
  * beyond it float rays lose all precision. Documented in README.md. */
 #define IO_MAX_COORDINATE 1e12
@@ -446,6 +492,7 @@ int io_write_vdb_dense(const char *path, const char *const *names, const float *
  * {"variant": [{"name": ..., "flags": ...}, ...]}; any other key is an error. The flags are
  * not interpreted here. Free with io_variants_free. */
 #define IO_MAX_VARIANTS 16
+#define IO_MAX_VARIANTS_BYTES ((uint64_t)1 << 20) /* a variant file's size limit */
 typedef struct IoVariant {
     char *name;
     char *flags;

@@ -592,15 +592,15 @@ bool VdbWalk::check(const std::string &grid_name, std::string *problem) {
 
 // Opens path and walks it; false with a one-line problem.
 bool check_vdb_file(const char *path, const std::string &grid_name, std::string *problem) {
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (fd < 0) {
-        *problem = std::string("cannot open: ") + std::strerror(errno);
+    int fd = -1;
+    uint64_t size = 0;
+    char err[IO_ERR_LEN];
+    if (io_open_input(path, 0, "a VDB file", &fd, &size, err) != 0) { // regular files only, never blocking
+        const std::string m(err), p(path);
+        *problem = m.compare(0, p.size() + 2, p + ": ") == 0 ? m.substr(p.size() + 2) : m;
         return false;
     }
-    struct stat st;
-    bool ok = fstat(fd, &st) == 0 && S_ISREG(st.st_mode);
-    if (!ok) *problem = "not a regular file";
-    else ok = VdbWalk(fd, (uint64_t)st.st_size).check(grid_name, problem);
+    bool ok = VdbWalk(fd, size).check(grid_name, problem);
     close(fd);
     return ok;
 }

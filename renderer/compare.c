@@ -362,18 +362,20 @@ static void reference_key(const CandelaOptions *o, char *key, size_t size) {
 
 /* The cached reference when OUT/reference.key matches key (and its render time), else -1. */
 static int cached_reference(const char *dir, const char *key, float **ref, int *w, int *h, double *seconds) {
-    char path[IO_PATH_MAX + 64], text[8192];
+    char path[IO_PATH_MAX + 64], ioerr[IO_ERR_LEN];
     snprintf(path, sizeof path, "%s/reference.key", dir);
-    FILE *f = fopen(path, "r");
-    if (!f) return -1;
-    size_t len = fread(text, 1, sizeof text - 1, f);
-    fclose(f);
-    text[len] = 0;
+    void *data = NULL;
+    size_t len = 0;
+    /* a key is a line or two: anything else (a FIFO, a huge file) is no cached reference */
+    if (io_read_input(path, 8192, "a reference key", &data, &len, ioerr) != 0) return -1;
+    const char *text = data;
     size_t klen = strlen(key);
-    if (len < klen || memcmp(text, key, klen) != 0 || sscanf(text + klen, "seconds %lf", seconds) != 1) return -1;
+    int match = len >= klen && memcmp(text, key, klen) == 0 && sscanf(text + klen, "seconds %lf", seconds) == 1;
+    free(data);
+    if (!match) return -1;
     snprintf(path, sizeof path, "%s/reference.exr", dir);
     float *r = NULL;
-    char ioerr[IO_ERR_LEN], err[CANDELA_ERR_LEN];
+    char err[CANDELA_ERR_LEN];
     if (io_read_exr_channel(path, "R", w, h, &r, ioerr) != 0) return -1;
     free(r);
     return load_reference(path, *w, *h, ref, err);

@@ -31,7 +31,7 @@ base=(render "$scene" --res 32x24 --no-png --light-sampler cachepoints)
 expect_error() {
   local name=$1 pattern=$2; shift 3
   echo sentinel > "$tmp/keep.exr"
-  "$bin" "$@" >"$tmp/stdout" 2>"$tmp/stderr"; local rc=$?
+  timeout 120 "$bin" "$@" >"$tmp/stdout" 2>"$tmp/stderr"; local rc=$?  # (124: hung, a failure)
   local lines; lines=$(grep -c . "$tmp/stderr")
   if [ $rc -eq 0 ] || [ $rc -ge 128 ]; then bad "$name: exit code $rc"; return; fi
   if [ "$lines" -ne 1 ]; then bad "$name: expected one error line, got $lines: $(cat "$tmp/stderr")"; return; fi
@@ -155,6 +155,15 @@ expect_error "merge: another render" "another render" -- merge -o "$tmp/keep.exr
 expect_error "merge: a checkpoint" "not a finished shard film" -- merge -o "$tmp/keep.exr" "$ck"
 expect_error "resume from a film" "finished shard film" -- "${base[@]}" --spp 16 --sample-shard 0/4 -o "$tmp/s0b.film" \
   --resume-from "$tmp/s0.film" --quiet
+
+# --- issue 29: a FIFO or a device given as a checkpoint or a film is refused unread (fopen of a
+# FIFO blocked forever)
+mkfifo "$tmp/fifo.ckpt" "$tmp/fifo.film"
+expect_error "resume from a FIFO" "fifo.ckpt: not a regular file (a FIFO)" -- "${base[@]}" --spp 64 -o "$tmp/keep.exr" \
+  --resume-from "$tmp/fifo.ckpt" --quiet
+expect_error "merge a FIFO" "fifo.film: not a regular file (a FIFO)" -- merge -o "$tmp/keep.exr" "$tmp/fifo.film"
+expect_error "merge /dev/zero" "/dev/zero: not a regular file (a device)" -- merge -o "$tmp/keep.exr" /dev/zero
+rm -f "$tmp/fifo.ckpt" "$tmp/fifo.film"
 
 echo "checkpoint tests: $pass passed, $fail failed"
 [ $fail -eq 0 ]

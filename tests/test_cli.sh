@@ -14,7 +14,7 @@ bad() { fail=$((fail + 1)); echo "FAIL: $*" >&2; }
 expect_error() {
   local name=$1 pattern=$2; shift 3
   rm -f "$tmp/out.exr" "$tmp/out.png"
-  "$bin" "$@" >"$tmp/stdout" 2>"$tmp/stderr"; local rc=$?
+  timeout 120 "$bin" "$@" >"$tmp/stdout" 2>"$tmp/stderr"; local rc=$?  # (124: hung, a failure)
   local lines; lines=$(grep -c . "$tmp/stderr")
   if [ $rc -eq 0 ] || [ $rc -ge 128 ]; then bad "$name: exit code $rc"; return; fi
   if [ "$lines" -ne 1 ]; then bad "$name: expected one error line, got $lines: $(cat "$tmp/stderr")"; return; fi
@@ -488,6 +488,32 @@ else
     || bad "stale temporaries after the next render: $left"
   for f in "${keep[@]}"; do [ -e "$tmp/$f" ] || [ -L "$tmp/$f" ] || bad "removed $f, which is not a stale temporary"; done
 fi
+
+# ---- issue 29 (hardening, second pass)
+# special files as inputs: refused before a byte is read, never blocking (a FIFO used to block
+# in open() forever, a scene linked to /dev/zero was read to 4 GiB); a large variant list is
+# refused from its size, unread
+mkfifo "$tmp/in_fifo.gltf"; ln -s /dev/zero "$tmp/zero.gltf"
+expect_error "scene is a FIFO" "in_fifo.gltf: not a regular file (a FIFO)" -- render "$tmp/in_fifo.gltf" "${common[@]}"
+expect_error "scene is /dev/zero" "zero.gltf: not a regular file (a device)" -- render "$tmp/zero.gltf" "${common[@]}"
+mkfifo "$tmp/v_fifo.toml"; ln -s /dev/zero "$tmp/v_zero.json"
+head -c 1100000 /dev/zero | tr '\0' '#' > "$tmp/v_big.toml"
+expect_error "variants FIFO" "v_fifo.toml: not a regular file (a FIFO)" -- compare "$det" --spp 1 --res 8x8 --out-dir "$tmp/c29" \
+  --quiet --variants "$tmp/v_fifo.toml"
+expect_error "variants /dev/zero" "v_zero.json: not a regular file (a device)" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$tmp/c29" --quiet --variants "$tmp/v_zero.json"
+expect_error "variants too large" "v_big.toml: 1100000 bytes, over the 1 MiB limit" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$tmp/c29" --quiet --variants "$tmp/v_big.toml"
+mkfifo "$tmp/ref_fifo.exr"
+expect_error "compare reference FIFO" "ref_fifo.exr: not a regular file (a FIFO)" -- compare "$det" --strategies tree --spp 1 \
+  --res 8x8 --out-dir "$tmp/c29" --quiet --reference "$tmp/ref_fifo.exr"
+rm -f "$tmp/in_fifo.gltf" "$tmp/zero.gltf" "$tmp/v_fifo.toml" "$tmp/v_zero.json" "$tmp/v_big.toml" "$tmp/ref_fifo.exr"
+# --confine-to: an empty name (a farm script's unset variable) is refused, not "no
+# confinement"; "/" confines to the whole tree (its prefix check compared with "//")
+expect_error "empty --confine-to" "--confine-to needs a folder" -- render "$tmp/conf/scenes/up.gltf" --confine-to "" "${common[@]}"
+"$bin" render "$tmp/conf/scenes/up.gltf" --confine-to / -o "$tmp/root.exr" --no-png --res 8x8 --spp 1 --quiet && [ -s "$tmp/root.exr" ] \
+  && ok || bad "--confine-to / refuses a scene"
+rm -f "$tmp/root.exr"
 
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]
