@@ -1743,6 +1743,102 @@ extern "C" int io_load_gltf(const char *path, IoScene *scene, char err[IO_ERR_LE
     return io_load_gltf_opts(path, nullptr, scene, err);
 }
 
+// The files a scene references, for the outputs rule (io.h, io_gltf_references): the JSON alone
+// (nlohmann, as tinygltf parses it), nothing loaded. URIs resolve as the loader resolves them:
+// buffers, images and VDBs percent-decoded relative to the scene's folder, the environment as
+// written. Every node's volume and every scene's environment is listed (a superset of what the
+// loaded scene reads).
+extern "C" int io_gltf_references(const char *path, IoPathList *list, char err[IO_ERR_LEN]) {
+    list->paths = nullptr;
+    list->count = 0;
+    std::vector<std::string> found;
+    try {
+        std::vector<unsigned char> bytes;
+        std::string problem;
+        if (!read_whole_file(path, &bytes, &problem)) {
+            set_err(err, path, problem);
+            return -1;
+        }
+        const unsigned char *json = bytes.data();
+        size_t json_len = bytes.size();
+        if (json_len >= 20 && std::memcmp(json, "glTF", 4) == 0) {
+            uint32_t len;
+            std::memcpy(&len, json + 12, 4);
+            if (uint64_t(len) + 20 > json_len) {
+                set_err(err, path, "invalid GLB: bad JSON chunk");
+                return -1;
+            }
+            json += 20;
+            json_len = len;
+        }
+        if (json_depth(json, json_len) > JSON_MAX_DEPTH) {
+            set_err(err, path, strf("JSON nests deeper than %d levels", JSON_MAX_DEPTH));
+            return -1;
+        }
+        const nlohmann::json d = nlohmann::json::parse(json, json + json_len);
+        const std::string dir = dir_of(path);
+        auto uri_of = [](const nlohmann::json &o) -> std::string {
+            if (!o.is_object()) return "";
+            auto it = o.find("uri");
+            if (it == o.end() || !it->is_string()) return "";
+            const std::string u = it->get<std::string>();
+            return u.compare(0, 5, "data:") == 0 ? "" : u;
+        };
+        for (const char *key : {"buffers", "images"}) {
+            auto a = d.find(key);
+            if (a == d.end() || !a->is_array()) continue;
+            for (const nlohmann::json &o : *a)
+                if (const std::string u = uri_of(o); !u.empty()) found.push_back(join_path(dir, url_decode(u)));
+        }
+        if (auto nodes = d.find("nodes"); nodes != d.end() && nodes->is_array())
+            for (const nlohmann::json &n : *nodes) {
+                if (!n.is_object() || !n.contains("extras") || !n["extras"].is_object()) continue;
+                auto v = n["extras"].find("candela_volume");
+                if (v != n["extras"].end())
+                    if (const std::string u = uri_of(*v); !u.empty()) found.push_back(join_path(dir, url_decode(u)));
+            }
+        auto env_of = [&](const nlohmann::json &o) {
+            if (!o.is_object() || !o.contains("extras") || !o["extras"].is_object()) return;
+            auto e = o["extras"].find("candela_environment");
+            if (e != o["extras"].end())
+                if (const std::string u = uri_of(*e); !u.empty()) found.push_back(join_path(dir, u));
+        };
+        env_of(d);
+        if (auto asset = d.find("asset"); asset != d.end()) env_of(*asset);
+        if (auto scenes = d.find("scenes"); scenes != d.end() && scenes->is_array())
+            for (const nlohmann::json &sc : *scenes) env_of(sc);
+    } catch (const std::bad_alloc &) {
+        set_err(err, path, "out of memory");
+        return -1;
+    } catch (const std::exception &e) {
+        set_err(err, path, std::string("malformed glTF: ") + e.what());
+        return -1;
+    }
+    if (found.empty()) return 0;
+    list->paths = static_cast<char **>(std::calloc(found.size(), sizeof(char *)));
+    if (!list->paths) {
+        set_err(err, path, "out of memory");
+        return -1;
+    }
+    for (const std::string &f : found) {
+        char *c = strdup(f.c_str());
+        if (!c) {
+            io_path_list_free(list);
+            set_err(err, path, "out of memory");
+            return -1;
+        }
+        list->paths[list->count++] = c;
+    }
+    return 0;
+}
+
+extern "C" void io_path_list_free(IoPathList *list) {
+    for (int i = 0; list->paths && i < list->count; ++i) std::free(list->paths[i]);
+    std::free(list->paths);
+    list->paths = nullptr;
+    list->count = 0;
+}
+
 extern "C" int io_load_gltf_opts(const char *path, const IoLoadOptions *opts, IoScene *scene, char err[IO_ERR_LEN]) {
     const char *confine_dir = opts ? opts->confine_dir : nullptr;
     if (err) err[0] = 0;

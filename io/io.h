@@ -435,6 +435,17 @@ typedef struct IoLoadOptions {
 } IoLoadOptions;
 int io_load_gltf_opts(const char *path, const IoLoadOptions *opts, IoScene *scene, char err[IO_ERR_LEN]);
 void io_scene_free(IoScene *scene);
+/* The files a glTF / GLB references (buffers, images, VDBs, environments; not data: URIs),
+ * resolved as the loader resolves them, from the JSON alone (nothing is loaded): what an output
+ * of the same run must not replace. A superset of what io_load_gltf reads (every node's volume,
+ * every scene's environment). 0 ok (list->count may be 0), -1 with a message (a file the loader
+ * would refuse too). Free with io_path_list_free. */
+typedef struct IoPathList {
+    char **paths;
+    int count;
+} IoPathList;
+int io_gltf_references(const char *path, IoPathList *list, char err[IO_ERR_LEN]);
+void io_path_list_free(IoPathList *list);
 
 /* io_load_image flags. IO_IMAGE_SRGB: the file's R, G, B are sRGB-encoded (8/16-bit integer
  * files; float files are linear whatever the flag says). IO_IMAGE_KEEP_8BIT: a file of 8 bits

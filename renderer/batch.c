@@ -237,6 +237,42 @@ static int file_exists(const char *path) {
     return stat(path, &st) == 0 && S_ISREG(st.st_mode);
 }
 
+/* The outputs rule for a batch: each frame's EXR and PNG (and their .partial names with
+ * --save-partial) against the run's inputs and outputs, and the EXR against the PNG. Names of
+ * different frames differ in their frame number. */
+static int check_frame_names(const CandelaBatchOptions *b, const FrameList *mine, char err[CANDELA_ERR_LEN]) {
+    for (size_t k = 0; k < mine->count; ++k) {
+        char names[4][PATH_MAX], role[4][64];
+        int n = 0;
+        frame_name(b->exr_pattern, mine->frames[k], names[n]);
+        snprintf(role[n++], sizeof role[0], "frame %lld's EXR", (long long)mine->frames[k]);
+        if (b->png_pattern) {
+            frame_name(b->png_pattern, mine->frames[k], names[n]);
+            snprintf(role[n++], sizeof role[0], "frame %lld's PNG", (long long)mine->frames[k]);
+        }
+        for (int j = 0, m = n; b->save_partial && j < m; ++j) {
+            partial_name(names[j], names[n]);
+            snprintf(role[n], sizeof role[0], "%.50s (.partial)", role[j]);
+            if (names[n][0]) ++n;
+        }
+        IoFileId id[4];
+        for (int j = 0; j < n; ++j) {
+            char e[CANDELA_ERR_LEN];
+            if (candela_run_check_output(b->run, names[j], role[j], e) != 0) {
+                snprintf(err, CANDELA_ERR_LEN, "candela: %.490s", e);
+                return -1;
+            }
+            (void)io_file_id(names[j], &id[j]);
+            for (int i = 0; i < j; ++i)
+                if (io_same_file(&id[i], &id[j])) {
+                    snprintf(err, CANDELA_ERR_LEN, "candela: %.300s: %.64s and %.64s are the same file", names[j], role[i], role[j]);
+                    return -1;
+                }
+        }
+    }
+    return 0;
+}
+
 /* ---------------------------------------------------------------- the frame log */
 
 /* A JSON string literal of s into buf (quotes, backslashes and control characters escaped). */
@@ -349,6 +385,13 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
             return -1;
         }
 
+    /* every frame's outputs against the run's files (the outputs rule, candela.h) and against
+     * each other, before the scene loads */
+    if (b->run && check_frame_names(b, &mine, err) != 0) {
+        free(all.frames);
+        free(mine.frames);
+        return -1;
+    }
     CandelaSession *session = NULL;
     CandelaSessionInfo info;
     if (candela_session_open(o, &session, &info, err) != 0) {

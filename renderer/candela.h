@@ -239,6 +239,31 @@ void candela_cachepoint_png_paths(const char *png_path, char *point_png, char *l
 int candela_replay_rays(const CandelaOptions *o, const CandelaRayLog *log, int threads,
                         double *seconds, char err[CANDELA_ERR_LEN]);
 
+/* ---------------------------------------------------------------- a run's files
+ * One rule for every output of a run (renderer/runfiles.c; README "Inputs and outputs"): it may
+ * not be an input of the same run (the scene, any file the scene references, --env,
+ * --resume-from, the films being merged, --variants, --reference, a variant's --env) nor another
+ * output of it. Paths are compared by the file they name (device and inode, or the real folder
+ * and name of a file not there yet). The commands record every input and output before any
+ * work; the first clash is one line in err ("PATH: the PNG preview (--png) would replace the
+ * scene, an input of this run"). role names the file in that message. */
+typedef struct CandelaRunFile CandelaRunFile;
+typedef struct CandelaRunFiles {
+    CandelaRunFile *files;
+    int count, capacity;
+} CandelaRunFiles;
+int candela_run_input(CandelaRunFiles *r, const char *path, const char *role, char err[CANDELA_ERR_LEN]);
+/* the scene and every file it references (io_gltf_references) */
+int candela_run_scene(CandelaRunFiles *r, const char *scene_path, char err[CANDELA_ERR_LEN]);
+int candela_run_output(CandelaRunFiles *r, const char *path, const char *role, char err[CANDELA_ERR_LEN]);
+/* candela_run_output for an output that continues an input and may replace it (--checkpoint
+ * over the --resume-from checkpoint it continues: written atomically, after it was read) */
+int candela_run_output_continuing(CandelaRunFiles *r, const char *path, const char *role, const char *continued,
+                                  char err[CANDELA_ERR_LEN]);
+/* the check of candela_run_output without recording the output (a frame's names) */
+int candela_run_check_output(const CandelaRunFiles *r, const char *path, const char *role, char err[CANDELA_ERR_LEN]);
+void candela_run_files_free(CandelaRunFiles *r);
+
 /* candela compare: every variant at equal spp (or equal time) against a reference, and a
  * report folder (renderer/compare.c, renderer/report.c). */
 typedef struct CandelaCompareOptions {
@@ -252,6 +277,9 @@ typedef struct CandelaCompareOptions {
      * flags per variant; NULL: `strategies` (each NAME stands for --light-sampler NAME) */
     const char *variants;
     double time_budget;          /* > 0: equal time, every variant renders until this many seconds */
+    /* the run's inputs and outputs so far (the scene's, --reference's, --variants'): the report's
+     * files and the variants' own inputs are added and checked before anything renders; NULL: none */
+    CandelaRunFiles *run;
 } CandelaCompareOptions;
 
 int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, char err[CANDELA_ERR_LEN]);
@@ -307,6 +335,9 @@ typedef struct CandelaBatchOptions {
     const char *stats_jsonl;  /* one JSON line per frame appended here; NULL: none */
     int resume;               /* skip frames whose EXR (and PNG, when asked) exist */
     int save_partial;         /* an interrupted frame is written under a .partial name */
+    /* the run's inputs and outputs (scene, --env, --frame-stats): every frame's names are checked
+     * against them before the first frame renders; NULL: none */
+    const CandelaRunFiles *run;
 } CandelaBatchOptions;
 /* Renders the frames. Returns -1 on an error before any frame was rendered (bad frame list,
  * shard, pattern, scene, a frame outside the animation: err says what; nothing written), else

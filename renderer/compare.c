@@ -166,6 +166,14 @@ static int variant_init(Variant *v, const char *name, size_t name_len, const cha
             return -1;
         }
         char flag_err[CANDELA_ERR_LEN];
+        /* a variant changes how the scene renders, never which files the run reads or writes:
+         * --dump-cachepoints would write wherever it names (outside --out-dir), --confine-to would
+         * change the policy the comparison was given */
+        if (strcmp(a, "--dump-cachepoints") == 0 || strcmp(a, "--confine-to") == 0) {
+            snprintf(err, CANDELA_ERR_LEN, "variant '%s': %s is not a variant's flag (%s)", v->name, a,
+                     a[2] == 'd' ? "it writes a file outside the report" : "give it to candela compare");
+            return -1;
+        }
         int r = candela_parse_render_flag(&v->opts, v->argc, v->argv, &i, flag_err);
         if (r < 0) {
             snprintf(err, CANDELA_ERR_LEN, "variant '%s': %.400s", v->name, flag_err);
@@ -176,6 +184,12 @@ static int variant_init(Variant *v, const char *name, size_t name_len, const cha
                      a[0] == '-' ? "unknown option" : "unexpected argument", a);
             return -1;
         }
+    }
+    /* a variant's --env is read like the scene's files: inside --confine-to when given */
+    if (v->opts.env_path != base->env_path && v->opts.confine_dir && !io_path_inside(v->opts.env_path, v->opts.confine_dir)) {
+        snprintf(err, CANDELA_ERR_LEN, "variant '%s': --env %.200s is outside %.200s (--confine-to)", v->name, v->opts.env_path,
+                 v->opts.confine_dir);
+        return -1;
     }
     char check_err[CANDELA_ERR_LEN];
     if (candela_options_check(&v->opts, check_err) != 0) {
@@ -639,6 +653,36 @@ static void page(const Report *r, const ReportText *table_html, ReportText *t) {
 
 /* ---------------------------------------------------------------- the comparison */
 
+/* Every file the report writes, and every variant's --env, into the run's files (the outputs
+ * rule, candela.h): checked before anything renders or the folder is made. */
+static int record_report_files(const CandelaCompareOptions *c, const Variant *vs, int count, char err[CANDELA_ERR_LEN]) {
+    char path[IO_PATH_MAX + 64];
+    static const char *const fixed[] = {"crops.png", "convergence.csv", "convergence_spp.svg", "convergence_time.svg",
+                                        "table.md", "table.csv", "index.html", "reference.png"};
+    static const char *const rendered_reference[] = {"reference.exr", "reference.key"};
+    for (size_t k = 0; k < sizeof fixed / sizeof *fixed; ++k) {
+        snprintf(path, sizeof path, "%s/%s", c->out_dir, fixed[k]);
+        if (candela_run_output(c->run, path, "a report file", err) != 0) return -1;
+    }
+    for (size_t k = 0; !c->reference_path && k < 2; ++k) {
+        snprintf(path, sizeof path, "%s/%s", c->out_dir, rendered_reference[k]);
+        if (candela_run_output(c->run, path, "a report file", err) != 0) return -1;
+    }
+    for (int i = 0; i < count; ++i) {
+        static const char *const suffix[] = {".exr", ".png", "_error.png"};
+        for (int k = 0; k < 3; ++k) {
+            snprintf(path, sizeof path, "%s/%s%s", c->out_dir, vs[i].name, suffix[k]);
+            if (candela_run_output(c->run, path, "a report file", err) != 0) return -1;
+        }
+    }
+    for (int i = 0; i < count; ++i) {
+        char role[96];
+        snprintf(role, sizeof role, "the --env of variant '%s'", vs[i].name);
+        if (candela_run_input(c->run, vs[i].opts.env_path, role, err) != 0) return -1;
+    }
+    return 0;
+}
+
 int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, char err[CANDELA_ERR_LEN]) {
     Variant *vs = NULL;
     int count = 0;
@@ -646,6 +690,10 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
     if (build_variants(base, c, &vs, &count, err) != 0) return -1;
     if (c->time_budget > 0 && c->timing_runs > 1) {
         snprintf(err, CANDELA_ERR_LEN, "--timing-runs repeats equal-spp renders; it does not go with --time-budget");
+        variants_free(vs, COMPARE_MAX_VARIANTS);
+        return -1;
+    }
+    if (c->run && record_report_files(c, vs, count, err) != 0) {
         variants_free(vs, COMPARE_MAX_VARIANTS);
         return -1;
     }

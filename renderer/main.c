@@ -314,7 +314,17 @@ static int merge_main(int argc, char **argv) {
             png = png_buf;
         }
         if (no_png) png = NULL;
-        if (candela_merge(out, png, files, n, err) != 0) {
+        /* the outputs rule: the merged image never replaces a film being merged (or its preview
+         * the image) */
+        CandelaRunFiles run = {0};
+        for (int i = 0; i < n && rc == 0; ++i)
+            if (candela_run_input(&run, files[i], "a film being merged", err) != 0) rc = 2;
+        if (rc == 0 && (candela_run_output(&run, out, "the merged EXR (-o)", err) != 0 ||
+                        candela_run_output(&run, png, "the merged PNG (--png)", err) != 0))
+            rc = 2;
+        candela_run_files_free(&run);
+        if (rc != 0) fprintf(stderr, "candela: %s\n", err);
+        else if (candela_merge(out, png, files, n, err) != 0) {
             fprintf(stderr, "candela: %s\n", err);
             rc = 1;
         }
@@ -322,6 +332,13 @@ static int merge_main(int argc, char **argv) {
     free(files);
     return rc;
 }
+
+static int record_run_files(CandelaRunFiles *run, const CandelaOptions *o, const CandelaCompareOptions *co,
+                            const CandelaBatchOptions *batch, int compare, int bench, int dump, const char *out,
+                            const char *png, const char *stats_json, int save_partial, char err[CANDELA_ERR_LEN]);
+static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBatchOptions *bp, int compare, int bench,
+                       int dump, const char *out, const char *png, const char *stats_json, int save_partial, int argc,
+                       char **argv);
 
 int main(int argc, char **argv) {
     if (argc < 2) { fputs(USAGE, stderr); return 2; }
@@ -541,6 +558,85 @@ int main(int argc, char **argv) {
             }
     }
 
+    /* one rule for every output (README "Inputs and outputs"): none may replace an input of this
+     * run or another output; every name is known now, before anything is loaded or written */
+    CandelaRunFiles run = {0};
+    char err[CANDELA_ERR_LEN];
+    if (record_run_files(&run, &o, &co, &batch, compare, bench, dump, out, png, stats_json, save_partial, err) != 0) {
+        fprintf(stderr, "candela: %s\n", err);
+        candela_run_files_free(&run);
+        return 2;
+    }
+    co.run = &run;
+    batch.run = &run;
+    int rc = run_command(&o, &co, &batch, compare, bench, dump, out, png, stats_json, save_partial, argc, argv);
+    candela_run_files_free(&run);
+    return rc;
+}
+
+/* The files of this run (CandelaRunFiles): the inputs named on the command line and the scene's,
+ * then every output this command writes. 0 ok, -1 with the first clash in err. */
+static int record_run_files(CandelaRunFiles *run, const CandelaOptions *o, const CandelaCompareOptions *co,
+                            const CandelaBatchOptions *batch, int compare, int bench, int dump, const char *out,
+                            const char *png, const char *stats_json, int save_partial, char err[CANDELA_ERR_LEN]) {
+    /* --env is read like the scene's files: inside --confine-to when given (scene_load checks it
+     * again for every render, a variant's too) */
+    if (o->env_path && o->confine_dir && !io_path_inside(o->env_path, o->confine_dir)) {
+        snprintf(err, CANDELA_ERR_LEN, "%.300s: --env is outside %.150s (--confine-to)", o->env_path, o->confine_dir);
+        return -1;
+    }
+    if (candela_run_scene(run, o->scene_path, err) || candela_run_input(run, o->env_path, "the environment (--env)", err) ||
+        candela_run_input(run, o->resume_from, "the checkpoint resumed (--resume-from)", err))
+        return -1;
+    if (compare) {
+        int variants_file = co->variants && (has_extension(co->variants, ".toml") || has_extension(co->variants, ".json"));
+        if ((variants_file && candela_run_input(run, co->variants, "the variant list (--variants)", err)) ||
+            candela_run_input(run, co->reference_path, "the reference (--reference)", err))
+            return -1;
+        return 0; /* the report's files: candela_compare, once it knows the variants */
+    }
+    if (bench) return 0; /* writes nothing */
+    if (candela_run_output(run, stats_json, "the statistics (--stats-json)", err) ||
+        candela_run_output(run, batch->stats_jsonl, "the frame log (--frame-stats)", err) ||
+        candela_run_output_continuing(run, o->checkpoint_path, "the checkpoint (--checkpoint)", o->resume_from, err) ||
+        candela_run_output(run, o->cachepoint_dump_path, "the cache point dump (--dump-cachepoints)", err))
+        return -1;
+    if (batch->frames) return 0; /* each frame's names: candela_batch_render */
+    if (candela_run_output(run, out, o->shard_count ? "the shard's film (-o)" : "the EXR (-o)", err) ||
+        candela_run_output(run, png, "the PNG preview (--png)", err))
+        return -1;
+    char a[PATH_MAX], b[PATH_MAX];
+    if (o->aov_selection && png) {
+        candela_cachepoint_png_paths(png, a, b, sizeof a);
+        if (candela_run_output(run, a, "the cache point AOV's PNG", err) || candela_run_output(run, b, "the cache point AOV's PNG", err))
+            return -1;
+    }
+    if (save_partial && !o->shard_count) {
+        partial_name(out, a);
+        if (candela_run_output(run, a, "the partial EXR (--save-partial)", err)) return -1;
+        if (png) {
+            partial_name(png, b);
+            if (candela_run_output(run, b, "the partial PNG (--save-partial)", err)) return -1;
+        }
+    }
+    if (dump) {
+        static const char *const suffix[] = {".guide.exr", ".guide.png", ".hist.exr", ".hist.png", ".leaves.ply"};
+        for (int k = 0; k < 5; ++k) {
+            snprintf(a, sizeof a, "%s%s", o->guide_dump_prefix, suffix[k]);
+            if (candela_run_output(run, a, "a guide-dump file", err)) return -1;
+        }
+    }
+    return 0;
+}
+
+/* Runs the command once its files are known (main's last part). */
+static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBatchOptions *bp, int compare, int bench,
+                       int dump, const char *out, const char *png, const char *stats_json, int save_partial, int argc,
+                       char **argv) {
+    CandelaOptions o = *op;
+    CandelaCompareOptions co = *cop;
+    CandelaBatchOptions batch = *bp;
+    (void)dump;
     char err[CANDELA_ERR_LEN];
     if (compare) {
         char dir[PATH_MAX];

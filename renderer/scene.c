@@ -619,6 +619,13 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
 
     if (setup_camera(scene, o, err) != 0) { scene_free(scene); return -1; }
 
+    /* --env is read like the scene's own files: inside --confine-to when given (a variant list,
+     * which may come with an uploaded scene, must not read elsewhere) */
+    if (o->env_path && o->confine_dir && !io_path_inside(o->env_path, o->confine_dir)) {
+        set_error(err, "%.300s: --env is outside %.150s (--confine-to)", o->env_path, o->confine_dir);
+        scene_free(scene);
+        return -1;
+    }
     const char *env_path = o->env_path ? o->env_path : (io->env_path[0] ? io->env_path : NULL);
     scene->env_strength = o->env_path ? o->env_strength : io->env_strength;
     scene->light_model = o->light_model;

@@ -165,5 +165,16 @@ expect_error "merge a FIFO" "fifo.film: not a regular file (a FIFO)" -- merge -o
 expect_error "merge /dev/zero" "/dev/zero: not a regular file (a device)" -- merge -o "$tmp/keep.exr" /dev/zero
 rm -f "$tmp/fifo.ckpt" "$tmp/fifo.film"
 
+# --- issue 29: the merged image never replaces a film being merged; a checkpoint never
+# replaces the image it belongs to
+cp "$tmp/s1.film" "$tmp/s1.keep"
+expect_error "merge png onto a film" "s1.film: the merged PNG (--png) would replace a film being merged" -- merge -o "$tmp/keep.exr" \
+  --png "$tmp/s1.film" "$tmp"/s0.film "$tmp"/s1.film "$tmp"/s2.film "$tmp"/s3.film
+same "$tmp/s1.film" "$tmp/s1.keep" "a refused merge changed a film"
+expect_error "checkpoint named as the image" "the checkpoint (--checkpoint) and the EXR (-o) are the same file" -- "${base[@]}" --spp 8 \
+  -o "$tmp/keep.exr" --checkpoint "$tmp/keep.exr" --quiet
+expect_error "resume from the output" "the EXR (-o) would replace the checkpoint resumed (--resume-from)" -- "${base[@]}" --spp 64 \
+  -o "$tmp/res.exr" --resume-from "$tmp/res.exr" --quiet
+
 echo "checkpoint tests: $pass passed, $fail failed"
 [ $fail -eq 0 ]

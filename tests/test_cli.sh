@@ -515,5 +515,52 @@ expect_error "empty --confine-to" "--confine-to needs a folder" -- render "$tmp/
   && ok || bad "--confine-to / refuses a scene"
 rm -f "$tmp/root.exr"
 
+# one rule for every output: none may replace an input of the run (the scene, a file it
+# references, --env) or another output; one line before anything is loaded, the inputs intact
+cp "$scene" "$tmp/keep.gltf"; keep_sum=$(md5sum < "$tmp/keep.gltf")
+clobber() { # NAME PATTERN ARGS...: expect_error, and keep.gltf unchanged
+  local name=$1 pattern=$2; shift 2
+  expect_error "$name" "$pattern" -- "$@"
+  if [ "$(md5sum < "$tmp/keep.gltf")" != "$keep_sum" ]; then bad "$name: replaced the scene"; cp "$scene" "$tmp/keep.gltf"; fi
+}
+clobber "png over the scene" "keep.gltf: the PNG preview (--png) would replace the scene" render "$tmp/keep.gltf" "${common[@]}" --png "$tmp/keep.gltf"
+clobber "stats over the scene" "the statistics (--stats-json) would replace the scene" render "$tmp/keep.gltf" "${common[@]}" \
+  --stats-json "$tmp/keep.gltf"
+clobber "checkpoint over the scene" "the checkpoint (--checkpoint) would replace the scene" render "$tmp/keep.gltf" "${common[@]}" \
+  --checkpoint "$tmp/conf/../keep.gltf"
+ln -s keep.gltf "$tmp/keep_link.png"
+clobber "png through a link to the scene" "the PNG preview (--png) would replace the scene" render "$tmp/keep.gltf" "${common[@]}" \
+  --png "$tmp/keep_link.png"
+ln "$tmp/keep.gltf" "$tmp/keep_hard.json"
+clobber "stats onto a hard link of the scene" "would replace the scene" render "$tmp/keep.gltf" "${common[@]}" --stats-json "$tmp/keep_hard.json"
+rm -f "$tmp/keep_link.png" "$tmp/keep_hard.json"
+bin_sum=$(md5sum < "$tmp/conf/bin/plane.bin")
+expect_error "stats over a referenced buffer" "plane.bin: the statistics (--stats-json) would replace a file the scene references" -- \
+  render "$tmp/conf/scenes/up.gltf" "${common[@]}" --stats-json "$tmp/conf/bin/plane.bin"
+[ "$(md5sum < "$tmp/conf/bin/plane.bin")" = "$bin_sum" ] && ok || bad "a referenced buffer was replaced"
+expect_error "checkpoint is the EXR" "the checkpoint (--checkpoint) and the EXR (-o) are the same file" -- render "$scene" "${common[@]}" \
+  --checkpoint "$tmp/out.exr"
+expect_error "env is the EXR" "the EXR (-o) would replace the environment (--env)" -- render "$scene" "${common[@]}" --env "$tmp/out.exr"
+expect_error "partial png is the exr" "are the same file" -- render "$scene" "${common[@]}" --save-partial --png "$tmp/out.partial.exr"
+# compare: a variant may change how the scene renders, never what the run reads or writes
+# (--dump-cachepoints wrote anywhere; --env was read outside --confine-to)
+rm -rf "$tmp/c29"
+cmp29=(compare "$det" --spp 1 --res 8x8 --ref-spp 1 --out-dir "$tmp/c29" --quiet)
+expect_error "variant dump" "variant 'a': --dump-cachepoints is not a variant's flag" -- "${cmp29[@]}" \
+  --variants "a: --light-sampler cachepoints --dump-cachepoints $tmp/anywhere.ply"
+[ -e "$tmp/anywhere.ply" ] && bad "a variant's --dump-cachepoints wrote its file" || ok
+expect_error "variant confine" "variant 'a': --confine-to is not a variant's flag" -- "${cmp29[@]}" --variants "a: --confine-to /"
+cp "$root/tests/scenes/env_constant.exr" "$tmp/sky.exr"
+expect_error "variant env outside --confine-to" "variant 'a': --env $tmp/sky.exr is outside" -- compare "$tmp/conf/scenes/up.gltf" \
+  --spp 1 --res 8x8 --ref-spp 1 --out-dir "$tmp/c29" --quiet --confine-to "$tmp/conf" --variants "a: --env $tmp/sky.exr"
+expect_error "env outside --confine-to" "sky.exr: --env is outside" -- render "$tmp/conf/scenes/up.gltf" --confine-to "$tmp/conf" \
+  --env "$tmp/sky.exr" "${common[@]}"
+expect_error "variant env is a report file" "a report file would replace the --env of variant 'b'" -- "${cmp29[@]}" \
+  --variants "a: --light-sampler power; b: --env $tmp/c29/a.png"
+expect_error "reference is a report file" "a report file would replace the reference (--reference)" -- "${cmp29[@]}" \
+  --variants "x: --light-sampler power" --reference "$tmp/c29/x.exr"
+[ -e "$tmp/c29" ] && bad "a refused comparison made its folder" || ok
+rm -f "$tmp/keep.gltf" "$tmp/sky.exr"
+
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]
