@@ -465,6 +465,7 @@ class Loader {
     }
 
     void parse();
+    void check_animation_indices(const unsigned char *json, size_t len);
     void check_required_extensions();
     void warn_unrendered();
     const unsigned char *view_span(int bvi, long long offset, size_t need, const std::string &what,
@@ -561,6 +562,51 @@ void Loader::parse() {
         if (!fs_user_.confine.empty() && msg.find("File not found") != std::string::npos)
             msg += " (or outside " + fs_user_.confine + ": --confine-to)";
         fail(msg);
+    }
+    // tinygltf drops an animation channel whose "sampler" or "node" is not an integer without
+    // failing the load, so "node": 1.5 used to animate nothing, silently: the indices are read
+    // again from the JSON (only when the file has animations)
+    const unsigned char *json = bytes.data();
+    size_t json_len = bytes.size();
+    if (json_len >= 20 && std::memcmp(json, "glTF", 4) == 0) {
+        uint32_t len;
+        std::memcpy(&len, json + 12, 4);
+        json += 20;
+        json_len = len; // checked above
+    }
+    static const char key[] = "\"animations\"";
+    if (std::search(json, json + json_len, key, key + sizeof key - 1) != json + json_len) check_animation_indices(json, json_len);
+}
+
+// Every animation channel's "sampler" and "target.node" must be JSON integers (README "Limits":
+// indices are whole numbers; a sampler's "input" or "output" that is not fails tinygltf's own
+// parse); a channel without a node is the glTF spec's "ignore this channel".
+void Loader::check_animation_indices(const unsigned char *json, size_t len) {
+    nlohmann::json d;
+    try {
+        d = nlohmann::json::parse(json, json + len);
+    } catch (const std::exception &e) {
+        fail(std::string("malformed glTF: ") + e.what());
+    }
+    const auto anims = d.find("animations");
+    if (anims == d.end() || !anims->is_array()) return;
+    auto whole = [](const nlohmann::json &v) { return v.is_number_integer() || v.is_number_unsigned(); };
+    for (size_t ai = 0; ai < anims->size(); ++ai) {
+        const nlohmann::json &a = (*anims)[ai];
+        if (!a.is_object()) continue;
+        const auto check = [&](const nlohmann::json &o, const char *field, const std::string &where) {
+            auto it = o.find(field);
+            if (it != o.end() && !whole(*it))
+                fail(strf("animation %zu %s: \"%s\" must be a whole number (an integer index), not %s", ai, where.c_str(), field,
+                          it->dump().substr(0, 40).c_str()));
+        };
+        if (auto chans = a.find("channels"); chans != a.end() && chans->is_array())
+            for (size_t ci = 0; ci < chans->size(); ++ci) {
+                const nlohmann::json &c = (*chans)[ci];
+                if (!c.is_object()) continue;
+                check(c, "sampler", strf("channel %zu", ci));
+                if (auto t = c.find("target"); t != c.end() && t->is_object()) check(*t, "node", strf("channel %zu target", ci));
+            }
     }
 }
 

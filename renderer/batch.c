@@ -232,9 +232,46 @@ static void partial_name(const char *path, char out[PATH_MAX]) {
     if (n >= PATH_MAX) out[0] = 0; /* never a truncated name that might be another file */
 }
 
-static int file_exists(const char *path) {
+/* --resume: a frame counts as done only when its EXR reads back whole (every chunk of a channel
+ * decoded: a truncated or empty file fails) at the batch's resolution, and its PNG, when asked
+ * for, decodes at that size too. The name alone proved little: a file copied in by hand, a disk
+ * that filled during someone else's write, a 0-byte placeholder. NULL when done, else why not. */
+static const char *frame_done(const char *exr, const char *png, int width, int height, char why[CANDELA_ERR_LEN]) {
+    char ioerr[IO_ERR_LEN];
     struct stat st;
-    return stat(path, &st) == 0 && S_ISREG(st.st_mode);
+    if (stat(exr, &st) != 0) {
+        snprintf(why, CANDELA_ERR_LEN, "missing");
+        return why;
+    }
+    int w = 0, h = 0;
+    float *r = NULL;
+    if (io_read_exr_channel(exr, "R", &w, &h, &r, ioerr) != 0) {
+        snprintf(why, CANDELA_ERR_LEN, "%s", ioerr);
+        return why;
+    }
+    free(r);
+    if (w != width || h != height) {
+        snprintf(why, CANDELA_ERR_LEN, "%.400s: %dx%d, not the batch's %dx%d", exr, w, h, width, height);
+        return why;
+    }
+    if (png) {
+        if (stat(png, &st) != 0) {
+            snprintf(why, CANDELA_ERR_LEN, "%.400s: missing", png);
+            return why;
+        }
+        IoImage im;
+        if (io_load_image(png, IO_IMAGE_SRGB | IO_IMAGE_KEEP_8BIT, &im, ioerr) != 0) {
+            snprintf(why, CANDELA_ERR_LEN, "%s", ioerr);
+            return why;
+        }
+        int pw = im.width, ph = im.height;
+        io_image_free(&im);
+        if (pw != width || ph != height) {
+            snprintf(why, CANDELA_ERR_LEN, "%.400s: %dx%d, not the batch's %dx%d", png, pw, ph, width, height);
+            return why;
+        }
+    }
+    return NULL;
 }
 
 /* The outputs rule for a batch: each frame's EXR and PNG (and their .partial names with
@@ -429,8 +466,13 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
         char exr[PATH_MAX], png[PATH_MAX];
         frame_name(b->exr_pattern, frame, exr);
         if (b->png_pattern) frame_name(b->png_pattern, frame, png);
-        /* a final name exists only once its file is complete (temp + rename) */
-        if (b->resume && file_exists(exr) && (!b->png_pattern || file_exists(png))) {
+        /* a final name exists only once candela's own write completed (temp + rename), but the
+         * file under it may be anyone's: it must read back whole */
+        char why[CANDELA_ERR_LEN];
+        const char *not_done = b->resume ? frame_done(exr, b->png_pattern ? png : NULL, info.width, info.height, why) : why;
+        if (b->resume && not_done && strcmp(not_done, "missing") != 0) /* a warning: said even with --quiet */
+            fprintf(stderr, "candela: warning: frame %lld: %s; rendered again (--resume)\n", (long long)frame, not_done);
+        if (b->resume && !not_done) {
             ++skipped;
             CandelaOptions so = *o;
             so.seed = candela_frame_seed(o->seed, frame);
@@ -444,6 +486,18 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
         CandelaOptions fo = *o;
         fo.seed = candela_frame_seed(o->seed, frame);
         fo.quiet = 1; /* one batch progress line per frame instead of each render's bar */
+        /* one writer per frame: a task rendering it already (overlapping shards, a resumed batch
+         * beside the original) makes this one a failed frame, said so, not a second writer */
+        IoLock lock;
+        char lock_err[IO_ERR_LEN];
+        if (io_lock_output(exr, &lock, lock_err) != 0) {
+            ++failed;
+            fprintf(stderr, "candela: frame %lld failed: %s\n", (long long)frame, lock_err);
+            char lerr[CANDELA_ERR_LEN];
+            if (log_frame(b, &fo, frame, seconds, "failed", exr, lock_err, NULL, NULL, lerr) != 0)
+                fprintf(stderr, "candela: frame %lld: %s\n", (long long)frame, lerr);
+            continue;
+        }
         CandelaImage image;
         CandelaStats stats;
         CandelaFrameInfo finfo;
@@ -484,6 +538,7 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
                       have_image ? &stats : NULL, &finfo, lerr) != 0)
             fprintf(stderr, "candela: frame %lld: %s\n", (long long)frame, lerr);
         if (have_image) candela_image_free(&image);
+        io_unlock_output(&lock);
         if (*interrupted) {
             fprintf(stderr, "candela: interrupted in frame %lld after %d of %d spp; %s\n", (long long)frame,
                     stats.spp_done, o->spp, b->save_partial ? "its image so far is under a .partial name" : "it was not written");

@@ -307,6 +307,7 @@ typedef struct CandelaSessionInfo {
     double time_load;             /* seconds to load the scene */
     uint32_t num_channels;        /* animation channels (0: a still scene) */
     double anim_start, anim_end;  /* the animation's first and last key time, seconds */
+    int width, height;            /* the frames' resolution */
 } CandelaSessionInfo;
 typedef struct CandelaFrameInfo {
     double time_pose;             /* posing the scene and updating Embree (inside stats time_load) */

@@ -683,6 +683,9 @@ static int record_report_files(const CandelaCompareOptions *c, const Variant *vs
     return 0;
 }
 
+static int compare_locked(const CandelaOptions *base, const CandelaCompareOptions *c, Variant *vs, int count,
+                          char err[CANDELA_ERR_LEN]);
+
 int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, char err[CANDELA_ERR_LEN]) {
     Variant *vs = NULL;
     int count = 0;
@@ -702,6 +705,24 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
         variants_free(vs, COMPARE_MAX_VARIANTS);
         return -1;
     }
+    char path[IO_PATH_MAX + 64];
+    /* one comparison per report folder at a time (its files would mix): the lock is the page's */
+    IoLock lock;
+    char ioerr[IO_ERR_LEN];
+    snprintf(path, sizeof path, "%s/index.html", c->out_dir);
+    if (io_lock_output(path, &lock, ioerr) != 0) {
+        snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
+        variants_free(vs, COMPARE_MAX_VARIANTS);
+        return -1;
+    }
+    int rc = compare_locked(base, c, vs, count, err);
+    io_unlock_output(&lock);
+    return rc;
+}
+
+/* candela_compare once the variants are checked and the report folder is locked; frees vs. */
+static int compare_locked(const CandelaOptions *base, const CandelaCompareOptions *c, Variant *vs, int count,
+                          char err[CANDELA_ERR_LEN]) {
     char path[IO_PATH_MAX + 64];
     CandelaOptions o = *base;
     o.quiet = 1;

@@ -323,11 +323,25 @@ static int merge_main(int argc, char **argv) {
                         candela_run_output(&run, png, "the merged PNG (--png)", err) != 0))
             rc = 2;
         candela_run_files_free(&run);
+        IoLock locks[2];
+        int nlocks = 0;
+        const char *lock_these[2] = {out, png};
+        for (int k = 0; k < 2 && rc == 0; ++k) {
+            char ioerr[IO_ERR_LEN];
+            if (!lock_these[k]) continue;
+            if (io_lock_output(lock_these[k], &locks[nlocks], ioerr) != 0) {
+                snprintf(err, sizeof err, "%s", ioerr);
+                rc = 1;
+            } else {
+                ++nlocks;
+            }
+        }
         if (rc != 0) fprintf(stderr, "candela: %s\n", err);
         else if (candela_merge(out, png, files, n, err) != 0) {
             fprintf(stderr, "candela: %s\n", err);
             rc = 1;
         }
+        while (nlocks > 0) io_unlock_output(&locks[--nlocks]);
     }
     free(files);
     return rc;
@@ -569,7 +583,25 @@ int main(int argc, char **argv) {
     }
     co.run = &run;
     batch.run = &run;
-    int rc = run_command(&o, &co, &batch, compare, bench, dump, out, png, stats_json, save_partial, argc, argv);
+    /* one writer per output: another candela writing the same file is refused now, not found
+     * out by an EXR from one run beside a PNG from the other (a frame batch locks each frame's
+     * files as it renders it, candela compare its report folder) */
+    IoLock locks[5];
+    int nlocks = 0, rc = 0;
+    const char *lock_these[5] = {batch.frames ? NULL : out, batch.frames ? NULL : png, stats_json, o.checkpoint_path,
+                                 o.cachepoint_dump_path};
+    for (int k = 0; k < 5 && rc == 0 && !compare && !bench; ++k) {
+        char ioerr[IO_ERR_LEN];
+        if (!lock_these[k]) continue;
+        if (io_lock_output(lock_these[k], &locks[nlocks], ioerr) != 0) {
+            fprintf(stderr, "candela: %s\n", ioerr);
+            rc = 1;
+        } else {
+            ++nlocks;
+        }
+    }
+    if (rc == 0) rc = run_command(&o, &co, &batch, compare, bench, dump, out, png, stats_json, save_partial, argc, argv);
+    while (nlocks > 0) io_unlock_output(&locks[--nlocks]);
     candela_run_files_free(&run);
     return rc;
 }

@@ -398,6 +398,8 @@ int candela_session_open(const CandelaOptions *o, CandelaSession **out, CandelaS
     info->num_channels = r->scene.io.num_channels;
     info->anim_start = r->scene.io.anim_start;
     info->anim_end = r->scene.io.anim_end;
+    info->width = r->scene.camera.width;
+    info->height = r->scene.camera.height;
     *out = s;
     return 0;
 }

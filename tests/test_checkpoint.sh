@@ -176,5 +176,12 @@ expect_error "checkpoint named as the image" "the checkpoint (--checkpoint) and 
 expect_error "resume from the output" "the EXR (-o) would replace the checkpoint resumed (--resume-from)" -- "${base[@]}" --spp 64 \
   -o "$tmp/res.exr" --resume-from "$tmp/res.exr" --quiet
 
+# a merge into an output another candela writes is refused (its lock)
+flock "$tmp/keep.exr.lock" sleep 30 & holder=$!
+for _ in $(seq 100); do [ -e "$tmp/keep.exr.lock" ] && break; sleep 0.05; done
+expect_error "merge into a locked output" "keep.exr: another candela is writing it" -- merge -o "$tmp/keep.exr" --no-png \
+  "$tmp"/s0.film "$tmp"/s1.film "$tmp"/s2.film "$tmp"/s3.film
+kill $holder 2>/dev/null; wait $holder 2>/dev/null; rm -f "$tmp/keep.exr.lock"
+
 echo "checkpoint tests: $pass passed, $fail failed"
 [ $fail -eq 0 ]
