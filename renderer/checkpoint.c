@@ -414,6 +414,9 @@ int candela_merge(const char *out_exr, const char *png, const char *const *files
         else if (h[i].id.shard_count != (uint32_t)num_files)
             problem = "a shard of a different split (its shard count is not the number of files given)";
         else if (h[i].id.shard_index >= (uint32_t)num_files) problem = "damaged header";
+        /* counts are 32-bit per pixel: a total past the largest --spp could wrap them */
+        else if (h[i].id.spp_total < 1 || h[i].id.spp_total > ((uint64_t)1 << 20) || h[i].id.sample_count > h[i].id.spp_total)
+            problem = "damaged header (sample counts out of range)";
         if (problem) {
             char why[256] = "";
             if (i > 0 && strcmp(h[i].id.text, h[0].id.text) != 0) {
@@ -463,8 +466,12 @@ int candela_merge(const char *out_exr, const char *png, const char *const *files
         Header hh;
         FILE *f = open_verified(path, &hh, err);
         if (!f) { rc = -1; break; }
+        char why[160];
         if (film_load(&part, f) != 0) {
             snprintf(err, CANDELA_ERR_LEN, "%s: damaged film section", path);
+            rc = -1;
+        } else if (film_check(&part, hh.id.sample_count, why, sizeof why) != 0) {
+            snprintf(err, CANDELA_ERR_LEN, "%.300s: not a film candela wrote: %s", path, why);
             rc = -1;
         }
         fclose(f);

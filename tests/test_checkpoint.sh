@@ -176,6 +176,41 @@ expect_error "checkpoint named as the image" "the checkpoint (--checkpoint) and 
 expect_error "resume from the output" "the EXR (-o) would replace the checkpoint resumed (--resume-from)" -- "${base[@]}" --spp 64 \
   -o "$tmp/res.exr" --resume-from "$tmp/res.exr" --quiet
 
+# forged films (the checksum recomputed, so only the merge's own checks can refuse them): NaN
+# or infinite sums, a pixel counting 0 samples (it doubled the image) or a wrapped count, were
+# written into the EXR with exit 0
+forge() { # IN OUT WHAT: the film with one change, its checksum made right again
+  python3 - "$1" "$2" "$3" <<'PY'
+import struct, sys
+src, dst, what = sys.argv[1:4]
+b = bytearray(open(src, 'rb').read())
+w, h, idlen = struct.unpack_from('<3I', b, 8 + 12)
+n = w * h
+film = 8 + 24 + idlen + 24 + 8 + 8 + 8 + 8 + 12    # header, film tag + version, film head
+sums = film                                         # sum, sum2, albedo, normal (3n doubles each)
+count = film + 4 * 3 * n * 8 + n * 8 + n * 4        # after depth (n doubles) and hits (n u32)
+if what == 'nan': struct.pack_into('<d', b, sums + 8 * 5, float('nan'))
+elif what == 'inf': struct.pack_into('<d', b, sums + 3 * n * 8 + 8 * 7, float('inf'))
+elif what == 'zero': struct.pack_into('<%dI' % n, b, count, *([0] * n))
+elif what == 'wrap': struct.pack_into('<I', b, count + 4 * 3, 0xFFFFFFFF)
+h = 0xcbf29ce484222325
+for c in b[:-8]: h = ((h ^ c) * 0x100000001b3) & 0xFFFFFFFFFFFFFFFF
+struct.pack_into('<Q', b, len(b) - 8, h)
+open(dst, 'wb').write(b)
+PY
+}
+for what in nan inf zero wrap; do
+  forge "$tmp/s1.film" "$tmp/f_$what.film" $what
+  case $what in nan|inf) want="holds a sum that is not a finite number" ;; zero) want="counts 0 samples, the shard declares 4" ;;
+                wrap) want="pixel (3, 0) counts 4294967295 samples" ;; esac
+  expect_error "merge a forged film ($what)" "f_$what.film: not a film candela wrote: .*$want" -- merge -o "$tmp/keep.exr" --no-png \
+    "$tmp"/s0.film "$tmp/f_$what.film" "$tmp"/s2.film "$tmp"/s3.film
+done
+# the forger itself is right: an unchanged copy merges to the original's image
+forge "$tmp/s1.film" "$tmp/f_same.film" none
+"$bin" merge -o "$tmp/m4.exr" --no-png "$tmp"/s0.film "$tmp/f_same.film" "$tmp"/s2.film "$tmp"/s3.film && same "$tmp/m1.exr" "$tmp/m4.exr" \
+  "a merge of a re-checksummed copy"
+
 # a merge into an output another candela writes is refused (its lock)
 flock "$tmp/keep.exr.lock" sleep 30 & holder=$!
 for _ in $(seq 100); do [ -e "$tmp/keep.exr.lock" ] && break; sleep 0.05; done
