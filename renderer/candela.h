@@ -283,6 +283,9 @@ typedef struct CandelaCompareOptions {
 } CandelaCompareOptions;
 
 int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, char err[CANDELA_ERR_LEN]);
+/* 1 when --variants SPEC names a file: it ends in .toml or .json and either has no ':' or a file
+ * of that name exists (so an inline "a: --env sky.json" stays inline) */
+int candela_variants_is_file(const char *spec);
 
 /* candela merge: the finished films of the N sample shards of one render (any order) into the
  * EXR (and PNG preview unless NULL): sums of L and L^2, counts and AOV sums added in shard order,

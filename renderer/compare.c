@@ -225,6 +225,14 @@ static int ends_with(const char *s, const char *suffix) {
     return n >= m && strcmp(s + n - m, suffix) == 0;
 }
 
+int candela_variants_is_file(const char *spec) {
+    if (!ends_with(spec, ".toml") && !ends_with(spec, ".json")) return 0;
+    /* "a: --light-sampler tree --env sky.json" ends in .json too: a spec with a colon is inline
+     * unless a file of that name exists (then it is read, and must be a regular file) */
+    struct stat st;
+    return strchr(spec, ':') == NULL || lstat(spec, &st) == 0;
+}
+
 /* The variants of the run, every one checked: from --variants (a file or "NAME: FLAGS; ...")
  * or from --strategies. */
 static int build_variants(const CandelaOptions *base, const CandelaCompareOptions *c, Variant **out, int *count,
@@ -235,7 +243,7 @@ static int build_variants(const CandelaOptions *base, const CandelaCompareOption
     if (c->variants && c->strategies) {
         snprintf(err, CANDELA_ERR_LEN, "give --variants or --strategies, not both");
         rc = -1;
-    } else if (c->variants && (ends_with(c->variants, ".toml") || ends_with(c->variants, ".json"))) {
+    } else if (c->variants && candela_variants_is_file(c->variants)) {
         IoVariant *list = NULL;
         int m = 0;
         char ioerr[IO_ERR_LEN];

@@ -621,7 +621,7 @@ static int record_run_files(CandelaRunFiles *run, const CandelaOptions *o, const
         candela_run_input(run, o->resume_from, "the checkpoint resumed (--resume-from)", err))
         return -1;
     if (compare) {
-        int variants_file = co->variants && (has_extension(co->variants, ".toml") || has_extension(co->variants, ".json"));
+        int variants_file = co->variants && candela_variants_is_file(co->variants);
         if ((variants_file && candela_run_input(run, co->variants, "the variant list (--variants)", err)) ||
             candela_run_input(run, co->reference_path, "the reference (--reference)", err))
             return -1;
@@ -747,7 +747,20 @@ static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBa
             if (!o.quiet) fprintf(stderr, "candela: wrote %s (shard %u/%u)\n", out, o.shard_index, o.shard_count);
         } else if (stats.interrupted) {
             /* never a file that looks complete: the image so far only under a .partial name */
-            if (!save_partial || o.shard_count) {
+            if (o.shard_count) {
+                /* a shard's spp are its share of --spp; its film is only ever the complete one
+                 * (a partial film would merge as if whole), so --save-partial cannot apply */
+                long long b = (long long)o.spp * o.shard_index / o.shard_count;
+                long long e = (long long)o.spp * (o.shard_index + 1) / o.shard_count;
+                fprintf(stderr,
+                        "candela: interrupted after %d of the %lld spp of sample shard %u/%u; nothing written (a shard's film is "
+                        "written only when complete, --save-partial does not apply to it%s)\n",
+                        stats.spp_done, e - b, o.shard_index, o.shard_count,
+                        o.checkpoint_path ? "; --resume-from its checkpoint continues it" : "; --checkpoint would let it resume");
+                candela_image_free(&image);
+                return 130;
+            }
+            if (!save_partial) {
                 fprintf(stderr, "candela: interrupted after %d of %d spp; nothing written (--save-partial keeps the image so far)\n",
                         stats.spp_done, o.spp);
                 candela_image_free(&image);

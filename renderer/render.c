@@ -175,6 +175,22 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
             return -1;
         }
     }
+    /* guide-dump reads the guiding field's leaf at --at: the fields span the scene's bounds, and
+     * a point outside them has no leaf of its own (the nearest one's box would not hold it).
+     * Said now, not after the render. */
+    if (o->guide_dump_prefix) {
+        const float *at = o->guide_dump_at;
+        const vec3 lo = r->scene.bounds_min, hi = r->scene.bounds_max;
+        if (!(at[0] >= lo.x && at[0] <= hi.x && at[1] >= lo.y && at[1] <= hi.y && at[2] >= lo.z && at[2] <= hi.z)) {
+            snprintf(err, CANDELA_ERR_LEN,
+                     "%s: guide-dump --at %g,%g,%g is outside the scene's bounds [%g %g %g] - [%g %g %g], which the guiding "
+                     "field covers",
+                     o->scene_path, (double)at[0], (double)at[1], (double)at[2], (double)lo.x, (double)lo.y, (double)lo.z,
+                     (double)hi.x, (double)hi.y, (double)hi.z);
+            render_free_frame(r);
+            return -1;
+        }
+    }
     if (media_build(&r->media, &r->scene, o->scene_path, err) != 0) { render_free_frame(r); return -1; }
     r->have_media = 1;
     if (lights_build(&r->lights, &r->scene, o->volume_emission_sampling ? &r->media : NULL, o->light_units, err,

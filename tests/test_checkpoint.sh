@@ -156,6 +156,15 @@ expect_error "merge: a checkpoint" "not a finished shard film" -- merge -o "$tmp
 expect_error "resume from a film" "finished shard film" -- "${base[@]}" --spp 16 --sample-shard 0/4 -o "$tmp/s0b.film" \
   --resume-from "$tmp/s0.film" --quiet
 
+# --- issue 29: SIGINT in a sample shard with --save-partial: nothing is written (a shard's
+# film is only ever the whole one) and the message says so with the shard's own spp (it said
+# "--save-partial keeps the image so far" and counted the shard's spp against the full render's)
+"$bin" "${base[@]}" --spp 1048576 --sample-shard 1/4 --save-partial -o "$tmp/int.film" 2>"$tmp/int.log" &
+pid=$!
+sleep 2; kill -INT $pid; wait $pid; rc=$?
+n=$(sed -n 's/.*interrupted after \([0-9]*\) of the 262144 spp of sample shard 1\/4; nothing written (a shard.s film is written only when complete, --save-partial does not apply to it.*/\1/p' "$tmp/int.log")
+[ $rc -eq 130 ] && [ -n "$n" ] && [ "$n" -lt 262144 ] && ! ls "$tmp"/int.* 2>/dev/null | grep -v int.log && ok ||
+  bad "shard + --save-partial + SIGINT: exit $rc, $(cat "$tmp/int.log"), $(ls "$tmp" | grep '^int')"
 # --- issue 29: a FIFO or a device given as a checkpoint or a film is refused unread (fopen of a
 # FIFO blocked forever)
 mkfifo "$tmp/fifo.ckpt" "$tmp/fifo.film"

@@ -591,5 +591,14 @@ expect_error "report folder locked" "index.html: another candela is writing it" 
 [ "$(ls "$tmp/c29l")" = "index.html.lock" ] && ok || bad "a locked report folder got files: $(ls "$tmp/c29l")"
 kill $holder 2>/dev/null; wait $holder 2>/dev/null; rm -rf "$tmp/c29l"
 
+# the three messages: guide-dump at a point outside the scene (it dumped the nearest leaf, which
+# does not hold the point, with exit 0); an inline variant list ending in .json (read as a file)
+expect_error "dump outside the scene" "guide-dump --at 1e+30,1e+30,1e+30 is outside the scene's bounds" -- guide-dump "$scene" \
+  --at 1e30,1e30,1e30 "${common[@]}"
+ls "$tmp"/out.* >/dev/null 2>&1 && bad "guide-dump outside the scene wrote files" || ok
+expect_error "inline variants ending in .json" "no camera named 'nosuch.json'" -- compare "$det" --spp 1 --res 8x8 --ref-spp 1 \
+  --out-dir "$tmp/c29j" --quiet --variants "a: --light-sampler power --camera nosuch.json"
+rm -rf "$tmp/c29j"
+
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]
