@@ -383,9 +383,10 @@ const char *type_name(int t) {
 
 class Loader {
   public:
-    Loader(const std::string &path, const std::string &confine, uint64_t texture_budget, bool print_warnings)
+    Loader(const std::string &path, const std::string &confine, uint64_t texture_budget, uint64_t volume_budget,
+           bool print_warnings)
         : path_(path), dir_(dir_of(path)), fs_user_{dir_of(path), confine}, texture_budget_(texture_budget),
-          print_warnings_(print_warnings) {}
+          volume_budget_(volume_budget), print_warnings_(print_warnings) {}
     ~Loader() { release_all(); }
     Loader(const Loader &) = delete;
     Loader &operator=(const Loader &) = delete;
@@ -396,6 +397,7 @@ class Loader {
     std::string path_, dir_;
     FsUser fs_user_;
     uint64_t texture_budget_ = 0, texture_used_ = 0; // decoded texel bytes (budget 0: none)
+    uint64_t volume_budget_ = 0, volume_used_ = 0;   // NanoVDB grid bytes (budget 0: none)
     // What the texture budget has left for the next image (0 means no limit, so an exhausted
     // budget reports 1 byte).
     uint64_t texture_left() const {
@@ -1623,6 +1625,11 @@ void Loader::load_grid(const std::string &vdb, const std::string &grid, const st
                        IoVolumeGrid *out) {
     char err[IO_ERR_LEN] = "";
     if (io_load_vdb_grid(vdb.c_str(), grid.c_str(), out, err) != 0) fail(what + ": " + err);
+    volume_used_ += out->size;
+    if (volume_budget_ && volume_used_ > volume_budget_)
+        fail(strf("%s: the volume grids loaded so far take %.1f MiB, over the scene's volume budget of %.1f MiB "
+                  "(--volume-budget-mb)",
+                  what.c_str(), double(volume_used_) / 1048576.0, double(volume_budget_) / 1048576.0));
 }
 
 // A node's extras.candela_volume (io.h, IoVolume): validate every value, then load the grids.
@@ -1916,7 +1923,8 @@ extern "C" int io_load_gltf_opts(const char *path, const IoLoadOptions *opts, Io
         }
     }
     try {
-        Loader loader(path, confine, opts ? opts->texture_budget_bytes : 0, !(opts && opts->no_warnings));
+        Loader loader(path, confine, opts ? opts->texture_budget_bytes : 0, opts ? opts->volume_budget_bytes : 0,
+                      !(opts && opts->no_warnings));
         loader.run(scene);
         return 0;
     } catch (const LoadError &e) {

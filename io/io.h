@@ -430,6 +430,9 @@ typedef struct IoLoadOptions {
      * 8-bit files, 16 for the others), checked from each image's header before it is decoded
      * (0: no limit) */
     uint64_t texture_budget_bytes;
+    /* the volume grids' NanoVDB buffers in total, checked after each grid is read (0: no limit;
+     * the renderer's --volume-budget-mb, which also counts what the media build from them) */
+    uint64_t volume_budget_bytes;
     /* non-zero: warnings are counted (IoScene.num_warnings) but not printed (--no-warnings) */
     int no_warnings;
 } IoLoadOptions;
@@ -490,6 +493,12 @@ int io_load_vdb_grid(const char *path, const char *grid_name, IoVolumeGrid *grid
  * (x, y, z) in [0, n), zero values inactive; index_to_world as in IoVolumeGrid. */
 int io_volume_grid_from_dense(const float *values, int nx, int ny, int nz, const float index_to_world[16],
                               const char *name, IoVolumeGrid *grid, char err[IO_ERR_LEN]);
+/* A grid from sparse data (tests and generators): num_boxes boxes (6 ints each, inclusive
+ * min x y z, max x y z) filled with box_values (OpenVDB's fill: tiles where a box covers whole
+ * nodes), then count single voxels (3 ints each in ijk) set to values over them. */
+int io_volume_grid_from_voxels(const int32_t *ijk, const float *values, size_t count, const int32_t *boxes,
+                               const float *box_values, size_t num_boxes, const float index_to_world[16],
+                               const char *name, IoVolumeGrid *grid, char err[IO_ERR_LEN]);
 void io_volume_grid_free(IoVolumeGrid *grid);
 /* Writes a .vdb file of num_grids float grids (names[g], dense values[g] laid out as above,
  * zero values inactive, one shared index_to_world), through a temporary name and a rename

@@ -429,6 +429,17 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
         free(mine.frames);
         return -1;
     }
+    if (b->dry_run) {
+        printf("shard %ld/%ld\n", shard, shards);
+        for (size_t k = 0; k < mine.count; ++k) {
+            char exr[PATH_MAX];
+            frame_name(b->exr_pattern, mine.frames[k], exr);
+            printf("frame %lld %s\n", (long long)mine.frames[k], exr);
+        }
+        free(all.frames);
+        free(mine.frames);
+        return 0;
+    }
     CandelaSession *session = NULL;
     CandelaSessionInfo info;
     if (candela_session_open(o, &session, &info, err) != 0) {

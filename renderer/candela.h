@@ -94,6 +94,7 @@ typedef struct CandelaOptions {
      * default policy, files anywhere relative to the scene) */
     const char *confine_dir;
     uint32_t texture_budget_mb; /* decoded textures in total (8-bit files 4 B/texel, others 16); 0: no limit */
+    uint32_t volume_budget_mb;  /* volume grids and the media built from them, in total; 0: no limit */
     CandelaGuiding guiding;
     const char *guide_dump_prefix; /* candela guide-dump: write the learned field at guide_dump_at */
     float guide_dump_at[3];
@@ -173,6 +174,7 @@ typedef struct CandelaStats {
     uint32_t cachepoints_inserted;   /* of num_cachepoints, inserted between iterations (progressive) */
     double time_cachepoint_insertion, cpu_cachepoint_insertion; /* their scoring and rebuilds, at the barriers */
     uint32_t num_volumes;
+    uint64_t volume_bytes;        /* the volume grids and their media's majorant and emission grids (--volume-budget-mb) */
     uint64_t volume_collisions;   /* majorant collisions the media trackers evaluated */
     uint64_t volume_capped_walks; /* tracker calls stopped at their collision cap (a bad medium) */
     /* the radiance recorder (when guiding or its debug AOV is on) */
@@ -339,6 +341,8 @@ typedef struct CandelaBatchOptions {
     const char *stats_jsonl;  /* one JSON line per frame appended here; NULL: none */
     int resume;               /* skip frames whose EXR (and PNG, when asked) exist */
     int save_partial;         /* an interrupted frame is written under a .partial name */
+    int dry_run;              /* check the request, print "shard I/N" and "frame F EXR" per frame of
+                               * this task to stdout, load and render nothing (returns 0) */
     /* the run's inputs and outputs (scene, --env, --frame-stats): every frame's names are checked
      * against them before the first frame renders; NULL: none */
     const CandelaRunFiles *run;

@@ -84,6 +84,8 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
             return -1;
         }
         o->confine_dir = v;
+    } else if (strcmp(a, "--volume-budget-mb") == 0) {
+        if ((rc = parse_long(a, v, 0, 1 << 24, &n, err)) == 0) o->volume_budget_mb = (uint32_t)n;
     } else if (strcmp(a, "--texture-budget-mb") == 0) {
         if ((rc = parse_long(a, v, 0, 1 << 24, &n, err)) == 0) o->texture_budget_mb = (uint32_t)n;
     } else if (strcmp(a, "--cachepoint-cut-size") == 0) {

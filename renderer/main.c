@@ -33,6 +33,8 @@ static const char *USAGE =
     "  --png FILE.png            preview PNG path (default: the EXR path with .png)\n"
     "  --no-png                  do not write the PNG preview\n"
     "  --confine-to DIR          refuse a scene, or any file it references, outside DIR\n"
+    "  --volume-budget-mb N      volume grids and their majorant and emission grids in total\n"
+    "                            (default 8192; 0: none)\n"
     "  --texture-budget-mb N     decoded textures in total, 4 bytes per texel for 8-bit files and\n"
     "                            16 for others (default 8192; 0: none)\n"
     "  --save-partial            on Ctrl-C / SIGTERM, stop after the current batch (abandoning the\n"
@@ -125,10 +127,15 @@ static const char *USAGE =
     "                            status: the number of failed frames (at most 100), 101 when the\n"
     "                            request is bad (nothing rendered), 130 when interrupted\n"
     "  --fps F                   frames per second (default 24)\n"
-    "  --resume                  skip frames whose EXR (and PNG) already exist\n"
+    "  --resume                  skip frames whose EXR (and PNG) already exist and read back whole\n"
+    "                            at the batch's resolution (others render again, with a warning)\n"
     "  --shard I/N               render every N-th frame of the list starting at position I\n"
     "                            (0 <= I < N, round-robin); without it SLURM_ARRAY_TASK_ID,\n"
     "                            _COUNT, _MIN and _STEP choose the shard of a Slurm job array\n"
+    "  --dry-run                 check the command and print what it would render, loading\n"
+    "                            nothing: 'shard I/N' and 'frame F EXR' per frame of this task\n"
+    "                            (--frames), 'sample-shard I/N samples B-E of SPP FILM' or\n"
+    "                            'render EXR' (scenes/farm/candela_submit.sh asks candela so)\n"
     "  --frame-stats FILE.jsonl  append one JSON line per frame (frame, time, seed, status,\n"
     "                            pose and cache point seconds, the --stats-json fields)\n"
     "  --quiet                   no progress or statistics on stderr (warnings stay)\n"
@@ -276,7 +283,8 @@ static void print_stats(const CandelaStats *s) {
                 s->guide_train_seconds / s->guide_updates,
                 s->guide_dropped ? "; WARNING: out of memory, some training was lost" : "");
     if (s->num_volumes)
-        fprintf(stderr, "  volumes: %llu majorant collisions%s\n", (unsigned long long)s->volume_collisions,
+        fprintf(stderr, "  volumes: %.1f MiB, %llu majorant collisions%s\n", (double)s->volume_bytes / (1024.0 * 1024.0),
+                (unsigned long long)s->volume_collisions,
                 s->volume_capped_walks ? "; WARNING: some walks hit the collision cap (an extreme medium): the image is biased there" : "");
 }
 
@@ -410,6 +418,7 @@ int main(int argc, char **argv) {
         else if (strcmp(a, "--fps") == 0) { batch.fps = parse_float(a, v, 1e-3f, 1e6f); ++i; }
         else if (strcmp(a, "--shard") == 0) { if (!v) die("missing value for ", a); batch.shard = v; ++i; }
         else if (strcmp(a, "--resume") == 0) batch.resume = 1;
+        else if (strcmp(a, "--dry-run") == 0) batch.dry_run = 1;
         else if (strcmp(a, "--frame-stats") == 0) { if (!v) die("missing value for ", a); batch.stats_jsonl = v; ++i; }
         else if (compare && strcmp(a, "--strategies") == 0) { if (!v) die("missing value for ", a); co.strategies = v; ++i; }
         else if (compare && strcmp(a, "--variants") == 0) { if (!v) die("missing value for ", a); co.variants = v; ++i; }
@@ -509,6 +518,10 @@ int main(int argc, char **argv) {
         fprintf(stderr, "candela: --frames belongs to candela render\n");
         return 2;
     }
+    if (batch.dry_run && (compare || bench || dump)) {
+        fprintf(stderr, "candela: --dry-run checks a candela render command\n");
+        return 2;
+    }
     if (!batch.frames && (batch.shard || batch.resume || batch.stats_jsonl || batch.fps > 0.0)) {
         fprintf(stderr, "candela: --shard, --resume, --fps and --frame-stats need --frames\n");
         return 2;
@@ -583,6 +596,18 @@ int main(int argc, char **argv) {
     }
     co.run = &run;
     batch.run = &run;
+    if (batch.dry_run && !batch.frames) {
+        /* everything is checked: say what the render would write (a farm script reads this
+         * instead of parsing numbers itself) */
+        if (o.shard_count)
+            printf("sample-shard %u/%u samples %llu-%llu of %d %s\n", o.shard_index, o.shard_count,
+                   (unsigned long long)((uint64_t)o.spp * o.shard_index / o.shard_count),
+                   (unsigned long long)((uint64_t)o.spp * (o.shard_index + 1) / o.shard_count), o.spp, out);
+        else
+            printf("render %s\n", out);
+        candela_run_files_free(&run);
+        return 0;
+    }
     /* one writer per output: another candela writing the same file is refused now, not found
      * out by an EXR from one run beside a PNG from the other (a frame batch locks each frame's
      * files as it renders it, candela compare its report folder) */

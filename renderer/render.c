@@ -191,7 +191,10 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
             return -1;
         }
     }
-    if (media_build(&r->media, &r->scene, o->scene_path, err) != 0) { render_free_frame(r); return -1; }
+    if (media_build(&r->media, &r->scene, o->scene_path, (uint64_t)o->volume_budget_mb << 20, err) != 0) {
+        render_free_frame(r);
+        return -1;
+    }
     r->have_media = 1;
     if (lights_build(&r->lights, &r->scene, o->volume_emission_sampling ? &r->media : NULL, o->light_units, err,
                      CANDELA_ERR_LEN) != 0) {
@@ -215,6 +218,7 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
         if (r->scene.io.images[i].rgba8) ++stats->num_textures_8bit;
     }
     stats->num_volumes = r->media.num_vdb;
+    stats->volume_bytes = r->media.bytes;
 
     const Camera *cam = &r->scene.camera;
     uint32_t npixels = (uint32_t)cam->width * (uint32_t)cam->height;
