@@ -480,6 +480,10 @@ int io_write_exr(const char *path, int width, int height, const IoExrChannel *ch
 #define IO_EXR_MAX_PIXELS ((int64_t)64 << 20)
 int io_read_exr_channel(const char *path, const char *channel, int *width, int *height,
                         float **data, char err[IO_ERR_LEN]);
+/* 0 when path is a whole scanline EXR (header, every chunk's table entry and header read, its
+ * bytes inside the file) of at most the renderer's largest size, with its size; nothing is
+ * decompressed (`--frames --resume` asks this of every existing frame). */
+int io_exr_complete(const char *path, int *width, int *height, char err[IO_ERR_LEN]);
 
 /* ---------------------------------------------------------------- volumes (OpenVDB) */
 /* IoVolumeGrid is defined above, with IoVolume. */

@@ -232,9 +232,9 @@ static void partial_name(const char *path, char out[PATH_MAX]) {
     if (n >= PATH_MAX) out[0] = 0; /* never a truncated name that might be another file */
 }
 
-/* --resume: a frame counts as done only when its EXR reads back whole (every chunk of a channel
- * decoded: a truncated or empty file fails) at the batch's resolution, and its PNG, when asked
- * for, decodes at that size too. The name alone proved little: a file copied in by hand, a disk
+/* --resume: a frame counts as done only when its EXR reads back whole (io_exr_complete: every
+ * chunk there, no decompression, so resuming a long batch of large frames stays cheap) at the
+ * batch's resolution, and its PNG, when asked for, decodes at that size too. The name alone proved little: a file copied in by hand, a disk
  * that filled during someone else's write, a 0-byte placeholder. NULL when done, else why not. */
 static const char *frame_done(const char *exr, const char *png, int width, int height, char why[CANDELA_ERR_LEN]) {
     char ioerr[IO_ERR_LEN];
@@ -244,12 +244,10 @@ static const char *frame_done(const char *exr, const char *png, int width, int h
         return why;
     }
     int w = 0, h = 0;
-    float *r = NULL;
-    if (io_read_exr_channel(exr, "R", &w, &h, &r, ioerr) != 0) {
+    if (io_exr_complete(exr, &w, &h, ioerr) != 0) {
         snprintf(why, CANDELA_ERR_LEN, "%s", ioerr);
         return why;
     }
-    free(r);
     if (w != width || h != height) {
         snprintf(why, CANDELA_ERR_LEN, "%.400s: %dx%d, not the batch's %dx%d", exr, w, h, width, height);
         return why;
