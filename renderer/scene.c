@@ -495,8 +495,10 @@ static int shadow_link_masks(Scene *scene, uint32_t **instance_mask, char err[CA
 int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
     memset(scene, 0, sizeof *scene);
     char ioerr[IO_ERR_LEN];
-    IoLoadOptions lo = {o->confine_dir, (uint64_t)o->texture_budget_mb << 20, o->no_warnings,
-                        (uint64_t)o->volume_budget_mb << 20};
+    IoLoadOptions lo = {.confine_dir = o->confine_dir,
+                        .texture_budget_bytes = (uint64_t)o->texture_budget_mb << 20,
+                        .volume_budget_bytes = (uint64_t)o->volume_budget_mb << 20,
+                        .no_warnings = o->no_warnings};
     if (io_load_gltf_opts(o->scene_path, &lo, &scene->io, ioerr) != 0) {
         snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
         return -1;
