@@ -92,35 +92,31 @@ bool is_regular_file(const std::string &p) {
     return ::stat(p.c_str(), &st) == 0 && S_ISREG(st.st_mode);
 }
 
+// The scene file through the one input door (io_open_input: regular files only, never a
+// FIFO's blocking open or /dev/zero's endless bytes; the size checked before reading).
 bool read_whole_file(const std::string &path, std::vector<unsigned char> *out, std::string *problem) {
-    FILE *f = std::fopen(path.c_str(), "rb");
-    if (!f) {
-        *problem = std::string("cannot open: ") + std::strerror(errno);
+    void *data = nullptr;
+    size_t n = 0;
+    char err[IO_ERR_LEN];
+    if (io_read_input(path.c_str(), IO_MAX_SCENE_BYTES, "a scene (4 GiB)", &data, &n, err) != 0) {
+        // io's message starts with the path, which the caller adds again
+        const std::string m(err);
+        *problem = m.compare(0, path.size() + 2, path + ": ") == 0 ? m.substr(path.size() + 2) : m;
         return false;
     }
-    struct stat st;
-    if (::fstat(fileno(f), &st) == 0 && S_ISDIR(st.st_mode)) {
-        std::fclose(f);
-        *problem = "cannot open: is a directory";
-        return false;
-    }
-    unsigned char buf[1 << 16];
-    size_t n;
-    while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) {
-        out->insert(out->end(), buf, buf + n);
-        if (out->size() > 0xFFFFFFF0u) {
-            std::fclose(f);
-            *problem = "file too large (4 GiB limit)";
-            return false;
-        }
-    }
-    bool bad = std::ferror(f) != 0;
-    std::fclose(f);
-    if (bad) {
-        *problem = "read error";
-        return false;
-    }
+    const unsigned char *p = static_cast<const unsigned char *>(data);
+    out->assign(p, p + n);
+    std::free(data);
     return true;
+}
+
+// tinygltf ReadWholeFile callback (buffer files): the same door, so a buffer URI naming a FIFO
+// or a device is refused even if it changed after the FileExists check.
+bool fs_read_whole_file(std::vector<unsigned char> *out, std::string *err, const std::string &path, void *) {
+    std::string problem;
+    if (read_whole_file(path, out, &problem)) return true;
+    if (err) *err = path + ": " + problem;
+    return false;
 }
 
 // The file-reference policy (README "Scene input"): a scene may reference files anywhere,
@@ -133,7 +129,8 @@ bool inside_folder(const std::string &file, const std::string &folder_real) {
     if (!r) return false;
     const std::string real(r);
     std::free(r);
-    return real.compare(0, folder_real.size() + 1, folder_real + "/") == 0;
+    // "/" holds every path ("/" + "/" is the prefix of none)
+    return folder_real == "/" || real.compare(0, folder_real.size() + 1, folder_real + "/") == 0;
 }
 
 struct FsUser {
@@ -386,9 +383,10 @@ const char *type_name(int t) {
 
 class Loader {
   public:
-    Loader(const std::string &path, const std::string &confine, uint64_t texture_budget, bool print_warnings)
+    Loader(const std::string &path, const std::string &confine, uint64_t texture_budget, uint64_t volume_budget,
+           bool print_warnings)
         : path_(path), dir_(dir_of(path)), fs_user_{dir_of(path), confine}, texture_budget_(texture_budget),
-          print_warnings_(print_warnings) {}
+          volume_budget_(volume_budget), print_warnings_(print_warnings) {}
     ~Loader() { release_all(); }
     Loader(const Loader &) = delete;
     Loader &operator=(const Loader &) = delete;
@@ -399,6 +397,7 @@ class Loader {
     std::string path_, dir_;
     FsUser fs_user_;
     uint64_t texture_budget_ = 0, texture_used_ = 0; // decoded texel bytes (budget 0: none)
+    uint64_t volume_budget_ = 0, volume_used_ = 0;   // NanoVDB grid bytes (budget 0: none)
     // What the texture budget has left for the next image (0 means no limit, so an exhausted
     // budget reports 1 byte).
     uint64_t texture_left() const {
@@ -468,6 +467,7 @@ class Loader {
     }
 
     void parse();
+    void check_animation_indices(const unsigned char *json, size_t len);
     void check_required_extensions();
     void warn_unrendered();
     const unsigned char *view_span(int bvi, long long offset, size_t need, const std::string &what,
@@ -505,7 +505,7 @@ void Loader::parse() {
     tg.SetImageLoader(&keep_image_bytes, nullptr);
     tg.SetStoreOriginalJSONForExtrasAndExtensions(true);  // for raw_member_start
     tinygltf::FsCallbacks fs = {&fs_file_exists, &tinygltf::ExpandFilePath,
-                                &tinygltf::ReadWholeFile, &tinygltf::WriteWholeFile, &fs_user_};
+                                &fs_read_whole_file, &tinygltf::WriteWholeFile, &fs_user_};
     tg.SetFsCallbacks(fs);
 
     std::string err, warn_s;
@@ -564,6 +564,51 @@ void Loader::parse() {
         if (!fs_user_.confine.empty() && msg.find("File not found") != std::string::npos)
             msg += " (or outside " + fs_user_.confine + ": --confine-to)";
         fail(msg);
+    }
+    // tinygltf drops an animation channel whose "sampler" or "node" is not an integer without
+    // failing the load, so "node": 1.5 used to animate nothing, silently: the indices are read
+    // again from the JSON (only when the file has animations)
+    const unsigned char *json = bytes.data();
+    size_t json_len = bytes.size();
+    if (json_len >= 20 && std::memcmp(json, "glTF", 4) == 0) {
+        uint32_t len;
+        std::memcpy(&len, json + 12, 4);
+        json += 20;
+        json_len = len; // checked above
+    }
+    static const char key[] = "\"animations\"";
+    if (std::search(json, json + json_len, key, key + sizeof key - 1) != json + json_len) check_animation_indices(json, json_len);
+}
+
+// Every animation channel's "sampler" and "target.node" must be JSON integers (README "Limits":
+// indices are whole numbers; a sampler's "input" or "output" that is not fails tinygltf's own
+// parse); a channel without a node is the glTF spec's "ignore this channel".
+void Loader::check_animation_indices(const unsigned char *json, size_t len) {
+    nlohmann::json d;
+    try {
+        d = nlohmann::json::parse(json, json + len);
+    } catch (const std::exception &e) {
+        fail(std::string("malformed glTF: ") + e.what());
+    }
+    const auto anims = d.find("animations");
+    if (anims == d.end() || !anims->is_array()) return;
+    auto whole = [](const nlohmann::json &v) { return v.is_number_integer() || v.is_number_unsigned(); };
+    for (size_t ai = 0; ai < anims->size(); ++ai) {
+        const nlohmann::json &a = (*anims)[ai];
+        if (!a.is_object()) continue;
+        const auto check = [&](const nlohmann::json &o, const char *field, const std::string &where) {
+            auto it = o.find(field);
+            if (it != o.end() && !whole(*it))
+                fail(strf("animation %zu %s: \"%s\" must be a whole number (an integer index), not %s", ai, where.c_str(), field,
+                          it->dump().substr(0, 40).c_str()));
+        };
+        if (auto chans = a.find("channels"); chans != a.end() && chans->is_array())
+            for (size_t ci = 0; ci < chans->size(); ++ci) {
+                const nlohmann::json &c = (*chans)[ci];
+                if (!c.is_object()) continue;
+                check(c, "sampler", strf("channel %zu", ci));
+                if (auto t = c.find("target"); t != c.end() && t->is_object()) check(*t, "node", strf("channel %zu target", ci));
+            }
     }
 }
 
@@ -1580,6 +1625,11 @@ void Loader::load_grid(const std::string &vdb, const std::string &grid, const st
                        IoVolumeGrid *out) {
     char err[IO_ERR_LEN] = "";
     if (io_load_vdb_grid(vdb.c_str(), grid.c_str(), out, err) != 0) fail(what + ": " + err);
+    volume_used_ += out->size;
+    if (volume_budget_ && volume_used_ > volume_budget_)
+        fail(strf("%s: the volume grids loaded so far take %.1f MiB, over the scene's volume budget of %.1f MiB "
+                  "(--volume-budget-mb)",
+                  what.c_str(), double(volume_used_) / 1048576.0, double(volume_budget_) / 1048576.0));
 }
 
 // A node's extras.candela_volume (io.h, IoVolume): validate every value, then load the grids.
@@ -1746,6 +1796,102 @@ extern "C" int io_load_gltf(const char *path, IoScene *scene, char err[IO_ERR_LE
     return io_load_gltf_opts(path, nullptr, scene, err);
 }
 
+// The files a scene references, for the outputs rule (io.h, io_gltf_references): the JSON alone
+// (nlohmann, as tinygltf parses it), nothing loaded. URIs resolve as the loader resolves them:
+// buffers, images and VDBs percent-decoded relative to the scene's folder, the environment as
+// written. Every node's volume and every scene's environment is listed (a superset of what the
+// loaded scene reads).
+extern "C" int io_gltf_references(const char *path, IoPathList *list, char err[IO_ERR_LEN]) {
+    list->paths = nullptr;
+    list->count = 0;
+    std::vector<std::string> found;
+    try {
+        std::vector<unsigned char> bytes;
+        std::string problem;
+        if (!read_whole_file(path, &bytes, &problem)) {
+            set_err(err, path, problem);
+            return -1;
+        }
+        const unsigned char *json = bytes.data();
+        size_t json_len = bytes.size();
+        if (json_len >= 20 && std::memcmp(json, "glTF", 4) == 0) {
+            uint32_t len;
+            std::memcpy(&len, json + 12, 4);
+            if (uint64_t(len) + 20 > json_len) {
+                set_err(err, path, "invalid GLB: bad JSON chunk");
+                return -1;
+            }
+            json += 20;
+            json_len = len;
+        }
+        if (json_depth(json, json_len) > JSON_MAX_DEPTH) {
+            set_err(err, path, strf("JSON nests deeper than %d levels", JSON_MAX_DEPTH));
+            return -1;
+        }
+        const nlohmann::json d = nlohmann::json::parse(json, json + json_len);
+        const std::string dir = dir_of(path);
+        auto uri_of = [](const nlohmann::json &o) -> std::string {
+            if (!o.is_object()) return "";
+            auto it = o.find("uri");
+            if (it == o.end() || !it->is_string()) return "";
+            const std::string u = it->get<std::string>();
+            return u.compare(0, 5, "data:") == 0 ? "" : u;
+        };
+        for (const char *key : {"buffers", "images"}) {
+            auto a = d.find(key);
+            if (a == d.end() || !a->is_array()) continue;
+            for (const nlohmann::json &o : *a)
+                if (const std::string u = uri_of(o); !u.empty()) found.push_back(join_path(dir, url_decode(u)));
+        }
+        if (auto nodes = d.find("nodes"); nodes != d.end() && nodes->is_array())
+            for (const nlohmann::json &n : *nodes) {
+                if (!n.is_object() || !n.contains("extras") || !n["extras"].is_object()) continue;
+                auto v = n["extras"].find("candela_volume");
+                if (v != n["extras"].end())
+                    if (const std::string u = uri_of(*v); !u.empty()) found.push_back(join_path(dir, url_decode(u)));
+            }
+        auto env_of = [&](const nlohmann::json &o) {
+            if (!o.is_object() || !o.contains("extras") || !o["extras"].is_object()) return;
+            auto e = o["extras"].find("candela_environment");
+            if (e != o["extras"].end())
+                if (const std::string u = uri_of(*e); !u.empty()) found.push_back(join_path(dir, u));
+        };
+        env_of(d);
+        if (auto asset = d.find("asset"); asset != d.end()) env_of(*asset);
+        if (auto scenes = d.find("scenes"); scenes != d.end() && scenes->is_array())
+            for (const nlohmann::json &sc : *scenes) env_of(sc);
+    } catch (const std::bad_alloc &) {
+        set_err(err, path, "out of memory");
+        return -1;
+    } catch (const std::exception &e) {
+        set_err(err, path, std::string("malformed glTF: ") + e.what());
+        return -1;
+    }
+    if (found.empty()) return 0;
+    list->paths = static_cast<char **>(std::calloc(found.size(), sizeof(char *)));
+    if (!list->paths) {
+        set_err(err, path, "out of memory");
+        return -1;
+    }
+    for (const std::string &f : found) {
+        char *c = strdup(f.c_str());
+        if (!c) {
+            io_path_list_free(list);
+            set_err(err, path, "out of memory");
+            return -1;
+        }
+        list->paths[list->count++] = c;
+    }
+    return 0;
+}
+
+extern "C" void io_path_list_free(IoPathList *list) {
+    for (int i = 0; list->paths && i < list->count; ++i) std::free(list->paths[i]);
+    std::free(list->paths);
+    list->paths = nullptr;
+    list->count = 0;
+}
+
 extern "C" int io_load_gltf_opts(const char *path, const IoLoadOptions *opts, IoScene *scene, char err[IO_ERR_LEN]) {
     const char *confine_dir = opts ? opts->confine_dir : nullptr;
     if (err) err[0] = 0;
@@ -1759,7 +1905,11 @@ extern "C" int io_load_gltf_opts(const char *path, const IoLoadOptions *opts, Io
         return 1;
     }
     std::string problem, confine;
-    if (confine_dir && *confine_dir) {
+    if (confine_dir && !*confine_dir) { // a farm script's unset variable must not mean "no confinement"
+        set_err(err, path, "the confinement folder (--confine-to) is an empty name");
+        return 1;
+    }
+    if (confine_dir) {
         char *r = ::realpath(confine_dir, nullptr);
         if (!r) {
             set_err(err, confine_dir, "confinement folder (--confine-to) not found");
@@ -1773,7 +1923,8 @@ extern "C" int io_load_gltf_opts(const char *path, const IoLoadOptions *opts, Io
         }
     }
     try {
-        Loader loader(path, confine, opts ? opts->texture_budget_bytes : 0, !(opts && opts->no_warnings));
+        Loader loader(path, confine, opts ? opts->texture_budget_bytes : 0, opts ? opts->volume_budget_bytes : 0,
+                      !(opts && opts->no_warnings));
         loader.run(scene);
         return 0;
     } catch (const LoadError &e) {

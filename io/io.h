@@ -11,6 +11,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -37,6 +38,51 @@ void io_remove_stale_temps(const char *path);
 int io_output_path(const char *path, char resolved[IO_PATH_MAX], char err[IO_ERR_LEN]);
 void io_temp_end(void);
 void io_remove_active_temp(void);
+
+/* ---------------------------------------------------------------- files (io/files.c)
+ * Inputs: every file the program reads itself (a scene and its buffers, variant lists,
+ * checkpoints, shard films, a comparison's reference and key) is opened by io_open_input: a
+ * symbolic link is followed, and anything but a regular file (a FIFO, which would block in
+ * open(), a device such as /dev/zero, which never ends, a directory) is refused before a byte
+ * is read, as is a file larger than max_bytes (0: no limit), from its size before reading.
+ * `what` names the input in that message ("a scene", ...). 0 ok, -1 with "PATH: problem". */
+int io_open_input(const char *path, uint64_t max_bytes, const char *what, int *fd, uint64_t *size,
+                  char err[IO_ERR_LEN]);
+/* The same as a stdio stream (NULL on failure). */
+FILE *io_open_input_file(const char *path, uint64_t max_bytes, const char *what, uint64_t *size, char err[IO_ERR_LEN]);
+/* The whole file into *data (malloc'd, with a zero byte after the *size bytes), read no further
+ * than max_bytes even if it grows meanwhile. */
+int io_read_input(const char *path, uint64_t max_bytes, const char *what, void **data, size_t *size,
+                  char err[IO_ERR_LEN]);
+/* The largest scene file (glTF JSON or GLB) and the largest buffer file a scene references. */
+#define IO_MAX_SCENE_BYTES ((uint64_t)0xFFFFFFF0u)
+
+/* Which file a path names, to tell whether two paths are one file (an output must never be an
+ * input or another output of the same run): an existing file by device and inode (after
+ * symbolic links), one that does not exist yet by its folder's real path and its name (a
+ * dangling link by its target's). io_file_id returns -1 when the folder does not exist (the
+ * id then holds the path as given). */
+typedef struct IoFileId {
+    int exists;
+    uint64_t dev, ino;
+    char path[IO_PATH_MAX];
+} IoFileId;
+int io_file_id(const char *path, IoFileId *id);
+int io_same_file(const IoFileId *a, const IoFileId *b);
+/* 1 when path resolves (symbolic links and .. followed) inside folder ("/" holds every path). */
+int io_path_inside(const char *path, const char *folder);
+
+/* One writer per output: io_lock_output takes an exclusive lock (flock) on OUTPUT.lock beside
+ * the output's resolved path, and fails with "OUTPUT: another candela (pid P) is writing it"
+ * when another process holds it. A dead process's lock is free (the kernel drops it), so a
+ * lock file a SIGKILL left is simply taken over; io_unlock_output removes the file. On a file
+ * system without locks, writing goes on unlocked (fd -1). */
+typedef struct IoLock {
+    int fd;
+    char path[IO_PATH_MAX + 8];
+} IoLock;
+int io_lock_output(const char *output, IoLock *lock, char err[IO_ERR_LEN]);
+void io_unlock_output(IoLock *lock);
 /* The largest magnitude of a node's world transform entry (and so of a coordinate it places):
  * beyond it float rays lose all precision. Documented in README.md. */
 #define IO_MAX_COORDINATE 1e12
@@ -384,11 +430,25 @@ typedef struct IoLoadOptions {
      * 8-bit files, 16 for the others), checked from each image's header before it is decoded
      * (0: no limit) */
     uint64_t texture_budget_bytes;
+    /* the volume grids' NanoVDB buffers in total, checked after each grid is read (0: no limit;
+     * the renderer's --volume-budget-mb, which also counts what the media build from them) */
+    uint64_t volume_budget_bytes;
     /* non-zero: warnings are counted (IoScene.num_warnings) but not printed (--no-warnings) */
     int no_warnings;
 } IoLoadOptions;
 int io_load_gltf_opts(const char *path, const IoLoadOptions *opts, IoScene *scene, char err[IO_ERR_LEN]);
 void io_scene_free(IoScene *scene);
+/* The files a glTF / GLB references (buffers, images, VDBs, environments; not data: URIs),
+ * resolved as the loader resolves them, from the JSON alone (nothing is loaded): what an output
+ * of the same run must not replace. A superset of what io_load_gltf reads (every node's volume,
+ * every scene's environment). 0 ok (list->count may be 0), -1 with a message (a file the loader
+ * would refuse too). Free with io_path_list_free. */
+typedef struct IoPathList {
+    char **paths;
+    int count;
+} IoPathList;
+int io_gltf_references(const char *path, IoPathList *list, char err[IO_ERR_LEN]);
+void io_path_list_free(IoPathList *list);
 
 /* io_load_image flags. IO_IMAGE_SRGB: the file's R, G, B are sRGB-encoded (8/16-bit integer
  * files; float files are linear whatever the flag says). IO_IMAGE_KEEP_8BIT: a file of 8 bits
@@ -420,6 +480,10 @@ int io_write_exr(const char *path, int width, int height, const IoExrChannel *ch
 #define IO_EXR_MAX_PIXELS ((int64_t)64 << 20)
 int io_read_exr_channel(const char *path, const char *channel, int *width, int *height,
                         float **data, char err[IO_ERR_LEN]);
+/* 0 when path is a whole scanline EXR (header, every chunk's table entry and header read, its
+ * bytes inside the file) of at most the renderer's largest size, with its size; nothing is
+ * decompressed (`--frames --resume` asks this of every existing frame). */
+int io_exr_complete(const char *path, int *width, int *height, char err[IO_ERR_LEN]);
 
 /* ---------------------------------------------------------------- volumes (OpenVDB) */
 /* IoVolumeGrid is defined above, with IoVolume. */
@@ -433,6 +497,12 @@ int io_load_vdb_grid(const char *path, const char *grid_name, IoVolumeGrid *grid
  * (x, y, z) in [0, n), zero values inactive; index_to_world as in IoVolumeGrid. */
 int io_volume_grid_from_dense(const float *values, int nx, int ny, int nz, const float index_to_world[16],
                               const char *name, IoVolumeGrid *grid, char err[IO_ERR_LEN]);
+/* A grid from sparse data (tests and generators): num_boxes boxes (6 ints each, inclusive
+ * min x y z, max x y z) filled with box_values (OpenVDB's fill: tiles where a box covers whole
+ * nodes), then count single voxels (3 ints each in ijk) set to values over them. */
+int io_volume_grid_from_voxels(const int32_t *ijk, const float *values, size_t count, const int32_t *boxes,
+                               const float *box_values, size_t num_boxes, const float index_to_world[16],
+                               const char *name, IoVolumeGrid *grid, char err[IO_ERR_LEN]);
 void io_volume_grid_free(IoVolumeGrid *grid);
 /* Writes a .vdb file of num_grids float grids (names[g], dense values[g] laid out as above,
  * zero values inactive, one shared index_to_world), through a temporary name and a rename
@@ -446,6 +516,7 @@ int io_write_vdb_dense(const char *path, const char *const *names, const float *
  * {"variant": [{"name": ..., "flags": ...}, ...]}; any other key is an error. The flags are
  * not interpreted here. Free with io_variants_free. */
 #define IO_MAX_VARIANTS 16
+#define IO_MAX_VARIANTS_BYTES ((uint64_t)1 << 20) /* a variant file's size limit */
 typedef struct IoVariant {
     char *name;
     char *flags;

@@ -20,7 +20,6 @@
 #include <cstring>
 #include <exception>
 #include <optional>
-#include <fstream>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -35,14 +34,19 @@ bool ends_with(const std::string &s, const char *suffix) {
     return s.size() >= n && s.compare(s.size() - n, n, suffix) == 0;
 }
 
-// Reads the whole file; refuses anything past 1 MiB (a variant list is a few lines).
+// Reads the whole file through the input door (a FIFO or /dev/zero refused before a byte is
+// read); refuses anything past 1 MiB from its size, before reading (a variant list is a few lines).
 bool read_text(const std::string &path, std::string *text, std::string *problem) {
-    std::ifstream f(path, std::ios::binary);
-    if (!f) { *problem = "cannot read the file"; return false; }
-    std::ostringstream ss;
-    ss << f.rdbuf();
-    if (ss.str().size() > (1u << 20)) { *problem = "larger than 1 MiB: not a variant list"; return false; }
-    *text = ss.str();
+    void *data = nullptr;
+    size_t n = 0;
+    char err[IO_ERR_LEN];
+    if (io_read_input(path.c_str(), IO_MAX_VARIANTS_BYTES, "a variant list (1 MiB)", &data, &n, err) != 0) {
+        const std::string m(err);
+        *problem = m.compare(0, path.size() + 2, path + ": ") == 0 ? m.substr(path.size() + 2) : m;
+        return false;
+    }
+    text->assign(static_cast<const char *>(data), n);
+    std::free(data);
     return true;
 }
 

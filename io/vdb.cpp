@@ -73,6 +73,22 @@ bool describe(const openvdb::FloatGrid &grid, IoVolumeGrid *out, std::string *pr
             }
             out->index_to_world[i * 4 + j] = (float)v;
         }
+    // voxel sizes: the active box in the world must lie within the coordinate limit (a voxel of
+    // 1e30 put a small file's volume where nothing downstream can work with it; README "Limits")
+    for (int c = 0; c < 8; ++c) {
+        double p[3];
+        for (int k = 0; k < 3; ++k) p[k] = (c >> k & 1) ? bbox.max()[k] + 1.5 : bbox.min()[k] - 1.5;
+        for (int j = 0; j < 3; ++j) {
+            double w = p[0] * m[0][j] + p[1] * m[1][j] + p[2] * m[2][j] + m[3][j];
+            if (!(std::fabs(w) <= IO_MAX_COORDINATE)) {
+                char what[160];
+                std::snprintf(what, sizeof what, "': its voxels reach beyond %g in the world (voxel size %g)", IO_MAX_COORDINATE,
+                              grid.voxelSize()[0]);
+                *problem = "grid '" + grid.getName() + what;
+                return false;
+            }
+        }
+    }
     float lo = INFINITY, hi = -INFINITY;
     uint64_t nonfinite = 0;
     for (auto it = grid.cbeginValueOn(); it; ++it) {
@@ -592,15 +608,15 @@ bool VdbWalk::check(const std::string &grid_name, std::string *problem) {
 
 // Opens path and walks it; false with a one-line problem.
 bool check_vdb_file(const char *path, const std::string &grid_name, std::string *problem) {
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (fd < 0) {
-        *problem = std::string("cannot open: ") + std::strerror(errno);
+    int fd = -1;
+    uint64_t size = 0;
+    char err[IO_ERR_LEN];
+    if (io_open_input(path, 0, "a VDB file", &fd, &size, err) != 0) { // regular files only, never blocking
+        const std::string m(err), p(path);
+        *problem = m.compare(0, p.size() + 2, p + ": ") == 0 ? m.substr(p.size() + 2) : m;
         return false;
     }
-    struct stat st;
-    bool ok = fstat(fd, &st) == 0 && S_ISREG(st.st_mode);
-    if (!ok) *problem = "not a regular file";
-    else ok = VdbWalk(fd, (uint64_t)st.st_size).check(grid_name, problem);
+    bool ok = VdbWalk(fd, size).check(grid_name, problem);
     close(fd);
     return ok;
 }
@@ -729,6 +745,43 @@ extern "C" int io_volume_grid_from_dense(const float *values, int nx, int ny, in
     try {
         openvdb_init_once();
         openvdb::FloatGrid::Ptr grid = dense_grid(values, nx, ny, nz, index_to_world, name);
+        std::string problem;
+        if (!describe(*grid, out, &problem) || !to_nanovdb(*grid, out, &problem)) {
+            candela_io::set_err(err, name, problem);
+            std::memset(out, 0, sizeof *out);
+            return 1;
+        }
+        set_name(out, name);
+        return 0;
+    } catch (const std::exception &e) {
+        candela_io::set_err(err, name, std::string("cannot build the grid: ") + e.what());
+    }
+    io_volume_grid_free(out);
+    return 1;
+}
+
+extern "C" int io_volume_grid_from_voxels(const int32_t *ijk, const float *values, size_t count, const int32_t *boxes,
+                                          const float *box_values, size_t num_boxes, const float index_to_world[16],
+                                          const char *name, IoVolumeGrid *out, char err[IO_ERR_LEN]) {
+    std::memset(out, 0, sizeof *out);
+    try {
+        openvdb_init_once();
+        openvdb::FloatGrid::Ptr grid = openvdb::FloatGrid::create(0.0f);
+        grid->setName(name);
+        grid->setGridClass(openvdb::GRID_FOG_VOLUME);
+        openvdb::math::Mat4d m;
+        for (int i = 0; i < 4; ++i)
+            for (int j = 0; j < 4; ++j) m[i][j] = index_to_world[i * 4 + j];
+        grid->setTransform(openvdb::math::Transform::createLinearTransform(m));
+        // boxes first (tiles wherever a box covers a whole node), then single voxels over them
+        for (size_t b = 0; b < num_boxes; ++b) {
+            const int32_t *x = boxes + 6 * b;
+            grid->fill(openvdb::CoordBBox(openvdb::Coord(x[0], x[1], x[2]), openvdb::Coord(x[3], x[4], x[5])), box_values[b],
+                       true);
+        }
+        auto acc = grid->getAccessor();
+        for (size_t i = 0; i < count; ++i)
+            acc.setValue(openvdb::Coord(ijk[3 * i], ijk[3 * i + 1], ijk[3 * i + 2]), values[i]);
         std::string problem;
         if (!describe(*grid, out, &problem) || !to_nanovdb(*grid, out, &problem)) {
             candela_io::set_err(err, name, problem);

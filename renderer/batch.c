@@ -232,9 +232,80 @@ static void partial_name(const char *path, char out[PATH_MAX]) {
     if (n >= PATH_MAX) out[0] = 0; /* never a truncated name that might be another file */
 }
 
-static int file_exists(const char *path) {
+/* --resume: a frame counts as done only when its EXR reads back whole (io_exr_complete: every
+ * chunk there, no decompression, so resuming a long batch of large frames stays cheap) at the
+ * batch's resolution, and its PNG, when asked for, decodes at that size too. The name alone proved little: a file copied in by hand, a disk
+ * that filled during someone else's write, a 0-byte placeholder. NULL when done, else why not. */
+static const char *frame_done(const char *exr, const char *png, int width, int height, char why[CANDELA_ERR_LEN]) {
+    char ioerr[IO_ERR_LEN];
     struct stat st;
-    return stat(path, &st) == 0 && S_ISREG(st.st_mode);
+    if (stat(exr, &st) != 0) {
+        snprintf(why, CANDELA_ERR_LEN, "missing");
+        return why;
+    }
+    int w = 0, h = 0;
+    if (io_exr_complete(exr, &w, &h, ioerr) != 0) {
+        snprintf(why, CANDELA_ERR_LEN, "%s", ioerr);
+        return why;
+    }
+    if (w != width || h != height) {
+        snprintf(why, CANDELA_ERR_LEN, "%.400s: %dx%d, not the batch's %dx%d", exr, w, h, width, height);
+        return why;
+    }
+    if (png) {
+        if (stat(png, &st) != 0) {
+            snprintf(why, CANDELA_ERR_LEN, "%.400s: missing", png);
+            return why;
+        }
+        IoImage im;
+        if (io_load_image(png, IO_IMAGE_SRGB | IO_IMAGE_KEEP_8BIT, &im, ioerr) != 0) {
+            snprintf(why, CANDELA_ERR_LEN, "%s", ioerr);
+            return why;
+        }
+        int pw = im.width, ph = im.height;
+        io_image_free(&im);
+        if (pw != width || ph != height) {
+            snprintf(why, CANDELA_ERR_LEN, "%.400s: %dx%d, not the batch's %dx%d", png, pw, ph, width, height);
+            return why;
+        }
+    }
+    return NULL;
+}
+
+/* The outputs rule for a batch: each frame's EXR and PNG (and their .partial names with
+ * --save-partial) against the run's inputs and outputs, and the EXR against the PNG. Names of
+ * different frames differ in their frame number. */
+static int check_frame_names(const CandelaBatchOptions *b, const FrameList *mine, char err[CANDELA_ERR_LEN]) {
+    for (size_t k = 0; k < mine->count; ++k) {
+        char names[4][PATH_MAX], role[4][64];
+        int n = 0;
+        frame_name(b->exr_pattern, mine->frames[k], names[n]);
+        snprintf(role[n++], sizeof role[0], "frame %lld's EXR", (long long)mine->frames[k]);
+        if (b->png_pattern) {
+            frame_name(b->png_pattern, mine->frames[k], names[n]);
+            snprintf(role[n++], sizeof role[0], "frame %lld's PNG", (long long)mine->frames[k]);
+        }
+        for (int j = 0, m = n; b->save_partial && j < m; ++j) {
+            partial_name(names[j], names[n]);
+            snprintf(role[n], sizeof role[0], "%.50s (.partial)", role[j]);
+            if (names[n][0]) ++n;
+        }
+        IoFileId id[4];
+        for (int j = 0; j < n; ++j) {
+            char e[CANDELA_ERR_LEN];
+            if (candela_run_check_output(b->run, names[j], role[j], e) != 0) {
+                snprintf(err, CANDELA_ERR_LEN, "candela: %.490s", e);
+                return -1;
+            }
+            (void)io_file_id(names[j], &id[j]);
+            for (int i = 0; i < j; ++i)
+                if (io_same_file(&id[i], &id[j])) {
+                    snprintf(err, CANDELA_ERR_LEN, "candela: %.300s: %.64s and %.64s are the same file", names[j], role[i], role[j]);
+                    return -1;
+                }
+        }
+    }
+    return 0;
 }
 
 /* ---------------------------------------------------------------- the frame log */
@@ -349,6 +420,24 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
             return -1;
         }
 
+    /* every frame's outputs against the run's files (the outputs rule, candela.h) and against
+     * each other, before the scene loads */
+    if (b->run && check_frame_names(b, &mine, err) != 0) {
+        free(all.frames);
+        free(mine.frames);
+        return -1;
+    }
+    if (b->dry_run) {
+        printf("shard %ld/%ld\n", shard, shards);
+        for (size_t k = 0; k < mine.count; ++k) {
+            char exr[PATH_MAX];
+            frame_name(b->exr_pattern, mine.frames[k], exr);
+            printf("frame %lld %s\n", (long long)mine.frames[k], exr);
+        }
+        free(all.frames);
+        free(mine.frames);
+        return 0;
+    }
     CandelaSession *session = NULL;
     CandelaSessionInfo info;
     if (candela_session_open(o, &session, &info, err) != 0) {
@@ -386,8 +475,13 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
         char exr[PATH_MAX], png[PATH_MAX];
         frame_name(b->exr_pattern, frame, exr);
         if (b->png_pattern) frame_name(b->png_pattern, frame, png);
-        /* a final name exists only once its file is complete (temp + rename) */
-        if (b->resume && file_exists(exr) && (!b->png_pattern || file_exists(png))) {
+        /* a final name exists only once candela's own write completed (temp + rename), but the
+         * file under it may be anyone's: it must read back whole */
+        char why[CANDELA_ERR_LEN];
+        const char *not_done = b->resume ? frame_done(exr, b->png_pattern ? png : NULL, info.width, info.height, why) : why;
+        if (b->resume && not_done && strcmp(not_done, "missing") != 0) /* a warning: said even with --quiet */
+            fprintf(stderr, "candela: warning: frame %lld: %s; rendered again (--resume)\n", (long long)frame, not_done);
+        if (b->resume && !not_done) {
             ++skipped;
             CandelaOptions so = *o;
             so.seed = candela_frame_seed(o->seed, frame);
@@ -401,6 +495,18 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
         CandelaOptions fo = *o;
         fo.seed = candela_frame_seed(o->seed, frame);
         fo.quiet = 1; /* one batch progress line per frame instead of each render's bar */
+        /* one writer per frame: a task rendering it already (overlapping shards, a resumed batch
+         * beside the original) makes this one a failed frame, said so, not a second writer */
+        IoLock lock;
+        char lock_err[IO_ERR_LEN];
+        if (io_lock_output(exr, &lock, lock_err) != 0) {
+            ++failed;
+            fprintf(stderr, "candela: frame %lld failed: %s\n", (long long)frame, lock_err);
+            char lerr[CANDELA_ERR_LEN];
+            if (log_frame(b, &fo, frame, seconds, "failed", exr, lock_err, NULL, NULL, lerr) != 0)
+                fprintf(stderr, "candela: frame %lld: %s\n", (long long)frame, lerr);
+            continue;
+        }
         CandelaImage image;
         CandelaStats stats;
         CandelaFrameInfo finfo;
@@ -441,6 +547,7 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
                       have_image ? &stats : NULL, &finfo, lerr) != 0)
             fprintf(stderr, "candela: frame %lld: %s\n", (long long)frame, lerr);
         if (have_image) candela_image_free(&image);
+        io_unlock_output(&lock);
         if (*interrupted) {
             fprintf(stderr, "candela: interrupted in frame %lld after %d of %d spp; %s\n", (long long)frame,
                     stats.spp_done, o->spp, b->save_partial ? "its image so far is under a .partial name" : "it was not written");

@@ -102,6 +102,7 @@ typedef struct CandelaOptions {
      * default policy, files anywhere relative to the scene) */
     const char *confine_dir;
     uint32_t texture_budget_mb; /* decoded textures in total (8-bit files 4 B/texel, others 16); 0: no limit */
+    uint32_t volume_budget_mb;  /* volume grids and the media built from them, in total; 0: no limit */
     CandelaGuiding guiding;
     CandelaSampler sampler;     /* --sampler */
     /* adaptive sampling (--noise-threshold; 0: off): at each iteration barrier past min_spp a
@@ -196,6 +197,7 @@ typedef struct CandelaStats {
     uint32_t cachepoints_inserted;   /* of num_cachepoints, inserted between iterations (progressive) */
     double time_cachepoint_insertion, cpu_cachepoint_insertion; /* their scoring and rebuilds, at the barriers */
     uint32_t num_volumes;
+    uint64_t volume_bytes;        /* the volume grids and their media's majorant and emission grids (--volume-budget-mb) */
     uint64_t volume_collisions;   /* majorant collisions the media trackers evaluated */
     uint64_t volume_capped_walks; /* tracker calls stopped at their collision cap (a bad medium) */
     /* the radiance recorder (when guiding or its debug AOV is on) */
@@ -271,6 +273,31 @@ void candela_cachepoint_png_paths(const char *png_path, char *point_png, char *l
 int candela_replay_rays(const CandelaOptions *o, const CandelaRayLog *log, int threads,
                         double *seconds, char err[CANDELA_ERR_LEN]);
 
+/* ---------------------------------------------------------------- a run's files
+ * One rule for every output of a run (renderer/runfiles.c; README "Inputs and outputs"): it may
+ * not be an input of the same run (the scene, any file the scene references, --env,
+ * --resume-from, the films being merged, --variants, --reference, a variant's --env) nor another
+ * output of it. Paths are compared by the file they name (device and inode, or the real folder
+ * and name of a file not there yet). The commands record every input and output before any
+ * work; the first clash is one line in err ("PATH: the PNG preview (--png) would replace the
+ * scene, an input of this run"). role names the file in that message. */
+typedef struct CandelaRunFile CandelaRunFile;
+typedef struct CandelaRunFiles {
+    CandelaRunFile *files;
+    int count, capacity;
+} CandelaRunFiles;
+int candela_run_input(CandelaRunFiles *r, const char *path, const char *role, char err[CANDELA_ERR_LEN]);
+/* the scene and every file it references (io_gltf_references) */
+int candela_run_scene(CandelaRunFiles *r, const char *scene_path, char err[CANDELA_ERR_LEN]);
+int candela_run_output(CandelaRunFiles *r, const char *path, const char *role, char err[CANDELA_ERR_LEN]);
+/* candela_run_output for an output that continues an input and may replace it (--checkpoint
+ * over the --resume-from checkpoint it continues: written atomically, after it was read) */
+int candela_run_output_continuing(CandelaRunFiles *r, const char *path, const char *role, const char *continued,
+                                  char err[CANDELA_ERR_LEN]);
+/* the check of candela_run_output without recording the output (a frame's names) */
+int candela_run_check_output(const CandelaRunFiles *r, const char *path, const char *role, char err[CANDELA_ERR_LEN]);
+void candela_run_files_free(CandelaRunFiles *r);
+
 /* candela compare: every variant at equal spp (or equal time) against a reference, and a
  * report folder (renderer/compare.c, renderer/report.c). */
 typedef struct CandelaCompareOptions {
@@ -284,9 +311,15 @@ typedef struct CandelaCompareOptions {
      * flags per variant; NULL: `strategies` (each NAME stands for --light-sampler NAME) */
     const char *variants;
     double time_budget;          /* > 0: equal time, every variant renders until this many seconds */
+    /* the run's inputs and outputs so far (the scene's, --reference's, --variants'): the report's
+     * files and the variants' own inputs are added and checked before anything renders; NULL: none */
+    CandelaRunFiles *run;
 } CandelaCompareOptions;
 
 int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, char err[CANDELA_ERR_LEN]);
+/* 1 when --variants SPEC names a file: it ends in .toml or .json and either has no ':' or a file
+ * of that name exists (so an inline "a: --env sky.json" stays inline) */
+int candela_variants_is_file(const char *spec);
 
 /* candela merge: the finished films of the N sample shards of one render (any order) into the
  * EXR (and PNG preview unless NULL): sums of L and L^2, counts and AOV sums added in shard order,
@@ -311,6 +344,7 @@ typedef struct CandelaSessionInfo {
     double time_load;             /* seconds to load the scene */
     uint32_t num_channels;        /* animation channels (0: a still scene) */
     double anim_start, anim_end;  /* the animation's first and last key time, seconds */
+    int width, height;            /* the frames' resolution */
 } CandelaSessionInfo;
 typedef struct CandelaFrameInfo {
     double time_pose;             /* posing the scene and updating Embree (inside stats time_load) */
@@ -339,6 +373,11 @@ typedef struct CandelaBatchOptions {
     const char *stats_jsonl;  /* one JSON line per frame appended here; NULL: none */
     int resume;               /* skip frames whose EXR (and PNG, when asked) exist */
     int save_partial;         /* an interrupted frame is written under a .partial name */
+    int dry_run;              /* check the request, print "shard I/N" and "frame F EXR" per frame of
+                               * this task to stdout, load and render nothing (returns 0) */
+    /* the run's inputs and outputs (scene, --env, --frame-stats): every frame's names are checked
+     * against them before the first frame renders; NULL: none */
+    const CandelaRunFiles *run;
 } CandelaBatchOptions;
 /* Renders the frames. Returns -1 on an error before any frame was rendered (bad frame list,
  * shard, pattern, scene, a frame outside the animation: err says what; nothing written), else

@@ -59,9 +59,10 @@ static int hash_prefix(FILE *f, uint64_t n, uint64_t *h) {
 int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t sample_begin, uint64_t sample_count,
                         CheckpointIdentity *id, char err[CANDELA_ERR_LEN]) {
     memset(id, 0, sizeof *id);
-    FILE *f = fopen(o->scene_path, "rb");
+    char ioerr[IO_ERR_LEN];
+    FILE *f = io_open_input_file(o->scene_path, IO_MAX_SCENE_BYTES, "a scene (4 GiB)", NULL, ioerr);
     if (!f) {
-        snprintf(err, CANDELA_ERR_LEN, "%s: cannot read: %s", o->scene_path, strerror(errno));
+        snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
         return -1;
     }
     uint64_t h = FNV_OFFSET;
@@ -176,16 +177,18 @@ static int write_header(FILE *f, uint32_t kind, int width, int height, const Che
 /* Opens path, verifies its checksum and reads the header. NULL with a one-line message. */
 static FILE *open_verified(const char *path, Header *h, char err[CANDELA_ERR_LEN]) {
     memset(h, 0, sizeof *h);
-    FILE *f = fopen(path, "rb");
+    /* through the input door: a FIFO (which blocked in fopen) or a device is refused unread;
+     * the size is the file's own (the whole file is hashed before anything is parsed) */
+    char ioerr[IO_ERR_LEN];
+    uint64_t file_size = 0;
+    FILE *f = io_open_input_file(path, 0, "a checkpoint", &file_size, ioerr);
     if (!f) {
-        snprintf(err, CANDELA_ERR_LEN, "%s: cannot read: %s", path, strerror(errno));
+        snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
         return NULL;
     }
-    struct stat st;
     char magic[8];
     uint32_t head[6];
-    if (fstat(fileno(f), &st) != 0 || !S_ISREG(st.st_mode) || ckpt_get(f, magic, 8) || memcmp(magic, CKPT_MAGIC, 8) != 0 ||
-        ckpt_get(f, head, sizeof head)) {
+    if (ckpt_get(f, magic, 8) || memcmp(magic, CKPT_MAGIC, 8) != 0 || ckpt_get(f, head, sizeof head)) {
         snprintf(err, CANDELA_ERR_LEN, "%s: not a candela checkpoint or film file", path);
         fclose(f);
         return NULL;
@@ -197,7 +200,7 @@ static FILE *open_verified(const char *path, Header *h, char err[CANDELA_ERR_LEN
         return NULL;
     }
     uint64_t sum = 0, stored = 0;
-    h->size = (uint64_t)st.st_size;
+    h->size = file_size;
     if (h->size < 8 + sizeof head + 8 || hash_prefix(f, h->size - 8, &sum) || ckpt_get(f, &stored, sizeof stored) ||
         sum != stored) {
         snprintf(err, CANDELA_ERR_LEN, "%s: damaged or truncated (checksum mismatch)", path);
@@ -416,6 +419,9 @@ int candela_merge(const char *out_exr, const char *png, const char *const *files
         else if (h[i].id.shard_count != (uint32_t)num_files)
             problem = "a shard of a different split (its shard count is not the number of files given)";
         else if (h[i].id.shard_index >= (uint32_t)num_files) problem = "damaged header";
+        /* counts are 32-bit per pixel: a total past the largest --spp could wrap them */
+        else if (h[i].id.spp_total < 1 || h[i].id.spp_total > ((uint64_t)1 << 20) || h[i].id.sample_count > h[i].id.spp_total)
+            problem = "damaged header (sample counts out of range)";
         if (problem) {
             char why[256] = "";
             if (i > 0 && strcmp(h[i].id.text, h[0].id.text) != 0) {
@@ -465,8 +471,12 @@ int candela_merge(const char *out_exr, const char *png, const char *const *files
         Header hh;
         FILE *f = open_verified(path, &hh, err);
         if (!f) { rc = -1; break; }
+        char why[160];
         if (film_load(&part, f) != 0) {
             snprintf(err, CANDELA_ERR_LEN, "%s: damaged film section", path);
+            rc = -1;
+        } else if (film_check(&part, hh.id.sample_count, why, sizeof why) != 0) {
+            snprintf(err, CANDELA_ERR_LEN, "%.300s: not a film candela wrote: %s", path, why);
             rc = -1;
         }
         fclose(f);

@@ -73,6 +73,9 @@ int checkpoint_due(int spp_done, int next_spp_done, int spp_total);
 /* The modules' sections. film_load checks the size (and the recorder AOV's presence). */
 int film_save(const Film *f, FILE *out);
 int film_load(Film *f, FILE *in);
+/* A loaded shard film fit to merge: every pixel's count equal to the shard's samples, sums
+ * finite (film.c). -1 with the first bad pixel in what. */
+int film_check(const Film *f, uint64_t samples, char *what, size_t len);
 int record_save(const Integrator *ig, FILE *out);
 int record_load(Integrator *ig, FILE *in);
 int guide_save(const Integrator *ig, FILE *out);

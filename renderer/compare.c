@@ -166,6 +166,14 @@ static int variant_init(Variant *v, const char *name, size_t name_len, const cha
             return -1;
         }
         char flag_err[CANDELA_ERR_LEN];
+        /* a variant changes how the scene renders, never which files the run reads or writes:
+         * --dump-cachepoints would write wherever it names (outside --out-dir), --confine-to would
+         * change the policy the comparison was given */
+        if (strcmp(a, "--dump-cachepoints") == 0 || strcmp(a, "--confine-to") == 0) {
+            snprintf(err, CANDELA_ERR_LEN, "variant '%s': %s is not a variant's flag (%s)", v->name, a,
+                     a[2] == 'd' ? "it writes a file outside the report" : "give it to candela compare");
+            return -1;
+        }
         int r = candela_parse_render_flag(&v->opts, v->argc, v->argv, &i, flag_err);
         if (r < 0) {
             snprintf(err, CANDELA_ERR_LEN, "variant '%s': %.400s", v->name, flag_err);
@@ -176,6 +184,12 @@ static int variant_init(Variant *v, const char *name, size_t name_len, const cha
                      a[0] == '-' ? "unknown option" : "unexpected argument", a);
             return -1;
         }
+    }
+    /* a variant's --env is read like the scene's files: inside --confine-to when given */
+    if (v->opts.env_path != base->env_path && v->opts.confine_dir && !io_path_inside(v->opts.env_path, v->opts.confine_dir)) {
+        snprintf(err, CANDELA_ERR_LEN, "variant '%s': --env %.200s is outside %.200s (--confine-to)", v->name, v->opts.env_path,
+                 v->opts.confine_dir);
+        return -1;
     }
     char check_err[CANDELA_ERR_LEN];
     if (candela_options_check(&v->opts, check_err) != 0) {
@@ -211,6 +225,14 @@ static int ends_with(const char *s, const char *suffix) {
     return n >= m && strcmp(s + n - m, suffix) == 0;
 }
 
+int candela_variants_is_file(const char *spec) {
+    if (!ends_with(spec, ".toml") && !ends_with(spec, ".json")) return 0;
+    /* "a: --light-sampler tree --env sky.json" ends in .json too: a spec with a colon is inline
+     * unless a file of that name exists (then it is read, and must be a regular file) */
+    struct stat st;
+    return strchr(spec, ':') == NULL || lstat(spec, &st) == 0;
+}
+
 /* The variants of the run, every one checked: from --variants (a file or "NAME: FLAGS; ...")
  * or from --strategies. */
 static int build_variants(const CandelaOptions *base, const CandelaCompareOptions *c, Variant **out, int *count,
@@ -221,7 +243,7 @@ static int build_variants(const CandelaOptions *base, const CandelaCompareOption
     if (c->variants && c->strategies) {
         snprintf(err, CANDELA_ERR_LEN, "give --variants or --strategies, not both");
         rc = -1;
-    } else if (c->variants && (ends_with(c->variants, ".toml") || ends_with(c->variants, ".json"))) {
+    } else if (c->variants && candela_variants_is_file(c->variants)) {
         IoVariant *list = NULL;
         int m = 0;
         char ioerr[IO_ERR_LEN];
@@ -366,18 +388,20 @@ static void reference_key(const CandelaOptions *o, char *key, size_t size) {
 
 /* The cached reference when OUT/reference.key matches key (and its render time), else -1. */
 static int cached_reference(const char *dir, const char *key, float **ref, int *w, int *h, double *seconds) {
-    char path[IO_PATH_MAX + 64], text[8192];
+    char path[IO_PATH_MAX + 64], ioerr[IO_ERR_LEN];
     snprintf(path, sizeof path, "%s/reference.key", dir);
-    FILE *f = fopen(path, "r");
-    if (!f) return -1;
-    size_t len = fread(text, 1, sizeof text - 1, f);
-    fclose(f);
-    text[len] = 0;
+    void *data = NULL;
+    size_t len = 0;
+    /* a key is a line or two: anything else (a FIFO, a huge file) is no cached reference */
+    if (io_read_input(path, 8192, "a reference key", &data, &len, ioerr) != 0) return -1;
+    const char *text = data;
     size_t klen = strlen(key);
-    if (len < klen || memcmp(text, key, klen) != 0 || sscanf(text + klen, "seconds %lf", seconds) != 1) return -1;
+    int match = len >= klen && memcmp(text, key, klen) == 0 && sscanf(text + klen, "seconds %lf", seconds) == 1;
+    free(data);
+    if (!match) return -1;
     snprintf(path, sizeof path, "%s/reference.exr", dir);
     float *r = NULL;
-    char ioerr[IO_ERR_LEN], err[CANDELA_ERR_LEN];
+    char err[CANDELA_ERR_LEN];
     if (io_read_exr_channel(path, "R", w, h, &r, ioerr) != 0) return -1;
     free(r);
     return load_reference(path, *w, *h, ref, err);
@@ -641,6 +665,39 @@ static void page(const Report *r, const ReportText *table_html, ReportText *t) {
 
 /* ---------------------------------------------------------------- the comparison */
 
+/* Every file the report writes, and every variant's --env, into the run's files (the outputs
+ * rule, candela.h): checked before anything renders or the folder is made. */
+static int record_report_files(const CandelaCompareOptions *c, const Variant *vs, int count, char err[CANDELA_ERR_LEN]) {
+    char path[IO_PATH_MAX + 64];
+    static const char *const fixed[] = {"crops.png", "convergence.csv", "convergence_spp.svg", "convergence_time.svg",
+                                        "table.md", "table.csv", "index.html", "reference.png"};
+    static const char *const rendered_reference[] = {"reference.exr", "reference.key"};
+    for (size_t k = 0; k < sizeof fixed / sizeof *fixed; ++k) {
+        snprintf(path, sizeof path, "%s/%s", c->out_dir, fixed[k]);
+        if (candela_run_output(c->run, path, "a report file", err) != 0) return -1;
+    }
+    for (size_t k = 0; !c->reference_path && k < 2; ++k) {
+        snprintf(path, sizeof path, "%s/%s", c->out_dir, rendered_reference[k]);
+        if (candela_run_output(c->run, path, "a report file", err) != 0) return -1;
+    }
+    for (int i = 0; i < count; ++i) {
+        static const char *const suffix[] = {".exr", ".png", "_error.png"};
+        for (int k = 0; k < 3; ++k) {
+            snprintf(path, sizeof path, "%s/%s%s", c->out_dir, vs[i].name, suffix[k]);
+            if (candela_run_output(c->run, path, "a report file", err) != 0) return -1;
+        }
+    }
+    for (int i = 0; i < count; ++i) {
+        char role[96];
+        snprintf(role, sizeof role, "the --env of variant '%s'", vs[i].name);
+        if (candela_run_input(c->run, vs[i].opts.env_path, role, err) != 0) return -1;
+    }
+    return 0;
+}
+
+static int compare_locked(const CandelaOptions *base, const CandelaCompareOptions *c, Variant *vs, int count,
+                          char err[CANDELA_ERR_LEN]);
+
 int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, char err[CANDELA_ERR_LEN]) {
     Variant *vs = NULL;
     int count = 0;
@@ -651,11 +708,33 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
         variants_free(vs, COMPARE_MAX_VARIANTS);
         return -1;
     }
+    if (c->run && record_report_files(c, vs, count, err) != 0) {
+        variants_free(vs, COMPARE_MAX_VARIANTS);
+        return -1;
+    }
     if (mkdir(c->out_dir, 0777) != 0 && errno != EEXIST) {
         snprintf(err, CANDELA_ERR_LEN, "%s: cannot create the output folder: %s", c->out_dir, strerror(errno));
         variants_free(vs, COMPARE_MAX_VARIANTS);
         return -1;
     }
+    char path[IO_PATH_MAX + 64];
+    /* one comparison per report folder at a time (its files would mix): the lock is the page's */
+    IoLock lock;
+    char ioerr[IO_ERR_LEN];
+    snprintf(path, sizeof path, "%s/index.html", c->out_dir);
+    if (io_lock_output(path, &lock, ioerr) != 0) {
+        snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
+        variants_free(vs, COMPARE_MAX_VARIANTS);
+        return -1;
+    }
+    int rc = compare_locked(base, c, vs, count, err);
+    io_unlock_output(&lock);
+    return rc;
+}
+
+/* candela_compare once the variants are checked and the report folder is locked; frees vs. */
+static int compare_locked(const CandelaOptions *base, const CandelaCompareOptions *c, Variant *vs, int count,
+                          char err[CANDELA_ERR_LEN]) {
     char path[IO_PATH_MAX + 64];
     CandelaOptions o = *base;
     o.quiet = 1;

@@ -1,5 +1,7 @@
 /* renderer/film.c: the film: per-pixel sums over the render, and their resolution into the
  * image (mean, variance of the mean, first-hit AOVs). */
+#include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -232,4 +234,36 @@ int film_load(Film *f, FILE *in) {
            (f->recorder ? ckpt_get(in, f->recorder, 3 * n * sizeof(double)) : 0) |
            (f->sel_aov ? ckpt_get(in, f->sel_aov, 6 * n * sizeof(double)) : 0) |
            (f->stopped ? ckpt_get(in, f->stopped, n) : 0);
+}
+
+/* What a film file must hold to be merged (a forged or damaged shard's checksum can be right):
+ * every pixel counts exactly the samples its shard declares (so a merged count is the render's
+ * spp, never 0 or wrapped), at most that many first hits, and every sum finite (sums of squares
+ * and hit distances also >= 0). 0 ok, -1 with the first bad pixel in what. */
+int film_check(const Film *f, uint64_t samples, char *what, size_t len) {
+    size_t n = (size_t)f->width * (size_t)f->height;
+    for (size_t i = 0; i < n; ++i) {
+        const int x = (int)(i % (size_t)f->width), y = (int)(i / (size_t)f->width);
+        if (f->count[i] != samples) {
+            snprintf(what, len, "pixel (%d, %d) counts %u samples, the shard declares %llu", x, y, f->count[i],
+                     (unsigned long long)samples);
+            return -1;
+        }
+        if (f->hits[i] > f->count[i]) {
+            snprintf(what, len, "pixel (%d, %d) has %u first hits of %u samples", x, y, f->hits[i], f->count[i]);
+            return -1;
+        }
+        int good = isfinite(f->depth[i]) && f->depth[i] >= 0.0;
+        for (int k = 0; k < 3; ++k) {
+            good &= isfinite(f->sum[3 * i + k]) && isfinite(f->sum2[3 * i + k]) && f->sum2[3 * i + k] >= 0.0;
+            good &= isfinite(f->albedo[3 * i + k]) && isfinite(f->normal[3 * i + k]);
+            if (f->recorder) good &= isfinite(f->recorder[3 * i + k]);
+        }
+        for (int k = 0; f->sel_aov && k < 6; ++k) good &= isfinite(f->sel_aov[6 * i + k]);
+        if (!good) {
+            snprintf(what, len, "pixel (%d, %d) holds a sum that is not a finite number (or a negative square or distance)", x, y);
+            return -1;
+        }
+    }
+    return 0;
 }

@@ -79,7 +79,13 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
     /* flags with a value: every branch consumes it (*i advances past it on success) */
     if (strcmp(a, "--confine-to") == 0) {
         if (!v) return missing(a, err);
+        if (!*v) { /* a farm script's unset variable: never "no confinement" */
+            snprintf(err, CANDELA_ERR_LEN, "--confine-to needs a folder, not an empty name");
+            return -1;
+        }
         o->confine_dir = v;
+    } else if (strcmp(a, "--volume-budget-mb") == 0) {
+        if ((rc = parse_long(a, v, 0, 1 << 24, &n, err)) == 0) o->volume_budget_mb = (uint32_t)n;
     } else if (strcmp(a, "--texture-budget-mb") == 0) {
         if ((rc = parse_long(a, v, 0, 1 << 24, &n, err)) == 0) o->texture_budget_mb = (uint32_t)n;
     } else if (strcmp(a, "--cachepoint-cut-size") == 0) {

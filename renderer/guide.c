@@ -249,10 +249,18 @@ int guide_dump(const Integrator *ig, const float at[3], const char *prefix, char
     float *img = calloc((size_t)W * H, sizeof *img);
     if (!img) { snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", prefix); return -1; }
     const GuideDistribution *d = guide_field_lookup(gs->fields[best], at);
-    guide_distribution_image(d, W, H, img);
-    int rc = write_plane(prefix, "guide", W, H, img, err);
     float lo[3], hi[3];
     guide_distribution_bounds(d, lo, hi);
+    /* the leaf must hold the point (render.c refused a point outside the field before
+     * rendering; this keeps a dump from ever describing another place) */
+    if (!(at[0] >= lo[0] && at[0] <= hi[0] && at[1] >= lo[1] && at[1] <= hi[1] && at[2] >= lo[2] && at[2] <= hi[2])) {
+        snprintf(err, CANDELA_ERR_LEN, "%s: guide-dump --at %g,%g,%g is in no leaf of the guiding field", prefix, (double)at[0],
+                 (double)at[1], (double)at[2]);
+        free(img);
+        return -1;
+    }
+    guide_distribution_image(d, W, H, img);
+    int rc = write_plane(prefix, "guide", W, H, img, err);
     size_t in_leaf = 0;
     if (rc == 0) {
         /* the training directions of the final iteration inside the leaf's box (blurrier than

@@ -33,6 +33,8 @@ static const char *USAGE =
     "  --png FILE.png            preview PNG path (default: the EXR path with .png)\n"
     "  --no-png                  do not write the PNG preview\n"
     "  --confine-to DIR          refuse a scene, or any file it references, outside DIR\n"
+    "  --volume-budget-mb N      volume grids and their majorant and emission grids in total\n"
+    "                            (default 8192; 0: none)\n"
     "  --texture-budget-mb N     decoded textures in total, 4 bytes per texel for 8-bit files and\n"
     "                            16 for others (default 8192; 0: none)\n"
     "  --save-partial            on Ctrl-C / SIGTERM, stop after the current batch (abandoning the\n"
@@ -137,10 +139,15 @@ static const char *USAGE =
     "                            status: the number of failed frames (at most 100), 101 when the\n"
     "                            request is bad (nothing rendered), 130 when interrupted\n"
     "  --fps F                   frames per second (default 24)\n"
-    "  --resume                  skip frames whose EXR (and PNG) already exist\n"
+    "  --resume                  skip frames whose EXR (and PNG) already exist and read back whole\n"
+    "                            at the batch's resolution (others render again, with a warning)\n"
     "  --shard I/N               render every N-th frame of the list starting at position I\n"
     "                            (0 <= I < N, round-robin); without it SLURM_ARRAY_TASK_ID,\n"
     "                            _COUNT, _MIN and _STEP choose the shard of a Slurm job array\n"
+    "  --dry-run                 check the command and print what it would render, loading\n"
+    "                            nothing: 'shard I/N' and 'frame F EXR' per frame of this task\n"
+    "                            (--frames), 'sample-shard I/N samples B-E of SPP FILM' or\n"
+    "                            'render EXR' (scenes/farm/candela_submit.sh asks candela so)\n"
     "  --frame-stats FILE.jsonl  append one JSON line per frame (frame, time, seed, status,\n"
     "                            pose and cache point seconds, the --stats-json fields)\n"
     "  --quiet                   no progress or statistics on stderr (warnings stay)\n"
@@ -293,7 +300,8 @@ static void print_stats(const CandelaStats *s) {
     if (s->time_limited)
         fprintf(stderr, "  --time-limit: stopped at %d spp after %.1fs\n", s->spp_done, s->time_total);
     if (s->num_volumes)
-        fprintf(stderr, "  volumes: %llu majorant collisions%s\n", (unsigned long long)s->volume_collisions,
+        fprintf(stderr, "  volumes: %.1f MiB, %llu majorant collisions%s\n", (double)s->volume_bytes / (1024.0 * 1024.0),
+                (unsigned long long)s->volume_collisions,
                 s->volume_capped_walks ? "; WARNING: some walks hit the collision cap (an extreme medium): the image is biased there" : "");
 }
 
@@ -331,14 +339,45 @@ static int merge_main(int argc, char **argv) {
             png = png_buf;
         }
         if (no_png) png = NULL;
-        if (candela_merge(out, png, files, n, err) != 0) {
+        /* the outputs rule: the merged image never replaces a film being merged (or its preview
+         * the image) */
+        CandelaRunFiles run = {0};
+        for (int i = 0; i < n && rc == 0; ++i)
+            if (candela_run_input(&run, files[i], "a film being merged", err) != 0) rc = 2;
+        if (rc == 0 && (candela_run_output(&run, out, "the merged EXR (-o)", err) != 0 ||
+                        candela_run_output(&run, png, "the merged PNG (--png)", err) != 0))
+            rc = 2;
+        candela_run_files_free(&run);
+        IoLock locks[2];
+        int nlocks = 0;
+        const char *lock_these[2] = {out, png};
+        for (int k = 0; k < 2 && rc == 0; ++k) {
+            char ioerr[IO_ERR_LEN];
+            if (!lock_these[k]) continue;
+            if (io_lock_output(lock_these[k], &locks[nlocks], ioerr) != 0) {
+                snprintf(err, sizeof err, "%s", ioerr);
+                rc = 1;
+            } else {
+                ++nlocks;
+            }
+        }
+        if (rc != 0) fprintf(stderr, "candela: %s\n", err);
+        else if (candela_merge(out, png, files, n, err) != 0) {
             fprintf(stderr, "candela: %s\n", err);
             rc = 1;
         }
+        while (nlocks > 0) io_unlock_output(&locks[--nlocks]);
     }
     free(files);
     return rc;
 }
+
+static int record_run_files(CandelaRunFiles *run, const CandelaOptions *o, const CandelaCompareOptions *co,
+                            const CandelaBatchOptions *batch, int compare, int bench, int dump, const char *out,
+                            const char *png, const char *stats_json, int save_partial, char err[CANDELA_ERR_LEN]);
+static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBatchOptions *bp, int compare, int bench,
+                       int dump, const char *out, const char *png, const char *stats_json, int save_partial, int argc,
+                       char **argv);
 
 int main(int argc, char **argv) {
     if (argc < 2) { fputs(USAGE, stderr); return 2; }
@@ -396,6 +435,7 @@ int main(int argc, char **argv) {
         else if (strcmp(a, "--fps") == 0) { batch.fps = parse_float(a, v, 1e-3f, 1e6f); ++i; }
         else if (strcmp(a, "--shard") == 0) { if (!v) die("missing value for ", a); batch.shard = v; ++i; }
         else if (strcmp(a, "--resume") == 0) batch.resume = 1;
+        else if (strcmp(a, "--dry-run") == 0) batch.dry_run = 1;
         else if (strcmp(a, "--frame-stats") == 0) { if (!v) die("missing value for ", a); batch.stats_jsonl = v; ++i; }
         else if (compare && strcmp(a, "--strategies") == 0) { if (!v) die("missing value for ", a); co.strategies = v; ++i; }
         else if (compare && strcmp(a, "--variants") == 0) { if (!v) die("missing value for ", a); co.variants = v; ++i; }
@@ -495,6 +535,10 @@ int main(int argc, char **argv) {
         fprintf(stderr, "candela: --frames belongs to candela render\n");
         return 2;
     }
+    if (batch.dry_run && (compare || bench || dump)) {
+        fprintf(stderr, "candela: --dry-run checks a candela render command\n");
+        return 2;
+    }
     if (!batch.frames && (batch.shard || batch.resume || batch.stats_jsonl || batch.fps > 0.0)) {
         fprintf(stderr, "candela: --shard, --resume, --fps and --frame-stats need --frames\n");
         return 2;
@@ -558,6 +602,115 @@ int main(int argc, char **argv) {
             }
     }
 
+    /* one rule for every output (README "Inputs and outputs"): none may replace an input of this
+     * run or another output; every name is known now, before anything is loaded or written */
+    CandelaRunFiles run = {0};
+    char err[CANDELA_ERR_LEN];
+    if (record_run_files(&run, &o, &co, &batch, compare, bench, dump, out, png, stats_json, save_partial, err) != 0) {
+        fprintf(stderr, "candela: %s\n", err);
+        candela_run_files_free(&run);
+        return 2;
+    }
+    co.run = &run;
+    batch.run = &run;
+    if (batch.dry_run && !batch.frames) {
+        /* everything is checked: say what the render would write (a farm script reads this
+         * instead of parsing numbers itself) */
+        if (o.shard_count)
+            printf("sample-shard %u/%u samples %llu-%llu of %d %s\n", o.shard_index, o.shard_count,
+                   (unsigned long long)((uint64_t)o.spp * o.shard_index / o.shard_count),
+                   (unsigned long long)((uint64_t)o.spp * (o.shard_index + 1) / o.shard_count), o.spp, out);
+        else
+            printf("render %s\n", out);
+        candela_run_files_free(&run);
+        return 0;
+    }
+    /* one writer per output: another candela writing the same file is refused now, not found
+     * out by an EXR from one run beside a PNG from the other (a frame batch locks each frame's
+     * files as it renders it, candela compare its report folder) */
+    IoLock locks[5];
+    int nlocks = 0, rc = 0;
+    const char *lock_these[5] = {batch.frames ? NULL : out, batch.frames ? NULL : png, stats_json, o.checkpoint_path,
+                                 o.cachepoint_dump_path};
+    for (int k = 0; k < 5 && rc == 0 && !compare && !bench; ++k) {
+        char ioerr[IO_ERR_LEN];
+        if (!lock_these[k]) continue;
+        if (io_lock_output(lock_these[k], &locks[nlocks], ioerr) != 0) {
+            fprintf(stderr, "candela: %s\n", ioerr);
+            rc = 1;
+        } else {
+            ++nlocks;
+        }
+    }
+    if (rc == 0) rc = run_command(&o, &co, &batch, compare, bench, dump, out, png, stats_json, save_partial, argc, argv);
+    while (nlocks > 0) io_unlock_output(&locks[--nlocks]);
+    candela_run_files_free(&run);
+    return rc;
+}
+
+/* The files of this run (CandelaRunFiles): the inputs named on the command line and the scene's,
+ * then every output this command writes. 0 ok, -1 with the first clash in err. */
+static int record_run_files(CandelaRunFiles *run, const CandelaOptions *o, const CandelaCompareOptions *co,
+                            const CandelaBatchOptions *batch, int compare, int bench, int dump, const char *out,
+                            const char *png, const char *stats_json, int save_partial, char err[CANDELA_ERR_LEN]) {
+    /* --env is read like the scene's files: inside --confine-to when given (scene_load checks it
+     * again for every render, a variant's too) */
+    if (o->env_path && o->confine_dir && !io_path_inside(o->env_path, o->confine_dir)) {
+        snprintf(err, CANDELA_ERR_LEN, "%.300s: --env is outside %.150s (--confine-to)", o->env_path, o->confine_dir);
+        return -1;
+    }
+    if (candela_run_scene(run, o->scene_path, err) || candela_run_input(run, o->env_path, "the environment (--env)", err) ||
+        candela_run_input(run, o->resume_from, "the checkpoint resumed (--resume-from)", err))
+        return -1;
+    if (compare) {
+        int variants_file = co->variants && candela_variants_is_file(co->variants);
+        if ((variants_file && candela_run_input(run, co->variants, "the variant list (--variants)", err)) ||
+            candela_run_input(run, co->reference_path, "the reference (--reference)", err))
+            return -1;
+        return 0; /* the report's files: candela_compare, once it knows the variants */
+    }
+    if (bench) return 0; /* writes nothing */
+    if (candela_run_output(run, stats_json, "the statistics (--stats-json)", err) ||
+        candela_run_output(run, batch->stats_jsonl, "the frame log (--frame-stats)", err) ||
+        candela_run_output_continuing(run, o->checkpoint_path, "the checkpoint (--checkpoint)", o->resume_from, err) ||
+        candela_run_output(run, o->cachepoint_dump_path, "the cache point dump (--dump-cachepoints)", err))
+        return -1;
+    if (batch->frames) return 0; /* each frame's names: candela_batch_render */
+    if (candela_run_output(run, out, o->shard_count ? "the shard's film (-o)" : "the EXR (-o)", err) ||
+        candela_run_output(run, png, "the PNG preview (--png)", err))
+        return -1;
+    char a[PATH_MAX], b[PATH_MAX];
+    if (o->aov_selection && png) {
+        candela_cachepoint_png_paths(png, a, b, sizeof a);
+        if (candela_run_output(run, a, "the cache point AOV's PNG", err) || candela_run_output(run, b, "the cache point AOV's PNG", err))
+            return -1;
+    }
+    if (save_partial && !o->shard_count) {
+        partial_name(out, a);
+        if (candela_run_output(run, a, "the partial EXR (--save-partial)", err)) return -1;
+        if (png) {
+            partial_name(png, b);
+            if (candela_run_output(run, b, "the partial PNG (--save-partial)", err)) return -1;
+        }
+    }
+    if (dump) {
+        static const char *const suffix[] = {".guide.exr", ".guide.png", ".hist.exr", ".hist.png", ".leaves.ply"};
+        for (int k = 0; k < 5; ++k) {
+            snprintf(a, sizeof a, "%s%s", o->guide_dump_prefix, suffix[k]);
+            if (candela_run_output(run, a, "a guide-dump file", err)) return -1;
+        }
+    }
+    return 0;
+}
+
+/* Runs the command once its files are known (main's last part). */
+static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBatchOptions *bp, int compare, int bench,
+                       int dump, const char *out, const char *png, const char *stats_json, int save_partial, int argc,
+                       char **argv) {
+    CandelaOptions o = *op;
+    CandelaCompareOptions co = *cop;
+    CandelaBatchOptions batch = *bp;
+    (void)dump;
     char err[CANDELA_ERR_LEN];
     if (compare) {
         char dir[PATH_MAX];
@@ -636,7 +789,20 @@ int main(int argc, char **argv) {
             if (!o.quiet) fprintf(stderr, "candela: wrote %s (shard %u/%u)\n", out, o.shard_index, o.shard_count);
         } else if (stats.interrupted) {
             /* never a file that looks complete: the image so far only under a .partial name */
-            if (!save_partial || o.shard_count) {
+            if (o.shard_count) {
+                /* a shard's spp are its share of --spp; its film is only ever the complete one
+                 * (a partial film would merge as if whole), so --save-partial cannot apply */
+                long long b = (long long)o.spp * o.shard_index / o.shard_count;
+                long long e = (long long)o.spp * (o.shard_index + 1) / o.shard_count;
+                fprintf(stderr,
+                        "candela: interrupted after %d of the %lld spp of sample shard %u/%u; nothing written (a shard's film is "
+                        "written only when complete, --save-partial does not apply to it%s)\n",
+                        stats.spp_done, e - b, o.shard_index, o.shard_count,
+                        o.checkpoint_path ? "; --resume-from its checkpoint continues it" : "; --checkpoint would let it resume");
+                candela_image_free(&image);
+                return 130;
+            }
+            if (!save_partial) {
                 fprintf(stderr, "candela: interrupted after %d of %d spp; nothing written (--save-partial keeps the image so far)\n",
                         stats.spp_done, o.spp);
                 candela_image_free(&image);

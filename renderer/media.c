@@ -7,7 +7,8 @@
 
 #define MAX_BOUNDARY_CROSSINGS 64 /* per shadow segment: a bound, never reached by sane scenes */
 
-int media_build(SceneMedia *media, const Scene *scene, const char *scene_path, char err[CANDELA_ERR_LEN]) {
+int media_build(SceneMedia *media, const Scene *scene, const char *scene_path, uint64_t volume_budget,
+                char err[CANDELA_ERR_LEN]) {
     memset(media, 0, sizeof *media);
     media->scene = scene;
     const IoScene *io = &scene->io;
@@ -28,6 +29,11 @@ int media_build(SceneMedia *media, const Scene *scene, const char *scene_path, c
         }
         media->of_material[i] = (int32_t)media->num_homogeneous++;
     }
+    /* the scene's volume budget: the grids first (loaded), then each medium's own structures
+     * within what is left, checked before they are allocated */
+    uint64_t used = 0;
+    for (uint32_t i = 0; i < io->num_volumes; ++i)
+        used += io->volumes[i].density.size + io->volumes[i].emission.size + io->volumes[i].temperature.size;
     for (uint32_t i = 0; i < io->num_volumes; ++i) {
         const IoVolume *v = &io->volumes[i];
         VolumeDesc desc = {&v->density, v->emission.buffer ? &v->emission : NULL,
@@ -38,13 +44,17 @@ int media_build(SceneMedia *media, const Scene *scene, const char *scene_path, c
         desc.anisotropy = v->anisotropy;
         desc.emission_scale = v->emission_scale;
         memcpy(desc.emission_color, v->emission_color, sizeof desc.emission_color);
+        desc.memory_budget = !volume_budget ? 0 : used < volume_budget ? volume_budget - used : 1;
         if (medium_init_vdb(&media->vdb[i], &desc, verr) != 0) {
-            snprintf(err, CANDELA_ERR_LEN, "%.200s: volume '%.60s': %.200s", scene_path, v->name, verr);
+            snprintf(err, CANDELA_ERR_LEN, "%.200s: volume '%.60s': %.200s%s", scene_path, v->name, verr,
+                     strstr(verr, "volume memory") ? " (--volume-budget-mb)" : "");
             media_free(media);
             return -1;
         }
+        used += media->vdb[i].memory_bytes;
         media->num_vdb = i + 1;
     }
+    media->bytes = used;
     return 0;
 oom:
     snprintf(err, CANDELA_ERR_LEN, "%s: out of memory building the media", scene_path);

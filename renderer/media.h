@@ -26,10 +26,14 @@ typedef struct SceneMedia {
     uint32_t num_homogeneous;
     int32_t *of_material;     /* per material: its homogeneous medium, or -1 */
     const Scene *scene;
+    uint64_t bytes;           /* the volume grids and the media's majorant and emission grids */
 } SceneMedia;
 
 /* 0 ok; -1 with a one-line message naming the scene file. */
-int media_build(SceneMedia *media, const Scene *scene, const char *scene_path, char err[CANDELA_ERR_LEN]);
+/* volume_budget: bytes for the volume grids (already loaded) and every medium's majorant and
+ * emission grids together (--volume-budget-mb; 0: no limit). media->bytes: what they take. */
+int media_build(SceneMedia *media, const Scene *scene, const char *scene_path, uint64_t volume_budget,
+                char err[CANDELA_ERR_LEN]);
 void media_free(SceneMedia *media);
 static inline int media_any(const SceneMedia *media) { return media->num_vdb + media->num_homogeneous > 0; }
 

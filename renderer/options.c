@@ -13,6 +13,7 @@ void candela_options_default(CandelaOptions *o) {
     o->volume_emission_sampling = 2;  /* auto (scenes/volume_equal_time.py: never measurably worse) */
     o->volume_inscatter_sampling = 2; /* auto */
     o->texture_budget_mb = 8192;      /* 8 GiB of decoded texels (README "Limits") */
+    o->volume_budget_mb = 8192;       /* 8 GiB of volume grids, majorants and emission grids (README "Limits") */
     o->light_sampler = CANDELA_LIGHT_SAMPLER_AUTO;   /* optimal with few lights, else cache points */
     o->light_units = CANDELA_LIGHT_UNITS_BLENDER;
     o->env_strength = 1.0f;

@@ -143,8 +143,9 @@ static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s) 
             s->num_cachepoints, s->cachepoint_bytes, s->cachepoint_mean_near, s->cachepoint_mean_far,
             s->cachepoint_mean_clusters, s->cachepoints_inserted, s->time_cachepoint_insertion,
             s->cpu_cachepoint_insertion);
-    fprintf(f, "  \"volumes\": {\"count\": %u, \"collisions\": %llu, \"capped_walks\": %llu},\n", s->num_volumes,
-            (unsigned long long)s->volume_collisions, (unsigned long long)s->volume_capped_walks);
+    fprintf(f, "  \"volumes\": {\"count\": %u, \"collisions\": %llu, \"capped_walks\": %llu, \"bytes\": %llu},\n",
+            s->num_volumes, (unsigned long long)s->volume_collisions, (unsigned long long)s->volume_capped_walks,
+            (unsigned long long)s->volume_bytes);
     fprintf(f,
             "  \"recorder\": {\"peak_bytes\": %zu, \"bound_bytes\": %zu, \"peak_vertices\": %u, \"vertices\": %llu, "
             "\"samples\": %llu, \"refused\": %llu, \"paths\": %llu, \"path_skip\": %.4f},\n",

@@ -204,7 +204,26 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
             return -1;
         }
     }
-    if (media_build(&r->media, &r->scene, o->scene_path, err) != 0) { render_free_frame(r); return -1; }
+    /* guide-dump reads the guiding field's leaf at --at: the fields span the scene's bounds, and
+     * a point outside them has no leaf of its own (the nearest one's box would not hold it).
+     * Said now, not after the render. */
+    if (o->guide_dump_prefix) {
+        const float *at = o->guide_dump_at;
+        const vec3 lo = r->scene.bounds_min, hi = r->scene.bounds_max;
+        if (!(at[0] >= lo.x && at[0] <= hi.x && at[1] >= lo.y && at[1] <= hi.y && at[2] >= lo.z && at[2] <= hi.z)) {
+            snprintf(err, CANDELA_ERR_LEN,
+                     "%s: guide-dump --at %g,%g,%g is outside the scene's bounds [%g %g %g] - [%g %g %g], which the guiding "
+                     "field covers",
+                     o->scene_path, (double)at[0], (double)at[1], (double)at[2], (double)lo.x, (double)lo.y, (double)lo.z,
+                     (double)hi.x, (double)hi.y, (double)hi.z);
+            render_free_frame(r);
+            return -1;
+        }
+    }
+    if (media_build(&r->media, &r->scene, o->scene_path, (uint64_t)o->volume_budget_mb << 20, err) != 0) {
+        render_free_frame(r);
+        return -1;
+    }
     r->have_media = 1;
     if (lights_build(&r->lights, &r->scene, o->volume_emission_sampling ? &r->media : NULL, o->light_units, err,
                      CANDELA_ERR_LEN) != 0) {
@@ -228,6 +247,7 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
         if (r->scene.io.images[i].rgba8) ++stats->num_textures_8bit;
     }
     stats->num_volumes = r->media.num_vdb;
+    stats->volume_bytes = r->media.bytes;
 
     const Camera *cam = &r->scene.camera;
     uint32_t npixels = (uint32_t)cam->width * (uint32_t)cam->height;
@@ -455,6 +475,8 @@ int candela_session_open(const CandelaOptions *o, CandelaSession **out, CandelaS
     info->num_channels = r->scene.io.num_channels;
     info->anim_start = r->scene.io.anim_start;
     info->anim_end = r->scene.io.anim_end;
+    info->width = r->scene.camera.width;
+    info->height = r->scene.camera.height;
     *out = s;
     return 0;
 }

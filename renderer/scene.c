@@ -495,7 +495,10 @@ static int shadow_link_masks(Scene *scene, uint32_t **instance_mask, char err[CA
 int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
     memset(scene, 0, sizeof *scene);
     char ioerr[IO_ERR_LEN];
-    IoLoadOptions lo = {o->confine_dir, (uint64_t)o->texture_budget_mb << 20, o->no_warnings};
+    IoLoadOptions lo = {.confine_dir = o->confine_dir,
+                        .texture_budget_bytes = (uint64_t)o->texture_budget_mb << 20,
+                        .volume_budget_bytes = (uint64_t)o->volume_budget_mb << 20,
+                        .no_warnings = o->no_warnings};
     if (io_load_gltf_opts(o->scene_path, &lo, &scene->io, ioerr) != 0) {
         snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
         return -1;
@@ -619,6 +622,13 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
 
     if (setup_camera(scene, o, err) != 0) { scene_free(scene); return -1; }
 
+    /* --env is read like the scene's own files: inside --confine-to when given (a variant list,
+     * which may come with an uploaded scene, must not read elsewhere) */
+    if (o->env_path && o->confine_dir && !io_path_inside(o->env_path, o->confine_dir)) {
+        set_error(err, "%.300s: --env is outside %.150s (--confine-to)", o->env_path, o->confine_dir);
+        scene_free(scene);
+        return -1;
+    }
     const char *env_path = o->env_path ? o->env_path : (io->env_path[0] ? io->env_path : NULL);
     scene->env_strength = o->env_path ? o->env_strength : io->env_strength;
     scene->light_model = o->light_model;

@@ -31,7 +31,7 @@ base=(render "$scene" --res 32x24 --no-png --light-sampler cachepoints)
 expect_error() {
   local name=$1 pattern=$2; shift 3
   echo sentinel > "$tmp/keep.exr"
-  "$bin" "$@" >"$tmp/stdout" 2>"$tmp/stderr"; local rc=$?
+  timeout 120 "$bin" "$@" >"$tmp/stdout" 2>"$tmp/stderr"; local rc=$?  # (124: hung, a failure)
   local lines; lines=$(grep -c . "$tmp/stderr")
   if [ $rc -eq 0 ] || [ $rc -ge 128 ]; then bad "$name: exit code $rc"; return; fi
   if [ "$lines" -ne 1 ]; then bad "$name: expected one error line, got $lines: $(cat "$tmp/stderr")"; return; fi
@@ -180,6 +180,77 @@ expect_error "merge: another render" "another render" -- merge -o "$tmp/keep.exr
 expect_error "merge: a checkpoint" "not a finished shard film" -- merge -o "$tmp/keep.exr" "$ck"
 expect_error "resume from a film" "finished shard film" -- "${base[@]}" --spp 16 --sample-shard 0/4 -o "$tmp/s0b.film" \
   --resume-from "$tmp/s0.film" --quiet
+
+# --- issue 29: SIGINT in a sample shard with --save-partial: nothing is written (a shard's
+# film is only ever the whole one) and the message says so with the shard's own spp (it said
+# "--save-partial keeps the image so far" and counted the shard's spp against the full render's)
+"$bin" "${base[@]}" --spp 1048576 --sample-shard 1/4 --save-partial -o "$tmp/int.film" 2>"$tmp/int.log" &
+pid=$!
+sleep 2; kill -INT $pid; wait $pid; rc=$?
+n=$(sed -n 's/.*interrupted after \([0-9]*\) of the 262144 spp of sample shard 1\/4; nothing written (a shard.s film is written only when complete, --save-partial does not apply to it.*/\1/p' "$tmp/int.log")
+[ $rc -eq 130 ] && [ -n "$n" ] && [ "$n" -lt 262144 ] && ! ls "$tmp"/int.* 2>/dev/null | grep -v int.log && ok ||
+  bad "shard + --save-partial + SIGINT: exit $rc, $(cat "$tmp/int.log"), $(ls "$tmp" | grep '^int')"
+# --- issue 29: a FIFO or a device given as a checkpoint or a film is refused unread (fopen of a
+# FIFO blocked forever)
+mkfifo "$tmp/fifo.ckpt" "$tmp/fifo.film"
+expect_error "resume from a FIFO" "fifo.ckpt: not a regular file (a FIFO)" -- "${base[@]}" --spp 64 -o "$tmp/keep.exr" \
+  --resume-from "$tmp/fifo.ckpt" --quiet
+expect_error "merge a FIFO" "fifo.film: not a regular file (a FIFO)" -- merge -o "$tmp/keep.exr" "$tmp/fifo.film"
+expect_error "merge /dev/zero" "/dev/zero: not a regular file (a device)" -- merge -o "$tmp/keep.exr" /dev/zero
+rm -f "$tmp/fifo.ckpt" "$tmp/fifo.film"
+
+# --- issue 29: the merged image never replaces a film being merged; a checkpoint never
+# replaces the image it belongs to
+cp "$tmp/s1.film" "$tmp/s1.keep"
+expect_error "merge png onto a film" "s1.film: the merged PNG (--png) would replace a film being merged" -- merge -o "$tmp/keep.exr" \
+  --png "$tmp/s1.film" "$tmp"/s0.film "$tmp"/s1.film "$tmp"/s2.film "$tmp"/s3.film
+same "$tmp/s1.film" "$tmp/s1.keep" "a refused merge changed a film"
+expect_error "checkpoint named as the image" "the checkpoint (--checkpoint) and the EXR (-o) are the same file" -- "${base[@]}" --spp 8 \
+  -o "$tmp/keep.exr" --checkpoint "$tmp/keep.exr" --quiet
+expect_error "resume from the output" "the EXR (-o) would replace the checkpoint resumed (--resume-from)" -- "${base[@]}" --spp 64 \
+  -o "$tmp/res.exr" --resume-from "$tmp/res.exr" --quiet
+
+# forged films (the checksum recomputed, so only the merge's own checks can refuse them): NaN
+# or infinite sums, a pixel counting 0 samples (it doubled the image) or a wrapped count, were
+# written into the EXR with exit 0
+forge() { # IN OUT WHAT: the film with one change, its checksum made right again
+  python3 - "$1" "$2" "$3" <<'PY'
+import struct, sys
+src, dst, what = sys.argv[1:4]
+b = bytearray(open(src, 'rb').read())
+w, h, idlen = struct.unpack_from('<3I', b, 8 + 12)
+n = w * h
+film = 8 + 24 + idlen + 24 + 8 + 8 + 8 + 8 + 12    # header, film tag + version, film head
+sums = film                                         # sum, sum2, albedo, normal (3n doubles each)
+count = film + 4 * 3 * n * 8 + n * 8 + n * 4        # after depth (n doubles) and hits (n u32)
+if what == 'nan': struct.pack_into('<d', b, sums + 8 * 5, float('nan'))
+elif what == 'inf': struct.pack_into('<d', b, sums + 3 * n * 8 + 8 * 7, float('inf'))
+elif what == 'zero': struct.pack_into('<%dI' % n, b, count, *([0] * n))
+elif what == 'wrap': struct.pack_into('<I', b, count + 4 * 3, 0xFFFFFFFF)
+h = 0xcbf29ce484222325
+for c in b[:-8]: h = ((h ^ c) * 0x100000001b3) & 0xFFFFFFFFFFFFFFFF
+struct.pack_into('<Q', b, len(b) - 8, h)
+open(dst, 'wb').write(b)
+PY
+}
+for what in nan inf zero wrap; do
+  forge "$tmp/s1.film" "$tmp/f_$what.film" $what
+  case $what in nan|inf) want="holds a sum that is not a finite number" ;; zero) want="counts 0 samples, the shard declares 4" ;;
+                wrap) want="pixel (3, 0) counts 4294967295 samples" ;; esac
+  expect_error "merge a forged film ($what)" "f_$what.film: not a film candela wrote: .*$want" -- merge -o "$tmp/keep.exr" --no-png \
+    "$tmp"/s0.film "$tmp/f_$what.film" "$tmp"/s2.film "$tmp"/s3.film
+done
+# the forger itself is right: an unchanged copy merges to the original's image
+forge "$tmp/s1.film" "$tmp/f_same.film" none
+"$bin" merge -o "$tmp/m4.exr" --no-png "$tmp"/s0.film "$tmp/f_same.film" "$tmp"/s2.film "$tmp"/s3.film && same "$tmp/m1.exr" "$tmp/m4.exr" \
+  "a merge of a re-checksummed copy"
+
+# a merge into an output another candela writes is refused (its lock)
+flock "$tmp/keep.exr.lock" sleep 30 & holder=$!
+for _ in $(seq 100); do [ -e "$tmp/keep.exr.lock" ] && break; sleep 0.05; done
+expect_error "merge into a locked output" "keep.exr: another candela is writing it" -- merge -o "$tmp/keep.exr" --no-png \
+  "$tmp"/s0.film "$tmp"/s1.film "$tmp"/s2.film "$tmp"/s3.film
+kill $holder 2>/dev/null; wait $holder 2>/dev/null; rm -f "$tmp/keep.exr.lock"
 
 echo "checkpoint tests: $pass passed, $fail failed"
 [ $fail -eq 0 ]

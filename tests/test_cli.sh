@@ -14,7 +14,7 @@ bad() { fail=$((fail + 1)); echo "FAIL: $*" >&2; }
 expect_error() {
   local name=$1 pattern=$2; shift 3
   rm -f "$tmp/out.exr" "$tmp/out.png"
-  "$bin" "$@" >"$tmp/stdout" 2>"$tmp/stderr"; local rc=$?
+  timeout 120 "$bin" "$@" >"$tmp/stdout" 2>"$tmp/stderr"; local rc=$?  # (124: hung, a failure)
   local lines; lines=$(grep -c . "$tmp/stderr")
   if [ $rc -eq 0 ] || [ $rc -ge 128 ]; then bad "$name: exit code $rc"; return; fi
   if [ "$lines" -ne 1 ]; then bad "$name: expected one error line, got $lines: $(cat "$tmp/stderr")"; return; fi
@@ -488,6 +488,117 @@ else
     || bad "stale temporaries after the next render: $left"
   for f in "${keep[@]}"; do [ -e "$tmp/$f" ] || [ -L "$tmp/$f" ] || bad "removed $f, which is not a stale temporary"; done
 fi
+
+# ---- issue 29 (hardening, second pass)
+# special files as inputs: refused before a byte is read, never blocking (a FIFO used to block
+# in open() forever, a scene linked to /dev/zero was read to 4 GiB); a large variant list is
+# refused from its size, unread
+mkfifo "$tmp/in_fifo.gltf"; ln -s /dev/zero "$tmp/zero.gltf"
+expect_error "scene is a FIFO" "in_fifo.gltf: not a regular file (a FIFO)" -- render "$tmp/in_fifo.gltf" "${common[@]}"
+expect_error "scene is /dev/zero" "zero.gltf: not a regular file (a device)" -- render "$tmp/zero.gltf" "${common[@]}"
+mkfifo "$tmp/v_fifo.toml"; ln -s /dev/zero "$tmp/v_zero.json"
+head -c 1100000 /dev/zero | tr '\0' '#' > "$tmp/v_big.toml"
+expect_error "variants FIFO" "v_fifo.toml: not a regular file (a FIFO)" -- compare "$det" --spp 1 --res 8x8 --out-dir "$tmp/c29" \
+  --quiet --variants "$tmp/v_fifo.toml"
+expect_error "variants /dev/zero" "v_zero.json: not a regular file (a device)" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$tmp/c29" --quiet --variants "$tmp/v_zero.json"
+expect_error "variants too large" "v_big.toml: 1100000 bytes, over the 1 MiB limit" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$tmp/c29" --quiet --variants "$tmp/v_big.toml"
+mkfifo "$tmp/ref_fifo.exr"
+expect_error "compare reference FIFO" "ref_fifo.exr: not a regular file (a FIFO)" -- compare "$det" --strategies tree --spp 1 \
+  --res 8x8 --out-dir "$tmp/c29" --quiet --reference "$tmp/ref_fifo.exr"
+rm -f "$tmp/in_fifo.gltf" "$tmp/zero.gltf" "$tmp/v_fifo.toml" "$tmp/v_zero.json" "$tmp/v_big.toml" "$tmp/ref_fifo.exr"
+# --confine-to: an empty name (a farm script's unset variable) is refused, not "no
+# confinement"; "/" confines to the whole tree (its prefix check compared with "//")
+expect_error "empty --confine-to" "--confine-to needs a folder" -- render "$tmp/conf/scenes/up.gltf" --confine-to "" "${common[@]}"
+"$bin" render "$tmp/conf/scenes/up.gltf" --confine-to / -o "$tmp/root.exr" --no-png --res 8x8 --spp 1 --quiet && [ -s "$tmp/root.exr" ] \
+  && ok || bad "--confine-to / refuses a scene"
+rm -f "$tmp/root.exr"
+
+# one rule for every output: none may replace an input of the run (the scene, a file it
+# references, --env) or another output; one line before anything is loaded, the inputs intact
+cp "$scene" "$tmp/keep.gltf"; keep_sum=$(md5sum < "$tmp/keep.gltf")
+clobber() { # NAME PATTERN ARGS...: expect_error, and keep.gltf unchanged
+  local name=$1 pattern=$2; shift 2
+  expect_error "$name" "$pattern" -- "$@"
+  if [ "$(md5sum < "$tmp/keep.gltf")" != "$keep_sum" ]; then bad "$name: replaced the scene"; cp "$scene" "$tmp/keep.gltf"; fi
+}
+clobber "png over the scene" "keep.gltf: the PNG preview (--png) would replace the scene" render "$tmp/keep.gltf" "${common[@]}" --png "$tmp/keep.gltf"
+clobber "stats over the scene" "the statistics (--stats-json) would replace the scene" render "$tmp/keep.gltf" "${common[@]}" \
+  --stats-json "$tmp/keep.gltf"
+clobber "checkpoint over the scene" "the checkpoint (--checkpoint) would replace the scene" render "$tmp/keep.gltf" "${common[@]}" \
+  --checkpoint "$tmp/conf/../keep.gltf"
+ln -s keep.gltf "$tmp/keep_link.png"
+clobber "png through a link to the scene" "the PNG preview (--png) would replace the scene" render "$tmp/keep.gltf" "${common[@]}" \
+  --png "$tmp/keep_link.png"
+ln "$tmp/keep.gltf" "$tmp/keep_hard.json"
+clobber "stats onto a hard link of the scene" "would replace the scene" render "$tmp/keep.gltf" "${common[@]}" --stats-json "$tmp/keep_hard.json"
+rm -f "$tmp/keep_link.png" "$tmp/keep_hard.json"
+bin_sum=$(md5sum < "$tmp/conf/bin/plane.bin")
+expect_error "stats over a referenced buffer" "plane.bin: the statistics (--stats-json) would replace a file the scene references" -- \
+  render "$tmp/conf/scenes/up.gltf" "${common[@]}" --stats-json "$tmp/conf/bin/plane.bin"
+[ "$(md5sum < "$tmp/conf/bin/plane.bin")" = "$bin_sum" ] && ok || bad "a referenced buffer was replaced"
+expect_error "checkpoint is the EXR" "the checkpoint (--checkpoint) and the EXR (-o) are the same file" -- render "$scene" "${common[@]}" \
+  --checkpoint "$tmp/out.exr"
+expect_error "env is the EXR" "the EXR (-o) would replace the environment (--env)" -- render "$scene" "${common[@]}" --env "$tmp/out.exr"
+expect_error "partial png is the exr" "are the same file" -- render "$scene" "${common[@]}" --save-partial --png "$tmp/out.partial.exr"
+# compare: a variant may change how the scene renders, never what the run reads or writes
+# (--dump-cachepoints wrote anywhere; --env was read outside --confine-to)
+rm -rf "$tmp/c29"
+cmp29=(compare "$det" --spp 1 --res 8x8 --ref-spp 1 --out-dir "$tmp/c29" --quiet)
+expect_error "variant dump" "variant 'a': --dump-cachepoints is not a variant's flag" -- "${cmp29[@]}" \
+  --variants "a: --light-sampler cachepoints --dump-cachepoints $tmp/anywhere.ply"
+[ -e "$tmp/anywhere.ply" ] && bad "a variant's --dump-cachepoints wrote its file" || ok
+expect_error "variant confine" "variant 'a': --confine-to is not a variant's flag" -- "${cmp29[@]}" --variants "a: --confine-to /"
+cp "$root/tests/scenes/env_constant.exr" "$tmp/sky.exr"
+expect_error "variant env outside --confine-to" "variant 'a': --env $tmp/sky.exr is outside" -- compare "$tmp/conf/scenes/up.gltf" \
+  --spp 1 --res 8x8 --ref-spp 1 --out-dir "$tmp/c29" --quiet --confine-to "$tmp/conf" --variants "a: --env $tmp/sky.exr"
+expect_error "env outside --confine-to" "sky.exr: --env is outside" -- render "$tmp/conf/scenes/up.gltf" --confine-to "$tmp/conf" \
+  --env "$tmp/sky.exr" "${common[@]}"
+expect_error "variant env is a report file" "a report file would replace the --env of variant 'b'" -- "${cmp29[@]}" \
+  --variants "a: --light-sampler power; b: --env $tmp/c29/a.png"
+expect_error "reference is a report file" "a report file would replace the reference (--reference)" -- "${cmp29[@]}" \
+  --variants "x: --light-sampler power" --reference "$tmp/c29/x.exr"
+[ -e "$tmp/c29" ] && bad "a refused comparison made its folder" || ok
+rm -f "$tmp/keep.gltf" "$tmp/sky.exr"
+
+# two writers of one output: the second is refused while the first holds OUTPUT.lock (they
+# could leave an EXR from one and a PNG from the other); a lock a SIGKILL left blocks nothing
+"$bin" render "$scene" -o "$tmp/both.exr" --res 32x32 --spp 1000000 --quiet & pid=$!
+for _ in $(seq 400); do [ -e "$tmp/both.exr.lock" ] && break; sleep 0.05; done
+"$bin" render "$scene" -o "$tmp/both.exr" --png "$tmp/other.png" --res 8x8 --spp 1 --quiet 2>"$tmp/lock.err"; rc=$?
+[ $rc -ne 0 ] && [ "$(grep -c . "$tmp/lock.err")" = 1 ] && grep -q "both.exr: another candela (pid $pid) is writing it" "$tmp/lock.err" &&
+  [ ! -e "$tmp/other.png" ] && ok || bad "a second writer of one -o: exit $rc, $(cat "$tmp/lock.err")"
+kill -INT $pid; wait $pid
+[ ! -e "$tmp/both.exr" ] && [ ! -e "$tmp/both.exr.lock" ] && ok || bad "the interrupted writer left $(ls "$tmp" | grep both)"
+"$bin" render "$scene" -o "$tmp/both.exr" --res 32x32 --spp 1000000 --quiet & pid=$!
+for _ in $(seq 400); do [ -e "$tmp/both.exr.lock" ] && break; sleep 0.05; done
+kill -KILL $pid; wait $pid 2>/dev/null
+[ -e "$tmp/both.exr.lock" ] && ok || bad "no lock file left by a SIGKILL (the next check proves less)"
+"$bin" render "$scene" -o "$tmp/both.exr" --res 8x8 --spp 1 --quiet && [ -s "$tmp/both.exr" ] && [ ! -e "$tmp/both.exr.lock" ] && ok \
+  || bad "a stale lock blocked the next render or stayed: $(ls "$tmp" | grep both)"
+rm -f "$tmp"/both.* "$tmp/lock.err"
+# ... the statistics and a comparison's report folder likewise (another holder: flock(1))
+flock "$tmp/st.json.lock" sleep 30 & holder=$!
+for _ in $(seq 100); do [ -e "$tmp/st.json.lock" ] && break; sleep 0.05; done
+expect_error "statistics locked" "st.json: another candela is writing it" -- render "$scene" "${common[@]}" --stats-json "$tmp/st.json"
+kill $holder 2>/dev/null; wait $holder 2>/dev/null; rm -f "$tmp/st.json.lock"
+mkdir -p "$tmp/c29l"
+flock "$tmp/c29l/index.html.lock" sleep 30 & holder=$!
+for _ in $(seq 100); do [ -e "$tmp/c29l/index.html.lock" ] && break; sleep 0.05; done
+expect_error "report folder locked" "index.html: another candela is writing it" -- compare "$det" --spp 1 --res 8x8 --ref-spp 1 \
+  --out-dir "$tmp/c29l" --quiet --strategies power
+[ "$(ls "$tmp/c29l")" = "index.html.lock" ] && ok || bad "a locked report folder got files: $(ls "$tmp/c29l")"
+kill $holder 2>/dev/null; wait $holder 2>/dev/null; rm -rf "$tmp/c29l"
+
+# the three messages: guide-dump at a point outside the scene (it dumped the nearest leaf, which
+# does not hold the point, with exit 0); an inline variant list ending in .json (read as a file)
+expect_error "dump outside the scene" "guide-dump --at 1e+30,1e+30,1e+30 is outside the scene's bounds" -- guide-dump "$scene" \
+  --at 1e30,1e30,1e30 "${common[@]}"
+ls "$tmp"/out.* >/dev/null 2>&1 && bad "guide-dump outside the scene wrote files" || ok
+expect_error "inline variants ending in .json" "no camera named 'nosuch.json'" -- compare "$det" --spp 1 --res 8x8 --ref-spp 1 \
+  --out-dir "$tmp/c29j" --quiet --variants "a: --light-sampler power --camera nosuch.json"
+rm -rf "$tmp/c29j"
 
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -150,6 +150,10 @@ write('zero_quat', scene([0, 1], [(0, 0, 0, 1), (0, 0, 0, 0)], path='rotation', 
 write('bad_interp', scene([0, 1], [(0, 0, 0), (1, 0, 0)], 'BEZIER'))
 write('vec2_input', scene([0, 1, 2, 3], [(0, 0, 0), (1, 0, 0)], in_type='VEC2'))
 write('weights', scene([0, 1], [(0, 0, 0), (1, 0, 0)], path='weights'))
+# indices that are not whole numbers (tinygltf dropped such a channel without a word)
+d = scene([0, 1], [(0, 0, 0), (1, 0, 0)]); d['animations'][0]['channels'][0]['target']['node'] = 1.5; write('node_frac', d)
+d = scene([0, 1], [(0, 0, 0), (1, 0, 0)]); d['animations'][0]['channels'][0]['sampler'] = 0.5; write('sampler_frac', d)
+d = scene([0, 1], [(0, 0, 0), (1, 0, 0)]); d['animations'][0]['samplers'][0]['output'] = 2.0; write('output_float', d)
 # fine data: the triangle's scale 1, 0, 0, 1 held (STEP) at 0, 1, 2, 3 s (hidden in frames 1
 # and 2 at 1 fps); the same with scale 0 at rest (kept, hidden, until it appears at 3 s); the
 # camera's scale 0 in frames 1 and 2 (it cannot be placed: those frames fail)
@@ -183,6 +187,9 @@ expect_error "NaN value" "value 1 is not finite" -- "$bin" render "$tmp/nan_valu
 expect_error "zero quaternion" "zero quaternion" -- "$bin" render "$tmp/zero_quat.gltf" --frames 0-1 "${o[@]}"
 expect_error "bad interpolation" "unknown interpolation 'BEZIER'" -- "$bin" render "$tmp/bad_interp.gltf" --frames 0-1 "${o[@]}"
 expect_error "input type" "expected SCALAR" -- "$bin" render "$tmp/vec2_input.gltf" --frames 0-1 "${o[@]}"
+expect_error "node 1.5" 'channel 0 target: "node" must be a whole number (an integer index), not 1.5' -- "$bin" render "$tmp/node_frac.gltf" --frames 0-1 "${o[@]}"
+expect_error "sampler 0.5" 'channel 0: "sampler" must be a whole number (an integer index), not 0.5' -- "$bin" render "$tmp/sampler_frac.gltf" --frames 0-1 "${o[@]}"
+expect_error "output 2.0" "'output' property is not an integer" -- "$bin" render "$tmp/output_float.gltf" --frames 0-1 "${o[@]}"
 # the malformed file also fails a plain render (the animation is validated at every load)
 expect_error "plain render" "not increasing" -- "$bin" render "$tmp/nonmonotonic.gltf" -o "$tmp/out/plain.exr" --res 16x12 --spp 1 --quiet
 expect_error "range past the end" "outside the animation (0 to 2 s: frames 0-48)" -- "$bin" render "$scene" --frames 1-100 "${o[@]}"
@@ -227,6 +234,39 @@ rc=$?
 grep -q "frame 1 failed: .*'cam'.*singular transform" "$tmp/vanish/stderr" && grep -q "frame 2 failed" "$tmp/vanish/stderr" && ok ||
   bad "failing frames not reported: $(cat "$tmp/vanish/stderr")"
 [ "$(logged "$tmp/vanish/log.jsonl" failed)" = "1 2" ] && ok || bad "the log does not mark frames 1 and 2 failed"
+
+# ---- 6. issue 29
+# --resume trusts no name alone: an empty frame, one cut short and one of another size are
+# rendered again (and the log says why); the good ones stay untouched
+mkdir -p "$tmp/r29"
+cp "$tmp/batch"/f.000?.exr "$tmp/r29/"
+: > "$tmp/r29/f.0002.exr"
+head -c 2000 "$tmp/batch/f.0004.exr" > "$tmp/r29/f.0004.exr"
+"$bin" render "$scene" --frames 5 --res 16x12 --spp 1 --light-sampler tree --quiet --no-png -o "$tmp/r29/small.####.exr"
+mv "$tmp/r29/small.0005.exr" "$tmp/r29/f.0005.exr"
+touch -d '2001-01-01' "$tmp/r29"/f.000?.exr
+"$bin" render "$scene" --frames 1-6 "${fast[@]}" --resume -o "$tmp/r29/f.####.exr" --frame-stats "$tmp/r29/log.jsonl" 2>"$tmp/r29/err"
+[ "$(logged "$tmp/r29/log.jsonl")" = "2 4 5" ] && ok || bad "resume over bad frames rendered '$(logged "$tmp/r29/log.jsonl")', expected 2 4 5"
+[ "$(grep -c "rendered again (--resume)" "$tmp/r29/err")" = 3 ] && grep -q "frame 5: .*f.0005.exr: 16x12, not the batch's 32x24" "$tmp/r29/err" \
+  && ok || bad "resume did not say why it rendered frames again: $(cat "$tmp/r29/err")"
+for f in 1 2 3 4 5 6; do cmp -s "$tmp/batch/f.000$f.exr" "$tmp/r29/f.000$f.exr" && ok || bad "resumed-over frame $f differs"; done
+for f in 1 3 6; do
+  [ "$(stat -c %Y "$tmp/r29/f.000$f.exr")" = "$(date -d 2001-01-01 +%s)" ] && ok || bad "resume rewrote good frame $f"
+done
+# a frame another writer holds (its EXR's lock) fails, counted and said; the others render
+mkdir -p "$tmp/l29"
+flock "$tmp/l29/f.0002.exr.lock" sleep 60 & holder=$!
+for _ in $(seq 100); do [ -e "$tmp/l29/f.0002.exr.lock" ] && break; sleep 0.05; done
+"$bin" render "$scene" --frames 1-3 "${fast[@]}" -o "$tmp/l29/f.####.exr" 2>"$tmp/l29/err"; rc=$?
+[ $rc -eq 1 ] && [ -e "$tmp/l29/f.0001.exr" ] && [ -e "$tmp/l29/f.0003.exr" ] && [ ! -e "$tmp/l29/f.0002.exr" ] &&
+  grep -q "frame 2 failed: .*f.0002.exr: another candela is writing it" "$tmp/l29/err" && ok ||
+  bad "a locked frame: exit $rc, $(ls "$tmp/l29" | tr '\n' ' ') $(cat "$tmp/l29/err")"
+kill $holder 2>/dev/null; wait $holder 2>/dev/null
+# every frame's names against the run's inputs, before the scene loads
+expect_error "frame over --env" "e.2.exr: frame 2's EXR would replace the environment (--env)" -- "$bin" render "$scene" --frames 1-3 \
+  -o "$tmp/out/e.#.exr" --env "$tmp/out/e.2.exr" --res 16x12 --spp 1 --quiet
+expect_error "frame png over its exr" "are the same file" -- "$bin" render "$scene" --frames 1-3 -o "$tmp/out/e.#.exr" \
+  --png "$tmp/out/../out/e.#.exr" --res 16x12 --spp 1 --quiet
 
 echo "frames: $pass passed, $fail failed"
 [ $fail -eq 0 ]

@@ -1534,6 +1534,92 @@ static void test_image_errors_do_not_leak(void) {
         }
 }
 
+/* io/files.c (issue 29): the input door refuses special files unread and sizes before reading;
+ * file ids see through symbolic and hard links and ".."; "/" holds every path; a second lock of
+ * one output fails naming the holder, and the lock file goes with its release; a scene's
+ * referenced files are listed from its JSON. */
+static void test_files(void) {
+    char err[IO_ERR_LEN];
+    int fd = -1;
+    uint64_t size = 0;
+    const char *fifo = tmp_path("files.fifo");
+    unlink(fifo);
+    CHECK(mkfifo(fifo, 0600) == 0, "mkfifo");
+    CHECK(io_open_input(fifo, 0, "a test", &fd, &size, err) != 0 && strstr(err, "not a regular file (a FIFO)"),
+          "a FIFO: %s", err);
+    CHECK(io_open_input("/dev/zero", 0, "a test", &fd, &size, err) != 0 && strstr(err, "(a device)"), "/dev/zero: %s", err);
+    CHECK(io_open_input(tmpdir, 0, "a test", &fd, &size, err) != 0 && strstr(err, "(a directory)"), "a folder: %s", err);
+    const char *big = tmp_path("files.big");
+    char block[4096];
+    memset(block, 'x', sizeof block);
+    write_bytes(big, block, sizeof block);
+    void *data = NULL;
+    size_t n = 0;
+    CHECK(io_read_input(big, 4095, "a test input", &data, &n, err) != 0 && strstr(err, "4096 bytes, over the 4095 bytes limit of a test input"),
+          "a file over its limit: %s", err);
+    CHECK(io_read_input(big, 4096, "a test input", &data, &n, err) == 0 && n == 4096 && ((char *)data)[4096] == 0,
+          "a file at its limit: %s", err);
+    free(data);
+    const char *zero_link = tmp_path("files.link");
+    unlink(zero_link);
+    CHECK(symlink("/dev/zero", zero_link) == 0, "symlink");
+    CHECK(io_read_input(zero_link, 0, "a scene", &data, &n, err) != 0 && strstr(err, "(a device)"), "a link to /dev/zero: %s", err);
+
+    IoFileId a, b;
+    const char *hard = tmp_path("files.hard");
+    unlink(hard);
+    CHECK(link(big, hard) == 0, "link");
+    char dotted[600];
+    snprintf(dotted, sizeof dotted, "%s/../%s/files.big", tmpdir, strrchr(tmpdir, '/') + 1);
+    io_file_id(big, &a);
+    io_file_id(hard, &b);
+    CHECK(io_same_file(&a, &b), "a hard link is another file");
+    io_file_id(dotted, &b);
+    CHECK(io_same_file(&a, &b), "dir/../dir/name is another file");
+    char new1[600], new2[600];
+    snprintf(new1, sizeof new1, "%s/not_yet.exr", tmpdir);
+    snprintf(new2, sizeof new2, "%s/./not_yet.exr", tmpdir);
+    io_file_id(new1, &a);
+    io_file_id(new2, &b);
+    CHECK(!a.exists && io_same_file(&a, &b), "two spellings of a new file differ");
+    snprintf(new2, sizeof new2, "%s/not_yet.png", tmpdir);
+    io_file_id(new2, &b);
+    CHECK(!io_same_file(&a, &b), "two new files are one");
+    CHECK(io_path_inside(big, "/") && io_path_inside(big, tmpdir) && !io_path_inside("/etc/hostname", tmpdir),
+          "io_path_inside");
+
+    IoLock l1, l2;
+    const char *out = tmp_path("files.exr");
+    char lockname[600];
+    snprintf(lockname, sizeof lockname, "%s.lock", out);
+    CHECK(io_lock_output(out, &l1, err) == 0, "first lock: %s", err);
+    char pid[64];
+    snprintf(pid, sizeof pid, "another candela (pid %ld) is writing it", (long)getpid());
+    CHECK(io_lock_output(out, &l2, err) != 0 && strstr(err, pid), "second lock: %s", err);
+    io_unlock_output(&l1);
+    CHECK(access(lockname, F_OK) != 0, "the lock file stayed after the release");
+    CHECK(io_lock_output(out, &l2, err) == 0, "lock after the release: %s", err);
+    io_unlock_output(&l2);
+
+    const char *scene = tmp_path("files_refs.gltf");
+    const char *json = "{\"asset\": {\"version\": \"2.0\"}, \"buffers\": [{\"uri\": \"data:application/octet-stream;base64,AAAA\", "
+                       "\"byteLength\": 3}, {\"uri\": \"../b%20in.bin\", \"byteLength\": 4}], \"images\": [{\"uri\": \"tex.png\"}], "
+                       "\"nodes\": [{\"extras\": {\"candela_volume\": {\"uri\": \"cloud.vdb\"}}}], "
+                       "\"extras\": {\"candela_environment\": {\"uri\": \"sky.exr\"}}}";
+    write_bytes(scene, json, strlen(json));
+    IoPathList refs;
+    CHECK(io_gltf_references(scene, &refs, err) == 0, "references: %s", err);
+    char want[4][600];
+    snprintf(want[0], 600, "%s/../b in.bin", tmpdir);
+    snprintf(want[1], 600, "%s/tex.png", tmpdir);
+    snprintf(want[2], 600, "%s/cloud.vdb", tmpdir);
+    snprintf(want[3], 600, "%s/sky.exr", tmpdir);
+    CHECK(refs.count == 4, "references: %d files, want 4", refs.count);
+    for (int i = 0; i < refs.count && i < 4; ++i) CHECK(strcmp(refs.paths[i], want[i]) == 0, "reference %d: %s, want %s", i, refs.paths[i], want[i]);
+    io_path_list_free(&refs);
+    unlink(hard);
+}
+
 int main(int argc, char **argv) {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/candela-test-io-XXXXXX");
     if (!mkdtemp(tmpdir)) {
@@ -1550,6 +1636,7 @@ int main(int argc, char **argv) {
     test_material_media();
     test_clearcoat();
     test_volume_inputs();
+    test_files();
 
     char probe[1024];
     int have_assets = 0;

@@ -5,7 +5,10 @@
 # proctrack/linuxproc, task/none, select/cons_tres, one node with CPUs=2). Jobs go through
 # scenes/farm/candela_submit.sh, as a user's would.
 #   0. the submit script refuses bad options with one line, and its dry run shows every option
-#      in the job scripts and sbatch commands (partition, cpus, memory, time, requeue, ...);
+#      in the job scripts and sbatch commands (partition, cpus, memory, time, requeue, ...); it
+#      reads numbers as candela does, by asking candela (--dry-run): --frames 08-09 and
+#      1,5,10-12 give 2 and 5 tasks, --sample-shards 70000, 2^63 and 20 digits are refused at
+#      once. Part 0 needs no cluster and runs before the checks that may skip the rest;
 #   1. a 4-way sample-sharded frame (an array job, task I runs --sample-shard I/4, then the
 #      merge job): the cluster's shard films equal local renders of the same shards byte for
 #      byte, and its merged EXR equals the local merge of those shards bit for bit;
@@ -23,10 +26,59 @@
 # folder, with the daemons' and jobs' logs, for inspection)
 set -u
 bin=$(cd "$(dirname "$1")" && pwd)/$(basename "$1"); root=$(cd "$2" && pwd)
-skip() { echo "skipped: $*"; exit 77; }
+pass=0; fail=0
+ok()  { pass=$((pass + 1)); }
+bad() { fail=$((fail + 1)); echo "FAIL: $*" >&2; }
+# the cluster part may skip; what ran before it (part 0) must have passed
+skip() { [ $fail -eq 0 ] || { echo "slurm tests: $pass passed, $fail failed (then skipped: $*)"; exit 1; }
+         echo "skipped: $* (part 0: $pass passed)"; exit 77; }
 
 # this shell's own renders are local ones, even when the suite itself runs inside a Slurm job
 unset SLURM_ARRAY_TASK_ID SLURM_ARRAY_TASK_COUNT SLURM_ARRAY_JOB_ID SLURM_JOB_ID SLURM_RESTART_COUNT
+submit=$root/scenes/farm/candela_submit.sh
+scene=$root/scenes/default.gltf
+tmp0=$(mktemp -d /tmp/candela-submit.XXXXXX)
+trap 'rm -rf "$tmp0"' EXIT
+
+# --- 0. the submit script's own checks (one line, exit 2) and its job scripts (--dry-run)
+for bad_args in "--frames 3-1" "--frames 1-2 --sample-shards 2" "--sample-shards 0" "--cpus-per-task x --frames 1-2" "--bogus"; do
+  # shellcheck disable=SC2086
+  "$submit" --candela "$bin" $bad_args -o "$tmp0/x.exr" "$scene" >/dev/null 2>"$tmp0/sub.err"; rc=$?
+  [ $rc -eq 2 ] && [ "$(grep -c . "$tmp0/sub.err")" -eq 1 ] && ok || bad "submit $bad_args: exit $rc, $(cat "$tmp0/sub.err")"
+done
+"$submit" --dry-run --candela "$bin" -p candela -c 2 --mem 1G -t 5:00 --sample-shards 4 -o "$tmp0/dry/x.exr" "$scene" \
+  -- --spp 8 >/dev/null 2>"$tmp0/dry.out"
+for want in "--partition=candela" "--cpus-per-task=2" "--mem=1G" "--time=5:00" "--requeue" "--array=0-3" \
+            "--signal=B:TERM@120" "--sample-shard \"\$i/4\"" "--checkpoint \"\$ck\"" "--threads 2" "merge -o" \
+            "--dependency=afterany:"; do
+  grep -qF -- "$want" "$tmp0/dry.out" && ok || bad "dry run lacks '$want'"
+done
+[ ! -e "$tmp0/dry/x.exr" ] && ok || bad "a dry run wrote the output"
+# numbers as candela reads them (issue 29: bash read 08 as octal, refused lists, accepted 70000
+# shards that every task then refused, wrapped 2^63 and looped over 20-digit counts)
+arrays() { # ARGS...: the --array of a dry-run submission, or the refusal (exit status, one line)
+  timeout 60 "$submit" --dry-run --candela "$bin" -o "$tmp0/n/f.####.exr" "$scene" "$@" >/dev/null 2>"$tmp0/n.err"; local rc=$?
+  if [ $rc -eq 0 ]; then grep -o -- '--array=[0-9-]*' "$tmp0/n.err" | head -n 1
+  else echo "exit $rc, $(grep -c . "$tmp0/n.err") line(s): $(cat "$tmp0/n.err")"; fi
+}
+[ "$(arrays --frames 08-09)" = "--array=0-1" ] && ok || bad "--frames 08-09: $(arrays --frames 08-09)"
+[ "$(arrays --frames 1,5,10-12)" = "--array=0-4" ] && ok || bad "--frames 1,5,10-12: $(arrays --frames 1,5,10-12)"
+[ "$(arrays --frames 1-20 --tasks 08)" = "--array=0-7" ] && ok || bad "--tasks 08: $(arrays --frames 1-20 --tasks 08)"
+[ "$(arrays --sample-shards 08)" = "--array=0-7" ] && ok || bad "--sample-shards 08: $(arrays --sample-shards 08)"
+grep -qF -- '--sample-shard "$i/8"' "$tmp0/n.err" && ok || bad "--sample-shards 08: the job script does not say 8"
+for n in 70000 9223372036854775808 99999999999999999999; do
+  got=$(arrays --sample-shards $n)
+  case "$got" in "exit 2, 1 line(s): candela_submit: candela: invalid value '0/$n' for --sample-shard"*"N <= 65536)") ok ;;
+                 *) bad "--sample-shards $n: $got" ;; esac
+done
+got=$(arrays --frames 1-3 --tasks 99999999999999999999)
+case "$got" in "exit 2, 1 line(s): candela_submit: candela: invalid --shard '0/99999999999999999999'"*) ok ;; *) bad "--tasks 20 digits: $got" ;; esac
+# a bad render option is refused at submission (candela's own line), not by every task
+got=$(arrays --sample-shards 2 -- --max-depth -1)
+case "$got" in "exit 2, 1 line(s): candela_submit: candela: invalid value '-1' for --max-depth"*) ok ;; *) bad "a bad render option: $got" ;; esac
+got=$(arrays --frames 1-3 --tasks 5)
+case "$got" in "exit 2, 1 line(s): candela_submit: --tasks 5 is more than the 3 frames"*) ok ;; *) bad "--tasks 5 of 3 frames: $got" ;; esac
+
 [ "$(id -u)" -eq 0 ] || skip "the test cluster runs its daemons as root (SlurmUser=root)"
 for c in munged munge slurmctld slurmd sbatch sinfo scontrol; do
   command -v $c >/dev/null 2>&1 || skip "$c not installed (apt-get install slurm-wlm munge; .ci/setup does)"
@@ -46,6 +98,7 @@ cleanup() {
   done
   for p in "${pids[@]}"; do kill -KILL "$p" 2>/dev/null; done
   if [ "${CANDELA_SLURM_KEEP:-0}" = 1 ]; then echo "kept $tmp"; else rm -rf "$tmp"; fi
+  rm -rf "$tmp0"
 }
 trap cleanup EXIT
 trap 'exit 1' INT TERM
@@ -120,27 +173,7 @@ if [ $up -eq 0 ]; then
 fi
 echo "cluster up: slurmctld on 127.0.0.1:$port, node candela1 idle"
 
-pass=0; fail=0
-ok()  { pass=$((pass + 1)); }
-bad() { fail=$((fail + 1)); echo "FAIL: $*" >&2; }
-submit=$root/scenes/farm/candela_submit.sh
-scene=$root/scenes/default.gltf
 opts=(--spp 16 --res 32x24 --quiet)
-
-# --- 0. the submit script's own checks (one line, exit 2) and its job scripts (--dry-run)
-for bad_args in "--frames 3-1" "--frames 1-2 --sample-shards 2" "--sample-shards 0" "--cpus-per-task x --frames 1-2" "--bogus"; do
-  # shellcheck disable=SC2086
-  "$submit" --candela "$bin" $bad_args -o "$tmp/x.exr" "$scene" >/dev/null 2>"$tmp/sub.err"; rc=$?
-  [ $rc -eq 2 ] && [ "$(grep -c . "$tmp/sub.err")" -eq 1 ] && ok || bad "submit $bad_args: exit $rc, $(cat "$tmp/sub.err")"
-done
-"$submit" --dry-run --candela "$bin" -p candela -c 2 --mem 1G -t 5:00 --sample-shards 4 -o "$tmp/dry/x.exr" "$scene" \
-  -- --spp 8 >/dev/null 2>"$tmp/dry.out"
-for want in "--partition=candela" "--cpus-per-task=2" "--mem=1G" "--time=5:00" "--requeue" "--array=0-3" \
-            "--signal=B:TERM@120" "--sample-shard \"\$i/4\"" "--checkpoint \"\$ck\"" "--threads 2" "merge -o" \
-            "--dependency=afterany:"; do
-  grep -qF -- "$want" "$tmp/dry.out" && ok || bad "dry run lacks '$want'"
-done
-[ ! -e "$tmp/dry/x.exr" ] && ok || bad "a dry run wrote the output"
 
 # --- 1. a 4-way sample-sharded frame
 echo "[$(date +%T)] 1. a 4-way sample-sharded frame"
@@ -162,9 +195,11 @@ done
 cmp -s "$tmp/work/frame.exr" "$tmp/local.exr" && ok || bad "the cluster's merged frame differs from the local merge"
 [ "$(ls "$work"/shard.*.film | wc -l)" -eq 4 ] && ok || bad "expected exactly 4 shard films"
 
-# --- 1a. shards that fail: the merge job fails and names the missing films
+# --- 1a. shards that fail (a scene that cannot load: the dry run at submission does not load
+# it): the merge job fails and names the missing films
+head -c 3000 /dev/urandom > "$tmp/work/broken.gltf"
 if timeout 600 "$submit" --candela "$bin" --partition candela --sample-shards 2 --work-dir "$tmp/work/failing" --wait \
-     -o "$tmp/work/failing.exr" "$scene" -- "${opts[@]}" --max-depth -1 >"$tmp/submit1a.out" 2>&1; then
+     -o "$tmp/work/failing.exr" "$tmp/work/broken.gltf" -- "${opts[@]}" >"$tmp/submit1a.out" 2>&1; then
   bad "a sharded job whose shards fail succeeded"
 else
   grep -q "films are missing" "$tmp/work/failing/merge.log" && [ ! -e "$tmp/work/failing.exr" ] && ok ||

@@ -55,5 +55,48 @@ for g in "$tmp"/a/*.gltf; do
   else bad "$name: $(head -c 600 "$tmp/$name.log")"; fi
 done
 
+# issue 29: small VDBs whose costs followed their bounding box, not their data (the majorant
+# grid): two 4^3 blobs 5,100 voxels apart (19 KB; 2.2 GB and 25 s, three such nodes over 6 GB),
+# one tile filling 4096^3 voxels (594 bytes; 1.2 GB and 10 s), a voxel of 1e30 (16 s in the
+# cache point build). Now the volumes' memory is reported (statistics JSON) in proportion to
+# the data, --volume-budget-mb bounds it per scene, and the voxel is refused with one line.
+"$py" - "$tmp/v29" <<'PY'
+import os, sys, pyopenvdb as vdb
+out = sys.argv[1]; os.makedirs(out, exist_ok=True)
+def grid(): g = vdb.FloatGrid(); g.name = 'density'; g.transform = vdb.createLinearTransform(voxelSize=0.001); return g
+t = grid(); t.fill((0, 0, 0), (4095, 4095, 4095), 0.25, True); vdb.write(out + '/tile.vdb', grids=[t])
+b = grid(); a = b.getAccessor()
+for base in (0, 5100):
+    for i in range(64): a.setValueOn((base + i % 4, base + i // 4 % 4, base + i // 16), 1.0)
+vdb.write(out + '/blobs.vdb', grids=[b])
+h = vdb.FloatGrid(); h.name = 'density'; h.getAccessor().setValueOn((0, 0, 0), 1.0)
+h.transform = vdb.createLinearTransform(voxelSize=1e30); vdb.write(out + '/huge.vdb', grids=[h])
+PY
+v29() { # NAME VDB NODES: point_plane.gltf with NODES volume nodes of VDB
+  "$py" - "$root/tests/scenes/point_plane.gltf" "$tmp/v29/$1.gltf" "$2" "$3" <<'PY'
+import json, sys
+src, dst, uri, n = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
+d = json.load(open(src))
+for i in range(n):
+    d["nodes"].append({"name": "vol%d" % i, "translation": [0.1 * i, 0, 0], "extras": {"candela_volume": {"uri": uri}}})
+    d["scenes"][d.get("scene", 0)]["nodes"].append(len(d["nodes"]) - 1)
+json.dump(d, open(dst, "w"))
+PY
+}
+v29 tile tile.vdb 1; v29 blobs blobs.vdb 3; v29 huge huge.vdb 1
+for s in tile blobs; do
+  if timeout 300 "$bin" render "$tmp/v29/$s.gltf" --res 8x8 --spp 1 --quiet --no-png -o "$tmp/v29/$s.exr" --stats-json "$tmp/v29/$s.json" \
+       2>"$tmp/v29/$s.err" && "$py" -c 'import json, sys; b = json.load(open(sys.argv[1]))["volumes"]["bytes"]; print(b); sys.exit(0 if 0 < b < 64 << 20 else 1)' \
+       "$tmp/v29/$s.json" >"$tmp/v29/$s.bytes"; then ok
+  else bad "$s: volume memory $(cat "$tmp/v29/$s.bytes" 2>/dev/null) bytes (limit 64 MiB): $(cat "$tmp/v29/$s.err")"; fi
+done
+"$bin" render "$tmp/v29/huge.gltf" --res 8x8 --spp 1 --quiet --no-png -o "$tmp/v29/huge.exr" 2>"$tmp/v29/huge.err"; rc=$?
+[ $rc -ne 0 ] && [ "$(grep -c . "$tmp/v29/huge.err")" = 1 ] && grep -q "huge.vdb: grid 'density': its voxels reach beyond 1e+12" "$tmp/v29/huge.err" \
+  && [ ! -e "$tmp/v29/huge.exr" ] && ok || bad "a 1e30 voxel: exit $rc, $(cat "$tmp/v29/huge.err")"
+# the budget: the blobs' three nodes within 1 MiB are refused with one line naming the flag
+"$bin" render "$tmp/v29/blobs.gltf" --volume-budget-mb 1 --res 8x8 --spp 1 --quiet --no-png -o "$tmp/v29/b1.exr" 2>"$tmp/v29/b1.err"; rc=$?
+[ $rc -ne 0 ] && [ "$(grep -c . "$tmp/v29/b1.err")" = 1 ] && grep -q -- "--volume-budget-mb" "$tmp/v29/b1.err" && [ ! -e "$tmp/v29/b1.exr" ] \
+  && ok || bad "a volume budget of 1 MiB: exit $rc, $(cat "$tmp/v29/b1.err")"
+
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -541,9 +541,13 @@ static void test_majorant(void) {
     TestRng r = {4242};
     char err[IO_ERR_LEN] = "";
     long points = 0, nonzero = 0, violations = 0, tiling_errors = 0, rays = 0, segments = 0, empty_rays = 0;
-    long control_errors = 0, controlled = 0;
+    long control_errors = 0, controlled = 0, sparse_rays = 0;
     VolumeStats st = {0};
+    /* pass 1: the same grids and rays over the sparse form (bricks; forced, for these small
+     * grids the dense form would be chosen), emitting media excepted (always dense) */
+    for (int pass = 0; pass < 2; ++pass)
     for (int trial = 0; trial < 24; ++trial) {
+        if (trial == 0) r = (TestRng){4242};
         int nx = 3 + (int)(urand(&r) * 38), ny = 3 + (int)(urand(&r) * 38), nz = 3 + (int)(urand(&r) * 38);
         float *v = malloc(sizeof(float) * (size_t)nx * ny * nz);
         /* sparse blobs of random density with empty space around (so cells differ) */
@@ -579,10 +583,15 @@ static void test_majorant(void) {
             desc.emission_scale = (float)(urand(&r) * 50.0);
             desc.emission_color[1] = 0.5f;
         }
+        if (pass == 1) desc.dense_cells_max = 1;
         Medium m;
         int rc = medium_init_vdb(&m, &desc, err);
         CHECK(rc == 0, "random grid %d: %s", trial, err);
+        if (rc == 0 && pass == 1)
+            CHECK(emissive ? m.majorant.brick == NULL : m.majorant.brick != NULL && m.majorant.sigma_maj == NULL,
+                  "grid %d: the sparse form %s", trial, emissive ? "built for an emitting medium" : "not built");
         if (rc == 0) {
+            if (pass == 1 && !emissive) sparse_rays += 400;
             for (int ray = 0; ray < 400; ++ray) {
                 float o[3], d[3];
                 for (int k = 0; k < 3; ++k) {
@@ -683,7 +692,8 @@ static void test_majorant(void) {
     CHECK(control_errors == 0, "%ld points below their segment's control (or a control above the majorant)",
           control_errors);
     CHECK(controlled > 0, "no control segment with sigma_c > 0: residual ratio tracking untested");
-    printf("majorant: %ld control segments with sigma_c > 0\n", controlled);
+    printf("majorant: %ld control segments with sigma_c > 0, %ld rays over the sparse form\n", controlled, sparse_rays);
+    CHECK(sparse_rays > 0, "no ray over the sparse form");
     CHECK(tiling_errors == 0, "%ld tiling errors (segments must tile the clipped interval)", tiling_errors);
     CHECK(nonzero > points / 20, "too few points inside the media (%ld of %ld)", nonzero, points);
     CHECK(st.capped_walks == 0, "capped walks %llu", (unsigned long long)st.capped_walks);
@@ -1670,6 +1680,208 @@ static void test_distance_table(void) {
     CHECK(volume_distance_table_init(&tab, t3, t3, 1, 0.1f) != 0, "one station accepted");
 }
 
+/* ---------------------------------------------------------------- sparse majorant (issue 29) */
+
+/* Bounds and tiling over rays of one medium (as test_majorant), n rays from points in the world
+ * box toward target points (blobs; NULL: random directions). Returns the violations. */
+static long majorant_rays(const Medium *m, TestRng *r, int n, const float (*targets)[3], int ntargets, long *segments,
+                          long *tiling) {
+    long violations = 0;
+    for (int ray = 0; ray < n; ++ray) {
+        float o[3], d[3];
+        for (int k = 0; k < 3; ++k) {
+            float c = 0.5f * (m->world_min[k] + m->world_max[k]), h = 0.5f * (m->world_max[k] - m->world_min[k]);
+            o[k] = c + (float)(urand(r) * 2.4 - 1.2) * h;
+            d[k] = targets ? targets[ray % ntargets][k] + (float)(urand(r) - 0.5) * 0.002f - o[k] : (float)(urand(r) * 2.0 - 1.0);
+        }
+        if (ray % 5 == 0) d[ray % 3] = 0.0f; /* planes parallel to an axis */
+        if (d[0] == 0.0f && d[1] == 0.0f && d[2] == 0.0f) d[2] = 1.0f;
+        float c0, c1;
+        int hit = medium_clip_ray(m, o, d, 0.0f, 2.0f, &c0, &c1);
+        for (int control = 0; control < 2; ++control) {
+            MajorantIterator it;
+            if (control) medium_majorant_begin_control(m, o, d, 0.0f, 2.0f, &it);
+            else medium_majorant_begin(m, o, d, 0.0f, 2.0f, &it);
+            float t0, t1, maj, ctl, prev = 0.0f;
+            int k = 0;
+            while (medium_majorant_next_control(&it, &t0, &t1, &maj, &ctl) && k < 1000000) {
+                if (k == 0 ? t0 != c0 : t0 != prev) ++*tiling;
+                if (!(t1 > t0) || !(maj >= 0.0f) || !(ctl <= maj) || (!control && ctl != 0.0f)) ++*tiling;
+                prev = t1;
+                ++k;
+                for (int j = 0; j < 6; ++j) {
+                    float t = j == 0 ? t0 : j == 1 ? t1 : t0 + (float)urand(r) * (t1 - t0);
+                    float p[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
+                    float sig = sigma_t_at(m, p);
+                    if (sig > maj || (j > 1 && sig < ctl)) {
+                        if (violations < 5)
+                            fprintf(stderr, "  violation: ray %d t %g in [%g, %g]: sigma_t %g, majorant %g, control %g\n", ray, t, t0,
+                                    t1, sig, maj, ctl);
+                        ++violations;
+                    }
+                }
+            }
+            *segments += k;
+            if (hit ? (k == 0 || prev != c1) : k != 0) ++*tiling;
+        }
+    }
+    return violations;
+}
+
+/* The cases of issue 29: a 19 KB VDB with two 4^3 blobs 5,100 voxels apart took 2.2 GB and 25 s
+ * (the majorant grid spanned their bounding box); a 594-byte one with a tile filling 4096^3
+ * voxels 1.2 GB and 10 s; a voxel of 1e30. Now: the sparse form, memory in proportion to the
+ * data (checked as numbers of bytes, never times), bounds and tiling exact, transmittance
+ * unbiased through both; the per-medium budget and the coordinate limit refuse with one line. */
+static void test_majorant_sparse(void) {
+    char err[IO_ERR_LEN] = "";
+    TestRng r = {2929};
+    float i2w[16];
+    scale_translate(i2w, 1e-3f, 0.0f, 0.0f, 0.0f); /* 1 mm voxels: the blobs 5.1 m apart */
+    /* two 4^3 blobs, 5,100 voxels apart along the diagonal */
+    int32_t ijk[2 * 64 * 3];
+    float vals[2 * 64];
+    int n = 0;
+    for (int b = 0; b < 2; ++b)
+        for (int z = 0; z < 4; ++z)
+            for (int y = 0; y < 4; ++y)
+                for (int x = 0; x < 4; ++x) {
+                    int32_t base = b ? 5100 : 0;
+                    ijk[3 * n] = base + x;
+                    ijk[3 * n + 1] = base + y;
+                    ijk[3 * n + 2] = base + z;
+                    vals[n++] = (float)(0.5 + 1.5 * urand(&r));
+                }
+    IoVolumeGrid g;
+    int rc = io_volume_grid_from_voxels(ijk, vals, (size_t)n, NULL, NULL, 0, i2w, "density", &g, err);
+    CHECK(rc == 0, "two blobs: %s", err);
+    if (rc == 0) {
+        VolumeDesc desc = grid_desc(&g, 80.0f, 0.5f);
+        Medium m;
+        rc = medium_init_vdb(&m, &desc, err);
+        CHECK(rc == 0, "two blobs: %s", err);
+        if (rc == 0) {
+            const MajorantGrid *mg = &m.majorant;
+            double dense = 2.0 * 4.0 * mg->dims[0] * (double)mg->dims[1] * mg->dims[2];
+            printf("sparse majorant, two blobs 5100 voxels apart: %d x %d x %d cells, %.2f MiB (dense %.0f MiB), medium %.2f MiB\n",
+                   mg->dims[0], mg->dims[1], mg->dims[2], mg->bytes / 1048576.0, dense / 1048576.0, m.memory_bytes / 1048576.0);
+            CHECK(mg->brick != NULL && mg->sigma_maj == NULL, "two blobs: not the sparse form");
+            CHECK(m.memory_bytes < (16u << 20), "two blobs: %.1f MiB for 128 voxels", m.memory_bytes / 1048576.0);
+            const float targets[2][3] = {{0.002f, 0.002f, 0.002f}, {5.102f, 5.102f, 5.102f}};
+            long segments = 0, tiling = 0;
+            long violations = majorant_rays(&m, &r, 3000, targets, 2, &segments, &tiling);
+            violations += majorant_rays(&m, &r, 1000, NULL, 0, &segments, &tiling);
+            CHECK(violations == 0, "two blobs: %ld points above their majorant or below their control", violations);
+            CHECK(tiling == 0, "two blobs: %ld tiling errors", tiling);
+            /* the diagonal through both blobs: a few segments per blob, one step per empty brick
+             * run between them (it crossed ~1,900 cells one by one) */
+            const float o[3] = {-0.01f, -0.01f, -0.01f}, d[3] = {0.57735027f, 0.57735027f, 0.57735027f};
+            MajorantIterator it;
+            medium_majorant_begin(&m, o, d, 0.0f, 10.0f, &it);
+            float t0, t1, maj;
+            int k = 0;
+            double tau_maj = 0.0;
+            while (medium_majorant_next(&it, &t0, &t1, &maj)) {
+                ++k;
+                tau_maj += (double)maj * (t1 - t0);
+            }
+            CHECK(k > 2 && k < 200, "the diagonal: %d segments", k);
+            /* its optical depth by quadrature (trilinear, in index space: 1/64 voxel steps over
+             * each blob's support) against ratio tracking's mean, within 5 standard errors */
+            double tau = 0.0;
+            const double step = 1e-3 / 64.0 * 1.7320508;
+            for (int b = 0; b < 2; ++b) {
+                double a = (b ? 5.1 : 0.0) - 0.002, e = (b ? 5.1 : 0.0) + 0.006; /* along each axis */
+                double ta = (a - o[0]) / d[0], tb = (e - o[0]) / d[0];
+                for (double t = ta + 0.5 * step; t < tb; t += step) {
+                    float p[3] = {o[0] + (float)t * d[0], o[1] + (float)t * d[1], o[2] + (float)t * d[2]};
+                    tau += sigma_t_at(&m, p) * step;
+                }
+            }
+            MediaView view = {{&m}, 1};
+            Acc tr = {0};
+            TestRng rr;
+            VolumeRng rng = make_rng(&rr, 5);
+            VolumeStats st = {0};
+            for (int i = 0; i < 20000; ++i) {
+                float T[3];
+                media_transmittance(&view, o, d, 0.0f, 10.0f, &rng, T, &st);
+                acc_add(&tr, T[0]);
+            }
+            printf("sparse majorant: diagonal %d segments (majorant depth %.2f), T %.5f +- %.5f, exp(-tau) %.5f\n", k, tau_maj,
+                   acc_mean(&tr), acc_se(&tr), exp(-tau));
+            CHECK(tau > 0.5 && acc_ok(&tr, exp(-tau)), "two blobs: transmittance %.5f +- %.5f, exp(-tau) %.5f", acc_mean(&tr),
+                  acc_se(&tr), exp(-tau));
+            medium_free(&m);
+        }
+        /* the per-medium budget (a share of the scene's --volume-budget-mb) */
+        VolumeDesc small = grid_desc(&g, 400.0f, 0.5f);
+        small.memory_budget = 1u << 20;
+        Medium m2;
+        rc = medium_init_vdb(&m2, &small, err);
+        CHECK(rc != 0 && one_line(err) && strstr(err, "of volume memory left"), "two blobs over a 1 MiB budget: %s",
+              rc ? err : "built");
+        io_volume_grid_free(&g);
+    }
+
+    /* a tile filling 4096^3 voxels (one root tile) and a voxel of data inside */
+    const int32_t box[6] = {0, 0, 0, 4095, 4095, 4095};
+    const float box_value = 0.25f;
+    const int32_t hot[3] = {2000, 2000, 2000};
+    const float hot_value = 3.0f;
+    rc = io_volume_grid_from_voxels(hot, &hot_value, 1, box, &box_value, 1, i2w, "density", &g, err);
+    CHECK(rc == 0, "tile fill: %s", err);
+    if (rc == 0) {
+        VolumeDesc desc = grid_desc(&g, 2.0f, 0.5f);
+        Medium m;
+        rc = medium_init_vdb(&m, &desc, err);
+        CHECK(rc == 0, "tile fill: %s", err);
+        if (rc == 0) {
+            printf("sparse majorant, a 4096^3 tile: %.2f MiB (NanoVDB %.1f KiB)\n", m.memory_bytes / 1048576.0, g.size / 1024.0);
+            CHECK(m.majorant.brick != NULL && m.memory_bytes < (16u << 20), "tile fill: %.1f MiB", m.memory_bytes / 1048576.0);
+            const float targets[1][3] = {{2.0005f, 2.0005f, 2.0005f}};
+            long segments = 0, tiling = 0;
+            long violations = majorant_rays(&m, &r, 600, targets, 1, &segments, &tiling);
+            violations += majorant_rays(&m, &r, 600, NULL, 0, &segments, &tiling);
+            CHECK(violations == 0, "tile fill: %ld points above their majorant or below their control", violations);
+            CHECK(tiling == 0, "tile fill: %ld tiling errors", tiling);
+            /* inside the tile sigma_t is 0.5 exactly and the control equals it: residual ratio
+             * tracking gives exp(-0.5 x length) with no variance */
+            const float o[3] = {1.0f, 1.0f, 0.5f}, d[3] = {0.0f, 0.0f, 1.0f};
+            MediaView view = {{&m}, 1};
+            TestRng rr;
+            VolumeRng rng = make_rng(&rr, 7);
+            VolumeStats st = {0};
+            float T[3];
+            media_transmittance(&view, o, d, 0.0f, 2.0f, &rng, T, &st);
+            CHECK(fabs(T[0] - exp(-1.0)) < 1e-4, "tile fill: T over 2 m of sigma_t 0.5 is %g, not %g", T[0], exp(-1.0));
+            medium_free(&m);
+        }
+        io_volume_grid_free(&g);
+    }
+
+    /* a voxel of 1e30: world bounds beyond the coordinate limit, refused at once by the reader;
+     * and a grid of 100 m voxels that a node scales by 1e11, by the medium */
+    const float one = 1.0f;
+    const int32_t at[3] = {0, 0, 0};
+    scale_translate(i2w, 1e30f, 0.0f, 0.0f, 0.0f);
+    rc = io_volume_grid_from_voxels(at, &one, 1, NULL, NULL, 0, i2w, "density", &g, err);
+    CHECK(rc != 0 && one_line(err) && strstr(err, "reach beyond 1e+12 in the world (voxel size 1e+30)"), "a 1e30 voxel: %s", rc ? err : "accepted");
+    if (rc == 0) io_volume_grid_free(&g);
+    scale_translate(i2w, 100.0f, 0.0f, 0.0f, 0.0f);
+    rc = io_volume_grid_from_voxels(at, &one, 1, NULL, NULL, 0, i2w, "density", &g, err);
+    CHECK(rc == 0, "a 100 m voxel: %s", err);
+    if (rc == 0) {
+        VolumeDesc desc = grid_desc(&g, 1.0f, 0.5f);
+        scale_translate(desc.node_to_world, 1e11f, 0.0f, 0.0f, 0.0f);
+        Medium m;
+        rc = medium_init_vdb(&m, &desc, err);
+        CHECK(rc != 0 && one_line(err) && strstr(err, "beyond 1e+12"), "a node scaling a grid past 1e12: %s", rc ? err : "accepted");
+        if (rc == 0) medium_free(&m);
+        io_volume_grid_free(&g);
+    }
+}
+
 int main(int argc, char **argv) {
     double t0 = test_seconds();
     test_distance_table();
@@ -1680,6 +1892,7 @@ int main(int argc, char **argv) {
     test_scatter_distance();
     test_heterogeneous();
     test_majorant();
+    test_majorant_sparse();
     test_emission();
     test_emission_sampling();
     test_emission_line();

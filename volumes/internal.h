@@ -118,7 +118,10 @@ void blackbody_lookup(float kelvin, float rgb[3]);
  * with, per majorant cell, an upper bound of lum(sigma_a L_e) over the cell's trilinear
  * footprint (the uncapped emission term; 0 where the cell cannot emit). */
 int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **emit_bound, char err[IO_ERR_LEN],
-                   const char *name);
+                   const char *name, uint64_t budget, uint64_t dense_cells_max);
+/* Bytes an emitting medium's emission-energy grid may take per majorant cell (emission.c, with
+ * its temporaries), for the budget check before anything is allocated. */
+#define EMISSION_BYTES_PER_CELL 24
 
 /* Builds m->emission_energy (emission.c) from the bound of majorant_build; 0 ok, -1 out of
  * memory (err). */

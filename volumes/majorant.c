@@ -109,8 +109,228 @@ static float block_table_max(const BlockTable *b, const int64_t lo[3], const int
 
 /* ---------------------------------------------------------------- build */
 
+/* What a cell's emission term needs (emitting media). */
+typedef struct EmitContext {
+    const double *i2w;      /* the density grid's index to world (double) */
+    const VolumeGrid *ag;   /* the emission (or temperature) grid */
+    const BlockTable *aux;  /* its block maxima */
+    float factor, cap;      /* lum(sigma_a L_e) per sigma_t and aux value; c_vox / voxel_size */
+} EmitContext;
+
+/* One majorant cell c (cell indices; its blocks at bx, by in the block tables, whose z layers
+ * below, at and above it are zs[0..2]): the majorant (before the slack), the coarse one, the
+ * uncapped emission term (0 unless the medium emits) and the control (with its slack, 0 where
+ * it would not lie below the majorant). dmin NULL: no control. */
+static void cell_values(const Medium *m, const BlockTable *dens, const BlockTable *dmin, int32_t bx, int32_t by,
+                        const int32_t zs[3], const EmitContext *ec, const int32_t c[3], float *maj_out,
+                        float *coarse_out, float *term_out, float *ctl_out) {
+    const MajorantGrid *mg = &m->majorant;
+    float dmax = 0.0f;
+    for (int dz = -1; dz <= 1; ++dz)
+        for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+                int dd[3] = {dx, dy, dz};
+                const float *nb = dens->v + block_index(dens, bx + dx, by + dy, zs[1 + dz]);
+                float v = nb[BLK_ALL];
+                /* a neighbour contributes its faces towards the cell; a diagonal
+                 * one an edge or corner, bounded by the smallest of its faces */
+                for (int a = 0; a < 3; ++a)
+                    if (dd[a]) v = vminf(v, nb[1 + 2 * a + (dd[a] > 0 ? 0 : 1)]);
+                dmax = vmaxf(dmax, v);
+            }
+    float st = vminf(m->density_scale * dmax, VOLUME_MAX_SIGMA_T);
+    float maj = st, maj_coarse = st, term = 0.0f;
+    if (m->emissive && st > 0.0f) {
+        /* the cell's box (with its slack) in the aux grid's index space */
+        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (int corner = 0; corner < 8; ++corner) {
+            double p[3], w[3];
+            for (int k = 0; k < 3; ++k) p[k] = mg->origin[k] + 8.0 * c[k] + ((corner >> k & 1) ? 10.0 : -2.0);
+            for (int r = 0; r < 3; ++r)
+                w[r] = ec->i2w[r] * p[0] + ec->i2w[4 + r] * p[1] + ec->i2w[8 + r] * p[2] + ec->i2w[12 + r];
+            for (int r = 0; r < 3; ++r) {
+                const float *a = ec->ag->world_to_index;
+                double q = a[r] * w[0] + a[4 + r] * w[1] + a[8 + r] * w[2] + a[12 + r];
+                lo[r] = fmin(lo[r], q);
+                hi[r] = fmax(hi[r], q);
+            }
+        }
+        int64_t vlo[3], vhi[3];
+        for (int k = 0; k < 3; ++k) {
+            vlo[k] = (int64_t)fmax(floor(lo[k]) - 1.0, -4e9);
+            vhi[k] = (int64_t)fmin(floor(hi[k]) + 2.0, 4e9);
+        }
+        float amax = block_table_max(ec->aux, vlo, vhi);
+        float e = m->emission.buffer ? amax : (amax >= BLACKBODY_MIN_KELVIN ? 1.0f : 0.0f);
+        term = st * ec->factor * e; /* kappa = 1 */
+        maj = vmaxf(st, vminf(term, ec->cap));
+        maj_coarse = vmaxf(st, vminf(term, ec->cap * (1.0f / VOLUME_LINE_COARSE_VOXELS)));
+    }
+    *maj_out = maj;
+    *coarse_out = maj_coarse;
+    *term_out = term;
+    *ctl_out = 0.0f;
+    if (dmin) {
+        /* the same footprint's minimum: a neighbour's two-voxel face towards the
+         * cell; an edge or corner lies in each of its faces, so the largest of
+         * their minima bounds it from below */
+        float dmn = FLT_MAX;
+        for (int dz = -1; dz <= 1; ++dz)
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) {
+                    int dd[3] = {dx, dy, dz};
+                    const float *nb = dmin->v + block_index(dmin, bx + dx, by + dy, zs[1 + dz]);
+                    float v = nb[BLK_ALL];
+                    for (int a = 0; a < 3; ++a)
+                        if (dd[a]) v = vmaxf(v, nb[1 + 2 * a + (dd[a] > 0 ? 0 : 1)]);
+                    dmn = vminf(dmn, v);
+                }
+        float ctl = vminf(m->density_scale * dmn, VOLUME_MAX_SIGMA_T) * VOL_CONTROL_SLACK;
+        *ctl_out = ctl < maj ? ctl : 0.0f;
+    }
+}
+
+/* ---------------------------------------------------------------- sparse form */
+
+static inline int32_t floor_div(int32_t v, int32_t d) { return v >= 0 ? v / d : -((-v + d - 1) / d); }
+
+/* A brick without voxel data: every block its cells' footprints read (the brick's 64^3 voxels
+ * and an 8-voxel ring) lies in a constant region of the tree (an upper node's tile or beyond:
+ * level >= 2, 128^3 voxels or more). Found from at most 8 lookups, one per 128^3 region the
+ * padded box touches; *hi and *lo are the largest and smallest of their values. With one value
+ * the brick is what the dense form computes for each of its cells; with several (a brick on a
+ * tile's border) hi and lo bound every cell's footprint, a majorant looser there by at most a
+ * brick, where the dense form would hold 512 cells for a file that holds one tile. */
+static int brick_tiles(GridReader *r, const int32_t vox0[3], float *hi_out, float *lo_out) {
+    int32_t lo[3], hi[3];
+    for (int k = 0; k < 3; ++k) {
+        lo[k] = floor_div(vox0[k] - 8, 128);
+        hi[k] = floor_div(vox0[k] + 64 + 8 - 1, 128);
+    }
+    float vmax = 0.0f, vmin = FLT_MAX;
+    for (int32_t z = lo[2]; z <= hi[2]; ++z)
+        for (int32_t y = lo[1]; y <= hi[1]; ++y)
+            for (int32_t x = lo[0]; x <= hi[0]; ++x) {
+                uint32_t level;
+                float v = grid_voxel_level(r, 128 * x, 128 * y, 128 * z, &level);
+                if (level < 2) return 0;
+                vmax = vmaxf(vmax, v);
+                vmin = vminf(vmin, v);
+            }
+    *hi_out = vmax;
+    *lo_out = vmin;
+    return 1;
+}
+
+/* The sparse form (MajorantGrid, volumes.h) of a medium that does not emit. Returns 1 without
+ * building it when it would take at least half of dense_bytes (the dense form is then as good
+ * and faster to walk) unless forced (a test's dense_cells_max), 0 when built, -1 with err (the
+ * budget, memory). */
+static int sparse_build(Medium *m, uint64_t dense_bytes, uint64_t budget, int forced, char err[IO_ERR_LEN],
+                        const char *name) {
+    MajorantGrid *mg = &m->majorant;
+    const VolumeGrid *g = &m->density;
+    enum { B = VOLUME_MAJORANT_BRICK, BV = 8 * VOLUME_MAJORANT_BRICK, BC = B * B * B };
+    uint64_t nbricks = 1;
+    for (int k = 0; k < 3; ++k) {
+        int32_t v0 = BV * floor_div(g->index_min[k] - 2, BV); /* bricks aligned to 64 voxels */
+        mg->origin[k] = v0;
+        mg->dims[k] = floor_div8(g->index_max[k] + 2) - v0 / 8 + 1;
+        mg->bdims[k] = (mg->dims[k] + B - 1) / B;
+        nbricks *= (uint64_t)mg->bdims[k];
+    }
+    mg->brick = malloc(nbricks * sizeof *mg->brick);
+    mg->brick_uniform = malloc(2 * nbricks * sizeof *mg->brick_uniform);
+    if (!mg->brick || !mg->brick_uniform) goto oom;
+    GridReader reader;
+    grid_reader_init(&reader, g);
+    uint64_t dense = 0;
+    for (int32_t bz = 0; bz < mg->bdims[2]; ++bz)
+        for (int32_t by = 0; by < mg->bdims[1]; ++by)
+            for (int32_t bx = 0; bx < mg->bdims[0]; ++bx) {
+                size_t b = (size_t)bx + (size_t)mg->bdims[0] * ((size_t)by + (size_t)mg->bdims[1] * (size_t)bz);
+                const int32_t vox0[3] = {mg->origin[0] + BV * bx, mg->origin[1] + BV * by, mg->origin[2] + BV * bz};
+                float vhi, vlo;
+                if (brick_tiles(&reader, vox0, &vhi, &vlo)) {
+                    /* what the dense computation gives a cell whose blocks hold values in [vlo, vhi] */
+                    float st = vminf(m->density_scale * vhi, VOLUME_MAX_SIGMA_T);
+                    float ctl = vminf(m->density_scale * vlo, VOLUME_MAX_SIGMA_T) * VOL_CONTROL_SLACK;
+                    mg->brick[b] = -1;
+                    mg->brick_uniform[2 * b] = st * VOL_MAJORANT_SLACK;
+                    mg->brick_uniform[2 * b + 1] = ctl < st ? ctl : 0.0f;
+                } else {
+                    mg->brick[b] = (int32_t)dense++;
+                }
+            }
+    const uint64_t bytes = nbricks * (sizeof *mg->brick + 2 * sizeof *mg->brick_uniform) + dense * BC * 2 * sizeof(float);
+    if (2 * bytes >= dense_bytes && !forced) {
+        free(mg->brick);
+        free(mg->brick_uniform);
+        memset(mg, 0, sizeof *mg);
+        return 1;
+    }
+    if (budget && bytes > budget) {
+        if (err)
+            snprintf(err, IO_ERR_LEN, "%s: its majorant grid needs %.1f MiB, over the %.1f MiB of volume memory left", name,
+                     (double)bytes / 1048576.0, (double)budget / 1048576.0);
+        free(mg->brick);
+        free(mg->brick_uniform);
+        memset(mg, 0, sizeof *mg);
+        return -1;
+    }
+    mg->brick_maj = malloc((size_t)(dense ? dense : 1) * BC * sizeof(float));
+    mg->brick_min = malloc((size_t)(dense ? dense : 1) * BC * sizeof(float));
+    /* a non-uniform brick's cells from the block maxima (and minima) of its 64^3 voxels and
+     * their ring, exactly as the dense form computes a cell */
+    BlockTable dens = {0}, dmin = {0};
+    const int32_t zero[3] = {0, 0, 0}, tdims[3] = {B + 2, B + 2, B + 2};
+    if (!mg->brick_maj || !mg->brick_min || block_table_alloc(&dens, zero, tdims, B + 2, BLK_FACES) ||
+        block_table_alloc(&dmin, zero, tdims, B + 2, BLK_FACES)) {
+        free(dens.v);
+        free(dmin.v);
+        goto oom;
+    }
+    EmitContext none = {0};
+    for (int32_t bz = 0; bz < mg->bdims[2]; ++bz)
+        for (int32_t by = 0; by < mg->bdims[1]; ++by)
+            for (int32_t bx = 0; bx < mg->bdims[0]; ++bx) {
+                size_t b = (size_t)bx + (size_t)mg->bdims[0] * ((size_t)by + (size_t)mg->bdims[1] * (size_t)bz);
+                if (mg->brick[b] < 0) continue;
+                const int32_t bb[3] = {bx, by, bz};
+                for (int k = 0; k < 3; ++k) dens.origin[k] = dmin.origin[k] = mg->origin[k] + BV * bb[k] - 8;
+                for (int32_t lz = 0; lz < B + 2; ++lz) {
+                    block_layer_fill(&dens, &reader, lz, lz, 0);
+                    block_layer_fill(&dmin, &reader, lz, lz, 1);
+                }
+                float *maj = mg->brick_maj + (size_t)mg->brick[b] * BC, *mn = mg->brick_min + (size_t)mg->brick[b] * BC;
+                for (int32_t lz = 0; lz < B; ++lz) {
+                    const int32_t zs[3] = {lz, lz + 1, lz + 2};
+                    for (int32_t ly = 0; ly < B; ++ly)
+                        for (int32_t lx = 0; lx < B; ++lx) {
+                            const int32_t c[3] = {B * bx + lx, B * by + ly, B * bz + lz};
+                            float mj, coarse, term, ctl;
+                            cell_values(m, &dens, &dmin, lx + 1, ly + 1, zs, &none, c, &mj, &coarse, &term, &ctl);
+                            maj[lx + B * (ly + B * lz)] = mj * VOL_MAJORANT_SLACK;
+                            mn[lx + B * (ly + B * lz)] = ctl;
+                        }
+                }
+            }
+    free(dens.v);
+    free(dmin.v);
+    mg->bytes = bytes;
+    return 0;
+oom:
+    free(mg->brick);
+    free(mg->brick_uniform);
+    free(mg->brick_maj);
+    free(mg->brick_min);
+    memset(mg, 0, sizeof *mg);
+    if (err) snprintf(err, IO_ERR_LEN, "%s: out of memory building the majorant grid", name);
+    return -1;
+}
+
 int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **emit_bound, char err[IO_ERR_LEN],
-                   const char *name) {
+                   const char *name, uint64_t budget, uint64_t dense_cells_max) {
     MajorantGrid *mg = &m->majorant;
     float *bound = NULL;
     if (emit_bound) *emit_bound = NULL;
@@ -128,6 +348,26 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **em
         if (err) snprintf(err, IO_ERR_LEN, "%s: too large for a majorant grid (%lld cells)", name, (long long)ncells);
         return -1;
     }
+    /* the dense form's bytes: the majorant (and control or coarse majorant), the emission bound
+     * and the emission-energy grid it becomes */
+    const uint64_t dense_bytes =
+        (uint64_t)ncells * (m->emissive ? 2 * sizeof(float) + sizeof(float) + EMISSION_BYTES_PER_CELL : 2 * sizeof(float));
+    if (!m->emissive && (uint64_t)ncells > (dense_cells_max ? dense_cells_max : VOLUME_MAJORANT_DENSE_CELLS)) {
+        int rc = sparse_build(m, dense_bytes, budget, dense_cells_max != 0, err, name);
+        if (rc <= 0) return rc; /* built (0) or failed (-1); 1: the dense form is no larger */
+        for (int k = 0; k < 3; ++k) { /* back to the dense form's cells */
+            int32_t c0 = floor_div8(g->index_min[k] - 2), c1 = floor_div8(g->index_max[k] + 2);
+            mg->origin[k] = 8 * c0;
+            mg->dims[k] = c1 - c0 + 1;
+        }
+    }
+    if (budget && dense_bytes > budget) {
+        if (err)
+            snprintf(err, IO_ERR_LEN, "%s: its majorant grid needs %.1f MiB, over the %.1f MiB of volume memory left", name,
+                     (double)dense_bytes / 1048576.0, (double)budget / 1048576.0);
+        return -1;
+    }
+    mg->bytes = (uint64_t)ncells * 2 * sizeof(float); /* the majorant, and the control or the coarse majorant */
     mg->sigma_maj = malloc((size_t)ncells * sizeof(float));
     /* the control grid (residual ratio tracking): only for media that do not emit (an
      * emitting medium's walks gather its emission at collisions, which need its whole
@@ -184,13 +424,13 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **em
     /* lum(sigma_a L_e) <= sigma_t x emission_scale x (this) x aux value: the emission grid's
      * lum((1 - albedo) colour); for a blackbody (luminance 1, non-negative RGB) the largest
      * 1 - albedo. */
-    float emit_factor = 0.0f;
+    EmitContext ec = {i2w, ag, &aux, 0.0f, 0.0f};
     if (m->emissive) {
         float absorb[3];
         for (int k = 0; k < 3; ++k) absorb[k] = (1.0f - m->albedo[k]) * (m->emission.buffer ? m->emission_color[k] : 1.0f);
-        emit_factor = m->emission_scale * (m->emission.buffer ? vlum(absorb) : vmax3(absorb));
+        ec.factor = m->emission_scale * (m->emission.buffer ? vlum(absorb) : vmax3(absorb));
     }
-    float emit_cap = voxel_size > 0.0f ? 1.0f / voxel_size : 0.0f; /* c_vox / voxel_size, c_vox = 1 */
+    ec.cap = voxel_size > 0.0f ? 1.0f / voxel_size : 0.0f; /* c_vox / voxel_size, c_vox = 1 */
 
     GridReader reader;
     grid_reader_init(&reader, g);
@@ -201,74 +441,18 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **em
     for (int32_t cz = 0; cz < mg->dims[2]; ++cz) {
         block_layer_fill(&dens, &reader, cz + 2, (cz + 2) % 3, 0);
         if (dmin_table.v) block_layer_fill(&dmin_table, &reader, cz + 2, (cz + 2) % 3, 1);
+        const int32_t zs[3] = {cz % 3, (cz + 1) % 3, (cz + 2) % 3}; /* the block layers below, at, above */
         for (int32_t cy = 0; cy < mg->dims[1]; ++cy)
             for (int32_t cx = 0; cx < mg->dims[0]; ++cx) {
-                int32_t c[3] = {cx, cy, cz};
-                float dmax = 0.0f;
-                for (int dz = -1; dz <= 1; ++dz)
-                    for (int dy = -1; dy <= 1; ++dy)
-                        for (int dx = -1; dx <= 1; ++dx) {
-                            int dd[3] = {dx, dy, dz};
-                            const float *nb = dens.v + block_index(&dens, cx + 1 + dx, cy + 1 + dy, (cz + 1 + dz) % 3);
-                            float v = nb[BLK_ALL];
-                            /* a neighbour contributes its faces towards the cell; a diagonal
-                             * one an edge or corner, bounded by the smallest of its faces */
-                            for (int a = 0; a < 3; ++a)
-                                if (dd[a]) v = vminf(v, nb[1 + 2 * a + (dd[a] > 0 ? 0 : 1)]);
-                            dmax = vmaxf(dmax, v);
-                        }
-                float st = vminf(m->density_scale * dmax, VOLUME_MAX_SIGMA_T);
-                float maj = st, maj_coarse = st;
-                if (m->emissive && st > 0.0f) {
-                    /* the cell's box (with its slack) in the aux grid's index space */
-                    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-                    for (int corner = 0; corner < 8; ++corner) {
-                        double p[3], w[3];
-                        for (int k = 0; k < 3; ++k)
-                            p[k] = mg->origin[k] + 8.0 * c[k] + ((corner >> k & 1) ? 10.0 : -2.0);
-                        for (int r = 0; r < 3; ++r)
-                            w[r] = i2w[r] * p[0] + i2w[4 + r] * p[1] + i2w[8 + r] * p[2] + i2w[12 + r];
-                        for (int r = 0; r < 3; ++r) {
-                            const float *a = ag->world_to_index;
-                            double q = a[r] * w[0] + a[4 + r] * w[1] + a[8 + r] * w[2] + a[12 + r];
-                            lo[r] = fmin(lo[r], q);
-                            hi[r] = fmax(hi[r], q);
-                        }
-                    }
-                    int64_t vlo[3], vhi[3];
-                    for (int k = 0; k < 3; ++k) {
-                        vlo[k] = (int64_t)fmax(floor(lo[k]) - 1.0, -4e9);
-                        vhi[k] = (int64_t)fmin(floor(hi[k]) + 2.0, 4e9);
-                    }
-                    float amax = block_table_max(&aux, vlo, vhi);
-                    float e = m->emission.buffer ? amax : (amax >= BLACKBODY_MIN_KELVIN ? 1.0f : 0.0f);
-                    float term = st * emit_factor * e; /* kappa = 1 */
-                    maj = vmaxf(st, vminf(term, emit_cap));
-                    maj_coarse = vmaxf(st, vminf(term, emit_cap * (1.0f / VOLUME_LINE_COARSE_VOXELS)));
-                    if (bound) bound[cx + mg->dims[0] * (cy + mg->dims[1] * cz)] = term;
-                }
-                mg->sigma_maj[cx + mg->dims[0] * (cy + mg->dims[1] * cz)] = maj * VOL_MAJORANT_SLACK;
-                if (mg->sigma_maj_coarse)
-                    mg->sigma_maj_coarse[cx + mg->dims[0] * (cy + mg->dims[1] * cz)] = maj_coarse * VOL_MAJORANT_SLACK;
-                if (mg->sigma_min) {
-                    /* the same footprint's minimum: a neighbour's two-voxel face towards the
-                     * cell; an edge or corner lies in each of its faces, so the largest of
-                     * their minima bounds it from below */
-                    float dmn = FLT_MAX;
-                    for (int dz = -1; dz <= 1; ++dz)
-                        for (int dy = -1; dy <= 1; ++dy)
-                            for (int dx = -1; dx <= 1; ++dx) {
-                                int dd[3] = {dx, dy, dz};
-                                const float *nb =
-                                    dmin_table.v + block_index(&dmin_table, cx + 1 + dx, cy + 1 + dy, (cz + 1 + dz) % 3);
-                                float v = nb[BLK_ALL];
-                                for (int a = 0; a < 3; ++a)
-                                    if (dd[a]) v = vmaxf(v, nb[1 + 2 * a + (dd[a] > 0 ? 0 : 1)]);
-                                dmn = vminf(dmn, v);
-                            }
-                    float ctl = vminf(m->density_scale * dmn, VOLUME_MAX_SIGMA_T) * VOL_CONTROL_SLACK;
-                    mg->sigma_min[cx + mg->dims[0] * (cy + mg->dims[1] * cz)] = ctl < maj ? ctl : 0.0f;
-                }
+                const size_t ci = (size_t)cx + (size_t)mg->dims[0] * ((size_t)cy + (size_t)mg->dims[1] * (size_t)cz);
+                const int32_t c[3] = {cx, cy, cz};
+                float maj, maj_coarse, term, ctl;
+                cell_values(m, &dens, dmin_table.v ? &dmin_table : NULL, cx + 1, cy + 1, zs, &ec, c, &maj, &maj_coarse,
+                            &term, &ctl);
+                if (bound) bound[ci] = term;
+                mg->sigma_maj[ci] = maj * VOL_MAJORANT_SLACK;
+                if (mg->sigma_maj_coarse) mg->sigma_maj_coarse[ci] = maj_coarse * VOL_MAJORANT_SLACK;
+                if (mg->sigma_min) mg->sigma_min[ci] = ctl;
             }
     }
     free(dens.v);
@@ -286,10 +470,29 @@ enum { PH_DONE = 0, PH_LEAD, PH_GRID, PH_TAIL, PH_HOMOG };
 
 static int finite3(const float v[3]) { return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]); }
 
+/* The sparse form's cell c (inside dims): majorant and, when asked, control (else 0); 1 when
+ * its brick is uniform. */
+static inline int sparse_cell(const MajorantGrid *mg, const int32_t c[3], int control, float *maj, float *ctl) {
+    enum { B = VOLUME_MAJORANT_BRICK };
+    size_t b = (size_t)(c[0] / B) + (size_t)mg->bdims[0] * ((size_t)(c[1] / B) + (size_t)mg->bdims[1] * (size_t)(c[2] / B));
+    int32_t s = mg->brick[b];
+    if (s < 0) {
+        *maj = mg->brick_uniform[2 * b];
+        *ctl = control ? mg->brick_uniform[2 * b + 1] : 0.0f;
+        return 1;
+    }
+    size_t i = (size_t)s * (B * B * B) + (size_t)(c[0] % B) + B * ((size_t)(c[1] % B) + B * (size_t)(c[2] % B));
+    *maj = mg->brick_maj[i];
+    *ctl = control ? mg->brick_min[i] : 0.0f;
+    return 0;
+}
+
 void medium_majorant_begin(const Medium *m, const float o[3], const float d[3], float tmin, float tmax,
                            MajorantIterator *it) {
     it->phase = PH_DONE;
     it->cells_min = NULL;
+    it->sparse = NULL;
+    it->control = 0;
     float t0, t1;
     if (!medium_clip_ray(m, o, d, tmin, tmax, &t0, &t1)) return;
     it->t = t0;
@@ -376,14 +579,21 @@ void medium_majorant_begin(const Medium *m, const float o[3], const float d[3], 
         }
     }
     it->phase = t0 < g0 ? PH_LEAD : PH_GRID;
+    if (mg->brick) {
+        it->sparse = mg;
+        sparse_cell(mg, it->cell, 0, &it->cur_maj, &it->cur_min);
+    }
 }
 
 static inline float piece_majorant(const MajorantIterator *it) {
-    return it->phase == PH_GRID ? it->cells[it->index] : it->phase == PH_HOMOG ? it->sigma : 0.0f;
+    if (it->phase == PH_GRID) return it->sparse ? it->cur_maj : it->cells[it->index];
+    return it->phase == PH_HOMOG ? it->sigma : 0.0f;
 }
 
 static inline float piece_control(const MajorantIterator *it) {
-    return it->phase == PH_GRID && it->cells_min ? it->cells_min[it->index] : 0.0f;
+    if (it->phase != PH_GRID) return 0.0f;
+    if (it->sparse) return it->cur_min; /* 0 unless controls were asked for */
+    return it->cells_min ? it->cells_min[it->index] : 0.0f;
 }
 
 /* The axis of the smallest t_next without branches (Amanatides & Woo's comparison table):
@@ -430,6 +640,78 @@ static inline void grid_run(MajorantIterator *it, float maj, float ctl) {
     }
 }
 
+/* grid_run over the sparse form: the same steps, the cell's values from its brick, and a
+ * uniform brick of the run's values crossed at once. Inside such a brick the ray is moved to the
+ * last cell before the brick's exit plane: along each axis, the cell planes it crosses before
+ * the earliest exit, counted from their distances (t_next + j t_delta; a tie at a plane can put
+ * the ray a cell off for an instant, as rounding does in the cell-by-cell walk). */
+static void sparse_run(MajorantIterator *it, float maj, float ctl) {
+    enum { B = VOLUME_MAJORANT_BRICK };
+    const MajorantGrid *mg = it->sparse;
+    float tn[3] = {it->t_next[0], it->t_next[1], it->t_next[2]};
+    int32_t cell[3] = {it->cell[0], it->cell[1], it->cell[2]};
+    float t = it->t, t_grid1 = it->t_grid1;
+    float m2 = maj, c2 = ctl;
+    int uniform = sparse_cell(mg, cell, it->control, &m2, &c2);
+    for (;;) {
+        if (uniform) {
+            int32_t n[3];
+            float exit = INFINITY;
+            int ax = 0;
+            for (int k = 0; k < 3; ++k) {
+                n[k] = 0;
+                if (it->step[k] == 0) continue;
+                int32_t left = it->step[k] > 0 ? B - 1 - cell[k] % B : cell[k] % B;
+                int32_t to_edge = it->step[k] > 0 ? mg->dims[k] - 1 - cell[k] : cell[k];
+                n[k] = left < to_edge ? left : to_edge;
+                float e = tn[k] + (float)n[k] * it->t_delta[k];
+                if (e < exit) {
+                    exit = e;
+                    ax = k;
+                }
+            }
+            if (!(exit < t_grid1)) { /* the run ends inside this brick */
+                t = t_grid1;
+                it->phase = t < it->t_end ? PH_TAIL : PH_DONE;
+                break;
+            }
+            for (int k = 0; k < 3; ++k) {
+                if (it->step[k] == 0) continue;
+                int32_t j = n[k];
+                if (k != ax) { /* the planes of axis k before the exit */
+                    float q = ceilf((exit - tn[k]) / it->t_delta[k]);
+                    j = q > 0.0f ? (q < (float)n[k] ? (int32_t)q : n[k]) : 0;
+                }
+                cell[k] += it->step[k] * j;
+                tn[k] += (float)j * it->t_delta[k];
+            }
+        }
+        int a = next_axis(tn);
+        float e = tn[a];
+        if (!(e < t_grid1)) {
+            t = t_grid1;
+            it->phase = t < it->t_end ? PH_TAIL : PH_DONE;
+            break;
+        }
+        t = vmaxf(e, t);
+        cell[a] += it->step[a];
+        if ((uint32_t)cell[a] >= (uint32_t)it->dims[a]) { /* left the box early (rounding) */
+            it->phase = t < it->t_end ? PH_TAIL : PH_DONE;
+            break;
+        }
+        tn[a] += it->t_delta[a];
+        uniform = sparse_cell(mg, cell, it->control, &m2, &c2);
+        if (m2 != maj || c2 != ctl) break;
+    }
+    it->t = t;
+    it->cur_maj = m2;
+    it->cur_min = c2;
+    for (int k = 0; k < 3; ++k) {
+        it->t_next[k] = tn[k];
+        it->cell[k] = cell[k];
+    }
+}
+
 int medium_majorant_next_control(MajorantIterator *it, float *t0, float *t1, float *sigma_maj, float *sigma_min) {
     while (it->phase != PH_DONE) {
         float a = it->t, maj = piece_majorant(it), ctl = piece_control(it);
@@ -442,7 +724,8 @@ int medium_majorant_next_control(MajorantIterator *it, float *t0, float *t1, flo
                 it->phase = PH_GRID;
                 break;
             case PH_GRID:
-                grid_run(it, maj, ctl);
+                if (it->sparse) sparse_run(it, maj, ctl);
+                else grid_run(it, maj, ctl);
                 break;
             default: /* PH_TAIL, PH_HOMOG */
                 it->t = it->t_end;
@@ -471,6 +754,10 @@ void medium_majorant_begin_control(const Medium *m, const float o[3], const floa
                                    MajorantIterator *it) {
     medium_majorant_begin(m, o, d, tmin, tmax, it);
     if (m->kind != MEDIUM_HOMOGENEOUS) it->cells_min = m->majorant.sigma_min;
+    if (it->sparse) {
+        it->control = 1;
+        sparse_cell(it->sparse, it->cell, 1, &it->cur_maj, &it->cur_min);
+    }
 }
 
 void medium_majorant_begin_coarse(const Medium *m, const float o[3], const float d[3], float tmin, float tmax,

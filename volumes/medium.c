@@ -288,12 +288,24 @@ int medium_init_vdb(Medium *m, const VolumeDesc *desc, char err[IO_ERR_LEN]) {
             m->world_max[r] = vmaxf(m->world_max[r], (float)w);
         }
     }
+    /* a voxel size of 1e30 (or a node scaling a grid so) puts the volume where float rays lose
+     * all precision, and every consumer of its bounds (cache point candidates, the guiding
+     * field) works in vain: refused, like node transforms beyond the same limit */
+    for (int k = 0; k < 3; ++k)
+        if (!(m->world_min[k] >= -VOLUME_MAX_COORDINATE && m->world_max[k] <= VOLUME_MAX_COORDINATE)) {
+            if (err)
+                snprintf(err, IO_ERR_LEN, "%s: world bounds [%g %g %g] - [%g %g %g] beyond %g (voxel size or placement out of range)",
+                         name, (double)m->world_min[0], (double)m->world_min[1], (double)m->world_min[2],
+                         (double)m->world_max[0], (double)m->world_max[1], (double)m->world_max[2], VOLUME_MAX_COORDINATE);
+            medium_free(m);
+            return -1;
+        }
     /* the smallest world voxel edge: the emission term's cap c_vox / voxel_size (spec §7.4) */
     double vs = INFINITY;
     for (int c = 0; c < 3; ++c)
         vs = fmin(vs, sqrt(i2w[c * 4] * i2w[c * 4] + i2w[c * 4 + 1] * i2w[c * 4 + 1] + i2w[c * 4 + 2] * i2w[c * 4 + 2]));
     float *bound = NULL;
-    if (majorant_build(m, i2w, (float)vs, &bound, err, name)) {
+    if (majorant_build(m, i2w, (float)vs, &bound, err, name, desc->memory_budget, desc->dense_cells_max)) {
         medium_free(m);
         return -1;
     }
@@ -304,6 +316,12 @@ int medium_init_vdb(Medium *m, const VolumeDesc *desc, char err[IO_ERR_LEN]) {
         medium_free(m);
         return -1;
     }
+    const EmissionEnergyGrid *e = &m->emission_energy;
+    m->memory_bytes = m->majorant.bytes;
+    if (e->density)
+        m->memory_bytes += (uint64_t)m->majorant.dims[0] * (uint64_t)m->majorant.dims[1] * (uint64_t)m->majorant.dims[2] *
+                               sizeof(float) +
+                           (uint64_t)e->count * (sizeof(int32_t) + sizeof(double));
     return 0;
 }
 
@@ -312,6 +330,10 @@ void medium_free(Medium *m) {
     free(m->majorant.sigma_maj);
     free(m->majorant.sigma_min);
     free(m->majorant.sigma_maj_coarse);
+    free(m->majorant.brick);
+    free(m->majorant.brick_uniform);
+    free(m->majorant.brick_maj);
+    free(m->majorant.brick_min);
     emission_free(m);
     memset(m, 0, sizeof *m);
 }

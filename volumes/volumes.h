@@ -80,7 +80,26 @@ typedef struct MajorantGrid {
      * collision per VOLUME_LINE_COARSE_VOXELS voxels (media_emission_line_at's COARSE
      * density); NULL for media that do not emit */
     float *sigma_maj_coarse;
+    /* Sparse form (sigma_maj NULL, brick non-NULL): a grid whose dense form would be large and
+     * mostly empty or constant (two small clouds far apart, a constant tile filling a huge box)
+     * is held in bricks of VOLUME_MAJORANT_BRICK^3 cells. A brick whose padded box holds no voxel
+     * data (only tiles, empty space included) is two numbers, the majorant and control of the
+     * largest and smallest tile value it touches (exact inside a tile, looser by at most a brick
+     * along a tile's border); the others hold their 8^3 cells, computed as the dense form does.
+     * Memory then follows what the file holds, not its bounding box, and the DDA crosses a
+     * uniform brick in one step. Only media that do not emit (the emission-energy grid is dense
+     * over the cells). origin is a multiple of 64. */
+    int32_t bdims[3];            /* bricks per axis */
+    int32_t *brick;              /* per brick: its cells' offset / 512 in brick_maj / brick_min, or -1: uniform */
+    float *brick_uniform;        /* per brick: (majorant, control) of a uniform brick */
+    float *brick_maj, *brick_min;/* 512 cells per non-uniform brick, x fastest */
+    uint64_t bytes;              /* memory held by the grid (either form) */
 } MajorantGrid;
+#define VOLUME_MAJORANT_BRICK 8
+/* Below this many cells the majorant grid is always dense (the form every scene so far uses,
+ * and the faster one to walk); above it the sparse form is used when it needs less than half
+ * the memory (VolumeDesc.dense_cells_max overrides it, for tests). */
+#define VOLUME_MAJORANT_DENSE_CELLS ((uint64_t)1 << 21)
 
 /* The emission-energy grid of an emitting VDB medium (the cache points paper §4.3, "an
  * emission-energy-distribution grid, which is just a coarser version of the volume", after
@@ -117,6 +136,7 @@ typedef struct Medium {
     float density_scale, albedo[3];
     float emission_scale, emission_color[3];
     VolumeGrid density, emission, temperature;
+    uint64_t memory_bytes;             /* held by the majorant and emission-energy grids */
     float world_min[3], world_max[3];  /* world bounds of the active density (homogeneous: infinite) */
     float world_to_index[16];          /* of the density grid (for the majorant DDA) */
     MajorantGrid majorant;
@@ -134,12 +154,18 @@ typedef struct VolumeDesc {
     float node_to_world[16];                     /* column-major; world = node x grid index_to_world */
     float density_scale, albedo[3], anisotropy;
     float emission_scale, emission_color[3];
+    /* bytes the medium's own grids (majorant, emission energy) may take, checked before they are
+     * allocated (0: no limit): the caller's share of a per-scene volume budget */
+    uint64_t memory_budget;
+    uint64_t dense_cells_max;    /* 0: VOLUME_MAJORANT_DENSE_CELLS; else above it always sparse (tests) */
 } VolumeDesc;
 
 /* A VDB volume (the grids keep owning their buffers and must outlive the medium). Negative
  * and non-finite densities count as 0 and extinctions above VOLUME_MAX_SIGMA_T are clamped
  * (documented clamping, never an error); builds the majorant grid. 0 ok; -1 with a one-line
- * message (out of memory, a singular transform, invalid parameters). */
+ * message (out of memory, a singular transform, invalid parameters, world bounds beyond
+ * VOLUME_MAX_COORDINATE (a voxel size of 1e30), grids larger than memory_budget). */
+#define VOLUME_MAX_COORDINATE 1e12 /* IO_MAX_COORDINATE: the world bounds of a grid */
 int medium_init_vdb(Medium *m, const VolumeDesc *desc, char err[IO_ERR_LEN]);
 void medium_free(Medium *m);
 
@@ -188,6 +214,9 @@ typedef struct MajorantIterator {
     float sigma;                     /* homogeneous: the constant majorant */
     float t_base;                    /* the ray in the density grid's index space is */
     float o_index[3], d_index[3];    /* o_index + (t - t_base) d_index (re-based at the clip entry) */
+    const MajorantGrid *sparse;      /* the sparse form's grid (cells NULL), else NULL */
+    int32_t control;                 /* sparse: controls asked for */
+    float cur_maj, cur_min;          /* sparse: the current cell's majorant and control */
 } MajorantIterator;
 
 void medium_majorant_begin(const Medium *m, const float o[3], const float d[3], float tmin, float tmax,

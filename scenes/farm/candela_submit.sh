@@ -109,8 +109,28 @@ submit() {
   fi
 }
 
+# Numbers are candela's to read: each job's command line is checked by candela itself
+# (`candela render ... --dry-run`, which loads nothing) before anything is submitted, and the
+# counts used here are the ones it prints back, in base 10 and within its bounds (bash
+# arithmetic read 08 as octal, wrapped 2^63, and looped 20-digit counts). SLURM_ARRAY_* are left
+# out so that a submission from inside an array task still sees the whole request.
+# dry_run ARGS...: candela's answer on stdout; its one-line refusal becomes this script's
+dry_run() {
+  local out
+  if ! out=$(env -u SLURM_ARRAY_TASK_ID -u SLURM_ARRAY_TASK_COUNT -u SLURM_ARRAY_TASK_MIN -u SLURM_ARRAY_TASK_STEP \
+               "$candela" render "$scene" "${render_args[@]}" --threads "$cpus" "$@" --dry-run 2>"$work/dry-run.err"); then
+    local why; why=$(head -n 1 "$work/dry-run.err"); rm -f "$work/dry-run.err"
+    die "$why"
+  fi
+  rm -f "$work/dry-run.err"
+  printf '%s\n' "$out"
+}
+
 if [ -n "$shards" ]; then
-  [[ $shards =~ ^[1-9][0-9]*$ ]] || die "invalid --sample-shards '$shards'"
+  [[ $shards =~ ^[0-9]+$ ]] || die "invalid --sample-shards '$shards' (a whole number)"
+  checked=$(dry_run --sample-shard "0/$shards" --checkpoint "$work/shard.0.ckpt" -o "$work/shard.0.film") || exit 2
+  shards=$(sed -n 's|^sample-shard 0/\([0-9]*\) .*|\1|p' <<<"$checked")
+  [ -n "$shards" ] || die "candela --dry-run printed no shard count: $checked"
   # a new render: nothing of an earlier one is resumed or merged
   [ $dry -eq 1 ] || rm -f "$work"/shard.*.ckpt "$work"/shard.*.film
   cat > "$work/shard.sh" <<EOF
@@ -159,21 +179,20 @@ EOF
   merge_id=$(submit "$work/merge.sh" "${merge_opts[@]}")
   echo "array $array_id merge $merge_id"
 else
-  if [ -z "$tasks" ]; then
-    # frames in A-B[:step] or a list A,B,C
-    if [[ $frames =~ ^([0-9]+)-([0-9]+)(:([1-9][0-9]*))?$ ]]; then
-      a=${BASH_REMATCH[1]} b=${BASH_REMATCH[2]} step=${BASH_REMATCH[4]:-1}
-      [ "$b" -ge "$a" ] || die "invalid --frames '$frames'"
-      tasks=$(( (b - a) / step + 1 ))
-    elif [[ $frames =~ ^[0-9]+(,[0-9]+)*$ ]]; then
-      tasks=$(echo "$frames" | tr ',' '\n' | wc -l)
-    else
-      die "invalid --frames '$frames' (A-B[:step] or A,B,...)"
-    fi
-  fi
-  [[ $tasks =~ ^[1-9][0-9]*$ ]] || die "invalid --tasks '$tasks'"
   resume=""
   if "$candela" --help | grep -q -- '--resume '; then resume="--resume"; fi
+  # candela reads --frames (lists, ranges, steps, base 10) and prints the frames back
+  listed=$(dry_run --frames "$frames" $resume -o "$output") || exit 2
+  nframes=$(grep -c '^frame ' <<<"$listed")
+  if [ -z "$tasks" ]; then
+    tasks=$nframes
+  else
+    [[ $tasks =~ ^[0-9]+$ ]] || die "invalid --tasks '$tasks' (a whole number)"
+    checked=$(dry_run --frames "$frames" --shard "0/$tasks" $resume -o "$output") || exit 2
+    tasks=$(sed -n 's|^shard 0/\([0-9]*\)$|\1|p' <<<"$checked")
+    [ -n "$tasks" ] || die "candela --dry-run printed no task count: $checked"
+    [ "$tasks" -le "$nframes" ] || die "--tasks $tasks is more than the $nframes frames (every task needs a frame)"
+  fi
   cat > "$work/frames.sh" <<EOF
 #!/usr/bin/env bash
 # array task \$SLURM_ARRAY_TASK_ID of $tasks: candela takes its share of the frames from SLURM_ARRAY_TASK_*
