@@ -111,12 +111,15 @@ typedef struct PdfNode {
     float factor[4];
     uint32_t child[4]; /* index in the field's node array; 0: the quadrant is a cell (no child is node 0) */
 } PdfNode;
+/* An alias-table slot with both of its cells, so a sample reads one 32-byte slot (the cell and
+ * its alias in separate entries were two cache misses per guided sample, most of its cost). */
 typedef struct SampleCell {
-    float u0, v0, size; /* the cell [u0, u0 + size) x [v0, v0 + size) of the (u, v) square */
-    float pdf_uv;       /* its density over the square */
-    float keep;         /* alias table: keep this cell when the rescaled uniform is below keep */
-    uint32_t alias;     /* else take this one (index within the leaf's cells) */
+    _Alignas(32) float keep; /* take cell 0 when the rescaled uniform is below keep, else cell 1 */
+    float pdf_uv[2];         /* the cells' densities over the square */
+    uint32_t u0[2], v0[2];   /* their corners in units of 2^-32 (exact: cells are dyadic, 2^-20 at least) */
+    uint8_t level[2];        /* their sides, 2^-level */
 } SampleCell;
+_Static_assert(sizeof(SampleCell) == 32, "an alias slot is half a cache line");
 #define NO_FLAT_TREE 0xFFFFFFFFu
 
 /* A spatial leaf: what a lookup returns. Readers only touch the flat tree and the box. */
@@ -306,14 +309,21 @@ static size_t tree_flat_bytes(const QuadTree *t) {
     return (size_t)t->count * sizeof(PdfNode) + tree_cells(t) * sizeof(SampleCell);
 }
 
-/* Scratch of the alias table builds (sized for the largest tree). */
+/* Scratch of the alias table builds (sized for the largest tree): each cell's probability, the
+ * two work lists, and the cells before they are paired into slots. */
+typedef struct AliasCell {
+    uint32_t u0, v0;
+    float pdf_uv;
+    uint8_t level;
+} AliasCell;
 typedef struct AliasScratch {
     double *prob;
     uint32_t *small, *large;
+    AliasCell *cell;
 } AliasScratch;
 
 static void alias_scratch_free(AliasScratch *a) {
-    free(a->prob); free(a->small); free(a->large);
+    free(a->prob); free(a->small); free(a->large); free(a->cell);
     memset(a, 0, sizeof *a);
 }
 
@@ -322,8 +332,22 @@ static int alias_scratch_alloc(AliasScratch *a, size_t cells) {
     a->prob = malloc(cells * sizeof *a->prob);
     a->small = malloc(cells * sizeof *a->small);
     a->large = malloc(cells * sizeof *a->large);
-    if (!a->prob || !a->small || !a->large) { alias_scratch_free(a); return -1; }
+    a->cell = malloc(cells * sizeof *a->cell);
+    if (!a->prob || !a->small || !a->large || !a->cell) { alias_scratch_free(a); return -1; }
     return 0;
+}
+
+/* Slots for n cells, on cache-line boundaries (a slot never straddles two lines). */
+static SampleCell *slots_alloc(size_t n) {
+    size_t bytes = (n ? n : 1) * sizeof(SampleCell);
+    return aligned_alloc(64, (bytes + 63) & ~(size_t)63);
+}
+
+static void slot_set(SampleCell *s, int k, const AliasCell *c) {
+    s->pdf_uv[k] = c->pdf_uv;
+    s->u0[k] = c->u0;
+    s->v0[k] = c->v0;
+    s->level[k] = c->level;
 }
 
 /* One leaf: its PdfNodes at nodes[base ...], its cells at cells[0 ...] with their alias table
@@ -351,12 +375,12 @@ static void flatten_leaf(GuideDistribution *l, PdfNode *nodes, uint32_t base, Sa
     }
     /* The cells, depth first; a cell's density is the float product of the factors from the
      * root in descent order (flat_pdf_uv forms the same). */
-    typedef struct CellVisit { uint32_t node; double u0, v0, size; float pdf; } CellVisit;
+    typedef struct CellVisit { uint32_t node; double u0, v0, size; float pdf; int level; } CellVisit;
     CellVisit stack[4 * (QUAD_MAX_DEPTH + 2)]; /* at most 3 siblings per level wait */
     int top = 0;
     uint32_t nc = 0;
     double weight = 0;
-    stack[top++] = (CellVisit){base, 0.0, 0.0, 1.0, 1.0f};
+    stack[top++] = (CellVisit){base, 0.0, 0.0, 1.0, 1.0f, 0};
     while (top > 0) {
         CellVisit e = stack[--top];
         const PdfNode *n = &nodes[e.node];
@@ -365,13 +389,13 @@ static void flatten_leaf(GuideDistribution *l, PdfNode *nodes, uint32_t base, Sa
             double u0 = e.u0 + (q & 1) * half, v0 = e.v0 + (q >> 1) * half;
             float pdf = e.pdf * n->factor[q];
             if (n->child[q] && pdf > 0.0f && top < (int)(sizeof stack / sizeof stack[0])) {
-                stack[top++] = (CellVisit){n->child[q], u0, v0, half, pdf};
+                stack[top++] = (CellVisit){n->child[q], u0, v0, half, pdf, e.level + 1};
                 continue;
             }
-            SampleCell *c = &cells[nc];
-            c->u0 = (float)u0;
-            c->v0 = (float)v0;
-            c->size = (float)half;
+            AliasCell *c = &a->cell[nc];
+            c->u0 = (uint32_t)ldexp(u0, 32); /* dyadic of at most 21 bits: exact */
+            c->v0 = (uint32_t)ldexp(v0, 32);
+            c->level = (uint8_t)(e.level + 1);
             c->pdf_uv = pdf > 0.0f ? pdf : 0.0f;
             a->prob[nc] = (double)c->pdf_uv * half * half;
             weight += a->prob[nc];
@@ -385,16 +409,18 @@ static void flatten_leaf(GuideDistribution *l, PdfNode *nodes, uint32_t base, Sa
         if (a->prob[i] < 1.0) a->small[ns++] = i;
         else a->large[nl++] = i;
     }
+    for (uint32_t i = 0; i < nc; ++i) slot_set(&cells[i], 0, &a->cell[i]);
     while (ns > 0 && nl > 0) {
         uint32_t sm = a->small[--ns], lg = a->large[--nl];
         cells[sm].keep = (float)a->prob[sm];
-        cells[sm].alias = lg;
+        slot_set(&cells[sm], 1, &a->cell[lg]);
         a->prob[lg] = (a->prob[lg] + a->prob[sm]) - 1.0;
         if (a->prob[lg] < 1.0) a->small[ns++] = lg;
         else a->large[nl++] = lg;
     }
-    while (nl > 0) { uint32_t i = a->large[--nl]; cells[i].keep = 1.0f; cells[i].alias = i; }
-    while (ns > 0) { uint32_t i = a->small[--ns]; cells[i].keep = 1.0f; cells[i].alias = i; } /* rounding leftovers */
+    /* the rest keep their own cell (the large ones, and rounding leftovers among the small) */
+    while (nl > 0) { uint32_t i = a->large[--nl]; cells[i].keep = 1.0f; slot_set(&cells[i], 1, &a->cell[i]); }
+    while (ns > 0) { uint32_t i = a->small[--ns]; cells[i].keep = 1.0f; slot_set(&cells[i], 1, &a->cell[i]); }
     l->pdf_root = base;
     l->cells = cells;
     l->cell_count = nc;
@@ -769,7 +795,7 @@ int guide_field_update(GuideField *f, float iteration_spp) {
     }
     if (flat_count > UINT32_MAX - 1) goto fail; /* node indices stay below NO_FLAT_TREE */
     flat_nodes = malloc((flat_count ? flat_count : 1) * sizeof *flat_nodes);
-    flat_cells = malloc((cell_count ? cell_count : 1) * sizeof *flat_cells);
+    flat_cells = slots_alloc(cell_count);
     if (!flat_nodes || !flat_cells || alias_scratch_alloc(&alias, max_cells)) goto fail;
 
     /* 4. Commit: nothing below allocates or fails. */
@@ -893,15 +919,19 @@ static void flat_sample(const GuideDistribution *d, double u1, double u2, double
     if (i >= d->cell_count) i = d->cell_count - 1;
     double frac = x - i;
     const SampleCell *c = &d->cells[i];
-    if (frac < c->keep) {
-        frac = frac / c->keep;
-    } else {
-        frac = (frac - c->keep) / (1.0 - c->keep); /* keep < 1 here, since frac < 1 */
-        c = &d->cells[c->alias];
-    }
-    *u = clamp_unit_open(c->u0 + c->size * clamp_unit_open(frac));
-    *v = clamp_unit_open(c->v0 + c->size * u2);
-    *pdf_uv = c->pdf_uv;
+    int k = !(frac < c->keep);
+    frac = k ? (frac - c->keep) / (1.0 - c->keep) : frac / c->keep; /* keep < 1 when k, since frac < 1 */
+    double size = 1.0 / (double)(1u << c->level[k]); /* exact: a power of two */
+    *u = clamp_unit_open((double)c->u0[k] * 0x1p-32 + size * clamp_unit_open(frac));
+    *v = clamp_unit_open((double)c->v0[k] * 0x1p-32 + size * u2);
+    *pdf_uv = c->pdf_uv[k];
+}
+
+void guide_distribution_prefetch(const GuideDistribution *d, float u1) {
+    if (!d || !d->cells) return;
+    double x = clamp_unit_open(u1) * d->cell_count;
+    uint32_t i = (uint32_t)x;
+    __builtin_prefetch(&d->cells[i < d->cell_count ? i : d->cell_count - 1]);
 }
 
 float guide_distribution_pdf(const GuideDistribution *d, const float dir[3]) {
@@ -1120,7 +1150,7 @@ int guide_field_load(GuideField *f, FILE *in) {
         if (tree_cells(&g.leaves[i].sampling) > max_cells) max_cells = tree_cells(&g.leaves[i].sampling);
     }
     PdfNode *flat_nodes = malloc((flat_count ? flat_count : 1) * sizeof *flat_nodes);
-    SampleCell *flat_cells = malloc((cell_count ? cell_count : 1) * sizeof *flat_cells);
+    SampleCell *flat_cells = slots_alloc(cell_count);
     AliasScratch alias = {0};
     if (!flat_nodes || !flat_cells || alias_scratch_alloc(&alias, max_cells)) {
         free(flat_nodes);

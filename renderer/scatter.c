@@ -149,10 +149,7 @@ static float guide_pdf_of(const Scatter *s, vec3 wi) {
 
 vec3 scatter_eval(const Scatter *s, vec3 wi, float *pdf) {
     float unused;
-    vec3 f = function_eval(s, wi, pdf ? pdf : &unused);
-    if (s->guide && pdf && !v3_is_black(f)) /* the pdf every MIS weight uses (scatter.h) */
-        *pdf = SCATTER_GUIDE_ALPHA * *pdf + (1.0f - SCATTER_GUIDE_ALPHA) * guide_pdf_of(s, wi);
-    return f;
+    return function_eval(s, wi, pdf ? pdf : &unused); /* the function's own pdf: see scatter.h */
 }
 
 /* The roulette factor that brings a guided weight back to the function's own sampling weight

@@ -176,27 +176,29 @@ static inline float dims_bounce(const PathDims *d, uint32_t depth, uint32_t whic
     return sequence_sobol(d->sobol, d->scramble, d->rindex, 1u + 4u * depth + group, lane);
 }
 
-/* One group (DIMS_*) of the vertex at `depth`, set up once; its lanes are drawn on demand
- * (dims_lane: the same numbers as dims_bounce, but for the depth-0 light selection, which
- * lives in the camera group: draw it with dims_bounce), so a vertex pays only for the numbers
- * it uses. */
+/* One group (DIMS_*) of the vertex at `depth`, set up at its first lane (a group whose lanes
+ * are never drawn costs nothing); its lanes are drawn on demand (dims_lane: the same numbers as
+ * dims_bounce, but for the depth-0 light selection, which lives in the camera group: draw it
+ * with dims_bounce), so a vertex pays only for the numbers it uses. */
 typedef struct DimsGroup {
     const PathDims *dims;
     uint32_t depth, group;
+    int ready;        /* Sobol': seed and y computed (at the first lane drawn) */
     uint32_t seed, y; /* Sobol': the group's seed and shuffled index */
 } DimsGroup;
 
 static inline DimsGroup dims_group(const PathDims *d, uint32_t depth, uint32_t group) {
-    DimsGroup g = {d, depth, group, 0, 0};
-    if (d->sobol) {
-        g.seed = sequence_group_seed(d->scramble, 1u + 4u * depth + group);
-        g.y = sequence_shuffle(d->rindex, g.seed);
-    }
+    DimsGroup g = {d, depth, group, 0, 0, 0};
     return g;
 }
 
-static inline float dims_lane(const DimsGroup *g, uint32_t lane) {
+static inline float dims_lane(DimsGroup *g, uint32_t lane) {
     if (!g->dims->sobol) return rng_uniform(g->dims->key, rng_bounce_dim(g->depth, DIMS_GROUP_WHICH[g->group][lane]));
+    if (!g->ready) {
+        g->seed = sequence_group_seed(g->dims->scramble, 1u + 4u * g->depth + g->group);
+        g->y = sequence_shuffle(g->dims->rindex, g->seed);
+        g->ready = 1;
+    }
     return sequence_lane(g->dims->sobol, g->y, g->seed, lane);
 }
 

@@ -206,7 +206,7 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
                                      ev.t);
             record_done(ig, s, p, incoming);
         }
-        path_scattered(ps, p, x, &lc, ss.pdf, ss.delta);
+        path_scattered(ps, p, x, &lc, ss.scatter_pdf, ss.delta); /* MIS against NEE: the function's pdf (scatter.h) */
         /* the next segment: its closest hit now (depth-first), then walk it */
         SceneRay next = {x, 0.0f, ss.wi, INFINITY};
         ps->ray[p] = next;

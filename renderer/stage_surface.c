@@ -122,7 +122,7 @@ static int light_sample_uses_u(const Light *l) {
  * group, drawn from the path's dimensions only if the selected light uses them: the same
  * numbers either way, so the same estimate. */
 static int direct_light_sample_core(const Integrator *ig, vec3 beta, const Scatter *sc, const LightSampleContext *lc,
-                                    float u_select, float u_descend, const float *u_light, const DimsGroup *group,
+                                    float u_select, float u_descend, const float *u_light, DimsGroup *group,
                                     LightLiSample *ls, vec3 *contrib, uint32_t *outcome) {
     float pmf;
     uint32_t li = light_sampler_select(ig->light_sampler, lc, u_select, u_descend, &pmf, outcome);
@@ -139,10 +139,14 @@ static int direct_light_sample_core(const Integrator *ig, vec3 beta, const Scatt
     if (!group) {
         for (int k = 0; k < 4; ++k) u[k] = u_light[k];
     } else if (light_sample_uses_u(light)) {
-        u[0] = dims_lane(group, 0);
-        u[1] = dims_lane(group, 1);
-        u[2] = dims_lane(group, 3);
-        u[3] = dims_bounce(group->dims, group->depth, RNG_BOUNCE_LIGHT_X);
+        /* the group's stratified pair (lanes 0, 1) goes to the light's 2D point: u0, u1 for shapes,
+         * u1, u2 for an emissive mesh, whose u0 picks the triangle (with independent numbers the
+         * order of the dimensions is kept: the images of the versions before Sobol') */
+        int mesh = light->type == LIGHT_AREA && group->dims->sobol;
+        u[mesh ? 1 : 0] = dims_lane(group, 0);
+        u[mesh ? 2 : 1] = dims_lane(group, 1);
+        u[mesh ? 0 : 2] = dims_lane(group, 3);
+        if (light->type == LIGHT_VOLUME) u[3] = dims_bounce(group->dims, group->depth, RNG_BOUNCE_LIGHT_X); /* only they read it */
     }
     uint64_t collisions = lc->stats ? lc->stats->collisions : 0;
     int ok = light_sample_li(ig->lights, light, lc, u[0], u[1], u[2], u[3], ls);
@@ -173,7 +177,8 @@ int direct_light_sample(const Integrator *ig, uint32_t p, const Scatter *sc, con
     /* the descent number only for a sampler that reads it (the others ignore it) */
     float u_descend = light_sampler_uses_descend(ig->light_sampler) ? dims_bounce(&dims, depth, RNG_BOUNCE_LIGHT_DESCEND)
                                                                      : 0.0f;
-    float u_select = dims_bounce(&dims, depth, RNG_BOUNCE_LIGHT_SELECT); /* depth 0: in the camera group */
+    float u_select = depth == 0 ? dims_bounce(&dims, depth, RNG_BOUNCE_LIGHT_SELECT) /* in the camera group */
+                                : dims_lane(&light, 2);
     return direct_light_sample_core(ig, ps->throughput[p], sc, lc, u_select, u_descend, NULL, &light, ls,
                                     contrib, outcome);
 }
@@ -222,20 +227,16 @@ static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, con
  * wave's ray with the MIS context of this vertex (and its recorder vertex, a child of the
  * incoming ray's). Returns 1 when the path goes on. */
 static int surface_continuation(const Integrator *ig, Slice *s, uint32_t p, const SurfaceHit *h,
-                                 const Scatter *sc, const LightSampleContext *lc) {
+                                 const Scatter *sc, const LightSampleContext *lc, DimsGroup *g, const float u[6]) {
     const PathState *ps = &ig->ps;
-    PathDims dims = path_dims(ig, p);
     uint32_t depth = ps->depth[p];
     ScatterSample ss;
-    DimsGroup g = dims_group(&dims, depth, DIMS_SCATTER); /* the direction's u, v, the lobe, the roulette */
-    float u[6];
-    scatter_numbers(sc, &g, u);
     if (!scatter_sample_guided(sc, u, &ss)) return 0;
     vec3 beta = v3_mul(ps->throughput[p], ss.weight);
     ps->rr_scale[p] *= ss.rr_factor;
     if (!v3_is_finite(beta) || v3_is_black(beta)) return 0;
     if (depth + 1 >= RR_START_DEPTH &&
-        !russian_roulette(&beta, ps->rr_scale[p], dims_lane(&g, 3)))
+        !russian_roulette(&beta, ps->rr_scale[p], dims_lane(g, 3)))
         return 0;
     ps->throughput[p] = beta;
     if (ss.transmitted) ps->medium[p] = side_medium(ig, p, h, ss.wi);
@@ -243,7 +244,7 @@ static int surface_continuation(const Integrator *ig, Slice *s, uint32_t p, cons
         ps->pv[p] = record_child(ig, s, p, ps->pv[p], h->p, ss.wi, beta, ss.pdf, ss.scatter_pdf, ss.guide_pdf,
                                  fabsf(v3_dot(ss.wi, sc->frame.n)), (ss.delta ? PV_FLAG_DELTA : 0u) | guide_surface_flags(sc->ng),
                                  ps->hit[p].t);
-    path_scattered(ps, p, h->p, lc, ss.pdf, ss.delta);
+    path_scattered(ps, p, h->p, lc, ss.scatter_pdf, ss.delta); /* MIS against NEE: the function's pdf (scatter.h) */
     ps->ray[p] = (SceneRay){offset_ray_origin(h->p, scatter_side_normal(sc, ss.wi)), 0.0f, ss.wi, INFINITY};
     s->keys[s->num_rays] = sort_key_ray(ig, &ps->ray[p]);
     s->rays[s->num_rays++] = p;
@@ -310,8 +311,15 @@ void stage_surface(const Integrator *ig, Slice *s) {
         if (!delta) light_sampler_prepare(ig->light_sampler, &lc, &hint); /* once per vertex */
         if (depth == 0 && ig->film.sel_aov) /* the light sampler's AOV: what the first hit's selection uses */
             light_sampler_aov(ig->light_sampler, &lc, &ps->aov_sel_point[p], &ps->aov_sel_light[p]);
+        /* the continuation's numbers before NEE, so a guided vertex's prefetch of its guide sample
+         * overlaps the NEE work */
+        PathDims dims = path_dims(ig, p);
+        DimsGroup g = dims_group(&dims, depth, DIMS_SCATTER); /* the direction's u, v, the lobe, the roulette */
+        float u[6];
+        scatter_numbers(&sc, &g, u);
+        scatter_prefetch_guided(&sc, u);
         if (!delta && ig->lights->count > 0) surface_direct_light(ig, s, p, &h, &sc, &lc);
-        int continued = surface_continuation(ig, s, p, &h, &sc, &lc);
+        int continued = surface_continuation(ig, s, p, &h, &sc, &lc, &g, u);
         if (ig->record.active) { /* the scattering event is done with the incoming vertex */
             if (!continued) ps->pv[p] = PV_CAMERA;
             record_done(ig, s, p, incoming);
