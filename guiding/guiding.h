@@ -187,10 +187,17 @@ uint32_t guide_field_num_leaves(const GuideField *f);
  * outside the bounds gets the nearest leaf). Valid until the next guide_field_update. */
 typedef struct GuideDistribution GuideDistribution;
 const GuideDistribution *guide_field_lookup(const GuideField *f, const float pos[3]);
-/* The same, trying `hint` (a leaf of this field from an earlier lookup, or NULL) first: exactly
- * the leaf guide_field_lookup returns (the box test follows the descent's >= split rule), and
- * cheap for spatially sorted queries. */
-const GuideDistribution *guide_field_lookup_hint(const GuideField *f, const float pos[3], const GuideDistribution *hint);
+/* The same, resuming from `cursor` (the spatial nodes of the previous lookup of this field, or a
+ * zeroed cursor): the descent restarts from the deepest of them whose box holds pos (the box
+ * test follows the descent's >= split rule), so spatially sorted queries read a few hot nodes
+ * rather than the whole path from the root; exactly the leaf guide_field_lookup returns. A
+ * cursor is valid until the field's next update. */
+#define GUIDE_CURSOR_DEPTH 49
+typedef struct GuideCursor {
+    uint32_t node[GUIDE_CURSOR_DEPTH]; /* node[0] the root, node[depth] the last leaf's node */
+    int depth;                         /* -1 (or a zeroed cursor's 0 with node[0] the root): start at the root */
+} GuideCursor;
+const GuideDistribution *guide_field_lookup_cursor(const GuideField *f, const float pos[3], GuideCursor *cursor);
 /* A direction from the distribution with two uniforms; its solid-angle pdf in *pdf. */
 void guide_distribution_sample(const GuideDistribution *d, float u1, float u2, float dir[3], float *pdf);
 float guide_distribution_pdf(const GuideDistribution *d, const float dir[3]);

@@ -7,7 +7,7 @@
  *   SpatialNode. An interior node splits its box at the midpoint of axis depth % 3 (x, y, z
  *   cycling, §3: the cube keeps the leaves close to cubical) and stores the split position, so
  *   lookups reproduce exactly the boxes the update computed. Its two children are consecutive
- *   entries. A leaf names its GuideDistribution in the leaves array.
+ *   entries. A leaf names its GuideLeaf in the leaves array.
  * - The D-trees: per leaf a pair of quadtrees over the octahedral square (u, v) (dir_to_uv:
  *   algebraic, not equal-area; the paper's cylindrical equal-area map needs atan2 and sincos):
  *   a density over the square is a solid-angle density times the map's factor 4 / |p|^3,
@@ -123,18 +123,26 @@ _Static_assert(sizeof(SampleCell) == 32, "an alias slot is half a cache line");
 #define NO_FLAT_TREE 0xFFFFFFFFu
 
 /* A spatial leaf: what a lookup returns. Readers only touch the flat tree and the box. */
+/* What a lookup returns and sampling reads: a leaf's flat trees, 32 bytes in an array of their
+ * own (the leaf records' trees and counts around them had made a guided vertex miss the cache
+ * on the record itself before it reached the trees). */
 struct GuideDistribution {
     const PdfNode *pdf_nodes;   /* the field's flat pdf nodes */
     const SampleCell *cells;    /* this leaf's cells (NULL: uniform) */
     uint32_t pdf_root;          /* this leaf's root in pdf_nodes; NO_FLAT_TREE: uniform */
     uint32_t cell_count;
+    const struct GuideLeaf *leaf; /* its record (bounds, sample counts) */
+};
+
+/* A spatial leaf's record: its quadtrees, counts and box. */
+typedef struct GuideLeaf {
     QuadTree sampling;  /* learned at the last update (count 0: uniform) */
     QuadTree building;  /* accumulating now */
     double recorded;    /* samples recorded into `building` since the last update */
     double learned;     /* samples `sampling` was learned from (statistical weight) */
     float lo[3], hi[3]; /* the leaf's box */
     uint32_t node;      /* its spatial node */
-};
+} GuideLeaf;
 
 typedef struct SpatialNode {
     float lo[3], hi[3]; /* the node's box */
@@ -148,7 +156,8 @@ struct GuideField {
     GuideFieldParams params; /* sanitised */
     SpatialNode *nodes;
     uint32_t node_count;
-    GuideDistribution *leaves;
+    GuideLeaf *leaves;
+    GuideDistribution *dists; /* per leaf, what lookups return (filled by field_flatten) */
     uint32_t leaf_count;
     PdfNode *pdf_nodes;       /* every leaf's sampling tree as PdfNode (field_flatten) */
     SampleCell *cells;        /* every leaf's cells with their alias tables */
@@ -352,8 +361,10 @@ static void slot_set(SampleCell *s, int k, const AliasCell *c) {
 
 /* One leaf: its PdfNodes at nodes[base ...], its cells at cells[0 ...] with their alias table
  * (Vose's construction, deterministic). A tree without positive total weight stays uniform. */
-static void flatten_leaf(GuideDistribution *l, PdfNode *nodes, uint32_t base, SampleCell *cells, AliasScratch *a) {
-    const QuadTree *t = &l->sampling;
+static void flatten_leaf(const GuideLeaf *leaf, GuideDistribution *l, PdfNode *nodes, uint32_t base, SampleCell *cells,
+                         AliasScratch *a) {
+    const QuadTree *t = &leaf->sampling;
+    l->leaf = leaf;
     l->pdf_nodes = nodes;
     l->pdf_root = NO_FLAT_TREE;
     l->cells = NULL;
@@ -427,12 +438,12 @@ static void flatten_leaf(GuideDistribution *l, PdfNode *nodes, uint32_t base, Sa
 }
 
 /* Every leaf flattened into nodes / cells (sized by the leaves' tree_cells and counts). */
-static void field_flatten(GuideDistribution *leaves, uint32_t leaf_count, PdfNode *nodes, SampleCell *cells,
-                          AliasScratch *a) {
+static void field_flatten(const GuideLeaf *leaves, GuideDistribution *dists, uint32_t leaf_count, PdfNode *nodes,
+                          SampleCell *cells, AliasScratch *a) {
     uint32_t base = 0;
     size_t cell_base = 0;
     for (uint32_t i = 0; i < leaf_count; ++i) {
-        flatten_leaf(&leaves[i], nodes, base, cells + cell_base, a);
+        flatten_leaf(&leaves[i], &dists[i], nodes, base, cells + cell_base, a);
         base += leaves[i].sampling.count;
         cell_base += tree_cells(&leaves[i].sampling);
     }
@@ -524,7 +535,7 @@ static uint32_t quadtree_node_limit(const GuideFieldParams *p) {
 
 /* ------------------------------------------------------------------ field */
 
-static size_t leaf_tree_bytes(const GuideDistribution *l) {
+static size_t leaf_tree_bytes(const GuideLeaf *l) {
     return quadtree_bytes(&l->sampling) + quadtree_bytes(&l->building) + tree_flat_bytes(&l->sampling);
 }
 
@@ -533,7 +544,7 @@ static size_t rebuilt_tree_bytes(const QuadTree *t) { return 2 * quadtree_bytes(
 
 size_t guide_field_bytes(const GuideField *f) {
     if (!f) return 0;
-    size_t b = sizeof *f + (size_t)f->node_count * sizeof(SpatialNode) + (size_t)f->leaf_count * sizeof(GuideDistribution);
+    size_t b = sizeof *f + (size_t)f->node_count * sizeof(SpatialNode) + (size_t)f->leaf_count * sizeof(GuideLeaf);
     for (uint32_t i = 0; i < f->leaf_count; ++i) b += leaf_tree_bytes(&f->leaves[i]);
     return b;
 }
@@ -567,7 +578,8 @@ GuideField *guide_field_create(const float lo[3], const float hi[3], const Guide
     side = fmax(side * (1 + 1e-3), fmax(mag, 1.0) * 1e-3); /* never a point-sized cube */
     f->nodes = calloc(1, sizeof *f->nodes);
     f->leaves = calloc(1, sizeof *f->leaves);
-    if (!f->nodes || !f->leaves) {
+    f->dists = calloc(1, sizeof *f->dists);
+    if (!f->nodes || !f->leaves || !f->dists) {
         guide_field_free(f);
         return NULL;
     }
@@ -579,11 +591,11 @@ GuideField *guide_field_create(const float lo[3], const float hi[3], const Guide
     }
     f->node_count = 1;
     f->leaf_count = 1;
-    GuideDistribution *leaf = &f->leaves[0];
+    GuideLeaf *leaf = &f->leaves[0];
     memcpy(leaf->lo, root->lo, sizeof leaf->lo);
     memcpy(leaf->hi, root->hi, sizeof leaf->hi);
     RebuildScratch s = {0};
-    leaf->pdf_root = NO_FLAT_TREE; /* nothing learned: uniform */
+    f->dists[0] = (GuideDistribution){NULL, NULL, NO_FLAT_TREE, 0, leaf}; /* nothing learned: uniform */
     int rc = quadtree_initial(&f->params, quadtree_node_limit(&f->params), &s, &leaf->building);
     scratch_free(&s);
     if (rc) {
@@ -594,7 +606,7 @@ GuideField *guide_field_create(const float lo[3], const float hi[3], const Guide
 }
 
 /* Frees the leaves' quadtrees and the array (leaves may be NULL). */
-static void leaves_free(GuideDistribution *leaves, uint32_t count) {
+static void leaves_free(GuideLeaf *leaves, uint32_t count) {
     if (leaves)
         for (uint32_t i = 0; i < count; ++i) {
             quadtree_free(&leaves[i].sampling);
@@ -606,6 +618,7 @@ static void leaves_free(GuideDistribution *leaves, uint32_t count) {
 void guide_field_free(GuideField *f) {
     if (!f) return;
     leaves_free(f->leaves, f->leaf_count);
+    free(f->dists);
     free(f->nodes);
     free(f->pdf_nodes);
     free(f->cells);
@@ -635,7 +648,7 @@ void guide_field_record(GuideField *f, const GuideTrainingSample *s, size_t n) {
         double u, v;
         if (!dir_to_uv(x->dir, &u, &v, NULL)) continue;
         uint64_t index = f->recorded_total++;
-        GuideDistribution *leaf = &f->leaves[field_find_leaf(f, x->pos)];
+        GuideLeaf *leaf = &f->leaves[field_find_leaf(f, x->pos)];
         if (f->params.spatial_filter) {
             /* Müller 2019 §4 (spatial filtering): splat into the leaf at a point drawn uniformly
              * in a box of the sample's leaf's size around it, so neighbouring leaves share
@@ -712,7 +725,8 @@ int guide_field_update(GuideField *f, float iteration_spp) {
     uint8_t *levels = calloc(old_leaves, 1);
     RebuildScratch scratch = {0};
     SpatialNode *new_nodes = NULL;
-    GuideDistribution *new_leaves = NULL;
+    GuideLeaf *new_leaves = NULL;
+    GuideDistribution *new_dists = NULL;
     PdfNode *flat_nodes = NULL;
     SampleCell *flat_cells = NULL;
     AliasScratch alias = {0};
@@ -721,7 +735,7 @@ int guide_field_update(GuideField *f, float iteration_spp) {
 
     /* 1. The directional rebuild of every leaf that saw flux. */
     for (uint32_t i = 0; i < old_leaves; ++i) {
-        const GuideDistribution *l = &f->leaves[i];
+        const GuideLeaf *l = &f->leaves[i];
         if (!(l->recorded > 0) || l->building.count == 0) continue;
         double total = node_total(&l->building.nodes[0]);
         if (!(total > 0) || !isfinite(total)) continue; /* keep the previous sampling tree */
@@ -733,15 +747,15 @@ int guide_field_update(GuideField *f, float iteration_spp) {
     /* 2. The spatial splits, within the memory cap: each extra leaf costs its two D-trees,
      * its leaf record and two spatial nodes. Leaves are visited in index order, so the cap
      * cuts deterministically. */
-    size_t projected = sizeof *f + (size_t)f->node_count * sizeof(SpatialNode) + (size_t)old_leaves * sizeof(GuideDistribution);
+    size_t projected = sizeof *f + (size_t)f->node_count * sizeof(SpatialNode) + (size_t)old_leaves * sizeof(GuideLeaf);
     for (uint32_t i = 0; i < old_leaves; ++i)
         projected += rebuilt[i].count ? rebuilt_tree_bytes(&rebuilt[i]) : leaf_tree_bytes(&f->leaves[i]);
     uint64_t total_leaves = old_leaves, total_nodes = f->node_count;
     for (uint32_t i = 0; i < old_leaves; ++i) {
-        const GuideDistribution *l = &f->leaves[i];
+        const GuideLeaf *l = &f->leaves[i];
         const SpatialNode *node = &f->nodes[l->node];
         size_t trees = rebuilt[i].count ? rebuilt_tree_bytes(&rebuilt[i]) : leaf_tree_bytes(l);
-        size_t per_leaf = trees + sizeof(GuideDistribution) + 2 * sizeof(SpatialNode);
+        size_t per_leaf = trees + sizeof(GuideLeaf) + 2 * sizeof(SpatialNode);
         double count = l->recorded;
         int s = 0;
         while (count > threshold && node->depth + s < SPATIAL_MAX_DEPTH &&
@@ -764,10 +778,11 @@ int guide_field_update(GuideField *f, float iteration_spp) {
     new_leaf_count = (uint32_t)total_leaves;
     new_nodes = malloc((size_t)total_nodes * sizeof *new_nodes);
     new_leaves = calloc(new_leaf_count, sizeof *new_leaves);
-    if (!new_nodes || !new_leaves) goto fail;
+    new_dists = malloc(new_leaf_count * sizeof *new_dists);
+    if (!new_nodes || !new_leaves || !new_dists) goto fail;
     uint32_t extra = old_leaves;
     for (uint32_t i = 0; i < old_leaves; ++i) {
-        const GuideDistribution *l = &f->leaves[i];
+        const GuideLeaf *l = &f->leaves[i];
         int s = levels[i];
         /* accumulating: the flux learned so far stays in the building tree (L / pdf is an unbiased
          * estimate of a cell's flux whatever pdf sampled it, so earlier iterations' samples
@@ -803,7 +818,7 @@ int guide_field_update(GuideField *f, float iteration_spp) {
     uint32_t node_count = f->node_count;
     extra = old_leaves;
     for (uint32_t i = 0; i < old_leaves; ++i) {
-        GuideDistribution *old = &f->leaves[i], *nl = &new_leaves[i];
+        GuideLeaf *old = &f->leaves[i], *nl = &new_leaves[i];
         int s = levels[i];
         if (rebuilt[i].count) {
             quadtree_scale(&rebuilt[i], -s);
@@ -831,7 +846,7 @@ int guide_field_update(GuideField *f, float iteration_spp) {
             }
             for (uint32_t j = first; j < end; ++j) {
                 uint32_t li = j == first ? i : extra++;
-                GuideDistribution *dst = &new_leaves[li];
+                GuideLeaf *dst = &new_leaves[li];
                 if (li != i) {
                     dst->learned = nl->learned;
                     dst->recorded = nl->recorded;
@@ -849,11 +864,13 @@ int guide_field_update(GuideField *f, float iteration_spp) {
     }
     free(f->nodes);
     free(f->leaves);
+    free(f->dists);
     f->nodes = new_nodes;
     f->node_count = node_count;
     f->leaves = new_leaves;
+    f->dists = new_dists;
     f->leaf_count = new_leaf_count;
-    field_flatten(f->leaves, f->leaf_count, flat_nodes, flat_cells, &alias);
+    field_flatten(f->leaves, f->dists, f->leaf_count, flat_nodes, flat_cells, &alias);
     alias_scratch_free(&alias);
     free(f->pdf_nodes);
     free(f->cells);
@@ -869,6 +886,7 @@ fail:
     if (rebuilt)
         for (uint32_t i = 0; i < old_leaves; ++i) quadtree_free(&rebuilt[i]);
     leaves_free(new_leaves, new_leaf_count);
+    free(new_dists);
     free(rebuilt);
     free(levels);
     free(new_nodes);
@@ -883,7 +901,7 @@ fail:
 const GuideDistribution *guide_field_lookup(const GuideField *f, const float pos[3]) {
     if (!f) return NULL;
     static const float origin[3] = {0, 0, 0};
-    return &f->leaves[field_find_leaf(f, pos ? pos : origin)];
+    return &f->dists[field_find_leaf(f, pos ? pos : origin)];
 }
 
 /* Density over the (u, v) square: the product of the factors along the descent (float, in
@@ -952,25 +970,42 @@ void guide_distribution_sample(const GuideDistribution *d, float u1, float u2, f
     if (pdf) *pdf = pdf_uv * (float)jacobian;
 }
 
-const GuideDistribution *guide_field_lookup_hint(const GuideField *f, const float pos[3], const GuideDistribution *hint) {
+const GuideDistribution *guide_field_lookup_cursor(const GuideField *f, const float pos[3], GuideCursor *c) {
     if (!f) return NULL;
-    if (hint && pos && hint >= f->leaves && hint < f->leaves + f->leaf_count) {
-        const SpatialNode *root = &f->nodes[0];
-        int inside = 1;
-        for (int k = 0; k < 3 && inside; ++k) {
-            /* the clamp and the half-open boxes of field_find_leaf: right of a split is >= */
-            float x = pos[k];
-            x = x > root->lo[k] ? (x < root->hi[k] ? x : root->hi[k]) : root->lo[k];
-            inside = x >= hint->lo[k] && (x < hint->hi[k] || hint->hi[k] >= root->hi[k]);
-        }
-        if (inside) return hint;
+    static const float origin[3] = {0, 0, 0};
+    if (!pos) pos = origin;
+    const SpatialNode *root = &f->nodes[0];
+    float p[3];
+    for (int k = 0; k < 3; ++k) { /* clamped into the root box, as field_find_leaf does */
+        float x = pos[k];
+        p[k] = x > root->lo[k] ? (x < root->hi[k] ? x : root->hi[k]) : root->lo[k];
     }
-    return guide_field_lookup(f, pos);
+    int d = c->depth < 0 || c->depth >= GUIDE_CURSOR_DEPTH ? 0 : c->depth;
+    if (c->node[0] != 0 || c->node[d] >= f->node_count) d = 0; /* not a cursor of this field's tree */
+    c->node[0] = 0;
+    /* the deepest node of the last path holding p: a node's box is [lo, hi) on every axis, the
+     * split rule's >=, but for the root's upper faces, where the clamped point lies */
+    for (; d > 0; --d) {
+        const SpatialNode *n = &f->nodes[c->node[d]];
+        int inside = 1;
+        for (int k = 0; k < 3 && inside; ++k) inside = p[k] >= n->lo[k] && (p[k] < n->hi[k] || n->hi[k] >= root->hi[k]);
+        if (inside) break;
+    }
+    const SpatialNode *n = &f->nodes[c->node[d]];
+    while (n->child && d + 1 < GUIDE_CURSOR_DEPTH) {
+        uint32_t k = n->child + (p[n->axis] >= n->split);
+        c->node[++d] = k;
+        n = &f->nodes[k];
+    }
+    while (n->child) n = &f->nodes[n->child + (p[n->axis] >= n->split)]; /* deeper than a cursor holds */
+    c->depth = d;
+    return &f->dists[n->leaf];
 }
 
-double guide_distribution_samples(const GuideDistribution *d) { return d ? d->learned : 0.0; }
+double guide_distribution_samples(const GuideDistribution *d) { return d ? d->leaf->learned : 0.0; }
 
-void guide_distribution_bounds(const GuideDistribution *d, float lo[3], float hi[3]) {
+void guide_distribution_bounds(const GuideDistribution *dist, float lo[3], float hi[3]) {
+    const GuideLeaf *d = dist ? dist->leaf : NULL;
     if (!d) return;
     for (int k = 0; k < 3; ++k) {
         if (lo) lo[k] = d->lo[k];
@@ -1010,7 +1045,7 @@ int guide_field_write_ply(const GuideField *f, const char *path) {
                    "element face %lu\nproperty list uchar int vertex_indices\nend_header\n",
                    f->iterations, 8ul * n, 6ul * n) < 0;
     for (uint32_t i = 0; i < n && !bad; ++i) {
-        const GuideDistribution *l = &f->leaves[i];
+        const GuideLeaf *l = &f->leaves[i];
         for (int c = 0; c < 8 && !bad; ++c) {
             float x = (c & 1) ? l->hi[0] : l->lo[0];
             float y = (c & 2) ? l->hi[1] : l->lo[1];
@@ -1092,7 +1127,7 @@ int guide_field_save(const GuideField *f, FILE *out) {
              put(out, &n->depth, 1);
     }
     for (uint32_t i = 0; i < f->leaf_count && rc == 0; ++i) {
-        const GuideDistribution *l = &f->leaves[i];
+        const GuideLeaf *l = &f->leaves[i];
         rc = put(out, &l->recorded, sizeof l->recorded) | put(out, &l->learned, sizeof l->learned) |
              put(out, l->lo, sizeof l->lo) | put(out, l->hi, sizeof l->hi) | put(out, &l->node, sizeof l->node);
         if (rc == 0) rc = quadtree_save(&l->sampling, out);
@@ -1116,9 +1151,10 @@ int guide_field_load(GuideField *f, FILE *in) {
     GuideField g = *f; /* the loaded state, committed only when complete */
     g.nodes = calloc(node_count, sizeof *g.nodes);
     g.leaves = calloc(leaf_count, sizeof *g.leaves);
+    g.dists = malloc(leaf_count * sizeof *g.dists);
     g.node_count = node_count;
     g.leaf_count = leaf_count;
-    int rc = g.nodes && g.leaves ? 0 : -1;
+    int rc = g.nodes && g.leaves && g.dists ? 0 : -1;
     for (uint32_t i = 0; i < node_count && rc == 0; ++i) {
         SpatialNode *n = &g.nodes[i];
         rc = get(in, n->lo, sizeof n->lo) | get(in, n->hi, sizeof n->hi) | get(in, &n->split, sizeof n->split) |
@@ -1130,7 +1166,7 @@ int guide_field_load(GuideField *f, FILE *in) {
     }
     uint32_t max_nodes = quadtree_node_limit(&f->params);
     for (uint32_t i = 0; i < leaf_count && rc == 0; ++i) {
-        GuideDistribution *l = &g.leaves[i];
+        GuideLeaf *l = &g.leaves[i];
         rc = get(in, &l->recorded, sizeof l->recorded) | get(in, &l->learned, sizeof l->learned) |
              get(in, l->lo, sizeof l->lo) | get(in, l->hi, sizeof l->hi) | get(in, &l->node, sizeof l->node);
         if (rc == 0 && l->node >= node_count) rc = -1;
@@ -1139,6 +1175,7 @@ int guide_field_load(GuideField *f, FILE *in) {
     }
     if (rc != 0) {
         leaves_free(g.leaves, leaf_count);
+        free(g.dists);
         free(g.nodes);
         return -1;
     }
@@ -1156,12 +1193,14 @@ int guide_field_load(GuideField *f, FILE *in) {
         free(flat_nodes);
         free(flat_cells);
         leaves_free(g.leaves, leaf_count);
+        free(g.dists);
         free(g.nodes);
         return -1;
     }
-    field_flatten(g.leaves, leaf_count, flat_nodes, flat_cells, &alias);
+    field_flatten(g.leaves, g.dists, leaf_count, flat_nodes, flat_cells, &alias);
     alias_scratch_free(&alias);
     leaves_free(f->leaves, f->leaf_count);
+    free(f->dists);
     free(f->nodes);
     free(f->pdf_nodes);
     free(f->cells);

@@ -79,7 +79,7 @@ static int field_of_flags(uint32_t flags) {
     return c >= 1 && c <= GUIDE_SURFACE_CLASSES ? (int)c - 1 : -1;
 }
 
-const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n, const GuideDistribution *hints[GUIDE_FIELDS]) {
+const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n, GuideCursor cursors[GUIDE_FIELDS]) {
     const GuideState *gs = &ig->guide;
     if (!gs->active) return NULL;
     int volume = n.x == 0.0f && n.y == 0.0f && n.z == 0.0f;
@@ -87,9 +87,9 @@ const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n, cons
     const GuideField *f = gs->fields[k];
     if (!f) return NULL;
     const float x[3] = {p.x, p.y, p.z};
-    /* hits come sorted spatially: the last leaf of this field usually contains the next point
-     * (the answer is the same either way, so the hints never change an image) */
-    return hints[k] = guide_field_lookup_hint(f, x, hints[k]);
+    /* hits come sorted spatially: the descent resumes from the last one's deepest node holding
+     * the point (the answer is the same either way, so the cursors never change an image) */
+    return guide_field_lookup_cursor(f, x, &cursors[k]);
 }
 
 /* The samples of one field, in the batch's order. */

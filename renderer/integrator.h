@@ -275,8 +275,9 @@ void record_report(const Integrator *ig, CandelaStats *st);
 int guide_init(Integrator *ig);
 void guide_free(Integrator *ig);
 /* The learned distribution at p: a surface's with normal n (its orientation class), or the
- * medium field's (n zero); NULL while guiding is not active. */
-const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n, const GuideDistribution *hints[GUIDE_FIELDS]);
+ * medium field's (n zero); NULL while guiding is not active. cursors: one per field, zeroed at
+ * the start of a stage (guiding.h: a spatially sorted sequence of lookups stays cheap). */
+const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n, GuideCursor cursors[GUIDE_FIELDS]);
 /* The recorder flags that carry a surface vertex's orientation class. */
 uint32_t guide_surface_flags(vec3 n);
 void guide_train_batch(Integrator *ig);

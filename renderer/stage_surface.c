@@ -255,7 +255,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
     const PathState *ps = &ig->ps;
     const Scene *scene = ig->scene;
     uint32_t hint = UINT32_MAX; /* hits are sorted spatially: the last vertex's answer is near */
-    const GuideDistribution *guide_hints[GUIDE_FIELDS] = {0};
+    GuideCursor guide_cursors[GUIDE_FIELDS] = {{{0}, 0}};
     float scratch[LIGHT_SAMPLER_SCRATCH];
     s->num_shadows = 0;
     s->num_rays = 0; /* the ray queue was consumed by stage_intersect: it now collects the next wave */
@@ -291,7 +291,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
         }
         Scatter sc;
         scatter_init_surface_prepared(&sc, &h, &m.bsdf, prepared, wo);
-        if (ig->guide.active && scatter_guidable(&sc)) scatter_set_guide(&sc, guide_lookup(ig, h.p, sc.ng, guide_hints), (ScatterGuideMode)ig->guide.mode);
+        if (ig->guide.active && scatter_guidable(&sc)) scatter_set_guide(&sc, guide_lookup(ig, h.p, sc.ng, guide_cursors), (ScatterGuideMode)ig->guide.mode);
         uint32_t depth = ps->depth[p];
         if (depth == 0) path_write_aovs(ps, p, m.bsdf.base_color, sc.frame.n, hit->t);
 

@@ -15,11 +15,15 @@ Scenes and their default resolutions and sample counts (--res and --spp override
   default    scenes/default.gltf (direct light dominates), 320x240, 64 spp
   bench      scenes/bench.gltf (direct light), 320x240, 16 spp
 
-Per scene and resolution: a reference (unguided, sobol, a seed no render uses, --ref-spp, at a
-quarter of the resolution per side, compared with 4x4 box-downsampled renders; kept in --out and
-reused while its .key file matches), then each configuration at the same spp. Columns:
+Per scene and resolution: a reference (guided MIS with independent samples, a seed no render
+uses, --ref-spp, at a quarter of the resolution per side, compared with 4x4 box-downsampled
+renders; kept in --out and reused while its .key file matches), then each configuration at the
+same spp. Guided renders converge to the unguided image (tests/test_guiding.c), and with
+independent samples the reference's variance layer estimates its own squared error without bias,
+so it is subtracted from the errors below (the renders' noise is independent of it). Columns:
   relMSE      mean over pixels and channels of (x - ref)^2 / (ref^2 + 0.01) of the downsampled
-              render (the guiding literature's metric), and MSE beside it;
+              render (the guiding literature's metric), less the reference's own (its variance
+              layer / (ref^2 + 0.01)), and MSE beside it (less the reference's mean variance);
   rel. var.   mean over pixels and channels of the EXR's variance layer / (mean^2 + 0.01) at full
               resolution (the expected relMSE; with Sobol' samples an upper bound);
   time        the render's wall clock without the scene load (training, the recorder and the
@@ -63,6 +67,13 @@ def rel_mse(a, ref):
                       "--mul", "--addc", "0.01", "--div"])
 
 
+def ref_noise(ref):
+    """The reference's own expected relMSE and MSE (its variance layer: unbiased with independent samples)."""
+    rel = oiio_stat([ref, "--ch", "variance.R,variance.G,variance.B", ref, "--ch", "R,G,B", "--dup", "--mul", "--addc", "0.01",
+                     "--div"])
+    return rel, oiio_stat([ref, "--ch", "variance.R,variance.G,variance.B"])
+
+
 def rel_var(a):
     return oiio_stat([a, "--ch", "variance.R,variance.G,variance.B", a, "--ch", "R,G,B", "--dup", "--mul", "--addc", "0.01",
                       "--div"])
@@ -82,14 +93,15 @@ def main():
     ap.add_argument("--res", default="", help="resolutions (comma-separated) instead of the scenes' own")
     ap.add_argument("--spp", type=int, default=0, help="instead of the scenes' own")
     ap.add_argument("--configs", default="off,mis,ris")
-    ap.add_argument("--ref-spp", type=int, default=8192)
+    ap.add_argument("--ref-spp", type=int, default=32768)
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "guiding_benchmark"))
     ap.add_argument("--repeats", type=int, default=1)
     ap.add_argument("--threads", type=int, default=0)
     ap.add_argument("--extra", default="", help="flags added to every guided render (e.g. '--guide-training-spp 64')")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
-    print("candela %s; reference: unguided, %d spp at a quarter of the resolution\n" % (a.candela, a.ref_spp))
+    print("candela %s; reference: guided MIS, independent samples, %d spp at a quarter of the resolution\n" % (
+        a.candela, a.ref_spp))
     print("| scene | res | spp | config | relMSE | MSE | rel. var. | time (s) | TTUV vs off | rel. var. vs off | "
           "time vs off | path len. | ns/vertex vs off |")
     print("|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
@@ -103,9 +115,10 @@ def main():
             ref = os.path.join(a.out, "%s_%s_reference.exr" % (name, ref_res))
             key = "%s %s %d %s %s\n" % (scene, ref_res, a.ref_spp, extra, os.path.getmtime(a.candela))
             if not (os.path.exists(ref) and os.path.exists(ref[:-4] + ".key") and open(ref[:-4] + ".key").read() == key):
-                render(a, scene, ref, ref_res, a.ref_spp, 1000003, extra + ["--guiding", "off"])
+                render(a, scene, ref, ref_res, a.ref_spp, 1000003, extra + ["--guiding", "mis", "--sampler", "independent"])
                 with open(ref[:-4] + ".key", "w") as f:
                     f.write(key)
+            ref_rel, ref_mse = ref_noise(ref)
             base = None
             for config in a.configs.split(","):
                 out = os.path.join(a.out, "%s_%s_%s.exr" % (name, res, config))
@@ -118,7 +131,7 @@ def main():
                 small = out[:-4] + "_small.exr"
                 subprocess.run(["oiiotool", out, "--ch", "R,G,B", "--resize:filter=box", ref_res, "-o", small], check=True,
                                capture_output=True)
-                rm, m, rv = rel_mse(small, ref), mse(small, ref), rel_var(out)
+                rm, m, rv = rel_mse(small, ref) - ref_rel, mse(small, ref) - ref_mse, rel_var(out)
                 rays = st["rays"]["camera"] + st["rays"]["bounce"]
                 row = {"ttuv": rm * t, "rv": rv, "t": t, "ns": t / rays * 1e9}
                 if base is None:

@@ -361,6 +361,25 @@ static void test_spatial(void) {
         outside += !box_contains(guide_field_lookup(f, p), p);
     }
     CHECK(outside == 0, "%d lookups outside their leaf's box", outside);
+    /* A cursor gives exactly the plain lookup's leaf: points in random order, along a walk of
+     * small steps (the sorted case it is for), on split planes, on and outside the bounds */
+    GuideCursor cur = {{0}, 0};
+    int differ = 0;
+    float walk[3] = {0.5f, 0.5f, 0.5f};
+    for (int i = 0; i < 20000; ++i) {
+        float p[3];
+        for (int k = 0; k < 3; ++k) {
+            if (i % 2) {
+                walk[k] += 0.02f * (rnd(&rng) - 0.5f);
+                p[k] = walk[k];
+            } else {
+                p[k] = 1.4f * rnd(&rng) - 0.2f; /* some outside the bounds */
+            }
+            if (i % 7 == 0) p[k] = (float)(int)(p[k] * 8.0f) / 8.0f; /* on the split planes */
+        }
+        differ += guide_field_lookup_cursor(f, p, &cur) != guide_field_lookup(f, p);
+    }
+    CHECK(differ == 0, "%d cursor lookups differ from the plain lookup", differ);
     guide_field_free(f);
 
     /* The memory cap bounds splitting: many zero-radiance samples (no flux, so the quadtrees
