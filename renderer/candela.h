@@ -24,8 +24,11 @@ typedef enum {
 typedef enum {
     CANDELA_GUIDING_OFF = 0,
     CANDELA_GUIDING_MIS = 1, /* one-sample MIS of the BSDF and the guide, alpha = 0.5 (ch. 1 §3.2) */
-    CANDELA_GUIDING_RIS = 2  /* RIS with one BSDF and one guide candidate (ch. 1 §3.3) */
+    CANDELA_GUIDING_RIS = 2, /* RIS with one BSDF and one guide candidate (ch. 1 §3.3) */
+    CANDELA_GUIDING_AUTO = 3 /* MIS where a probe over the first 4 spp predicts a lower time to unit
+                              * variance, else off (renderer/guide.c) */
 } CandelaGuiding;
+const char *candela_guiding_name(CandelaGuiding g); /* "off", "mis", "ris", "auto" */
 
 /* --sampler: where the numbers of a path's fixed dimensions come from (renderer/sequence.h). */
 typedef enum CandelaSampler {
@@ -211,6 +214,9 @@ typedef struct CandelaStats {
     uint64_t guide_samples;
     uint32_t guide_leaves;
     size_t guide_bytes;
+    int guide_auto;              /* --guiding auto: 1 chose guiding, 0 chose off, -1 not auto or undecided */
+    float guide_auto_ratio;      /* its predicted time-to-unit-variance ratio, guided / unguided */
+    float guide_auto_indirect;   /* the probe's share of the relative variance in light of two or more bounces */
     /* samples per pixel over the image (they differ with adaptive sampling, and after an
      * interruption within an iteration): the smallest, the mean, and how many pixels got
      * [2^k, 2^(k+1)) samples (k = 0..20) */

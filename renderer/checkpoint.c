@@ -93,7 +93,7 @@ int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t
                      candela_light_sampler_name(o->light_sampler), (int)o->light_units, o->env_path ? o->env_path : "-",
                      (double)o->env_strength, o->max_iteration_spp, o->optimal_occlusion, !o->cachepoint_no_visibility,
                      o->cachepoint_retruncate, o->cachepoint_build_linear ? "linear" : "cut", o->cachepoint_cut_size,
-                     o->cachepoint_candidates, o->cachepoint_pilots, o->guiding == CANDELA_GUIDING_MIS ? "mis" : o->guiding == CANDELA_GUIDING_RIS ? "ris" : "off",
+                     o->cachepoint_candidates, o->cachepoint_pilots, candela_guiding_name(o->guiding),
                      (double)o->guide_spatial_threshold, (double)o->path_regularization,
                      o->guide_spatial_filter, o->guide_training_spp, o->aov_recorder_debug, o->recorder_mb,
                      o->recorder_budget);

@@ -131,8 +131,8 @@ int candela_parse_render_flag(CandelaOptions *o, int argc, char *const *argv, in
         static const int values[] = {CANDELA_SAMPLER_SOBOL, CANDELA_SAMPLER_INDEPENDENT};
         if ((rc = parse_choice(a, v, names, values, &c, "sampler", err)) == 0) o->sampler = (CandelaSampler)c;
     } else if (strcmp(a, "--guiding") == 0) {
-        static const char *const names[] = {"off", "mis", "ris", NULL};
-        static const int values[] = {CANDELA_GUIDING_OFF, CANDELA_GUIDING_MIS, CANDELA_GUIDING_RIS};
+        static const char *const names[] = {"off", "mis", "ris", "auto", NULL};
+        static const int values[] = {CANDELA_GUIDING_OFF, CANDELA_GUIDING_MIS, CANDELA_GUIDING_RIS, CANDELA_GUIDING_AUTO};
         if ((rc = parse_choice(a, v, names, values, &c, NULL, err)) == 0) o->guiding = (CandelaGuiding)c;
     } else if (strcmp(a, "--path-regularization") == 0) {
         if ((rc = parse_float(a, v, 0.0f, 1.0f, &f, err)) == 0) o->path_regularization = f;

@@ -28,10 +28,48 @@
 
 #define GUIDE_TRAINING_SPP 8 /* samples per pixel of training before guided sampling starts */
 
+/* --guiding auto. Its probe renders the first GUIDE_AUTO_PROBE_SPP unguided (the unguided
+ * schedule's iterations of 1, 1 and 2 spp), measuring per pixel the variance of the paths'
+ * radiance and of its part through two or more scattering vertices (what guiding can improve:
+ * direct light is NEE's, with MIS), from consecutive samples' squared differences. f is that
+ * indirect share of the variance, each pixel weighted by 1 / (mean^2 + 0.01) as relMSE weighs
+ * it; the gain G that guiding may bring on the indirect part is how badly the function's own
+ * sampling finds it, the indirect samples' variance over their mean squared over the image
+ * (about 1.6 for a Cornell box lit from above, where guiding took off 1.5x of the indirect
+ * variance; 3.7 for light through a window or off a bright patch, where it took off 4x). The
+ * prediction for the rest of the render of n spp is
+ *     variance ratio = (n_unguided + n_guided (1 - f + f / G)) / n
+ *     time ratio     = (n_probe + n_train COST_TRAIN + n_guided_only COST_GUIDED) / n
+ * (the probe's and the first 8 training spp are unguided, the recorder runs for the training
+ * spp, the costs are the guiding benchmark's, scenes/RESULTS.md); guiding goes on when the
+ * product is below GUIDE_AUTO_THRESHOLD, else it stays off and the render is the unguided one,
+ * bit for bit, having paid for the probe's bookkeeping only. Deterministic: counts and film
+ * sums, no clock. */
+#define GUIDE_AUTO_PROBE_SPP 4
+#define GUIDE_AUTO_PROBE_ITERATIONS 3 /* 1 + 1 + 2 spp */
+#define GUIDE_AUTO_MAX_GAIN 8.0
+#define GUIDE_AUTO_COST_TRAIN 1.9
+#define GUIDE_AUTO_COST_GUIDED 1.5
+#define GUIDE_AUTO_THRESHOLD 0.85
+
 int guide_init(Integrator *ig) {
     GuideState *gs = &ig->guide;
     memset(gs, 0, sizeof *gs);
+    gs->guided_from = -1;
     if (ig->opt->guiding == CANDELA_GUIDING_OFF) return 0;
+    if (ig->opt->guiding == CANDELA_GUIDING_AUTO) {
+        gs->auto_state = GUIDE_AUTO_PROBING;
+        gs->probe_prev = calloc(ig->npixels, sizeof *gs->probe_prev);
+        gs->probe_d2 = calloc(ig->npixels, sizeof *gs->probe_d2);
+        gs->probe_samples = calloc(ig->npixels, sizeof *gs->probe_samples);
+        gs->probe_sum = calloc(ig->npixels, sizeof *gs->probe_sum);
+        if (!gs->probe_prev || !gs->probe_d2 || !gs->probe_samples || !gs->probe_sum) {
+            guide_free(ig);
+            return -1;
+        }
+    } else {
+        gs->guided_from = 0;
+    }
     GuideFieldParams params;
     guide_field_params_default(&params);
     if (ig->opt->guide_spatial_threshold > 0.0f) params.spatial_threshold = ig->opt->guide_spatial_threshold;
@@ -52,8 +90,20 @@ int guide_init(Integrator *ig) {
     return 0;
 }
 
+static void probe_free(GuideState *gs) {
+    free(gs->probe_prev);
+    free(gs->probe_d2);
+    free(gs->probe_samples);
+    free(gs->probe_sum);
+    gs->probe_sum = NULL;
+    gs->probe_prev = NULL;
+    gs->probe_d2 = NULL;
+    gs->probe_samples = NULL;
+}
+
 void guide_free(Integrator *ig) {
     GuideState *gs = &ig->guide;
+    probe_free(gs);
     for (int k = 0; k < GUIDE_FIELDS; ++k) guide_field_free(gs->fields[k]);
     for (int k = 0; k < GUIDE_FIELDS; ++k) free(gs->train[k]);
     free(gs->last);
@@ -179,11 +229,86 @@ void guide_train_batch(Integrator *ig) {
     gs->train_seconds += clock_seconds() - t0;
 }
 
+void guide_probe_batch(Integrator *ig) {
+    GuideState *gs = &ig->guide;
+    if (gs->auto_state != GUIDE_AUTO_PROBING) return;
+    const PathState *ps = &ig->ps;
+    for (uint32_t p = 0; p < ig->batch_count; ++p) { /* path order: each pixel's samples in sample order */
+        uint32_t px = ps->pixel[p];
+        float L = v3_luminance(ps->radiance[p]), I = ps->probe_indirect[p];
+        if (!isfinite(L) || !isfinite(I)) L = I = 0.0f;
+        if (gs->probe_samples[px]++ > 0) {
+            double dl = (double)L - gs->probe_prev[px][0], di = (double)I - gs->probe_prev[px][1];
+            gs->probe_d2[px][0] += dl * dl;
+            gs->probe_d2[px][1] += di * di;
+        }
+        gs->probe_prev[px][0] = L;
+        gs->probe_prev[px][1] = I;
+        gs->probe_sum[px] += I;
+    }
+}
+
+/* The probe's decision (above): guiding on from the next iteration, or off. */
+static void auto_decide(Integrator *ig, int next_iteration) {
+    GuideState *gs = &ig->guide;
+    const Film *film = &ig->film;
+    double v_total = 0.0, v_indirect = 0.0;
+    for (uint32_t i = 0; i < ig->npixels; ++i) {
+        uint32_t n = gs->probe_samples[i];
+        if (n < 2 || film->count[i] == 0) continue;
+        double c = film->count[i];
+        double mean = (0.2126 * film->sum[3 * i] + 0.7152 * film->sum[3 * i + 1] + 0.0722 * film->sum[3 * i + 2]) / c;
+        double w = 1.0 / (mean * mean + 0.01) / (2.0 * (n - 1)); /* E[(x_k - x_k-1)^2] = 2 var */
+        v_total += w * gs->probe_d2[i][0];
+        v_indirect += w * gs->probe_d2[i][1];
+    }
+    double f = v_total > 0.0 ? fmin(v_indirect / v_total, 1.0) : 0.0;
+    /* how badly the function's own sampling finds the indirect light: its samples' variance
+     * over their mean squared, over the image (a smooth indirect field, as in a Cornell box lit
+     * from above, about 1.6; light through a window or off a bright patch, 3.6 or more) */
+    double ind_var = 0.0, ind_mean2 = 0.0;
+    for (uint32_t i = 0; i < ig->npixels; ++i) {
+        uint32_t n = gs->probe_samples[i];
+        if (n < 2) continue;
+        double mi = gs->probe_sum[i] / n;
+        ind_var += gs->probe_d2[i][1] / (2.0 * (n - 1));
+        ind_mean2 += mi * mi;
+    }
+    double gain = ind_mean2 > 0.0 ? fmin(fmax(ind_var / ind_mean2, 1.0), GUIDE_AUTO_MAX_GAIN) : 1.0;
+    double n = ig->opt->spp, start = ig->spp_done;
+    double train = (double)ig->record.training_spp, unguided = fmin(start + GUIDE_TRAINING_SPP, n);
+    double guided = n - unguided, training = fmin(train, n - start), guided_only = fmax(n - start - training, 0.0);
+    double var = (unguided + guided * (1.0 - f + f / gain)) / n;
+    double time = (start + training * GUIDE_AUTO_COST_TRAIN + guided_only * GUIDE_AUTO_COST_GUIDED) / n;
+    gs->auto_ratio = (float)(var * time);
+    gs->auto_indirect = (float)f;
+    gs->auto_gain = (float)gain;
+    int on = v_total > 0.0 && var * time < GUIDE_AUTO_THRESHOLD;
+    gs->auto_state = on ? GUIDE_AUTO_ON : GUIDE_AUTO_OFF;
+    probe_free(gs);
+    if (on) {
+        gs->train_start = ig->spp_done;
+        gs->guided_from = next_iteration;
+        ig->record.active = 1;
+    } else {
+        ig->record.active = ig->record.debug_aov;
+    }
+    if (!ig->opt->quiet)
+        fprintf(stderr, "candela: --guiding auto: %s (indirect light %.0f%% of the relative variance, its relative variance "
+                        "%.2f; estimated time to unit variance x%.2f with guiding)\n", on ? "on" : "off", 100.0 * f, gain,
+                var * time);
+}
+
+int guide_schedule_start(const Integrator *ig) { return ig->guide.guided_from; }
+
 void guide_barrier(Integrator *ig) {
     GuideState *gs = &ig->guide;
     if (!gs->on) return;
+    if (gs->auto_state == GUIDE_AUTO_PROBING && ig->spp_done >= GUIDE_AUTO_PROBE_SPP)
+        auto_decide(ig, ig->iteration_index + 1);
+    if (gs->auto_state == GUIDE_AUTO_PROBING || gs->auto_state == GUIDE_AUTO_OFF) return;
     /* ch. 2 §5.3.3: guided sampling only after the first 8 spp trained the fields */
-    gs->active = ig->spp_done >= GUIDE_TRAINING_SPP;
+    gs->active = ig->spp_done >= gs->train_start + GUIDE_TRAINING_SPP;
     if (!gs->pending) return; /* nothing new was recorded: the fields stay as they are */
     gs->pending = 0;
     double t0 = clock_seconds();
@@ -199,6 +324,9 @@ void guide_barrier(Integrator *ig) {
 
 void guide_report(const Integrator *ig, CandelaStats *st) {
     const GuideState *gs = &ig->guide;
+    st->guide_auto = gs->auto_state == GUIDE_AUTO_ON ? 1 : gs->auto_state == GUIDE_AUTO_OFF ? 0 : -1;
+    st->guide_auto_ratio = gs->auto_ratio;
+    st->guide_auto_indirect = gs->auto_indirect;
     if (!gs->on) return;
     st->guide_updates = gs->updates;
     st->guide_train_seconds = gs->train_seconds;
@@ -304,18 +432,26 @@ int guide_dump(const Integrator *ig, const float at[3], const char *prefix, char
 /* ---------------------------------------------------------------- checkpoints */
 
 #define GUIDE_TAG CKPT_TAG('G', 'U', 'I', 'D')
-#define GUIDE_VERSION 1u
+#define GUIDE_VERSION 2u
 
 /* The fields (guiding/sdtree.c saves each whole: sampling and building trees), whether guided
- * sampling is on, whether samples wait for the next update, and the statistics' counts.
- * guide-dump's `last` samples are not kept: a dump is a render of its own. */
+ * sampling is on, whether samples wait for the next update, the statistics' counts, and --guiding
+ * auto's state (while probing, its per-pixel sums). guide-dump's `last` samples are not kept: a
+ * dump is a render of its own. */
 int guide_save(const Integrator *ig, FILE *out) {
     const GuideState *gs = &ig->guide;
-    int32_t flags[4] = {gs->on, gs->active, gs->pending, gs->updates};
+    int32_t flags[7] = {gs->on, gs->active, gs->pending, gs->updates, gs->auto_state, gs->train_start, gs->guided_from};
+    float prediction[3] = {gs->auto_ratio, gs->auto_indirect, gs->auto_gain};
     uint32_t present = 0;
     for (int k = 0; k < GUIDE_FIELDS; ++k) present |= (uint32_t)(gs->fields[k] != NULL) << k;
     int rc = ckpt_put_tag(out, GUIDE_TAG, GUIDE_VERSION) | ckpt_put(out, flags, sizeof flags) |
+             ckpt_put(out, prediction, sizeof prediction) |
              ckpt_put(out, &present, sizeof present) | ckpt_put(out, &gs->samples_trained, sizeof gs->samples_trained);
+    if (rc == 0 && gs->auto_state == GUIDE_AUTO_PROBING)
+        rc = ckpt_put(out, gs->probe_prev, ig->npixels * sizeof *gs->probe_prev) |
+             ckpt_put(out, gs->probe_d2, ig->npixels * sizeof *gs->probe_d2) |
+             ckpt_put(out, gs->probe_samples, ig->npixels * sizeof *gs->probe_samples) |
+             ckpt_put(out, gs->probe_sum, ig->npixels * sizeof *gs->probe_sum);
     for (int k = 0; k < GUIDE_FIELDS && rc == 0; ++k)
         if (gs->fields[k]) rc = guide_field_save(gs->fields[k], out);
     return rc;
@@ -323,14 +459,33 @@ int guide_save(const Integrator *ig, FILE *out) {
 
 int guide_load(Integrator *ig, FILE *in) {
     GuideState *gs = &ig->guide;
-    int32_t flags[4];
+    int32_t flags[7];
+    float prediction[3];
     uint32_t present = 0, expected = 0;
     uint64_t trained;
     for (int k = 0; k < GUIDE_FIELDS; ++k) expected |= (uint32_t)(gs->fields[k] != NULL) << k;
     if (ckpt_get_tag(in, GUIDE_TAG, GUIDE_VERSION) || ckpt_get(in, flags, sizeof flags) ||
+        ckpt_get(in, prediction, sizeof prediction) ||
         ckpt_get(in, &present, sizeof present) || ckpt_get(in, &trained, sizeof trained))
         return -1;
     if (flags[0] != gs->on || present != expected) return -1;
+    /* a fixed mode stays itself; auto may have moved on from probing */
+    int fixed = gs->auto_state == GUIDE_AUTO_NONE;
+    if (fixed ? flags[4] != GUIDE_AUTO_NONE : (flags[4] < GUIDE_AUTO_PROBING || flags[4] > GUIDE_AUTO_OFF)) return -1;
+    if (flags[5] < 0 || flags[6] < -1) return -1;
+    if (flags[4] == GUIDE_AUTO_PROBING &&
+        (ckpt_get(in, gs->probe_prev, ig->npixels * sizeof *gs->probe_prev) ||
+         ckpt_get(in, gs->probe_d2, ig->npixels * sizeof *gs->probe_d2) ||
+         ckpt_get(in, gs->probe_samples, ig->npixels * sizeof *gs->probe_samples) ||
+         ckpt_get(in, gs->probe_sum, ig->npixels * sizeof *gs->probe_sum)))
+        return -1;
+    gs->auto_state = flags[4];
+    gs->train_start = flags[5];
+    gs->guided_from = flags[6];
+    gs->auto_ratio = prediction[0];
+    gs->auto_indirect = prediction[1];
+    gs->auto_gain = prediction[2];
+    if (gs->auto_state == GUIDE_AUTO_ON || gs->auto_state == GUIDE_AUTO_OFF) probe_free(gs);
     for (int k = 0; k < GUIDE_FIELDS; ++k)
         if (gs->fields[k] && guide_field_load(gs->fields[k], in) != 0) return -1;
     gs->active = flags[1] != 0;

@@ -134,7 +134,17 @@ typedef struct GuideState {
     int dropped;                  /* a batch's training or an update ran out of memory */
     int keep_last;                /* guide-dump asked: keep `last` */
     int pending;                  /* samples were recorded since the last update */
+    /* --guiding auto (guide.c): probing during the first GUIDE_AUTO_PROBE_SPP, then on or off */
+    int auto_state;               /* GUIDE_AUTO_NONE (a fixed mode), _PROBING, _ON, _OFF */
+    int train_start;              /* spp done when training began (0; auto: the probe's end) */
+    int guided_from;              /* the first iteration of the guided schedule (render.c); -1: none */
+    float auto_ratio, auto_indirect, auto_gain; /* the decision's prediction, indirect share and gain */
+    float (*probe_prev)[2];       /* per pixel while probing: its last sample's L and indirect L */
+    double (*probe_d2)[2];        /* and the sums of their squared differences to the one before */
+    uint32_t *probe_samples;      /* and its probe samples */
+    double *probe_sum;            /* and the sum of their indirect L */
 } GuideState;
+enum { GUIDE_AUTO_NONE = 0, GUIDE_AUTO_PROBING, GUIDE_AUTO_ON, GUIDE_AUTO_OFF };
 
 typedef struct Integrator {
     const CandelaOptions *opt;
@@ -168,6 +178,7 @@ typedef struct Integrator {
     RecordState record;
     GuideState guide;
     int iteration_spp, spp_done;  /* the iteration being rendered (render.c), for the barrier hooks */
+    int iteration_index;          /* its index in the render's schedule */
     BarrierHook hooks[MAX_BARRIER_HOOKS];
     int num_hooks;
     CandelaRayLog *ray_log;   /* bench: every traced ray (NULL: not recorded) */
@@ -281,7 +292,13 @@ const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n, Guid
 /* The recorder flags that carry a surface vertex's orientation class. */
 uint32_t guide_surface_flags(vec3 n);
 void guide_train_batch(Integrator *ig);
+/* --guiding auto's probe after a batch: per pixel, consecutive samples' squared differences of
+ * the path's radiance and of its indirect part (path_add_radiance's probe_indirect). */
+void guide_probe_batch(Integrator *ig);
 void guide_barrier(Integrator *ig);
+/* The first iteration of the guided schedule (render.c: 8 x 1 spp, then 2, 4, ... capped); -1:
+ * the unguided schedule throughout (guiding off, or auto while probing and once off). */
+int guide_schedule_start(const Integrator *ig);
 void guide_report(const Integrator *ig, CandelaStats *st);
 /* candela guide-dump: the learned distribution at the point (PREFIX.guide.exr/.png), a
  * histogram of the last iteration's training directions in its leaf (PREFIX.hist.exr/.png) and
@@ -305,6 +322,8 @@ static inline void path_add_radiance(const Integrator *ig, uint32_t p, vec3 cont
         if (m > limit) contribution = v3_scale(contribution, limit / m);
     }
     ig->ps.radiance[p] = v3_add(ig->ps.radiance[p], contribution);
+    /* --guiding auto's probe: the light guiding could help with (two or more bounces) */
+    if (ig->guide.auto_state == GUIDE_AUTO_PROBING && vertices >= 2) ig->ps.probe_indirect[p] += v3_luminance(contribution);
     if (ig->record.active) record_radiance(ig, p, contribution, source);
 }
 

@@ -23,6 +23,11 @@ void candela_options_default(CandelaOptions *o) {
     o->cachepoint_bsdf = 1;           /* BSDF-aware cache point selection at glossy vertices (README) */
 }
 
+const char *candela_guiding_name(CandelaGuiding g) {
+    static const char *const names[] = {"off", "mis", "ris", "auto"};
+    return (unsigned)g < 4 ? names[g] : "unknown";
+}
+
 const char *candela_sampler_name(CandelaSampler s) {
     return s == CANDELA_SAMPLER_INDEPENDENT ? "independent" : s == CANDELA_SAMPLER_SOBOL ? "sobol" : "unknown";
 }

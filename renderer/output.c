@@ -154,9 +154,14 @@ static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s) 
             (unsigned long long)s->recorder_refused, (unsigned long long)s->recorder_paths, s->recorder_path_skip);
     fprintf(f,
             "  \"guiding\": {\"mode\": \"%s\", \"updates\": %d, \"samples\": %llu, \"leaves\": %u, \"bytes\": %zu, "
-            "\"train_seconds\": %.6f},\n",
-            o->guiding == CANDELA_GUIDING_MIS ? "mis" : o->guiding == CANDELA_GUIDING_RIS ? "ris" : "off", s->guide_updates,
+            "\"train_seconds\": %.6f",
+            candela_guiding_name(o->guiding), s->guide_updates,
             (unsigned long long)s->guide_samples, s->guide_leaves, s->guide_bytes, s->guide_train_seconds);
+    if (o->guiding == CANDELA_GUIDING_AUTO)
+        fprintf(f, ", \"auto\": \"%s\", \"auto_predicted_ttuv_ratio\": %.4f, \"auto_indirect_share\": %.4f",
+                s->guide_auto == 1 ? "on" : s->guide_auto == 0 ? "off" : "undecided", (double)s->guide_auto_ratio,
+                (double)s->guide_auto_indirect);
+    fprintf(f, "},\n");
     fprintf(f, "  \"peak_memory_bytes\": %zu\n}\n", s->peak_memory_bytes);
 }
 

@@ -67,6 +67,8 @@
     F(float, probe_em_on, N)        /* that medium's emission: NEE and tracking, MIS-weighted */ \
     F(float, probe_em_off, N)       /* the same by tracking alone (unweighted) */                \
     F(float, probe_em_cost, N)      /* emission sampling's cost (2 per NEE of the volume) */     \
+    /* -- the probe of --guiding auto (guide.c), first 4 spp only */                             \
+    F(float, probe_indirect, N)     /* luminance of its contributions through 2+ scattering vertices */ \
     /* -- first-hit AOVs */                                                                      \
     F(vec3, aov_albedo, N)                                                                       \
     F(vec3, aov_normal, N)                                                                       \

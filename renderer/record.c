@@ -46,7 +46,7 @@ int record_init(Integrator *ig) {
     rs->recorder = recorder_create((uint32_t)vertices);
     if (!rs->recorder) return -1;
     rs->debug_aov = o->aov_recorder_debug;
-    rs->active = 1;
+    rs->active = o->guiding != CANDELA_GUIDING_AUTO || rs->debug_aov; /* auto: once its probe chose guiding (guide.c) */
     /* guiding trains on the first eighth of the samples (at least its 8 + 2 + 4 + 8 spp), then
      * renders with the fields as learned: the recorder's cost is not paid on the rest. On the
      * interior at 320x240, 256 spp, 24 spp of training had 1.06x the MSE of 64 at 0.82x the
@@ -200,7 +200,7 @@ void record_barrier(Integrator *ig) {
     rs->refused += st.vertices_refused;
     recorder_reset_counts(rs->recorder);
     rs->iteration_paths = rs->iteration_samples = 0;
-    if (rs->active && !rs->debug_aov && ig->spp_done >= rs->training_spp) {
+    if (rs->active && !rs->debug_aov && ig->spp_done >= ig->guide.train_start + rs->training_spp) {
         rs->active = 0; /* no ray carries a vertex from here on */
         recorder_samples_clear(&rs->batch);
     }

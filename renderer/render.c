@@ -123,12 +123,16 @@ static void spp_statistics(const Film *f, CandelaStats *st) {
 
 /* Samples per pixel of iteration i: 1, 1, 2, 4, 8, ... capped, and never past the total. (The
  * shift is bounded: at iteration 32 an unbounded 1 << 31 overflowed and the schedule ran
- * backwards.) Guided (ch. 2 §5.2): 8 x 1 spp while guiding trains, then 2, 4, 8, ... capped. */
-static int iteration_spp(int iteration, int max_iteration_spp, int remaining, int guided) {
-    int first = guided ? 8 : 2; /* the iterations of 1 spp */
+ * backwards.) Guided (ch. 2 §5.2), from iteration guided_from on (0 for --guiding mis / ris,
+ * after the probe for auto; -1: never): 8 x 1 spp while guiding trains, then 2, 4, 8, ...
+ * capped at its own maximum. */
+static int iteration_spp(int iteration, int max_iteration_spp, int max_guided_spp, int remaining, int guided_from) {
+    int guided = guided_from >= 0 && iteration >= guided_from;
+    int first = guided ? guided_from + 8 : 2; /* the iterations of 1 spp end here */
+    int cap = guided ? max_guided_spp : max_iteration_spp;
     int k = iteration - first + 1;
-    int spp = iteration < first ? 1 : (k >= 30 ? max_iteration_spp : 1 << k);
-    if (spp > max_iteration_spp) spp = max_iteration_spp;
+    int spp = iteration < first ? 1 : (k >= 30 ? cap : 1 << k);
+    if (spp > cap) spp = cap;
     return spp < remaining ? spp : remaining;
 }
 
@@ -279,9 +283,8 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
 
     Progress progress = {o->quiet, isatty(2), clock_seconds(), 0.0}; /* the first report comes at once */
     int max_iter_spp = o->max_iteration_spp > 0 ? o->max_iteration_spp : DEFAULT_MAX_ITERATION_SPP;
-    int guided = o->guiding != CANDELA_GUIDING_OFF;
     /* guided: smaller iterations, so the fields update often (ch. 2 §5.2: a smaller maximum) */
-    if (guided && o->max_iteration_spp <= 0) max_iter_spp = GUIDED_MAX_ITERATION_SPP;
+    int max_guided_spp = o->max_iteration_spp > 0 ? o->max_iteration_spp : GUIDED_MAX_ITERATION_SPP;
     uint64_t total_paths = (uint64_t)npixels * (uint64_t)o->spp, done_paths = 0;
     CheckpointProgress at = {0, 0, 0}; /* where the render stands (a resumed one: where the checkpoint stood) */
     if (o->resume_from) {
@@ -294,9 +297,9 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
         update_pixel_list(ig); /* adaptive sampling: the pixels the checkpoint's film still samples */
         int cumulative = 0, k = 0;
         for (; k < at.iteration && cumulative < o->spp; ++k)
-            cumulative += iteration_spp(k, max_iter_spp, o->spp - cumulative, guided);
+            cumulative += iteration_spp(k, max_iter_spp, max_guided_spp, o->spp - cumulative, guide_schedule_start(ig));
         uint64_t iteration_total =
-            (uint64_t)ig->iteration_pixels * (uint64_t)iteration_spp(k, max_iter_spp, o->spp - cumulative, guided);
+            (uint64_t)ig->iteration_pixels * (uint64_t)iteration_spp(k, max_iter_spp, max_guided_spp, o->spp - cumulative, guide_schedule_start(ig));
         if (k != at.iteration || cumulative != at.spp_done || at.spp_done >= o->spp ||
             (at.iteration_paths >= iteration_total && at.iteration_paths > 0)) {
             snprintf(err, CANDELA_ERR_LEN, "%s: its progress (iteration %d, %d spp) is not a point of this render's schedule",
@@ -311,8 +314,9 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
     int min_spp = o->min_spp > 0 ? o->min_spp : CANDELA_DEFAULT_MIN_SPP;
     ig->spp_done = spp_done;
     for (; spp_done < o->spp && ig->iteration_pixels > 0; ++iteration) {
-        int spp_i = iteration_spp(iteration, max_iter_spp, o->spp - spp_done, guided);
+        int spp_i = iteration_spp(iteration, max_iter_spp, max_guided_spp, o->spp - spp_done, guide_schedule_start(ig));
         ig->iteration_spp = spp_i;
+        ig->iteration_index = iteration;
         ig->sample_base = sample_begin + (uint64_t)spp_done;
         uint64_t iter_paths = (uint64_t)ig->iteration_pixels * (uint64_t)spp_i;
         uint64_t first = resume_paths < iter_paths ? resume_paths : 0;
@@ -364,7 +368,7 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
             limited = 1;
             break;
         }
-        int next = spp_done + iteration_spp(iteration + 1, max_iter_spp, o->spp - spp_done, guided);
+        int next = spp_done + iteration_spp(iteration + 1, max_iter_spp, max_guided_spp, o->spp - spp_done, guide_schedule_start(ig));
         if (o->checkpoint_path && checkpoint_due(spp_done, next, o->spp)) {
             if (checkpoint_write(o->checkpoint_path, &identity, &at, ig, &r->sampler, 0, err) != 0) {
                 fprintf(stderr, "candela: warning: %s (the render goes on)\n", err); /* a later one may succeed */

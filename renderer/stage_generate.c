@@ -26,6 +26,7 @@ void stage_generate(const Integrator *ig, Slice *s) {
         ps->probe_null[p] = ps->probe_mis[p] = ps->probe_cost[p] = 0.0f;
         ps->probe_em_medium[p] = 0;
         ps->probe_em_on[p] = ps->probe_em_off[p] = ps->probe_em_cost[p] = 0.0f;
+        ps->probe_indirect[p] = 0.0f;
         PathDims dims = path_dims(ig, p);
         float fx = (float)(pixel % (uint32_t)cam->width) + dims_camera(&dims, RNG_DIM_PIXEL_X);
         float fy = (float)(pixel / (uint32_t)cam->width) + dims_camera(&dims, RNG_DIM_PIXEL_Y);

@@ -92,6 +92,7 @@ void integrator_run_batch(Integrator *ig, ThreadPool *pool, CandelaStats *st) {
     if (ig->record.active) record_batch_end(ig, slices, n);
     guide_train_batch(ig);
     inscatter_probe_batch(ig, slices, n);
+    guide_probe_batch(ig);
     emission_probe_batch(ig, slices, n);
     /* film: serial, in path order, so every pixel sums its samples in sample order */
     double t = clock_seconds();

@@ -11,7 +11,11 @@
  *   (d) guided renders are bit-identical for 1 and 2 threads, and for two batch sizes;
  *   (e) path-space regularisation (--path-regularization) leaves a scene of rough (Lambert)
  *       surfaces bit-identical and changes one with glass and glossy metal, and brightens
- *       nothing out of proportion (the image mean within 10%).
+ *       nothing out of proportion (the image mean within 10%);
+ *   (f) --guiding auto: on scenes/cornell_indirect.gltf (lit through the ceiling) its probe
+ *       chooses guiding, converges to the unguided image and is bit-identical for 1 and 2
+ *       threads; on scenes/default.gltf (direct light) it chooses off and the image is the
+ *       unguided render's bit for bit.
  * Scenes: tests/scenes/two_lights.gltf (a floor and a wall lit by an emissive quad and three
  * point lights: direct light with MIS plus diffuse interreflection, every surface guidable) and
  * scenes/default.gltf (glossy metal, glass, emission). */
@@ -189,14 +193,56 @@ static void test_regularization(const char *rough_scene, const char *glossy_scen
     }
 }
 
+static void image_agrees(const char *what, const Render *a, const Render *b, int w, int h) {
+    size_t n = (size_t)w * h;
+    double sd = 0.0, sv = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+        sd += pixel_mean(a->img.rgb, i) - pixel_mean(b->img.rgb, i);
+        sv += (pixel_mean(a->img.variance, i) + pixel_mean(b->img.variance, i)) / 3.0;
+    }
+    double z = sd / sqrt(sv);
+    fprintf(stderr, "  (f) %s: image mean difference %.2f standard errors\n", what, z);
+    CHECK(fabs(z) < 5.0, "(f) %s: differs from unguided by %.2f standard errors", what, z);
+}
+
+static void test_auto(const char *indirect, const char *direct) {
+    const int w = 48, h = 48, spp = 64;
+    Render off = render(indirect, w, h, spp, CANDELA_GUIDING_OFF, 0, -1, 2, 0, 3);
+    Render on = render(indirect, w, h, spp, CANDELA_GUIDING_AUTO, 0, -1, 2, 0, 4);
+    Render on1 = render(indirect, w, h, spp, CANDELA_GUIDING_AUTO, 0, -1, 1, 0, 4);
+    if (off.ok && on.ok && on1.ok) {
+        fprintf(stderr, "  (f) %s: auto %s, predicted ratio %.2f, indirect share %.2f, %d updates\n", indirect,
+                on.st.guide_auto == 1 ? "on" : "off", (double)on.st.guide_auto_ratio, (double)on.st.guide_auto_indirect,
+                on.st.guide_updates);
+        CHECK(on.st.guide_auto == 1 && on.st.guide_updates > 8 && on.st.guide_samples > 0,
+              "(f) auto did not guide the indirect-lit box (choice %d, %d updates)", on.st.guide_auto, on.st.guide_updates);
+        image_agrees("auto on the indirect box", &on, &off, w, h);
+        CHECK(memcmp(on.img.rgb, on1.img.rgb, (size_t)w * h * 3 * sizeof(float)) == 0, "(f) auto: 1 and 2 threads differ");
+    }
+    candela_image_free(&off.img);
+    candela_image_free(&on.img);
+    candela_image_free(&on1.img);
+    Render doff = render(direct, 32, 24, 32, CANDELA_GUIDING_OFF, 0, -1, 2, 0, 5);
+    Render dauto = render(direct, 32, 24, 32, CANDELA_GUIDING_AUTO, 0, -1, 2, 0, 5);
+    if (doff.ok && dauto.ok) {
+        CHECK(dauto.st.guide_auto == 0, "(f) auto guided the direct-lit default scene (predicted %.2f)",
+              (double)dauto.st.guide_auto_ratio);
+        CHECK(memcmp(doff.img.rgb, dauto.img.rgb, 32 * 24 * 3 * sizeof(float)) == 0,
+              "(f) auto off is not the unguided render bit for bit");
+    }
+    candela_image_free(&doff.img);
+    candela_image_free(&dauto.img);
+}
+
 int main(int argc, char **argv) {
     if (argc < 3) {
         fprintf(stderr, "usage: test_guiding TESTS_SCENES_DIR SCENES_DIR\n");
         return 2;
     }
-    char two_lights[1024], def[1024];
+    char two_lights[1024], def[1024], box[1024];
     snprintf(two_lights, sizeof two_lights, "%s/two_lights.gltf", argv[1]);
     snprintf(def, sizeof def, "%s/default.gltf", argv[2]);
+    snprintf(box, sizeof box, "%s/cornell_indirect.gltf", argv[2]);
     double t0 = test_seconds();
     test_debug_aov(two_lights);
     test_debug_aov(def);
@@ -204,6 +250,7 @@ int main(int argc, char **argv) {
     test_unbiased(def, 32, 24, 96);
     test_determinism(def);
     test_regularization(two_lights, def);
+    test_auto(box, def);
     fprintf(stderr, "test_guiding: %.1f s\n", test_seconds() - t0);
     return test_exit();
 }
