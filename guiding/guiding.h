@@ -207,6 +207,9 @@ void guide_distribution_prefetch(const GuideDistribution *d, float u1);
 /* The leaf's box (the spatial node's extent), and the samples its sampling tree learned from. */
 void guide_distribution_bounds(const GuideDistribution *d, float lo[3], float hi[3]);
 double guide_distribution_samples(const GuideDistribution *d);
+/* A direction's point of the (u, v) octahedral square (the map the distributions live on); 0
+ * for a zero or non-finite direction. */
+int guide_direction_uv(const float dir[3], float *u, float *v);
 /* The pdf over the (u, v) octahedral square on a w x h grid (row-major, v down the rows),
  * in units of solid-angle pdf, for inspection. */
 void guide_distribution_image(const GuideDistribution *d, int w, int h, float *out);

@@ -1002,6 +1002,14 @@ const GuideDistribution *guide_field_lookup_cursor(const GuideField *f, const fl
     return &f->dists[n->leaf];
 }
 
+int guide_direction_uv(const float dir[3], float *u, float *v) {
+    double a, b;
+    if (!dir || !dir_to_uv(dir, &a, &b, NULL)) return 0;
+    *u = (float)a;
+    *v = (float)b;
+    return 1;
+}
+
 double guide_distribution_samples(const GuideDistribution *d) { return d ? d->leaf->learned : 0.0; }
 
 void guide_distribution_bounds(const GuideDistribution *dist, float lo[3], float hi[3]) {

@@ -373,7 +373,7 @@ int guide_dump(const Integrator *ig, const float at[3], const char *prefix, char
         if (learned > most) { most = learned; best = k; }
     }
     static const char *const class_names[GUIDE_SURFACE_CLASSES] = {"+x", "-x", "+y", "-y", "+z", "-z"};
-    enum { W = 128, H = 64 }; /* (u, v) = ((cos theta + 1) / 2, phi / 2 pi): u across, v down */
+    enum { W = 128, H = 128 }; /* the octahedral (u, v) square (guiding.h): u across, v down */
     float *img = calloc((size_t)W * H, sizeof *img);
     if (!img) { snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", prefix); return -1; }
     const GuideDistribution *d = guide_field_lookup(gs->fields[best], at);
@@ -400,9 +400,9 @@ int guide_dump(const Integrator *ig, const float at[3], const char *prefix, char
             if (t->pos[0] < lo[0] || t->pos[0] > hi[0] || t->pos[1] < lo[1] || t->pos[1] > hi[1] || t->pos[2] < lo[2] ||
                 t->pos[2] > hi[2])
                 continue;
-            float u = 0.5f * (t->dir[2] + 1.0f), phi = atan2f(t->dir[1], t->dir[0]);
-            if (phi < 0.0f) phi += 2.0f * (float)M_PI;
-            int x = (int)(u * W), y = (int)(phi / (2.0f * (float)M_PI) * H);
+            float u, v;
+            if (!guide_direction_uv(t->dir, &u, &v)) continue;
+            int x = (int)(u * W), y = (int)(v * H);
             x = x < 0 ? 0 : x >= W ? W - 1 : x;
             y = y < 0 ? 0 : y >= H ? H - 1 : y;
             img[(size_t)y * W + x] += 1.0f;
