@@ -223,15 +223,15 @@ static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, con
     light_sampler_record(ig->light_sampler, outcome, 0.0f); /* no shadow ray: nothing reached the light */
 }
 
-/* The continuation: a direction from the scattering function, the roulette, and the next
- * wave's ray with the MIS context of this vertex (and its recorder vertex, a child of the
- * incoming ray's). Returns 1 when the path goes on. */
+/* The continuation: with the direction the scattering function sampled (ss; NULL: none), the
+ * roulette, and the next wave's ray with the MIS context of this vertex (and its recorder vertex,
+ * a child of the incoming ray's). Returns 1 when the path goes on. */
 static int surface_continuation(const Integrator *ig, Slice *s, uint32_t p, const SurfaceHit *h,
-                                 const Scatter *sc, const LightSampleContext *lc, DimsGroup *g, const float u[6]) {
+                                 const Scatter *sc, const LightSampleContext *lc, DimsGroup *g, const ScatterSample *sampled) {
     const PathState *ps = &ig->ps;
     uint32_t depth = ps->depth[p];
-    ScatterSample ss;
-    if (!scatter_sample_guided(sc, u, &ss)) return 0;
+    if (!sampled) return 0;
+    ScatterSample ss = *sampled;
     vec3 beta = v3_mul(ps->throughput[p], ss.weight);
     ps->rr_scale[p] *= ss.rr_factor;
     if (!v3_is_finite(beta) || v3_is_black(beta)) return 0;
@@ -308,18 +308,20 @@ void stage_surface(const Integrator *ig, Slice *s) {
                                                      lights_instance_class(ig->lights, hit->instance));
         int delta = scatter_is_delta(&sc);
         if (!delta && light_sampler_uses_lobe(ig->light_sampler)) scatter_light_lobe(&sc, &lc.lobe); /* a strategy that weighs lights by the BSDF */
-        if (!delta) light_sampler_prepare(ig->light_sampler, &lc, &hint); /* once per vertex */
-        if (depth == 0 && ig->film.sel_aov) /* the light sampler's AOV: what the first hit's selection uses */
-            light_sampler_aov(ig->light_sampler, &lc, &ps->aov_sel_point[p], &ps->aov_sel_light[p]);
-        /* the continuation's numbers before NEE, so a guided vertex's prefetch of its guide sample
-         * overlaps the NEE work */
+        /* the continuation's direction before the light selection and NEE (it changes no state):
+         * a guided vertex's table accesses, cache misses at high resolution, then overlap that
+         * independent work */
         PathDims dims = path_dims(ig, p);
         DimsGroup g = dims_group(&dims, depth, DIMS_SCATTER); /* the direction's u, v, the lobe, the roulette */
         float u[6];
         scatter_numbers(&sc, &g, u);
-        scatter_prefetch_guided(&sc, u);
+        ScatterSample ss;
+        int sampled = scatter_sample_guided(&sc, u, &ss);
+        if (!delta) light_sampler_prepare(ig->light_sampler, &lc, &hint); /* once per vertex */
+        if (depth == 0 && ig->film.sel_aov) /* the light sampler's AOV: what the first hit's selection uses */
+            light_sampler_aov(ig->light_sampler, &lc, &ps->aov_sel_point[p], &ps->aov_sel_light[p]);
         if (!delta && ig->lights->count > 0) surface_direct_light(ig, s, p, &h, &sc, &lc);
-        int continued = surface_continuation(ig, s, p, &h, &sc, &lc, &g, u);
+        int continued = surface_continuation(ig, s, p, &h, &sc, &lc, &g, sampled ? &ss : NULL);
         if (ig->record.active) { /* the scattering event is done with the incoming vertex */
             if (!continued) ps->pv[p] = PV_CAMERA;
             record_done(ig, s, p, incoming);
