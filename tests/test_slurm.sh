@@ -63,6 +63,8 @@ arrays() { # ARGS...: the --array of a dry-run submission, or the refusal (exit 
 }
 [ "$(arrays --frames 08-09)" = "--array=0-1" ] && ok || bad "--frames 08-09: $(arrays --frames 08-09)"
 [ "$(arrays --frames 1,5,10-12)" = "--array=0-4" ] && ok || bad "--frames 1,5,10-12: $(arrays --frames 1,5,10-12)"
+# a requeued frame task skips the frames it finished: its job script passes --resume
+grep -q -- '--frames.* --resume -o' "$tmp0/n.err" && ok || bad "--frames job script lacks --resume"
 [ "$(arrays --frames 1-20 --tasks 08)" = "--array=0-7" ] && ok || bad "--tasks 08: $(arrays --frames 1-20 --tasks 08)"
 [ "$(arrays --sample-shards 08)" = "--array=0-7" ] && ok || bad "--sample-shards 08: $(arrays --sample-shards 08)"
 grep -qF -- '--sample-shard "$i/8"' "$tmp0/n.err" && ok || bad "--sample-shards 08: the job script does not say 8"

@@ -6,7 +6,7 @@
 #                  an array of --tasks tasks (default: one per frame); each runs
 #                  `candela render SCENE --frames A-B -o PATTERN`, which reads SLURM_ARRAY_TASK_ID
 #                  and SLURM_ARRAY_TASK_COUNT itself and renders its share of the frames (with
-#                  --resume, when candela has it, a requeued task skips the frames it finished).
+#                  --resume, a requeued task skips the frames it finished).
 #   sample shards: candela_submit.sh --sample-shards 8 -o out/frame.exr SCENE [-- RENDER OPTIONS]
 #                  one frame too slow for one machine: task I renders samples
 #                  [spp I/N, spp (I+1)/N) of every pixel (`--sample-shard I/N`) into
@@ -179,8 +179,9 @@ EOF
   merge_id=$(submit "$work/merge.sh" "${merge_opts[@]}")
   echo "array $array_id merge $merge_id"
 else
-  resume=""
-  if "$candela" --help | grep -q -- '--resume '; then resume="--resume"; fi
+  # a requeued task skips the frames it finished (candela --frames --resume; a grep -q on
+  # candela's help here was killed by SIGPIPE under pipefail and silently dropped it)
+  resume="--resume"
   # candela reads --frames (lists, ranges, steps, base 10) and prints the frames back
   listed=$(dry_run --frames "$frames" $resume -o "$output") || exit 2
   nframes=$(grep -c '^frame ' <<<"$listed")
