@@ -267,6 +267,39 @@ expect_error "negative area power" "extras.candela_area_light.power must be a fi
 # help and version
 "$bin" --help | grep -q "candela render" && ok || bad "--help"
 "$bin" --version | grep -q "^candela [0-9]" && ok || bad "--version"
+# issue 27: each command's --help (and -h) lists its flags one line each, exit 0; candela help FLAG
+for c in render bench guide-dump compare merge; do
+  if "$bin" $c --help >"$tmp/help.out" 2>&1 && "$bin" $c -h | cmp -s - "$tmp/help.out"; then ok; else bad "$c --help: exit or -h differs"; fi
+  grep -q -- "--help" "$tmp/help.out" && ok || bad "$c --help lacks --help"
+done
+"$bin" render "$scene" --spp 2 --help | grep -q -- '^  --spp N ' && ok || bad "render --help lacks --spp"
+"$bin" render --help | grep -q -- '--timing-runs' && bad "render --help lists compare's --timing-runs" || ok
+"$bin" compare --help | grep -q -- '--timing-runs' && ok || bad "compare --help lacks --timing-runs"
+"$bin" merge --help | grep -q -- '--spp' && bad "merge --help lists --spp" || ok
+"$bin" guide-dump --help | grep -q -- '--at X,Y,Z' && ok || bad "guide-dump --help lacks --at"
+"$bin" help spp >"$tmp/help.out" && grep -q "samples per pixel" "$tmp/help.out" && grep -q "1048576" "$tmp/help.out" && ok || bad "candela help spp: $(cat "$tmp/help.out")"
+"$bin" help -o | grep -q "output EXR" && ok || bad "candela help -o"
+expect_error "help of an unknown flag" "unknown option '--spl' (did you mean '--spp'?)" -- help --spl
+[ $("$bin" help --spl >/dev/null 2>&1; echo $?) = 2 ] && ok || bad "help --spl: exit status"
+# did you mean: the nearest flag of the command, only when close; exit 2
+expect_error "did you mean" "unknown option '--spl' (did you mean '--spp'?)" -- render "$scene" --spl 4 "${common[@]}"
+[ $("$bin" render "$scene" --spl 4 "${common[@]}" >/dev/null 2>&1; echo $?) = 2 ] && ok || bad "--spl: exit status"
+expect_error "did you mean (= form)" "unknown option '--lightsampler' (did you mean '--light-sampler'?)" -- render "$scene" --lightsampler=power "${common[@]}"
+expect_error "no suggestion" "unknown option '--xyzzy' (see candela render --help)" -- render "$scene" --xyzzy "${common[@]}"
+expect_error "compare's flag in render" "unknown option '--timing-runs'" -- render "$scene" --timing-runs 2 "${common[@]}"
+expect_error "merge did you mean" "unknown merge option '--pgn' (did you mean '--png'?)" -- merge -o "$tmp/m.exr" --pgn x.png a.film
+expect_error "variant did you mean" "variant 'a': unknown option '--guding' (did you mean '--guiding'?)" -- compare "$scene" --spp 1 --res 8x8 \
+  --ref-spp 1 --out-dir "$tmp/c27v" --quiet --variants "a: --guding mis"
+expect_error "variant --spp= form" "variant 'a': --spp is the same for every variant" -- compare "$scene" --spp 1 --res 8x8 \
+  --ref-spp 1 --out-dir "$tmp/c27v" --quiet --variants "a: --spp=3"
+rm -rf "$tmp/c27v"
+# --flag=value is --flag value: the same image
+"$bin" render "$scene" -o "$tmp/eq1.exr" --no-png --res 12x10 --spp 2 --seed 3 --light-sampler tree --quiet || bad "render eq1"
+"$bin" render "$scene" --output="$tmp/eq2.exr" --no-png --res=12x10 --spp=2 --seed=3 --light-sampler=tree -q || bad "render eq2"
+cmp -s "$tmp/eq1.exr" "$tmp/eq2.exr" && ok || bad "--flag=value renders differ from --flag value"
+rm -f "$tmp"/eq*.exr
+expect_error "switch with a value" "--no-png takes no value" -- render "$scene" --no-png=yes "${common[@]}"
+expect_error "bad = value" "invalid value '0' for --spp" -- render "$scene" --spp=0 "${common[@]}"
 
 # determinism: threads 1 vs 2 and two batch sizes give bit-identical EXRs
 det=$root/tests/scenes/two_lights.gltf
