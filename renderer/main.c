@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -68,17 +69,25 @@ static void partial_name(const char *path, char out[PATH_MAX]) {
     else snprintf(out, PATH_MAX, "%.*s.partial%s", (int)(dot - path), path, dot);
 }
 
-/* 0 when path's folder exists and is writable (made first with create), else -1 with errno
- * saying why (access also says EROFS on a read-only file system, where root's rights do not
- * help). */
-static int ensure_parent_dir(const char *path, int create) {
+/* 0 when path's folder exists and is writable, else -1 with errno saying why (access also says
+ * EROFS on a read-only file system, where root's rights do not help). A missing folder is made
+ * first, with its missing parents (mkdir -p: `-o newdir/shot.####.exr` or `--stats-json
+ * logs/today/s.json` should not fail after the user named where the file goes). */
+static int ensure_parent_dir(const char *path) {
     char dir[PATH_MAX];
     snprintf(dir, sizeof dir, "%s", path);
     char *slash = strrchr(dir, '/');
     if (!slash) return access(".", W_OK) == 0 ? 0 : -1;
     *slash = 0;
     if (dir[0] == 0) return 0;
-    if (create) mkdir(dir, 0777);
+    /* each level, ignoring failures: the stat below says why the folder is not there */
+    for (char *p = dir + 1; *p; ++p)
+        if (*p == '/') {
+            *p = 0;
+            mkdir(dir, 0777);
+            *p = '/';
+        }
+    mkdir(dir, 0777);
     struct stat st;
     if (stat(dir, &st) != 0) return -1;
     if (!S_ISDIR(st.st_mode)) {
@@ -143,10 +152,10 @@ static void print_stats(const CandelaStats *s) {
                 s->volume_capped_walks ? "; WARNING: some walks hit the collision cap (an extreme medium): the image is biased there" : "");
 }
 
-/* NAME ends in ext. */
+/* NAME ends in ext, in any case. */
 static int has_extension(const char *name, const char *ext) {
     size_t n = strlen(name), e = strlen(ext);
-    return n > e && strcmp(name + n - e, ext) == 0;
+    return n > e && strcasecmp(name + n - e, ext) == 0; /* any case: x.EXR is an EXR */
 }
 
 /* candela merge -o OUT.exr [--png FILE | --no-png] SHARD.film... */
@@ -201,6 +210,13 @@ static int merge_main(int argc, char **argv) {
                         candela_run_output(&run, png, "the merged PNG (--png)", err) != 0))
             rc = 2;
         candela_run_files_free(&run);
+        const char *dirs_of[2] = {out, png};
+        for (int k = 0; k < 2 && rc == 0; ++k)
+            if (dirs_of[k] && ensure_parent_dir(dirs_of[k]) != 0) {
+                snprintf(err, sizeof err, "%.400s: output directory cannot be made or is not writable (%s)", dirs_of[k],
+                         strerror(errno));
+                rc = 1;
+            }
         IoLock locks[2];
         int nlocks = 0;
         const char *lock_these[2] = {out, png};
@@ -338,7 +354,7 @@ int main(int argc, char **argv) {
     if (no_png) png = NULL;
     /* the EXR is the image: writing it under a .png name, or the preview over it, loses it */
     const char *ext = strrchr(out, '.');
-    if (!compare && !bench && !o.shard_count && (!ext || strcmp(ext, ".exr") != 0)) {
+    if (!compare && !bench && !o.shard_count && (!ext || strcasecmp(ext, ".exr") != 0)) {
         fprintf(stderr, "candela: %s: the output must be an .exr file (the PNG preview goes to --png)\n", out);
         return 2;
     }
@@ -367,7 +383,7 @@ int main(int argc, char **argv) {
         if (o.guiding == CANDELA_GUIDING_OFF) o.guiding = CANDELA_GUIDING_MIS;
         snprintf(dump_prefix, sizeof dump_prefix, "%s", out);
         char *dot = strrchr(dump_prefix, '.');
-        if (dot && strcmp(dot, ".exr") == 0) *dot = 0;
+        if (dot && strcasecmp(dot, ".exr") == 0) *dot = 0;
         o.guide_dump_prefix = dump_prefix;
     }
     if (candela_options_check(&o, flag_err) != 0) {
@@ -379,34 +395,34 @@ int main(int argc, char **argv) {
         return 2;
     }
     if (!bench) {
-        if (ensure_parent_dir(out, out == default_out) != 0) {
-            fprintf(stderr, "candela: %s: output directory does not exist or is not writable (%s)\n", out, strerror(errno));
+        if (ensure_parent_dir(out) != 0) {
+            fprintf(stderr, "candela: %s: output directory cannot be made or is not writable (%s)\n", out, strerror(errno));
             return 1;
         }
-        if (png && ensure_parent_dir(png, 0) != 0) {
-            fprintf(stderr, "candela: %s: output directory does not exist or is not writable (%s)\n", png, strerror(errno));
+        if (png && ensure_parent_dir(png) != 0) {
+            fprintf(stderr, "candela: %s: output directory cannot be made or is not writable (%s)\n", png, strerror(errno));
             return 1;
         }
         /* checked now too: a statistics file that cannot be written fails before the render */
-        if (stats_json && ensure_parent_dir(stats_json, 0) != 0) {
-            fprintf(stderr, "candela: %s: output directory does not exist or is not writable (%s)\n", stats_json, strerror(errno));
+        if (stats_json && ensure_parent_dir(stats_json) != 0) {
+            fprintf(stderr, "candela: %s: output directory cannot be made or is not writable (%s)\n", stats_json, strerror(errno));
             return 1;
         }
         /* an output that is a device, FIFO or directory is refused before rendering, not after */
         char resolved[IO_PATH_MAX], ioerr[IO_ERR_LEN];
-        if (o.checkpoint_path && ensure_parent_dir(o.checkpoint_path, 0) != 0) {
-            fprintf(stderr, "candela: %s: checkpoint directory does not exist or is not writable (%s)\n", o.checkpoint_path,
+        if (o.checkpoint_path && ensure_parent_dir(o.checkpoint_path) != 0) {
+            fprintf(stderr, "candela: %s: checkpoint directory cannot be made or is not writable (%s)\n", o.checkpoint_path,
                     strerror(errno));
             return 1;
         }
-        if (o.cachepoint_dump_path && ensure_parent_dir(o.cachepoint_dump_path, 0) != 0) {
-            fprintf(stderr, "candela: %s: output directory does not exist or is not writable (%s)\n",
+        if (o.cachepoint_dump_path && ensure_parent_dir(o.cachepoint_dump_path) != 0) {
+            fprintf(stderr, "candela: %s: output directory cannot be made or is not writable (%s)\n",
                     o.cachepoint_dump_path, strerror(errno));
             return 1;
         }
         const char *outputs[6] = {out, png, stats_json, batch.stats_jsonl, o.checkpoint_path, o.cachepoint_dump_path};
-        if (batch.stats_jsonl && ensure_parent_dir(batch.stats_jsonl, 0) != 0) {
-            fprintf(stderr, "candela: %s: output directory does not exist or is not writable (%s)\n", batch.stats_jsonl,
+        if (batch.stats_jsonl && ensure_parent_dir(batch.stats_jsonl) != 0) {
+            fprintf(stderr, "candela: %s: output directory cannot be made or is not writable (%s)\n", batch.stats_jsonl,
                     strerror(errno));
             return 1;
         }
