@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "candela.h"
+#include "candela_version.h"
 #include "io.h"
 #include "options_table.h"
 
@@ -255,7 +256,7 @@ int main(int argc, char **argv) {
         if (argc < 3) { print_usage(stdout); return 0; }
         return candela_print_flag_help(stdout, argv[2]);
     }
-    if (strcmp(argv[1], "--version") == 0) { printf("candela %s\n", CANDELA_VERSION); return 0; }
+    if (strcmp(argv[1], "--version") == 0) { printf("candela %s (git %s)\n", CANDELA_VERSION, CANDELA_GIT_REVISION); return 0; }
     if (strcmp(argv[1], "merge") == 0) return merge_main(argc, argv);
     int bench = 0, compare = 0, dump = 0;
     char dump_prefix[PATH_MAX];

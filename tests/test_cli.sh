@@ -331,6 +331,13 @@ rm -f "$tmp/e.exr" "$tmp/empty.ply" "$tmp/e.err"
 # help and version
 "$bin" --help | grep -q "candela render" && ok || bad "--help"
 "$bin" --version | grep -q "^candela [0-9]" && ok || bad "--version"
+# issue 27: the version names the commit built (meson vcs_tag), "unknown" outside git
+ver=$("$bin" --version)
+echo "$ver" | grep -Eq '^candela [0-9]+\.[0-9]+\.[0-9]+ \(git ([0-9a-f]{7,40}(-dirty)?|unknown)\)$' && ok || bad "--version format: $ver"
+if head=$(git -C "$root" rev-parse HEAD 2>/dev/null); then
+  rev=$(echo "$ver" | sed -n 's/.*(git \([0-9a-f]*\).*/\1/p')
+  [ -n "$rev" ] && [ "${head#"$rev"}" != "$head" ] && ok || bad "--version says '$ver', HEAD is $head"
+fi
 # issue 27: each command's --help (and -h) lists its flags one line each, exit 0; candela help FLAG
 for c in render bench guide-dump compare merge; do
   if "$bin" $c --help >"$tmp/help.out" 2>&1 && "$bin" $c -h | cmp -s - "$tmp/help.out"; then ok; else bad "$c --help: exit or -h differs"; fi
