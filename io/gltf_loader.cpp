@@ -53,6 +53,17 @@ std::string strf(const char *fmt, ...) {
 
 [[noreturn]] void fail(const std::string &problem) { throw LoadError{problem}; }
 
+// A GLB's magic, or JSON's first character '{' after an optional UTF-8 BOM and white space: an
+// OBJ, USD or PNG given as the scene is named as such in one line, not by the JSON parser's
+// "[json.exception.parse_error.101] ..." about its first byte.
+bool looks_like_gltf(const std::vector<unsigned char> &bytes) {
+    if (bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0) return true;
+    size_t i = 0;
+    if (bytes.size() >= 3 && bytes[0] == 0xEF && bytes[1] == 0xBB && bytes[2] == 0xBF) i = 3;
+    while (i < bytes.size() && (bytes[i] == ' ' || bytes[i] == '\t' || bytes[i] == '\n' || bytes[i] == '\r')) ++i;
+    return i < bytes.size() && bytes[i] == '{';
+}
+
 // Largest accessor element count accepted (also bounds accessors that have no bufferView).
 constexpr size_t kMaxCount = size_t(1) << 28;
 
@@ -500,6 +511,7 @@ void Loader::parse() {
     std::string problem;
     if (!read_whole_file(path_, &bytes, &problem)) fail(problem);
     if (bytes.empty()) fail("file is empty");
+    if (!looks_like_gltf(bytes)) fail("not a glTF 2.0 file (.gltf or .glb expected)");
 
     tinygltf::TinyGLTF tg;
     tg.SetImageLoader(&keep_image_bytes, nullptr);

@@ -39,6 +39,7 @@
 #include "clock.h"
 #include "io.h"
 #include "metrics.h"
+#include "options_table.h"
 #include "report.h"
 
 enum { COMPARE_MAX_VARIANTS = IO_MAX_VARIANTS, COMPARE_MAX_TIMING_RUNS = 15, COMPARE_NAME_MAX = 48 };
@@ -160,6 +161,11 @@ static int variant_init(Variant *v, const char *name, size_t name_len, const cha
     v->opts = *base;
     for (int i = 0; i < v->argc; ++i) {
         const char *a = v->argv[i];
+        /* the flag's own name, also when written --flag=value */
+        size_t a_len = strncmp(a, "--", 2) == 0 && strchr(a, '=') ? (size_t)(strchr(a, '=') - a) : strlen(a);
+        char name[64];
+        snprintf(name, sizeof name, "%.*s", (int)(a_len < sizeof name ? a_len : sizeof name - 1), a);
+        a = name;
         if (strcmp(a, "--spp") == 0 || strcmp(a, "--seed") == 0 || strcmp(a, "--res") == 0) {
             snprintf(err, CANDELA_ERR_LEN, "variant '%s': %s is the same for every variant (give it to candela compare)",
                      v->name, a);
@@ -180,8 +186,12 @@ static int variant_init(Variant *v, const char *name, size_t name_len, const cha
             return -1;
         }
         if (r == 0) {
-            snprintf(err, CANDELA_ERR_LEN, "variant '%s': %s '%.200s' (render flags only, see candela --help)", v->name,
-                     a[0] == '-' ? "unknown option" : "unexpected argument", a);
+            const char *near = a[0] == '-' ? candela_flag_suggest(a, CANDELA_CMD_VARIANT) : NULL;
+            if (near)
+                snprintf(err, CANDELA_ERR_LEN, "variant '%s': unknown option '%.200s' (did you mean '%s'?)", v->name, a, near);
+            else
+                snprintf(err, CANDELA_ERR_LEN, "variant '%s': %s '%.200s' (render flags only, see candela --help)", v->name,
+                         a[0] == '-' ? "unknown option" : "unexpected argument", v->argv[i]);
             return -1;
         }
     }

@@ -1,6 +1,7 @@
 /* renderer/light_sampler.c: the light-selection protocol's dispatch (light_sampler.h) and its
  * two context-free strategies, uniform and power. */
 #include "light_sampler.h"
+#include "cachepoint_viz.h"
 #include "media.h"
 #include "scene.h"
 
@@ -309,8 +310,17 @@ int light_sampler_create(LightSampler *s, const Lights *lights, const struct Sce
         return light_sampler_cachepoints_create(s, lights, scene, media, pool, o, err); /* its own messages */
     default: rc = light_sampler_uniform_create(s, lights); break;
     }
-    if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s: out of memory building the light sampler", o->scene_path);
-    return rc;
+    if (rc != 0) {
+        snprintf(err, CANDELA_ERR_LEN, "%s: out of memory building the light sampler", o->scene_path);
+        return rc;
+    }
+    /* auto chose another sampler: the dump is still written, as an empty PLY (0 vertices), so a
+     * script reading it finds a valid file saying "no cache points" (README) */
+    if (o->cachepoint_dump_path && cachepoint_write_ply(NULL, o->cachepoint_dump_path, err) != 0) {
+        light_sampler_free(s);
+        return -1;
+    }
+    return 0;
 }
 
 void light_sampler_free(LightSampler *s) {

@@ -6,18 +6,21 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include "candela.h"
+#include "candela_version.h"
 #include "io.h"
+#include "options_table.h"
 
 static const char *USAGE =
     "usage: candela render SCENE.gltf|SCENE.glb [options]\n"
     "       candela bench SCENE [options]   render, then replay the same rays through bare Embree\n"
     "       candela guide-dump SCENE --at X,Y,Z [options]   render with guiding (mis unless --guiding\n"
     "                            ris), then write the learned directional pdf at the point\n"
-    "                            (OUT.guide.exr/.png over (u, v) = ((cos theta + 1)/2, phi/2pi)), the\n"
+    "                            (OUT.guide.exr/.png on the octahedral square of directions), the\n"
     "                            final iteration's training directions in its leaf (OUT.hist.*)\n"
     "                            and the spatial tree's leaves (OUT.leaves.ply), OUT = -o without .exr\n"
     "       candela compare SCENE [options] render variants at equal spp (or time) vs a reference\n"
@@ -26,151 +29,16 @@ static const char *USAGE =
     "                            --sample-shard renders of one frame into its image (sums of L,\n"
     "                            L^2 and counts added: per-pixel means and variances of all samples)\n"
     "       candela --help | --version\n"
-    "\n"
-    "options:\n"
-    "  -o, --output FILE.exr     output EXR (RGBA + albedo, N, Z, variance layers);\n"
-    "                            default out/<scene name>.exr\n"
-    "  --png FILE.png            preview PNG path (default: the EXR path with .png)\n"
-    "  --no-png                  do not write the PNG preview\n"
-    "  --confine-to DIR          refuse a scene, or any file it references, outside DIR\n"
-    "  --volume-budget-mb N      volume grids and their majorant and emission grids in total\n"
-    "                            (default 8192; 0: none)\n"
-    "  --texture-budget-mb N     decoded textures in total, 4 bytes per texel for 8-bit files and\n"
-    "                            16 for others (default 8192; 0: none)\n"
-    "  --save-partial            on Ctrl-C / SIGTERM, stop after the current batch (abandoning the\n"
-    "                            rest of the iteration; with --checkpoint its state is written\n"
-    "                            first) and write the image so far as NAME.partial.exr (exit 130);\n"
-    "                            a second signal exits at once\n"
-    "  --checkpoint FILE         write the film and learned state to FILE at the barriers after\n"
-    "                            about 4, 8, 16, 32, ... spp (the largest cumulative spp not above\n"
-    "                            each) and when interrupted; atomically (FILE.tmp-PID, rename)\n"
-    "  --resume-from FILE        continue the render FILE checkpointed (same scene, resolution and\n"
-    "                            options, else refused): the image equals the uninterrupted render's\n"
-    "  --sample-shard I/N        render only samples [spp I/N, spp (I+1)/N) of every pixel (I from\n"
-    "                            0), with the full render's random numbers, and write their film\n"
-    "                            sums to -o NAME.film (no EXR); candela merge combines the N films\n"
-    "  --spp N                   samples per pixel (default 16)\n"
-    "  --seed S                  random seed (default 0)\n"
-    "  --sampler sobol|independent  the numbers of each path: Owen-scrambled Sobol' points\n"
-    "                            (default) or independent uniforms (the renders before 0.2)\n"
-    "  --noise-threshold T       adaptive sampling: a pixel stops once its error estimate (standard\n"
-    "                            errors / sqrt(value), Cycles' measure) and its neighbours' are\n"
-    "                            below T (e.g. 0.01); --spp is the most any pixel gets\n"
-    "  --min-spp N               adaptive sampling: no pixel stops before N samples (default 16)\n"
-    "  --time-limit S            stop at the first iteration barrier past S seconds (load included)\n"
-    "                            and write the image; its spp depend on the machine's speed\n"
-    "  --clamp-direct V          clamp each direct-light contribution's largest channel to V\n"
-    "                            (hue kept; biased; default off)\n"
-    "  --clamp-indirect V        the same for indirect light (two or more bounces)\n"
-    "  --aov spp                 add the channel spp (samples per pixel) to the EXR\n"
-    "  --res WxH                 resolution (default: 640 wide, camera aspect)\n"
-    "  --threads N               worker threads (default: all cores)\n"
-    "  --max-depth N             maximum surface bounces; 1 = direct light only (default 8)\n"
-    "  --max-volume-bounces N    maximum scattering events in media per path (default 256)\n"
-    "  --volume-emission-sampling on|off|auto  emissive volumes are lights too (NEE with\n"
-    "                            line integration, MIS with tracking); auto: per volume, kept\n"
-    "                            where it lowers the estimated time to unit variance in the\n"
-    "                            first 4 spp (default auto)\n"
-    "  --volume-cachepoint-scatter on|off|auto  cache-point in-scattering sampling along\n"
-    "                            camera rays through media, MIS with tracking (cachepoints);\n"
-    "                            auto: per medium, kept where it measurably lowers the\n"
-    "                            time to unit variance in the first 4 spp (default auto)\n"
-"  --guiding off|mis|ris|auto  path guiding (default off): mis = one-sample MIS of the BSDF or\n"
-    "                            phase function and the learned guide (alpha 0.5); ris = resampling\n"
-    "                            of one candidate of each. Trains during the first 8 spp, then\n"
-    "                            guides (iterations 1 x 8, then 2, 4, 8, 16, 16, ...); auto = mis\n"
-    "                            where a probe over the first 4 spp predicts a gain, else off\n"
-"  --guide-training-spp N    guiding learns from the first N spp, then renders with what it\n"
-    "                            learned (default: an eighth of --spp, at least 22)\n"
-    "  --guide-spatial-threshold C  a guiding leaf splits past C sqrt(spp of the iteration)\n"
-    "                            training samples (default 3000)\n"
-    "  --path-regularization G   roughen a vertex after a rough one: alpha' = 1 - (1 - alpha)\n"
-    "                            (1 - G alpha'_prev) (the course's 0.01 helps guiding find caustics;\n"
-    "                            biased; default 0: off)\n"
-    "  --guide-spatial-filter on|off  train each sample into the leaf at a point jittered within\n"
-    "                            a box of its leaf's size (Mueller et al. 2019; default off)\n"
-    "  --aov recorder-debug      add recorder_debug.RGB to the EXR: the radiance recorder's primary\n"
-    "                            training samples times their throughput (converges to RGB)\n"
-    "  --recorder-budget N       recorded vertices per path before path/vertex skipping (default 4;\n"
-    "                            0: record every vertex)\n"
-    "  --recorder-mb N           radiance recorder storage bound in MiB (default 256)\n"
-    "  --light-sampler S         auto | uniform | power | tree | optimal | cachepoints (default auto:\n"
-    "                            power for one light, optimal up to ~128 punctual lights (an area\n"
-    "                            light counts 8), else cachepoints; cachepoints with media)\n"
-    "  --no-visibility           cache points without visibility learning\n"
-    "  --cachepoint-build B      cut (default: far entries are light-tree clusters) | linear (the\n"
-    "                            paper: every light estimated at every point)\n"
-    "  --cachepoint-cut-size N   cut build: far entries per cache point (default 128)\n"
-    "  --cachepoint-candidates N cache point candidates in object boxes (default: 100000 at\n"
-    "                            1280x720 pixels or more, in proportion below, at least 25000)\n"
-    "  --cachepoint-pilots N     cache point pilot paths (default 65536)\n"
-    "  --cachepoint-retruncate   linear build: re-apply the 97%/256 rule after the blur (less memory)\n"
-    "  --cachepoint-pooling off|points|lights  visibility counters of slots with too few attempts\n"
-    "                            pooled over the 16 neighbouring points (points), then over the\n"
-    "                            lights next to the slot's in the light tree (lights; default off)\n"
-    "  --cachepoint-progressive on|off  insert cache points between iterations where neighbouring\n"
-    "                            points' learned visibility jumps (default off)\n"
-    "  --cachepoint-progressive-budget F  inserted points as a fraction of the built ones (default 0.15)\n"
-    "  --cachepoint-bsdf on|off  at glossy vertices weigh cache point entries by the BSDF lobe\n"
-    "                            too, not only by the normal (default on; diffuse vertices unchanged)\n"
-    "  --aov cachepoint          add cachepoint.RGB and cachepoint_light.RGB to the EXR (false colours\n"
-    "                            of each first hit's cache point and of the entry it weighs most) and\n"
-    "                            write NAME.cachepoint.png, NAME.cachepoint_light.png beside the PNG\n"
-    "  --dump-cachepoints FILE.ply  write the cache points after the render as an ASCII PLY\n"
-    "                            (position, radius, near/far counts, learned visibility, colour)\n"
-    "  --optimal-occlusion       optimal sampler: one shadow ray per light per vertex\n"
-    "  --light-units U           blender (default: cd/683, lux/683) | raw (W/sr, W/m^2)\n"
-    "  --light-model M           gltf (default: glTF's spot cone ramp) | blender3 (Cycles 3.4's\n"
-    "                            spot blend smoothstep, blend = 1 - inner/outer cone angle)\n"
-    "  --material-model M        gltf (default: glTF 2.0 Appendix B BRDF) | blender3 (Blender 3.4's\n"
-    "                            Principled BSDF v1 as its glTF importer sets it up)\n"
-    "  --camera NAME             glTF camera by name (default: the first, or a framing view)\n"
-    "  --env FILE                lat-long environment map (EXR/HDR/PNG...)\n"
-    "  --env-strength S          environment multiplier (default 1)\n"
-    "  --env-rotation DEG        turn the environment about the vertical, in degrees, with the sign\n"
-    "                            of Blender's Mapping-node Z rotation (default: the scene's, else 0)\n"
-    "  --batch N                 paths in flight per batch (default 2048 per thread; never changes the image)\n"
-    "  --stats-json FILE         write render statistics as JSON\n"
-    "animation frames (render):\n"
-    "  --frames A-B[:step]|LIST  render these frames (e.g. 1-48, 1-48:4, 1,5,10-12) of the glTF\n"
-    "                            animation at time frame / fps, one scene load for all; -o must\n"
-    "                            then hold a run of '#' for the zero-padded frame number\n"
-    "                            (default out/<scene>.####.exr; the PNG follows it). Frame f's\n"
-    "                            seed is splitmix64 of --seed and f (README \"Animation\"). Exit\n"
-    "                            status: the number of failed frames (at most 100), 101 when the\n"
-    "                            request is bad (nothing rendered), 130 when interrupted\n"
-    "  --fps F                   frames per second (default 24)\n"
-    "  --resume                  skip frames whose EXR (and PNG) already exist and read back whole\n"
-    "                            at the batch's resolution (others render again, with a warning)\n"
-    "  --shard I/N               render every N-th frame of the list starting at position I\n"
-    "                            (0 <= I < N, round-robin); without it SLURM_ARRAY_TASK_ID,\n"
-    "                            _COUNT, _MIN and _STEP choose the shard of a Slurm job array\n"
-    "  --dry-run                 check the command and print what it would render, loading\n"
-    "                            nothing: 'shard I/N' and 'frame F EXR' per frame of this task\n"
-    "                            (--frames), 'sample-shard I/N samples B-E of SPP FILM' or\n"
-    "                            'render EXR' (scenes/farm/candela_submit.sh asks candela so)\n"
-    "  --frame-stats FILE.jsonl  append one JSON line per frame (frame, time, seed, status,\n"
-    "                            pose and cache point seconds, the --stats-json fields)\n"
-    "  --quiet                   no progress or statistics on stderr (warnings stay)\n"
-    "  --no-warnings             no warnings about the scene (what it holds that is not rendered)\n"
-    "compare options (the options above apply to every variant and the reference):\n"
-    "  --variants SPEC           \"NAME: FLAGS; NAME: FLAGS\" or FILE.toml / FILE.json: any render\n"
-    "                            flags per variant (not --spp, --seed, --res); the first variant\n"
-    "                            is the ratios' baseline (examples: scenes/compare/)\n"
-    "  --strategies LIST         shorthand: NAME = --light-sampler NAME (default uniform,power,tree,\n"
-    "                            optimal,cachepoints,cachepoints-novis; also cachepoints-linear,\n"
-    "                            cachepoints-cut, with -novis)\n"
-    "  --time-budget S           equal time: every variant renders until S seconds (load and build\n"
-    "                            included), stopping at an iteration barrier; --spp is then a cap\n"
-    "                            (default 1048576) and the table reports the spp reached\n"
-    "  --ref-spp N               reference spp (default 16 x --spp; 256 with --time-budget), tree\n"
-    "                            sampler\n"
-    "  --reference FILE.exr      reuse a reference instead of rendering one\n"
-    "  --out-dir DIR             default out/compare-<scene name>\n"
-    "  --optimal-max-lights N    skip optimal above N lights (default 5000; 0 = never)\n"
-    "  --timing-runs N           render each variant N times (1-15, round-robin) and report the\n"
-    "                            median time: robust timings on a busy machine (default 1; equal\n"
-    "                            spp only)\n";
+    "       candela help FLAG            what FLAG does (its long help)\n"
+    "       candela COMMAND --help       COMMAND's flags, one line each\n";
+
+/* candela --help: the synopsis, then every flag of the table (renderer/options_table.c) one
+ * line each (scripts grep it: scenes/farm/candela_submit.sh looks for "--resume "). */
+static void print_usage(FILE *f) {
+    fputs(USAGE, f);
+    fputs("\noptions (candela COMMAND --help lists a command's own):\n", f);
+    candela_print_flags(f, 0);
+}
 
 /* Interruption (SIGINT, SIGTERM): the first asks the render to stop at the next iteration
  * barrier (CandelaOptions.stop); a second removes the output being written, if any, and exits
@@ -202,46 +70,25 @@ static void partial_name(const char *path, char out[PATH_MAX]) {
     else snprintf(out, PATH_MAX, "%.*s.partial%s", (int)(dot - path), path, dot);
 }
 
-static void die(const char *msg, const char *arg) {
-    fprintf(stderr, "candela: %s%s%s\n", msg, arg ? arg : "", arg ? "" : "");
-    exit(2);
-}
-
-static long parse_long(const char *flag, const char *s, long lo, long hi) {
-    if (!s) die("missing value for ", flag);
-    char *end;
-    errno = 0;
-    long v = strtol(s, &end, 10);
-    if (errno || end == s || *end != 0 || v < lo || v > hi) {
-        fprintf(stderr, "candela: invalid value '%s' for %s (expected an integer in [%ld, %ld])\n", s, flag, lo, hi);
-        exit(2);
-    }
-    return v;
-}
-
-static float parse_float(const char *flag, const char *s, float lo, float hi) {
-    if (!s) die("missing value for ", flag);
-    char *end;
-    errno = 0;
-    float v = strtof(s, &end);
-    if (errno || end == s || *end != 0 || !(v >= lo && v <= hi)) {
-        fprintf(stderr, "candela: invalid value '%s' for %s (expected a number in [%g, %g])\n", s, flag, lo, hi);
-        exit(2);
-    }
-    return v;
-}
-
-/* 0 when path's folder exists and is writable (made first with create), else -1 with errno
- * saying why (access also says EROFS on a read-only file system, where root's rights do not
- * help). */
-static int ensure_parent_dir(const char *path, int create) {
+/* 0 when path's folder exists and is writable, else -1 with errno saying why (access also says
+ * EROFS on a read-only file system, where root's rights do not help). A missing folder is made
+ * first, with its missing parents (mkdir -p: `-o newdir/shot.####.exr` or `--stats-json
+ * logs/today/s.json` should not fail after the user named where the file goes). */
+static int ensure_parent_dir(const char *path) {
     char dir[PATH_MAX];
     snprintf(dir, sizeof dir, "%s", path);
     char *slash = strrchr(dir, '/');
     if (!slash) return access(".", W_OK) == 0 ? 0 : -1;
     *slash = 0;
     if (dir[0] == 0) return 0;
-    if (create) mkdir(dir, 0777);
+    /* each level, ignoring failures: the stat below says why the folder is not there */
+    for (char *p = dir + 1; *p; ++p)
+        if (*p == '/') {
+            *p = 0;
+            mkdir(dir, 0777);
+            *p = '/';
+        }
+    mkdir(dir, 0777);
     struct stat st;
     if (stat(dir, &st) != 0) return -1;
     if (!S_ISDIR(st.st_mode)) {
@@ -306,26 +153,41 @@ static void print_stats(const CandelaStats *s) {
                 s->volume_capped_walks ? "; WARNING: some walks hit the collision cap (an extreme medium): the image is biased there" : "");
 }
 
-/* NAME ends in ext. */
+/* NAME ends in ext, in any case. */
 static int has_extension(const char *name, const char *ext) {
     size_t n = strlen(name), e = strlen(ext);
-    return n > e && strcmp(name + n - e, ext) == 0;
+    return n > e && strcasecmp(name + n - e, ext) == 0; /* any case: x.EXR is an EXR */
 }
 
 /* candela merge -o OUT.exr [--png FILE | --no-png] SHARD.film... */
 static int merge_main(int argc, char **argv) {
-    const char *out = NULL, *png = NULL;
-    int no_png = 0, n = 0;
+    CandelaCommandLine cl;
+    memset(&cl, 0, sizeof cl);
+    int n = 0;
     const char **files = calloc((size_t)argc, sizeof *files);
     if (!files) { fprintf(stderr, "candela: out of memory\n"); return 1; }
     for (int i = 2; i < argc; ++i) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        if (strcmp(a, "-o") == 0 || strcmp(a, "--output") == 0) { if (!v) die("missing value for ", a); out = v; ++i; }
-        else if (strcmp(a, "--png") == 0) { if (!v) die("missing value for ", a); png = v; ++i; }
-        else if (strcmp(a, "--no-png") == 0) no_png = 1;
-        else if (a[0] == '-') { fprintf(stderr, "candela: unknown merge option '%s' (see candela --help)\n", a); free(files); return 2; }
-        else files[n++] = a;
+        const char *a = argv[i];
+        char flag_err[CANDELA_ERR_LEN];
+        int parsed = candela_parse_flag(&cl, CANDELA_CMD_MERGE, argc, argv, &i, NULL, flag_err);
+        if (parsed < 0) { fprintf(stderr, "candela: %s\n", flag_err); free(files); return 2; }
+        if (cl.help) {
+            printf("usage: candela merge -o OUT.exr [--png FILE | --no-png] SHARD.film...\n");
+            candela_print_flags(stdout, CANDELA_CMD_MERGE);
+            free(files);
+            return 0;
+        }
+        if (parsed > 0) continue;
+        if (a[0] == '-') {
+            candela_unknown_flag_message(a, CANDELA_CMD_MERGE, "merge option", flag_err);
+            fprintf(stderr, "candela: %s\n", flag_err);
+            free(files);
+            return 2;
+        }
+        files[n++] = a;
     }
+    const char *out = cl.out, *png = cl.png;
+    int no_png = cl.no_png;
     char png_buf[PATH_MAX], err[CANDELA_ERR_LEN];
     int rc = 0;
     if (!out || !has_extension(out, ".exr")) {
@@ -349,6 +211,13 @@ static int merge_main(int argc, char **argv) {
                         candela_run_output(&run, png, "the merged PNG (--png)", err) != 0))
             rc = 2;
         candela_run_files_free(&run);
+        const char *dirs_of[2] = {out, png};
+        for (int k = 0; k < 2 && rc == 0; ++k)
+            if (dirs_of[k] && ensure_parent_dir(dirs_of[k]) != 0) {
+                snprintf(err, sizeof err, "%.400s: output directory cannot be made or is not writable (%s)", dirs_of[k],
+                         strerror(errno));
+                rc = 1;
+            }
         IoLock locks[2];
         int nlocks = 0;
         const char *lock_these[2] = {out, png};
@@ -377,15 +246,19 @@ static int record_run_files(CandelaRunFiles *run, const CandelaOptions *o, const
                             const CandelaBatchOptions *batch, int compare, int bench, int dump, const char *out,
                             const char *png, const char *stats_json, int save_partial, char err[CANDELA_ERR_LEN]);
 static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBatchOptions *bp, int compare, int bench,
-                       int dump, const char *out, const char *png, const char *stats_json, int save_partial, int argc,
-                       char **argv);
+                       int dump, const char *out, const char *png, const char *stats_json, int save_partial,
+                       int spp_given);
 
 int main(int argc, char **argv) {
-    if (argc < 2) { fputs(USAGE, stderr); return 2; }
-    if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0) { fputs(USAGE, stdout); return 0; }
-    if (strcmp(argv[1], "--version") == 0) { printf("candela %s\n", CANDELA_VERSION); return 0; }
+    if (argc < 2) { print_usage(stderr); return 2; }
+    if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0) { print_usage(stdout); return 0; }
+    if (strcmp(argv[1], "help") == 0) {
+        if (argc < 3) { print_usage(stdout); return 0; }
+        return candela_print_flag_help(stdout, argv[2]);
+    }
+    if (strcmp(argv[1], "--version") == 0) { printf("candela %s (git %s)\n", CANDELA_VERSION, CANDELA_GIT_REVISION); return 0; }
     if (strcmp(argv[1], "merge") == 0) return merge_main(argc, argv);
-    int bench = 0, compare = 0, dump = 0, have_at = 0;
+    int bench = 0, compare = 0, dump = 0;
     char dump_prefix[PATH_MAX];
     if (strcmp(argv[1], "bench") == 0) bench = 1;
     else if (strcmp(argv[1], "guide-dump") == 0) dump = 1;
@@ -394,86 +267,44 @@ int main(int argc, char **argv) {
         fprintf(stderr, "candela: unknown command '%s' (see candela --help)\n", argv[1]);
         return 2;
     }
-    CandelaOptions o;
-    candela_options_default(&o);
-    const char *out = NULL, *png = NULL, *stats_json = NULL;
-    int no_png = 0, save_partial = 0;
-    CandelaBatchOptions batch = {0};
-    CandelaCompareOptions co = {NULL, 0, NULL, NULL, 5000}; /* strategies NULL: compare.c's default list */
+    unsigned cmd = bench ? CANDELA_CMD_BENCH : dump ? CANDELA_CMD_GUIDE_DUMP : compare ? CANDELA_CMD_COMPARE : CANDELA_CMD_RENDER;
+    CandelaCommandLine cl;
+    memset(&cl, 0, sizeof cl);
+    candela_options_default(&cl.o);
+    cl.co.optimal_max_lights = 5000; /* strategies NULL: compare.c's default list */
     char flag_err[CANDELA_ERR_LEN];
     for (int i = 2; i < argc; ++i) {
         const char *a = argv[i];
-        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
-        /* render options (shared with compare's variants: renderer/flags.c) first */
-        int parsed = candela_parse_render_flag(&o, argc, argv, &i, flag_err);
+        /* every flag is a row of renderer/options_table.c (render options shared with compare's
+         * variants) */
+        const CandelaFlag *row = NULL;
+        int parsed = candela_parse_flag(&cl, cmd, argc, argv, &i, &row, flag_err);
         if (parsed < 0) { fprintf(stderr, "candela: %s\n", flag_err); return 2; }
-        if (parsed > 0) continue;
-        if (strcmp(a, "-o") == 0 || strcmp(a, "--output") == 0) { if (!v) die("missing value for ", a); out = v; ++i; }
-        else if (strcmp(a, "--png") == 0) { if (!v) die("missing value for ", a); png = v; ++i; }
-        else if (strcmp(a, "--no-png") == 0) no_png = 1;
-        else if (strcmp(a, "--save-partial") == 0) save_partial = 1;
-        else if (strcmp(a, "--checkpoint") == 0) { if (!v) die("missing value for ", a); o.checkpoint_path = v; ++i; }
-        else if (strcmp(a, "--resume-from") == 0) { if (!v) die("missing value for ", a); o.resume_from = v; ++i; }
-        else if (strcmp(a, "--sample-shard") == 0) {
-            if (!v) die("missing value for ", a);
-            char *slash = NULL, *end = NULL;
-            errno = 0;
-            long si = strtol(v, &slash, 10), sn = 0;
-            int good = errno == 0 && slash != v && *slash == '/' && si >= 0;
-            if (good) {
-                sn = strtol(slash + 1, &end, 10);
-                good = errno == 0 && end != slash + 1 && *end == 0 && sn >= 1 && sn <= 65536 && si < sn;
-            }
-            if (!good) {
-                fprintf(stderr, "candela: invalid value '%s' for --sample-shard (expected I/N with 0 <= I < N <= 65536)\n", v);
-                return 2;
-            }
-            o.shard_index = (uint32_t)si;
-            o.shard_count = (uint32_t)sn;
-            ++i;
+        if (cl.help) {
+            printf("usage: candela %s SCENE.gltf|SCENE.glb [options]\n", argv[1]);
+            candela_print_flags(stdout, cmd);
+            return 0;
         }
-        else if (strcmp(a, "--frames") == 0) { if (!v) die("missing value for ", a); batch.frames = v; ++i; }
-        else if (strcmp(a, "--fps") == 0) { batch.fps = parse_float(a, v, 1e-3f, 1e6f); ++i; }
-        else if (strcmp(a, "--shard") == 0) { if (!v) die("missing value for ", a); batch.shard = v; ++i; }
-        else if (strcmp(a, "--resume") == 0) batch.resume = 1;
-        else if (strcmp(a, "--dry-run") == 0) batch.dry_run = 1;
-        else if (strcmp(a, "--frame-stats") == 0) { if (!v) die("missing value for ", a); batch.stats_jsonl = v; ++i; }
-        else if (compare && strcmp(a, "--strategies") == 0) { if (!v) die("missing value for ", a); co.strategies = v; ++i; }
-        else if (compare && strcmp(a, "--variants") == 0) { if (!v) die("missing value for ", a); co.variants = v; ++i; }
-        else if (compare && strcmp(a, "--time-budget") == 0) { co.time_budget = parse_float(a, v, 0.001f, 1e7f); ++i; }
-        else if (compare && strcmp(a, "--ref-spp") == 0) { co.reference_spp = (int)parse_long(a, v, 1, 1 << 20); ++i; }
-        else if (compare && strcmp(a, "--reference") == 0) { if (!v) die("missing value for ", a); co.reference_path = v; ++i; }
-        else if (compare && strcmp(a, "--out-dir") == 0) { if (!v) die("missing value for ", a); co.out_dir = v; ++i; }
-        else if (compare && strcmp(a, "--optimal-max-lights") == 0) { co.optimal_max_lights = (int)parse_long(a, v, 0, 1 << 30); ++i; }
-        else if (compare && strcmp(a, "--timing-runs") == 0) { co.timing_runs = (int)parse_long(a, v, 1, 15); ++i; }
-        else if (dump && strcmp(a, "--at") == 0) {
-            if (!v) die("missing value for ", a);
-            char *end;
-            const char *c = v;
-            for (int k = 0; k < 3; ++k) {
-                o.guide_dump_at[k] = strtof(c, &end);
-                if (end == c || !isfinite(o.guide_dump_at[k]) || (k < 2 && *end != ',') || (k == 2 && *end)) {
-                    fprintf(stderr, "candela: --at wants X,Y,Z (three finite numbers), not '%s'\n", v);
-                    return 2;
-                }
-                c = end + 1;
-            }
-            have_at = 1;
-            ++i;
+        if (parsed > 0) {
+            if (strcmp(row->name, "--spp") == 0) cl.spp_given = 1;
+            continue;
         }
-        else if (strcmp(a, "--stats-json") == 0) { if (!v) die("missing value for ", a); stats_json = v; ++i; }
-        else if (strcmp(a, "--quiet") == 0 || strcmp(a, "-q") == 0) o.quiet = 1;
-        else if (strcmp(a, "--no-warnings") == 0) o.no_warnings = 1;
-        else if (a[0] == '-') {
-            fprintf(stderr, "candela: unknown option '%s' (see candela --help)\n", a);
+        if (a[0] == '-') {
+            candela_unknown_flag_message(a, cmd, "option", flag_err);
+            fprintf(stderr, "candela: %s\n", flag_err);
             return 2;
-        } else if (!o.scene_path) {
-            o.scene_path = a;
+        } else if (!cl.o.scene_path) {
+            cl.o.scene_path = a;
         } else {
             fprintf(stderr, "candela: unexpected argument '%s' (one scene per run)\n", a);
             return 2;
         }
     }
+    CandelaOptions o = cl.o;
+    CandelaCompareOptions co = cl.co;
+    CandelaBatchOptions batch = cl.batch;
+    const char *out = cl.out, *png = cl.png, *stats_json = cl.stats_json;
+    int no_png = cl.no_png, save_partial = cl.save_partial, have_at = cl.have_at;
     if (!o.scene_path) { fprintf(stderr, "candela: no scene given (see candela --help)\n"); return 2; }
     if (access(o.scene_path, R_OK) != 0) {
         fprintf(stderr, "candela: %s: cannot read: %s\n", o.scene_path, strerror(errno));
@@ -524,7 +355,7 @@ int main(int argc, char **argv) {
     if (no_png) png = NULL;
     /* the EXR is the image: writing it under a .png name, or the preview over it, loses it */
     const char *ext = strrchr(out, '.');
-    if (!compare && !bench && !o.shard_count && (!ext || strcmp(ext, ".exr") != 0)) {
+    if (!compare && !bench && !o.shard_count && (!ext || strcasecmp(ext, ".exr") != 0)) {
         fprintf(stderr, "candela: %s: the output must be an .exr file (the PNG preview goes to --png)\n", out);
         return 2;
     }
@@ -553,7 +384,7 @@ int main(int argc, char **argv) {
         if (o.guiding == CANDELA_GUIDING_OFF) o.guiding = CANDELA_GUIDING_MIS;
         snprintf(dump_prefix, sizeof dump_prefix, "%s", out);
         char *dot = strrchr(dump_prefix, '.');
-        if (dot && strcmp(dot, ".exr") == 0) *dot = 0;
+        if (dot && strcasecmp(dot, ".exr") == 0) *dot = 0;
         o.guide_dump_prefix = dump_prefix;
     }
     if (candela_options_check(&o, flag_err) != 0) {
@@ -565,34 +396,34 @@ int main(int argc, char **argv) {
         return 2;
     }
     if (!bench) {
-        if (ensure_parent_dir(out, out == default_out) != 0) {
-            fprintf(stderr, "candela: %s: output directory does not exist or is not writable (%s)\n", out, strerror(errno));
+        if (ensure_parent_dir(out) != 0) {
+            fprintf(stderr, "candela: %s: output directory cannot be made or is not writable (%s)\n", out, strerror(errno));
             return 1;
         }
-        if (png && ensure_parent_dir(png, 0) != 0) {
-            fprintf(stderr, "candela: %s: output directory does not exist or is not writable (%s)\n", png, strerror(errno));
+        if (png && ensure_parent_dir(png) != 0) {
+            fprintf(stderr, "candela: %s: output directory cannot be made or is not writable (%s)\n", png, strerror(errno));
             return 1;
         }
         /* checked now too: a statistics file that cannot be written fails before the render */
-        if (stats_json && ensure_parent_dir(stats_json, 0) != 0) {
-            fprintf(stderr, "candela: %s: output directory does not exist or is not writable (%s)\n", stats_json, strerror(errno));
+        if (stats_json && ensure_parent_dir(stats_json) != 0) {
+            fprintf(stderr, "candela: %s: output directory cannot be made or is not writable (%s)\n", stats_json, strerror(errno));
             return 1;
         }
         /* an output that is a device, FIFO or directory is refused before rendering, not after */
         char resolved[IO_PATH_MAX], ioerr[IO_ERR_LEN];
-        if (o.checkpoint_path && ensure_parent_dir(o.checkpoint_path, 0) != 0) {
-            fprintf(stderr, "candela: %s: checkpoint directory does not exist or is not writable (%s)\n", o.checkpoint_path,
+        if (o.checkpoint_path && ensure_parent_dir(o.checkpoint_path) != 0) {
+            fprintf(stderr, "candela: %s: checkpoint directory cannot be made or is not writable (%s)\n", o.checkpoint_path,
                     strerror(errno));
             return 1;
         }
-        if (o.cachepoint_dump_path && ensure_parent_dir(o.cachepoint_dump_path, 0) != 0) {
-            fprintf(stderr, "candela: %s: output directory does not exist or is not writable (%s)\n",
+        if (o.cachepoint_dump_path && ensure_parent_dir(o.cachepoint_dump_path) != 0) {
+            fprintf(stderr, "candela: %s: output directory cannot be made or is not writable (%s)\n",
                     o.cachepoint_dump_path, strerror(errno));
             return 1;
         }
         const char *outputs[6] = {out, png, stats_json, batch.stats_jsonl, o.checkpoint_path, o.cachepoint_dump_path};
-        if (batch.stats_jsonl && ensure_parent_dir(batch.stats_jsonl, 0) != 0) {
-            fprintf(stderr, "candela: %s: output directory does not exist or is not writable (%s)\n", batch.stats_jsonl,
+        if (batch.stats_jsonl && ensure_parent_dir(batch.stats_jsonl) != 0) {
+            fprintf(stderr, "candela: %s: output directory cannot be made or is not writable (%s)\n", batch.stats_jsonl,
                     strerror(errno));
             return 1;
         }
@@ -643,7 +474,7 @@ int main(int argc, char **argv) {
             ++nlocks;
         }
     }
-    if (rc == 0) rc = run_command(&o, &co, &batch, compare, bench, dump, out, png, stats_json, save_partial, argc, argv);
+    if (rc == 0) rc = run_command(&o, &co, &batch, compare, bench, dump, out, png, stats_json, save_partial, cl.spp_given);
     while (nlocks > 0) io_unlock_output(&locks[--nlocks]);
     candela_run_files_free(&run);
     return rc;
@@ -706,8 +537,8 @@ static int record_run_files(CandelaRunFiles *run, const CandelaOptions *o, const
 
 /* Runs the command once its files are known (main's last part). */
 static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBatchOptions *bp, int compare, int bench,
-                       int dump, const char *out, const char *png, const char *stats_json, int save_partial, int argc,
-                       char **argv) {
+                       int dump, const char *out, const char *png, const char *stats_json, int save_partial,
+                       int spp_given) {
     CandelaOptions o = *op;
     CandelaCompareOptions co = *cop;
     CandelaBatchOptions batch = *bp;
@@ -725,8 +556,6 @@ static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBa
             co.out_dir = dir;
         }
         /* equal time: --spp is only a cap, by default the largest (the time budget decides) */
-        int spp_given = 0;
-        for (int i = 2; i < argc; ++i) spp_given |= strcmp(argv[i], "--spp") == 0;
         if (co.time_budget > 0 && !spp_given) o.spp = 1 << 20;
         if (candela_compare(&o, &co, err) != 0) {
             fprintf(stderr, "candela: %s\n", err);

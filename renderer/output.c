@@ -3,6 +3,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <unistd.h>
 
 #include <math.h>
@@ -18,7 +19,7 @@ static float srgb_encode(float x) {
 
 void candela_cachepoint_png_paths(const char *png_path, char *point_png, char *light_png, size_t len) {
     size_t base = strlen(png_path);
-    if (base >= 4 && strcmp(png_path + base - 4, ".png") == 0) base -= 4;
+    if (base >= 4 && strcasecmp(png_path + base - 4, ".png") == 0) base -= 4; /* x.PNG too */
     snprintf(point_png, len, "%.*s.cachepoint.png", (int)base, png_path);
     snprintf(light_png, len, "%.*s.cachepoint_light.png", (int)base, png_path);
 }

@@ -393,7 +393,16 @@ static int setup_camera(Scene *scene, const CandelaOptions *o, char err[CANDELA_
         for (uint32_t i = 0; i < scene->io.num_cameras; ++i)
             if (strcmp(scene->io.cameras[i].name, o->camera_name) == 0) { ic = &scene->io.cameras[i]; break; }
         if (!ic) {
-            set_error(err, "%s: no camera named '%s'", o->scene_path, o->camera_name);
+            /* the names it could have been, so a typo is fixed without opening the file */
+            char names[256] = "";
+            size_t used = 0;
+            for (uint32_t i = 0; i < scene->io.num_cameras && used + 1 < sizeof names; ++i) {
+                int w = snprintf(names + used, sizeof names - used, "%s'%s'", i ? ", " : "", scene->io.cameras[i].name);
+                used = w < 0 ? used : used + (size_t)w;
+            }
+            if (used >= sizeof names) memcpy(names + sizeof names - 5, "...", 4); /* cut: say so */
+            snprintf(err, CANDELA_ERR_LEN, "%.200s: no camera named '%.60s' (%s%s)", o->scene_path, o->camera_name,
+                     scene->io.num_cameras ? "the scene's cameras: " : "the scene has no cameras", names);
             return -1;
         }
     } else if (scene->io.num_cameras > 0) {

@@ -37,7 +37,10 @@ expect_error "missing scene" "nonexistent.gltf" -- render "$tmp/nonexistent.gltf
 expect_error "unknown command" "unknown command" -- paint "$scene"
 expect_error "missing env" "nope.exr" -- render "$scene" --env "$tmp/nope.exr" "${common[@]}"
 expect_error "bad camera" "no camera named" -- render "$scene" --camera nosuchcam "${common[@]}"
-expect_error "no output dir" "not writable" -- render "$scene" -o "$tmp/missing/dir/out.exr" --quiet
+# an output folder that cannot be made (a file is in the way): one line, nothing written
+: > "$tmp/afile"
+expect_error "output dir is a file" "not writable" -- render "$scene" -o "$tmp/afile/dir/out.exr" --quiet
+rm -f "$tmp/afile"
 # hardening: a resolution that wrapped in sscanf, one too large for the film, the EXR written
 # under a .png name or overwritten by the preview, an environment that is a FIFO (blocked)
 expect_error "res overflow" "--res" -- render "$scene" --res 4294967304x8 -o "$tmp/out.exr" --quiet
@@ -264,9 +267,110 @@ expect_error "unknown area shape" "node 2 ('panel'): extras.candela_area_light.s
 expect_error "zero area size" "extras.candela_area_light.size must be an array of 2 finite numbers > 0" -- render "$root/tests/bad/area_light_size.gltf" "${common[@]}"
 expect_error "negative area power" "extras.candela_area_light.power must be a finite number >= 0" -- render "$root/tests/bad/area_light_power.gltf" "${common[@]}"
 
+# issue 27 habits: missing output folders are made (-o, --png, --stats-json, --checkpoint,
+# --dump-cachepoints, --frame-stats, frame patterns); extensions in any case; a scene that is not
+# glTF is named as such; an unknown camera lists the scene's; the cache point dump is an empty PLY
+# when auto picks another sampler
+if "$bin" render "$scene" -o "$tmp/nd1/a/b.exr" --png "$tmp/nd2/p.png" --stats-json "$tmp/nd3/x/s.json" \
+     --checkpoint "$tmp/nd4/c.ckpt" --res 8x8 --spp 2 --quiet && [ -s "$tmp/nd1/a/b.exr" ] && [ -s "$tmp/nd2/p.png" ] &&
+   [ -s "$tmp/nd3/x/s.json" ] && [ -d "$tmp/nd4" ]; then ok; else bad "missing output folders not made: $(find "$tmp"/nd* 2>&1)"; fi
+if "$bin" render "$scene" -o "$tmp/nd5/d.exr" --no-png --light-sampler cachepoints --dump-cachepoints "$tmp/nd6/d.ply" \
+     --res 16x16 --spp 2 --quiet && head -1 "$tmp/nd6/d.ply" | grep -q '^ply$'; then ok; else bad "--dump-cachepoints folder not made"; fi
+if "$bin" render "$root/scenes/animation.gltf" --frames 1-2 -o "$tmp/nd7/shot.####.exr" --frame-stats "$tmp/nd8/f.jsonl" \
+     --res 8x8 --spp 1 --quiet && [ -s "$tmp/nd7/shot.0001.exr" ] && [ -s "$tmp/nd7/shot.0002.png" ] && [ -s "$tmp/nd8/f.jsonl" ]; then
+  ok
+else
+  bad "frame pattern folder not made: $(find "$tmp"/nd7 "$tmp"/nd8 2>&1)"
+fi
+rm -rf "$tmp"/nd*
+# the outputs rule still holds through a folder made for it: new/../e.exr is the environment
+mkdir -p "$tmp/nd9" && cp "$root/tests/scenes/env_constant.exr" "$tmp/nd9/e.exr"
+expect_error "output replaces the environment" "would replace the environment" -- render "$scene" --env "$tmp/nd9/e.exr" \
+  -o "$tmp/nd9/new/../e.exr" --no-png --quiet
+rm -rf "$tmp/nd9"
+cp "$scene" "$tmp/UPPER.GLTF"
+if "$bin" render "$tmp/UPPER.GLTF" -o "$tmp/up1.EXR" --png "$tmp/up2.PNG" --res 8x8 --spp 1 --quiet &&
+   [ "$(head -c 4 "$tmp/up1.EXR" | od -An -tx1 | tr -d ' ')" = 762f3101 ] &&
+   [ "$(head -c 4 "$tmp/up2.PNG" | od -An -tx1 | tr -d ' ')" = 89504e47 ]; then ok; else bad "upper-case extensions refused or misread"; fi
+if "$bin" render "$tmp/UPPER.GLTF" -o "$tmp/up3.Exr" --res 8x8 --spp 1 --quiet && [ -s "$tmp/up3.png" ]; then ok; else bad ".Exr: no PNG beside it"; fi
+python3 - "$scene" "$tmp/UPPER.GLB" <<'PY'
+import base64, json, struct, sys
+d = json.load(open(sys.argv[1]))
+b = d["buffers"][0]
+data = base64.b64decode(b.pop("uri").split(",", 1)[1])
+data += b"\0" * (-len(data) % 4)
+js = json.dumps(d).encode()
+js += b" " * (-len(js) % 4)
+out = struct.pack("<4sII", b"glTF", 2, 12 + 8 + len(js) + 8 + len(data))
+out += struct.pack("<II", len(js), 0x4E4F534A) + js + struct.pack("<II", len(data), 0x004E4942) + data
+open(sys.argv[2], "wb").write(out)
+PY
+if "$bin" render "$tmp/UPPER.GLB" -o "$tmp/up4.exr" --no-png --res 8x8 --spp 1 --quiet && [ -s "$tmp/up4.exr" ]; then ok; else bad ".GLB scene refused"; fi
+rm -f "$tmp"/up* "$tmp/UPPER.GLTF" "$tmp/UPPER.GLB"
+printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n' > "$tmp/mesh.obj"
+expect_error "obj scene" "candela: $tmp/mesh.obj: not a glTF 2.0 file (.gltf or .glb expected)" -- render "$tmp/mesh.obj" "${common[@]}"
+printf '#usda 1.0\n' > "$tmp/stage.usd"
+expect_error "usd scene" "stage.usd: not a glTF 2.0 file (.gltf or .glb expected)" -- render "$tmp/stage.usd" "${common[@]}"
+printf '\x89PNG\r\n\x1a\n\0\0\0\rIHDR' > "$tmp/image.png"
+expect_error "png scene" "image.png: not a glTF 2.0 file" -- render "$tmp/image.png" "${common[@]}"
+printf 'hello' > "$tmp/text.gltf"
+expect_error "text named .gltf" "text.gltf: not a glTF 2.0 file" -- render "$tmp/text.gltf" "${common[@]}"
+grep -q 'json.exception' "$tmp/stderr" && bad "the JSON parser's message leaked: $(cat "$tmp/stderr")" || ok
+rm -f "$tmp/mesh.obj" "$tmp/stage.usd" "$tmp/image.png" "$tmp/text.gltf"
+expect_error "camera list" "no camera named 'Nope' (the scene's cameras: 'top')" -- render "$scene" --camera Nope "${common[@]}"
+hostile "$tmp/nocam.gltf" 'd.pop("cameras"); [n.pop("camera") for n in cam]'
+expect_error "camera list, no cameras" "no camera named 'Nope' (the scene has no cameras)" -- render "$tmp/nocam.gltf" --camera Nope "${common[@]}"
+rm -f "$tmp/nocam.gltf"
+# one light: auto picks power, and the dump is an empty but valid PLY (README)
+rm -f "$tmp/empty.ply"
+if "$bin" render "$scene" -o "$tmp/e.exr" --no-png --dump-cachepoints "$tmp/empty.ply" --res 8x8 --spp 1 --quiet 2>"$tmp/e.err" &&
+   head -1 "$tmp/empty.ply" | grep -q '^ply$' && grep -q '^element vertex 0$' "$tmp/empty.ply" && grep -q '^end_header$' "$tmp/empty.ply" &&
+   grep -q "the cache point dump is empty" "$tmp/e.err"; then ok; else bad "auto's empty cache point dump: $(cat "$tmp/e.err"; cat "$tmp/empty.ply" 2>&1 | head -3)"; fi
+rm -f "$tmp/e.exr" "$tmp/empty.ply" "$tmp/e.err"
+
 # help and version
 "$bin" --help | grep -q "candela render" && ok || bad "--help"
 "$bin" --version | grep -q "^candela [0-9]" && ok || bad "--version"
+# issue 27: the version names the commit built (meson vcs_tag), "unknown" outside git
+ver=$("$bin" --version)
+echo "$ver" | grep -Eq '^candela [0-9]+\.[0-9]+\.[0-9]+ \(git ([0-9a-f]{7,40}(-dirty)?|unknown)\)$' && ok || bad "--version format: $ver"
+if head=$(git -C "$root" rev-parse HEAD 2>/dev/null); then
+  rev=$(echo "$ver" | sed -n 's/.*(git \([0-9a-f]*\).*/\1/p')
+  [ -n "$rev" ] && [ "${head#"$rev"}" != "$head" ] && ok || bad "--version says '$ver', HEAD is $head"
+fi
+# issue 27: each command's --help (and -h) lists its flags one line each, exit 0; candela help FLAG
+for c in render bench guide-dump compare merge; do
+  if "$bin" $c --help >"$tmp/help.out" 2>&1 && "$bin" $c -h | cmp -s - "$tmp/help.out"; then ok; else bad "$c --help: exit or -h differs"; fi
+  grep -q -- "--help" "$tmp/help.out" && ok || bad "$c --help lacks --help"
+done
+"$bin" render "$scene" --spp 2 --help | grep -q -- '^  --spp N ' && ok || bad "render --help lacks --spp"
+"$bin" render --help | grep -q -- '--timing-runs' && bad "render --help lists compare's --timing-runs" || ok
+"$bin" compare --help | grep -q -- '--timing-runs' && ok || bad "compare --help lacks --timing-runs"
+"$bin" merge --help | grep -q -- '--spp' && bad "merge --help lists --spp" || ok
+"$bin" guide-dump --help | grep -q -- '--at X,Y,Z' && ok || bad "guide-dump --help lacks --at"
+"$bin" help spp >"$tmp/help.out" && grep -q "samples per pixel" "$tmp/help.out" && grep -q "1048576" "$tmp/help.out" && ok || bad "candela help spp: $(cat "$tmp/help.out")"
+"$bin" help -o | grep -q "output EXR" && ok || bad "candela help -o"
+expect_error "help of an unknown flag" "unknown option '--spl' (did you mean '--spp'?)" -- help --spl
+[ $("$bin" help --spl >/dev/null 2>&1; echo $?) = 2 ] && ok || bad "help --spl: exit status"
+# did you mean: the nearest flag of the command, only when close; exit 2
+expect_error "did you mean" "unknown option '--spl' (did you mean '--spp'?)" -- render "$scene" --spl 4 "${common[@]}"
+[ $("$bin" render "$scene" --spl 4 "${common[@]}" >/dev/null 2>&1; echo $?) = 2 ] && ok || bad "--spl: exit status"
+expect_error "did you mean (= form)" "unknown option '--lightsampler' (did you mean '--light-sampler'?)" -- render "$scene" --lightsampler=power "${common[@]}"
+expect_error "no suggestion" "unknown option '--xyzzy' (see candela render --help)" -- render "$scene" --xyzzy "${common[@]}"
+expect_error "compare's flag in render" "unknown option '--timing-runs'" -- render "$scene" --timing-runs 2 "${common[@]}"
+expect_error "merge did you mean" "unknown merge option '--pgn' (did you mean '--png'?)" -- merge -o "$tmp/m.exr" --pgn x.png a.film
+expect_error "variant did you mean" "variant 'a': unknown option '--guding' (did you mean '--guiding'?)" -- compare "$scene" --spp 1 --res 8x8 \
+  --ref-spp 1 --out-dir "$tmp/c27v" --quiet --variants "a: --guding mis"
+expect_error "variant --spp= form" "variant 'a': --spp is the same for every variant" -- compare "$scene" --spp 1 --res 8x8 \
+  --ref-spp 1 --out-dir "$tmp/c27v" --quiet --variants "a: --spp=3"
+rm -rf "$tmp/c27v"
+# --flag=value is --flag value: the same image
+"$bin" render "$scene" -o "$tmp/eq1.exr" --no-png --res 12x10 --spp 2 --seed 3 --light-sampler tree --quiet || bad "render eq1"
+"$bin" render "$scene" --output="$tmp/eq2.exr" --no-png --res=12x10 --spp=2 --seed=3 --light-sampler=tree -q || bad "render eq2"
+cmp -s "$tmp/eq1.exr" "$tmp/eq2.exr" && ok || bad "--flag=value renders differ from --flag value"
+rm -f "$tmp"/eq*.exr
+expect_error "switch with a value" "--no-png takes no value" -- render "$scene" --no-png=yes "${common[@]}"
+expect_error "bad = value" "invalid value '0' for --spp" -- render "$scene" --spp=0 "${common[@]}"
 
 # determinism: threads 1 vs 2 and two batch sizes give bit-identical EXRs
 det=$root/tests/scenes/two_lights.gltf

@@ -1,0 +1,104 @@
+/* renderer/options_table.h: the command line's flags as one table (private to the CLI, its
+ * tests and renderer/flags.c; issue 27).
+ *
+ * Every flag of every subcommand is one row of renderer/options_table.c: its name and short
+ * alias, the kind of value it takes and that value's range or names, the field it sets, which
+ * subcommands take it, and its help. The parser, `candela CMD --help`, `candela help FLAG` and
+ * the "did you mean" of an unknown flag all read the rows, so a flag cannot be parsed by one and
+ * missing from another. */
+#ifndef CANDELA_OPTIONS_TABLE_H
+#define CANDELA_OPTIONS_TABLE_H
+
+#include <stddef.h>
+#include <stdio.h>
+
+#include "candela.h"
+
+/* The subcommands, as bits of CandelaFlag.commands. CANDELA_CMD_VARIANT is a variant of
+ * `candela compare --variants` (the render flags that may differ between variants). */
+enum {
+    CANDELA_CMD_RENDER = 1u << 0,
+    CANDELA_CMD_BENCH = 1u << 1,
+    CANDELA_CMD_GUIDE_DUMP = 1u << 2,
+    CANDELA_CMD_COMPARE = 1u << 3,
+    CANDELA_CMD_MERGE = 1u << 4,
+    CANDELA_CMD_VARIANT = 1u << 5
+};
+
+/* Everything one command line sets: the render options and the other commands' own. The table's
+ * CLI rows point into it (offsetof); its render rows point into CandelaOptions, so
+ * candela_parse_render_flag can fill a variant's options alone. */
+typedef struct CandelaCommandLine {
+    CandelaOptions o;
+    CandelaCompareOptions co;
+    CandelaBatchOptions batch;
+    const char *out, *png, *stats_json;
+    int no_png, save_partial;
+    int have_at;  /* guide-dump's --at was given */
+    int spp_given; /* --spp was given (compare's equal time: --spp is then a cap, not 1048576) */
+    int help;     /* -h / --help: print the command's flags and stop */
+} CandelaCommandLine;
+
+typedef enum {
+    CANDELA_FLAG_SWITCH, /* no value: sets an int field to 1 */
+    CANDELA_FLAG_INT,    /* an integer in [lo, hi] */
+    CANDELA_FLAG_FLOAT,  /* a number in [lo, hi] (parsed as a float, as always) */
+    CANDELA_FLAG_CHOICE, /* one of names[] -> values[] */
+    CANDELA_FLAG_STRING, /* any word (a path, a list checked later) */
+    CANDELA_FLAG_CUSTOM  /* set(): resolutions, I/N, X,Y,Z, ... (metavar says which) */
+} CandelaFlagKind;
+
+typedef enum { CANDELA_FIELD_INT, CANDELA_FIELD_U32, CANDELA_FIELD_U64, CANDELA_FIELD_FLOAT, CANDELA_FIELD_DOUBLE,
+               CANDELA_FIELD_STR, CANDELA_FIELD_NONE } CandelaFieldType;
+
+typedef struct CandelaFlag {
+    const char *name;     /* "--spp" */
+    const char *alias;    /* "-o", or NULL */
+    CandelaFlagKind kind;
+    const char *metavar;  /* what the value looks like in the help ("N", "WxH", "on|off"); NULL: none */
+    double lo, hi;        /* INT / FLOAT ranges */
+    const char *const *names; /* CHOICE: NULL-terminated */
+    const int *values;
+    const char *what;     /* CHOICE: "unknown WHAT 'x' (...)"; NULL: "unknown value 'x' for FLAG (...)" */
+    int render;           /* 1: a render option (field in CandelaOptions, candela_parse_render_flag takes
+                           * it); 0: the field is in CandelaCommandLine */
+    size_t offset;
+    CandelaFieldType field;
+    /* CUSTOM: sets the value into base (CandelaOptions or CandelaCommandLine as `render` says);
+     * 0 ok, -1 with err (no program-name prefix) */
+    int (*set)(void *base, const char *flag, const char *value, char err[CANDELA_ERR_LEN]);
+    unsigned commands;    /* the subcommands it belongs to (listed in their --help, suggested) */
+    unsigned tolerated;   /* further subcommands that parse it, only to refuse or ignore it later
+                           * with their own message (e.g. --frames in bench: "belongs to candela render") */
+    const char *example;  /* a valid value (the tests feed every row its example); NULL for switches */
+    const char *help;     /* one line */
+    const char *long_help; /* candela help FLAG */
+} CandelaFlag;
+
+/* The table (count rows). */
+const CandelaFlag *candela_flags(size_t *count);
+/* "render" -> CANDELA_CMD_RENDER ...; 0 when name is no subcommand. */
+unsigned candela_command_bit(const char *name);
+/* The row named `arg` ("--spp", "-o", "--spp=4": the part before '='; "spp" too when bare is
+ * set), or NULL. */
+const CandelaFlag *candela_flag_find(const char *arg, int bare);
+
+/* argv[*i] (and its value: the next word, or after '=' in --flag=value) as a flag of command
+ * `cmd` (a CANDELA_CMD_ bit). Returns 1 when parsed (*i on its last word, *row the row), 0 when
+ * argv[*i] is no flag of cmd (nothing changed), -1 on a missing or bad value (err, one line, no
+ * prefix). */
+int candela_parse_flag(CandelaCommandLine *cl, unsigned cmd, int argc, char *const *argv, int *i,
+                       const CandelaFlag **row, char err[CANDELA_ERR_LEN]);
+/* The error line of an unknown option `arg` of cmd: "unknown option '--spl' (did you mean
+ * '--spp'?)", or "... (see candela CMD --help)" when no flag is close. `what` replaces
+ * "option" (e.g. "merge option"). */
+void candela_unknown_flag_message(const char *arg, unsigned cmd, const char *what, char err[CANDELA_ERR_LEN]);
+/* The nearest flag of cmd's (any when cmd is 0) to `arg` by edit distance, when close (distance
+ * <= 2 or <= a third of the name's length); NULL otherwise. */
+const char *candela_flag_suggest(const char *arg, unsigned cmd);
+/* The flags of cmd, one line each (cmd 0: every flag). */
+void candela_print_flags(FILE *f, unsigned cmd);
+/* candela help FLAG: the flag's long help. 0, or 2 with the error line on stderr. */
+int candela_print_flag_help(FILE *f, const char *name);
+
+#endif
