@@ -8,10 +8,14 @@
 #      in the job scripts and sbatch commands (partition, cpus, memory, time, requeue, ...); it
 #      reads numbers as candela does, by asking candela (--dry-run): --frames 08-09 and
 #      1,5,10-12 give 2 and 5 tasks, --sample-shards 70000, 2^63 and 20 digits are refused at
-#      once. Part 0 needs no cluster and runs before the checks that may skip the rest;
+#      once. --sbatch-arg words reach every sbatch line (array and merge) exactly once, their
+#      shell metacharacters unexecuted; --max-running N throttles the array (%N; 08 is 8), and
+#      0, x and 20 digits are refused; without -c, tasks get nproc CPUs and threads. Part 0 needs
+#      no cluster and runs before the checks that may skip the rest;
 #   1. a 4-way sample-sharded frame (an array job, task I runs --sample-shard I/4, then the
-#      merge job): the cluster's shard films equal local renders of the same shards byte for
-#      byte, and its merged EXR equals the local merge of those shards bit for bit;
+#      merge job, submitted with --max-running 2 and --sbatch-arg "--comment=a b;c"): the cluster's
+#      shard films equal local renders of the same shards byte for byte, its merged EXR equals the
+#      local merge of those shards bit for bit, and the merge job's comment is "a b;c";
 #   1a. shards that fail (a bad render option): the merge job fails, naming the missing films;
 #   1b. resume on requeue: a 2-shard frame whose task 0 is requeued (`scontrol requeue`: Slurm
 #      kills it and starts it again) after its first checkpoint resumes from it, and the merged
@@ -80,6 +84,49 @@ got=$(arrays --sample-shards 2 -- --max-depth -1)
 case "$got" in "exit 2, 1 line(s): candela_submit: candela: invalid value '-1' for --max-depth"*) ok ;; *) bad "a bad render option: $got" ;; esac
 got=$(arrays --frames 1-3 --tasks 5)
 case "$got" in "exit 2, 1 line(s): candela_submit: --tasks 5 is more than the 3 frames"*) ok ;; *) bad "--tasks 5 of 3 frames: $got" ;; esac
+# --sbatch-arg (issue 27): each word once, verbatim (shell-quoted in the printed line), on every
+# sbatch line, array and merge; a word's metacharacters ($(...), ;) are never run
+pwned=$tmp0/pwned
+weird="--comment=a b;c \$(touch $pwned);touch $pwned"
+"$submit" --dry-run --candela "$bin" --sbatch-arg --account=x --sbatch-arg "--comment=a b;c" --sbatch-arg "$weird" \
+  --sample-shards 2 -o "$tmp0/sa/x.exr" "$scene" >/dev/null 2>"$tmp0/sa.out" || bad "--sbatch-arg dry run: $(cat "$tmp0/sa.out")"
+grep '^# sbatch ' "$tmp0/sa.out" > "$tmp0/sa.lines"
+[ "$(grep -c 'shard\.sh$' "$tmp0/sa.lines")" -eq 1 ] && [ "$(grep -c 'merge\.sh$' "$tmp0/sa.lines")" -eq 1 ] && ok ||
+  bad "--sbatch-arg: expected one array and one merge sbatch line: $(cat "$tmp0/sa.lines")"
+for job in shard merge; do
+  line=$(grep "$job\.sh\$" "$tmp0/sa.lines")
+  for word in --account=x "--comment=a b;c" "$weird"; do
+    q=$(printf '%q' "$word")
+    n=$(grep -oF -- " $q " <<<"$line " | wc -l)
+    [ "$n" -eq 1 ] && ok || bad "--sbatch-arg $word: $n times (not once) in the $job sbatch line: $line"
+  done
+done
+[ ! -e "$pwned" ] && ok || bad "--sbatch-arg: a word's shell metacharacters were executed"
+"$submit" --dry-run --candela "$bin" --sbatch-arg --account=x --frames 1-2 -o "$tmp0/sa/f.####.exr" "$scene" \
+  >/dev/null 2>"$tmp0/sa2.out"
+[ "$(grep '^# sbatch .*frames\.sh$' "$tmp0/sa2.out" | grep -oF -- ' --account=x ' | wc -l)" -eq 1 ] && ok ||
+  bad "--sbatch-arg: the frames array's sbatch line lacks --account=x once: $(grep '^# sbatch' "$tmp0/sa2.out")"
+# --max-running N: the array's --array=0-M%N (frames and sample shards)
+for n in 0 x -1 1.5 99999999999999999999; do
+  got=$(arrays --frames 1-2 --max-running $n)
+  case "$got" in "exit 2, 1 line(s): candela_submit: invalid --max-running '$n' (a positive whole number"*) ok ;;
+                 *) bad "--max-running $n: $got" ;; esac
+done
+[ "$(arrays --frames 1-4 --max-running 3 | grep -c .)" -eq 1 ] &&
+  grep -qF -- "--array=0-3%3 " "$tmp0/n.err" && ok || bad "--max-running 3 (frames): $(grep '^# sbatch' "$tmp0/n.err")"
+arrays --sample-shards 5 --max-running 08 >/dev/null
+grep -qF -- "--array=0-4%8 " "$tmp0/n.err" && ok || bad "--max-running 08 (shards): $(grep '^# sbatch' "$tmp0/n.err")"
+arrays --frames 1-4 >/dev/null
+grep -qF -- "--array=0-3 " "$tmp0/n.err" && ok || bad "no --max-running: the array is throttled: $(grep '^# sbatch' "$tmp0/n.err")"
+# without -c: the cores of the submitting machine (nproc), for Slurm and for candela's --threads
+cores=$(nproc)
+arrays --sample-shards 2 >/dev/null
+grep '^# sbatch .*shard\.sh$' "$tmp0/n.err" | grep -qF -- "--cpus-per-task=$cores " && ok ||
+  bad "no -c: the array's sbatch line lacks --cpus-per-task=$cores: $(grep '^# sbatch' "$tmp0/n.err")"
+grep -qF -- "--threads $cores " "$tmp0/n.err" && ok || bad "no -c: the job script lacks --threads $cores"
+arrays --frames 1-2 >/dev/null
+grep -qF -- "--cpus-per-task=$cores " "$tmp0/n.err" && grep -qF -- "--threads $cores " "$tmp0/n.err" && ok ||
+  bad "no -c (frames): --cpus-per-task=$cores and --threads $cores expected: $(cat "$tmp0/n.err")"
 
 [ "$(id -u)" -eq 0 ] || skip "the test cluster runs its daemons as root (SlurmUser=root)"
 for c in munged munge slurmctld slurmd sbatch sinfo scontrol; do
@@ -181,7 +228,7 @@ opts=(--spp 16 --res 32x24 --quiet)
 echo "[$(date +%T)] 1. a 4-way sample-sharded frame"
 work=$tmp/work/shards
 if timeout 600 "$submit" --candela "$bin" --partition candela --cpus-per-task 1 --mem 500M --time 10:00 \
-     --sample-shards 4 --work-dir "$work" --wait -o "$tmp/work/frame.exr" "$scene" -- "${opts[@]}" >"$tmp/submit1.out" 2>&1; then
+     --max-running 2 --sbatch-arg "--comment=a b;c" --sample-shards 4 --work-dir "$work" --wait -o "$tmp/work/frame.exr" "$scene" -- "${opts[@]}" >"$tmp/submit1.out" 2>&1; then
   ok
 else
   bad "sharded job: $(cat "$tmp/submit1.out")"
@@ -196,11 +243,14 @@ done
 "$bin" merge -o "$tmp/local.exr" --no-png "${films[@]}" || bad "local merge"
 cmp -s "$tmp/work/frame.exr" "$tmp/local.exr" && ok || bad "the cluster's merged frame differs from the local merge"
 [ "$(ls "$work"/shard.*.film | wc -l)" -eq 4 ] && ok || bad "expected exactly 4 shard films"
+merge1=$(awk '/^array .* merge /{print $4}' "$tmp/submit1.out")
+scontrol show job "$merge1" 2>/dev/null | grep -q '^ *Comment=a b;c *$' && ok ||
+  bad "--sbatch-arg: the merge job $merge1's comment: $(scontrol show job "$merge1" 2>&1 | grep -i comment)"
 
 # --- 1a. shards that fail (a scene that cannot load: the dry run at submission does not load
 # it): the merge job fails and names the missing films
 head -c 3000 /dev/urandom > "$tmp/work/broken.gltf"
-if timeout 600 "$submit" --candela "$bin" --partition candela --sample-shards 2 --work-dir "$tmp/work/failing" --wait \
+if timeout 600 "$submit" --candela "$bin" --partition candela -c 1 --sample-shards 2 --work-dir "$tmp/work/failing" --wait \
      -o "$tmp/work/failing.exr" "$tmp/work/broken.gltf" -- "${opts[@]}" >"$tmp/submit1a.out" 2>&1; then
   bad "a sharded job whose shards fail succeeded"
 else
@@ -213,7 +263,7 @@ fi
 echo "[$(date +%T)] 1b. resume on requeue"
 slow=(--spp 192 --res 32x24 --threads 1 --batch 64 --quiet)
 rwork=$tmp/work/requeue
-ids=$("$submit" --candela "$bin" --partition candela --sample-shards 2 --work-dir "$rwork" -o "$tmp/work/rq.exr" \
+ids=$("$submit" --candela "$bin" --partition candela -c 1 --sample-shards 2 --work-dir "$rwork" -o "$tmp/work/rq.exr" \
         "$scene" -- "${slow[@]}" 2>"$tmp/submit3.err") || bad "requeue job submission: $(cat "$tmp/submit3.err")"
 array=$(echo "$ids" | awk '{print $2}'); merge=$(echo "$ids" | awk '{print $4}')
 requeued=0

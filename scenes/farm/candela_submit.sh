@@ -24,11 +24,13 @@
 #
 # Options:
 #   -p, --partition NAME     Slurm partition (default: the cluster's default)
-#   -c, --cpus-per-task N    CPUs per task, also candela's --threads (default 1)
+#   -c, --cpus-per-task N    CPUs per task, also candela's --threads (default: the cores of the
+#                            machine running this script, `nproc`; give N when nodes differ)
 #   --mem SIZE               memory per task, Slurm syntax (e.g. 4G; default: the cluster's)
 #   -t, --time LIMIT         time limit per task, Slurm syntax (e.g. 2:00:00)
 #   --frames RANGE           frames to render (candela's --frames syntax, e.g. 1-48 or 1-48:2)
 #   --tasks N                frames: array tasks sharing the frames (default: frames in RANGE)
+#   --max-running N          at most N tasks of the array run at once (sbatch --array=0-9%N)
 #   --sample-shards N        split one frame's samples over N tasks, then merge
 #   -o, --output PATH        frames: the pattern (out/shot.####.exr); shards: the merged EXR
 #   --work-dir DIR           shard films, checkpoints, job scripts and Slurm logs (default:
@@ -36,6 +38,9 @@
 #   --candela PATH           the candela binary (default: `candela` on PATH, resolved now)
 #   --job-name NAME          (default candela)
 #   --no-requeue             do not requeue pre-empted tasks
+#   --sbatch-arg ARG         one more argument, verbatim, for every sbatch call (array and merge),
+#                            after the script's own; repeatable (--sbatch-arg --account=lighting
+#                            --sbatch-arg --qos=high)
 #   --wait                   wait until every job has finished (sbatch --wait); exit status is
 #                            non-zero when one failed
 #   --dry-run                print the job scripts and sbatch commands, submit nothing
@@ -44,14 +49,16 @@
 # Prints the job ids (array, and merge for shards). Example:
 #   scenes/farm/candela_submit.sh -p render -c 16 --mem 32G -t 4:00:00 --sample-shards 8 \
 #       -o out/hero.exr scenes/default.gltf -- --spp 4096 --res 1920x1080
+#   scenes/farm/candela_submit.sh --sbatch-arg --account=lighting --max-running 10 \
+#       --frames 1-240 -o out/shot.####.exr scenes/animation.gltf
 set -euo pipefail
 
 usage() { sed -n '2,/^set -euo/p' "$0" | sed -e '$d' -e 's/^# \{0,1\}//'; }
 die() { echo "candela_submit: $*" >&2; exit 2; }
 
-partition="" cpus=1 mem="" time_limit="" frames="" tasks="" shards="" output="" work="" candela=""
-job_name=candela requeue=1 wait=0 dry=0 scene=""
-render_args=()
+partition="" cpus="" mem="" time_limit="" frames="" tasks="" shards="" output="" work="" candela=""
+job_name=candela requeue=1 wait=0 dry=0 scene="" max_running=""
+render_args=() extra_sbatch=()
 while [ $# -gt 0 ]; do
   case "$1" in
     -p|--partition) partition=${2:?}; shift 2 ;;
@@ -65,6 +72,8 @@ while [ $# -gt 0 ]; do
     --work-dir) work=${2:?}; shift 2 ;;
     --candela) candela=${2:?}; shift 2 ;;
     --job-name) job_name=${2:?}; shift 2 ;;
+    --max-running) max_running=${2:?}; shift 2 ;;
+    --sbatch-arg) extra_sbatch+=("${2:?}"); shift 2 ;;
     --no-requeue) requeue=0; shift ;;
     --wait) wait=1; shift ;;
     --dry-run) dry=1; shift ;;
@@ -78,7 +87,14 @@ done
 [ -n "$scene" ] || die "no scene given (see --help)"
 [ -r "$scene" ] || die "$scene: cannot read"
 [ -n "$output" ] || die "no -o OUTPUT given"
+[ -n "$cpus" ] || cpus=$(nproc 2>/dev/null || getconf _NPROCESSORS_ONLN 2>/dev/null || echo 1)
 [[ $cpus =~ ^[1-9][0-9]*$ ]] || die "invalid --cpus-per-task '$cpus'"
+if [ -n "$max_running" ]; then # base 10, as candela reads --tasks (08 is 8)
+  [[ $max_running =~ ^0*([1-9][0-9]{0,8})$ ]] ||
+    die "invalid --max-running '$max_running' (a positive whole number, at most 999999999)"
+  max_running=${BASH_REMATCH[1]}
+fi
+throttle=${max_running:+%$max_running} # --array=0-9%N
 if [ -n "$frames" ] && [ -n "$shards" ]; then die "--frames and --sample-shards do not combine (shard one frame at a time)"; fi
 if [ -z "$frames" ] && [ -z "$shards" ]; then die "give --frames RANGE or --sample-shards N"; fi
 if [ -z "$candela" ]; then candela=$(command -v candela || true); fi
@@ -99,9 +115,10 @@ sbatch_opts=(--parsable --job-name="$job_name" --cpus-per-task="$cpus" --signal=
 [ -n "$time_limit" ] && sbatch_opts+=(--time="$time_limit")
 if [ $requeue -eq 1 ]; then sbatch_opts+=(--requeue); else sbatch_opts+=(--no-requeue); fi
 
-# submit SCRIPT_FILE SBATCH_OPTIONS...: prints the job id
+# submit SCRIPT_FILE SBATCH_OPTIONS...: prints the job id; --sbatch-arg's words come last
 submit() {
   local script=$1; shift
+  set -- "$@" "${extra_sbatch[@]}"
   if [ $dry -eq 1 ]; then
     echo "# sbatch $(quote "$@") $script" >&2; cat "$script" >&2; echo "DRY-RUN"
   else
@@ -170,7 +187,7 @@ done
 exec $(quote "$candela" merge -o "$output") "\${films[@]}"
 EOF
   chmod +x "$work/shard.sh" "$work/merge.sh"
-  array_opts=("${sbatch_opts[@]}" --array="0-$((shards - 1))" --output="$work/shard.%a.log")
+  array_opts=("${sbatch_opts[@]}" --array="0-$((shards - 1))$throttle" --output="$work/shard.%a.log")
   array_id=$(submit "$work/shard.sh" "${array_opts[@]}")
   merge_opts=("${sbatch_opts[@]}" --cpus-per-task=1 --dependency=afterany:"$array_id"
               --export=ALL,CANDELA_SHARD_ARRAY="$array_id" --output="$work/merge.log")
@@ -201,7 +218,7 @@ set -eu
 exec $(quote "$candela" render "$scene" "${render_args[@]}") --threads $cpus --frames $(quote "$frames") $resume -o $(quote "$output")
 EOF
   chmod +x "$work/frames.sh"
-  opts=("${sbatch_opts[@]}" --array="0-$((tasks - 1))" --output="$work/frames.%a.log")
+  opts=("${sbatch_opts[@]}" --array="0-$((tasks - 1))$throttle" --output="$work/frames.%a.log")
   [ $wait -eq 1 ] && [ $dry -eq 0 ] && opts+=(--wait)
   array_id=$(submit "$work/frames.sh" "${opts[@]}")
   echo "array $array_id"
