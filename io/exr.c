@@ -128,7 +128,8 @@ static exr_result_t compress_unambiguous(exr_encode_pipeline_t *enc) {
 }
 
 int io_write_exr(const char *path_arg, int width, int height, const IoExrChannel *channels,
-                 int num_channels, char err[IO_ERR_LEN]) {
+                 int num_channels, const IoExrAttribute *attributes, int num_attributes,
+                 char err[IO_ERR_LEN]) {
     if (err) err[0] = 0;
     if (!path_arg || !*path_arg) {
         exr_set_err(err, "(null)", "no path given");
@@ -145,13 +146,32 @@ int io_write_exr(const char *path_arg, int width, int height, const IoExrChannel
         exr_set_err(err, path, "invalid channel list (%d channels)", num_channels);
         return 1;
     }
+    if (num_attributes < 0 || (num_attributes > 0 && !attributes)) {
+        exr_set_err(err, path, "invalid attribute list (%d attributes)", num_attributes);
+        return 1;
+    }
+    int need_longnames = 0;
+    for (int i = 0; i < num_attributes; ++i) {
+        if (!attributes[i].name || !attributes[i].name[0] || !attributes[i].value) {
+            exr_set_err(err, path, "attribute %d has no name or no value", i);
+            return 1;
+        }
+        if (strlen(attributes[i].name) > 255) {
+            exr_set_err(err, path, "attribute name too long (%zu chars)", strlen(attributes[i].name));
+            return 1;
+        }
+        if (strlen(attributes[i].name) > 31) need_longnames = 1;
+        if (strlen(attributes[i].value) > (size_t)INT32_MAX / 2) {
+            exr_set_err(err, path, "attribute '%s' too long", attributes[i].name);
+            return 1;
+        }
+    }
 
     SortedChannel *sorted = malloc(sizeof *sorted * (size_t)num_channels);
     if (!sorted) {
         exr_set_err(err, path, "out of memory");
         return 1;
     }
-    int need_longnames = 0;
     for (int i = 0; i < num_channels; ++i) {
         if (!channels[i].name || !channels[i].name[0] || !channels[i].data) {
             exr_set_err(err, path, "channel %d has no name or no data", i);
@@ -208,6 +228,20 @@ int io_write_exr(const char *path_arg, int width, int height, const IoExrChannel
                              EXR_PERCEPTUALLY_LINEAR, 1, 1);
         if (rv != EXR_ERR_SUCCESS) goto fail;
     }
+    for (int i = 0; i < num_attributes; ++i) {
+        const exr_attribute_t *existing = NULL;
+        exr_result_t found = exr_get_attribute_by_name(ctxt, part, attributes[i].name, &existing);
+        exr_last_msg[0] = 0; /* "not found" is the good answer, not a message to keep */
+        if (found == EXR_ERR_SUCCESS && existing) {
+            stage = "cannot add attribute (already in the header)";
+            rv = EXR_ERR_INVALID_ARGUMENT;
+            goto fail;
+        }
+        stage = "cannot add attribute";
+        if ((rv = exr_attr_set_string(ctxt, part, attributes[i].name, attributes[i].value)) != EXR_ERR_SUCCESS)
+            goto fail;
+    }
+    stage = "cannot write header";
     if ((rv = exr_write_header(ctxt)) != EXR_ERR_SUCCESS) goto fail;
 
     stage = "cannot write pixels";

@@ -469,9 +469,18 @@ typedef struct IoExrChannel {
     const float *data; /* width*height floats, top row first */
 } IoExrChannel;
 
-/* Write a single-part scanline EXR (FLOAT channels, ZIP compression) with the OpenEXR C API. */
+/* One string attribute of an EXR header (provenance: "software", "candela:commandLine", ...). */
+typedef struct IoExrAttribute {
+    const char *name;
+    const char *value;
+} IoExrAttribute;
+
+/* Write a single-part scanline EXR (FLOAT channels, ZIP compression) with the OpenEXR C API.
+ * attributes (num_attributes of them; NULL, 0: none) are written into the header as string
+ * attributes; a name the header already has (the required ones) or given twice is refused. */
 int io_write_exr(const char *path, int width, int height, const IoExrChannel *channels,
-                 int num_channels, char err[IO_ERR_LEN]);
+                 int num_channels, const IoExrAttribute *attributes, int num_attributes,
+                 char err[IO_ERR_LEN]);
 
 /* Read one channel by name from an EXR (any pixel type, converted to float). The caller
  * frees *data with free(). Used by tests and comparison tools. Images larger than the

@@ -531,7 +531,22 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
                 out_exr = NULL;
             }
         }
-        if (rc == 0 && out_exr && candela_write_outputs(&image, out_exr, out_png, ferr) != 0) rc = -1;
+        if (rc == 0 && out_exr) {
+            /* the batch's provenance with this frame's render (its seed, spp, time) */
+            CandelaProvenance fp = {0};
+            char frame_text[32];
+            snprintf(frame_text, sizeof frame_text, "%lld", (long long)frame);
+            int prc = b->provenance ? candela_provenance_copy(&fp, b->provenance) : 0;
+            if (prc == 0 && b->provenance)
+                prc = candela_provenance_render(&fp, &fo, &stats) | candela_provenance_set(&fp, "candela:frame", frame_text);
+            if (prc != 0) {
+                snprintf(ferr, CANDELA_ERR_LEN, "%.400s: out of memory", out_exr);
+                rc = -1;
+            } else if (candela_write_outputs_provenance(&image, out_exr, out_png, b->provenance ? &fp : NULL, ferr) != 0) {
+                rc = -1;
+            }
+            candela_provenance_free(&fp);
+        }
         if (rc != 0) {
             status = "failed";
             ++failed;

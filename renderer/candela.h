@@ -8,6 +8,7 @@
 #include <stddef.h>
 #include <signal.h>
 #include <stdint.h>
+#include <stdio.h>
 
 #define CANDELA_ERR_LEN 512
 
@@ -270,6 +271,43 @@ void candela_ray_log_free(CandelaRayLog *log);
  * preview. Both go to a temporary name first and are renamed when complete. */
 int candela_write_outputs(const CandelaImage *image, const char *exr_path, const char *png_path,
                           char err[CANDELA_ERR_LEN]);
+
+/* ---------------------------------------------------------------- provenance
+ * How an image was made (renderer/provenance.c; README "Output"): string attributes written
+ * into the EXR's header (and the statistics JSON's "provenance" object). The CLI fills one per
+ * run: candela_provenance_begin (software, candela:commandLine, candela:host, capDate),
+ * candela_provenance_scene (candela:scene, candela:sceneHash), candela_provenance_render after
+ * each render (candela:options and the render's results). Setting a name again replaces it. */
+typedef struct CandelaAttribute {
+    const char *name;
+    const char *value;
+} CandelaAttribute;
+#define CANDELA_PROVENANCE_MAX 24
+typedef struct CandelaProvenance {
+    int count;
+    CandelaAttribute attrs[CANDELA_PROVENANCE_MAX]; /* names are literals, values owned */
+} CandelaProvenance;
+/* software: the --version line ("candela 0.1.0 (git REV)"); argv joined, shell-quoted where
+ * needed. 0 ok, -1 out of memory. */
+int candela_provenance_begin(CandelaProvenance *p, const char *software, int argc, char *const *argv);
+/* the scene path as given and the FNV-1a 64 of its bytes (16 hex digits); -1 with err */
+int candela_provenance_scene(CandelaProvenance *p, const char *scene_path, char err[CANDELA_ERR_LEN]);
+/* candela:options (every render option of the options table, as one JSON object, defaults
+ * included), candela:lightSamplerUsed, :sppDone, :seed, :sampler, :renderSeconds,
+ * :peakMemoryBytes. 0 ok, -1 out of memory. */
+int candela_provenance_render(CandelaProvenance *p, const CandelaOptions *o, const CandelaStats *s);
+int candela_provenance_set(CandelaProvenance *p, const char *name, const char *value);
+/* dst (uninitialised) = a copy of src; 0 ok, -1 out of memory (dst then empty) */
+int candela_provenance_copy(CandelaProvenance *dst, const CandelaProvenance *src);
+void candela_provenance_free(CandelaProvenance *p);
+/* The render options as one JSON object {"spp": 16, "light-sampler": "auto", ...}: every render
+ * option row of renderer/options_table.c by its flag name (malloc'd; NULL out of memory). */
+char *candela_options_json(const CandelaOptions *o);
+/* A JSON string literal of s (quotes, backslashes and control characters escaped). */
+void candela_json_string(FILE *f, const char *s);
+/* candela_write_outputs with the EXR header's provenance (NULL: none). */
+int candela_write_outputs_provenance(const CandelaImage *image, const char *exr_path, const char *png_path,
+                                     const CandelaProvenance *provenance, char err[CANDELA_ERR_LEN]);
 /* With --aov cachepoint, the PNGs beside the preview: png_path NAME.png -> NAME.cachepoint.png
  * and NAME.cachepoint_light.png (out: IO_PATH_MAX bytes each). */
 void candela_cachepoint_png_paths(const char *png_path, char *point_png, char *light_png, size_t len);
@@ -333,9 +371,14 @@ int candela_variants_is_file(const char *spec);
  * shard twice or missing, ranges that do not tile the samples. 0 ok, -1 with a one-line message. */
 int candela_merge(const char *out_exr, const char *png, const char *const *files, int num_files,
                   char err[CANDELA_ERR_LEN]);
+/* candela_merge with the merged EXR's provenance (NULL: none) */
+int candela_merge_provenance(const char *out_exr, const char *png, const char *const *files, int num_files,
+                             const CandelaProvenance *provenance, char err[CANDELA_ERR_LEN]);
 
+/* provenance (NULL: none): its attributes as the object "provenance" (candela:options as an
+ * object, the others as strings) */
 int candela_write_stats_json(const char *path, const CandelaOptions *o, const CandelaStats *s,
-                             char err[CANDELA_ERR_LEN]);
+                             const CandelaProvenance *provenance, char err[CANDELA_ERR_LEN]);
 /* The same statistics as one line of JSON (no newline), malloc'd into *json; 0 ok. */
 int candela_stats_json_line(const CandelaOptions *o, const CandelaStats *s, char **json);
 
@@ -384,6 +427,8 @@ typedef struct CandelaBatchOptions {
     /* the run's inputs and outputs (scene, --env, --frame-stats): every frame's names are checked
      * against them before the first frame renders; NULL: none */
     const CandelaRunFiles *run;
+    /* every frame's EXR header: this, with each frame's render attributes (NULL: none) */
+    const CandelaProvenance *provenance;
 } CandelaBatchOptions;
 /* Renders the frames. Returns -1 on an error before any frame was rendered (bad frame list,
  * shard, pattern, scene, a frame outside the animation: err says what; nothing written), else

@@ -54,13 +54,9 @@ static int hash_prefix(FILE *f, uint64_t n, uint64_t *h) {
     return 0;
 }
 
-/* ---------------------------------------------------------------- identity */
-
-int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t sample_begin, uint64_t sample_count,
-                        CheckpointIdentity *id, char err[CANDELA_ERR_LEN]) {
-    memset(id, 0, sizeof *id);
+int checkpoint_scene_hash(const char *scene_path, uint64_t *hash, char err[CANDELA_ERR_LEN]) {
     char ioerr[IO_ERR_LEN];
-    FILE *f = io_open_input_file(o->scene_path, IO_MAX_SCENE_BYTES, "a scene (4 GiB)", NULL, ioerr);
+    FILE *f = io_open_input_file(scene_path, IO_MAX_SCENE_BYTES, "a scene (4 GiB)", NULL, ioerr);
     if (!f) {
         snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
         return -1;
@@ -71,9 +67,20 @@ int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t
     int bad = ferror(f);
     fclose(f);
     if (bad) {
-        snprintf(err, CANDELA_ERR_LEN, "%s: cannot read", o->scene_path);
+        snprintf(err, CANDELA_ERR_LEN, "%s: cannot read", scene_path);
         return -1;
     }
+    *hash = h;
+    return 0;
+}
+
+/* ---------------------------------------------------------------- identity */
+
+int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t sample_begin, uint64_t sample_count,
+                        CheckpointIdentity *id, char err[CANDELA_ERR_LEN]) {
+    memset(id, 0, sizeof *id);
+    uint64_t h;
+    if (checkpoint_scene_hash(o->scene_path, &h, err) != 0) return -1;
     /* Every option that changes the image, as key=value (floats in hex: exact). Not here:
      * threads and batch size (never change the image), --time-limit (where a render stops, not
      * what it computes: a time-limited render's checkpoint resumes with any limit), output names,
@@ -395,6 +402,11 @@ static int film_alloc_like(Film *f, const Header *h, int recorder) {
 
 int candela_merge(const char *out_exr, const char *png, const char *const *files, int num_files,
                   char err[CANDELA_ERR_LEN]) {
+    return candela_merge_provenance(out_exr, png, files, num_files, NULL, err);
+}
+
+int candela_merge_provenance(const char *out_exr, const char *png, const char *const *files, int num_files,
+                  const CandelaProvenance *provenance, char err[CANDELA_ERR_LEN]) {
     if (num_files < 1) {
         snprintf(err, CANDELA_ERR_LEN, "merge: no shard files given");
         return -1;
@@ -487,7 +499,7 @@ int candela_merge(const char *out_exr, const char *png, const char *const *files
         snprintf(err, CANDELA_ERR_LEN, "merge: out of memory resolving the film");
         rc = -1;
     }
-    if (rc == 0) rc = candela_write_outputs(&image, out_exr, png, err);
+    if (rc == 0) rc = candela_write_outputs_provenance(&image, out_exr, png, provenance, err);
     candela_image_free(&image);
     film_free(&sum);
     film_free(&part);

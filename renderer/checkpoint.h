@@ -49,6 +49,9 @@ typedef struct CheckpointIdentity {
     uint32_t shard_index, shard_count;   /* 0/1 without sharding */
 } CheckpointIdentity;
 
+/* FNV-1a 64 of the scene file's bytes (the identity's scene hash; provenance's
+ * candela:sceneHash). -1 with a message when it cannot be read. */
+int checkpoint_scene_hash(const char *scene_path, uint64_t *hash, char err[CANDELA_ERR_LEN]);
 /* Fills the identity of the render o of a scene resolved to width x height. -1 when the
  * scene file cannot be read (message in err). */
 int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t sample_begin, uint64_t sample_count,

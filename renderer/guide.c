@@ -351,7 +351,7 @@ static int write_plane(const char *prefix, const char *what, int w, int h, const
     for (size_t i = 0; i < n; ++i) vmax = fmaxf(vmax, v[i]);
     const IoExrChannel ch[3] = {{"R", v}, {"G", v}, {"B", v}};
     snprintf(path, sizeof path, "%s.%s.exr", prefix, what);
-    int rc = io_write_exr(path, w, h, ch, 3, ioerr);
+    int rc = io_write_exr(path, w, h, ch, 3, NULL, 0, ioerr);
     if (rc == 0) {
         for (size_t i = 0; i < n; ++i) rgb[3 * i] = rgb[3 * i + 1] = rgb[3 * i + 2] = vmax > 0.0f ? sqrtf(v[i] / vmax) : 0.0f;
         snprintf(path, sizeof path, "%s.%s.png", prefix, what);

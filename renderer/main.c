@@ -153,6 +153,11 @@ static void print_stats(const CandelaStats *s) {
                 s->volume_capped_walks ? "; WARNING: some walks hit the collision cap (an extreme medium): the image is biased there" : "");
 }
 
+/* The --version line, which the EXR headers carry as "software". */
+static void software_line(char *buf, size_t size) {
+    snprintf(buf, size, "candela %s (git %s)", CANDELA_VERSION, CANDELA_GIT_REVISION);
+}
+
 /* NAME ends in ext, in any case. */
 static int has_extension(const char *name, const char *ext) {
     size_t n = strlen(name), e = strlen(ext);
@@ -232,9 +237,18 @@ static int merge_main(int argc, char **argv) {
             }
         }
         if (rc != 0) fprintf(stderr, "candela: %s\n", err);
-        else if (candela_merge(out, png, files, n, err) != 0) {
-            fprintf(stderr, "candela: %s\n", err);
-            rc = 1;
+        else {
+            char software[256];
+            software_line(software, sizeof software);
+            CandelaProvenance prov;
+            if (candela_provenance_begin(&prov, software, argc, argv) != 0) {
+                fprintf(stderr, "candela: out of memory\n");
+                rc = 1;
+            } else if (candela_merge_provenance(out, png, files, n, &prov, err) != 0) {
+                fprintf(stderr, "candela: %s\n", err);
+                rc = 1;
+            }
+            candela_provenance_free(&prov);
         }
         while (nlocks > 0) io_unlock_output(&locks[--nlocks]);
     }
@@ -247,7 +261,7 @@ static int record_run_files(CandelaRunFiles *run, const CandelaOptions *o, const
                             const char *png, const char *stats_json, int save_partial, char err[CANDELA_ERR_LEN]);
 static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBatchOptions *bp, int compare, int bench,
                        int dump, const char *out, const char *png, const char *stats_json, int save_partial,
-                       int spp_given);
+                       int spp_given, int argc, char **argv);
 
 int main(int argc, char **argv) {
     if (argc < 2) { print_usage(stderr); return 2; }
@@ -256,7 +270,12 @@ int main(int argc, char **argv) {
         if (argc < 3) { print_usage(stdout); return 0; }
         return candela_print_flag_help(stdout, argv[2]);
     }
-    if (strcmp(argv[1], "--version") == 0) { printf("candela %s (git %s)\n", CANDELA_VERSION, CANDELA_GIT_REVISION); return 0; }
+    if (strcmp(argv[1], "--version") == 0) {
+        char software[256];
+        software_line(software, sizeof software);
+        printf("%s\n", software);
+        return 0;
+    }
     if (strcmp(argv[1], "merge") == 0) return merge_main(argc, argv);
     int bench = 0, compare = 0, dump = 0;
     char dump_prefix[PATH_MAX];
@@ -474,7 +493,7 @@ int main(int argc, char **argv) {
             ++nlocks;
         }
     }
-    if (rc == 0) rc = run_command(&o, &co, &batch, compare, bench, dump, out, png, stats_json, save_partial, cl.spp_given);
+    if (rc == 0) rc = run_command(&o, &co, &batch, compare, bench, dump, out, png, stats_json, save_partial, cl.spp_given, argc, argv);
     while (nlocks > 0) io_unlock_output(&locks[--nlocks]);
     candela_run_files_free(&run);
     return rc;
@@ -538,7 +557,7 @@ static int record_run_files(CandelaRunFiles *run, const CandelaOptions *o, const
 /* Runs the command once its files are known (main's last part). */
 static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBatchOptions *bp, int compare, int bench,
                        int dump, const char *out, const char *png, const char *stats_json, int save_partial,
-                       int spp_given) {
+                       int spp_given, int argc, char **argv) {
     CandelaOptions o = *op;
     CandelaCompareOptions co = *cop;
     CandelaBatchOptions batch = *bp;
@@ -568,12 +587,27 @@ static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBa
     CandelaRayLog log = {0};
     install_interrupt_handlers();
     o.stop = &interrupts;
+    /* how the images are made (the EXR headers, --stats-json): README "Output" */
+    char software[256];
+    software_line(software, sizeof software);
+    CandelaProvenance prov;
+    if (candela_provenance_begin(&prov, software, argc, argv) != 0) {
+        fprintf(stderr, "candela: out of memory\n");
+        return 1;
+    }
     if (batch.frames) {
+        if (candela_provenance_scene(&prov, o.scene_path, err) != 0) {
+            fprintf(stderr, "candela: %s\n", err);
+            candela_provenance_free(&prov);
+            return 101;
+        }
         batch.exr_pattern = out;
         batch.png_pattern = png;
         batch.save_partial = save_partial;
+        batch.provenance = &prov;
         int interrupted = 0;
         int failed = candela_batch_render(&o, &batch, &interrupted, err);
+        candela_provenance_free(&prov);
         if (failed < 0) {
             fprintf(stderr, "%s%s\n", strncmp(err, "candela: ", 9) == 0 ? "" : "candela: ", err);
             return 101;
@@ -583,6 +617,20 @@ static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBa
     }
     if (candela_render(&o, &image, &stats, bench ? &log : NULL, err) != 0) {
         fprintf(stderr, "candela: %s\n", err);
+        candela_provenance_free(&prov);
+        return 1;
+    }
+    /* the scene hashed once the render read it (its errors are the loader's) */
+    if (!bench && candela_provenance_scene(&prov, o.scene_path, err) != 0) {
+        fprintf(stderr, "candela: %s\n", err);
+        candela_image_free(&image);
+        candela_provenance_free(&prov);
+        return 1;
+    }
+    if (candela_provenance_render(&prov, &o, &stats) != 0) {
+        fprintf(stderr, "candela: out of memory\n");
+        candela_image_free(&image);
+        candela_provenance_free(&prov);
         return 1;
     }
     int rc = 0;
@@ -630,12 +678,14 @@ static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBa
                         stats.spp_done, e - b, o.shard_index, o.shard_count,
                         o.checkpoint_path ? "; --resume-from its checkpoint continues it" : "; --checkpoint would let it resume");
                 candela_image_free(&image);
+                candela_provenance_free(&prov);
                 return 130;
             }
             if (!save_partial) {
                 fprintf(stderr, "candela: interrupted after %d of %d spp; nothing written (--save-partial keeps the image so far)\n",
                         stats.spp_done, o.spp);
                 candela_image_free(&image);
+                candela_provenance_free(&prov);
                 return 130;
             }
             partial_name(out, out_partial);
@@ -647,7 +697,7 @@ static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBa
         }
         if (!stats.interrupted && o.shard_count) {
             /* the film file was written by the render */
-        } else if (candela_write_outputs(&image, out, png, err) != 0) {
+        } else if (candela_write_outputs_provenance(&image, out, png, &prov, err) != 0) {
             fprintf(stderr, "candela: %s\n", err);
             rc = 1;
         } else if (stats.interrupted) {
@@ -659,10 +709,11 @@ static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBa
         }
     }
     if (rc == 0 && !o.quiet) print_stats(&stats);
-    if ((rc == 0 || rc == 130) && stats_json && candela_write_stats_json(stats_json, &o, &stats, err) != 0) {
+    if ((rc == 0 || rc == 130) && stats_json && candela_write_stats_json(stats_json, &o, &stats, &prov, err) != 0) {
         fprintf(stderr, "candela: %s\n", err);
         rc = 1;
     }
     candela_image_free(&image);
+    candela_provenance_free(&prov);
     return rc;
 }

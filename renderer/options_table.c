@@ -121,6 +121,39 @@ static int set_at(void *base, const char *flag, const char *v, char err[CANDELA_
     return 0;
 }
 
+
+/* --- custom values as JSON (candela_options_json) ------------------------------------------- */
+
+static void json_string_or_null(FILE *f, const char *s) {
+    if (s) candela_json_string(f, s);
+    else fputs("null", f);
+}
+static void get_res(const CandelaOptions *o, FILE *f) {
+    if (o->width > 0 && o->height > 0) fprintf(f, "\"%dx%d\"", o->width, o->height);
+    else fputs("null", f); /* from the camera's aspect */
+}
+static void get_confine(const CandelaOptions *o, FILE *f) { json_string_or_null(f, o->confine_dir); }
+static void get_dump(const CandelaOptions *o, FILE *f) { json_string_or_null(f, o->cachepoint_dump_path); }
+static void get_aov(const CandelaOptions *o, FILE *f) {
+    const int on[3] = {o->aov_recorder_debug, o->aov_selection, o->aov_spp};
+    fputc('[', f);
+    for (int k = 0, first = 1; k < 3; ++k)
+        if (on[k]) {
+            fprintf(f, "%s\"%s\"", first ? "" : ", ", AOV_NAMES[k]);
+            first = 0;
+        }
+    fputc(']', f);
+}
+static void get_sample_shard(const CandelaOptions *o, FILE *f) {
+    if (o->shard_count) fprintf(f, "\"%u/%u\"", o->shard_index, o->shard_count);
+    else fputs("null", f);
+}
+static void get_at(const CandelaOptions *o, FILE *f) {
+    if (o->guide_dump_prefix)
+        fprintf(f, "[%.9g, %.9g, %.9g]", (double)o->guide_dump_at[0], (double)o->guide_dump_at[1], (double)o->guide_dump_at[2]);
+    else fputs("null", f);
+}
+
 /* --- choices ------------------------------------------------------------------------------ */
 
 static const char *const ON_OFF_AUTO[] = {"on", "off", "auto", NULL};
@@ -169,8 +202,8 @@ static const int LIGHT_UNITS_VALUES[] = {CANDELA_LIGHT_UNITS_BLENDER, CANDELA_LI
     {name, NULL, CANDELA_FLAG_CHOICE, meta, 0, 0, names, values, what, where, CANDELA_FIELD_INT, NULL, cmds, 0, ex, help, long_help}
 #define STRING(name, alias, meta, where, cmds, tol, ex, help, long_help) \
     {name, alias, CANDELA_FLAG_STRING, meta, 0, 0, NULL, NULL, NULL, where, CANDELA_FIELD_STR, NULL, cmds, tol, ex, help, long_help}
-#define CUSTOM(name, meta, render, set, cmds, tol, ex, help, long_help) \
-    {name, NULL, CANDELA_FLAG_CUSTOM, meta, 0, 0, NULL, NULL, NULL, render, 0, CANDELA_FIELD_NONE, set, cmds, tol, ex, help, long_help}
+#define CUSTOM(name, meta, render, set, get, cmds, tol, ex, help, long_help) \
+    {name, NULL, CANDELA_FLAG_CUSTOM, meta, 0, 0, NULL, NULL, NULL, render, 0, CANDELA_FIELD_NONE, set, cmds, tol, ex, help, long_help, get}
 
 static const CandelaFlag FLAGS[] = {
     SWITCH("--help", "-h", CL(help), RENDERING | CANDELA_CMD_MERGE, 0, "print this command's flags, one line each",
@@ -199,12 +232,12 @@ static const CandelaFlag FLAGS[] = {
            "x.ckpt", "continue the render FILE checkpointed",
            "continue the render FILE checkpointed (same scene, resolution and options, else refused): the image equals "
            "the uninterrupted render's"),
-    CUSTOM("--sample-shard", "I/N", 0, set_sample_shard, CANDELA_CMD_RENDER, NOT_RENDER(CANDELA_CMD_RENDER), "1/4",
+    CUSTOM("--sample-shard", "I/N", 0, set_sample_shard, get_sample_shard, CANDELA_CMD_RENDER, NOT_RENDER(CANDELA_CMD_RENDER), "1/4",
            "render only samples [spp I/N, spp (I+1)/N) into -o NAME.film",
            "render only samples [spp I/N, spp (I+1)/N) of every pixel (I from 0), with the full render's random numbers, "
            "and write their film sums to -o NAME.film (no EXR); candela merge combines the N films"),
     /* render options (renderer/flags.c: candela_parse_render_flag, compare's variants too) */
-    CUSTOM("--confine-to", "DIR", 1, set_confine, RENDERING, 0, "/tmp",
+    CUSTOM("--confine-to", "DIR", 1, set_confine, get_confine, RENDERING, 0, "/tmp",
            "refuse a scene, or any file it references, outside DIR",
            "refuse a scene, or any file it references, outside DIR (not in a compare variant)"),
     INT("--volume-budget-mb", "N", 0, 1 << 24, RO(volume_budget_mb), CANDELA_FIELD_U32, ALL_RENDER, 0, "512",
@@ -240,13 +273,13 @@ static const CandelaFlag FLAGS[] = {
           "clamp indirect light contributions to V (biased; default off)",
           "the same as --clamp-direct for indirect light (two or more bounces): each contribution's largest channel is "
           "clamped to V (hue kept; biased; default off)"),
-    CUSTOM("--aov", "spp|recorder-debug|cachepoint", 1, set_aov, ALL_RENDER, 0, "spp",
+    CUSTOM("--aov", "spp|recorder-debug|cachepoint", 1, set_aov, get_aov, ALL_RENDER, 0, "spp",
            "add an AOV to the EXR (repeatable)",
            "add an AOV to the EXR (repeatable, one each): spp = the channel spp (samples per pixel); recorder-debug = "
            "recorder_debug.RGB, the radiance recorder's primary training samples times their throughput (converges to "
            "RGB); cachepoint = cachepoint.RGB and cachepoint_light.RGB (false colours of each first hit's cache point "
            "and of the entry it weighs most), and NAME.cachepoint.png, NAME.cachepoint_light.png beside the PNG"),
-    CUSTOM("--res", "WxH", 1, set_res, RENDERING, 0, "32x16", "resolution (default: 640 wide, camera aspect)",
+    CUSTOM("--res", "WxH", 1, set_res, get_res, RENDERING, 0, "32x16", "resolution (default: 640 wide, camera aspect)",
            "resolution, 1..16384 per side and at most 64 megapixels (default: 640 wide, camera aspect); the same for "
            "every compare variant"),
     INT("--threads", "N", 1, 1024, RO(threads), CANDELA_FIELD_INT, ALL_RENDER, 0, "2",
@@ -324,7 +357,7 @@ static const CandelaFlag FLAGS[] = {
            "weigh cache point entries by the glossy BSDF lobe (default on)",
            "at glossy vertices weigh cache point entries by the BSDF lobe too, not only by the normal (default on; "
            "diffuse vertices unchanged)"),
-    CUSTOM("--dump-cachepoints", "FILE.ply", 1, set_dump, CANDELA_CMD_RENDER | CANDELA_CMD_BENCH | CANDELA_CMD_GUIDE_DUMP,
+    CUSTOM("--dump-cachepoints", "FILE.ply", 1, set_dump, get_dump, CANDELA_CMD_RENDER | CANDELA_CMD_BENCH | CANDELA_CMD_GUIDE_DUMP,
            CANDELA_CMD_COMPARE, "x.ply", "write the cache points after the render as an ASCII PLY",
            "write the cache points after the render as an ASCII PLY (position, radius, near/far counts, learned "
            "visibility, colour); an empty PLY (0 vertices) when --light-sampler auto picks another sampler. Its folder "
@@ -393,7 +426,7 @@ static const CandelaFlag FLAGS[] = {
     SWITCH("--no-warnings", NULL, CL(o.no_warnings), RENDERING, 0, "no warnings about the scene",
            "no warnings about the scene (what it holds that is not rendered)"),
     /* candela guide-dump */
-    CUSTOM("--at", "X,Y,Z", 0, set_at, CANDELA_CMD_GUIDE_DUMP, 0, "0,0.5,-1", "the point whose learned guide is written",
+    CUSTOM("--at", "X,Y,Z", 0, set_at, get_at, CANDELA_CMD_GUIDE_DUMP, 0, "0,0.5,-1", "the point whose learned guide is written",
            "the point whose learned directional pdf is written (OUT.guide.exr/.png), with the final iteration's training "
            "directions in its leaf (OUT.hist.*) and the spatial tree's leaves (OUT.leaves.ply); OUT = -o without .exr"),
     /* candela compare */
@@ -692,4 +725,96 @@ int candela_print_flag_help(FILE *out, const char *name) {
     fprintf(out, "    forms: %s%s%s", f->name, f->metavar ? " VALUE, " : "", f->metavar ? f->name : "");
     fprintf(out, "%s\n", f->metavar ? "=VALUE" : "");
     return 0;
+}
+
+/* --- the render options as JSON (provenance) ------------------------------------------------ */
+
+/* The CLI rows CL(o.field) point into CandelaCommandLine.o, which comes first. */
+_Static_assert(offsetof(CandelaCommandLine, o) == 0, "CandelaCommandLine.o must come first");
+
+/* A row's value when it lives in CandelaOptions, as a JSON value; 0 when it does not. */
+static int option_json_value(const CandelaFlag *f, const CandelaOptions *o, FILE *out) {
+    if (f->kind == CANDELA_FLAG_CUSTOM) {
+        if (!f->get) return 0;
+        f->get(o, out);
+        return 1;
+    }
+    if (f->field == CANDELA_FIELD_NONE) return 0;
+    if (!f->render && f->offset >= sizeof(CandelaOptions)) return 0; /* a command-line field (-o, --frames) */
+    const char *p = (const char *)o + f->offset;
+    int n = 0;
+    switch (f->field) {
+    case CANDELA_FIELD_INT: memcpy(&n, p, sizeof n); break;
+    case CANDELA_FIELD_U32: {
+        uint32_t u;
+        memcpy(&u, p, sizeof u);
+        fprintf(out, "%u", u);
+        return 1;
+    }
+    case CANDELA_FIELD_U64: {
+        uint64_t u;
+        memcpy(&u, p, sizeof u);
+        fprintf(out, "%llu", (unsigned long long)u);
+        return 1;
+    }
+    case CANDELA_FIELD_FLOAT: {
+        float x;
+        memcpy(&x, p, sizeof x);
+        if (isfinite(x)) fprintf(out, "%.9g", (double)x);
+        else fputs("null", out); /* NaN: not given (--env-rotation: the scene's) */
+        return 1;
+    }
+    case CANDELA_FIELD_DOUBLE: {
+        double x;
+        memcpy(&x, p, sizeof x);
+        if (isfinite(x)) fprintf(out, "%.17g", x);
+        else fputs("null", out);
+        return 1;
+    }
+    case CANDELA_FIELD_STR: {
+        const char *s;
+        memcpy(&s, p, sizeof s);
+        json_string_or_null(out, s);
+        return 1;
+    }
+    case CANDELA_FIELD_NONE: return 0;
+    }
+    if (f->kind == CANDELA_FLAG_SWITCH) {
+        fputs(n ? "true" : "false", out);
+    } else if (f->kind == CANDELA_FLAG_CHOICE) {
+        const char *name = NULL;
+        for (int k = 0; f->names[k] && !name; ++k)
+            if (f->values[k] == n) name = f->names[k];
+        candela_json_string(out, name ? name : "default"); /* e.g. --cachepoint-progressive 0 */
+    } else {
+        fprintf(out, "%d", n);
+    }
+    return 1;
+}
+
+char *candela_options_json(const CandelaOptions *o) {
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    if (!f) return NULL;
+    fputc('{', f);
+    int first = 1;
+    for (size_t k = 0; k < sizeof FLAGS / sizeof FLAGS[0]; ++k) {
+        const CandelaFlag *row = &FLAGS[k];
+        /* every row of a render option (the CLI's o.fields too: --checkpoint, --quiet) */
+        if (!row->render && !(row->kind == CANDELA_FLAG_CUSTOM ? row->get != NULL : row->offset < sizeof(CandelaOptions)))
+            continue;
+        if (row->field == CANDELA_FIELD_NONE && row->kind != CANDELA_FLAG_CUSTOM) continue;
+        fputs(first ? "\"" : ", \"", f);
+        fputs(row->name + 2, f);
+        fputs("\": ", f);
+        if (!option_json_value(row, o, f)) fputs("null", f);
+        first = 0;
+    }
+    fputc('}', f);
+    if (fclose(f) != 0) {
+        free(buf);
+        return NULL;
+    }
+    return buf;
 }

@@ -73,6 +73,9 @@ typedef struct CandelaFlag {
     const char *example;  /* a valid value (the tests feed every row its example); NULL for switches */
     const char *help;     /* one line */
     const char *long_help; /* candela help FLAG */
+    /* CUSTOM rows whose value is in CandelaOptions: writes it as a JSON value (the provenance's
+     * candela:options); NULL: the row is not there */
+    void (*get)(const CandelaOptions *o, FILE *f);
 } CandelaFlag;
 
 /* The table (count rows). */

@@ -26,6 +26,14 @@ void candela_cachepoint_png_paths(const char *png_path, char *point_png, char *l
 
 int candela_write_outputs(const CandelaImage *img, const char *exr_path, const char *png_path,
                           char err[CANDELA_ERR_LEN]) {
+    return candela_write_outputs_provenance(img, exr_path, png_path, NULL, err);
+}
+
+int candela_write_outputs_provenance(const CandelaImage *img, const char *exr_path, const char *png_path,
+                                     const CandelaProvenance *provenance, char err[CANDELA_ERR_LEN]) {
+    IoExrAttribute attrs[CANDELA_PROVENANCE_MAX];
+    int nattrs = provenance ? provenance->count : 0;
+    for (int k = 0; k < nattrs; ++k) attrs[k] = (IoExrAttribute){provenance->attrs[k].name, provenance->attrs[k].value};
     size_t n = (size_t)img->width * (size_t)img->height;
     int nch = img->recorder_debug ? 17 : 14;
     int ncp = img->selection_point ? 6 : 0; /* cachepoint.RGB, cachepoint_light.RGB after the others */
@@ -63,7 +71,7 @@ int candela_write_outputs(const CandelaImage *img, const char *exr_path, const c
     for (int k = 0; k < ncp; ++k) ch[nch + k] = (IoExrChannel){cp_names[k], planes + (size_t)(nch + k) * n};
     if (nspp) ch[nch + ncp] = (IoExrChannel){"spp", planes + (size_t)(nch + ncp) * n};
     char ioerr[IO_ERR_LEN];
-    int rc = io_write_exr(exr_path, img->width, img->height, ch, nch + ncp + nspp, ioerr);
+    int rc = io_write_exr(exr_path, img->width, img->height, ch, nch + ncp + nspp, nattrs ? attrs : NULL, nattrs, ioerr);
     free(planes);
     if (rc != 0) { snprintf(err, CANDELA_ERR_LEN, "%s", ioerr); return -1; }
     if (png_path) {
@@ -84,8 +92,7 @@ int candela_write_outputs(const CandelaImage *img, const char *exr_path, const c
     return 0;
 }
 
-/* A JSON string literal of s (quotes, backslashes and control characters escaped). */
-static void json_string(FILE *f, const char *s) {
+void candela_json_string(FILE *f, const char *s) {
     fputc('"', f);
     for (const unsigned char *c = (const unsigned char *)s; *c; ++c) {
         if (*c == '"' || *c == '\\') fprintf(f, "\\%c", *c);
@@ -96,11 +103,11 @@ static void json_string(FILE *f, const char *s) {
 }
 
 /* The statistics object, pretty-printed (two-space indentation, a member per line). */
-static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s) {
+static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s, const CandelaProvenance *prov) {
     uint64_t rays = s->rays_camera + s->rays_bounce + s->rays_shadow;
     double render = candela_stats_render_seconds(s);
     fputs("{\n  \"scene\": ", f);
-    json_string(f, o->scene_path);
+    candela_json_string(f, o->scene_path);
     fprintf(f, ",\n  \"spp\": %d,\n  \"seed\": %llu,\n  \"max_depth\": %d,\n", o->spp, (unsigned long long)o->seed,
             o->max_depth);
     fprintf(f, "  \"sampler\": \"%s\",\n", candela_sampler_name(o->sampler));
@@ -163,11 +170,23 @@ static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s) 
                 s->guide_auto == 1 ? "on" : s->guide_auto == 0 ? "off" : "undecided", (double)s->guide_auto_ratio,
                 (double)s->guide_auto_indirect);
     fprintf(f, "},\n");
+    if (prov && prov->count) {
+        fputs("  \"provenance\": {", f);
+        for (int k = 0; k < prov->count; ++k) {
+            fputs(k ? ", " : "", f);
+            candela_json_string(f, prov->attrs[k].name);
+            fputs(": ", f);
+            /* the options are a JSON object already (one line) */
+            if (strcmp(prov->attrs[k].name, "candela:options") == 0) fputs(prov->attrs[k].value, f);
+            else candela_json_string(f, prov->attrs[k].value);
+        }
+        fputs("},\n", f);
+    }
     fprintf(f, "  \"peak_memory_bytes\": %zu\n}\n", s->peak_memory_bytes);
 }
 
 int candela_write_stats_json(const char *path_arg, const CandelaOptions *o, const CandelaStats *s,
-                             char err[CANDELA_ERR_LEN]) {
+                             const CandelaProvenance *provenance, char err[CANDELA_ERR_LEN]) {
     char path[IO_PATH_MAX], ioerr[IO_ERR_LEN];
     if (io_output_path(path_arg, path, ioerr) != 0) {
         snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
@@ -181,7 +200,7 @@ int candela_write_stats_json(const char *path_arg, const CandelaOptions *o, cons
         return -1;
     }
     io_temp_begin(tmp);
-    stats_json(f, o, s);
+    stats_json(f, o, s, provenance);
     int synced = fflush(f) == 0 && fsync(fileno(f)) == 0;
     if (fclose(f) != 0 || !synced || rename(tmp, path) != 0) {
         remove(tmp);
@@ -199,7 +218,7 @@ int candela_stats_json_line(const CandelaOptions *o, const CandelaStats *s, char
     size_t len = 0;
     FILE *f = open_memstream(&buf, &len);
     if (!f) return -1;
-    stats_json(f, o, s);
+    stats_json(f, o, s, NULL);
     if (fclose(f) != 0) {
         free(buf);
         return -1;

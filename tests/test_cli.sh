@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # CLI-level tests: bad input gives one clear line and a non-zero exit and leaves no output;
 # determinism across thread counts and batch sizes (bit-identical EXR); --help/--version.
-# usage: test_cli.sh CANDELA_BINARY SOURCE_ROOT
+# usage: test_cli.sh CANDELA_BINARY SOURCE_ROOT EXR_SAME
 set -u
-bin=$1; root=$2
+bin=$1; root=$2; exr_same=$3
+# the same pixels bit for bit (tests/exr_same.c): EXR headers carry each run's provenance
+same_exr() { "$exr_same" "$1" "$2" 2>/dev/null; }
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 pass=0; fail=0
 ok()  { pass=$((pass + 1)); }
@@ -367,7 +369,7 @@ rm -rf "$tmp/c27v"
 # --flag=value is --flag value: the same image
 "$bin" render "$scene" -o "$tmp/eq1.exr" --no-png --res 12x10 --spp 2 --seed 3 --light-sampler tree --quiet || bad "render eq1"
 "$bin" render "$scene" --output="$tmp/eq2.exr" --no-png --res=12x10 --spp=2 --seed=3 --light-sampler=tree -q || bad "render eq2"
-cmp -s "$tmp/eq1.exr" "$tmp/eq2.exr" && ok || bad "--flag=value renders differ from --flag value"
+same_exr "$tmp/eq1.exr" "$tmp/eq2.exr" && ok || bad "--flag=value renders differ from --flag value"
 rm -f "$tmp"/eq*.exr
 expect_error "switch with a value" "--no-png takes no value" -- render "$scene" --no-png=yes "${common[@]}"
 expect_error "bad = value" "invalid value '0' for --spp" -- render "$scene" --spp=0 "${common[@]}"
@@ -379,9 +381,9 @@ det=$root/tests/scenes/two_lights.gltf
 "$bin" render "$det" -o "$tmp/t2.exr" --no-png --res 24x20 --spp 5 --threads 2 --quiet --seed 7 || bad "render t2"
 "$bin" render "$det" -o "$tmp/t3.exr" --no-png --res 24x20 --spp 5 --threads 2 --batch 97 --quiet --seed 7 || bad "render t3"
 "$bin" render "$det" -o "$tmp/t4.exr" --no-png --res 24x20 --spp 5 --threads 2 --quiet --seed 8 || bad "render t4"
-cmp -s "$tmp/t1.exr" "$tmp/t2.exr" && ok || bad "threads 1 vs 2 differ"
-cmp -s "$tmp/t2.exr" "$tmp/t3.exr" && ok || bad "batch sizes differ"
-cmp -s "$tmp/t2.exr" "$tmp/t4.exr" && bad "different seeds gave identical images" || ok
+same_exr "$tmp/t1.exr" "$tmp/t2.exr" && ok || bad "threads 1 vs 2 differ"
+same_exr "$tmp/t2.exr" "$tmp/t3.exr" && ok || bad "batch sizes differ"
+same_exr "$tmp/t2.exr" "$tmp/t4.exr" && bad "different seeds gave identical images" || ok
 [ -f "$tmp/t1.png" ] && bad "--no-png wrote a PNG" || ok
 
 # a normal render writes both files and nothing temporary
@@ -703,6 +705,69 @@ ls "$tmp"/out.* >/dev/null 2>&1 && bad "guide-dump outside the scene wrote files
 expect_error "inline variants ending in .json" "no camera named 'nosuch.json'" -- compare "$det" --spp 1 --res 8x8 --ref-spp 1 \
   --out-dir "$tmp/c29j" --quiet --variants "a: --light-sampler power --camera nosuch.json"
 rm -rf "$tmp/c29j"
+
+# issue 27 "Provenance": every EXR's header says how it was made (software = the --version line,
+# the command line, every render option as JSON, the scene and its content hash, what the render
+# did), read back as OpenImageIO reads it; --stats-json carries the same under "provenance"
+if command -v oiiotool >/dev/null 2>&1; then
+  cp "$root/tests/scenes/area_plane.gltf" "$tmp/prov.gltf"
+  attr() { oiiotool --info -v "$1" 2>/dev/null | sed -n "s/^ *$2: \"\(.*\)\"\$/\1/p"; }
+  "$bin" render "$tmp/prov.gltf" -o "$tmp/prov a.exr" --res 16x16 --spp 2 --seed 5 --max-depth=3 --quiet \
+    --stats-json "$tmp/prov.json" && ok || bad "provenance render"
+  sw=$(attr "$tmp/prov a.exr" software)
+  [ "$sw" = "$("$bin" --version)" ] && ok || bad "software '$sw' is not the --version line"
+  if [ -n "${head:-}" ]; then
+    rev=$(echo "$sw" | sed -n 's/.*(git \([0-9a-f]*\).*/\1/p')
+    [ -n "$rev" ] && [ "${head#"$rev"}" != "$head" ] && ok || bad "software '$sw' does not name HEAD $head"
+  fi
+  cl=$(attr "$tmp/prov a.exr" candela:commandLine)
+  case $cl in *" render $tmp/prov.gltf -o '$tmp/prov a.exr' --res 16x16 --spp 2 --seed 5 --max-depth=3 --quiet"*) ok ;;
+    *) bad "commandLine: $cl" ;; esac
+  [ "$(attr "$tmp/prov a.exr" candela:sppDone)" = 2 ] && ok || bad "sppDone: $(attr "$tmp/prov a.exr" candela:sppDone)"
+  [ "$(attr "$tmp/prov a.exr" candela:seed)" = 5 ] && ok || bad "seed: $(attr "$tmp/prov a.exr" candela:seed)"
+  [ "$(attr "$tmp/prov a.exr" candela:sampler)" = sobol ] && ok || bad "sampler"
+  [ "$(attr "$tmp/prov a.exr" candela:scene)" = "$tmp/prov.gltf" ] && ok || bad "scene: $(attr "$tmp/prov a.exr" candela:scene)"
+  echo "$(attr "$tmp/prov a.exr" candela:lightSamplerUsed)" | grep -Eq '^(uniform|power|tree|optimal|cachepoints)$' && ok \
+    || bad "lightSamplerUsed: $(attr "$tmp/prov a.exr" candela:lightSamplerUsed)"
+  [ "$(attr "$tmp/prov a.exr" candela:host)" = "$(hostname)" ] && ok || bad "host: $(attr "$tmp/prov a.exr" candela:host)"
+  attr "$tmp/prov a.exr" candela:renderSeconds | grep -Eq '^[0-9]+\.[0-9]+$' && ok || bad "renderSeconds"
+  attr "$tmp/prov a.exr" candela:peakMemoryBytes | grep -Eq '^[1-9][0-9]*$' && ok || bad "peakMemoryBytes"
+  oiiotool --info -v "$tmp/prov a.exr" | grep -Eq '^ *DateTime: "[0-9]{4}:[0-9]{2}:[0-9]{2} [0-9:]{8}"' && ok || bad "DateTime"
+  hash1=$(attr "$tmp/prov a.exr" candela:sceneHash)
+  echo "$hash1" | grep -Eq '^[0-9a-f]{16}$' && ok || bad "sceneHash '$hash1'"
+  opts=$(oiiotool --info -v "$tmp/prov a.exr" | sed -n 's/^ *candela:options: "\(.*\)"$/\1/p')
+  if command -v python3 >/dev/null 2>&1; then
+    # spp and max-depth as given, a default (light-sampler auto, max-volume-bounces 256), no CLI-only flag
+    echo "$opts" | python3 -c 'import json, sys; o = json.load(sys.stdin)
+sys.exit(0 if o["spp"] == 2 and o["seed"] == 5 and o["max-depth"] == 3 and o["light-sampler"] == "auto"
+         and o["max-volume-bounces"] == 256 and o["res"] == "16x16" and o["quiet"] is True and "output" not in o else 1)' \
+      && ok || bad "options JSON: $opts"
+    python3 -c 'import json, sys; p = json.load(open(sys.argv[1]))["provenance"]
+sys.exit(0 if p["candela:options"]["spp"] == 2 and p["candela:sppDone"] == "2" and len(p["candela:sceneHash"]) == 16 else 1)' \
+      "$tmp/prov.json" && ok || bad "--stats-json provenance: $(cat "$tmp/prov.json")"
+  else
+    case $opts in *'"spp": 2'*'"max-volume-bounces": 256'*) ok ;; *) bad "options JSON: $opts" ;; esac
+  fi
+  # the hash is the scene file's content: one byte more, another hash; the pixels stay the same
+  echo " " >> "$tmp/prov.gltf"
+  "$bin" render "$tmp/prov.gltf" -o "$tmp/prov b.exr" --res 16x16 --spp 2 --seed 5 --max-depth 3 --quiet --threads 1 \
+    && ok || bad "provenance render 2"
+  hash2=$(attr "$tmp/prov b.exr" candela:sceneHash)
+  echo "$hash2" | grep -Eq '^[0-9a-f]{16}$' && [ "$hash2" != "$hash1" ] && ok || bad "sceneHash unchanged: $hash1 $hash2"
+  same_exr "$tmp/prov a.exr" "$tmp/prov b.exr" && ok || bad "the provenance changed the pixels"
+  cmp -s "$tmp/prov a.exr" "$tmp/prov b.exr" && bad "two runs' headers are the same (no provenance?)" || ok
+  # a frame batch's frames and a merge carry it too
+  "$bin" render "$tmp/prov.gltf" --frames 0-0 -o "$tmp/provf.#.exr" --res 8x8 --spp 1 --quiet --no-png && ok || bad "provenance frame"
+  [ "$(attr "$tmp/provf.0.exr" candela:frame)" = 0 ] && [ "$(attr "$tmp/provf.0.exr" software)" = "$sw" ] && ok \
+    || bad "a frame's provenance: $(oiiotool --info -v "$tmp/provf.0.exr")"
+  "$bin" render "$tmp/prov.gltf" --sample-shard 0/1 -o "$tmp/prov.film" --res 8x8 --spp 1 --quiet && \
+    "$bin" merge -o "$tmp/provm.exr" --no-png "$tmp/prov.film" && ok || bad "provenance merge"
+  case $(attr "$tmp/provm.exr" candela:commandLine) in *" merge -o $tmp/provm.exr --no-png $tmp/prov.film") ok ;;
+    *) bad "merge commandLine: $(attr "$tmp/provm.exr" candela:commandLine)" ;; esac
+  rm -f "$tmp"/prov*
+else
+  echo "skipped: provenance (no oiiotool)"
+fi
 
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -4,9 +4,11 @@
 # missing frames and ends with the same images; shards (--shard, SLURM_ARRAY_*) partition the
 # frames; a frame that fails is counted in the exit status and the batch goes on; bad
 # animations, frame ranges and shard specs give one line, a non-zero exit and write nothing.
-# usage: test_frames.sh CANDELA_BINARY SOURCE_ROOT
+# usage: test_frames.sh CANDELA_BINARY SOURCE_ROOT EXR_SAME
 set -u
-bin=$1; root=$2
+bin=$1; root=$2; exr_same=$3
+# the same pixels bit for bit (tests/exr_same.c): EXR headers carry each run's provenance
+same_exr() { "$exr_same" "$1" "$2" 2>/dev/null; }
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 pass=0; fail=0
 ok()  { pass=$((pass + 1)); }
@@ -30,21 +32,21 @@ rc=$?
 [ "$(logged "$tmp/batch/log.jsonl")" = "1 2 3 4 5 6" ] && ok || bad "batch log lists $(logged "$tmp/batch/log.jsonl")"
 for f in 1 2 3 4 5 6; do
   "$bin" render "$scene" --frames $f "${fast[@]}" -o "$tmp/single/f.####.exr" || bad "single frame $f failed"
-  cmp -s "$tmp/batch/f.000$f.exr" "$tmp/single/f.000$f.exr" && ok || bad "frame $f of the batch differs from its single-frame render"
+  same_exr "$tmp/batch/f.000$f.exr" "$tmp/single/f.000$f.exr" && ok || bad "frame $f of the batch differs from its single-frame render"
 done
 # the frames do differ (the animation moves things): no test that cannot fail
-cmp -s "$tmp/batch/f.0001.exr" "$tmp/batch/f.0002.exr" && bad "frames 1 and 2 are identical" || ok
+same_exr "$tmp/batch/f.0001.exr" "$tmp/batch/f.0002.exr" && bad "frames 1 and 2 are identical" || ok
 # the thread count changes nothing
 "$bin" render "$scene" --frames 4 "${fast[@]}" --threads 1 -o "$tmp/single/t1.####.exr" &&
-  cmp -s "$tmp/batch/f.0004.exr" "$tmp/single/t1.0004.exr" && ok || bad "frame 4 differs with 1 thread"
+  same_exr "$tmp/batch/f.0004.exr" "$tmp/single/t1.0004.exr" && ok || bad "frame 4 differs with 1 thread"
 # cache points are rebuilt per frame: frame 5 after frame 2 in one session equals frame 5 alone
 cp_opts=(--res 32x24 --spp 2 --light-sampler cachepoints --quiet --no-png)
 "$bin" render "$scene" --frames 2,5 "${cp_opts[@]}" -o "$tmp/batch/cp.####.exr" &&
   "$bin" render "$scene" --frames 5 "${cp_opts[@]}" -o "$tmp/single/cp.####.exr" &&
-  cmp -s "$tmp/batch/cp.0005.exr" "$tmp/single/cp.0005.exr" && ok || bad "cache point frame 5 differs after frame 2"
+  same_exr "$tmp/batch/cp.0005.exr" "$tmp/single/cp.0005.exr" && ok || bad "cache point frame 5 differs after frame 2"
 # per-frame seeds: the same frame with another --seed differs, the same seed reproduces it
 "$bin" render "$scene" --frames 3 "${fast[@]}" --seed 7 -o "$tmp/single/s7.####.exr"
-cmp -s "$tmp/single/s7.0003.exr" "$tmp/batch/f.0003.exr" && bad "--seed does not change frame 3" || ok
+same_exr "$tmp/single/s7.0003.exr" "$tmp/batch/f.0003.exr" && bad "--seed does not change frame 3" || ok
 
 # a still scene renders any frame, and frame f is exactly a plain render with the frame's seed
 # (the session's path is candela_render's). Frame 1 of --seed 0 has seed 7960286522194355700,
@@ -54,7 +56,7 @@ still=$root/tests/scenes/point_plane.gltf
 seed=$(python3 -c 'import json,sys; print(json.loads(open(sys.argv[1]).readline())["seed"])' "$tmp/single/still.jsonl")
 [ "$seed" = 7960286522194355700 ] && ok || bad "frame 1's seed is $seed"
 "$bin" render "$still" --seed "$seed" "${fast[@]}" -o "$tmp/single/plain.exr" &&
-  cmp -s "$tmp/single/still.0001.exr" "$tmp/single/plain.exr" && ok || bad "frame 1 of a still scene differs from a plain render with its seed"
+  same_exr "$tmp/single/still.0001.exr" "$tmp/single/plain.exr" && ok || bad "frame 1 of a still scene differs from a plain render with its seed"
 
 # ---- 2. --resume: outputs deleted, a temporary left by a killed write; only those re-render
 mkdir -p "$tmp/resume"
@@ -69,7 +71,7 @@ for f in 1 4 6; do
   [ "$(stat -c %Y "$tmp/resume/f.000$f.exr")" = "$(date -d 2001-01-01 +%s)" ] && ok || bad "resume rewrote frame $f"
 done
 for f in 1 2 3 4 5 6; do
-  cmp -s "$tmp/batch/f.000$f.exr" "$tmp/resume/f.000$f.exr" && ok || bad "resumed frame $f differs"
+  same_exr "$tmp/batch/f.000$f.exr" "$tmp/resume/f.000$f.exr" && ok || bad "resumed frame $f differs"
 done
 [ -e "$tmp/resume/f.0003.exr.tmp-999999" ] && bad "a stale temporary was left" || ok
 # a batch killed (SIGKILL) at some point, then resumed: every frame once, each as in the batch
@@ -85,7 +87,7 @@ for f in 1 2 3 4 5 6; do case " $before" in *" $f "*) ;; *) expected="$expected 
 [ "$(logged "$tmp/kill/log.jsonl")" = "${expected# }" ] && ok ||
   bad "after a kill with frames '$before' done, resume rendered '$(logged "$tmp/kill/log.jsonl")'"
 for f in 1 2 3 4 5 6; do
-  cmp -s "$tmp/batch/f.000$f.exr" "$tmp/kill/f.000$f.exr" && ok || bad "killed+resumed frame $f differs"
+  same_exr "$tmp/batch/f.000$f.exr" "$tmp/kill/f.000$f.exr" && ok || bad "killed+resumed frame $f differs"
 done
 ls "$tmp/kill" | grep -q tmp- && bad "temporaries left after resume: $(ls "$tmp/kill")" || ok
 
@@ -98,7 +100,7 @@ done
 [ "$(logged "$tmp/shard/log0.jsonl")" = "1 4" ] && [ "$(logged "$tmp/shard/log1.jsonl")" = "2 5" ] &&
   [ "$(logged "$tmp/shard/log2.jsonl")" = "3 6" ] && ok || bad "shards are not round-robin"
 for f in 1 2 3 4 5 6; do
-  cmp -s "$tmp/batch/f.000$f.exr" "$tmp/shard/f.000$f.exr" && ok || bad "sharded frame $f differs"
+  same_exr "$tmp/batch/f.000$f.exr" "$tmp/shard/f.000$f.exr" && ok || bad "sharded frame $f differs"
 done
 # Slurm's variables (a 1-based array 1-3: task 2 is shard 1/3)
 mkdir -p "$tmp/slurm"
@@ -222,10 +224,10 @@ tiny=(--fps 1 --res 16x12 --spp 1 --quiet --no-png)
 "$bin" render "$tmp/appearing.gltf" --frames 0-3 "${tiny[@]}" -o "$tmp/vanish/a.#.exr" && ok || bad "appearing mesh: exit $?"
 "$bin" render "$tmp/vanishing.gltf" --frames 1 "${tiny[@]}" --seed 5 -o "$tmp/vanish/v5.#.exr"
 "$bin" render "$tmp/vanishing.gltf" --frames 1 "${tiny[@]}" --seed 6 -o "$tmp/vanish/v6.#.exr"
-cmp -s "$tmp/vanish/v.0.exr" "$tmp/vanish/v.1.exr" && bad "the mesh did not vanish at frame 1" || ok
-cmp -s "$tmp/vanish/v5.1.exr" "$tmp/vanish/v6.1.exr" && ok || bad "frame 1 still shows something (seeds differ)"
-cmp -s "$tmp/vanish/v.3.exr" "$tmp/vanish/a.3.exr" && ok || bad "the appearing mesh's frame 3 differs from the vanishing one's"
-cmp -s "$tmp/vanish/a.0.exr" "$tmp/vanish/v.1.exr" && ok || bad "the appearing mesh shows at frame 0"
+same_exr "$tmp/vanish/v.0.exr" "$tmp/vanish/v.1.exr" && bad "the mesh did not vanish at frame 1" || ok
+same_exr "$tmp/vanish/v5.1.exr" "$tmp/vanish/v6.1.exr" && ok || bad "frame 1 still shows something (seeds differ)"
+same_exr "$tmp/vanish/v.3.exr" "$tmp/vanish/a.3.exr" && ok || bad "the appearing mesh's frame 3 differs from the vanishing one's"
+same_exr "$tmp/vanish/a.0.exr" "$tmp/vanish/v.1.exr" && ok || bad "the appearing mesh shows at frame 0"
 "$bin" render "$tmp/camera_zero.gltf" --frames 0-3 "${tiny[@]}" -o "$tmp/vanish/c.#.exr" \
   --frame-stats "$tmp/vanish/log.jsonl" 2>"$tmp/vanish/stderr"
 rc=$?
@@ -249,7 +251,7 @@ touch -d '2001-01-01' "$tmp/r29"/f.000?.exr
 [ "$(logged "$tmp/r29/log.jsonl")" = "2 4 5" ] && ok || bad "resume over bad frames rendered '$(logged "$tmp/r29/log.jsonl")', expected 2 4 5"
 [ "$(grep -c "rendered again (--resume)" "$tmp/r29/err")" = 3 ] && grep -q "frame 5: .*f.0005.exr: 16x12, not the batch's 32x24" "$tmp/r29/err" \
   && ok || bad "resume did not say why it rendered frames again: $(cat "$tmp/r29/err")"
-for f in 1 2 3 4 5 6; do cmp -s "$tmp/batch/f.000$f.exr" "$tmp/r29/f.000$f.exr" && ok || bad "resumed-over frame $f differs"; done
+for f in 1 2 3 4 5 6; do same_exr "$tmp/batch/f.000$f.exr" "$tmp/r29/f.000$f.exr" && ok || bad "resumed-over frame $f differs"; done
 for f in 1 3 6; do
   [ "$(stat -c %Y "$tmp/r29/f.000$f.exr")" = "$(date -d 2001-01-01 +%s)" ] && ok || bad "resume rewrote good frame $f"
 done

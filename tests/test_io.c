@@ -125,7 +125,7 @@ static void test_exr(void) {
     IoExrChannel ch[NC] = {{"Z", z}, {"R", r}, {"albedo.G", alb}, {"G", g}, {"B", b}};
     const char *path = tmp_path("out.exr");
     char err[IO_ERR_LEN] = "";
-    int rc = io_write_exr(path, W, H, ch, NC, err);
+    int rc = io_write_exr(path, W, H, ch, NC, NULL, 0, err);
     CHECK(rc == 0, "io_write_exr: %s", err);
     char tmpname[600];
     snprintf(tmpname, sizeof tmpname, "%s.tmp-%ld", path, (long)getpid());
@@ -151,7 +151,7 @@ static void test_exr(void) {
     const char *eq_path = tmp_path("equal_size.exr");
     for (int k = 0; k < 4; ++k) {
         IoExrChannel one = {"R", equal_size[k]};
-        CHECK(io_write_exr(eq_path, 2, 2, &one, 1, err) == 0, "io_write_exr 2x2: %s", err);
+        CHECK(io_write_exr(eq_path, 2, 2, &one, 1, NULL, 0, err) == 0, "io_write_exr 2x2: %s", err);
         data = NULL;
         int rr = io_read_exr_channel(eq_path, "R", &w, &h, &data, err);
         CHECK(rr == 0 && w == 2 && h == 2, "2x2 read back: %s", err);
@@ -188,9 +188,29 @@ static void test_exr(void) {
         free(bytes);
     }
     /* bad writer arguments */
-    CHECK(io_write_exr(tmp_path("bad.exr"), 0, 5, ch, NC, err) != 0, "zero width accepted");
+    CHECK(io_write_exr(tmp_path("bad.exr"), 0, 5, ch, NC, NULL, 0, err) != 0, "zero width accepted");
     IoExrChannel dup[2] = {{"R", r}, {"R", g}};
-    CHECK(io_write_exr(tmp_path("bad.exr"), W, H, dup, 2, err) != 0, "duplicate channels accepted");
+    CHECK(io_write_exr(tmp_path("bad.exr"), W, H, dup, 2, NULL, 0, err) != 0, "duplicate channels accepted");
+    /* header string attributes (provenance): the pixels are the same with them; a name the
+     * header has already (a required attribute, or given twice) or a missing value is refused */
+    IoExrAttribute attrs[3] = {{"software", "candela test"}, {"candela:options", "{\"spp\": 2}"},
+                               {"candela:aVeryLongAttributeNameOverThirtyOneChars", "x"}};
+    CHECK(io_write_exr(tmp_path("attrs.exr"), W, H, ch, NC, attrs, 3, err) == 0, "attributes: %s", err);
+    for (int c = 0; c < NC; ++c) {
+        int w = 0, h = 0;
+        float *a = NULL, *b = NULL;
+        CHECK(io_read_exr_channel(tmp_path("attrs.exr"), ch[c].name, &w, &h, &a, err) == 0, "%s", err);
+        CHECK(io_read_exr_channel(path, ch[c].name, &w, &h, &b, err) == 0, "%s", err);
+        if (a && b) CHECK(memcmp(a, b, sizeof(float) * W * H) == 0, "channel %s changed by attributes", ch[c].name);
+        free(a);
+        free(b);
+    }
+    IoExrAttribute clash[1] = {{"compression", "none"}};
+    CHECK(io_write_exr(tmp_path("bad.exr"), W, H, ch, NC, clash, 1, err) != 0, "a required attribute replaced");
+    IoExrAttribute twice[2] = {{"software", "a"}, {"software", "b"}};
+    CHECK(io_write_exr(tmp_path("bad.exr"), W, H, ch, NC, twice, 2, err) != 0, "an attribute given twice accepted");
+    IoExrAttribute novalue[1] = {{"software", NULL}};
+    CHECK(io_write_exr(tmp_path("bad.exr"), W, H, ch, NC, novalue, 1, err) != 0, "an attribute without a value accepted");
     CHECK(!file_exists(tmp_path("bad.exr")), "failed write left a file");
 }
 
@@ -368,7 +388,7 @@ static void test_texture_forms(void) {
     }
     const IoExrChannel ch[3] = {{"R", r}, {"G", g}, {"B", b}};
     const char *exr = tmp_path("float_tex.exr");
-    CHECK(io_write_exr(exr, 8, 8, ch, 3, err) == 0, "io_write_exr: %s", err);
+    CHECK(io_write_exr(exr, 8, 8, ch, 3, NULL, 0, err) == 0, "io_write_exr: %s", err);
     rc = io_load_image(exr, IO_IMAGE_SRGB | IO_IMAGE_KEEP_8BIT, &im, err);
     CHECK(rc == 0, "float EXR: %s", err);
     if (rc == 0) {
@@ -774,7 +794,7 @@ static void test_texture_budget(void) {
     for (int i = 0; i < N * N; ++i) plane[i] = (float)(i % 7);
     CHECK(io_write_png(tmp_path("budget.png"), N, N, rgb, err) == 0, "budget.png: %s", err);
     const IoExrChannel ch[3] = {{"R", plane}, {"G", plane}, {"B", plane}};
-    CHECK(io_write_exr(tmp_path("budget.exr"), N, N, ch, 3, err) == 0, "budget.exr: %s", err);
+    CHECK(io_write_exr(tmp_path("budget.exr"), N, N, ch, 3, NULL, 0, err) == 0, "budget.exr: %s", err);
     free(rgb);
     free(plane);
     const uint64_t mib = 1u << 20;

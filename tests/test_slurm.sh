@@ -26,10 +26,13 @@
 # Skips (77) with the reason when not root (SlurmUser=root), when Slurm or munge is not
 # installed (.ci/setup installs slurm-wlm and munge) or when the cluster does not come up.
 # The daemons and jobs also run in the ASan build (about 50 s there): no skip needed.
-# usage: test_slurm.sh CANDELA_BINARY SOURCE_ROOT   (CANDELA_SLURM_KEEP=1 keeps the cluster's
+# usage: test_slurm.sh CANDELA_BINARY SOURCE_ROOT EXR_SAME   (CANDELA_SLURM_KEEP=1 keeps the cluster's
 # folder, with the daemons' and jobs' logs, for inspection)
 set -u
 bin=$(cd "$(dirname "$1")" && pwd)/$(basename "$1"); root=$(cd "$2" && pwd)
+exr_same=$3
+# the same pixels bit for bit (tests/exr_same.c): EXR headers carry each run's provenance
+same_exr() { "$exr_same" "$1" "$2" 2>/dev/null; }
 pass=0; fail=0
 ok()  { pass=$((pass + 1)); }
 bad() { fail=$((fail + 1)); echo "FAIL: $*" >&2; }
@@ -241,7 +244,7 @@ for i in 0 1 2 3; do
   cmp -s "$work/shard.$i.film" "$tmp/local.$i.film" && ok || bad "shard $i: the cluster's film differs from the local one"
 done
 "$bin" merge -o "$tmp/local.exr" --no-png "${films[@]}" || bad "local merge"
-cmp -s "$tmp/work/frame.exr" "$tmp/local.exr" && ok || bad "the cluster's merged frame differs from the local merge"
+same_exr "$tmp/work/frame.exr" "$tmp/local.exr" && ok || bad "the cluster's merged frame differs from the local merge"
 [ "$(ls "$work"/shard.*.film | wc -l)" -eq 4 ] && ok || bad "expected exactly 4 shard films"
 merge1=$(awk '/^array .* merge /{print $4}' "$tmp/submit1.out")
 scontrol show job "$merge1" 2>/dev/null | grep -q '^ *Comment=a b;c *$' && ok ||
@@ -296,7 +299,7 @@ restarts=$(scontrol show job "${array}_0" 2>/dev/null | sed -n 's/.*Restarts=\([
 grep -q "resuming from" "$rwork/shard.0.log" && ok || bad "requeue: shard 0 did not resume from its checkpoint: $(cat "$rwork/shard.0.log")"
 for i in 0 1; do "$bin" render "$scene" "${slow[@]}" --sample-shard $i/2 -o "$tmp/rq.$i.film" || bad "local shard $i/2"; done
 "$bin" merge -o "$tmp/rq-local.exr" --no-png "$tmp/rq.0.film" "$tmp/rq.1.film" || bad "local merge (requeue)"
-cmp -s "$tmp/work/rq.exr" "$tmp/rq-local.exr" && ok || bad "the requeued render's merged frame differs from the local merge"
+same_exr "$tmp/work/rq.exr" "$tmp/rq-local.exr" && ok || bad "the requeued render's merged frame differs from the local merge"
 
 # --- 2. a 6-frame array job (candela render --frames, when built)
 echo "[$(date +%T)] 2. a 6-frame array job"
@@ -317,7 +320,7 @@ if "$bin" --help | grep -q -- '--frames'; then
     [ "$(ls "$tmp/work/seq" | grep -c "^$name\$")" -eq 1 ] || { bad "frame $f not there exactly once"; continue; }
     "$bin" render "$scene" "${opts[@]}" --frames $f-$f -o "$tmp/local/f.####.exr" >/dev/null 2>&1 ||
       { bad "local render of frame $f"; continue; }
-    cmp -s "$tmp/work/seq/$name" "$tmp/local/$name" && ok || bad "frame $f differs from a local render of it"
+    same_exr "$tmp/work/seq/$name" "$tmp/local/$name" && ok || bad "frame $f differs from a local render of it"
   done
 else
   echo "skipped: --frames not built yet (part 2, the 6-frame array job)"

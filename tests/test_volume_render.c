@@ -57,7 +57,7 @@ static void write_env(const char *name, float value) {
     float alpha[8] = {1, 1, 1, 1, 1, 1, 1, 1};
     IoExrChannel ch[4] = {{"R", px}, {"G", px}, {"B", px}, {"A", alpha}};
     char err[IO_ERR_LEN];
-    CHECK(io_write_exr(path, 4, 2, ch, 4, err) == 0, "%s", err);
+    CHECK(io_write_exr(path, 4, 2, ch, 4, NULL, 0, err) == 0, "%s", err);
 }
 
 /* density (and optionally emission: a grid two voxels wider, so Le is constant wherever the
