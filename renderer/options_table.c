@@ -20,19 +20,23 @@
 
 /* --- custom values ------------------------------------------------------------------------ */
 
+/* "A<sep>B" as two base-10 longs, each checked by strtol (sscanf's %d wrapped 4294967304 to 8):
+ * 0 when both parse and nothing follows B. */
+static int parse_long_pair(const char *v, char sep, long *a, long *b) {
+    char *mid = NULL, *end = NULL;
+    errno = 0;
+    *a = strtol(v, &mid, 10);
+    if (errno || mid == v || *mid != sep) return -1;
+    *b = strtol(mid + 1, &end, 10);
+    return errno || end == mid + 1 || *end != 0 ? -1 : 0;
+}
+
 static int set_res(void *base, const char *flag, const char *v, char err[CANDELA_ERR_LEN]) {
     (void)flag;
     CandelaOptions *o = base;
-    /* strtol with range checks: sscanf's %d wrapped 4294967304 to 8 */
-    char *x = NULL, *end = NULL;
-    errno = 0;
-    long w = strtol(v, &x, 10), h = 0;
-    int good = errno == 0 && x != v && *x == 'x' && (w >= 1 && w <= MAX_RES_SIDE);
-    if (good) {
-        h = strtol(x + 1, &end, 10);
-        good = errno == 0 && end != x + 1 && *end == 0 && h >= 1 && h <= MAX_RES_SIDE && (long long)w * h <= MAX_RES_PIXELS;
-    }
-    if (!good) {
+    long w = 0, h = 0;
+    if (parse_long_pair(v, 'x', &w, &h) != 0 || w < 1 || w > MAX_RES_SIDE || h < 1 || h > MAX_RES_SIDE ||
+        (long long)w * h > MAX_RES_PIXELS) {
         snprintf(err, CANDELA_ERR_LEN, "invalid value '%.200s' for --res (expected WxH, 1..%d each, at most %d megapixels)", v,
                  MAX_RES_SIDE, MAX_RES_PIXELS >> 20);
         return -1;
@@ -87,15 +91,8 @@ static int set_aov(void *base, const char *flag, const char *v, char err[CANDELA
 static int set_sample_shard(void *base, const char *flag, const char *v, char err[CANDELA_ERR_LEN]) {
     (void)flag;
     CandelaCommandLine *cl = base;
-    char *slash = NULL, *end = NULL;
-    errno = 0;
-    long si = strtol(v, &slash, 10), sn = 0;
-    int good = errno == 0 && slash != v && *slash == '/' && si >= 0;
-    if (good) {
-        sn = strtol(slash + 1, &end, 10);
-        good = errno == 0 && end != slash + 1 && *end == 0 && sn >= 1 && sn <= 65536 && si < sn;
-    }
-    if (!good) {
+    long si = 0, sn = 0;
+    if (parse_long_pair(v, '/', &si, &sn) != 0 || si < 0 || sn < 1 || sn > 65536 || si >= sn) {
         snprintf(err, CANDELA_ERR_LEN, "invalid value '%.200s' for --sample-shard (expected I/N with 0 <= I < N <= 65536)", v);
         return -1;
     }
