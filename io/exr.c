@@ -550,7 +550,13 @@ fail:
 }
 
 int io_exr_complete(const char *path, int *width, int *height, char err[IO_ERR_LEN]) {
+    return io_exr_complete_attribute(path, width, height, NULL, NULL, 0, err);
+}
+
+int io_exr_complete_attribute(const char *path, int *width, int *height, const char *name, char *value, size_t size,
+                              char err[IO_ERR_LEN]) {
     if (err) err[0] = 0;
+    if (value && size) value[0] = 0;
     *width = *height = 0;
     ExrInput input = {-1, 0};
     if (io_open_input(path, 0, "an EXR", &input.fd, &input.size, err) != 0) return 1;
@@ -597,6 +603,13 @@ int io_exr_complete(const char *path, int *width, int *height, char err[IO_ERR_L
                      (long long)y, (unsigned long long)input.size);
             goto fail;
         }
+    }
+    if (name && value && size) {
+        /* a string attribute the header may lack (an older writer's): "" then */
+        int32_t len = 0;
+        const char *str = NULL;
+        if (exr_attr_get_string(ctxt, 0, name, &len, &str) == EXR_ERR_SUCCESS && str && len >= 0)
+            snprintf(value, size, "%.*s", (int)((size_t)len < size ? len : (int32_t)(size - 1)), str);
     }
     exr_finish(&ctxt);
     close(input.fd);

@@ -493,6 +493,10 @@ int io_read_exr_channel(const char *path, const char *channel, int *width, int *
  * bytes inside the file) of at most the renderer's largest size, with its size; nothing is
  * decompressed (`--frames --resume` asks this of every existing frame). */
 int io_exr_complete(const char *path, int *width, int *height, char err[IO_ERR_LEN]);
+/* io_exr_complete that also reads the string attribute `name` of the header into value (""
+ * when the header has none or it is no string). */
+int io_exr_complete_attribute(const char *path, int *width, int *height, const char *name, char *value, size_t size,
+                              char err[IO_ERR_LEN]);
 
 /* ---------------------------------------------------------------- volumes (OpenVDB) */
 /* IoVolumeGrid is defined above, with IoVolume. */

@@ -21,6 +21,7 @@
 #include "candela.h"
 #include "clock.h"
 #include "io.h"
+#include "options_table.h"
 
 #define MAX_FRAME_NUMBER 9999999     /* seven digits; a day of 120 fps is 10.4 million frames */
 #define MAX_BATCH_FRAMES (1 << 20)
@@ -236,16 +237,33 @@ static void partial_name(const char *path, char out[PATH_MAX]) {
  * chunk there, no decompression, so resuming a long batch of large frames stays cheap) at the
  * batch's resolution, and its PNG, when asked for, decodes at that size too. The name alone proved little: a file copied in by hand, a disk
  * that filled during someone else's write, a 0-byte placeholder. NULL when done, else why not. */
-static const char *frame_done(const char *exr, const char *png, int width, int height, char why[CANDELA_ERR_LEN]) {
+static const char *frame_done(const char *exr, const char *png, int width, int height, const char *identity,
+                              int *other_options, char why[CANDELA_ERR_LEN]) {
     char ioerr[IO_ERR_LEN];
     struct stat st;
+    *other_options = 0;
     if (stat(exr, &st) != 0) {
         snprintf(why, CANDELA_ERR_LEN, "missing");
         return why;
     }
     int w = 0, h = 0;
-    if (io_exr_complete(exr, &w, &h, ioerr) != 0) {
+    char recorded[CANDELA_IDENTITY_LEN];
+    if (io_exr_complete_attribute(exr, &w, &h, "candela:identity", recorded, sizeof recorded, ioerr) != 0) {
         snprintf(why, CANDELA_ERR_LEN, "%s", ioerr);
+        return why;
+    }
+    /* rendered with other options (issue 27): the frame's candela:identity is not this run's */
+    if (!recorded[0]) {
+        snprintf(why, CANDELA_ERR_LEN, "%.400s records no identity (candela:identity: not written by this candela)", exr);
+        *other_options = 1;
+        return why;
+    }
+    if (strcmp(recorded, identity) != 0) {
+        char diff[CANDELA_ERR_LEN];
+        if (candela_identity_differences(recorded, identity, "this run", diff, sizeof diff) == 0)
+            snprintf(diff, sizeof diff, "the options differ");
+        snprintf(why, CANDELA_ERR_LEN, "%.200s was rendered with other options: %.250s", exr, diff);
+        *other_options = 1;
         return why;
     }
     if (w != width || h != height) {
@@ -466,6 +484,15 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
         fprintf(stderr, "candela: %zu of %zu frames%s%s (%g fps), scene loaded in %.3fs, %u animation channels\n",
                 mine.count, all.count, shard_what[0] ? " for " : "", shard_what, fps, info.time_load, info.num_channels);
 
+    /* --resume: each frame's identity (issue 27) against its EXR's candela:identity */
+    uint64_t scene_hash = 0;
+    char identity[CANDELA_IDENTITY_LEN];
+    if (b->resume && candela_scene_hash(o->scene_path, &scene_hash, err) != 0) {
+        candela_session_close(session);
+        free(all.frames);
+        free(mine.frames);
+        return -1;
+    }
     int failed = 0;
     size_t rendered = 0, skipped = 0;
     double render_seconds = 0.0;
@@ -478,8 +505,18 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
         /* a final name exists only once candela's own write completed (temp + rename), but the
          * file under it may be anyone's: it must read back whole */
         char why[CANDELA_ERR_LEN];
-        const char *not_done = b->resume ? frame_done(exr, b->png_pattern ? png : NULL, info.width, info.height, why) : why;
-        if (b->resume && not_done && strcmp(not_done, "missing") != 0) /* a warning: said even with --quiet */
+        const char *not_done = why;
+        int other_options = 0;
+        if (b->resume) {
+            CandelaOptions io = *o;
+            io.seed = candela_frame_seed(o->seed, frame);
+            if (candela_image_identity(&io, scene_hash, info.width, info.height, identity, sizeof identity) != 0)
+                identity[0] = 0; /* too long to record: never equal to a frame's */
+            not_done = frame_done(exr, b->png_pattern ? png : NULL, info.width, info.height, identity, &other_options, why);
+        }
+        if (b->resume && other_options) /* said even with --quiet: the frame is replaced */
+            fprintf(stderr, "candela: frame %lld: %s; rendering it again\n", (long long)frame, not_done);
+        else if (b->resume && not_done && strcmp(not_done, "missing") != 0) /* a warning: said even with --quiet */
             fprintf(stderr, "candela: warning: frame %lld: %s; rendered again (--resume)\n", (long long)frame, not_done);
         if (b->resume && !not_done) {
             ++skipped;
@@ -538,7 +575,8 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
             snprintf(frame_text, sizeof frame_text, "%lld", (long long)frame);
             int prc = b->provenance ? candela_provenance_copy(&fp, b->provenance) : 0;
             if (prc == 0 && b->provenance)
-                prc = candela_provenance_render(&fp, &fo, &stats) | candela_provenance_set(&fp, "candela:frame", frame_text);
+                prc = candela_provenance_render(&fp, &fo, &stats) | candela_provenance_set(&fp, "candela:frame", frame_text) |
+                      candela_provenance_identity(&fp, &fo, image.width, image.height);
             if (prc != 0) {
                 snprintf(ferr, CANDELA_ERR_LEN, "%.400s: out of memory", out_exr);
                 rc = -1;

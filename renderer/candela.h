@@ -146,6 +146,10 @@ typedef struct CandelaOptions {
      * there like `stop` (CandelaStats.interrupted). NULL: none. */
     int (*on_iteration)(void *user, const struct CandelaIterationInfo *info);
     void *on_iteration_user;
+    /* what a checkpoint records beside the identity, for `--resume-from FILE` alone: the CLI's
+     * `scene="..." output="..." png="..."|-` (absolute paths, renderer/options_table.h's string
+     * form); NULL: nothing */
+    const char *checkpoint_record;
 } CandelaOptions;
 
 /* What CandelaOptions.on_iteration is told at a barrier. */
@@ -272,6 +276,28 @@ void candela_ray_log_free(CandelaRayLog *log);
 int candela_write_outputs(const CandelaImage *image, const char *exr_path, const char *png_path,
                           char err[CANDELA_ERR_LEN]);
 
+/* ---------------------------------------------------------------- identity
+ * What an image is a function of (issue 27): "scene=HASH" (FNV-1a 64 of the scene file's
+ * bytes, hex), every option the options table marks as changing the image (NAME=VALUE, the
+ * table's canonical form, --res the resolved resolution) and "max-iteration-spp=N", separated
+ * by spaces. Checkpoints and shard films carry it, --frames --resume compares a frame's
+ * candela:identity EXR attribute with it, candela compare keys its cached reference on it. */
+#define CANDELA_IDENTITY_LEN 8192
+/* FNV-1a 64 of a scene file's bytes. -1 with a message when it cannot be read. */
+int candela_scene_hash(const char *scene_path, uint64_t *hash, char err[CANDELA_ERR_LEN]);
+/* o's identity for a scene of hash scene_hash rendered at width x height into buf. -1 when it
+ * does not fit size (a very long camera or --env name). */
+int candela_image_identity(const CandelaOptions *o, uint64_t scene_hash, int width, int height, char *buf, size_t size);
+/* A checkpoint's or shard film's header (verified: checksum, format version). */
+typedef struct CandelaCheckpointInfo {
+    int kind;                 /* 1 checkpoint, 2 finished shard film */
+    int width, height;
+    int spp_done;
+    char identity[CANDELA_IDENTITY_LEN];
+    char record[16384];       /* CandelaOptions.checkpoint_record as written ("" when none) */
+} CandelaCheckpointInfo;
+int candela_checkpoint_info(const char *path, CandelaCheckpointInfo *info, char err[CANDELA_ERR_LEN]);
+
 /* ---------------------------------------------------------------- provenance
  * How an image was made (renderer/provenance.c; README "Output"): string attributes written
  * into the EXR's header (and the statistics JSON's "provenance" object). The CLI fills one per
@@ -297,6 +323,9 @@ int candela_provenance_scene(CandelaProvenance *p, const char *scene_path, char 
  * :peakMemoryBytes. 0 ok, -1 out of memory. */
 int candela_provenance_render(CandelaProvenance *p, const CandelaOptions *o, const CandelaStats *s);
 int candela_provenance_set(CandelaProvenance *p, const char *name, const char *value);
+/* candela:identity: o's image identity at width x height (candela_image_identity) with the
+ * scene hash candela_provenance_scene recorded (none without it); -1 out of memory. */
+int candela_provenance_identity(CandelaProvenance *p, const CandelaOptions *o, int width, int height);
 /* dst (uninitialised) = a copy of src; 0 ok, -1 out of memory (dst then empty) */
 int candela_provenance_copy(CandelaProvenance *dst, const CandelaProvenance *src);
 void candela_provenance_free(CandelaProvenance *p);
@@ -358,6 +387,9 @@ typedef struct CandelaCompareOptions {
     /* the run's inputs and outputs so far (the scene's, --reference's, --variants'): the report's
      * files and the variants' own inputs are added and checked before anything renders; NULL: none */
     CandelaRunFiles *run;
+    /* the build, for the cached reference's key: the CLI's "candela VERSION (git REV)" (NULL:
+     * the version alone); the running binary's size and time are added to it */
+    const char *build;
 } CandelaCompareOptions;
 
 int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, char err[CANDELA_ERR_LEN]);

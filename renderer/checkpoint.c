@@ -5,7 +5,8 @@
  *   "CANDCKPT", u32 byte-order mark 0x01020304, u32 format version, u32 kind (1 checkpoint,
  *   2 finished film), u32 width, u32 height, u32 identity length, the identity text,
  *   u64 spp_total, sample_begin, sample_count, u32 shard_index, shard_count,
- *   i32 iteration, i32 spp_done, u64 iteration_paths,
+ *   i32 iteration, i32 spp_done, u64 iteration_paths, u32 record length, the record text
+ *   (version 2: CandelaOptions.checkpoint_record, what `--resume-from FILE` alone needs),
  *   the sections (film; for a checkpoint also recorder, guiding, the two auto probes and the
  *   light sampler's learned state), each opening with its tag and version,
  *   u64 FNV-1a checksum of every byte before it.
@@ -22,10 +23,12 @@
 
 #include "checkpoint.h"
 #include "io.h"
+#include "options_table.h"
 
 #define CKPT_MAGIC "CANDCKPT"
 #define CKPT_BOM 0x01020304u
-#define CKPT_FORMAT_VERSION 1u
+#define CKPT_FORMAT_VERSION 2u /* 2: the identity generated from the options table, and the record */
+#define CKPT_RECORD_LEN 16384
 #define CKPT_KIND_CHECKPOINT 1u
 #define CKPT_KIND_FILM 2u
 #define LSAMPLER_TAG CKPT_TAG('L', 'S', 'M', 'P')
@@ -74,61 +77,47 @@ int checkpoint_scene_hash(const char *scene_path, uint64_t *hash, char err[CANDE
     return 0;
 }
 
+int candela_scene_hash(const char *scene_path, uint64_t *hash, char err[CANDELA_ERR_LEN]) {
+    return checkpoint_scene_hash(scene_path, hash, err);
+}
+
 /* ---------------------------------------------------------------- identity */
+
+int candela_image_identity(const CandelaOptions *o, uint64_t scene_hash, int width, int height, char *buf, size_t size) {
+    /* Every row of the options table that changes the image (options_table.c: `image`), with the
+     * resolved resolution. Not there: threads and batch size (never change the image),
+     * --time-limit (where a render stops, not what it computes: a time-limited render's
+     * checkpoint resumes with any limit), output names, quiet, the texture and volume budgets
+     * (they refuse a scene, never change one), guide-dump. The scene's referenced files
+     * (buffers, textures, VDBs) are not hashed: the glTF names them, a changed one is the
+     * user's doing. max-iteration-spp is no flag (the library's, compare's equal time). */
+    CandelaOptions r = *o;
+    r.width = width;
+    r.height = height;
+    int n = snprintf(buf, size, "scene=%016" PRIx64 " ", scene_hash);
+    if (n < 0 || (size_t)n >= size) return -1;
+    int m = candela_options_identity(&r, buf + n, size - (size_t)n);
+    if (m < 0) return -1;
+    n += m;
+    m = snprintf(buf + n, size - (size_t)n, " max-iteration-spp=%d", o->max_iteration_spp);
+    return m < 0 || (size_t)m >= size - (size_t)n ? -1 : 0;
+}
 
 int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t sample_begin, uint64_t sample_count,
                         CheckpointIdentity *id, char err[CANDELA_ERR_LEN]) {
     memset(id, 0, sizeof *id);
     uint64_t h;
     if (checkpoint_scene_hash(o->scene_path, &h, err) != 0) return -1;
-    /* Every option that changes the image, as key=value (floats in hex: exact). Not here:
-     * threads and batch size (never change the image), --time-limit (where a render stops, not
-     * what it computes: a time-limited render's checkpoint resumes with any limit), output names,
-     * quiet, the texture budget
-     * (refuses a scene, never changes one), guide-dump. The scene's referenced files (buffers,
-     * textures, VDBs) are not hashed: the glTF names them, a changed one is the user's doing. */
-    int n = snprintf(id->text, sizeof id->text,
-                     "scene=%016" PRIx64 " res=%dx%d spp=%d seed=%" PRIu64 " camera=%s max_depth=%d "
-                     "max_volume_bounces=%d volume_emission_sampling=%d volume_cachepoint_scatter=%d "
-                     "light_sampler=%s light_units=%d env=%s env_strength=%a max_iteration_spp=%d "
-                     "optimal_occlusion=%d cachepoint_visibility=%d cachepoint_retruncate=%d cachepoint_build=%s "
-                     "cachepoint_cut_size=%u cachepoint_candidates=%u cachepoint_pilots=%u guiding=%s guide_spatial_threshold=%a path_regularization=%a "
-                     "guide_spatial_filter=%d guide_training_spp=%d aov_recorder_debug=%d recorder_mb=%u "
-                     "recorder_budget=%d",
-                     h, width, height, o->spp, o->seed, o->camera_name ? o->camera_name : "-", o->max_depth,
-                     o->max_volume_bounces, o->volume_emission_sampling, o->volume_inscatter_sampling,
-                     candela_light_sampler_name(o->light_sampler), (int)o->light_units, o->env_path ? o->env_path : "-",
-                     (double)o->env_strength, o->max_iteration_spp, o->optimal_occlusion, !o->cachepoint_no_visibility,
-                     o->cachepoint_retruncate, o->cachepoint_build_linear ? "linear" : "cut", o->cachepoint_cut_size,
-                     o->cachepoint_candidates, o->cachepoint_pilots, candela_guiding_name(o->guiding),
-                     (double)o->guide_spatial_threshold, (double)o->path_regularization,
-                     o->guide_spatial_filter, o->guide_training_spp, o->aov_recorder_debug, o->recorder_mb,
-                     o->recorder_budget);
-    /* cache point extras (cpviz): appended, so the line above stays as it was */
-    if (n >= 0 && (size_t)n < sizeof id->text)
-        n += snprintf(id->text + n, sizeof id->text - (size_t)n, " aov_cachepoint=%d cachepoint_pooling=%d", o->aov_selection,
-                      o->cachepoint_pooling);
-    if (n >= 0 && (size_t)n < sizeof id->text) /* progressive insertion */
-        n += snprintf(id->text + n, sizeof id->text - (size_t)n, " cachepoint_progressive=%d budget=%a",
-                      o->cachepoint_progressive, (double)o->cachepoint_progressive_budget);
-    if (n >= 0 && (size_t)n < sizeof id->text) /* --cachepoint-bsdf, --sampler, adaptive sampling, clamps */
-        n += snprintf(id->text + n, sizeof id->text - (size_t)n,
-                      " cachepoint_bsdf=%d sampler=%s noise_threshold=%a min_spp=%d clamp_direct=%a clamp_indirect=%a",
-                      o->cachepoint_bsdf, candela_sampler_name(o->sampler), (double)o->noise_threshold, o->min_spp,
-                      (double)o->clamp_direct, (double)o->clamp_indirect);
-    if (n < 0 || (size_t)n >= sizeof id->text) {
+    if (candela_image_identity(o, h, width, height, id->text, sizeof id->text) != 0) {
         snprintf(err, CANDELA_ERR_LEN, "%s: the render's options are too long for a checkpoint (camera or --env name)",
                  o->scene_path);
         return -1;
     }
-    /* issue 14's image-changing options, appended (NaN rotation: the scene's own, in its hash) */
-    int m = snprintf(id->text + n, sizeof id->text - (size_t)n, " env_rotation=%a light_model=%d material_model=%d",
-                     (double)o->env_rotation_deg, (int)o->light_model, (int)o->material_model);
-    if (m < 0 || (size_t)m >= sizeof id->text - (size_t)n) {
-        snprintf(err, CANDELA_ERR_LEN, "%s: the render's options are too long for a checkpoint (camera or --env name)",
-                 o->scene_path);
+    if (o->checkpoint_record && strlen(o->checkpoint_record) >= CKPT_RECORD_LEN) {
+        snprintf(err, CANDELA_ERR_LEN, "%s: the paths are too long for a checkpoint", o->scene_path);
         return -1;
     }
+    id->record = o->checkpoint_record;
     id->spp_total = (uint64_t)o->spp;
     id->sample_begin = sample_begin;
     id->sample_count = sample_count;
@@ -137,27 +126,9 @@ int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t
     return 0;
 }
 
-/* The first key=value of a that differs in b, as "KEY (VALUE_A there, VALUE_B here)". */
+/* Every option that differs, "--KEY VALUE_THERE (here VALUE_HERE)", ... */
 static void identity_difference(const char *there, const char *here, char *out, size_t len) {
-    const char *a = there, *b = here;
-    while (*a || *b) {
-        size_t la = strcspn(a, " "), lb = strcspn(b, " ");
-        if (la != lb || memcmp(a, b, la) != 0) {
-            size_t key = strcspn(b, "=");
-            if (key > lb) key = lb;
-            const char *va = memchr(a, '=', la), *vb = memchr(b, '=', lb);
-            int nva = va ? (int)(a + la - va - 1) : (int)la, nvb = vb ? (int)(b + lb - vb - 1) : (int)lb;
-            if (strncmp(b, "scene=", 6) == 0)
-                snprintf(out, len, "the scene file's content differs");
-            else
-                snprintf(out, len, "%.*s %.*s there, %.*s here", (int)key, b, nva > 64 ? 64 : nva, va ? va + 1 : a,
-                         nvb > 64 ? 64 : nvb, vb ? vb + 1 : b);
-            return;
-        }
-        a += la + (a[la] == ' ');
-        b += lb + (b[lb] == ' ');
-    }
-    snprintf(out, len, "the options differ");
+    if (candela_identity_differences(there, here, "here", out, len) == 0) snprintf(out, len, "the options differ");
 }
 
 /* ---------------------------------------------------------------- header */
@@ -165,6 +136,7 @@ static void identity_difference(const char *there, const char *here, char *out, 
 typedef struct Header {
     uint32_t kind, width, height;
     CheckpointIdentity id;
+    char record[CKPT_RECORD_LEN];
     CheckpointProgress pr;
     uint64_t size; /* of the file, checksum included */
 } Header;
@@ -176,9 +148,11 @@ static int write_header(FILE *f, uint32_t kind, int width, int height, const Che
     uint64_t samples[3] = {id->spp_total, id->sample_begin, id->sample_count};
     uint32_t shard[2] = {id->shard_index, id->shard_count};
     int32_t it[2] = {pr->iteration, pr->spp_done};
+    uint32_t record_len = id->record ? (uint32_t)strlen(id->record) : 0;
     return ckpt_put(f, CKPT_MAGIC, 8) | ckpt_put(f, head, sizeof head) | ckpt_put(f, id->text, head[5]) |
            ckpt_put(f, samples, sizeof samples) | ckpt_put(f, shard, sizeof shard) | ckpt_put(f, it, sizeof it) |
-           ckpt_put(f, &pr->iteration_paths, sizeof pr->iteration_paths);
+           ckpt_put(f, &pr->iteration_paths, sizeof pr->iteration_paths) | ckpt_put(f, &record_len, sizeof record_len) |
+           ckpt_put(f, id->record ? id->record : "", record_len);
 }
 
 /* Opens path, verifies its checksum and reads the header. NULL with a one-line message. */
@@ -215,16 +189,19 @@ static FILE *open_verified(const char *path, Header *h, char err[CANDELA_ERR_LEN
         return NULL;
     }
     uint64_t samples[3];
-    uint32_t shard[2];
+    uint32_t shard[2], record_len = 0;
     int32_t it[2];
     if (fseek(f, 8 + (long)sizeof head, SEEK_SET) != 0 || head[5] >= CKPT_IDENTITY_LEN ||
         ckpt_get(f, h->id.text, head[5]) || ckpt_get(f, samples, sizeof samples) || ckpt_get(f, shard, sizeof shard) ||
-        ckpt_get(f, it, sizeof it) || ckpt_get(f, &h->pr.iteration_paths, sizeof h->pr.iteration_paths)) {
+        ckpt_get(f, it, sizeof it) || ckpt_get(f, &h->pr.iteration_paths, sizeof h->pr.iteration_paths) ||
+        ckpt_get(f, &record_len, sizeof record_len) || record_len >= CKPT_RECORD_LEN ||
+        ckpt_get(f, h->record, record_len)) {
         snprintf(err, CANDELA_ERR_LEN, "%s: damaged header", path);
         fclose(f);
         return NULL;
     }
     h->id.text[head[5]] = 0;
+    h->record[record_len] = 0;
     h->kind = head[2];
     h->width = head[3];
     h->height = head[4];
@@ -281,6 +258,29 @@ int checkpoint_check(const char *path, const CheckpointIdentity *id, char err[CA
     FILE *f = open_checkpoint(path, id, &h, err);
     if (!f) return -1;
     fclose(f);
+    return 0;
+}
+
+int candela_checkpoint_info(const char *path, CandelaCheckpointInfo *info, char err[CANDELA_ERR_LEN]) {
+    Header *h = malloc(sizeof *h);
+    if (!h) {
+        snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", path);
+        return -1;
+    }
+    FILE *f = open_verified(path, h, err);
+    if (!f) {
+        free(h);
+        return -1;
+    }
+    fclose(f);
+    memset(info, 0, sizeof *info);
+    info->kind = (int)h->kind;
+    info->width = (int)h->width;
+    info->height = (int)h->height;
+    info->spp_done = h->pr.spp_done;
+    snprintf(info->identity, sizeof info->identity, "%s", h->id.text);
+    snprintf(info->record, sizeof info->record, "%s", h->record);
+    free(h);
     return 0;
 }
 
@@ -393,7 +393,9 @@ static int film_alloc_like(Film *f, const Header *h, int recorder) {
         f->recorder = calloc(3 * (size_t)h->width * h->height, sizeof(double));
         if (!f->recorder) { film_free(f); return -1; }
     }
-    if (strstr(h->id.text, " aov_cachepoint=1")) {
+    char aov[64];
+    candela_identity_value(h->id.text, "aov", aov, sizeof aov);
+    if (strstr(aov, "cachepoint")) {
         f->sel_aov = calloc(6 * (size_t)h->width * h->height, sizeof(double));
         if (!f->sel_aov) { film_free(f); return -1; }
     }
@@ -473,7 +475,9 @@ int candela_merge_provenance(const char *out_exr, const char *png, const char *c
     }
     /* sums added in shard order: the merge of the same films is bit-identical wherever it runs */
     Film sum = {0}, part = {0};
-    int recorder = rc == 0 && strstr(h[0].id.text, "aov_recorder_debug=1") != NULL;
+    char aov[64];
+    candela_identity_value(h[0].id.text, "aov", aov, sizeof aov);
+    int recorder = rc == 0 && strstr(aov, "recorder-debug") != NULL;
     if (rc == 0 && (film_alloc_like(&sum, &h[0], recorder) != 0 || film_alloc_like(&part, &h[0], recorder) != 0)) {
         snprintf(err, CANDELA_ERR_LEN, "merge: out of memory for a %ux%u film", h[0].width, h[0].height);
         rc = -1;

@@ -41,9 +41,10 @@ typedef struct CheckpointProgress {
 /* The render's identity: its options as canonical text (key=value pairs) with the scene's
  * content hash and resolution. The shard part is kept apart so that `candela merge` can require
  * everything else to match. */
-#define CKPT_IDENTITY_LEN 2048
+#define CKPT_IDENTITY_LEN CANDELA_IDENTITY_LEN
 typedef struct CheckpointIdentity {
-    char text[CKPT_IDENTITY_LEN];
+    char text[CKPT_IDENTITY_LEN];  /* candela_image_identity (candela.h) */
+    const char *record;            /* CandelaOptions.checkpoint_record (not part of the identity) */
     uint64_t spp_total;            /* the render's spp (all shards) */
     uint64_t sample_begin, sample_count; /* this file's samples per pixel: [begin, begin + count) */
     uint32_t shard_index, shard_count;   /* 0/1 without sharding */

@@ -363,37 +363,29 @@ static int load_reference(const char *path, int w, int h, float **out, char err[
 }
 
 /* What a rendered reference depends on, as one line: OUT/reference.exr is reused when
- * OUT/reference.key starts with this line. The scene file (and an --env file) is identified by
- * its size and modification time; files it references are not (delete reference.key after
+ * OUT/reference.key starts with this line (issue 27). The build: the version and git revision
+ * and the running binary's size and modification time (/proc/self/exe), so a rebuilt binary
+ * never reuses an older build's reference; the scene's content hash and every image option
+ * (candela_image_identity, the options table's `image` rows); an --env file by its size and
+ * modification time. Files the scene references are not in it (delete reference.key after
  * changing only a texture). */
-static void reference_key(const CandelaOptions *o, char *key, size_t size) {
-    struct stat sc, env;
-    if (stat(o->scene_path, &sc) != 0) memset(&sc, 0, sizeof sc);
+static int reference_key(const CandelaOptions *o, const char *build, char *key, size_t size) {
+    struct stat exe, env;
+    if (stat("/proc/self/exe", &exe) != 0) memset(&exe, 0, sizeof exe);
     if (!o->env_path || stat(o->env_path, &env) != 0) memset(&env, 0, sizeof env);
-    snprintf(key, size,
-             "candela %s; scene %s %lld %lld.%09ld; camera %s; res %dx%d; spp %d; seed %llu; depth %d; volume bounces %d; "
-             "emission sampling %d; inscatter %d; sampler %d; units %d; env %s %lld %lld.%09ld x %.9g; iteration cap %d; "
-             "occlusion %d; no visibility %d; retruncate %d; linear %d; cut %u; candidates %u; pilots %u; guiding %d; threshold %.9g; "
-             "regularization %.9g; filter %d; training %d; recorder %d %u; textures %u\n",
-             CANDELA_VERSION, o->scene_path, (long long)sc.st_size, (long long)sc.st_mtim.tv_sec, sc.st_mtim.tv_nsec,
-             o->camera_name ? o->camera_name : "-", o->width, o->height, o->spp, (unsigned long long)o->seed, o->max_depth,
-             o->max_volume_bounces, o->volume_emission_sampling, o->volume_inscatter_sampling, (int)o->light_sampler,
-             (int)o->light_units, o->env_path ? o->env_path : "-", (long long)env.st_size, (long long)env.st_mtim.tv_sec,
-             env.st_mtim.tv_nsec, o->env_strength, o->max_iteration_spp, o->optimal_occlusion, o->cachepoint_no_visibility,
-             o->cachepoint_retruncate, o->cachepoint_build_linear, o->cachepoint_cut_size, o->cachepoint_candidates,
-             o->cachepoint_pilots, (int)o->guiding,
-             o->guide_spatial_threshold, o->path_regularization, o->guide_spatial_filter, o->guide_training_spp,
-             o->recorder_budget, o->recorder_mb, o->texture_budget_mb);
-    /* issue 14's image-changing options, before the newline */
-    size_t len = strlen(key);
-    if (len > 0 && len < size) snprintf(key + len - 1, size - len + 1, "; env rotation %.9g; light model %d; material model %d\n",
-                                             o->env_rotation_deg, (int)o->light_model, (int)o->material_model);
-    len = strlen(key); /* --cachepoint-bsdf, --sampler */
-    if (len > 0 && len < size)
-        snprintf(key + len - 1, size - len + 1,
-                 "; cachepoint bsdf %d; sequence %s; noise threshold %.9g min spp %d; clamps %.9g %.9g\n",
-                 o->cachepoint_bsdf, candela_sampler_name(o->sampler), o->noise_threshold, o->min_spp, o->clamp_direct,
-                 o->clamp_indirect);
+    uint64_t scene_hash = 0;
+    char err[CANDELA_ERR_LEN];
+    char *identity = malloc(CANDELA_IDENTITY_LEN);
+    if (!identity || candela_scene_hash(o->scene_path, &scene_hash, err) != 0 ||
+        candela_image_identity(o, scene_hash, o->width, o->height, identity, CANDELA_IDENTITY_LEN) != 0) {
+        free(identity); /* no key: the reference is rendered (and its errors said) and not cached */
+        return -1;
+    }
+    snprintf(key, size, "build %s; binary %lld bytes %lld.%09ld; env %lld %lld.%09ld; %s\n",
+             build ? build : "candela " CANDELA_VERSION, (long long)exe.st_size, (long long)exe.st_mtim.tv_sec,
+             exe.st_mtim.tv_nsec, (long long)env.st_size, (long long)env.st_mtim.tv_sec, env.st_mtim.tv_nsec, identity);
+    free(identity);
+    return 0;
 }
 
 /* The cached reference when OUT/reference.key matches key (and its render time), else -1. */
@@ -403,7 +395,7 @@ static int cached_reference(const char *dir, const char *key, float **ref, int *
     void *data = NULL;
     size_t len = 0;
     /* a key is a line or two: anything else (a FIFO, a huge file) is no cached reference */
-    if (io_read_input(path, 8192, "a reference key", &data, &len, ioerr) != 0) return -1;
+    if (io_read_input(path, 65536, "a reference key", &data, &len, ioerr) != 0) return -1;
     const char *text = data;
     size_t klen = strlen(key);
     int match = len >= klen && memcmp(text, key, klen) == 0 && sscanf(text + klen, "seconds %lf", seconds) == 1;
@@ -772,9 +764,9 @@ static int compare_locked(const CandelaOptions *base, const CandelaCompareOption
         ro.spp = r.ref_spp;
         ro.seed = base->seed + 0x5eed;  /* independent of the compared renders */
         ro.light_sampler = CANDELA_LIGHT_SAMPLER_TREE; /* the best general-purpose sampler here */
-        char key[8192];
-        reference_key(&ro, key, sizeof key);
-        if (cached_reference(c->out_dir, key, &ref, &r.width, &r.height, &r.ref_time) == 0) {
+        char key[CANDELA_IDENTITY_LEN + 1024];
+        int keyed = reference_key(&ro, c->build, key, sizeof key) == 0;
+        if (keyed && cached_reference(c->out_dir, key, &ref, &r.width, &r.height, &r.ref_time) == 0) {
             r.ref_cached = 1;
             if (!base->quiet) fprintf(stderr, "candela compare: reference, %d spp, from %s/reference.exr\n", ro.spp, c->out_dir);
         } else {
@@ -801,12 +793,14 @@ static int compare_locked(const CandelaOptions *base, const CandelaCompareOption
             candela_image_free(&img);
             if (wrc != 0) goto done;
             if (!ref) { snprintf(err, CANDELA_ERR_LEN, "out of memory"); goto done; }
-            ReportText k = {0};
-            report_printf(&k, "%sseconds %.9g\n", key, r.ref_time);
-            snprintf(path, sizeof path, "%s/reference.key", c->out_dir);
-            wrc = report_write_text(path, &k, err);
-            report_text_free(&k);
-            if (wrc != 0) goto done;
+            if (keyed) {
+                ReportText k = {0};
+                report_printf(&k, "%sseconds %.9g\n", key, r.ref_time);
+                snprintf(path, sizeof path, "%s/reference.key", c->out_dir);
+                wrc = report_write_text(path, &k, err);
+                report_text_free(&k);
+                if (wrc != 0) goto done;
+            }
         }
     }
     size_t n = (size_t)r.width * (size_t)r.height;

@@ -256,6 +256,124 @@ static int merge_main(int argc, char **argv) {
     return rc;
 }
 
+/* path made absolute against the working folder (not resolved: it may not exist yet) */
+static void absolute_path(const char *path, char out[PATH_MAX]) {
+    char cwd[PATH_MAX];
+    if (path[0] == '/' || !getcwd(cwd, sizeof cwd)) snprintf(out, PATH_MAX, "%s", path);
+    else if ((size_t)snprintf(out, PATH_MAX, "%.*s/%s", (int)(PATH_MAX / 2), cwd, path) >= PATH_MAX) out[PATH_MAX - 1] = 0;
+}
+
+/* A checkpoint's identity and record, kept for the whole run: the options --resume-from takes
+ * from it point into them. */
+static CandelaCheckpointInfo resume_info;
+static char resume_identity[CANDELA_IDENTITY_LEN];
+static char resume_record[sizeof resume_info.record];
+static char record_text[3 * 3 * PATH_MAX + 64];
+
+/* --resume-from FILE (issue 27): the render's options are the checkpoint's. Every image option
+ * given as well must agree with it (all disagreements in one message, exit 2); the scene, -o and
+ * the PNG default to what the checkpoint recorded; other options (threads, outputs, --quiet,
+ * --time-limit) are this run's. Without --checkpoint the render goes on checkpointing into FILE.
+ * Returns 0 (cl updated), 2 on a disagreement or an unusable file; a file that cannot be read is
+ * left to the render's own check when the scene is given (its message then), else refused. */
+static int resume_options(CandelaCommandLine *cl, const CandelaFlag *const *given, int ngiven) {
+    const char *path = cl->o.resume_from;
+    char err[CANDELA_ERR_LEN];
+    if (candela_checkpoint_info(path, &resume_info, err) != 0) {
+        if (cl->o.scene_path) return 0;
+        fprintf(stderr, "candela: %s\n", err);
+        return 2;
+    }
+    if (resume_info.kind != 1) {
+        fprintf(stderr, "candela: %s: a finished shard film, not a checkpoint (merge it with candela merge)\n", path);
+        return 2;
+    }
+    /* the checkpoint's options alone (defaults + its identity) */
+    static char text[CANDELA_IDENTITY_LEN];
+    snprintf(text, sizeof text, "%s", resume_info.identity);
+    CandelaOptions ck;
+    candela_options_default(&ck);
+    if (candela_options_from_identity(&ck, text, err) != 0) {
+        fprintf(stderr, "candela: %s: damaged identity: %s\n", path, err);
+        return 2;
+    }
+    char list[CANDELA_ERR_LEN] = "";
+    size_t n = 0;
+    int disagree = 0;
+    for (int k = 0; k < ngiven; ++k) {
+        const CandelaFlag *f = given[k];
+        int repeat = 0;
+        for (int j = 0; j < k; ++j) repeat |= given[j] == f;
+        if (!f->image || repeat) continue;
+        char here[1024], there[1024], dh[512], dt[512];
+        candela_flag_identity_value(f, &cl->o, here, sizeof here);
+        candela_flag_identity_value(f, &ck, there, sizeof there);
+        if (strcmp(here, there) == 0) continue;
+        candela_identity_display(here, dh, sizeof dh);
+        candela_identity_display(there, dt, sizeof dt);
+        if (n < sizeof list) n += (size_t)snprintf(list + n, sizeof list - n, "%s%s %s (checkpoint %s)", disagree ? ", " : "",
+                                                   f->name, dh, dt);
+        ++disagree;
+    }
+    if (cl->o.scene_path) {
+        uint64_t h;
+        char hex[32], want[32];
+        if (candela_scene_hash(cl->o.scene_path, &h, err) != 0) {
+            fprintf(stderr, "candela: %s\n", err);
+            return 1;
+        }
+        snprintf(hex, sizeof hex, "%016llx", (unsigned long long)h);
+        candela_identity_value(resume_info.identity, "scene", want, sizeof want);
+        if (strcmp(hex, want) != 0) {
+            if (n < sizeof list)
+                n += (size_t)snprintf(list + n, sizeof list - n, "%s%s (the scene file's content differs)", disagree ? ", " : "",
+                                      cl->o.scene_path);
+            ++disagree;
+        }
+    }
+    if (disagree) {
+        if (n >= sizeof list) memcpy(list + sizeof list - 4, "...", 4);
+        fprintf(stderr, "candela: %s: flags disagree with the checkpoint: %s\n", path, list);
+        return 2;
+    }
+    /* the checkpoint's image options over the command line's (they agree where given) */
+    snprintf(resume_identity, sizeof resume_identity, "%s", resume_info.identity);
+    if (candela_options_from_identity(&cl->o, resume_identity, err) != 0) {
+        fprintf(stderr, "candela: %s: damaged identity: %s\n", path, err);
+        return 2;
+    }
+    char mis[64];
+    if (candela_identity_value(resume_info.identity, "max-iteration-spp", mis, sizeof mis) == 0)
+        cl->o.max_iteration_spp = atoi(mis);
+    /* the record: scene="..." output="..." png="..."|- */
+    snprintf(resume_record, sizeof resume_record, "%s", resume_info.record);
+    const int outputs_given = cl->out || cl->png || cl->no_png;
+    for (char *c = resume_record; *c;) {
+        size_t len = strcspn(c, " ");
+        char *next = c[len] ? c + len + 1 : c + len;
+        c[len] = 0;
+        char *eq = strchr(c, '=');
+        if (eq) {
+            *eq = 0;
+            char *v = strcmp(eq + 1, "-") == 0 ? NULL : candela_identity_unquote(eq + 1);
+            if (strcmp(c, "scene") == 0 && v && !cl->o.scene_path) cl->o.scene_path = v;
+            else if (strcmp(c, "output") == 0 && v && !cl->out) cl->out = v;
+            else if (strcmp(c, "png") == 0 && !outputs_given) {
+                if (v) cl->png = v;
+                else cl->no_png = 1;
+            }
+        }
+        c = next;
+    }
+    if (!cl->o.scene_path) {
+        fprintf(stderr, "candela: %s: the checkpoint records no scene (give it: candela render SCENE --resume-from %s)\n",
+                path, path);
+        return 2;
+    }
+    if (!cl->o.checkpoint_path) cl->o.checkpoint_path = path; /* go on checkpointing into it */
+    return 0;
+}
+
 static int record_run_files(CandelaRunFiles *run, const CandelaOptions *o, const CandelaCompareOptions *co,
                             const CandelaBatchOptions *batch, int compare, int bench, int dump, const char *out,
                             const char *png, const char *stats_json, int save_partial, char err[CANDELA_ERR_LEN]);
@@ -292,33 +410,45 @@ int main(int argc, char **argv) {
     candela_options_default(&cl.o);
     cl.co.optimal_max_lights = 5000; /* strategies NULL: compare.c's default list */
     char flag_err[CANDELA_ERR_LEN];
+    const CandelaFlag **given = calloc((size_t)argc, sizeof *given); /* the rows given, in order */
+    int ngiven = 0;
+    if (!given) { fprintf(stderr, "candela: out of memory\n"); return 1; }
     for (int i = 2; i < argc; ++i) {
         const char *a = argv[i];
         /* every flag is a row of renderer/options_table.c (render options shared with compare's
          * variants) */
         const CandelaFlag *row = NULL;
         int parsed = candela_parse_flag(&cl, cmd, argc, argv, &i, &row, flag_err);
-        if (parsed < 0) { fprintf(stderr, "candela: %s\n", flag_err); return 2; }
+        if (parsed < 0) { fprintf(stderr, "candela: %s\n", flag_err); free(given); return 2; }
         if (cl.help) {
             printf("usage: candela %s SCENE.gltf|SCENE.glb [options]\n", argv[1]);
             candela_print_flags(stdout, cmd);
+            free(given);
             return 0;
         }
         if (parsed > 0) {
             if (strcmp(row->name, "--spp") == 0) cl.spp_given = 1;
+            given[ngiven++] = row;
             continue;
         }
         if (a[0] == '-') {
             candela_unknown_flag_message(a, cmd, "option", flag_err);
             fprintf(stderr, "candela: %s\n", flag_err);
+            free(given);
             return 2;
         } else if (!cl.o.scene_path) {
             cl.o.scene_path = a;
         } else {
             fprintf(stderr, "candela: unexpected argument '%s' (one scene per run)\n", a);
+            free(given);
             return 2;
         }
     }
+    if (cl.o.resume_from && cmd == CANDELA_CMD_RENDER && !cl.batch.frames) {
+        int rrc = resume_options(&cl, given, ngiven);
+        if (rrc != 0) { free(given); return rrc; }
+    }
+    free(given);
     CandelaOptions o = cl.o;
     CandelaCompareOptions co = cl.co;
     CandelaBatchOptions batch = cl.batch;
@@ -405,6 +535,18 @@ int main(int argc, char **argv) {
         char *dot = strrchr(dump_prefix, '.');
         if (dot && strcasecmp(dot, ".exr") == 0) *dot = 0;
         o.guide_dump_prefix = dump_prefix;
+    }
+    if (o.checkpoint_path && !compare && !bench && !dump) {
+        /* what --resume-from FILE alone needs beside the identity: the scene and the outputs */
+        char abs_path[PATH_MAX], q[3 * PATH_MAX + 3];
+        size_t n = 0;
+        const char *keys[3] = {"scene", "output", "png"}, *vals[3] = {o.scene_path, out, png};
+        for (int k = 0; k < 3; ++k) {
+            if (vals[k]) absolute_path(vals[k], abs_path);
+            candela_identity_quote(vals[k] ? abs_path : NULL, q, sizeof q);
+            n += (size_t)snprintf(record_text + n, sizeof record_text - n, "%s%s=%s", k ? " " : "", keys[k], q);
+        }
+        o.checkpoint_record = record_text;
     }
     if (candela_options_check(&o, flag_err) != 0) {
         fprintf(stderr, "candela: %s\n", flag_err);
@@ -574,6 +716,9 @@ static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBa
             if (dot && dot > dir + 12) *dot = 0;
             co.out_dir = dir;
         }
+        char build[256];
+        software_line(build, sizeof build);
+        co.build = build; /* the cached reference's key */
         /* equal time: --spp is only a cap, by default the largest (the time budget decides) */
         if (co.time_budget > 0 && !spp_given) o.spp = 1 << 20;
         if (candela_compare(&o, &co, err) != 0) {
@@ -627,7 +772,8 @@ static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBa
         candela_provenance_free(&prov);
         return 1;
     }
-    if (candela_provenance_render(&prov, &o, &stats) != 0) {
+    if (candela_provenance_render(&prov, &o, &stats) != 0 ||
+        candela_provenance_identity(&prov, &o, image.width, image.height) != 0) {
         fprintf(stderr, "candela: out of memory\n");
         candela_image_free(&image);
         candela_provenance_free(&prov);

@@ -74,18 +74,30 @@ static int set_dump(void *base, const char *flag, const char *v, char err[CANDEL
 
 static const char *const AOV_NAMES[] = {"recorder-debug", "cachepoint", "spp", NULL};
 
+/* One AOV name per --aov (repeatable); the identity's form: a comma list of them, or none,
+ * which replaces the set instead of adding to it. */
 static int set_aov(void *base, const char *flag, const char *v, char err[CANDELA_ERR_LEN]) {
     (void)flag;
     CandelaOptions *o = base;
-    for (int k = 0; AOV_NAMES[k]; ++k)
-        if (strcmp(v, AOV_NAMES[k]) == 0) { /* repeatable: one AOV each */
-            if (k == 0) o->aov_recorder_debug = 1;
-            else if (k == 1) o->aov_selection = 1;
-            else o->aov_spp = 1;
-            return 0;
+    int *on[3] = {&o->aov_recorder_debug, &o->aov_selection, &o->aov_spp};
+    int list = strchr(v, ',') != NULL || strcmp(v, "none") == 0;
+    int set[3] = {0, 0, 0};
+    for (const char *c = v; list || c == v;) {
+        size_t len = strcspn(c, ",");
+        int k = 0;
+        while (AOV_NAMES[k] && !(strlen(AOV_NAMES[k]) == len && strncmp(c, AOV_NAMES[k], len) == 0)) ++k;
+        if (!AOV_NAMES[k] && !(list && len == 4 && strncmp(c, "none", 4) == 0)) {
+            snprintf(err, CANDELA_ERR_LEN, "unknown AOV '%.200s' (recorder-debug, cachepoint, spp)", v);
+            return -1;
         }
-    snprintf(err, CANDELA_ERR_LEN, "unknown AOV '%.200s' (recorder-debug, cachepoint, spp)", v);
-    return -1;
+        if (AOV_NAMES[k]) set[k] = 1;
+        if (!c[len]) break;
+        c += len + 1;
+    }
+    for (int k = 0; k < 3; ++k)
+        if (list) *on[k] = set[k];
+        else if (set[k]) *on[k] = 1; /* repeatable: one AOV each */
+    return 0;
 }
 
 static int set_sample_shard(void *base, const char *flag, const char *v, char err[CANDELA_ERR_LEN]) {
@@ -141,6 +153,15 @@ static void get_aov(const CandelaOptions *o, FILE *f) {
         }
     fputc(']', f);
 }
+static void show_res(const CandelaOptions *o, char *buf, size_t size) { snprintf(buf, size, "%dx%d", o->width, o->height); }
+static void show_aov(const CandelaOptions *o, char *buf, size_t size) {
+    const int on[3] = {o->aov_recorder_debug, o->aov_selection, o->aov_spp};
+    size_t n = 0;
+    buf[0] = 0;
+    for (int k = 0; k < 3; ++k)
+        if (on[k] && n < size) n += (size_t)snprintf(buf + n, size - n, "%s%s", n ? "," : "", AOV_NAMES[k]);
+    if (n == 0) snprintf(buf, size, "none");
+}
 static void get_sample_shard(const CandelaOptions *o, FILE *f) {
     if (o->shard_count) fprintf(f, "\"%u/%u\"", o->shard_index, o->shard_count);
     else fputs("null", f);
@@ -186,8 +207,9 @@ static const int LIGHT_UNITS_VALUES[] = {CANDELA_LIGHT_UNITS_BLENDER, CANDELA_LI
 #define ALL_RENDER (RENDERING | CANDELA_CMD_VARIANT)
 #define NOT_RENDER(cmds) (RENDERING & ~(unsigned)(cmds))
 
-#define RO(f) 1, offsetof(CandelaOptions, f)     /* a render option */
-#define CL(f) 0, offsetof(CandelaCommandLine, f) /* a field of the command line */
+#define RO(f) 1, offsetof(CandelaOptions, f), 0     /* a render option that never changes the image */
+#define IMG(f) 1, offsetof(CandelaOptions, f), 1    /* a render option that changes the image */
+#define CL(f) 0, offsetof(CandelaCommandLine, f), 0 /* a field of the command line */
 
 #define SWITCH(name, alias, where, cmds, tol, help, long_help) \
     {name, alias, CANDELA_FLAG_SWITCH, NULL, 0, 0, NULL, NULL, NULL, where, CANDELA_FIELD_INT, NULL, cmds, tol, NULL, help, long_help}
@@ -199,8 +221,8 @@ static const int LIGHT_UNITS_VALUES[] = {CANDELA_LIGHT_UNITS_BLENDER, CANDELA_LI
     {name, NULL, CANDELA_FLAG_CHOICE, meta, 0, 0, names, values, what, where, CANDELA_FIELD_INT, NULL, cmds, 0, ex, help, long_help}
 #define STRING(name, alias, meta, where, cmds, tol, ex, help, long_help) \
     {name, alias, CANDELA_FLAG_STRING, meta, 0, 0, NULL, NULL, NULL, where, CANDELA_FIELD_STR, NULL, cmds, tol, ex, help, long_help}
-#define CUSTOM(name, meta, render, set, get, cmds, tol, ex, help, long_help) \
-    {name, NULL, CANDELA_FLAG_CUSTOM, meta, 0, 0, NULL, NULL, NULL, render, 0, CANDELA_FIELD_NONE, set, cmds, tol, ex, help, long_help, get}
+#define CUSTOM(name, meta, render, image, set, get, show, cmds, tol, ex, help, long_help) \
+    {name, NULL, CANDELA_FLAG_CUSTOM, meta, 0, 0, NULL, NULL, NULL, render, 0, image, CANDELA_FIELD_NONE, set, cmds, tol, ex, help, long_help, get, show}
 
 static const CandelaFlag FLAGS[] = {
     SWITCH("--help", "-h", CL(help), RENDERING | CANDELA_CMD_MERGE, 0, "print this command's flags, one line each",
@@ -229,12 +251,12 @@ static const CandelaFlag FLAGS[] = {
            "x.ckpt", "continue the render FILE checkpointed",
            "continue the render FILE checkpointed (same scene, resolution and options, else refused): the image equals "
            "the uninterrupted render's"),
-    CUSTOM("--sample-shard", "I/N", 0, set_sample_shard, get_sample_shard, CANDELA_CMD_RENDER, NOT_RENDER(CANDELA_CMD_RENDER), "1/4",
+    CUSTOM("--sample-shard", "I/N", 0, 0, set_sample_shard, get_sample_shard, NULL, CANDELA_CMD_RENDER, NOT_RENDER(CANDELA_CMD_RENDER), "1/4",
            "render only samples [spp I/N, spp (I+1)/N) into -o NAME.film",
            "render only samples [spp I/N, spp (I+1)/N) of every pixel (I from 0), with the full render's random numbers, "
            "and write their film sums to -o NAME.film (no EXR); candela merge combines the N films"),
     /* render options (renderer/flags.c: candela_parse_render_flag, compare's variants too) */
-    CUSTOM("--confine-to", "DIR", 1, set_confine, get_confine, RENDERING, 0, "/tmp",
+    CUSTOM("--confine-to", "DIR", 1, 0, set_confine, get_confine, NULL, RENDERING, 0, "/tmp",
            "refuse a scene, or any file it references, outside DIR",
            "refuse a scene, or any file it references, outside DIR (not in a compare variant)"),
     INT("--volume-budget-mb", "N", 0, 1 << 24, RO(volume_budget_mb), CANDELA_FIELD_U32, ALL_RENDER, 0, "512",
@@ -243,144 +265,144 @@ static const CandelaFlag FLAGS[] = {
     INT("--texture-budget-mb", "N", 0, 1 << 24, RO(texture_budget_mb), CANDELA_FIELD_U32, ALL_RENDER, 0, "512",
         "decoded textures in total, MiB (default 8192; 0: none)",
         "decoded textures in total, in MiB, 4 bytes per texel for 8-bit files and 16 for others (default 8192; 0: none)"),
-    INT("--spp", "N", 1, 1 << 20, RO(spp), CANDELA_FIELD_INT, RENDERING, 0, "4", "samples per pixel (default 16)",
+    INT("--spp", "N", 1, 1 << 20, IMG(spp), CANDELA_FIELD_INT, RENDERING, 0, "4", "samples per pixel (default 16)",
         "samples per pixel (default 16); with candela compare --time-budget a cap (default 1048576). The same for "
         "every compare variant"),
-    INT("--seed", "S", 0, LONG_MAX, RO(seed), CANDELA_FIELD_U64, RENDERING, 0, "7", "random seed (default 0)",
+    INT("--seed", "S", 0, LONG_MAX, IMG(seed), CANDELA_FIELD_U64, RENDERING, 0, "7", "random seed (default 0)",
         "random seed (default 0); the same for every compare variant"),
-    CHOICE("--sampler", "sobol|independent", SAMPLER, SAMPLER_VALUES, "sampler", RO(sampler), ALL_RENDER, "independent",
+    CHOICE("--sampler", "sobol|independent", SAMPLER, SAMPLER_VALUES, "sampler", IMG(sampler), ALL_RENDER, "independent",
            "each path's numbers: Owen-scrambled Sobol' (default) or independent",
            "the numbers of each path: Owen-scrambled Sobol' points (default) or independent uniforms (the renders before "
            "0.2)"),
-    FLOAT("--noise-threshold", "T", 1e-6, 100.0, RO(noise_threshold), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "0.01",
+    FLOAT("--noise-threshold", "T", 1e-6, 100.0, IMG(noise_threshold), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "0.01",
           "adaptive sampling: a pixel stops below error T",
           "adaptive sampling: a pixel stops once its error estimate (standard errors / sqrt(value), Cycles' measure) and "
           "its neighbours' are below T (e.g. 0.01); --spp is the most any pixel gets"),
-    INT("--min-spp", "N", 1, 1 << 20, RO(min_spp), CANDELA_FIELD_INT, ALL_RENDER, 0, "8",
+    INT("--min-spp", "N", 1, 1 << 20, IMG(min_spp), CANDELA_FIELD_INT, ALL_RENDER, 0, "8",
         "adaptive sampling: no pixel stops before N samples (default 16)",
         "adaptive sampling: no pixel stops before N samples (default 16); needs --noise-threshold"),
     FLOAT("--time-limit", "S", 1e-6, 1e9, RO(time_limit), CANDELA_FIELD_DOUBLE, ALL_RENDER, 0, "60",
           "stop at the first iteration barrier past S seconds",
           "stop at the first iteration barrier past S seconds (load included) and write the image; its spp depend on "
           "the machine's speed"),
-    FLOAT("--clamp-direct", "V", 1e-9, 1e30, RO(clamp_direct), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "10",
+    FLOAT("--clamp-direct", "V", 1e-9, 1e30, IMG(clamp_direct), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "10",
           "clamp direct light contributions to V (biased; default off)",
           "clamp each direct-light contribution's largest channel to V (hue kept; biased; default off)"),
-    FLOAT("--clamp-indirect", "V", 1e-9, 1e30, RO(clamp_indirect), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "10",
+    FLOAT("--clamp-indirect", "V", 1e-9, 1e30, IMG(clamp_indirect), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "10",
           "clamp indirect light contributions to V (biased; default off)",
           "the same as --clamp-direct for indirect light (two or more bounces): each contribution's largest channel is "
           "clamped to V (hue kept; biased; default off)"),
-    CUSTOM("--aov", "spp|recorder-debug|cachepoint", 1, set_aov, get_aov, ALL_RENDER, 0, "spp",
+    CUSTOM("--aov", "spp|recorder-debug|cachepoint", 1, 1, set_aov, get_aov, show_aov, ALL_RENDER, 0, "spp",
            "add an AOV to the EXR (repeatable)",
            "add an AOV to the EXR (repeatable, one each): spp = the channel spp (samples per pixel); recorder-debug = "
            "recorder_debug.RGB, the radiance recorder's primary training samples times their throughput (converges to "
            "RGB); cachepoint = cachepoint.RGB and cachepoint_light.RGB (false colours of each first hit's cache point "
            "and of the entry it weighs most), and NAME.cachepoint.png, NAME.cachepoint_light.png beside the PNG"),
-    CUSTOM("--res", "WxH", 1, set_res, get_res, RENDERING, 0, "32x16", "resolution (default: 640 wide, camera aspect)",
+    CUSTOM("--res", "WxH", 1, 1, set_res, get_res, show_res, RENDERING, 0, "32x16", "resolution (default: 640 wide, camera aspect)",
            "resolution, 1..16384 per side and at most 64 megapixels (default: 640 wide, camera aspect); the same for "
            "every compare variant"),
     INT("--threads", "N", 1, 1024, RO(threads), CANDELA_FIELD_INT, ALL_RENDER, 0, "2",
         "worker threads (default: all cores)", "worker threads (default: all cores); never changes the image"),
-    INT("--max-depth", "N", 0, 1024, RO(max_depth), CANDELA_FIELD_INT, ALL_RENDER, 0, "4",
+    INT("--max-depth", "N", 0, 1024, IMG(max_depth), CANDELA_FIELD_INT, ALL_RENDER, 0, "4",
         "maximum surface bounces; 1 = direct light only (default 8)",
         "maximum surface bounces; 1 = direct light only (default 8)"),
-    INT("--max-volume-bounces", "N", 0, 100000, RO(max_volume_bounces), CANDELA_FIELD_INT, ALL_RENDER, 0, "16",
+    INT("--max-volume-bounces", "N", 0, 100000, IMG(max_volume_bounces), CANDELA_FIELD_INT, ALL_RENDER, 0, "16",
         "maximum scattering events in media per path (default 256)",
         "maximum scattering events in media per path (default 256)"),
     CHOICE("--volume-emission-sampling", "on|off|auto", ON_OFF_AUTO, ON_OFF_AUTO_VALUES, NULL,
-           RO(volume_emission_sampling), ALL_RENDER, "on", "emissive volumes are lights too (default auto)",
+           IMG(volume_emission_sampling), ALL_RENDER, "on", "emissive volumes are lights too (default auto)",
            "emissive volumes are lights too (NEE with line integration, MIS with tracking); auto: per volume, kept where "
            "it lowers the estimated time to unit variance in the first 4 spp (default auto)"),
     CHOICE("--volume-cachepoint-scatter", "on|off|auto", ON_OFF_AUTO, ON_OFF_AUTO_VALUES, NULL,
-           RO(volume_inscatter_sampling), ALL_RENDER, "off", "cache-point in-scattering sampling in media (default auto)",
+           IMG(volume_inscatter_sampling), ALL_RENDER, "off", "cache-point in-scattering sampling in media (default auto)",
            "cache-point in-scattering sampling along camera rays through media, MIS with tracking (cachepoints); auto: "
            "per medium, kept where it measurably lowers the time to unit variance in the first 4 spp (default auto)"),
-    CHOICE("--guiding", "off|mis|ris|auto", GUIDING, GUIDING_VALUES, NULL, RO(guiding), ALL_RENDER, "mis",
+    CHOICE("--guiding", "off|mis|ris|auto", GUIDING, GUIDING_VALUES, NULL, IMG(guiding), ALL_RENDER, "mis",
            "path guiding (default off)",
            "path guiding (default off): mis = one-sample MIS of the BSDF or phase function and the learned guide (alpha "
            "0.5); ris = resampling of one candidate of each. Trains during the first 8 spp, then guides (iterations 1 x "
            "8, then 2, 4, 8, 16, 16, ...); auto = mis where a probe over the first 4 spp predicts a gain, else off"),
-    INT("--guide-training-spp", "N", 1, 1 << 20, RO(guide_training_spp), CANDELA_FIELD_INT, ALL_RENDER, 0, "8",
+    INT("--guide-training-spp", "N", 1, 1 << 20, IMG(guide_training_spp), CANDELA_FIELD_INT, ALL_RENDER, 0, "8",
         "guiding learns from the first N spp",
         "guiding learns from the first N spp, then renders with what it learned (default: an eighth of --spp, at least "
         "22)"),
-    FLOAT("--guide-spatial-threshold", "C", 1.0, 1e9, RO(guide_spatial_threshold), CANDELA_FIELD_FLOAT, ALL_RENDER, 0,
+    FLOAT("--guide-spatial-threshold", "C", 1.0, 1e9, IMG(guide_spatial_threshold), CANDELA_FIELD_FLOAT, ALL_RENDER, 0,
           "3000", "a guiding leaf splits past C sqrt(spp) samples (default 3000)",
           "a guiding leaf splits past C sqrt(spp of the iteration) training samples (default 3000)"),
-    FLOAT("--path-regularization", "G", 0.0, 1.0, RO(path_regularization), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "0.01",
+    FLOAT("--path-regularization", "G", 0.0, 1.0, IMG(path_regularization), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "0.01",
           "roughen a vertex after a rough one (biased; default 0: off)",
           "roughen a vertex after a rough one: alpha' = 1 - (1 - alpha) (1 - G alpha'_prev) (the course's 0.01 helps "
           "guiding find caustics; biased; default 0: off)"),
-    CHOICE("--guide-spatial-filter", "on|off", ON_OFF, ON_OFF_VALUES, NULL, RO(guide_spatial_filter), ALL_RENDER, "on",
+    CHOICE("--guide-spatial-filter", "on|off", ON_OFF, ON_OFF_VALUES, NULL, IMG(guide_spatial_filter), ALL_RENDER, "on",
            "jitter training samples within their leaf (default off)",
            "train each sample into the leaf at a point jittered within a box of its leaf's size (Mueller et al. 2019; "
            "default off)"),
-    INT("--recorder-budget", "N", 0, 1 << 20, RO(recorder_budget), CANDELA_FIELD_INT, ALL_RENDER, 0, "4",
+    INT("--recorder-budget", "N", 0, 1 << 20, IMG(recorder_budget), CANDELA_FIELD_INT, ALL_RENDER, 0, "4",
         "recorded vertices per path before skipping (default 4)",
         "recorded vertices per path before path/vertex skipping (default 4; 0: record every vertex)"),
-    INT("--recorder-mb", "N", 1, 1 << 20, RO(recorder_mb), CANDELA_FIELD_U32, ALL_RENDER, 0, "64",
+    INT("--recorder-mb", "N", 1, 1 << 20, IMG(recorder_mb), CANDELA_FIELD_U32, ALL_RENDER, 0, "64",
         "radiance recorder storage bound in MiB (default 256)", "radiance recorder storage bound in MiB (default 256)"),
-    CHOICE("--light-sampler", "S", LIGHT_SAMPLER, LIGHT_SAMPLER_VALUES, "light sampler", RO(light_sampler), ALL_RENDER,
+    CHOICE("--light-sampler", "S", LIGHT_SAMPLER, LIGHT_SAMPLER_VALUES, "light sampler", IMG(light_sampler), ALL_RENDER,
            "power", "auto | uniform | power | tree | optimal | cachepoints (default auto)",
            "auto | uniform | power | tree | optimal | cachepoints (default auto: power for one light, optimal up to ~128 "
            "punctual lights (an area light counts 8), else cachepoints; cachepoints with media)"),
-    SWITCH("--no-visibility", NULL, RO(cachepoint_no_visibility), ALL_RENDER, 0,
+    SWITCH("--no-visibility", NULL, IMG(cachepoint_no_visibility), ALL_RENDER, 0,
            "cache points without visibility learning", "cache points without visibility learning"),
-    CHOICE("--cachepoint-build", "B", BUILD, BUILD_VALUES, "cache point build", RO(cachepoint_build_linear), ALL_RENDER,
+    CHOICE("--cachepoint-build", "B", BUILD, BUILD_VALUES, "cache point build", IMG(cachepoint_build_linear), ALL_RENDER,
            "linear", "cut (default) | linear (the paper's)",
            "cut (default: far entries are light-tree clusters) | linear (the paper: every light estimated at every point)"),
-    INT("--cachepoint-cut-size", "N", 1, 1 << 20, RO(cachepoint_cut_size), CANDELA_FIELD_U32, ALL_RENDER, 0, "64",
+    INT("--cachepoint-cut-size", "N", 1, 1 << 20, IMG(cachepoint_cut_size), CANDELA_FIELD_U32, ALL_RENDER, 0, "64",
         "cut build: far entries per cache point (default 128)", "cut build: far entries per cache point (default 128)"),
-    INT("--cachepoint-candidates", "N", 0, 10000000, RO(cachepoint_candidates), CANDELA_FIELD_U32, ALL_RENDER, 0,
+    INT("--cachepoint-candidates", "N", 0, 10000000, IMG(cachepoint_candidates), CANDELA_FIELD_U32, ALL_RENDER, 0,
         "25000", "cache point candidates in object boxes",
         "cache point candidates in object boxes (default: 100000 at 1280x720 pixels or more, in proportion below, at "
         "least 25000)"),
-    INT("--cachepoint-pilots", "N", 0, 4000000, RO(cachepoint_pilots), CANDELA_FIELD_U32, ALL_RENDER, 0, "4096",
+    INT("--cachepoint-pilots", "N", 0, 4000000, IMG(cachepoint_pilots), CANDELA_FIELD_U32, ALL_RENDER, 0, "4096",
         "cache point pilot paths (default 65536)", "cache point pilot paths (default 65536)"),
-    SWITCH("--cachepoint-retruncate", NULL, RO(cachepoint_retruncate), ALL_RENDER, 0,
+    SWITCH("--cachepoint-retruncate", NULL, IMG(cachepoint_retruncate), ALL_RENDER, 0,
            "linear build: re-apply the 97%/256 rule after the blur",
            "linear build: re-apply the 97%/256 rule after the blur (less memory)"),
-    CHOICE("--cachepoint-pooling", "off|points|lights", POOLING, POOLING_VALUES, NULL, RO(cachepoint_pooling), ALL_RENDER,
+    CHOICE("--cachepoint-pooling", "off|points|lights", POOLING, POOLING_VALUES, NULL, IMG(cachepoint_pooling), ALL_RENDER,
            "points", "pool the visibility counters of sparse slots (default off)",
            "visibility counters of slots with too few attempts pooled over the 16 neighbouring points (points), then "
            "over the lights next to the slot's in the light tree (lights; default off)"),
-    CHOICE("--cachepoint-progressive", "on|off", ON_OFF, ON_OFF_PROGRESSIVE, NULL, RO(cachepoint_progressive), ALL_RENDER,
+    CHOICE("--cachepoint-progressive", "on|off", ON_OFF, ON_OFF_PROGRESSIVE, NULL, IMG(cachepoint_progressive), ALL_RENDER,
            "on", "insert cache points between iterations (default off)",
            "insert cache points between iterations where neighbouring points' learned visibility jumps (default off)"),
-    FLOAT("--cachepoint-progressive-budget", "F", 0.0, 4.0, RO(cachepoint_progressive_budget), CANDELA_FIELD_FLOAT,
+    FLOAT("--cachepoint-progressive-budget", "F", 0.0, 4.0, IMG(cachepoint_progressive_budget), CANDELA_FIELD_FLOAT,
           ALL_RENDER, 0, "0.15", "inserted points as a fraction of the built ones (default 0.15)",
           "inserted points as a fraction of the built ones (default 0.15)"),
-    CHOICE("--cachepoint-bsdf", "on|off", ON_OFF, ON_OFF_VALUES, NULL, RO(cachepoint_bsdf), ALL_RENDER, "off",
+    CHOICE("--cachepoint-bsdf", "on|off", ON_OFF, ON_OFF_VALUES, NULL, IMG(cachepoint_bsdf), ALL_RENDER, "off",
            "weigh cache point entries by the glossy BSDF lobe (default on)",
            "at glossy vertices weigh cache point entries by the BSDF lobe too, not only by the normal (default on; "
            "diffuse vertices unchanged)"),
-    CUSTOM("--dump-cachepoints", "FILE.ply", 1, set_dump, get_dump, CANDELA_CMD_RENDER | CANDELA_CMD_BENCH | CANDELA_CMD_GUIDE_DUMP,
+    CUSTOM("--dump-cachepoints", "FILE.ply", 1, 0, set_dump, get_dump, NULL, CANDELA_CMD_RENDER | CANDELA_CMD_BENCH | CANDELA_CMD_GUIDE_DUMP,
            CANDELA_CMD_COMPARE, "x.ply", "write the cache points after the render as an ASCII PLY",
            "write the cache points after the render as an ASCII PLY (position, radius, near/far counts, learned "
            "visibility, colour); an empty PLY (0 vertices) when --light-sampler auto picks another sampler. Its folder "
            "is made when missing. Not with --frames or compare (nor in a variant)"),
-    SWITCH("--optimal-occlusion", NULL, RO(optimal_occlusion), ALL_RENDER, 0,
+    SWITCH("--optimal-occlusion", NULL, IMG(optimal_occlusion), ALL_RENDER, 0,
            "optimal sampler: one shadow ray per light per vertex", "optimal sampler: one shadow ray per light per vertex"),
-    CHOICE("--light-units", "U", LIGHT_UNITS, LIGHT_UNITS_VALUES, "light units", RO(light_units), ALL_RENDER, "raw",
+    CHOICE("--light-units", "U", LIGHT_UNITS, LIGHT_UNITS_VALUES, "light units", IMG(light_units), ALL_RENDER, "raw",
            "blender (default: cd/683, lux/683) | raw (W/sr, W/m^2)",
            "blender (default: cd/683, lux/683) | raw (W/sr, W/m^2)"),
-    CHOICE("--light-model", "M", LIGHT_MODEL, LIGHT_MODEL_VALUES, "light model", RO(light_model), ALL_RENDER, "blender3",
+    CHOICE("--light-model", "M", LIGHT_MODEL, LIGHT_MODEL_VALUES, "light model", IMG(light_model), ALL_RENDER, "blender3",
            "gltf (default) | blender3 (Cycles 3.4's spot blend)",
            "gltf (default: glTF's spot cone ramp) | blender3 (Cycles 3.4's spot blend smoothstep, blend = 1 - "
            "inner/outer cone angle)"),
-    CHOICE("--material-model", "M", LIGHT_MODEL, MATERIAL_MODEL_VALUES, "material model", RO(material_model), ALL_RENDER,
+    CHOICE("--material-model", "M", LIGHT_MODEL, MATERIAL_MODEL_VALUES, "material model", IMG(material_model), ALL_RENDER,
            "blender3", "gltf (default) | blender3 (Blender 3.4's Principled v1)",
            "gltf (default: glTF 2.0 Appendix B BRDF) | blender3 (Blender 3.4's Principled BSDF v1 as its glTF importer "
            "sets it up)"),
-    STRING("--camera", NULL, "NAME", RO(camera_name), ALL_RENDER, 0, "Camera",
+    STRING("--camera", NULL, "NAME", IMG(camera_name), ALL_RENDER, 0, "Camera",
            "glTF camera by name (default: the first, or a framing view)",
            "glTF camera by name (default: the first, or a framing view); an unknown name's error lists the scene's "
            "cameras"),
-    STRING("--env", NULL, "FILE", RO(env_path), ALL_RENDER, 0, "sky.exr", "lat-long environment map (EXR/HDR/PNG...)",
+    STRING("--env", NULL, "FILE", IMG(env_path), ALL_RENDER, 0, "sky.exr", "lat-long environment map (EXR/HDR/PNG...)",
            "lat-long environment map (EXR/HDR/PNG...); it overrides the scene's"),
-    FLOAT("--env-strength", "S", 0.0, 1e9, RO(env_strength), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "2",
+    FLOAT("--env-strength", "S", 0.0, 1e9, IMG(env_strength), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "2",
           "environment multiplier (default 1)", "environment multiplier (default 1)"),
-    FLOAT("--env-rotation", "DEG", -1e6, 1e6, RO(env_rotation_deg), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "90",
+    FLOAT("--env-rotation", "DEG", -1e6, 1e6, IMG(env_rotation_deg), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "90",
           "turn the environment about the vertical, in degrees",
           "turn the environment about the vertical, in degrees, with the sign of Blender's Mapping-node Z rotation "
           "(default: the scene's, else 0)"),
@@ -423,7 +445,7 @@ static const CandelaFlag FLAGS[] = {
     SWITCH("--no-warnings", NULL, CL(o.no_warnings), RENDERING, 0, "no warnings about the scene",
            "no warnings about the scene (what it holds that is not rendered)"),
     /* candela guide-dump */
-    CUSTOM("--at", "X,Y,Z", 0, set_at, get_at, CANDELA_CMD_GUIDE_DUMP, 0, "0,0.5,-1", "the point whose learned guide is written",
+    CUSTOM("--at", "X,Y,Z", 0, 0, set_at, get_at, NULL, CANDELA_CMD_GUIDE_DUMP, 0, "0,0.5,-1", "the point whose learned guide is written",
            "the point whose learned directional pdf is written (OUT.guide.exr/.png), with the final iteration's training "
            "directions in its leaf (OUT.hist.*) and the spatial tree's leaves (OUT.leaves.ply); OUT = -o without .exr"),
     /* candela compare */
@@ -814,4 +836,246 @@ char *candela_options_json(const CandelaOptions *o) {
         return NULL;
     }
     return buf;
+}
+
+/* --- the image identity (options_table.h) --------------------------------------------------- */
+
+void candela_identity_quote(const char *s, char *buf, size_t size) {
+    if (!s) {
+        snprintf(buf, size, "-");
+        return;
+    }
+    size_t n = 0;
+    if (n + 1 < size) buf[n++] = '"';
+    for (const unsigned char *c = (const unsigned char *)s; *c && n + 4 < size; ++c) {
+        if (*c <= ' ' || *c == '"' || *c == '%' || *c >= 0x7f) n += (size_t)snprintf(buf + n, size - n, "%%%02X", *c);
+        else buf[n++] = (char)*c;
+    }
+    if (n + 1 < size) buf[n++] = '"';
+    buf[n < size ? n : size - 1] = 0;
+}
+
+void candela_flag_identity_value(const CandelaFlag *f, const CandelaOptions *o, char *buf, size_t size) {
+    buf[0] = 0;
+    if (!f->image) return;
+    if (f->kind == CANDELA_FLAG_CUSTOM) {
+        f->show(o, buf, size);
+        return;
+    }
+    const char *p = (const char *)o + f->offset;
+    switch (f->field) {
+    case CANDELA_FIELD_INT: {
+        int n;
+        memcpy(&n, p, sizeof n);
+        const char *name = NULL;
+        for (int k = 0; f->kind == CANDELA_FLAG_CHOICE && f->names[k] && !name; ++k)
+            if (f->values[k] == n) name = f->names[k];
+        if (name) snprintf(buf, size, "%s", name);
+        else snprintf(buf, size, "%d", n);
+        return;
+    }
+    case CANDELA_FIELD_U32: {
+        uint32_t u;
+        memcpy(&u, p, sizeof u);
+        snprintf(buf, size, "%u", u);
+        return;
+    }
+    case CANDELA_FIELD_U64: {
+        uint64_t u;
+        memcpy(&u, p, sizeof u);
+        snprintf(buf, size, "%llu", (unsigned long long)u);
+        return;
+    }
+    case CANDELA_FIELD_FLOAT: {
+        float x;
+        memcpy(&x, p, sizeof x);
+        snprintf(buf, size, "%a", (double)x);
+        return;
+    }
+    case CANDELA_FIELD_DOUBLE: {
+        double x;
+        memcpy(&x, p, sizeof x);
+        snprintf(buf, size, "%a", x);
+        return;
+    }
+    case CANDELA_FIELD_STR: {
+        const char *s;
+        memcpy(&s, p, sizeof s);
+        candela_identity_quote(s, buf, size);
+        return;
+    }
+    case CANDELA_FIELD_NONE: return;
+    }
+}
+
+int candela_options_identity(const CandelaOptions *o, char *buf, size_t size) {
+    size_t n = 0;
+    char value[CANDELA_ERR_LEN * 4];
+    if (size) buf[0] = 0;
+    for (size_t k = 0; k < sizeof FLAGS / sizeof FLAGS[0]; ++k) {
+        const CandelaFlag *f = &FLAGS[k];
+        if (!f->image) continue;
+        candela_flag_identity_value(f, o, value, sizeof value);
+        int m = snprintf(buf + n, size - n, "%s%s=%s", n ? " " : "", f->name + 2, value);
+        if (m < 0 || (size_t)m >= size - n) return -1;
+        n += (size_t)m;
+    }
+    return (int)n;
+}
+
+static int hex_digit(char c) {
+    return c >= '0' && c <= '9' ? c - '0' : c >= 'A' && c <= 'F' ? c - 'A' + 10 : c >= 'a' && c <= 'f' ? c - 'a' + 10 : -1;
+}
+
+char *candela_identity_unquote(char *v) {
+    size_t len = strlen(v);
+    if (len < 2 || v[0] != '"' || v[len - 1] != '"') return NULL;
+    char *w = v;
+    for (size_t i = 1; i + 1 < len; ++i) {
+        if (v[i] == '%') {
+            int a = i + 3 < len ? hex_digit(v[i + 1]) : -1, b = a >= 0 ? hex_digit(v[i + 2]) : -1;
+            if (a < 0 || b < 0 || (a == 0 && b == 0)) return NULL;
+            *w++ = (char)(a * 16 + b);
+            i += 2;
+        } else {
+            *w++ = v[i];
+        }
+    }
+    *w = 0;
+    return v;
+}
+
+/* a canonical value set into o (row f); v may be changed (strings decoded in place) */
+static int identity_store(const CandelaFlag *f, CandelaOptions *o, char *v, char err[CANDELA_ERR_LEN]) {
+    char *end = NULL;
+    errno = 0;
+    if (f->kind == CANDELA_FLAG_CUSTOM) return f->set(o, f->name, v, err);
+    switch (f->field) {
+    case CANDELA_FIELD_INT: {
+        for (int k = 0; f->kind == CANDELA_FLAG_CHOICE && f->names[k]; ++k)
+            if (strcmp(v, f->names[k]) == 0) return store(f, o, f->values[k], 0.0f, NULL);
+        long n = strtol(v, &end, 10);
+        if (errno || end == v || *end || n < INT_MIN || n > INT_MAX) break;
+        return store(f, o, n, 0.0f, NULL);
+    }
+    case CANDELA_FIELD_U32:
+    case CANDELA_FIELD_U64: {
+        unsigned long long u = strtoull(v, &end, 10);
+        if (errno || end == v || *end || v[0] == '-' || (f->field == CANDELA_FIELD_U32 && u > UINT32_MAX)) break;
+        char *p = (char *)o + f->offset;
+        if (f->field == CANDELA_FIELD_U32) *(uint32_t *)p = (uint32_t)u;
+        else *(uint64_t *)p = (uint64_t)u;
+        return 0;
+    }
+    case CANDELA_FIELD_FLOAT:
+    case CANDELA_FIELD_DOUBLE: {
+        double x = strtod(v, &end);
+        if (end == v || *end) break;
+        char *p = (char *)o + f->offset;
+        if (f->field == CANDELA_FIELD_FLOAT) *(float *)p = (float)x;
+        else *(double *)p = x;
+        return 0;
+    }
+    case CANDELA_FIELD_STR: {
+        const char *s = NULL;
+        if (strcmp(v, "-") != 0 && !(s = candela_identity_unquote(v))) break;
+        return store(f, o, 0, 0.0f, s);
+    }
+    case CANDELA_FIELD_NONE: break;
+    }
+    snprintf(err, CANDELA_ERR_LEN, "invalid value '%.200s' for %s in the identity", v, f->name);
+    return -1;
+}
+
+int candela_options_from_identity(CandelaOptions *o, char *text, char err[CANDELA_ERR_LEN]) {
+    for (char *c = text; *c;) {
+        size_t len = strcspn(c, " ");
+        char *next = c[len] ? c + len + 1 : c + len;
+        c[len] = 0;
+        char *eq = strchr(c, '=');
+        if (!eq) {
+            snprintf(err, CANDELA_ERR_LEN, "'%.200s' is no NAME=VALUE", c);
+            return -1;
+        }
+        *eq = 0;
+        const CandelaFlag *f = NULL;
+        for (size_t k = 0; k < sizeof FLAGS / sizeof FLAGS[0] && !f; ++k)
+            if (FLAGS[k].image && strcmp(FLAGS[k].name + 2, c) == 0) f = &FLAGS[k];
+        if (f && identity_store(f, o, eq + 1, err) != 0) return -1;
+        c = next;
+    }
+    return 0;
+}
+
+int candela_identity_value(const char *text, const char *key, char *buf, size_t size) {
+    size_t klen = strlen(key);
+    for (const char *c = text; *c;) {
+        size_t len = strcspn(c, " ");
+        if (len > klen && strncmp(c, key, klen) == 0 && c[klen] == '=') {
+            snprintf(buf, size, "%.*s", (int)(len - klen - 1), c + klen + 1);
+            return 0;
+        }
+        c += len;
+        while (*c == ' ') ++c;
+    }
+    if (size) buf[0] = 0;
+    return -1;
+}
+
+void candela_identity_display(const char *v, char *buf, size_t size) {
+    char *end = NULL;
+    size_t len = strlen(v);
+    const char *hex = v[0] == '-' ? v + 1 : v;
+    if (strncmp(hex, "0x", 2) == 0) {
+        double x = strtod(v, &end);
+        if (end && !*end) {
+            snprintf(buf, size, "%.9g", x);
+            return;
+        }
+    }
+    if (len >= 2 && v[0] == '"' && v[len - 1] == '"') {
+        snprintf(buf, size, "%.*s", (int)(len - 2), v + 1); /* %XX left as it is */
+        return;
+    }
+    snprintf(buf, size, "%s", v);
+}
+
+int candela_identity_differences(const char *a, const char *b, const char *label, char *out, size_t size) {
+    int count = 0;
+    size_t n = 0;
+    if (size) out[0] = 0;
+    /* every key of a and of b (a key only one has counts as a difference too) */
+    for (int side = 0; side < 2; ++side) {
+        const char *text = side ? b : a, *other = side ? a : b;
+        for (const char *c = text; *c;) {
+            size_t len = strcspn(c, " ");
+            size_t klen = strcspn(c, "=");
+            if (klen > len) klen = len;
+            char key[128], va[1024], vb[1024], da[512], db[512];
+            snprintf(key, sizeof key, "%.*s", (int)(klen < 127 ? klen : 127), c);
+            int in_a = candela_identity_value(a, key, va, sizeof va) == 0;
+            int in_b = candela_identity_value(b, key, vb, sizeof vb) == 0;
+            if ((side == 0 || !in_a) && (!in_a || !in_b || strcmp(va, vb) != 0)) {
+                (void)other;
+                candela_identity_display(in_a ? va : "(none)", da, sizeof da);
+                candela_identity_display(in_b ? vb : "(none)", db, sizeof db);
+                char name[160];
+                char flag[132];
+                snprintf(flag, sizeof flag, "--%s", key);
+                int is_flag = candela_flag_find(flag, 0) != NULL;
+                snprintf(name, sizeof name, "%s%s", is_flag ? "--" : "", key);
+                if (n < size) {
+                    int m = strcmp(key, "scene") == 0
+                                ? snprintf(out + n, size - n, "%sthe scene file's content differs", count ? ", " : "")
+                                : snprintf(out + n, size - n, "%s%s %s (%s %s)", count ? ", " : "", name, da, label, db);
+                    if (m > 0) n += (size_t)m;
+                    if (n >= size) n = size;
+                }
+                ++count;
+            }
+            c += len;
+            while (*c == ' ') ++c;
+        }
+    }
+    return count;
 }

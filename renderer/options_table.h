@@ -63,6 +63,11 @@ typedef struct CandelaFlag {
     int render;           /* 1: a render option (field in CandelaOptions, candela_parse_render_flag takes
                            * it); 0: the field is in CandelaCommandLine */
     size_t offset;
+    int image;            /* 1: the option changes the image: it is part of the render's identity
+                           * (candela_options_identity: checkpoints, films, --frames --resume,
+                           * compare's cached reference) and --resume-from takes it from the
+                           * checkpoint; 0: it never does (threads, outputs, budgets, --time-limit:
+                           * where a render stops, not what it computes) */
     CandelaFieldType field;
     /* CUSTOM: sets the value into base (CandelaOptions or CandelaCommandLine as `render` says);
      * 0 ok, -1 with err (no program-name prefix) */
@@ -76,6 +81,8 @@ typedef struct CandelaFlag {
     /* CUSTOM rows whose value is in CandelaOptions: writes it as a JSON value (the provenance's
      * candela:options); NULL: the row is not there */
     void (*get)(const CandelaOptions *o, FILE *f);
+    /* CUSTOM rows with `image`: writes the value as set() takes it back (the identity's form) */
+    void (*show)(const CandelaOptions *o, char *buf, size_t size);
 } CandelaFlag;
 
 /* The table (count rows). */
@@ -103,5 +110,33 @@ const char *candela_flag_suggest(const char *arg, unsigned cmd);
 void candela_print_flags(FILE *f, unsigned cmd);
 /* candela help FLAG: the flag's long help. 0, or 2 with the error line on stderr. */
 int candela_print_flag_help(FILE *f, const char *name);
+
+/* --- the image identity (issue 27) ----------------------------------------------------------
+ * Every `image` row of the table as NAME=VALUE (NAME without the dashes), in table order,
+ * separated by single spaces: integers in decimal, floats in C99 hex (%a: exact), choices by
+ * name (a value no name has, e.g. --cachepoint-progressive's default 0, as its number),
+ * switches 0/1, strings in double quotes with bytes <= ' ', '"', '%' and >= 0x7f as %XX, an unset
+ * string as -; --res is o->width x o->height (the caller puts the resolved size there). */
+
+/* s in the identity's string form ("..." with %XX escapes; NULL as -) into buf. */
+void candela_identity_quote(const char *s, char *buf, size_t size);
+/* Decodes a quoted value in place: the string (v itself, without the quotes), or NULL when v is
+ * not in that form. */
+char *candela_identity_unquote(char *v);
+/* Row f's canonical value (f->image rows; "" for others). */
+void candela_flag_identity_value(const CandelaFlag *f, const CandelaOptions *o, char *buf, size_t size);
+/* The identity of o's image options; the length written, or -1 when it does not fit size. */
+int candela_options_identity(const CandelaOptions *o, char *buf, size_t size);
+/* Sets the options an identity names into o (its other fields stay): `text` is modified (the
+ * strings are decoded in place and o points into it, so it must outlive o). Keys that are no
+ * image row ("scene", "max-iteration-spp") are skipped. 0 ok, -1 with err. */
+int candela_options_from_identity(CandelaOptions *o, char *text, char err[CANDELA_ERR_LEN]);
+/* The value of `key` in an identity text (canonical form) into buf; 0 when found, -1 when not. */
+int candela_identity_value(const char *text, const char *key, char *buf, size_t size);
+/* A canonical value as a person reads it (hex floats as %g, strings without quotes). */
+void candela_identity_display(const char *value, char *buf, size_t size);
+/* Every key whose value differs between identities a and b, as "--KEY A (LABEL B)" joined by
+ * ", " into out (keys that are no flag, e.g. "scene", as "KEY"); the number of differences. */
+int candela_identity_differences(const char *a, const char *b, const char *label, char *out, size_t size);
 
 #endif

@@ -119,3 +119,17 @@ int candela_provenance_render(CandelaProvenance *p, const CandelaOptions *o, con
     free(options);
     return rc ? -1 : 0;
 }
+
+int candela_provenance_identity(CandelaProvenance *p, const CandelaOptions *o, int width, int height) {
+    const char *hex = NULL;
+    for (int k = 0; k < p->count; ++k)
+        if (strcmp(p->attrs[k].name, "candela:sceneHash") == 0) hex = p->attrs[k].value;
+    if (!hex) return 0; /* no scene recorded: no identity either */
+    char *text = malloc(CANDELA_IDENTITY_LEN);
+    if (!text) return -1;
+    int rc = 0;
+    if (candela_image_identity(o, strtoull(hex, NULL, 16), width, height, text, CANDELA_IDENTITY_LEN) == 0)
+        rc = candela_provenance_set(p, "candela:identity", text);
+    free(text);
+    return rc;
+}
