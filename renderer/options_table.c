@@ -949,6 +949,10 @@ char *candela_identity_unquote(char *v) {
 static int identity_store(const CandelaFlag *f, CandelaOptions *o, char *v, char err[CANDELA_ERR_LEN]) {
     char *end = NULL;
     errno = 0;
+    if (f->set == set_res && strcmp(v, "0x0") == 0) { /* not given: the camera's aspect (compare's reference) */
+        o->width = o->height = 0;
+        return 0;
+    }
     if (f->kind == CANDELA_FLAG_CUSTOM) return f->set(o, f->name, v, err);
     switch (f->field) {
     case CANDELA_FIELD_INT: {

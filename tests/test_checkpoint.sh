@@ -12,6 +12,10 @@
 # - bad input: a checkpoint of another scene, resolution, spp or options, a damaged or truncated
 #   one, a shard film given to --resume-from, bad shard specs and merges: one line, non-zero
 #   exit, the existing output untouched;
+# - issue 27: `candela render --resume-from FILE` alone takes the scene, the options and the
+#   outputs from the checkpoint (from any folder) and gives the uninterrupted render's EXR bit for
+#   bit (with another --threads too); flags given as well must agree: every disagreement in one
+#   line; options that never change the image (--threads, -o, --quiet, --batch) may differ;
 # - sample shards: merging the same films in any order gives the same EXR bit for bit.
 # usage: test_checkpoint.sh CANDELA_BINARY SOURCE_ROOT EXR_SAME
 set -u
@@ -102,7 +106,7 @@ grep -q "cache points inserted between iterations: [1-9]" "$tmp/log-prog-full" &
 same "$tmp/full-prog.exr" "$tmp/ck-prog.exr" "checkpoints changed the image (progressive)"
 "$bin" "${prog[@]}" -o "$tmp/res-prog.exr" --resume-from "$tmp/prog.ckpt" --quiet || bad "resume (progressive)"
 same "$tmp/full-prog.exr" "$tmp/res-prog.exr" "resumed render (progressive)"
-expect_error "progressive off" "cachepoint_progressive 1 there, 2 here" -- render "$scene" --res 64x48 --no-png --light-sampler cachepoints \
+expect_error "progressive off" "flags disagree with the checkpoint: --cachepoint-progressive off (checkpoint on)$" -- render "$scene" --res 64x48 --no-png --light-sampler cachepoints \
   --cachepoint-progressive off --spp 64 -o "$tmp/keep.exr" --resume-from "$tmp/prog.ckpt"
 
 # the course's own example (ch. 2 §5.2.2): a guided 128-spp render, cumulative 1..8, 10, 14, 22,
@@ -162,13 +166,13 @@ fi
 
 # --- bad input: one line, nothing overwritten
 ck=$tmp/default.ckpt
-expect_error "another resolution" "res 32x24 there, 16x16 here" -- render "$scene" --res 16x16 --spp 64 --no-png --light-sampler cachepoints \
+expect_error "another resolution" "flags disagree with the checkpoint: --res 16x16 (checkpoint 32x24)$" -- render "$scene" --res 16x16 --spp 64 --no-png --light-sampler cachepoints \
   -o "$tmp/keep.exr" --resume-from "$ck" --quiet
 expect_error "another scene" "scene file's content differs" -- render "$root/tests/scenes/two_lights.gltf" --res 32x24 --light-sampler cachepoints \
   --spp 64 --no-png -o "$tmp/keep.exr" --resume-from "$ck" --quiet
-expect_error "another spp" "spp 64 there, 32 here" -- "${base[@]}" --spp 32 -o "$tmp/keep.exr" --resume-from "$ck" --quiet
-expect_error "another seed" "seed 0 there, 5 here" -- "${base[@]}" --spp 64 --seed 5 -o "$tmp/keep.exr" --resume-from "$ck" --quiet
-expect_error "other options" "guiding off there, mis here" -- "${base[@]}" --spp 64 --guiding mis -o "$tmp/keep.exr" \
+expect_error "another spp" "flags disagree with the checkpoint: --spp 32 (checkpoint 64)$" -- "${base[@]}" --spp 32 -o "$tmp/keep.exr" --resume-from "$ck" --quiet
+expect_error "another seed" "flags disagree with the checkpoint: --seed 5 (checkpoint 0)$" -- "${base[@]}" --spp 64 --seed 5 -o "$tmp/keep.exr" --resume-from "$ck" --quiet
+expect_error "other options" "flags disagree with the checkpoint: --guiding mis (checkpoint off)$" -- "${base[@]}" --spp 64 --guiding mis -o "$tmp/keep.exr" \
   --resume-from "$ck" --quiet
 head -c 2000 "$ck" > "$tmp/cut.ckpt"
 expect_error "truncated" "checksum" -- "${base[@]}" --spp 64 -o "$tmp/keep.exr" --resume-from "$tmp/cut.ckpt" --quiet
@@ -190,6 +194,36 @@ expect_error "time-limited shard" "cannot be used with --sample-shard" -- "${bas
   --time-limit 10 -o "$tmp/s.film" --quiet
 expect_error "min-spp alone" "needs --noise-threshold" -- "${base[@]}" --spp 8 --min-spp 4 -o "$tmp/keep.exr" --quiet
 
+# --- issue 27: --resume-from FILE alone
+# a guided render killed after a checkpoint (or the last checkpoint of a finished one: the same
+# file), resumed with no other flag from another folder: the recorded scene, options and outputs
+mkdir -p "$tmp/alone" "$tmp/elsewhere"
+alone=(render "$scene" --res 32x24 --spp 64 --guiding mis --light-sampler cachepoints --max-depth 5 --seed 3 --no-png)
+"$bin" "${alone[@]}" -o "$tmp/alone/full.exr" --quiet || bad "full render (alone)"
+(cd "$tmp/alone" && "$bin" "${alone[@]}" -o img.exr --checkpoint run.ckpt --quiet) || bad "render with --checkpoint (alone)"
+rm -f "$tmp/alone/img.exr"
+(cd "$tmp/elsewhere" && "$bin" render --resume-from ../alone/run.ckpt --quiet) || bad "render --resume-from FILE alone"
+[ -e "$tmp/alone/img.exr" ] && ok || bad "resume alone did not write the recorded output ($(ls "$tmp/alone" "$tmp/elsewhere"))"
+[ -e "$tmp/alone/img.png" ] && bad "resume alone wrote a PNG the render did not (--no-png recorded)"
+same "$tmp/alone/full.exr" "$tmp/alone/img.exr" "resumed with --resume-from alone"
+# with options that never change the image (another thread count, batch, output, --quiet)
+"$bin" render --resume-from "$tmp/alone/run.ckpt" --threads 1 --batch 512 -o "$tmp/alone/t1.exr" --quiet ||
+  bad "resume alone with --threads 1"
+same "$tmp/alone/full.exr" "$tmp/alone/t1.exr" "resumed alone with --threads 1"
+[ -e "$tmp/alone/t1.png" ] && ok || bad "-o given: its PNG is the default one"
+# the flags given agree with the checkpoint: accepted (the same scene given, same values)
+"$bin" "${alone[@]}" --threads 2 -o "$tmp/alone/agree.exr" --resume-from "$tmp/alone/run.ckpt" --quiet ||
+  bad "resume with agreeing flags"
+same "$tmp/alone/full.exr" "$tmp/alone/agree.exr" "resumed with agreeing flags"
+# every disagreement in one line (and the scene's content), nothing written
+expect_error "several disagreements" \
+  "run.ckpt: flags disagree with the checkpoint: --spp 8 (checkpoint 64), --seed 4 (checkpoint 3), --res 64x64 (checkpoint 32x24), --max-depth 2 (checkpoint 5)$" \
+  -- render --resume-from "$tmp/alone/run.ckpt" --spp 8 --seed 4 --res 64x64 --max-depth 2 --threads 1 -o "$tmp/keep.exr"
+expect_error "disagreeing scene and options" \
+  "flags disagree with the checkpoint: --guiding off (checkpoint mis), .*two_lights.gltf (the scene file's content differs)$" \
+  -- render "$root/tests/scenes/two_lights.gltf" --resume-from "$tmp/alone/run.ckpt" --guiding off -o "$tmp/keep.exr"
+expect_error "resume alone from a missing file" "none.ckpt: cannot read" -- render --resume-from "$tmp/none.ckpt" -o "$tmp/keep.exr"
+
 # --- sample shards: the merge is a pure function of the films (any order, bit for bit)
 for i in 0 1 2 3; do
   "$bin" "${base[@]}" --spp 16 --sample-shard $i/4 -o "$tmp/s$i.film" --quiet || bad "shard $i"
@@ -206,6 +240,7 @@ expect_error "merge: a shard twice" "given twice" -- merge -o "$tmp/keep.exr" "$
 expect_error "merge: another render" "another render" -- merge -o "$tmp/keep.exr" "$tmp"/s0.film "$tmp"/x1.film \
   "$tmp"/s2.film "$tmp"/s3.film
 expect_error "merge: a checkpoint" "not a finished shard film" -- merge -o "$tmp/keep.exr" "$ck"
+expect_error "resume alone from a film" "s0.film: a finished shard film" -- render --resume-from "$tmp/s0.film" -o "$tmp/keep.exr"
 expect_error "resume from a film" "finished shard film" -- "${base[@]}" --spp 16 --sample-shard 0/4 -o "$tmp/s0b.film" \
   --resume-from "$tmp/s0.film" --quiet
 
@@ -247,8 +282,9 @@ import struct, sys
 src, dst, what = sys.argv[1:4]
 b = bytearray(open(src, 'rb').read())
 w, h, idlen = struct.unpack_from('<3I', b, 8 + 12)
+reclen, = struct.unpack_from('<I', b, 8 + 24 + idlen + 24 + 8 + 8 + 8)
 n = w * h
-film = 8 + 24 + idlen + 24 + 8 + 8 + 8 + 8 + 12    # header, film tag + version, film head
+film = 8 + 24 + idlen + 24 + 8 + 8 + 8 + 4 + reclen + 8 + 12  # header, record, film tag + version, film head
 sums = film                                         # sum, sum2, albedo, normal (3n doubles each)
 count = film + 4 * 3 * n * 8 + n * 8 + n * 4        # after depth (n doubles) and hits (n u32)
 if what == 'nan': struct.pack_into('<d', b, sums + 8 * 5, float('nan'))

@@ -4,7 +4,12 @@
  * result, for every command that lists it; the render rows are exactly what
  * candela_parse_render_flag (compare's variants) takes; ranges and choices refuse what they
  * must; every row appears in its commands' --help and has a long help; unknown flags get the
- * nearest flag of their command, only when it is close. */
+ * nearest flag of their command, only when it is close.
+ *
+ * The image identity (issue 27): every render option of the table says whether it changes the
+ * image (a new flag must decide: the options that do not are listed here), the identity holds
+ * exactly the `image` rows, and it reads back: options set from an identity give that identity
+ * again (every row's example value, and strings with spaces, quotes and percent signs). */
 #include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -238,5 +243,92 @@ int main(void) {
     CHECK(strcmp(err, "unknown option '--spl' (did you mean '--spp'?)") == 0, "'%s'", err);
     candela_unknown_flag_message("--xyzzy", CANDELA_CMD_COMPARE, "option", err);
     CHECK(strcmp(err, "unknown option '--xyzzy' (see candela compare --help)") == 0, "'%s'", err);
+
+    /* --- the image identity */
+    static const char *const not_image[] = {"--confine-to", "--volume-budget-mb", "--texture-budget-mb", "--time-limit",
+                                            "--threads", "--dump-cachepoints", "--batch", NULL};
+    static char ident[CANDELA_IDENTITY_LEN], again[CANDELA_IDENTITY_LEN], copy[CANDELA_IDENTITY_LEN];
+    int image_rows = 0;
+    for (size_t k = 0; k < count; ++k) {
+        const CandelaFlag *f = &flags[k];
+        int listed = 0;
+        for (int j = 0; not_image[j]; ++j) listed |= strcmp(f->name, not_image[j]) == 0;
+        /* a render option either changes the image or is listed as one that does not */
+        if (f->render) CHECK(f->image != listed, "%s: image %d, listed as not changing it %d", f->name, f->image, listed);
+        else CHECK(!f->image, "%s: a command-line field in the identity", f->name);
+        CHECK(!f->image || f->kind != CANDELA_FLAG_CUSTOM || f->show, "%s: no identity form", f->name);
+        image_rows += f->image;
+    }
+    CHECK(image_rows >= 35, "only %d image rows", image_rows);
+    /* the defaults: one NAME=VALUE per image row, in table order */
+    CandelaCommandLine cl;
+    fresh(&cl);
+    int len = candela_options_identity(&cl.o, ident, sizeof ident);
+    CHECK(len > 0 && (size_t)len == strlen(ident), "identity length %d", len);
+    int words = 1;
+    for (const char *c = ident; *c; ++c) words += *c == ' ';
+    CHECK(words == image_rows, "%d words for %d image rows: %s", words, image_rows, ident);
+    CHECK(strstr(ident, "spp=16 seed=0 ") == ident, "%s", ident);
+    CHECK(strstr(ident, " res=0x0 ") && strstr(ident, " env-strength=0x1p+0 ") && strstr(ident, " camera=- "), "%s", ident);
+    CHECK(!strstr(ident, "threads=") && !strstr(ident, "time-limit=") && !strstr(ident, "batch="), "%s", ident);
+    /* every image row's example, one at a time: it changes the identity, and reads back */
+    for (size_t k = 0; k < count; ++k) {
+        const CandelaFlag *f = &flags[k];
+        if (!f->image || !f->example) continue;
+        fresh(&cl);
+        char word[96];
+        snprintf(word, sizeof word, "%s=%s", f->name, f->example);
+        char *argv[] = {word};
+        int i;
+        CHECK(parse(&cl, CANDELA_CMD_RENDER, 1, argv, &i, err) == 1, "%s: %s", word, err);
+        candela_options_identity(&cl.o, ident, sizeof ident);
+        CandelaCommandLine back;
+        fresh(&back);
+        snprintf(copy, sizeof copy, "%s", ident);
+        CHECK(candela_options_from_identity(&back.o, copy, err) == 0, "%s: %s", word, err);
+        candela_options_identity(&back.o, again, sizeof again);
+        CHECK(strcmp(ident, again) == 0, "%s: read back as\n%s\nnot\n%s", word, again, ident);
+        char value[256];
+        candela_flag_identity_value(f, &cl.o, value, sizeof value);
+        fresh(&back);
+        candela_flag_identity_value(f, &back.o, word, sizeof word);
+        CHECK(strcmp(value, word) != 0 || strcmp(f->name, "--spp") == 0, "%s: its example is the default (%s)", f->name, value);
+    }
+    /* strings in quotes with escapes, floats exact, several AOVs, a choice no name has */
+    fresh(&cl);
+    cl.o.camera_name = "my \"cam\" 100%";
+    cl.o.env_path = "/sky dir/sky.exr";
+    cl.o.env_strength = 0.1f;
+    cl.o.aov_spp = cl.o.aov_selection = 1;
+    cl.o.cachepoint_progressive = 0;
+    cl.o.width = 33;
+    cl.o.height = 17;
+    candela_options_identity(&cl.o, ident, sizeof ident);
+    CHECK(strstr(ident, " camera=\"my%20%22cam%22%20100%25\" ") && strstr(ident, " aov=cachepoint,spp ") &&
+              strstr(ident, " res=33x17 ") && strstr(ident, " cachepoint-progressive=0 "), "%s", ident);
+    CandelaCommandLine back;
+    fresh(&back);
+    back.o.aov_recorder_debug = 1; /* replaced by the identity's list */
+    snprintf(copy, sizeof copy, "%s", ident);
+    CHECK(candela_options_from_identity(&back.o, copy, err) == 0, "%s", err);
+    CHECK(back.o.camera_name && strcmp(back.o.camera_name, cl.o.camera_name) == 0, "camera '%s'", back.o.camera_name);
+    CHECK(back.o.env_path && strcmp(back.o.env_path, "/sky dir/sky.exr") == 0, "env '%s'", back.o.env_path);
+    CHECK(back.o.env_strength == 0.1f && back.o.width == 33 && back.o.height == 17, "%g %dx%d", (double)back.o.env_strength,
+          back.o.width, back.o.height);
+    CHECK(back.o.aov_spp && back.o.aov_selection && !back.o.aov_recorder_debug, "aovs %d %d %d", back.o.aov_spp,
+          back.o.aov_selection, back.o.aov_recorder_debug);
+    /* bad identities: one message, nothing half-done matters */
+    snprintf(copy, sizeof copy, "spp=x");
+    CHECK(candela_options_from_identity(&back.o, copy, err) != 0 && strstr(err, "--spp"), "'%s'", err);
+    snprintf(copy, sizeof copy, "camera=\"a%%00b\"");
+    CHECK(candela_options_from_identity(&back.o, copy, err) != 0, "a NUL escape was taken");
+    snprintf(copy, sizeof copy, "noequals");
+    CHECK(candela_options_from_identity(&back.o, copy, err) != 0, "a word without = was taken");
+    /* differences: every key, both ways, with display values */
+    char diff[CANDELA_ERR_LEN];
+    int nd = candela_identity_differences("scene=1 res=8x8 spp=4 env-strength=0x1p+0 seed=1",
+                                          "scene=2 res=16x16 spp=4 env-strength=0x1p+1 seed=1", "now", diff, sizeof diff);
+    CHECK(nd == 3 && strcmp(diff, "the scene file's content differs, --res 8x8 (now 16x16), --env-strength 1 (now 2)") == 0,
+          "%d '%s'", nd, diff);
     return test_exit();
 }
