@@ -249,12 +249,51 @@ mv "$tmp/r29/small.0005.exr" "$tmp/r29/f.0005.exr"
 touch -d '2001-01-01' "$tmp/r29"/f.000?.exr
 "$bin" render "$scene" --frames 1-6 "${fast[@]}" --resume -o "$tmp/r29/f.####.exr" --frame-stats "$tmp/r29/log.jsonl" 2>"$tmp/r29/err"
 [ "$(logged "$tmp/r29/log.jsonl")" = "2 4 5" ] && ok || bad "resume over bad frames rendered '$(logged "$tmp/r29/log.jsonl")', expected 2 4 5"
-[ "$(grep -c "rendered again (--resume)" "$tmp/r29/err")" = 3 ] && grep -q "frame 5: .*f.0005.exr: 16x12, not the batch's 32x24" "$tmp/r29/err" \
+[ "$(grep -c "rendered again (--resume)" "$tmp/r29/err")" = 2 ] &&
+  grep -q "frame 5: .*f.0005.exr was rendered with other options: --spp 1 (this run 2), --res 16x12 (this run 32x24); rendering it again" "$tmp/r29/err" \
   && ok || bad "resume did not say why it rendered frames again: $(cat "$tmp/r29/err")"
 for f in 1 2 3 4 5 6; do same_exr "$tmp/batch/f.000$f.exr" "$tmp/r29/f.000$f.exr" && ok || bad "resumed-over frame $f differs"; done
 for f in 1 3 6; do
   [ "$(stat -c %Y "$tmp/r29/f.000$f.exr")" = "$(date -d 2001-01-01 +%s)" ] && ok || bad "resume rewrote good frame $f"
 done
+
+# ---- 7. issue 27: --resume compares each frame's recorded identity (its EXR's candela:identity)
+# with this run's: frames of another --res, or of another --spp (same size: only the identity
+# tells), render again, one line each; the same options skip them all
+exr_size() { python3 - "$1" <<'PY'
+import struct, sys
+b = open(sys.argv[1], 'rb').read(); i = 8
+while b[i] != 0:
+    name_end = b.index(0, i); typ_end = b.index(0, name_end + 1)
+    name = b[i:name_end].decode(); size, = struct.unpack_from('<i', b, typ_end + 1); v = typ_end + 5
+    if name == 'dataWindow':
+        x0, y0, x1, y1 = struct.unpack_from('<4i', b, v); print('%dx%d' % (x1 - x0 + 1, y1 - y0 + 1))
+    i = v + size
+PY
+}
+mkdir -p "$tmp/i27"
+id_fast=(--spp 2 --light-sampler tree --no-png)
+"$bin" render "$scene" --frames 1-3 --res 32x24 "${id_fast[@]}" --quiet -o "$tmp/i27/f.####.exr" || bad "identity batch"
+[ "$(exr_size "$tmp/i27/f.0002.exr")" = 32x24 ] && ok || bad "frame 2 is $(exr_size "$tmp/i27/f.0002.exr"), not 32x24"
+"$bin" render "$scene" --frames 1-3 --res 40x30 "${id_fast[@]}" --quiet --resume -o "$tmp/i27/f.####.exr" \
+  --frame-stats "$tmp/i27/res.jsonl" 2>"$tmp/i27/res.err" || bad "resume at another --res"
+[ "$(logged "$tmp/i27/res.jsonl")" = "1 2 3" ] && ok || bad "another --res re-rendered '$(logged "$tmp/i27/res.jsonl")'"
+for f in 1 2 3; do [ "$(exr_size "$tmp/i27/f.000$f.exr")" = 40x30 ] && ok || bad "frame $f is $(exr_size "$tmp/i27/f.000$f.exr") after resume at 40x30"; done
+[ "$(grep -c "was rendered with other options: --res 32x24 (this run 40x30); rendering it again" "$tmp/i27/res.err")" = 3 ] &&
+  grep -q "^candela: frame 3: $tmp/i27/f.0003.exr was rendered with other options" "$tmp/i27/res.err" && ok ||
+  bad "resume at another --res did not say so per frame: $(cat "$tmp/i27/res.err")"
+# the same options again: every frame skipped, nothing said
+"$bin" render "$scene" --frames 1-3 --res 40x30 "${id_fast[@]}" --quiet --resume -o "$tmp/i27/f.####.exr" \
+  --frame-stats "$tmp/i27/same.jsonl" 2>"$tmp/i27/same.err" || bad "resume with the same options"
+[ "$(logged "$tmp/i27/same.jsonl" skipped)" = "1 2 3" ] && [ -z "$(logged "$tmp/i27/same.jsonl")" ] && ok ||
+  bad "the same options re-rendered '$(logged "$tmp/i27/same.jsonl")'"
+[ -s "$tmp/i27/same.err" ] && bad "resume with the same options said: $(cat "$tmp/i27/same.err")"
+# another --spp (the same size, which alone passed before): frame 2 only (a shard of one frame)
+"$bin" render "$scene" --frames 2 --res 40x30 --spp 3 --light-sampler tree --no-png --quiet --resume -o "$tmp/i27/f.####.exr" \
+  --frame-stats "$tmp/i27/spp.jsonl" 2>"$tmp/i27/spp.err" || bad "resume at another --spp"
+[ "$(logged "$tmp/i27/spp.jsonl")" = "2" ] && grep -q "frame 2: .*f.0002.exr was rendered with other options: --spp 2 (this run 3)" "$tmp/i27/spp.err" &&
+  ok || bad "another --spp: rendered '$(logged "$tmp/i27/spp.jsonl")', said '$(cat "$tmp/i27/spp.err")'"
+
 # a frame another writer holds (its EXR's lock) fails, counted and said; the others render
 mkdir -p "$tmp/l29"
 flock "$tmp/l29/f.0002.exr.lock" sleep 60 & holder=$!
