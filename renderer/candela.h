@@ -293,6 +293,7 @@ typedef struct CandelaCheckpointInfo {
     int kind;                 /* 1 checkpoint, 2 finished shard film */
     int width, height;
     int spp_done;
+    unsigned shard_index, shard_count; /* --sample-shard (0/1: none) */
     char identity[CANDELA_IDENTITY_LEN];
     char record[16384];       /* CandelaOptions.checkpoint_record as written ("" when none) */
 } CandelaCheckpointInfo;

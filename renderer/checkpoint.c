@@ -278,6 +278,8 @@ int candela_checkpoint_info(const char *path, CandelaCheckpointInfo *info, char 
     info->width = (int)h->width;
     info->height = (int)h->height;
     info->spp_done = h->pr.spp_done;
+    info->shard_index = h->id.shard_index;
+    info->shard_count = h->id.shard_count;
     snprintf(info->identity, sizeof info->identity, "%s", h->id.text);
     snprintf(info->record, sizeof info->record, "%s", h->record);
     free(h);

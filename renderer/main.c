@@ -370,6 +370,10 @@ static int resume_options(CandelaCommandLine *cl, const CandelaFlag *const *give
                 path, path);
         return 2;
     }
+    if (!cl->o.shard_count && resume_info.shard_count > 1) { /* a sample shard's checkpoint: that shard */
+        cl->o.shard_index = resume_info.shard_index;
+        cl->o.shard_count = resume_info.shard_count;
+    }
     if (!cl->o.checkpoint_path) cl->o.checkpoint_path = path; /* go on checkpointing into it */
     return 0;
 }

@@ -215,6 +215,10 @@ same "$tmp/alone/full.exr" "$tmp/alone/t1.exr" "resumed alone with --threads 1"
 "$bin" "${alone[@]}" --threads 2 -o "$tmp/alone/agree.exr" --resume-from "$tmp/alone/run.ckpt" --quiet ||
   bad "resume with agreeing flags"
 same "$tmp/alone/full.exr" "$tmp/alone/agree.exr" "resumed with agreeing flags"
+# a sample shard's checkpoint alone: that shard's film, the same bytes as without the interruption
+"$bin" "${alone[@]}" --sample-shard 1/2 -o "$tmp/alone/sh.film" --checkpoint "$tmp/alone/sh.ckpt" --quiet && mv "$tmp/alone/sh.film" "$tmp/alone/sh.full" &&
+  "$bin" render --resume-from "$tmp/alone/sh.ckpt" --quiet && same "$tmp/alone/sh.full" "$tmp/alone/sh.film" "a shard resumed alone" ||
+  bad "a sample shard resumed alone"
 # every disagreement in one line (and the scene's content), nothing written
 expect_error "several disagreements" \
   "run.ckpt: flags disagree with the checkpoint: --spp 8 (checkpoint 64), --seed 4 (checkpoint 3), --res 64x64 (checkpoint 32x24), --max-depth 2 (checkpoint 5)$" \
