@@ -248,9 +248,12 @@ static const CandelaFlag FLAGS[] = {
            "cumulative spp not above each) and when interrupted; atomically (FILE.tmp-PID, rename). Its folder is made "
            "when missing"),
     STRING("--resume-from", NULL, "FILE", CL(o.resume_from), CANDELA_CMD_RENDER, NOT_RENDER(CANDELA_CMD_RENDER),
-           "x.ckpt", "continue the render FILE checkpointed",
-           "continue the render FILE checkpointed (same scene, resolution and options, else refused): the image equals "
-           "the uninterrupted render's"),
+           "x.ckpt", "continue the render FILE checkpointed (its scene, options, outputs)",
+           "continue the render FILE checkpointed: the image equals the uninterrupted render's. The scene, every option "
+           "that changes the image, the sample shard and the outputs come from the checkpoint (candela render "
+           "--resume-from FILE needs no other flag); flags given as well must agree with it (all disagreements are "
+           "listed in one error), except those that never change the image (--threads, --batch, -o, --quiet, ...). "
+           "Without --checkpoint the render goes on checkpointing into FILE"),
     CUSTOM("--sample-shard", "I/N", 0, 0, set_sample_shard, get_sample_shard, NULL, CANDELA_CMD_RENDER, NOT_RENDER(CANDELA_CMD_RENDER), "1/4",
            "render only samples [spp I/N, spp (I+1)/N) into -o NAME.film",
            "render only samples [spp I/N, spp (I+1)/N) of every pixel (I from 0), with the full render's random numbers, "
@@ -425,8 +428,8 @@ static const CandelaFlag FLAGS[] = {
           "24", "frames per second (default 24)", "frames per second of --frames (default 24)"),
     SWITCH("--resume", NULL, CL(batch.resume), CANDELA_CMD_RENDER, NOT_RENDER(CANDELA_CMD_RENDER),
            "skip frames whose EXR (and PNG) already exist",
-           "skip frames whose EXR (and PNG) already exist and read back whole at the batch's resolution (others render "
-           "again, with a warning)"),
+           "skip frames whose EXR (and PNG) already exist and read back whole at the batch's resolution, rendered with "
+           "this run's image options (the EXR's candela:identity); others render again, with a line saying why"),
     STRING("--shard", NULL, "I/N", CL(batch.shard), CANDELA_CMD_RENDER, NOT_RENDER(CANDELA_CMD_RENDER), "0/2",
            "render every N-th frame of the list starting at position I",
            "render every N-th frame of the list starting at position I (0 <= I < N, round-robin); without it "

@@ -735,6 +735,11 @@ if command -v oiiotool >/dev/null 2>&1; then
   oiiotool --info -v "$tmp/prov a.exr" | grep -Eq '^ *DateTime: "[0-9]{4}:[0-9]{2}:[0-9]{2} [0-9:]{8}"' && ok || bad "DateTime"
   hash1=$(attr "$tmp/prov a.exr" candela:sceneHash)
   echo "$hash1" | grep -Eq '^[0-9a-f]{16}$' && ok || bad "sceneHash '$hash1'"
+  # issue 27: the image identity (what --frames --resume compares): the scene's hash, the image
+  # options in the table's form (the resolution the render had), nothing that leaves the image alone
+  ident=$(attr "$tmp/prov a.exr" candela:identity)
+  case $ident in "scene=$hash1 spp=2 seed=5 "*" res=16x16 max-depth=3 "*" max-iteration-spp=0") ok ;; *) bad "identity: '$ident'" ;; esac
+  case $ident in *threads=*|*quiet=*|*output=*) bad "identity holds a non-image option: $ident" ;; *) ok ;; esac
   opts=$(oiiotool --info -v "$tmp/prov a.exr" | sed -n 's/^ *candela:options: "\(.*\)"$/\1/p')
   if command -v python3 >/dev/null 2>&1; then
     # spp and max-depth as given, a default (light-sampler auto, max-volume-bounces 256), no CLI-only flag
