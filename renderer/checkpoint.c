@@ -6,7 +6,8 @@
  *   2 finished film), u32 width, u32 height, u32 identity length, the identity text,
  *   u64 spp_total, sample_begin, sample_count, u32 shard_index, shard_count,
  *   i32 iteration, i32 spp_done, u64 iteration_paths, u32 record length, the record text
- *   (version 2: CandelaOptions.checkpoint_record, what `--resume-from FILE` alone needs),
+ *   (version 2: CandelaOptions.checkpoint_record, what `--resume-from FILE` alone needs; empty in
+ *   a finished film),
  *   the sections (film; for a checkpoint also recorder, guiding, the two auto probes and the
  *   light sampler's learned state), each opening with its tag and version,
  *   u64 FNV-1a checksum of every byte before it.
@@ -148,11 +149,13 @@ static int write_header(FILE *f, uint32_t kind, int width, int height, const Che
     uint64_t samples[3] = {id->spp_total, id->sample_begin, id->sample_count};
     uint32_t shard[2] = {id->shard_index, id->shard_count};
     int32_t it[2] = {pr->iteration, pr->spp_done};
-    uint32_t record_len = id->record ? (uint32_t)strlen(id->record) : 0;
+    /* the record only in a checkpoint: a finished film is the same bytes wherever it was written */
+    const char *record = kind == CKPT_KIND_CHECKPOINT && id->record ? id->record : "";
+    uint32_t record_len = (uint32_t)strlen(record);
     return ckpt_put(f, CKPT_MAGIC, 8) | ckpt_put(f, head, sizeof head) | ckpt_put(f, id->text, head[5]) |
            ckpt_put(f, samples, sizeof samples) | ckpt_put(f, shard, sizeof shard) | ckpt_put(f, it, sizeof it) |
            ckpt_put(f, &pr->iteration_paths, sizeof pr->iteration_paths) | ckpt_put(f, &record_len, sizeof record_len) |
-           ckpt_put(f, id->record ? id->record : "", record_len);
+           ckpt_put(f, record, record_len);
 }
 
 /* Opens path, verifies its checksum and reads the header. NULL with a one-line message. */
