@@ -271,6 +271,9 @@ void candela_ray_log_free(CandelaRayLog *log);
  * preview. Both go to a temporary name first and are renamed when complete. */
 int candela_write_outputs(const CandelaImage *image, const char *exr_path, const char *png_path,
                           char err[CANDELA_ERR_LEN]);
+/* Linear radiance -> the preview's display value in [0, 1]: clipped and sRGB-encoded (Blender's
+ * "Standard"). The one sRGB encoder: the PNG preview and candela compare's report use it. */
+float candela_srgb_encode(float linear);
 
 /* ---------------------------------------------------------------- provenance
  * How an image was made (renderer/provenance.c; README "Output"): string attributes written
@@ -303,7 +306,8 @@ void candela_provenance_free(CandelaProvenance *p);
 /* The render options as one JSON object {"spp": 16, "light-sampler": "auto", ...}: every render
  * option row of renderer/options_table.c by its flag name (malloc'd; NULL out of memory). */
 char *candela_options_json(const CandelaOptions *o);
-/* A JSON string literal of s (quotes, backslashes and control characters escaped). */
+/* A JSON string literal of s, escaped by io_json_quote (nlohmann/json: quotes, backslashes and
+ * control characters escaped, invalid UTF-8 replaced); "null" when out of memory. */
 void candela_json_string(FILE *f, const char *s);
 /* candela_write_outputs with the EXR header's provenance (NULL: none). */
 int candela_write_outputs_provenance(const CandelaImage *image, const char *exr_path, const char *png_path,

@@ -457,7 +457,7 @@ static int write_srgb_png(const char *path, const float *linear, int width, int 
     size_t n = 3 * (size_t)width * (size_t)height;
     float *rgb = malloc(n * sizeof(float));
     if (!rgb) { snprintf(err, CANDELA_ERR_LEN, "%.400s: out of memory", path); return -1; }
-    for (size_t i = 0; i < n; ++i) rgb[i] = report_srgb(linear[i]);
+    for (size_t i = 0; i < n; ++i) rgb[i] = candela_srgb_encode(linear[i]);
     char ioerr[IO_ERR_LEN];
     int rc = io_write_png(path, width, height, rgb, ioerr);
     free(rgb);

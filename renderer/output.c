@@ -11,7 +11,7 @@
 #include "candela.h"
 #include "io.h"
 
-static float srgb_encode(float x) {
+float candela_srgb_encode(float x) {
     if (!(x > 0.0f)) return 0.0f;
     if (x >= 1.0f) return 1.0f;
     return x <= 0.0031308f ? 12.92f * x : 1.055f * powf(x, 1.0f / 2.4f) - 0.055f;
@@ -78,7 +78,7 @@ int candela_write_outputs_provenance(const CandelaImage *img, const char *exr_pa
         float *rgb = malloc(3 * n * sizeof(float));
         if (!rgb) { snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", png_path); return -1; }
         /* preview: linear radiance clipped to [0,1] and sRGB-encoded (Blender's "Standard") */
-        for (size_t i = 0; i < 3 * n; ++i) rgb[i] = srgb_encode(img->rgb[i]);
+        for (size_t i = 0; i < 3 * n; ++i) rgb[i] = candela_srgb_encode(img->rgb[i]);
         rc = io_write_png(png_path, img->width, img->height, rgb, ioerr);
         if (rc == 0 && img->selection_point) { /* the false colours as they are (no transfer curve) */
             char point_png[IO_PATH_MAX], light_png[IO_PATH_MAX];
@@ -93,13 +93,10 @@ int candela_write_outputs_provenance(const CandelaImage *img, const char *exr_pa
 }
 
 void candela_json_string(FILE *f, const char *s) {
-    fputc('"', f);
-    for (const unsigned char *c = (const unsigned char *)s; *c; ++c) {
-        if (*c == '"' || *c == '\\') fprintf(f, "\\%c", *c);
-        else if (*c < 0x20) fprintf(f, "\\u%04x", *c);
-        else fputc(*c, f);
-    }
-    fputc('"', f);
+    char *q = io_json_quote(s); /* nlohmann/json's escaping (io/variants.cpp) */
+    if (q) fputs(q, f);
+    else fputs("null", f); /* out of memory: still valid JSON */
+    free(q);
 }
 
 /* The statistics object, pretty-printed (two-space indentation, a member per line). */
