@@ -175,10 +175,23 @@ const char *candela_light_sampler_name(CandelaLightSampler s);
 const char *candela_sampler_name(CandelaSampler s); /* "sobol", "independent" */
 int candela_light_sampler_parse(const char *name, CandelaLightSampler *s); /* 0 ok */
 
-/* Wall-clock seconds per wavefront stage, summed over threads' shared wall time. */
+/* Times are wall-clock seconds measured on the calling thread, so that load + build + the
+ * render's stages + other = total (other: what no stage covers, e.g. progress and checkpoint
+ * writes; candela_stats_other_seconds). The wavefront stages (generate ... shadow) run
+ * interleaved in one parallel region per batch: each gets the region's wall time in proportion
+ * to the threads' time in it (so they add up to the region); learn (the recorder, guide
+ * training and the auto probes after each batch), film and barrier (iteration barriers and
+ * adaptive sampling's decisions) are serial phases. The threads' own per-stage times are in
+ * stage_thread_seconds. */
 typedef struct CandelaStats {
     double time_load, time_build, time_total;
     double time_generate, time_sort, time_trace, time_medium, time_shade, time_shadow, time_film;
+    double time_learn, time_barrier;
+    /* per-thread detail: seconds per stage (generate, sort, trace, medium, shade, shadow) each
+     * batch's threads spent, averaged over the batch's threads and summed over batches (what
+     * the summary showed before issue 27); stage_threads: the most threads a batch used */
+    double stage_thread_seconds[6];
+    int stage_threads;
     uint64_t rays_camera, rays_bounce, rays_shadow;
     uint64_t paths;
     int iterations;
@@ -228,10 +241,15 @@ typedef struct CandelaStats {
     int time_limited;                /* --time-limit stopped the render before --spp */
 } CandelaStats;
 
-/* Seconds spent in the wavefront's stages and the film (the render proper). */
+/* Wall seconds of the render's stages (the wavefront stages, learn, film and barrier). */
 static inline double candela_stats_render_seconds(const CandelaStats *s) {
     return s->time_generate + s->time_sort + s->time_trace + s->time_medium + s->time_shade + s->time_shadow +
-           s->time_film;
+           s->time_learn + s->time_film + s->time_barrier;
+}
+/* The rest of the total: total - load - build - the render's stages (never negative). */
+static inline double candela_stats_other_seconds(const CandelaStats *s) {
+    double o = s->time_total - s->time_load - s->time_build - candela_stats_render_seconds(s);
+    return o > 0.0 ? o : 0.0;
 }
 
 /* The film after the render: per-pixel mean and AOVs, top row first. */

@@ -127,10 +127,17 @@ static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s, 
                 (double)o->clamp_indirect);
     fprintf(f, "  \"light_sampler\": \"%s\",\n", candela_light_sampler_name(o->light_sampler));
     fprintf(f, "  \"light_sampler_used\": \"%s\",\n", candela_light_sampler_name(s->light_sampler_used));
+    /* wall seconds: load + build + the stages + other = total (candela.h) */
     fprintf(f, "  \"time_seconds\": {\"load\": %.6f, \"build\": %.6f, \"generate\": %.6f, \"sort\": %.6f, "
-               "\"trace\": %.6f, \"medium\": %.6f, \"shade\": %.6f, \"shadow\": %.6f, \"film\": %.6f, \"total\": %.6f},\n",
+               "\"trace\": %.6f, \"medium\": %.6f, \"shade\": %.6f, \"shadow\": %.6f, \"learn\": %.6f, \"film\": %.6f, "
+               "\"barrier\": %.6f, \"other\": %.6f, \"total\": %.6f},\n",
             s->time_load, s->time_build, s->time_generate, s->time_sort, s->time_trace, s->time_medium, s->time_shade,
-            s->time_shadow, s->time_film, s->time_total);
+            s->time_shadow, s->time_learn, s->time_film, s->time_barrier, candela_stats_other_seconds(s), s->time_total);
+    /* the per-thread detail: each stage's seconds in a thread, averaged over a batch's threads */
+    fprintf(f, "  \"stage_thread_seconds\": {\"threads\": %d, \"generate\": %.6f, \"sort\": %.6f, \"trace\": %.6f, "
+               "\"medium\": %.6f, \"shade\": %.6f, \"shadow\": %.6f},\n",
+            s->stage_threads, s->stage_thread_seconds[0], s->stage_thread_seconds[1], s->stage_thread_seconds[2],
+            s->stage_thread_seconds[3], s->stage_thread_seconds[4], s->stage_thread_seconds[5]);
     fprintf(f, "  \"rays\": {\"camera\": %llu, \"bounce\": %llu, \"shadow\": %llu, \"total\": %llu},\n",
             (unsigned long long)s->rays_camera, (unsigned long long)s->rays_bounce,
             (unsigned long long)s->rays_shadow, (unsigned long long)rays);
