@@ -268,6 +268,11 @@ int main(int argc, char **argv) {
     if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0) { print_usage(stdout); return 0; }
     if (strcmp(argv[1], "help") == 0) {
         if (argc < 3) { print_usage(stdout); return 0; }
+        if (strcmp(argv[2], "--list-flags") == 0) { /* hidden: every flag's name, for tests/test_readme.sh */
+            candela_print_flag_names(stdout);
+            printf("--version\n"); /* candela --version: the one flag outside the table */
+            return 0;
+        }
         return candela_print_flag_help(stdout, argv[2]);
     }
     if (strcmp(argv[1], "--version") == 0) {
