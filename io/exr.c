@@ -7,6 +7,7 @@
 #include "io.h"
 
 #include <openexr.h>
+#include <Imath/half.h> /* imath_half_to_float: HALF channels as float */
 
 #include <dirent.h>
 #include <errno.h>
@@ -333,32 +334,6 @@ fail:
 /* ---------------------------------------------------------------------------------------- */
 /* Reader */
 
-static float half_to_float(uint16_t h) {
-    uint32_t sign = (uint32_t)(h & 0x8000u) << 16;
-    uint32_t e = (h >> 10) & 0x1fu;
-    uint32_t m = h & 0x3ffu;
-    uint32_t bits;
-    if (e == 0) {
-        if (m == 0) {
-            bits = sign;
-        } else { /* subnormal: normalise */
-            uint32_t fe = 113; /* 127 - 14 */
-            while (!(m & 0x400u)) {
-                m <<= 1;
-                --fe;
-            }
-            m &= 0x3ffu;
-            bits = sign | (fe << 23) | (m << 13);
-        }
-    } else if (e == 31) {
-        bits = sign | 0x7f800000u | (m << 13);
-    } else {
-        bits = sign | ((e + 112u) << 23) | (m << 13);
-    }
-    float f;
-    memcpy(&f, &bits, sizeof f);
-    return f;
-}
 
 /* An input opened by io_open_input, read by the OpenEXR library through these callbacks. */
 typedef struct ExrInput {
@@ -524,7 +499,7 @@ int io_read_exr_channel(const char *path, const char *channel, int *width, int *
 
     if (ptype == EXR_PIXEL_HALF) {
         const uint16_t *src = (const uint16_t *)raw;
-        for (size_t i = 0; i < npix; ++i) out[i] = half_to_float(src[i]);
+        for (size_t i = 0; i < npix; ++i) out[i] = imath_half_to_float(src[i]); /* Imath's C API (Imath/half.h) */
         free(raw);
     } else if (ptype == EXR_PIXEL_UINT) {
         const uint32_t *src = (const uint32_t *)raw;

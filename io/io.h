@@ -537,6 +537,13 @@ typedef struct IoVariant {
 int io_read_variants(const char *path, IoVariant **variants, int *count, char err[IO_ERR_LEN]);
 void io_variants_free(IoVariant *variants, int count);
 
+/* ---------------------------------------------------------------- JSON strings */
+/* s as a JSON string literal, quotes included, escaped by nlohmann/json (io/variants.cpp):
+ * quotes, backslashes and control characters escaped, other UTF-8 as it is, bytes that are no
+ * UTF-8 replaced by U+FFFD (the result is always valid JSON). malloc'd; NULL when out of memory.
+ * Every JSON string Candela writes (statistics, options, the frame log) goes through it. */
+char *io_json_quote(const char *s);
+
 #ifdef __cplusplus
 }
 #endif

@@ -10,6 +10,9 @@
 // Only the keys `variant`, `name` and `flags` are known; any other key is an error (a typo
 // such as `flag =` must not silently render the default). The flags themselves are parsed
 // by the renderer (the same parser as the command line), not here.
+//
+// io_json_quote (io.h) is here too, beside the other use of nlohmann/json: the one JSON string
+// escaper of the program.
 #include "io.h"
 #include "io_internal.hpp"
 
@@ -165,4 +168,13 @@ extern "C" void io_variants_free(IoVariant *variants, int count) {
         std::free(variants[i].flags);
     }
     std::free(variants);
+}
+
+extern "C" char *io_json_quote(const char *s) {
+    try {
+        std::string q = nlohmann::json(std::string(s ? s : "")).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+        return strdup(q.c_str());
+    } catch (const std::exception &) {
+        return nullptr; /* std::bad_alloc */
+    }
 }

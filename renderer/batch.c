@@ -328,20 +328,6 @@ static int check_frame_names(const CandelaBatchOptions *b, const FrameList *mine
 
 /* ---------------------------------------------------------------- the frame log */
 
-/* A JSON string literal of s into buf (quotes, backslashes and control characters escaped). */
-static void json_quote(const char *s, char *buf, size_t size) {
-    size_t w = 0;
-    if (size < 3) { if (size) buf[0] = 0; return; }
-    buf[w++] = '"';
-    for (const unsigned char *c = (const unsigned char *)s; *c && w + 8 < size; ++c) {
-        if (*c == '"' || *c == '\\') { buf[w++] = '\\'; buf[w++] = (char)*c; }
-        else if (*c < 0x20) w += (size_t)snprintf(buf + w, size - w, "\\u%04x", *c);
-        else buf[w++] = (char)*c;
-    }
-    buf[w++] = '"';
-    buf[w] = 0;
-}
-
 /* One line appended with one write() to a file opened O_APPEND: lines of concurrent tasks
  * (a Slurm array sharing the log on a local file system) do not interleave. */
 static int append_line(const char *path, const char *line, char err[CANDELA_ERR_LEN]) {
@@ -367,13 +353,14 @@ static int log_frame(const CandelaBatchOptions *b, const CandelaOptions *fo, int
         snprintf(err, CANDELA_ERR_LEN, "candela: out of memory");
         return -1;
     }
-    char qexr[2 * PATH_MAX], qproblem[2 * CANDELA_ERR_LEN];
-    json_quote(exr, qexr, sizeof qexr);
-    json_quote(problem ? problem : "", qproblem, sizeof qproblem);
-    size_t size = strlen(qexr) + strlen(qproblem) + (stats_json ? strlen(stats_json) : 0) + 512;
-    char *line = malloc(size);
+    /* JSON string literals through io_json_quote (nlohmann/json's escaping) */
+    char *qexr = io_json_quote(exr), *qproblem = io_json_quote(problem ? problem : "");
+    size_t size = (qexr ? strlen(qexr) : 0) + (qproblem ? strlen(qproblem) : 0) + (stats_json ? strlen(stats_json) : 0) + 512;
+    char *line = qexr && qproblem ? malloc(size) : NULL;
     if (!line) {
         free(stats_json);
+        free(qexr);
+        free(qproblem);
         snprintf(err, CANDELA_ERR_LEN, "candela: out of memory");
         return -1;
     }
@@ -386,6 +373,8 @@ static int log_frame(const CandelaBatchOptions *b, const CandelaOptions *fo, int
     int rc = append_line(b->stats_jsonl, line, err);
     free(line);
     free(stats_json);
+    free(qexr);
+    free(qproblem);
     return rc;
 }
 

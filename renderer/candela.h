@@ -179,10 +179,23 @@ const char *candela_light_sampler_name(CandelaLightSampler s);
 const char *candela_sampler_name(CandelaSampler s); /* "sobol", "independent" */
 int candela_light_sampler_parse(const char *name, CandelaLightSampler *s); /* 0 ok */
 
-/* Wall-clock seconds per wavefront stage, summed over threads' shared wall time. */
+/* Times are wall-clock seconds measured on the calling thread, so that load + build + the
+ * render's stages + other = total (other: what no stage covers, e.g. progress and checkpoint
+ * writes; candela_stats_other_seconds). The wavefront stages (generate ... shadow) run
+ * interleaved in one parallel region per batch: each gets the region's wall time in proportion
+ * to the threads' time in it (so they add up to the region); learn (the recorder, guide
+ * training and the auto probes after each batch), film and barrier (iteration barriers and
+ * adaptive sampling's decisions) are serial phases. The threads' own per-stage times are in
+ * stage_thread_seconds. */
 typedef struct CandelaStats {
     double time_load, time_build, time_total;
     double time_generate, time_sort, time_trace, time_medium, time_shade, time_shadow, time_film;
+    double time_learn, time_barrier;
+    /* per-thread detail: seconds per stage (generate, sort, trace, medium, shade, shadow) each
+     * batch's threads spent, averaged over the batch's threads and summed over batches (what
+     * the summary showed before issue 27); stage_threads: the most threads a batch used */
+    double stage_thread_seconds[6];
+    int stage_threads;
     uint64_t rays_camera, rays_bounce, rays_shadow;
     uint64_t paths;
     int iterations;
@@ -232,10 +245,15 @@ typedef struct CandelaStats {
     int time_limited;                /* --time-limit stopped the render before --spp */
 } CandelaStats;
 
-/* Seconds spent in the wavefront's stages and the film (the render proper). */
+/* Wall seconds of the render's stages (the wavefront stages, learn, film and barrier). */
 static inline double candela_stats_render_seconds(const CandelaStats *s) {
     return s->time_generate + s->time_sort + s->time_trace + s->time_medium + s->time_shade + s->time_shadow +
-           s->time_film;
+           s->time_learn + s->time_film + s->time_barrier;
+}
+/* The rest of the total: total - load - build - the render's stages (never negative). */
+static inline double candela_stats_other_seconds(const CandelaStats *s) {
+    double o = s->time_total - s->time_load - s->time_build - candela_stats_render_seconds(s);
+    return o > 0.0 ? o : 0.0;
 }
 
 /* The film after the render: per-pixel mean and AOVs, top row first. */
@@ -275,6 +293,9 @@ void candela_ray_log_free(CandelaRayLog *log);
  * preview. Both go to a temporary name first and are renamed when complete. */
 int candela_write_outputs(const CandelaImage *image, const char *exr_path, const char *png_path,
                           char err[CANDELA_ERR_LEN]);
+/* Linear radiance -> the preview's display value in [0, 1]: clipped and sRGB-encoded (Blender's
+ * "Standard"). The one sRGB encoder: the PNG preview and candela compare's report use it. */
+float candela_srgb_encode(float linear);
 
 /* ---------------------------------------------------------------- identity
  * What an image is a function of (issue 27): "scene=HASH" (FNV-1a 64 of the scene file's
@@ -333,7 +354,8 @@ void candela_provenance_free(CandelaProvenance *p);
 /* The render options as one JSON object {"spp": 16, "light-sampler": "auto", ...}: every render
  * option row of renderer/options_table.c by its flag name (malloc'd; NULL out of memory). */
 char *candela_options_json(const CandelaOptions *o);
-/* A JSON string literal of s (quotes, backslashes and control characters escaped). */
+/* A JSON string literal of s, escaped by io_json_quote (nlohmann/json: quotes, backslashes and
+ * control characters escaped, invalid UTF-8 replaced); "null" when out of memory. */
 void candela_json_string(FILE *f, const char *s);
 /* candela_write_outputs with the EXR header's provenance (NULL: none). */
 int candela_write_outputs_provenance(const CandelaImage *image, const char *exr_path, const char *png_path,

@@ -12,16 +12,20 @@
  * (convergence.csv and the plots); the seconds the snapshots take are subtracted from the
  * times reported and from the time budget. The report folder (OUT):
  *   table.md, table.csv   per variant: spp, time (load + build + render), preprocess time
- *                         (load + build), peak memory, RMSE, relMSE, MAE, mean variance, TTUV
- *                         and the ratios against the first variant (metrics.h)
+ *                         (load + build), peak memory, MSE and relMSE minus the reference's own
+ *                         noise (its variance layer's variance of the mean, averaged as the MSE
+ *                         is: metrics_reference_noise) beside the raw ones, RMSE, MAE, mean
+ *                         variance, TTUV and the ratios against the first variant (metrics.h)
  *   NAME.exr, NAME.png    every variant's image; reference.exr / reference.png likewise, and
  *                         reference.key: what the reference depends on; a later run with the
  *                         same key reuses reference.exr instead of rendering it again
  *   NAME_error.png        false-colour relative error against the reference
- *   crops.png             the same crop of the reference and of every variant, side by side
+ *   crops.png             the same crop of the reference and of every variant, side by side;
+ *   NAME_crop.png         the crop of one (reference_crop.png too)
  *   convergence.csv, convergence_spp.svg, convergence_time.svg
  *                         relMSE per iteration against spp and against seconds
- *   index.html            all of it on one page
+ *   index.html            all of it on one page: a row per variant holds its image, its
+ *                         error map (with the colour bar and its scale) and its crop
  * With --timing-runs N (equal SPP only) every variant is rendered N times, round-robin so slow
  * spells of a shared machine hit all variants alike, and the median time is used (the repeats
  * must give bit-identical images: renders are deterministic). Every file is written under a
@@ -63,6 +67,7 @@ typedef struct Variant {
     double times[COMPARE_MAX_TIMING_RUNS], cp_times[COMPARE_MAX_TIMING_RUNS], pre_times[COMPARE_MAX_TIMING_RUNS];
     double time, time_min, time_max, preprocess, cp_time, mean_var, ttuv;
     ImageErrors errors;
+    double mse_corrected, relmse_corrected; /* minus the reference's noise (Report.noise) */
     size_t peak;
     uint32_t cp_count;
     ReportPoint *points; /* owned: one per iteration */
@@ -149,7 +154,8 @@ static int variant_init(Variant *v, const char *name, size_t name_len, const cha
     }
     memcpy(v->name, name, name_len);
     v->name[name_len] = 0;
-    if (strcmp(v->name, "reference") == 0 || strcmp(v->name, "crops") == 0 || strcmp(v->name, "index") == 0) {
+    if (strcmp(v->name, "reference") == 0 || strcmp(v->name, "crops") == 0 || strcmp(v->name, "index") == 0 ||
+        strcmp(v->name, "reference_crop") == 0) {
         snprintf(err, CANDELA_ERR_LEN, "variant name '%s' is taken by the report's own files", v->name);
         return -1;
     }
@@ -318,11 +324,18 @@ static int build_variants(const CandelaOptions *base, const CandelaCompareOption
                 rc = -1;
                 break;
             } else {
-                /* NAME_error.png is both NAME's error image and NAME_error's preview */
+                /* NAME_error.png is both NAME's error image and NAME_error's preview (NAME_crop.png
+                 * likewise) */
                 const char *a = vs[i].name, *b = vs[j].name;
                 size_t la = strlen(a), lb = strlen(b);
-                if ((la == lb + 6 && strncmp(a, b, lb) == 0 && strcmp(a + lb, "_error") == 0) ||
-                    (lb == la + 6 && strncmp(b, a, la) == 0 && strcmp(b + la, "_error") == 0)) {
+                int clash = 0;
+                for (int k = 0; k < 2; ++k) {
+                    const char *suffix = k ? "_crop" : "_error";
+                    size_t ls = strlen(suffix);
+                    clash |= (la == lb + ls && strncmp(a, b, lb) == 0 && strcmp(a + lb, suffix) == 0) ||
+                             (lb == la + ls && strncmp(b, a, la) == 0 && strcmp(b + la, suffix) == 0);
+                }
+                if (clash) {
                     snprintf(err, CANDELA_ERR_LEN, "variants '%s' and '%s' would write the same file", b, a);
                     rc = -1;
                     break;
@@ -359,6 +372,32 @@ static int load_reference(const char *path, int w, int h, float **out, char err[
         free(ch);
     }
     *out = ref;
+    return 0;
+}
+
+/* The reference's variance layer (variance.R, .G, .B: the variance of each pixel's mean),
+ * interleaved; *out = NULL when the EXR has none (a reference from elsewhere): the errors are then
+ * not corrected for the reference's noise. -1 only on a size mismatch or out of memory. */
+static int load_reference_variance(const char *path, int w, int h, float **out, char err[CANDELA_ERR_LEN]) {
+    const char *names[3] = {"variance.R", "variance.G", "variance.B"};
+    size_t n = (size_t)w * (size_t)h;
+    *out = NULL;
+    float *var = malloc(3 * n * sizeof(float));
+    if (!var) { snprintf(err, CANDELA_ERR_LEN, "%.400s: out of memory", path); return -1; }
+    for (int k = 0; k < 3; ++k) {
+        int rw, rh;
+        float *ch = NULL;
+        char ioerr[IO_ERR_LEN];
+        if (io_read_exr_channel(path, names[k], &rw, &rh, &ch, ioerr) != 0) { free(var); return 0; } /* no layer */
+        if (rw != w || rh != h) {
+            snprintf(err, CANDELA_ERR_LEN, "%.400s: reference variance is %dx%d, the comparison renders %dx%d", path, rw, rh, w, h);
+            free(ch); free(var);
+            return -1;
+        }
+        for (size_t i = 0; i < n; ++i) var[3 * i + k] = ch[i];
+        free(ch);
+    }
+    *out = var;
     return 0;
 }
 
@@ -449,7 +488,7 @@ static int write_srgb_png(const char *path, const float *linear, int width, int 
     size_t n = 3 * (size_t)width * (size_t)height;
     float *rgb = malloc(n * sizeof(float));
     if (!rgb) { snprintf(err, CANDELA_ERR_LEN, "%.400s: out of memory", path); return -1; }
-    for (size_t i = 0; i < n; ++i) rgb[i] = report_srgb(linear[i]);
+    for (size_t i = 0; i < n; ++i) rgb[i] = candela_srgb_encode(linear[i]);
     char ioerr[IO_ERR_LEN];
     int rc = io_write_png(path, width, height, rgb, ioerr);
     free(rgb);
@@ -535,6 +574,8 @@ typedef struct Report {
     double ref_time;
     int ref_spp, ref_cached;
     int crop[3];
+    ReferenceNoise noise; /* the reference's own noise in the MSE and relMSE (zero when unknown) */
+    int noise_known;      /* the reference EXR has a variance layer */
 } Report;
 
 static void heading(ReportText *t, const Report *r, int html) {
@@ -551,6 +592,14 @@ static void heading(ReportText *t, const Report *r, int html) {
         report_printf(t, "tree sampler, %d spp (%.2f s%s)", r->ref_spp, r->ref_time, r->ref_cached ? ", cached from an earlier run" : "");
     }
     report_printf(t, html ? ".</p>\n" : ".\n\n");
+    if (html) report_printf(t, "<p>");
+    if (r->noise_known)
+        report_printf(t, "MSE and relMSE are shown minus the reference's own noise (its variance of the mean, averaged as the "
+                         "MSE is: %.5g for MSE, %.5g for relMSE), the raw values beside them.",
+                      r->noise.mse, r->noise.relmse);
+    else
+        report_printf(t, "The reference has no variance layer: MSE and relMSE are not corrected for its noise.");
+    report_printf(t, html ? "</p>\n" : "\n\n");
     if (r->runs > 1) {
         if (html) report_printf(t, "<p>");
         report_printf(t, "Times: median of %d renders per variant, round-robin (min-max in brackets); TTUV uses the median.",
@@ -559,17 +608,34 @@ static void heading(ReportText *t, const Report *r, int html) {
     }
 }
 
+/* The table's columns, in order (the markdown and HTML tables; the CSV has its own names). */
+static const char *const COLUMNS[] = {"variant", "flags", "spp", "time s", "preprocess s", "peak MiB", "MSE &minus; ref. noise",
+                                      "MSE (raw)", "relMSE &minus; ref. noise", "relMSE (raw)", "RMSE (raw)", "MAE", "TTUV",
+                                      "cache points (build s)", "time / first", "MSE / first", "relMSE / first", "MAE / first",
+                                      "TTUV / first"};
+enum { NUM_COLUMNS = sizeof COLUMNS / sizeof COLUMNS[0] };
+
 static void tables(const Report *r, ReportText *md, ReportText *csv, ReportText *html) {
     report_printf(md, "# %s\n\n", r->base->scene_path);
     heading(md, r, 0);
-    report_printf(md, "| variant | flags | spp | time s | preprocess s | peak MiB | RMSE | relMSE | MAE | TTUV | cache points (build s) "
-                      "| time / first | RMSE / first | relMSE / first | MAE / first | TTUV / first |\n");
-    report_printf(md, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    report_printf(md, "|");
+    report_printf(html, "<table class=\"metrics\">\n<tr>");
+    for (int k = 0; k < NUM_COLUMNS; ++k) {
+        char name[64];
+        snprintf(name, sizeof name, "%s", COLUMNS[k]);
+        char *amp = strstr(name, "&minus;"); /* markdown: a plain minus */
+        if (amp) { *amp = '-'; memmove(amp + 1, amp + 7, strlen(amp + 7) + 1); }
+        report_printf(md, " %s |", name);
+        report_printf(html, "<th>%s</th>", COLUMNS[k]);
+    }
+    report_printf(md, "\n|");
+    for (int k = 0; k < NUM_COLUMNS; ++k) report_printf(md, "---|");
+    report_printf(md, "\n");
+    report_printf(html, "</tr>\n");
     report_printf(csv, "variant,flags,spp,time_s,preprocess_s,peak_mib,rmse,relmse,mae,mean_variance,ttuv,time_ratio,rmse_ratio,"
-                       "relmse_ratio,mae_ratio,ttuv_ratio,cachepoint_build_s,cache_points,time_min_s,time_max_s,timing_runs\n");
-    report_printf(html, "<table>\n<tr><th>variant</th><th>flags</th><th>spp</th><th>time s</th><th>preprocess s</th><th>peak MiB</th>"
-                        "<th>RMSE</th><th>relMSE</th><th>MAE</th><th>TTUV</th><th>cache points (build s)</th><th>time / first</th>"
-                        "<th>RMSE / first</th><th>relMSE / first</th><th>MAE / first</th><th>TTUV / first</th></tr>\n");
+                       "relmse_ratio,mae_ratio,ttuv_ratio,cachepoint_build_s,cache_points,time_min_s,time_max_s,timing_runs,"
+                       "mse,mse_corrected,relmse_corrected,ref_noise_mse,ref_noise_relmse,mse_corrected_ratio,"
+                       "relmse_corrected_ratio\n");
     const Variant *f = r->first >= 0 ? &r->v[r->first] : NULL;
     for (int i = 0; i < r->count; ++i) {
         const Variant *v = &r->v[i];
@@ -583,37 +649,88 @@ static void tables(const Report *r, ReportText *md, ReportText *csv, ReportText 
         report_html(html, v->flags);
         report_printf(html, "</code></td>");
         if (v->skipped) {
-            report_printf(md, " | %s | | | | | | | | | | | | | |\n", v->why);
-            report_printf(csv, ",skipped,,,,,,,,,,,,,,,,,,\n");
-            report_printf(html, "<td colspan=\"14\">%s</td></tr>\n", v->why);
+            report_printf(md, " | %s |", v->why);
+            for (int k = 3; k < NUM_COLUMNS; ++k) report_printf(md, " |");
+            report_printf(md, "\n");
+            report_printf(csv, ",skipped,,,,,,,,,,,,,,,,,,,,,,,,,\n");
+            report_printf(html, "<td colspan=\"%d\">%s</td></tr>\n", NUM_COLUMNS - 2, v->why);
             continue;
         }
         double ratios[5] = {metrics_ratio(v->time, f->time), metrics_ratio(v->errors.rmse, f->errors.rmse),
                             metrics_ratio(v->errors.relmse, f->errors.relmse), metrics_ratio(v->errors.mae, f->errors.mae),
                             metrics_ratio(v->ttuv, f->ttuv)};
+        double corrected_ratios[2] = {metrics_ratio(v->mse_corrected, f->mse_corrected),
+                                      metrics_ratio(v->relmse_corrected, f->relmse_corrected)};
         char tm[64], cp[64] = "-";
         if (v->runs > 1) snprintf(tm, sizeof tm, "%.3f (%.3f-%.3f)", v->time, v->time_min, v->time_max);
         else snprintf(tm, sizeof tm, "%.3f", v->time);
         if (v->cp_count) snprintf(cp, sizeof cp, "%u (%.3f)", v->cp_count, v->cp_time);
         double mib = (double)v->peak / 1048576.0;
-        report_printf(md, " | %d | %s | %.3f | %.1f | %.5g | %.5g | %.5g | %.5g | %s | %.3f | %.3f | %.3f | %.3f | %.3f |\n", v->spp,
-                      tm, v->preprocess, mib, v->errors.rmse, v->errors.relmse, v->errors.mae, v->ttuv, cp, ratios[0], ratios[1],
-                      ratios[2], ratios[3], ratios[4]);
-        report_printf(html, "<td>%d</td><td>%s</td><td>%.3f</td><td>%.1f</td><td>%.5g</td><td>%.5g</td><td>%.5g</td><td>%.5g</td>"
-                            "<td>%s</td><td>%.3f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td></tr>\n",
-                      v->spp, tm, v->preprocess, mib, v->errors.rmse, v->errors.relmse, v->errors.mae, v->ttuv, cp, ratios[0],
-                      ratios[1], ratios[2], ratios[3], ratios[4]);
+        /* the main numbers (corrected) first, the raw ones beside them */
+        const char *fmt_md = " | %d | %s | %.3f | %.1f | **%.5g** | %.5g | **%.5g** | %.5g | %.5g | %.5g | %.5g | %s | %.3f | %.3f "
+                             "| %.3f | %.3f | %.3f |\n";
+        report_printf(md, fmt_md, v->spp, tm, v->preprocess, mib, v->mse_corrected, v->errors.mse, v->relmse_corrected,
+                      v->errors.relmse, v->errors.rmse, v->errors.mae, v->ttuv, cp, ratios[0], corrected_ratios[0],
+                      corrected_ratios[1], ratios[3], ratios[4]);
+        report_printf(html, "<td>%d</td><td>%s</td><td>%.3f</td><td>%.1f</td><td class=\"main\">%.5g</td><td class=\"raw\">%.5g</td>"
+                            "<td class=\"main\">%.5g</td><td class=\"raw\">%.5g</td><td class=\"raw\">%.5g</td><td>%.5g</td>"
+                            "<td>%.5g</td><td>%s</td><td>%.3f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td><td>%.3f</td></tr>\n",
+                      v->spp, tm, v->preprocess, mib, v->mse_corrected, v->errors.mse, v->relmse_corrected, v->errors.relmse,
+                      v->errors.rmse, v->errors.mae, v->ttuv, cp, ratios[0], corrected_ratios[0], corrected_ratios[1], ratios[3],
+                      ratios[4]);
         /* %.9g: every number to float precision and more, so a check can recompute them */
         report_printf(csv, ",%d,%.9g,%.9g,%.3f,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,", v->spp, v->time, v->preprocess,
                       mib, v->errors.rmse, v->errors.relmse, v->errors.mae, v->mean_var, v->ttuv, ratios[0], ratios[1], ratios[2],
                       ratios[3], ratios[4]);
         if (v->cp_count) report_printf(csv, "%.6f,%u", v->cp_time, v->cp_count);
         else report_printf(csv, ",");
-        report_printf(csv, ",%.9g,%.9g,%d\n", v->time_min, v->time_max, v->runs);
+        report_printf(csv, ",%.9g,%.9g,%d", v->time_min, v->time_max, v->runs);
+        report_printf(csv, ",%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g\n", v->errors.mse, v->mse_corrected, v->relmse_corrected,
+                      r->noise.mse, r->noise.relmse, corrected_ratios[0], corrected_ratios[1]);
     }
     report_printf(html, "</table>\n");
-    report_printf(md, "\nTTUV = mean per-pixel variance x time (lower is better); relMSE = mean (x - ref)^2 / (ref^2 + %g).\n",
+    report_printf(md, "\nMSE - ref. noise = mean (x - ref)^2 - mean Var[ref] (the reference's variance of the mean; unbiased "
+                      "for the variant's own squared error); relMSE = mean (x - ref)^2 / (ref^2 + %g), corrected alike; "
+                      "TTUV = mean per-pixel variance x time (lower is better).\n",
                   METRICS_RELMSE_EPSILON);
+}
+
+/* The error maps' ramp (false_colour) as a CSS gradient, with its scale below it. */
+static void colour_bar(ReportText *t) {
+    report_printf(t, "<div class=\"colourbar\"><div class=\"ramp\" style=\"background: linear-gradient(to right");
+    for (int k = 0; k <= 3; ++k) {
+        float rgb[3];
+        false_colour((float)k / 3.0f, rgb);
+        report_printf(t, ", rgb(%d, %d, %d) %.2f%%", (int)lrintf(rgb[0] * 255.0f), (int)lrintf(rgb[1] * 255.0f),
+                      (int)lrintf(rgb[2] * 255.0f), 100.0 * k / 3.0);
+    }
+    report_printf(t, ")\"></div><div class=\"scale\"><span>0 %%</span><span>25 %%</span><span>50 %%</span><span>75 %%</span>"
+                     "<span>&ge; 100 %%</span></div></div>\n");
+}
+
+static void image_row(ReportText *t, const char *name, int has_error) {
+    report_printf(t, "<tr class=\"image-row\"><th>");
+    report_html(t, name);
+    report_printf(t, "</th>\n<td><img src=\"");
+    report_html(t, name);
+    report_printf(t, ".png\" alt=\"");
+    report_html(t, name);
+    report_printf(t, "\"></td>\n<td>");
+    if (has_error) {
+        report_printf(t, "<img src=\"");
+        report_html(t, name);
+        report_printf(t, "_error.png\" alt=\"");
+        report_html(t, name);
+        report_printf(t, ": relative error\">\n");
+        colour_bar(t);
+    } else {
+        report_printf(t, "(the reference)");
+    }
+    report_printf(t, "</td>\n<td><img class=\"crop\" src=\"");
+    report_html(t, name);
+    report_printf(t, "_crop.png\" alt=\"");
+    report_html(t, name);
+    report_printf(t, ": crop\"></td></tr>\n");
 }
 
 static void page(const Report *r, const ReportText *table_html, ReportText *t) {
@@ -625,44 +742,42 @@ static void page(const Report *r, const ReportText *table_html, ReportText *t) {
                      "th, td { border: 1px solid #bbb; padding: 0.25em 0.5em; text-align: right; }\n"
                      "td:nth-child(1), td:nth-child(2) { text-align: left; }\n"
                      "td code { white-space: nowrap; }\n"
-                     "figure { display: inline-block; margin: 0.5em; vertical-align: top; }\n"
-                     "figcaption { font-size: 0.9em; }\n"
-                     ".images img { image-rendering: pixelated; width: 320px; }\n"
+                     "td.main { font-weight: bold; }\n"
+                     "td.raw { color: #666; }\n"
+                     "table.images td { text-align: center; vertical-align: top; }\n"
+                     "table.images img { image-rendering: pixelated; width: 320px; display: block; }\n"
+                     "table.images img.crop { width: 160px; }\n"
+                     ".colourbar { width: 320px; margin-top: 0.3em; font-size: 0.8em; }\n"
+                     ".colourbar .ramp { height: 0.8em; border: 1px solid #888; }\n"
+                     ".colourbar .scale { display: flex; justify-content: space-between; }\n"
                      "</style>\n</head>\n<body>\n<h1>candela compare: ");
     report_html(t, r->base->scene_path);
     report_printf(t, "</h1>\n");
     heading(t, r, 1);
     report_printf(t, "%.*s", (int)table_html->len, table_html->s ? table_html->s : "");
-    report_printf(t, "<p>TTUV = mean per-pixel variance &times; time (lower is better); relMSE = mean (x &minus; ref)&sup2; / "
-                     "(ref&sup2; + %g); ratios are against the first variant. Data: <a href=\"table.csv\">table.csv</a>, "
-                     "<a href=\"convergence.csv\">convergence.csv</a>.</p>\n", METRICS_RELMSE_EPSILON);
-    report_printf(t, "<h2>Convergence</h2>\n<p>relMSE of the image after every iteration (seconds exclude the snapshots' own "
+    report_printf(t, "<p>MSE &minus; ref. noise = mean (x &minus; ref)&sup2; &minus; mean Var[ref], the reference's variance of "
+                     "the mean from its variance layer (what its own noise adds to the MSE); relMSE = mean (x &minus; ref)&sup2; / "
+                     "(ref&sup2; + %g), corrected alike; both can dip below 0 when a variant is as good as the reference. "
+                     "TTUV = mean per-pixel variance &times; time (lower is better); ratios are against the first variant. "
+                     "Data: <a href=\"table.csv\">table.csv</a>, <a href=\"convergence.csv\">convergence.csv</a>.</p>\n",
+                  METRICS_RELMSE_EPSILON);
+    report_printf(t, "<h2>Images</h2>\n<p>A row per variant: its image, its relative error against the reference per pixel "
+                     "(&Sigma;<sub>RGB</sub> |x &minus; ref| / (&Sigma;<sub>RGB</sub> ref + 0.03), false colour on the bar's "
+                     "scale) and its crop: pixels %d-%d &times; %d-%d, where the variants differ most from the reference.</p>\n"
+                     "<table class=\"images\">\n<tr><th>variant</th><th>image</th><th>relative error</th><th>crop</th></tr>\n",
+                  r->crop[0], r->crop[0] + r->crop[2] - 1, r->crop[1], r->crop[1] + r->crop[2] - 1);
+    image_row(t, "reference", 0);
+    for (int i = 0; i < r->count; ++i)
+        if (!r->v[i].skipped) image_row(t, r->v[i].name, 1);
+    report_printf(t, "</table>\n");
+    report_printf(t, "<h2>Convergence</h2>\n<p>relMSE (raw) of the image after every iteration (seconds exclude the snapshots' own "
                      "cost).</p>\n<img src=\"convergence_spp.svg\" alt=\"relMSE against spp\">\n"
                      "<img src=\"convergence_time.svg\" alt=\"relMSE against time\">\n");
-    report_printf(t, "<h2>Crops</h2>\n<p>Pixels %d-%d &times; %d-%d (where the variants differ most from the reference), "
-                     "left to right: reference", r->crop[0], r->crop[0] + r->crop[2] - 1, r->crop[1], r->crop[1] + r->crop[2] - 1);
+    report_printf(t, "<h2>Crops</h2>\n<p>Pixels %d-%d &times; %d-%d side by side, left to right: reference", r->crop[0],
+                  r->crop[0] + r->crop[2] - 1, r->crop[1], r->crop[1] + r->crop[2] - 1);
     for (int i = 0; i < r->count; ++i)
         if (!r->v[i].skipped) { report_printf(t, ", "); report_html(t, r->v[i].name); }
-    report_printf(t, ".</p>\n<img src=\"crops.png\" alt=\"crops\">\n");
-    report_printf(t, "<h2>Images</h2>\n<p>Each variant's image and its relative error against the reference (false colour: "
-                     "blue 0, green, yellow, red &ge; 100 %%).</p>\n<div class=\"images\">\n"
-                     "<figure><img src=\"reference.png\" alt=\"reference\"><figcaption>reference</figcaption></figure>\n");
-    for (int i = 0; i < r->count; ++i) {
-        const Variant *v = &r->v[i];
-        if (v->skipped) continue;
-        report_printf(t, "<figure><img src=\"%s.png\" alt=\"%s\"><figcaption>%s</figcaption></figure>\n", v->name, v->name, v->name);
-        report_printf(t, "<figure><img src=\"%s_error.png\" alt=\"%s error\"><figcaption>%s: relative error</figcaption></figure>\n",
-                      v->name, v->name, v->name);
-    }
-    /* a check that a person or a headless browser can read: did every image load? */
-    report_printf(t, "</div>\n<p id=\"load-check\">images: not checked (scripts off?)</p>\n<script>\n"
-                     "window.addEventListener('load', function () {\n"
-                     "  var bad = [], imgs = document.images;\n"
-                     "  for (var i = 0; i < imgs.length; ++i)\n"
-                     "    if (!imgs[i].complete || imgs[i].naturalWidth === 0) bad.push(imgs[i].getAttribute('src'));\n"
-                     "  document.getElementById('load-check').textContent =\n"
-                     "    bad.length ? 'IMAGES-FAILED ' + bad.join(' ') : 'IMAGES-OK ' + imgs.length;\n"
-                     "});\n</script>\n</body>\n</html>\n");
+    report_printf(t, ".</p>\n<img src=\"crops.png\" alt=\"crops\">\n</body>\n</html>\n");
 }
 
 /* ---------------------------------------------------------------- the comparison */
@@ -672,7 +787,7 @@ static void page(const Report *r, const ReportText *table_html, ReportText *t) {
 static int record_report_files(const CandelaCompareOptions *c, const Variant *vs, int count, char err[CANDELA_ERR_LEN]) {
     char path[IO_PATH_MAX + 64];
     static const char *const fixed[] = {"crops.png", "convergence.csv", "convergence_spp.svg", "convergence_time.svg",
-                                        "table.md", "table.csv", "index.html", "reference.png"};
+                                        "table.md", "table.csv", "index.html", "reference.png", "reference_crop.png"};
     static const char *const rendered_reference[] = {"reference.exr", "reference.key"};
     for (size_t k = 0; k < sizeof fixed / sizeof *fixed; ++k) {
         snprintf(path, sizeof path, "%s/%s", c->out_dir, fixed[k]);
@@ -683,8 +798,8 @@ static int record_report_files(const CandelaCompareOptions *c, const Variant *vs
         if (candela_run_output(c->run, path, "a report file", err) != 0) return -1;
     }
     for (int i = 0; i < count; ++i) {
-        static const char *const suffix[] = {".exr", ".png", "_error.png"};
-        for (int k = 0; k < 3; ++k) {
+        static const char *const suffix[] = {".exr", ".png", "_error.png", "_crop.png"};
+        for (int k = 0; k < 4; ++k) {
             snprintf(path, sizeof path, "%s/%s%s", c->out_dir, vs[i].name, suffix[k]);
             if (candela_run_output(c->run, path, "a report file", err) != 0) return -1;
         }
@@ -804,6 +919,18 @@ static int compare_locked(const CandelaOptions *base, const CandelaCompareOption
         }
     }
     size_t n = (size_t)r.width * (size_t)r.height;
+    /* the reference's noise: its variance layer, averaged as the MSE averages */
+    {
+        float *ref_var = NULL;
+        if (c->reference_path) snprintf(path, sizeof path, "%s", c->reference_path);
+        else snprintf(path, sizeof path, "%s/reference.exr", c->out_dir);
+        if (load_reference_variance(path, r.width, r.height, &ref_var, err) != 0) goto done;
+        if (ref_var) {
+            r.noise = metrics_reference_noise(ref, ref_var, 3 * n);
+            r.noise_known = 1;
+            free(ref_var);
+        }
+    }
     mean = malloc(3 * n * sizeof(float));
     error_map = calloc(n, sizeof(float));
     if (!mean || !error_map) { snprintf(err, CANDELA_ERR_LEN, "out of memory"); goto done; }
@@ -865,6 +992,8 @@ static int compare_locked(const CandelaOptions *base, const CandelaCompareOption
         v->preprocess = v->pre_times[0] = st.time_load + st.time_build;
         v->peak = st.peak_memory_bytes;
         v->errors = metrics_image_errors(img.rgb, ref, 3 * n);
+        v->mse_corrected = v->errors.mse - r.noise.mse;
+        v->relmse_corrected = v->errors.relmse - r.noise.relmse;
         v->mean_var = metrics_mean(img.variance, 3 * n);
         v->ttuv = metrics_ttuv(v->mean_var, v->time);
         char png[IO_PATH_MAX + 64];
@@ -932,6 +1061,12 @@ static int compare_locked(const CandelaOptions *base, const CandelaCompareOption
     }
     snprintf(path, sizeof path, "%s/crops.png", c->out_dir);
     if (report_crops_png(path, (const float *const *)crops, panels, r.crop[2], err) != 0) goto done;
+    /* and one PNG per crop, for the page's rows */
+    for (int i = -1, p = 0; i < count; ++i) {
+        if (i >= 0 && vs[i].skipped) continue;
+        snprintf(path, sizeof path, "%s/%s_crop.png", c->out_dir, i < 0 ? "reference" : vs[i].name);
+        if (report_crops_png(path, (const float *const *)&crops[p++], 1, r.crop[2], err) != 0) goto done;
+    }
 
     /* 5. convergence: the data and the two plots */
     ReportSeries series[COMPARE_MAX_VARIANTS];

@@ -103,13 +103,13 @@ static void print_stats(const CandelaStats *s) {
     double render = candela_stats_render_seconds(s);
     fprintf(stderr,
             "candela: %u triangles, %u instances, %u lights, %u volumes; %d iterations, %llu paths\n"
-            "  time: load %.3fs, setup %.3fs, render %.3fs (generate %.3f, sort %.3f, trace %.3f, medium %.3f,"
-            " shade %.3f, shadow %.3f, film %.3f), total %.3fs\n"
+            "  time (wall): load %.3fs, setup %.3fs, render %.3fs (generate %.3f, sort %.3f, trace %.3f, medium %.3f,"
+            " shade %.3f, shadow %.3f, learn %.3f, film %.3f, barrier %.3f), other %.3fs, total %.3fs\n"
             "  rays: %llu camera, %llu bounce, %llu shadow; %.2f Mrays/s\n"
             "  peak memory: %.1f MiB\n",
             s->num_triangles, s->num_instances, s->num_lights, s->num_volumes, s->iterations, (unsigned long long)s->paths,
             s->time_load, s->time_build, render, s->time_generate, s->time_sort, s->time_trace, s->time_medium, s->time_shade,
-            s->time_shadow, s->time_film, s->time_total, (unsigned long long)s->rays_camera,
+            s->time_shadow, s->time_learn, s->time_film, s->time_barrier, candela_stats_other_seconds(s), s->time_total, (unsigned long long)s->rays_camera,
             (unsigned long long)s->rays_bounce, (unsigned long long)s->rays_shadow,
             render > 0 ? (double)rays / render * 1e-6 : 0.0, (double)s->peak_memory_bytes / (1024.0 * 1024.0));
     if (s->num_textures)
@@ -390,6 +390,11 @@ int main(int argc, char **argv) {
     if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0) { print_usage(stdout); return 0; }
     if (strcmp(argv[1], "help") == 0) {
         if (argc < 3) { print_usage(stdout); return 0; }
+        if (strcmp(argv[2], "--list-flags") == 0) { /* hidden: every flag's name, for tests/test_readme.sh */
+            candela_print_flag_names(stdout);
+            printf("--version\n"); /* candela --version: the one flag outside the table */
+            return 0;
+        }
         return candela_print_flag_help(stdout, argv[2]);
     }
     if (strcmp(argv[1], "--version") == 0) {
@@ -800,7 +805,7 @@ static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBa
             printf("rays             %zu (%llu camera, %llu bounce, %llu shadow)\n", log.count,
                    (unsigned long long)stats.rays_camera, (unsigned long long)stats.rays_bounce,
                    (unsigned long long)stats.rays_shadow);
-            printf("renderer         %.3f s  %.3f Mrays/s (generate+sort+trace+shade+shadow+film)\n", render, rr * 1e-6);
+            printf("renderer         %.3f s  %.3f Mrays/s (the render's stages, wall time)\n", render, rr * 1e-6);
             printf("bare embree      %.3f s  %.3f Mrays/s (same rays, rtcIntersect1/rtcOccluded1)\n", replay, br * 1e-6);
             printf("ratio            %.3f\n", rr / br);
             printf("stage seconds    sort %.3f trace %.3f shade %.3f shadow %.3f generate %.3f film %.3f\n",

@@ -13,7 +13,19 @@ typedef struct ImageErrors {
     double rmse;   /* sqrt(mean (x - ref)^2) */
     double relmse; /* mean (x - ref)^2 / (ref^2 + METRICS_RELMSE_EPSILON) */
     double mae;    /* mean |x - ref| */
+    double mse;    /* mean (x - ref)^2 */
 } ImageErrors;
+
+/* The reference's own noise in those errors. For a reference independent of the image,
+ * E[(x - ref)^2] = E[(x - mu)^2] + Var[ref], so the reference's variance of the mean (its EXR's
+ * variance layer), averaged as the MSE averages, is what the MSE holds of the reference's noise:
+ * mse = mean ref_var, relmse = mean ref_var / (ref^2 + METRICS_RELMSE_EPSILON). candela compare
+ * shows MSE and relMSE minus these (rmse and mae are left as they are). */
+typedef struct ReferenceNoise {
+    double mse, relmse;
+} ReferenceNoise;
+/* Over n values, accumulated in double in index order. n = 0: zero. */
+ReferenceNoise metrics_reference_noise(const float *ref, const float *ref_variance, size_t n);
 
 /* Over n values (pixels x channels), accumulated in double in index order. n = 0: all zero. */
 ImageErrors metrics_image_errors(const float *x, const float *ref, size_t n);

@@ -693,6 +693,11 @@ void candela_print_flags(FILE *out, unsigned cmd) {
     }
 }
 
+void candela_print_flag_names(FILE *out) {
+    for (size_t k = 0; k < sizeof FLAGS / sizeof FLAGS[0]; ++k)
+        fprintf(out, "%s%s%s\n", FLAGS[k].name, FLAGS[k].alias ? " " : "", FLAGS[k].alias ? FLAGS[k].alias : "");
+}
+
 /* text wrapped at 78 columns, each line indented by `indent` spaces */
 static void print_wrapped(FILE *out, const char *text, int indent) {
     const int width = 78;

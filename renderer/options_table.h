@@ -108,6 +108,9 @@ void candela_unknown_flag_message(const char *arg, unsigned cmd, const char *wha
 const char *candela_flag_suggest(const char *arg, unsigned cmd);
 /* The flags of cmd, one line each (cmd 0: every flag). */
 void candela_print_flags(FILE *f, unsigned cmd);
+/* Every row's name and alias (if any), one row a line ("--output -o"): `candela help
+ * --list-flags`, which tests/test_readme.sh compares with README.md's flag list. */
+void candela_print_flag_names(FILE *f);
 /* candela help FLAG: the flag's long help. 0, or 2 with the error line on stderr. */
 int candela_print_flag_help(FILE *f, const char *name);
 

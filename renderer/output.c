@@ -11,7 +11,7 @@
 #include "candela.h"
 #include "io.h"
 
-static float srgb_encode(float x) {
+float candela_srgb_encode(float x) {
     if (!(x > 0.0f)) return 0.0f;
     if (x >= 1.0f) return 1.0f;
     return x <= 0.0031308f ? 12.92f * x : 1.055f * powf(x, 1.0f / 2.4f) - 0.055f;
@@ -78,7 +78,7 @@ int candela_write_outputs_provenance(const CandelaImage *img, const char *exr_pa
         float *rgb = malloc(3 * n * sizeof(float));
         if (!rgb) { snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", png_path); return -1; }
         /* preview: linear radiance clipped to [0,1] and sRGB-encoded (Blender's "Standard") */
-        for (size_t i = 0; i < 3 * n; ++i) rgb[i] = srgb_encode(img->rgb[i]);
+        for (size_t i = 0; i < 3 * n; ++i) rgb[i] = candela_srgb_encode(img->rgb[i]);
         rc = io_write_png(png_path, img->width, img->height, rgb, ioerr);
         if (rc == 0 && img->selection_point) { /* the false colours as they are (no transfer curve) */
             char point_png[IO_PATH_MAX], light_png[IO_PATH_MAX];
@@ -93,13 +93,10 @@ int candela_write_outputs_provenance(const CandelaImage *img, const char *exr_pa
 }
 
 void candela_json_string(FILE *f, const char *s) {
-    fputc('"', f);
-    for (const unsigned char *c = (const unsigned char *)s; *c; ++c) {
-        if (*c == '"' || *c == '\\') fprintf(f, "\\%c", *c);
-        else if (*c < 0x20) fprintf(f, "\\u%04x", *c);
-        else fputc(*c, f);
-    }
-    fputc('"', f);
+    char *q = io_json_quote(s); /* nlohmann/json's escaping (io/variants.cpp) */
+    if (q) fputs(q, f);
+    else fputs("null", f); /* out of memory: still valid JSON */
+    free(q);
 }
 
 /* The statistics object, pretty-printed (two-space indentation, a member per line). */
@@ -130,10 +127,17 @@ static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s, 
                 (double)o->clamp_indirect);
     fprintf(f, "  \"light_sampler\": \"%s\",\n", candela_light_sampler_name(o->light_sampler));
     fprintf(f, "  \"light_sampler_used\": \"%s\",\n", candela_light_sampler_name(s->light_sampler_used));
+    /* wall seconds: load + build + the stages + other = total (candela.h) */
     fprintf(f, "  \"time_seconds\": {\"load\": %.6f, \"build\": %.6f, \"generate\": %.6f, \"sort\": %.6f, "
-               "\"trace\": %.6f, \"medium\": %.6f, \"shade\": %.6f, \"shadow\": %.6f, \"film\": %.6f, \"total\": %.6f},\n",
+               "\"trace\": %.6f, \"medium\": %.6f, \"shade\": %.6f, \"shadow\": %.6f, \"learn\": %.6f, \"film\": %.6f, "
+               "\"barrier\": %.6f, \"other\": %.6f, \"total\": %.6f},\n",
             s->time_load, s->time_build, s->time_generate, s->time_sort, s->time_trace, s->time_medium, s->time_shade,
-            s->time_shadow, s->time_film, s->time_total);
+            s->time_shadow, s->time_learn, s->time_film, s->time_barrier, candela_stats_other_seconds(s), s->time_total);
+    /* the per-thread detail: each stage's seconds in a thread, averaged over a batch's threads */
+    fprintf(f, "  \"stage_thread_seconds\": {\"threads\": %d, \"generate\": %.6f, \"sort\": %.6f, \"trace\": %.6f, "
+               "\"medium\": %.6f, \"shade\": %.6f, \"shadow\": %.6f},\n",
+            s->stage_threads, s->stage_thread_seconds[0], s->stage_thread_seconds[1], s->stage_thread_seconds[2],
+            s->stage_thread_seconds[3], s->stage_thread_seconds[4], s->stage_thread_seconds[5]);
     fprintf(f, "  \"rays\": {\"camera\": %llu, \"bounce\": %llu, \"shadow\": %llu, \"total\": %llu},\n",
             (unsigned long long)s->rays_camera, (unsigned long long)s->rays_bounce,
             (unsigned long long)s->rays_shadow, (unsigned long long)rays);

@@ -339,6 +339,7 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
         if (stopped) break;
         spp_done += spp_i;
         ig->spp_done = spp_done;
+        double t_barrier = clock_seconds();
         integrator_barrier(ig); /* no ray in flight: learned state changes here */
         stats->iterations = iteration + 1;
         stats->spp_done = spp_done;
@@ -349,6 +350,7 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
             update_pixel_list(ig);
             total_paths = done_paths + (uint64_t)ig->iteration_pixels * (uint64_t)(o->spp - spp_done);
         }
+        stats->time_barrier += clock_seconds() - t_barrier; /* statistics only: no decision reads it */
         report_progress(&progress, done_paths, total_paths, done_paths == total_paths);
         at = (CheckpointProgress){iteration + 1, spp_done, 0};
         if (o->on_iteration) {

@@ -206,12 +206,6 @@ int report_convergence_svg(const char *path, const ReportSeries *series, int num
 
 /* ---------------------------------------------------------------- crops */
 
-float report_srgb(float x) {
-    if (!(x > 0.0f)) return 0.0f;
-    if (x >= 1.0f) return 1.0f;
-    return x <= 0.0031308f ? 12.92f * x : 1.055f * powf(x, 1.0f / 2.4f) - 0.055f;
-}
-
 void report_pick_crop(const float *error_map, int width, int height, int crop[3]) {
     int shorter = width < height ? width : height;
     int side = shorter / 4 >= 8 ? shorter / 4 : (shorter < 8 ? shorter : 8);
@@ -242,7 +236,7 @@ int report_crops_png(const char *path, const float *const *crops, int num_panels
             for (int x = 0; x < panel; ++x) {
                 size_t s = 3 * ((size_t)(y / scale) * (size_t)side + (size_t)(x / scale));
                 size_t d = 3 * ((size_t)y * (size_t)W + (size_t)(ox + x));
-                for (int k = 0; k < 3; ++k) rgb[d + k] = report_srgb(crops[p][s + k]);
+                for (int k = 0; k < 3; ++k) rgb[d + k] = candela_srgb_encode(crops[p][s + k]);
             }
     }
     char ioerr[IO_ERR_LEN];

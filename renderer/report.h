@@ -36,8 +36,6 @@ typedef enum { REPORT_X_SPP, REPORT_X_SECONDS } ReportAxis;
 int report_convergence_svg(const char *path, const ReportSeries *series, int num_series, ReportAxis x,
                            char err[CANDELA_ERR_LEN]);
 
-/* Linear radiance -> display values in [0, 1] (clipped, sRGB-encoded: the PNG preview's). */
-float report_srgb(float linear);
 /* The square crop (x, y, side), side about a quarter of the shorter image side, whose summed
  * error_map (one value per pixel) is largest: where the variants differ most from the reference. */
 void report_pick_crop(const float *error_map, int width, int height, int crop[3]);

@@ -30,6 +30,9 @@ static void log_queue(const Integrator *ig, const SceneRay *rays, const uint32_t
     pthread_mutex_unlock(m);
 }
 
+_Static_assert(STAGE_COUNT == sizeof ((CandelaStats *)0)->stage_thread_seconds / sizeof(double),
+               "CandelaStats.stage_thread_seconds holds one time per stage");
+
 /* One wave: every live path of the slice advances by one bounce. */
 static void run_wave(const Integrator *ig, Slice *s) {
     TIMED(s, STAGE_SORT, sort_rays(ig, s));
@@ -73,15 +76,26 @@ void integrator_run_batch(Integrator *ig, ThreadPool *pool, CandelaStats *st) {
                             .items_tmp = ig->sort_items_tmp + b, .record_samples = &ig->record.samples[k].s};
     }
     SliceCtx c = {ig, slices};
+    double t_region = clock_seconds();
     threadpool_parallel_for(pool, n, 1, slice_range, &c);
-    /* stage times: summed over the slices that ran concurrently, divided by their number */
+    double region = clock_seconds() - t_region;
+    /* stage wall times: the region's wall time (measured here, on the calling thread) shared
+     * among the stages in proportion to the threads' time in each, so they add up to it; the
+     * threads' own times, averaged over the slices, are the per-thread detail */
+    double *wall[STAGE_COUNT] = {&st->time_generate, &st->time_sort, &st->time_trace, &st->time_medium,
+                                 &st->time_shade, &st->time_shadow};
+    double per_stage[STAGE_COUNT] = {0}, busy = 0.0;
+    for (uint32_t k = 0; k < n; ++k)
+        for (int s = 0; s < STAGE_COUNT; ++s) {
+            per_stage[s] += slices[k].seconds[s];
+            busy += slices[k].seconds[s];
+        }
+    for (int s = 0; s < STAGE_COUNT; ++s) {
+        *wall[s] += busy > 0.0 ? region * (per_stage[s] / busy) : (s == STAGE_GENERATE ? region : 0.0);
+        st->stage_thread_seconds[s] += per_stage[s] / n;
+    }
+    if ((int)n > st->stage_threads) st->stage_threads = (int)n;
     for (uint32_t k = 0; k < n; ++k) {
-        st->time_generate += slices[k].seconds[STAGE_GENERATE] / n;
-        st->time_sort += slices[k].seconds[STAGE_SORT] / n;
-        st->time_trace += slices[k].seconds[STAGE_TRACE] / n;
-        st->time_medium += slices[k].seconds[STAGE_MEDIUM] / n;
-        st->time_shade += slices[k].seconds[STAGE_SHADE] / n;
-        st->time_shadow += slices[k].seconds[STAGE_SHADOW] / n;
         st->rays_bounce += slices[k].bounce_rays;
         st->rays_shadow += slices[k].shadow_rays;
         st->volume_collisions += slices[k].volume.collisions;
@@ -89,11 +103,13 @@ void integrator_run_batch(Integrator *ig, ThreadPool *pool, CandelaStats *st) {
     }
     st->paths += ig->batch_count;
     st->rays_camera += ig->batch_count;
+    double t_learn = clock_seconds(); /* learning from the batch: serial phases */
     if (ig->record.active) record_batch_end(ig, slices, n);
     guide_train_batch(ig);
     inscatter_probe_batch(ig, slices, n);
     guide_probe_batch(ig);
     emission_probe_batch(ig, slices, n);
+    st->time_learn += clock_seconds() - t_learn;
     /* film: serial, in path order, so every pixel sums its samples in sample order */
     double t = clock_seconds();
     film_add_paths(&ig->film, &ig->ps, ig->batch_count);

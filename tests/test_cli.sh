@@ -437,6 +437,10 @@ expect_error "variant twice" "variant 'a' is given twice" -- compare "$det" --sp
   --out-dir "$cmpd" --quiet --variants "a: --light-sampler power; a: --light-sampler tree"
 expect_error "variant file clash" "would write the same file" -- compare "$det" --spp 1 --res 8x8 \
   --out-dir "$cmpd" --quiet --variants "a: --light-sampler power; a_error: --light-sampler tree"
+expect_error "variant crop clash" "would write the same file" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$cmpd" --quiet --variants "a_crop: --light-sampler power; a: --light-sampler tree"
+expect_error "variant reserved crop name" "taken by the report" -- compare "$det" --spp 1 --res 8x8 \
+  --out-dir "$cmpd" --quiet --variants "reference_crop: --light-sampler power"
 expect_error "variant bad name" "variant name '../x'" -- compare "$det" --spp 1 --res 8x8 \
   --out-dir "$cmpd" --quiet --variants "../x: --light-sampler power"
 expect_error "variant reserved name" "taken by the report" -- compare "$det" --spp 1 --res 8x8 \

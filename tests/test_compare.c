@@ -5,7 +5,10 @@
  * variance to the CSV's print precision, TTUV = mean variance x time and the ratios against
  * the first variant; every variant at the requested spp; the convergence snapshots end at
  * the final image; the crops PNG holds the reference's and the variants' pixels at the crop
- * the page names. Then equal time: every variant runs at least the budget and reports the spp
+ * the page names. The noise-corrected MSE and relMSE are the raw ones minus the reference's
+ * variance term, computed here from reference.exr's variance layer; the page has a row per
+ * variant holding its image, its error map with the colour bar and its crop (parsed from the
+ * HTML), and no test marker. Then equal time: every variant runs at least the budget and reports the spp
  * it reached.
  * usage: test_compare CANDELA_BINARY SCENE */
 #include <math.h>
@@ -18,7 +21,7 @@
 #include "check.h"
 #include "io.h"
 
-enum { MAX_ROWS = 512, MAX_COLS = 24 };
+enum { MAX_ROWS = 512, MAX_COLS = 40 };
 
 typedef struct Csv {
     int rows, cols;
@@ -138,6 +141,18 @@ static void check_equal_spp(const char *bin, const char *scene, const char *dir)
     if (!ref) return;
     CHECK(w == 32 && h == 24, "reference %dx%d", w, h);
     size_t n = 3 * (size_t)w * (size_t)h;
+    /* the reference's noise: its variance of the mean, averaged as the MSE averages */
+    int rvw, rvh;
+    float *ref_var = read_rgb(path, "variance.", &rvw, &rvh);
+    double ref_noise = 0.0, ref_noise_rel = 0.0;
+    for (size_t i = 0; ref_var && i < n; ++i) {
+        ref_noise += ref_var[i];
+        ref_noise_rel += ref_var[i] / ((double)ref[i] * ref[i] + 0.01);
+    }
+    ref_noise /= (double)n;
+    ref_noise_rel /= (double)n;
+    CHECK(ref_var && ref_noise > 0.0, "reference.exr: no variance layer, or a zero one");
+    free(ref_var);
 
     static Csv csv, conv;
     snprintf(path, sizeof path, "%s/table.csv", dir);
@@ -163,6 +178,17 @@ static void check_equal_spp(const char *bin, const char *scene, const char *dir)
             vs += var[i];
         }
         double rmse = sqrt(se / n), relmse = rel / n, mae = ae / n, mvar = vs / n;
+        /* the main numbers: raw minus the reference's noise (a difference: compared against the
+         * size of its terms) */
+        double mse = se / n, mse_c = num(&csv, r, "mse_corrected"), rel_c = num(&csv, r, "relmse_corrected");
+        CHECK(rel_close(num(&csv, r, "mse"), mse, 1e-8), "%s mse %.9g, computed %.9g", VARIANTS[v], num(&csv, r, "mse"), mse);
+        CHECK(fabs(mse_c - (mse - ref_noise)) <= 1e-8 * fmax(mse, ref_noise), "%s mse_corrected %.9g, computed %.9g - %.9g",
+              VARIANTS[v], mse_c, mse, ref_noise);
+        CHECK(fabs(rel_c - (relmse - ref_noise_rel)) <= 1e-8 * fmax(relmse, ref_noise_rel),
+              "%s relmse_corrected %.9g, computed %.9g - %.9g", VARIANTS[v], rel_c, relmse, ref_noise_rel);
+        CHECK(rel_close(num(&csv, r, "ref_noise_mse"), ref_noise, 1e-8) && rel_close(num(&csv, r, "ref_noise_relmse"), ref_noise_rel, 1e-8),
+              "%s reference noise %.9g %.9g, computed %.9g %.9g", VARIANTS[v], num(&csv, r, "ref_noise_mse"),
+              num(&csv, r, "ref_noise_relmse"), ref_noise, ref_noise_rel);
         double t = num(&csv, r, "time_s"), ttuv = num(&csv, r, "ttuv");
         /* printed with 9 significant digits: equal to ~5e-9 relative */
         CHECK(rel_close(num(&csv, r, "rmse"), rmse, 1e-8), "%s rmse %.9g, computed %.9g", VARIANTS[v], num(&csv, r, "rmse"), rmse);
@@ -259,6 +285,58 @@ static void check_equal_spp(const char *bin, const char *scene, const char *dir)
         }
         io_image_free(&crops);
     } else if (side == 8) {
+        CHECK(0, "%s", err);
+    }
+
+    /* the page: a row per image (the reference and each variant) holding its image, its error
+     * map with the colour bar and its scale, and its crop; the corrected MSE is the row's main
+     * number in the table; no test marker or script */
+    snprintf(path, sizeof path, "%s/index.html", dir);
+    static char page[1 << 20];
+    size_t page_len = 0;
+    if ((f = fopen(path, "r"))) {
+        page_len = fread(page, 1, sizeof page - 1, f);
+        fclose(f);
+    }
+    page[page_len] = 0;
+    int rows = 0;
+    for (const char *p = page; (p = strstr(p, "<tr class=\"image-row\">")); ++p) ++rows;
+    CHECK(rows == 4, "index.html: %d image rows, expected 4 (the reference and 3 variants)", rows);
+    CHECK(!strstr(page, "IMAGES-OK") && !strstr(page, "<script"), "index.html holds a test marker or a script");
+    for (int v = -1; v < 3; ++v) {
+        const char *name = v < 0 ? "reference" : VARIANTS[v];
+        char start[128], want[160];
+        snprintf(start, sizeof start, "<tr class=\"image-row\"><th>%s</th>", name);
+        const char *row = strstr(page, start), *end = row ? strstr(row, "</tr>") : NULL;
+        CHECK(row && end, "index.html: no image row for %s", name);
+        if (!row || !end) continue;
+        size_t len = (size_t)(end - row);
+        char *text = strndup(row, len);
+        const char *parts[3] = {".png", "_error.png", "_crop.png"};
+        for (int k = 0; k < 3; ++k) {
+            if (v < 0 && k == 1) continue; /* the reference has no error map */
+            snprintf(want, sizeof want, "<img src=\"%s%s\"", name, parts[k]);
+            if (k == 2) snprintf(want, sizeof want, "<img class=\"crop\" src=\"%s%s\"", name, parts[k]);
+            CHECK(strstr(text, want) != NULL, "%s's row lacks %s", name, want);
+            struct stat st;
+            snprintf(path, sizeof path, "%s/%s%s", dir, name, parts[k]);
+            CHECK(stat(path, &st) == 0 && st.st_size > 0, "%s missing", path);
+        }
+        if (v >= 0)
+            CHECK(strstr(text, "class=\"colourbar\"") && strstr(text, "<span>0 %</span>") && strstr(text, "100 %</span>"),
+                  "%s's row lacks the colour bar and its scale", name);
+        free(text);
+        if (v >= 0 && row_of(&csv, name) > 0) {
+            snprintf(want, sizeof want, "<td class=\"main\">%.5g</td>", num(&csv, row_of(&csv, name), "mse_corrected"));
+            CHECK(strstr(page, want) != NULL, "index.html: no %s for %s", want, name);
+        }
+    }
+    IoImage one;
+    snprintf(path, sizeof path, "%s/reference_crop.png", dir);
+    if (io_load_image(path, 0, &one, err) == 0) {
+        CHECK(one.width == 160 && one.height == 160, "reference_crop.png %dx%d", one.width, one.height);
+        io_image_free(&one);
+    } else {
         CHECK(0, "%s", err);
     }
 
