@@ -37,6 +37,7 @@ static const IoModuleHost host = {
     .open_input = io_open_input,
 };
 
+#ifndef CANDELA_IO_STATIC_MODULES
 /* The folders a module is looked for in, in order (io_module.h); returns how many. */
 enum { MAX_DIRS = 5 };
 static int module_dirs(char dirs[MAX_DIRS][PATH_MAX]) {
@@ -98,6 +99,8 @@ static void *open_module(const char *file, const char *entry, const char *needed
              getenv("CANDELA_MODULE_DIR") ? ", from CANDELA_MODULE_DIR" : "");
     return NULL;
 }
+
+#endif
 
 static pthread_mutex_t lock = PTHREAD_MUTEX_INITIALIZER;
 
