@@ -3,7 +3,7 @@
  * OpenImageIO (image reading) and OpenVDB (volumes) pull in ~250 shared libraries between them
  * (boost, TBB, every image codec...), whose loading and symbol binding cost more start-up time
  * than a small render takes. They live in shared modules beside the program, opened with
- * dlopen(RTLD_NOW | RTLD_LOCAL) the first time a run needs one:
+ * dlopen(RTLD_LAZY | RTLD_LOCAL) the first time a run needs one:
  *   candela_io_image.so  image_module.cpp: decoding textures, environment maps and any image
  *                         io_load_image reads (OpenImageIO)
  *   candela_io_vdb.so    vdb.cpp: reading, building and writing VDB grids (OpenVDB)
