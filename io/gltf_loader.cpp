@@ -5,7 +5,7 @@
 // tinygltf does not keep otherwise). Everything the renderer relies on is validated here
 // (accessor and buffer bounds, index ranges, finite positions, node graph shape) and
 // converted to the plain C arrays of io.h. Images are decoded with OpenImageIO
-// (image_oiio.cpp) once per (image, colour space).
+// (image_module.cpp, in candela_io_image.so: io_module.h) once per (image, colour space).
 #include "io.h"
 #include "io_internal.hpp"
 

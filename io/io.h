@@ -1,6 +1,7 @@
 /* io/io.h: Candela's only door to files.
  *
- * Plain C17 view of what the C++17 adapters (tinygltf, OpenImageIO) and the OpenEXR C API
+ * Plain C17 view of what the C++17 adapters (tinygltf, OpenImageIO, OpenVDB; the last two in
+ * modules loaded on first use, io_module.h), libpng and the OpenEXR C API
  * read and write. No C++ type crosses this header. Every function that can fail returns 0 on
  * success and non-zero on failure, with a one-line message "FILE: problem" in err.
  * Ownership: a loaded IoScene / IoImage owns all its arrays; free with io_scene_free /
@@ -455,11 +456,11 @@ void io_path_list_free(IoPathList *list);
  * per channel is held as rgba8 (with IoImage.srgb = the IO_IMAGE_SRGB flag) instead of float. */
 enum { IO_IMAGE_SRGB = 1, IO_IMAGE_KEEP_8BIT = 2 };
 /* Read any image OpenImageIO reads (EXR, HDR, PNG, ...) into an IoImage: linear float RGBA,
- * or with IO_IMAGE_KEEP_8BIT 8-bit RGBA for 8-bit files. */
+ * or with IO_IMAGE_KEEP_8BIT 8-bit RGBA for 8-bit files. Loads candela_io_image.so on first use. */
 int io_load_image(const char *path, int flags, IoImage *image, char err[IO_ERR_LEN]);
 void io_image_free(IoImage *image);
 
-/* Write an 8-bit sRGB PNG through OpenImageIO. rgb: width*height*3 display values in [0,1]
+/* Write an 8-bit sRGB PNG through libpng (io/png.c). rgb: width*height*3 display values in [0,1]
  * (already tone-mapped and sRGB-encoded by the caller), top row first. */
 int io_write_png(const char *path, int width, int height, const float *rgb, char err[IO_ERR_LEN]);
 
@@ -498,7 +499,8 @@ int io_exr_complete(const char *path, int *width, int *height, char err[IO_ERR_L
 int io_exr_complete_attribute(const char *path, int *width, int *height, const char *name, char *value, size_t size,
                               char err[IO_ERR_LEN]);
 
-/* ---------------------------------------------------------------- volumes (OpenVDB) */
+/* ---------------------------------------------------------------- volumes (OpenVDB)
+ * Every function here but io_volume_grid_free loads candela_io_vdb.so on first use. */
 /* IoVolumeGrid is defined above, with IoVolume. */
 
 /* Reads the float grid `grid_name` of a .vdb file. Fails with a one-line "FILE: problem" for

@@ -1,4 +1,5 @@
-// io/vdb.cpp: OpenVDB float grids handed to C as NanoVDB buffers (io.h, IoVolumeGrid).
+// io/vdb.cpp: candela_io_vdb.so (io_module.h, loaded on first use: the program itself never
+// links OpenVDB): OpenVDB float grids handed to C as NanoVDB buffers (io.h, IoVolumeGrid).
 //
 // The file is walked first (VdbWalk: every size it declares is checked against the bytes it
 // holds, since OpenVDB allocates what a file claims before reading it), then OpenVDB reads it
@@ -7,6 +8,7 @@
 // crosses io.h.
 #include "io.h"
 #include "io_internal.hpp"
+#include "io_module.h"
 
 #include <openvdb/openvdb.h>
 #include <nanovdb/util/OpenToNanoVDB.h>
@@ -623,7 +625,7 @@ bool check_vdb_file(const char *path, const std::string &grid_name, std::string 
 
 }  // namespace
 
-extern "C" int io_load_vdb_grid(const char *path, const char *grid_name, IoVolumeGrid *out, char err[IO_ERR_LEN]) {
+static int vdb_load_vdb_grid(const char *path, const char *grid_name, IoVolumeGrid *out, char err[IO_ERR_LEN]) {
     std::memset(out, 0, sizeof *out);
     struct stat st;
     if (stat(path, &st) != 0) {
@@ -704,7 +706,7 @@ bool dense_size_ok(int nx, int ny, int nz) {
 
 }  // namespace
 
-extern "C" int io_write_vdb_dense(const char *path, const char *const *names, const float *const *values, int num_grids,
+static int vdb_write_vdb_dense(const char *path, const char *const *names, const float *const *values, int num_grids,
                                   int nx, int ny, int nz, const float index_to_world[16], char err[IO_ERR_LEN]) {
     if (!dense_size_ok(nx, ny, nz) || num_grids < 1) {
         candela_io::set_err(err, path, "invalid dense grid size");
@@ -735,7 +737,7 @@ extern "C" int io_write_vdb_dense(const char *path, const char *const *names, co
     return 1;
 }
 
-extern "C" int io_volume_grid_from_dense(const float *values, int nx, int ny, int nz, const float index_to_world[16],
+static int vdb_volume_grid_from_dense(const float *values, int nx, int ny, int nz, const float index_to_world[16],
                                          const char *name, IoVolumeGrid *out, char err[IO_ERR_LEN]) {
     std::memset(out, 0, sizeof *out);
     if (!dense_size_ok(nx, ny, nz)) {
@@ -760,7 +762,7 @@ extern "C" int io_volume_grid_from_dense(const float *values, int nx, int ny, in
     return 1;
 }
 
-extern "C" int io_volume_grid_from_voxels(const int32_t *ijk, const float *values, size_t count, const int32_t *boxes,
+static int vdb_volume_grid_from_voxels(const int32_t *ijk, const float *values, size_t count, const int32_t *boxes,
                                           const float *box_values, size_t num_boxes, const float index_to_world[16],
                                           const char *name, IoVolumeGrid *out, char err[IO_ERR_LEN]) {
     std::memset(out, 0, sizeof *out);
@@ -797,7 +799,14 @@ extern "C" int io_volume_grid_from_voxels(const int32_t *ijk, const float *value
     return 1;
 }
 
-extern "C" void io_volume_grid_free(IoVolumeGrid *grid) {
-    std::free(grid->buffer);
-    std::memset(grid, 0, sizeof *grid);
+extern "C" __attribute__((visibility("default"))) int candela_io_vdb_module(const IoModuleHost *host,
+                                                                           IoVdbModule *module) {
+    if (!host || host->abi != IO_MODULE_ABI || !module) return 1;
+    io_module_set_host(host);
+    module->abi = IO_MODULE_ABI;
+    module->load_grid = vdb_load_vdb_grid;
+    module->from_dense = vdb_volume_grid_from_dense;
+    module->from_voxels = vdb_volume_grid_from_voxels;
+    module->write_dense = vdb_write_vdb_dense;
+    return 0;
 }

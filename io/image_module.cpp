@@ -1,16 +1,13 @@
-// io/image_oiio.cpp: thin extern "C" adapter over OpenImageIO (C++17).
-// Decodes any image OIIO reads into linear float RGBA (or keeps an 8-bit file as 8-bit RGBA)
-// and writes 8-bit PNGs atomically (temp name + rename). Also hosts the small helpers shared
-// with gltf_loader.cpp.
+// io/image_module.cpp: candela_io_image.so (io_module.h), the thin adapter over OpenImageIO
+// (C++17): decodes any image OIIO reads into linear float RGBA, or keeps an 8-bit file as
+// 8-bit RGBA. Loaded on first use; the program itself never links OpenImageIO.
 #include "io.h"
 #include "io_internal.hpp"
+#include "io_module.h"
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
-#include <unistd.h>
-
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -19,39 +16,9 @@
 #include <memory>
 #include <new>
 #include <string>
-#include <sys/stat.h>
 #include <vector>
 
 namespace candela_io {
-
-std::string one_line(const std::string &s) {
-    std::string out;
-    out.reserve(s.size());
-    bool pending_sep = false;
-    for (char c : s) {
-        if (c == '\n' || c == '\r') {
-            pending_sep = true;
-            continue;
-        }
-        if (pending_sep && !out.empty()) out += "; ";
-        pending_sep = false;
-        out += (c == '\t') ? ' ' : c;
-    }
-    while (!out.empty() && (out.back() == ' ' || out.back() == ';')) out.pop_back();
-    return out;
-}
-
-void set_err(char err[IO_ERR_LEN], const std::string &prefix, const std::string &problem) {
-    if (!err) return;
-    std::string msg = one_line(prefix + ": " + problem);
-    std::snprintf(err, IO_ERR_LEN, "%s", msg.c_str());
-}
-
-// Exact sRGB EOTF (IEC 61966-2-1), encoded [0,1] -> linear.
-static double srgb_to_linear(double c) {
-    if (c <= 0.04045) return c / 12.92;
-    return std::pow((c + 0.055) / 1.055, 2.4);
-}
 
 static bool is_integer_format(OIIO::TypeDesc t) {
     switch (t.basetype) {
@@ -85,7 +52,7 @@ static bool is_8bit(const OIIO::ImageSpec &spec) {
     return true;
 }
 
-bool decode_image(const std::string &path, const void *mem, size_t mem_size, bool srgb, bool keep_8bit,
+static bool decode_oiio(const std::string &path, const void *mem, size_t mem_size, bool srgb, bool keep_8bit,
                   uint64_t max_bytes, IoImage *out, std::string *problem) {
     OIIO::ImageSpec config;
     // glTF (and PNG) alpha is straight; keep it so (OIIO premultiplies by default).
@@ -223,162 +190,37 @@ bool decode_image(const std::string &path, const void *mem, size_t mem_size, boo
     return true;
 }
 
+// decode_oiio with a C signature; no exception leaves the module
+static int decode_entry(const char *path, const void *mem, size_t mem_size, int srgb, int keep_8bit,
+                        uint64_t max_bytes, IoImage *out, char problem[IO_ERR_LEN]) {
+    problem[0] = 0;
+    IoImage img{};
+    std::string why;
+    bool ok = false;
+    try {
+        ok = decode_oiio(path, mem, mem_size, srgb != 0, keep_8bit != 0, max_bytes, &img, &why);
+    } catch (const std::exception &e) {
+        io_image_free(&img);
+        why = std::string("cannot load: ") + e.what();
+    } catch (...) {
+        io_image_free(&img);
+        why = "cannot load: unknown exception";
+    }
+    if (!ok) {
+        std::snprintf(problem, IO_ERR_LEN, "%s", one_line(why).c_str());
+        return 1;
+    }
+    *out = img;
+    return 0;
+}
+
 }  // namespace candela_io
 
-using candela_io::set_err;
-
-extern "C" const IoTexel8Tables *io_texel8_tables(void) {
-    // linear: OpenImageIO's own uint8 -> float conversion, the one read_image applies when a
-    // float decode of an 8-bit file is asked for; srgb: the table the float decode of an sRGB
-    // 8-bit file uses. (A function-local static: built once, thread-safe.)
-    static const IoTexel8Tables tables = [] {
-        IoTexel8Tables t{};
-        unsigned char codes[256];
-        for (int k = 0; k < 256; ++k) codes[k] = (unsigned char)k;
-        if (!OIIO::convert_pixel_values(OIIO::TypeDesc::UINT8, codes, OIIO::TypeDesc::FLOAT, t.linear, 256))
-            for (int k = 0; k < 256; ++k) t.linear[k] = float(k) * (1.0f / 255.0f); // OIIO's formula
-        for (int k = 0; k < 256; ++k) t.srgb[k] = float(candela_io::srgb_to_linear(double(k) / 255.0));
-        return t;
-    }();
-    return &tables;
-}
-
-extern "C" uint64_t io_image_bytes(const IoImage *image) {
-    if (!image || image->width <= 0 || image->height <= 0) return 0;
-    const uint64_t texels = uint64_t(image->width) * uint64_t(image->height);
-    if (image->rgba8) return texels * 4u;
-    return image->rgba ? texels * 4u * sizeof(float) : 0;
-}
-
-extern "C" int io_load_image(const char *path, int flags, IoImage *image, char err[IO_ERR_LEN]) {
-    if (err) err[0] = 0;
-    if (!image) {
-        set_err(err, path ? path : "(null)", "no output image");
-        return 1;
-    }
-    std::memset(image, 0, sizeof *image);
-    if (!path || !*path) {
-        set_err(err, "(null)", "no path given");
-        return 1;
-    }
-    // a FIFO or a device (/dev/zero) would block or never end: only regular files are read
-    struct stat st;
-    if (::stat(path, &st) != 0) {
-        set_err(err, path, "cannot open: no such file");
-        return 1;
-    }
-    if (!S_ISREG(st.st_mode)) {
-        set_err(err, path, "not a regular file");
-        return 1;
-    }
-    try {
-        std::string problem;
-        if (!candela_io::decode_image(path, nullptr, 0, (flags & IO_IMAGE_SRGB) != 0,
-                                      (flags & IO_IMAGE_KEEP_8BIT) != 0, 0, image, &problem)) {
-            set_err(err, path, problem);
-            return 1;
-        }
-        return 0;
-    } catch (const std::exception &e) {
-        io_image_free(image);
-        set_err(err, path, std::string("cannot load: ") + e.what());
-        return 1;
-    } catch (...) {
-        io_image_free(image);
-        set_err(err, path, "cannot load: unknown exception");
-        return 1;
-    }
-}
-
-extern "C" void io_image_free(IoImage *image) {
-    if (!image) return;
-    std::free(image->rgba);
-    std::free(image->rgba8);
-    std::memset(image, 0, sizeof *image);
-}
-
-extern "C" int io_write_png(const char *path_arg, int width, int height, const float *rgb,
-                            char err[IO_ERR_LEN]) {
-    if (err) err[0] = 0;
-    if (!path_arg || !*path_arg) {
-        set_err(err, "(null)", "no path given");
-        return 1;
-    }
-    char path[IO_PATH_MAX];
-    if (io_output_path(path_arg, path, err) != 0) return 1;
-    if (width <= 0 || height <= 0 || !rgb || (long long)width * height > (1LL << 31) / 3) {
-        set_err(err, path, "invalid image size or no pixels");
-        return 1;
-    }
-    std::string tmp = std::string(path) + ".tmp-" + std::to_string((long)getpid());
-    io_temp_begin(tmp.c_str());
-    struct TempEnd {
-        ~TempEnd() { io_temp_end(); }
-    } temp_end;
-    try {
-        const size_t n = size_t(width) * size_t(height) * 3;
-        std::vector<unsigned char> px(n);
-        for (size_t i = 0; i < n; ++i) {
-            float v = rgb[i];
-            if (!(v > 0.0f)) v = 0.0f;  // also maps NaN to 0
-            if (v > 1.0f) v = 1.0f;
-            px[i] = (unsigned char)(v * 255.0f + 0.5f);
-        }
-        // Encoded in memory, then written with every write, flush, sync and close checked:
-        // OpenImageIO's PNG writer reported success on a full disk and a truncated file was
-        // renamed into place (issue 13 item 10).
-        auto out = OIIO::ImageOutput::create("png");
-        if (!out) {
-            set_err(err, path, "cannot open: " + OIIO::geterror());
-            return 1;
-        }
-        std::vector<unsigned char> bytes;
-        OIIO::Filesystem::IOVecOutput vec(bytes);
-        void *proxy = &vec;
-        OIIO::ImageSpec spec(width, height, 3, OIIO::TypeDesc::UINT8);
-        spec.attribute("oiio:ioproxy", OIIO::TypeDesc::PTR, &proxy);
-        bool ok = out->open("memory.png", spec) && out->write_image(OIIO::TypeDesc::UINT8, px.data());
-        std::string e = ok ? std::string() : out->geterror();
-        if (!out->close() && ok) {
-            ok = false;
-            e = out->geterror();
-        }
-        out.reset();
-        if (!ok || bytes.empty()) {
-            set_err(err, path, "cannot encode: " + (e.empty() ? std::string("no data") : e));
-            return 1;
-        }
-        FILE *f = std::fopen(tmp.c_str(), "wb");
-        if (!f) {
-            set_err(err, path, std::string("cannot open for writing: ") + std::strerror(errno));
-            return 1;
-        }
-        bool written = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size() && std::fflush(f) == 0 &&
-                       ::fsync(fileno(f)) == 0;
-        int saved = errno;
-        if (std::fclose(f) != 0 && written) {
-            written = false;
-            saved = errno;
-        }
-        if (!written) {
-            std::remove(tmp.c_str());
-            set_err(err, path, std::string("cannot write: ") + std::strerror(saved));
-            return 1;
-        }
-        if (std::rename(tmp.c_str(), path) != 0) {
-            std::string e2 = std::strerror(errno);
-            std::remove(tmp.c_str());
-            set_err(err, path, "cannot rename " + tmp + ": " + e2);
-            return 1;
-        }
-        return 0;
-    } catch (const std::exception &ex) {
-        std::remove(tmp.c_str());
-        set_err(err, path, std::string("cannot write: ") + ex.what());
-        return 1;
-    } catch (...) {
-        std::remove(tmp.c_str());
-        set_err(err, path, "cannot write: unknown exception");
-        return 1;
-    }
+extern "C" __attribute__((visibility("default"))) int candela_io_image_module(const IoModuleHost *host,
+                                                                             IoImageModule *module) {
+    if (!host || host->abi != IO_MODULE_ABI || !module) return 1;
+    io_module_set_host(host);
+    module->abi = IO_MODULE_ABI;
+    module->decode = candela_io::decode_entry;
+    return 0;
 }
