@@ -478,7 +478,7 @@ static int write_error_png(const char *path, const CandelaImage *img, const floa
         false_colour(e, rgb + 3 * i);
     }
     char ioerr[IO_ERR_LEN];
-    int rc = io_write_png(path, img->width, img->height, rgb, ioerr);
+    int rc = io_write_png(path, img->width, img->height, rgb, NULL, 0, ioerr);
     free(rgb);
     if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
     return rc;
@@ -490,7 +490,7 @@ static int write_srgb_png(const char *path, const float *linear, int width, int 
     if (!rgb) { snprintf(err, CANDELA_ERR_LEN, "%.400s: out of memory", path); return -1; }
     for (size_t i = 0; i < n; ++i) rgb[i] = candela_srgb_encode(linear[i]);
     char ioerr[IO_ERR_LEN];
-    int rc = io_write_png(path, width, height, rgb, ioerr);
+    int rc = io_write_png(path, width, height, rgb, NULL, 0, ioerr);
     free(rgb);
     if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
     return rc;

@@ -355,7 +355,7 @@ static int write_plane(const char *prefix, const char *what, int w, int h, const
     if (rc == 0) {
         for (size_t i = 0; i < n; ++i) rgb[3 * i] = rgb[3 * i + 1] = rgb[3 * i + 2] = vmax > 0.0f ? sqrtf(v[i] / vmax) : 0.0f;
         snprintf(path, sizeof path, "%s.%s.png", prefix, what);
-        rc = io_write_png(path, w, h, rgb, ioerr);
+        rc = io_write_png(path, w, h, rgb, NULL, 0, ioerr);
     }
     free(rgb);
     if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);

@@ -739,6 +739,13 @@ if command -v oiiotool >/dev/null 2>&1; then
   oiiotool --info -v "$tmp/prov a.exr" | grep -Eq '^ *DateTime: "[0-9]{4}:[0-9]{2}:[0-9]{2} [0-9:]{8}"' && ok || bad "DateTime"
   hash1=$(attr "$tmp/prov a.exr" candela:sceneHash)
   echo "$hash1" | grep -Eq '^[0-9a-f]{16}$' && ok || bad "sceneHash '$hash1'"
+  # the PNG's text chunks hold the same (software under the registered keyword Software)
+  [ "$(attr "$tmp/prov a.png" Software)" = "$sw" ] && ok || bad "PNG Software: $(oiiotool --info -v "$tmp/prov a.png")"
+  [ "$(attr "$tmp/prov a.png" candela:sceneHash)" = "$hash1" ] && [ "$(attr "$tmp/prov a.png" candela:sppDone)" = 2 ] \
+    && [ "$(attr "$tmp/prov a.png" candela:identity)" = "$(attr "$tmp/prov a.exr" candela:identity)" ] && ok \
+    || bad "PNG provenance: $(oiiotool --info -v "$tmp/prov a.png")"
+  [ "$(attr "$tmp/prov a.png" candela:options)" = "$(attr "$tmp/prov a.exr" candela:options)" ] && ok \
+    || bad "PNG candela:options differs from the EXR's"
   # issue 27: the image identity (what --frames --resume compares): the scene's hash, the image
   # options in the table's form (the resolution the render had), nothing that leaves the image alone
   ident=$(attr "$tmp/prov a.exr" candela:identity)
@@ -766,9 +773,11 @@ sys.exit(0 if p["candela:options"]["spp"] == 2 and p["candela:sppDone"] == "2" a
   same_exr "$tmp/prov a.exr" "$tmp/prov b.exr" && ok || bad "the provenance changed the pixels"
   cmp -s "$tmp/prov a.exr" "$tmp/prov b.exr" && bad "two runs' headers are the same (no provenance?)" || ok
   # a frame batch's frames and a merge carry it too
-  "$bin" render "$tmp/prov.gltf" --frames 0-0 -o "$tmp/provf.#.exr" --res 8x8 --spp 1 --quiet --no-png && ok || bad "provenance frame"
+  "$bin" render "$tmp/prov.gltf" --frames 0-0 -o "$tmp/provf.#.exr" --res 8x8 --spp 1 --quiet && ok || bad "provenance frame"
   [ "$(attr "$tmp/provf.0.exr" candela:frame)" = 0 ] && [ "$(attr "$tmp/provf.0.exr" software)" = "$sw" ] && ok \
     || bad "a frame's provenance: $(oiiotool --info -v "$tmp/provf.0.exr")"
+  [ "$(attr "$tmp/provf.0.png" candela:frame)" = 0 ] && [ "$(attr "$tmp/provf.0.png" Software)" = "$sw" ] && ok \
+    || bad "a frame PNG's provenance: $(oiiotool --info -v "$tmp/provf.0.png" 2>&1)"
   "$bin" render "$tmp/prov.gltf" --sample-shard 0/1 -o "$tmp/prov.film" --res 8x8 --spp 1 --quiet && \
     "$bin" merge -o "$tmp/provm.exr" --no-png "$tmp/prov.film" && ok || bad "provenance merge"
   case $(attr "$tmp/provm.exr" candela:commandLine) in *" merge -o $tmp/provm.exr --no-png $tmp/prov.film") ok ;;
