@@ -413,6 +413,10 @@ typedef struct CandelaCompareOptions {
     /* the build, for the cached reference's key: the CLI's "candela VERSION (git REV)" (NULL:
      * the version alone); the running binary's size and time are added to it */
     const char *build;
+    /* the run's provenance (candela_provenance_begin: software, command line, host, date): each
+     * rendered image (EXR, PNG, error PNG) gets it with the scene and its hash, its own render's
+     * options and statistics and candela:compareVariant (its name; "reference"); NULL: none */
+    const CandelaProvenance *provenance;
 } CandelaCompareOptions;
 
 int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, char err[CANDELA_ERR_LEN]);

@@ -730,7 +730,16 @@ static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBa
         co.build = build; /* the cached reference's key */
         /* equal time: --spp is only a cap, by default the largest (the time budget decides) */
         if (co.time_budget > 0 && !spp_given) o.spp = 1 << 20;
-        if (candela_compare(&o, &co, err) != 0) {
+        /* each report image's provenance (README "Output"): the scene is hashed once rendered */
+        CandelaProvenance cprov;
+        if (candela_provenance_begin(&cprov, build, argc, argv) != 0) {
+            fprintf(stderr, "candela: out of memory\n");
+            return 1;
+        }
+        co.provenance = &cprov;
+        int crc = candela_compare(&o, &co, err);
+        candela_provenance_free(&cprov);
+        if (crc != 0) {
             fprintf(stderr, "candela: %s\n", err);
             return 1;
         }
