@@ -124,6 +124,9 @@ typedef struct CandelaOptions {
     int aov_spp;                /* --aov spp: the samples each pixel got, as the EXR channel "spp" */
     const char *guide_dump_prefix; /* candela guide-dump: write the learned field at guide_dump_at */
     float guide_dump_at[3];
+    /* guide-dump's files' provenance (software, command line, host, date; NULL: none): the
+     * scene and its hash, the options, the position are added (renderer/guide.c) */
+    const struct CandelaProvenance *guide_dump_provenance;
     float guide_spatial_threshold; /* PPG's c: a leaf splits past c sqrt(spp of the iteration); 0: default */
     float path_regularization;  /* gamma of path-space regularisation (ch. 1 §7; 0: off, 0.01: the course's) */
     int guide_spatial_filter;   /* Müller 2019's stochastic spatial box filter for training (0: off) */

@@ -712,7 +712,6 @@ static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBa
     CandelaOptions o = *op;
     CandelaCompareOptions co = *cop;
     CandelaBatchOptions batch = *bp;
-    (void)dump;
     char err[CANDELA_ERR_LEN];
     if (compare) {
         char dir[PATH_MAX];
@@ -758,6 +757,7 @@ static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBa
         fprintf(stderr, "candela: out of memory\n");
         return 1;
     }
+    if (dump) o.guide_dump_provenance = &prov; /* OUT.guide/hist.exr/png (renderer/guide.c) */
     if (batch.frames) {
         if (candela_provenance_scene(&prov, o.scene_path, err) != 0) {
             fprintf(stderr, "candela: %s\n", err);

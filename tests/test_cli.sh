@@ -70,6 +70,15 @@ expect_error "dump nan --at" "--at wants" -- guide-dump "$scene" --at 1,nan,2 "$
 if "$bin" guide-dump "$scene" --at 0,0,0 -o "$tmp/dump.exr" --res 16x16 --spp 12 --quiet &&
    [ -s "$tmp/dump.exr" ] && [ -s "$tmp/dump.guide.exr" ] && [ -s "$tmp/dump.guide.png" ] && [ -s "$tmp/dump.hist.png" ] &&
    head -1 "$tmp/dump.leaves.ply" | grep -q '^ply$'; then ok; else bad "guide-dump did not write its files: $(ls "$tmp")"; fi
+# issue 27: the dump's images say how they were made (software, the scene's hash, the position)
+if command -v oiiotool >/dev/null 2>&1; then
+  for f in dump.guide.exr dump.hist.exr dump.guide.png; do
+    info=$(oiiotool --info -v "$tmp/$f" 2>&1)
+    echo "$info" | grep -Eq '^ *[sS]oftware: "candela ' && echo "$info" | grep -Eq '^ *candela:sceneHash: "[0-9a-f]{16}"$' &&
+      echo "$info" | grep -q '^ *candela:guideDumpAt: "0,0,0"$' && echo "$info" | grep -q '^ *candela:options: "{' && ok \
+      || bad "$f provenance: $info"
+  done
+fi
 if "$bin" render "$scene" --guiding ris --aov recorder-debug -o "$tmp/g.exr" --no-png --res 16x16 --spp 12 --quiet --stats-json "$tmp/g.json" &&
    python3 -c "import json,sys; d=json.load(open(sys.argv[1])); sys.exit(0 if d['guiding']['updates'] > 8 and 0 < d['recorder']['peak_bytes'] <= d['recorder']['bound_bytes'] else 1)" "$tmp/g.json"; then
   ok
