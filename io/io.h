@@ -460,21 +460,28 @@ enum { IO_IMAGE_SRGB = 1, IO_IMAGE_KEEP_8BIT = 2 };
 int io_load_image(const char *path, int flags, IoImage *image, char err[IO_ERR_LEN]);
 void io_image_free(IoImage *image);
 
+/* One string attribute of an EXR header or a PNG text chunk (provenance: "software",
+ * "candela:commandLine", ...). */
+typedef struct IoExrAttribute {
+    const char *name;
+    const char *value;
+} IoExrAttribute;
+
 /* Write an 8-bit sRGB PNG through libpng (io/png.c). rgb: width*height*3 display values in [0,1]
- * (already tone-mapped and sRGB-encoded by the caller), top row first. */
-int io_write_png(const char *path, int width, int height, const float *rgb, char err[IO_ERR_LEN]);
+ * (already tone-mapped and sRGB-encoded by the caller), top row first. attributes (NULL, 0:
+ * none) become text chunks before the pixels: tEXt, zTXt for a value over 1024 bytes, iTXt
+ * (compressed when long) for a value that is not plain ASCII (UTF-8). "software" is written as
+ * the registered keyword "Software", "capDate" as "Creation Time"; any other name is the
+ * keyword as is. A keyword that is not 1-79 printable Latin-1 characters without leading,
+ * trailing or double spaces, one given twice, or a NULL value is refused. */
+int io_write_png(const char *path, int width, int height, const float *rgb, const IoExrAttribute *attributes,
+                 int num_attributes, char err[IO_ERR_LEN]);
 
 /* One named channel of a multi-channel EXR, e.g. "R", "albedo.G", "variance.B", "Z". */
 typedef struct IoExrChannel {
     const char *name;
     const float *data; /* width*height floats, top row first */
 } IoExrChannel;
-
-/* One string attribute of an EXR header (provenance: "software", "candela:commandLine", ...). */
-typedef struct IoExrAttribute {
-    const char *name;
-    const char *value;
-} IoExrAttribute;
 
 /* Write a single-part scanline EXR (FLOAT channels, ZIP compression) with the OpenEXR C API.
  * attributes (num_attributes of them; NULL, 0: none) are written into the header as string

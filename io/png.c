@@ -2,7 +2,8 @@
  * atomically (temp name + rename) with every write, flush, sync and close checked: an image
  * library's writer once reported success on a full disk and a truncated file was renamed into
  * place (issue 13 item 10). The chunks are the ones OpenImageIO wrote before (IHDR, oFFs 0 0,
- * IDAT, IEND), so a plain render needs no image library beyond libpng. */
+ * IDAT, IEND), so a plain render needs no image library beyond libpng; provenance attributes
+ * (issue 27) go into text chunks (tEXt, zTXt, iTXt) before IDAT. */
 #include "io.h"
 
 #include <png.h>
@@ -61,8 +62,41 @@ static void png_on_error(png_structp png, png_const_charp msg) {
 }
 static void png_on_warning(png_structp png, png_const_charp msg) { (void)png; (void)msg; }
 
-/* PNG bytes of 8-bit RGB rows px (3 bytes a pixel, top row first) into *out; 0 ok. */
-static int encode_png(const unsigned char *px, int width, int height, PngBuffer *out, char problem[256]) {
+/* The PNG keyword of an attribute name: the registered keywords for OpenEXR's names. */
+static const char *png_keyword(const char *name) {
+    if (strcmp(name, "software") == 0) return "Software";
+    if (strcmp(name, "capDate") == 0) return "Creation Time";
+    return name;
+}
+
+/* 0 when key is a PNG keyword: 1-79 printable Latin-1 characters, no leading, trailing or
+ * consecutive spaces (PNG specification 11.3.4.2) */
+static int png_keyword_ok(const char *key) {
+    size_t n = strlen(key);
+    if (n < 1 || n > 79 || key[0] == ' ' || key[n - 1] == ' ') return -1;
+    for (size_t i = 0; i < n; ++i) {
+        unsigned char c = (unsigned char)key[i];
+        if (!((c >= 32 && c <= 126) || c >= 161)) return -1;
+        if (c == ' ' && key[i + 1] == ' ') return -1;
+    }
+    return 0;
+}
+
+/* The text chunk of one value: tEXt for short ASCII, zTXt for long ASCII, iTXt (compressed
+ * when long) for anything else (UTF-8; tEXt is Latin-1 only). */
+static int png_text_compression(const char *value) {
+    int ascii = 1;
+    size_t n = 0;
+    for (const unsigned char *c = (const unsigned char *)value; *c; ++c, ++n)
+        if (*c >= 0x80) ascii = 0;
+    if (ascii) return n > 1024 ? PNG_TEXT_COMPRESSION_zTXt : PNG_TEXT_COMPRESSION_NONE;
+    return n > 1024 ? PNG_ITXT_COMPRESSION_zTXt : PNG_ITXT_COMPRESSION_NONE;
+}
+
+/* PNG bytes of 8-bit RGB rows px (3 bytes a pixel, top row first), with the text chunks
+ * (num_text of them) into *out; 0 ok. */
+static int encode_png(const unsigned char *px, int width, int height, png_textp text, int num_text, PngBuffer *out,
+                      char problem[256]) {
     png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, png_on_error, png_on_warning);
     if (!png) {
         fmt(problem, 256, "cannot create the PNG encoder");
@@ -83,6 +117,7 @@ static int encode_png(const unsigned char *px, int width, int height, PngBuffer 
     png_set_IHDR(png, info, (png_uint_32)width, (png_uint_32)height, 8, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
                  PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
     png_set_oFFs(png, info, 0, 0, PNG_OFFSET_PIXEL);
+    if (num_text > 0) png_set_text(png, info, text, num_text);
     png_set_compression_level(png, 6);
     png_write_info(png, info);
     png_write_image(png, rows);
@@ -92,7 +127,8 @@ static int encode_png(const unsigned char *px, int width, int height, PngBuffer 
     return 0;
 }
 
-int io_write_png(const char *path_arg, int width, int height, const float *rgb, char err[IO_ERR_LEN]) {
+int io_write_png(const char *path_arg, int width, int height, const float *rgb, const IoExrAttribute *attributes,
+                 int num_attributes, char err[IO_ERR_LEN]) {
     if (err) err[0] = 0;
     if (!path_arg || !*path_arg) {
         set_err(err, "(null)", "no path given");
@@ -104,10 +140,50 @@ int io_write_png(const char *path_arg, int width, int height, const float *rgb, 
         set_err(err, path, "invalid image size or no pixels");
         return 1;
     }
+    if (num_attributes < 0 || (num_attributes > 0 && !attributes)) {
+        set_err(err, path, "invalid attribute list");
+        return 1;
+    }
+    png_textp text = NULL;
+    if (num_attributes > 0) {
+        text = calloc((size_t)num_attributes, sizeof *text);
+        if (!text) {
+            set_err(err, path, "cannot write: out of memory");
+            return 1;
+        }
+    }
+    for (int k = 0; k < num_attributes; ++k) {
+        char msg[IO_ERR_LEN];
+        const char *name = attributes[k].name ? attributes[k].name : "";
+        const char *key = png_keyword(name);
+        int bad = 0;
+        if (png_keyword_ok(key) != 0) {
+            fmt(msg, sizeof msg, "attribute \"%.100s\": not a PNG keyword (1-79 Latin-1 characters)", name);
+            bad = 1;
+        } else if (!attributes[k].value) {
+            fmt(msg, sizeof msg, "attribute \"%.100s\" has no value", name);
+            bad = 1;
+        }
+        for (int j = 0; j < k && !bad; ++j)
+            if (strcmp(text[j].key, key) == 0) {
+                fmt(msg, sizeof msg, "attribute \"%.100s\" given twice", key);
+                bad = 1;
+            }
+        if (bad) {
+            set_err(err, path, msg);
+            free(text);
+            return 1;
+        }
+        text[k].compression = png_text_compression(attributes[k].value);
+        text[k].key = (png_charp)key;
+        text[k].text = (png_charp)attributes[k].value;
+        text[k].text_length = strlen(attributes[k].value);
+    }
     const size_t n = (size_t)width * (size_t)height * 3;
     unsigned char *px = malloc(n);
     if (!px) {
         set_err(err, path, "cannot write: out of memory");
+        free(text);
         return 1;
     }
     for (size_t i = 0; i < n; ++i) {
@@ -118,8 +194,9 @@ int io_write_png(const char *path_arg, int width, int height, const float *rgb, 
     }
     PngBuffer bytes = {0};
     char problem[256];
-    int rc = encode_png(px, width, height, &bytes, problem);
+    int rc = encode_png(px, width, height, text, num_attributes, &bytes, problem);
     free(px);
+    free(text);
     if (rc != 0 || bytes.size == 0) {
         char msg[IO_ERR_LEN];
         fmt(msg, sizeof msg, "cannot encode: %s", rc ? problem : "no data");

@@ -344,9 +344,18 @@ static int append_line(const char *path, const char *line, char err[CANDELA_ERR_
     return rc;
 }
 
+/* The provenance attribute name of the batch ("" without it). */
+static const char *batch_attribute(const CandelaBatchOptions *b, const char *name) {
+    for (int k = 0; b->provenance && k < b->provenance->count; ++k)
+        if (strcmp(b->provenance->attrs[k].name, name) == 0) return b->provenance->attrs[k].value;
+    return "";
+}
+
+/* One --frame-stats line; identity: the frame's image identity (its EXR's candela:identity,
+ * what --resume compares; "" when too long to record). */
 static int log_frame(const CandelaBatchOptions *b, const CandelaOptions *fo, int64_t frame, double seconds,
                      const char *status, const char *exr, const char *problem, const CandelaStats *stats,
-                     const CandelaFrameInfo *info, char err[CANDELA_ERR_LEN]) {
+                     const CandelaFrameInfo *info, const char *identity, char err[CANDELA_ERR_LEN]) {
     if (!b->stats_jsonl) return 0;
     char *stats_json = NULL;
     if (stats && candela_stats_json_line(fo, stats, &stats_json) != 0) {
@@ -355,19 +364,25 @@ static int log_frame(const CandelaBatchOptions *b, const CandelaOptions *fo, int
     }
     /* JSON string literals through io_json_quote (nlohmann/json's escaping) */
     char *qexr = io_json_quote(exr), *qproblem = io_json_quote(problem ? problem : "");
-    size_t size = (qexr ? strlen(qexr) : 0) + (qproblem ? strlen(qproblem) : 0) + (stats_json ? strlen(stats_json) : 0) + 512;
-    char *line = qexr && qproblem ? malloc(size) : NULL;
+    /* how the frame was made (issue 27): the program (the --version line) and the image identity */
+    char *qsoftware = io_json_quote(batch_attribute(b, "software")), *qidentity = io_json_quote(identity ? identity : "");
+    size_t size = (qexr ? strlen(qexr) : 0) + (qproblem ? strlen(qproblem) : 0) + (stats_json ? strlen(stats_json) : 0) +
+                  (qsoftware ? strlen(qsoftware) : 0) + (qidentity ? strlen(qidentity) : 0) + 512;
+    char *line = qexr && qproblem && qsoftware && qidentity ? malloc(size) : NULL;
     if (!line) {
         free(stats_json);
         free(qexr);
         free(qproblem);
+        free(qsoftware);
+        free(qidentity);
         snprintf(err, CANDELA_ERR_LEN, "candela: out of memory");
         return -1;
     }
     snprintf(line, size,
              "{\"frame\": %lld, \"time\": %.9g, \"seed\": %llu, \"status\": \"%s\", \"output\": %s, \"error\": %s, "
+             "\"software\": %s, \"identity\": %s, "
              "\"pose_seconds\": %.6f, \"instances_moved\": %u, \"cachepoint_build_seconds\": %.6f, \"stats\": %s}\n",
-             (long long)frame, seconds, (unsigned long long)fo->seed, status, qexr, qproblem,
+             (long long)frame, seconds, (unsigned long long)fo->seed, status, qexr, qproblem, qsoftware, qidentity,
              info ? info->time_pose : 0.0, info ? info->instances_moved : 0u, stats ? stats->time_cachepoints : 0.0,
              stats_json ? stats_json : "null");
     int rc = append_line(b->stats_jsonl, line, err);
@@ -375,6 +390,8 @@ static int log_frame(const CandelaBatchOptions *b, const CandelaOptions *fo, int
     free(stats_json);
     free(qexr);
     free(qproblem);
+    free(qsoftware);
+    free(qidentity);
     return rc;
 }
 
@@ -473,10 +490,12 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
         fprintf(stderr, "candela: %zu of %zu frames%s%s (%g fps), scene loaded in %.3fs, %u animation channels\n",
                 mine.count, all.count, shard_what[0] ? " for " : "", shard_what, fps, info.time_load, info.num_channels);
 
-    /* --resume: each frame's identity (issue 27) against its EXR's candela:identity */
+    /* --resume: each frame's identity (issue 27) against its EXR's candela:identity; --frame-stats
+     * records it */
     uint64_t scene_hash = 0;
     char identity[CANDELA_IDENTITY_LEN];
-    if (b->resume && candela_scene_hash(o->scene_path, &scene_hash, err) != 0) {
+    identity[0] = 0;
+    if ((b->resume || b->stats_jsonl) && candela_scene_hash(o->scene_path, &scene_hash, err) != 0) {
         candela_session_close(session);
         free(all.frames);
         free(mine.frames);
@@ -496,11 +515,13 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
         char why[CANDELA_ERR_LEN];
         const char *not_done = why;
         int other_options = 0;
-        if (b->resume) {
+        if (b->resume || b->stats_jsonl) {
             CandelaOptions io = *o;
             io.seed = candela_frame_seed(o->seed, frame);
             if (candela_image_identity(&io, scene_hash, info.width, info.height, identity, sizeof identity) != 0)
                 identity[0] = 0; /* too long to record: never equal to a frame's */
+        }
+        if (b->resume) {
             not_done = frame_done(exr, b->png_pattern ? png : NULL, info.width, info.height, identity, &other_options, why);
         }
         if (b->resume && other_options) /* said even with --quiet: the frame is replaced */
@@ -512,7 +533,7 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
             CandelaOptions so = *o;
             so.seed = candela_frame_seed(o->seed, frame);
             char lerr[CANDELA_ERR_LEN];
-            if (log_frame(b, &so, frame, seconds, "skipped", exr, NULL, NULL, NULL, lerr) != 0)
+            if (log_frame(b, &so, frame, seconds, "skipped", exr, NULL, NULL, NULL, identity, lerr) != 0)
                 fprintf(stderr, "candela: frame %lld: %s\n", (long long)frame, lerr);
             if (!o->quiet) fprintf(stderr, "candela: [%zu/%zu] frame %lld: %s exists, skipped (--resume)\n", k + 1,
                                    mine.count, (long long)frame, exr);
@@ -529,7 +550,7 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
             ++failed;
             fprintf(stderr, "candela: frame %lld failed: %s\n", (long long)frame, lock_err);
             char lerr[CANDELA_ERR_LEN];
-            if (log_frame(b, &fo, frame, seconds, "failed", exr, lock_err, NULL, NULL, lerr) != 0)
+            if (log_frame(b, &fo, frame, seconds, "failed", exr, lock_err, NULL, NULL, identity, lerr) != 0)
                 fprintf(stderr, "candela: frame %lld: %s\n", (long long)frame, lerr);
             continue;
         }
@@ -586,7 +607,7 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
         }
         char lerr[CANDELA_ERR_LEN];
         if (log_frame(b, &fo, frame, seconds, status, out_exr ? out_exr : "", rc != 0 ? ferr : NULL,
-                      have_image ? &stats : NULL, &finfo, lerr) != 0)
+                      have_image ? &stats : NULL, &finfo, identity, lerr) != 0)
             fprintf(stderr, "candela: frame %lld: %s\n", (long long)frame, lerr);
         if (have_image) candela_image_free(&image);
         io_unlock_output(&lock);

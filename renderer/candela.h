@@ -124,6 +124,9 @@ typedef struct CandelaOptions {
     int aov_spp;                /* --aov spp: the samples each pixel got, as the EXR channel "spp" */
     const char *guide_dump_prefix; /* candela guide-dump: write the learned field at guide_dump_at */
     float guide_dump_at[3];
+    /* guide-dump's files' provenance (software, command line, host, date; NULL: none): the
+     * scene and its hash, the options, the position are added (renderer/guide.c) */
+    const struct CandelaProvenance *guide_dump_provenance;
     float guide_spatial_threshold; /* PPG's c: a leaf splits past c sqrt(spp of the iteration); 0: default */
     float path_regularization;  /* gamma of path-space regularisation (ch. 1 §7; 0: off, 0.01: the course's) */
     int guide_spatial_filter;   /* Müller 2019's stochastic spatial box filter for training (0: off) */
@@ -413,6 +416,10 @@ typedef struct CandelaCompareOptions {
     /* the build, for the cached reference's key: the CLI's "candela VERSION (git REV)" (NULL:
      * the version alone); the running binary's size and time are added to it */
     const char *build;
+    /* the run's provenance (candela_provenance_begin: software, command line, host, date): each
+     * rendered image (EXR, PNG, error PNG) gets it with the scene and its hash, its own render's
+     * options and statistics and candela:compareVariant (its name; "reference"); NULL: none */
+    const CandelaProvenance *provenance;
 } CandelaCompareOptions;
 
 int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, char err[CANDELA_ERR_LEN]);

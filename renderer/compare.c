@@ -468,7 +468,7 @@ static float relative_error(const float *x, const float *ref) {
 
 /* The false-colour PNG; also adds every pixel's relative error to error_map (the crop's pick). */
 static int write_error_png(const char *path, const CandelaImage *img, const float *ref, float *error_map,
-                           char err[CANDELA_ERR_LEN]) {
+                           const CandelaProvenance *prov, char err[CANDELA_ERR_LEN]) {
     size_t n = (size_t)img->width * (size_t)img->height;
     float *rgb = malloc(3 * n * sizeof(float));
     if (!rgb) { snprintf(err, CANDELA_ERR_LEN, "%.400s: out of memory", path); return -1; }
@@ -478,10 +478,43 @@ static int write_error_png(const char *path, const CandelaImage *img, const floa
         false_colour(e, rgb + 3 * i);
     }
     char ioerr[IO_ERR_LEN];
-    int rc = io_write_png(path, img->width, img->height, rgb, ioerr);
+    IoExrAttribute attrs[CANDELA_PROVENANCE_MAX];
+    int nattrs = prov ? prov->count : 0;
+    for (int k = 0; k < nattrs; ++k) attrs[k] = (IoExrAttribute){prov->attrs[k].name, prov->attrs[k].value};
+    int rc = io_write_png(path, img->width, img->height, rgb, nattrs ? attrs : NULL, nattrs, ioerr);
     free(rgb);
     if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
     return rc;
+}
+
+/* The provenance of one of the report's images (issue 27): the run's (software, command line,
+ * host, date), the scene and its hash (hashed once, into *scene_prov), what this render did
+ * with its own options (o, st) and candela:compareVariant = variant. Without the run's
+ * provenance (c->provenance NULL) p stays empty. 0 ok, -1 with err. */
+static int compare_provenance(const CandelaCompareOptions *c, CandelaProvenance *scene_prov, const CandelaOptions *o,
+                              const CandelaStats *st, int width, int height, const char *variant, CandelaProvenance *p,
+                              char err[CANDELA_ERR_LEN]) {
+    memset(p, 0, sizeof *p);
+    if (!c->provenance) return 0;
+    if (scene_prov->count == 0) {
+        if (candela_provenance_copy(scene_prov, c->provenance) != 0) {
+            snprintf(err, CANDELA_ERR_LEN, "out of memory");
+            return -1;
+        }
+        if (candela_provenance_scene(scene_prov, o->scene_path, err) != 0) {
+            candela_provenance_free(scene_prov);
+            return -1;
+        }
+    }
+    int rc = candela_provenance_copy(p, scene_prov);
+    if (rc == 0 && st) rc = candela_provenance_render(p, o, st) | candela_provenance_identity(p, o, width, height);
+    if (rc == 0) rc = candela_provenance_set(p, "candela:compareVariant", variant);
+    if (rc != 0) {
+        candela_provenance_free(p);
+        snprintf(err, CANDELA_ERR_LEN, "out of memory");
+        return -1;
+    }
+    return 0;
 }
 
 static int write_srgb_png(const char *path, const float *linear, int width, int height, char err[CANDELA_ERR_LEN]) {
@@ -490,7 +523,7 @@ static int write_srgb_png(const char *path, const float *linear, int width, int 
     if (!rgb) { snprintf(err, CANDELA_ERR_LEN, "%.400s: out of memory", path); return -1; }
     for (size_t i = 0; i < n; ++i) rgb[i] = candela_srgb_encode(linear[i]);
     char ioerr[IO_ERR_LEN];
-    int rc = io_write_png(path, width, height, rgb, ioerr);
+    int rc = io_write_png(path, width, height, rgb, NULL, 0, ioerr);
     free(rgb);
     if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
     return rc;
@@ -858,6 +891,7 @@ static int compare_locked(const CandelaOptions *base, const CandelaCompareOption
     float *ref = NULL, *mean = NULL, *error_map = NULL, **crops = NULL;
     Report r = {base, c, vs, count, -1, 0, 0, 1, 0.0, 0, 0, {0, 0, 0}};
     ReportText md = {0}, csv = {0}, table_html = {0}, html = {0}, conv = {0};
+    CandelaProvenance scene_prov = {0}; /* the run's provenance and the scene's hash */
     int rc = -1;
 
     /* 1. the reference: reuse an EXR, or render with the tree sampler */
@@ -901,7 +935,10 @@ static int compare_locked(const CandelaOptions *base, const CandelaCompareOption
             }
             snprintf(path, sizeof path, "%s/reference.exr", c->out_dir);
             snprintf(png, sizeof png, "%s/reference.png", c->out_dir);
-            int wrc = candela_write_outputs(&img, path, png, err);
+            CandelaProvenance rp;
+            int wrc = compare_provenance(c, &scene_prov, &ro, &st, img.width, img.height, "reference", &rp, err);
+            if (wrc == 0) wrc = candela_write_outputs_provenance(&img, path, png, rp.count ? &rp : NULL, err);
+            candela_provenance_free(&rp);
             size_t n = (size_t)r.width * (size_t)r.height;
             ref = wrc == 0 ? malloc(3 * n * sizeof(float)) : NULL;
             if (ref) memcpy(ref, img.rgb, 3 * n * sizeof(float));
@@ -999,9 +1036,12 @@ static int compare_locked(const CandelaOptions *base, const CandelaCompareOption
         char png[IO_PATH_MAX + 64];
         snprintf(path, sizeof path, "%s/%s.exr", c->out_dir, v->name);
         snprintf(png, sizeof png, "%s/%s.png", c->out_dir, v->name);
-        int wrc = candela_write_outputs(&img, path, png, err);
+        CandelaProvenance vp;
+        int wrc = compare_provenance(c, &scene_prov, &vo, &st, img.width, img.height, v->name, &vp, err);
+        if (wrc == 0) wrc = candela_write_outputs_provenance(&img, path, png, vp.count ? &vp : NULL, err);
         snprintf(path, sizeof path, "%s/%s_error.png", c->out_dir, v->name);
-        if (wrc == 0) wrc = write_error_png(path, &img, ref, error_map, err);
+        if (wrc == 0) wrc = write_error_png(path, &img, ref, error_map, vp.count ? &vp : NULL, err);
+        candela_provenance_free(&vp);
         candela_image_free(&img);
         if (wrc != 0) goto done;
     }
@@ -1110,6 +1150,7 @@ done:
     report_text_free(&table_html);
     report_text_free(&html);
     report_text_free(&conv);
+    candela_provenance_free(&scene_prov);
     variants_free(vs, COMPARE_MAX_VARIANTS);
     return rc;
 }

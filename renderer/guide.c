@@ -341,8 +341,10 @@ void guide_report(const Integrator *ig, CandelaStats *st) {
     st->guide_dropped = gs->dropped;
 }
 
-/* Writes an image as EXR (R = G = B = v) and a PNG preview scaled to its maximum. */
-static int write_plane(const char *prefix, const char *what, int w, int h, const float *v, char err[CANDELA_ERR_LEN]) {
+/* Writes an image as EXR (R = G = B = v) and a PNG preview scaled to its maximum, both with the
+ * attributes of prov (NULL: none) and candela:guideDumpPlane = what. */
+static int write_plane(const char *prefix, const char *what, int w, int h, const float *v, CandelaProvenance *prov,
+                       char err[CANDELA_ERR_LEN]) {
     char path[4096], ioerr[IO_ERR_LEN];
     size_t n = (size_t)w * (size_t)h;
     float *rgb = malloc(3 * n * sizeof *rgb);
@@ -351,11 +353,22 @@ static int write_plane(const char *prefix, const char *what, int w, int h, const
     for (size_t i = 0; i < n; ++i) vmax = fmaxf(vmax, v[i]);
     const IoExrChannel ch[3] = {{"R", v}, {"G", v}, {"B", v}};
     snprintf(path, sizeof path, "%s.%s.exr", prefix, what);
-    int rc = io_write_exr(path, w, h, ch, 3, NULL, 0, ioerr);
+    IoExrAttribute attrs[CANDELA_PROVENANCE_MAX];
+    int nattrs = 0;
+    if (prov) {
+        if (candela_provenance_set(prov, "candela:guideDumpPlane", what) != 0) {
+            free(rgb);
+            snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", prefix);
+            return -1;
+        }
+        nattrs = prov->count;
+        for (int k = 0; k < nattrs; ++k) attrs[k] = (IoExrAttribute){prov->attrs[k].name, prov->attrs[k].value};
+    }
+    int rc = io_write_exr(path, w, h, ch, 3, nattrs ? attrs : NULL, nattrs, ioerr);
     if (rc == 0) {
         for (size_t i = 0; i < n; ++i) rgb[3 * i] = rgb[3 * i + 1] = rgb[3 * i + 2] = vmax > 0.0f ? sqrtf(v[i] / vmax) : 0.0f;
         snprintf(path, sizeof path, "%s.%s.png", prefix, what);
-        rc = io_write_png(path, w, h, rgb, ioerr);
+        rc = io_write_png(path, w, h, rgb, nattrs ? attrs : NULL, nattrs, ioerr);
     }
     free(rgb);
     if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
@@ -388,7 +401,37 @@ int guide_dump(const Integrator *ig, const float at[3], const char *prefix, char
         return -1;
     }
     guide_distribution_image(d, W, H, img);
-    int rc = write_plane(prefix, "guide", W, H, img, err);
+    /* how the files were made (issue 27): the run's provenance, the scene and its hash, the
+     * options, the samples done, the position and the leaf's surface orientation */
+    CandelaProvenance prov = {0};
+    const CandelaOptions *o = ig->opt;
+    if (o->guide_dump_provenance) {
+        char num[32], pos[96];
+        snprintf(num, sizeof num, "%d", ig->spp_done);
+        snprintf(pos, sizeof pos, "%.9g,%.9g,%.9g", (double)at[0], (double)at[1], (double)at[2]);
+        char *options = candela_options_json(o);
+        int prc = candela_provenance_copy(&prov, o->guide_dump_provenance);
+        if (prc == 0 && candela_provenance_scene(&prov, o->scene_path, err) != 0) {
+            candela_provenance_free(&prov);
+            free(options);
+            free(img);
+            return -1;
+        }
+        if (prc == 0)
+            prc = (options == NULL) | candela_provenance_set(&prov, "candela:options", options) |
+                  candela_provenance_set(&prov, "candela:sppDone", num) |
+                  candela_provenance_set(&prov, "candela:guideDumpAt", pos) |
+                  candela_provenance_set(&prov, "candela:guideDumpClass", class_names[best]);
+        free(options);
+        if (prc != 0) {
+            candela_provenance_free(&prov);
+            free(img);
+            snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", prefix);
+            return -1;
+        }
+    }
+    CandelaProvenance *pp = o->guide_dump_provenance ? &prov : NULL;
+    int rc = write_plane(prefix, "guide", W, H, img, pp, err);
     size_t in_leaf = 0;
     if (rc == 0) {
         /* the training directions of the final iteration inside the leaf's box (blurrier than
@@ -408,8 +451,9 @@ int guide_dump(const Integrator *ig, const float at[3], const char *prefix, char
             img[(size_t)y * W + x] += 1.0f;
             ++in_leaf;
         }
-        rc = write_plane(prefix, "hist", W, H, img, err);
+        rc = write_plane(prefix, "hist", W, H, img, pp, err);
     }
+    candela_provenance_free(&prov);
     free(img);
     if (rc == 0) {
         char path[4096];

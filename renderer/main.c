@@ -712,7 +712,6 @@ static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBa
     CandelaOptions o = *op;
     CandelaCompareOptions co = *cop;
     CandelaBatchOptions batch = *bp;
-    (void)dump;
     char err[CANDELA_ERR_LEN];
     if (compare) {
         char dir[PATH_MAX];
@@ -730,7 +729,16 @@ static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBa
         co.build = build; /* the cached reference's key */
         /* equal time: --spp is only a cap, by default the largest (the time budget decides) */
         if (co.time_budget > 0 && !spp_given) o.spp = 1 << 20;
-        if (candela_compare(&o, &co, err) != 0) {
+        /* each report image's provenance (README "Output"): the scene is hashed once rendered */
+        CandelaProvenance cprov;
+        if (candela_provenance_begin(&cprov, build, argc, argv) != 0) {
+            fprintf(stderr, "candela: out of memory\n");
+            return 1;
+        }
+        co.provenance = &cprov;
+        int crc = candela_compare(&o, &co, err);
+        candela_provenance_free(&cprov);
+        if (crc != 0) {
             fprintf(stderr, "candela: %s\n", err);
             return 1;
         }
@@ -749,6 +757,7 @@ static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBa
         fprintf(stderr, "candela: out of memory\n");
         return 1;
     }
+    if (dump) o.guide_dump_provenance = &prov; /* OUT.guide/hist.exr/png (renderer/guide.c) */
     if (batch.frames) {
         if (candela_provenance_scene(&prov, o.scene_path, err) != 0) {
             fprintf(stderr, "candela: %s\n", err);

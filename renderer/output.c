@@ -79,12 +79,12 @@ int candela_write_outputs_provenance(const CandelaImage *img, const char *exr_pa
         if (!rgb) { snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", png_path); return -1; }
         /* preview: linear radiance clipped to [0,1] and sRGB-encoded (Blender's "Standard") */
         for (size_t i = 0; i < 3 * n; ++i) rgb[i] = candela_srgb_encode(img->rgb[i]);
-        rc = io_write_png(png_path, img->width, img->height, rgb, ioerr);
+        rc = io_write_png(png_path, img->width, img->height, rgb, nattrs ? attrs : NULL, nattrs, ioerr);
         if (rc == 0 && img->selection_point) { /* the false colours as they are (no transfer curve) */
             char point_png[IO_PATH_MAX], light_png[IO_PATH_MAX];
             candela_cachepoint_png_paths(png_path, point_png, light_png, sizeof point_png);
-            rc = io_write_png(point_png, img->width, img->height, img->selection_point, ioerr);
-            if (rc == 0) rc = io_write_png(light_png, img->width, img->height, img->selection_light, ioerr);
+            rc = io_write_png(point_png, img->width, img->height, img->selection_point, nattrs ? attrs : NULL, nattrs, ioerr);
+            if (rc == 0) rc = io_write_png(light_png, img->width, img->height, img->selection_light, nattrs ? attrs : NULL, nattrs, ioerr);
         }
         free(rgb);
         if (rc != 0) { snprintf(err, CANDELA_ERR_LEN, "%s", ioerr); return -1; }

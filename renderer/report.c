@@ -240,7 +240,7 @@ int report_crops_png(const char *path, const float *const *crops, int num_panels
             }
     }
     char ioerr[IO_ERR_LEN];
-    int rc = io_write_png(path, W, H, rgb, ioerr);
+    int rc = io_write_png(path, W, H, rgb, NULL, 0, ioerr);
     free(rgb);
     if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
     return rc;

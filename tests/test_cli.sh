@@ -70,6 +70,15 @@ expect_error "dump nan --at" "--at wants" -- guide-dump "$scene" --at 1,nan,2 "$
 if "$bin" guide-dump "$scene" --at 0,0,0 -o "$tmp/dump.exr" --res 16x16 --spp 12 --quiet &&
    [ -s "$tmp/dump.exr" ] && [ -s "$tmp/dump.guide.exr" ] && [ -s "$tmp/dump.guide.png" ] && [ -s "$tmp/dump.hist.png" ] &&
    head -1 "$tmp/dump.leaves.ply" | grep -q '^ply$'; then ok; else bad "guide-dump did not write its files: $(ls "$tmp")"; fi
+# issue 27: the dump's images say how they were made (software, the scene's hash, the position)
+if command -v oiiotool >/dev/null 2>&1; then
+  for f in dump.guide.exr dump.hist.exr dump.guide.png; do
+    info=$(oiiotool --info -v "$tmp/$f" 2>&1)
+    echo "$info" | grep -Eq '^ *[sS]oftware: "candela ' && echo "$info" | grep -Eq '^ *candela:sceneHash: "[0-9a-f]{16}"$' &&
+      echo "$info" | grep -q '^ *candela:guideDumpAt: "0,0,0"$' && echo "$info" | grep -q '^ *candela:options: "{' && ok \
+      || bad "$f provenance: $info"
+  done
+fi
 if "$bin" render "$scene" --guiding ris --aov recorder-debug -o "$tmp/g.exr" --no-png --res 16x16 --spp 12 --quiet --stats-json "$tmp/g.json" &&
    python3 -c "import json,sys; d=json.load(open(sys.argv[1])); sys.exit(0 if d['guiding']['updates'] > 8 and 0 < d['recorder']['peak_bytes'] <= d['recorder']['bound_bytes'] else 1)" "$tmp/g.json"; then
   ok
@@ -739,6 +748,13 @@ if command -v oiiotool >/dev/null 2>&1; then
   oiiotool --info -v "$tmp/prov a.exr" | grep -Eq '^ *DateTime: "[0-9]{4}:[0-9]{2}:[0-9]{2} [0-9:]{8}"' && ok || bad "DateTime"
   hash1=$(attr "$tmp/prov a.exr" candela:sceneHash)
   echo "$hash1" | grep -Eq '^[0-9a-f]{16}$' && ok || bad "sceneHash '$hash1'"
+  # the PNG's text chunks hold the same (software under the registered keyword Software)
+  [ "$(attr "$tmp/prov a.png" Software)" = "$sw" ] && ok || bad "PNG Software: $(oiiotool --info -v "$tmp/prov a.png")"
+  [ "$(attr "$tmp/prov a.png" candela:sceneHash)" = "$hash1" ] && [ "$(attr "$tmp/prov a.png" candela:sppDone)" = 2 ] \
+    && [ "$(attr "$tmp/prov a.png" candela:identity)" = "$(attr "$tmp/prov a.exr" candela:identity)" ] && ok \
+    || bad "PNG provenance: $(oiiotool --info -v "$tmp/prov a.png")"
+  [ "$(attr "$tmp/prov a.png" candela:options)" = "$(attr "$tmp/prov a.exr" candela:options)" ] && ok \
+    || bad "PNG candela:options differs from the EXR's"
   # issue 27: the image identity (what --frames --resume compares): the scene's hash, the image
   # options in the table's form (the resolution the render had), nothing that leaves the image alone
   ident=$(attr "$tmp/prov a.exr" candela:identity)
@@ -766,9 +782,11 @@ sys.exit(0 if p["candela:options"]["spp"] == 2 and p["candela:sppDone"] == "2" a
   same_exr "$tmp/prov a.exr" "$tmp/prov b.exr" && ok || bad "the provenance changed the pixels"
   cmp -s "$tmp/prov a.exr" "$tmp/prov b.exr" && bad "two runs' headers are the same (no provenance?)" || ok
   # a frame batch's frames and a merge carry it too
-  "$bin" render "$tmp/prov.gltf" --frames 0-0 -o "$tmp/provf.#.exr" --res 8x8 --spp 1 --quiet --no-png && ok || bad "provenance frame"
+  "$bin" render "$tmp/prov.gltf" --frames 0-0 -o "$tmp/provf.#.exr" --res 8x8 --spp 1 --quiet && ok || bad "provenance frame"
   [ "$(attr "$tmp/provf.0.exr" candela:frame)" = 0 ] && [ "$(attr "$tmp/provf.0.exr" software)" = "$sw" ] && ok \
     || bad "a frame's provenance: $(oiiotool --info -v "$tmp/provf.0.exr")"
+  [ "$(attr "$tmp/provf.0.png" candela:frame)" = 0 ] && [ "$(attr "$tmp/provf.0.png" Software)" = "$sw" ] && ok \
+    || bad "a frame PNG's provenance: $(oiiotool --info -v "$tmp/provf.0.png" 2>&1)"
   "$bin" render "$tmp/prov.gltf" --sample-shard 0/1 -o "$tmp/prov.film" --res 8x8 --spp 1 --quiet && \
     "$bin" merge -o "$tmp/provm.exr" --no-png "$tmp/prov.film" && ok || bad "provenance merge"
   case $(attr "$tmp/provm.exr" candela:commandLine) in *" merge -o $tmp/provm.exr --no-png $tmp/prov.film") ok ;;

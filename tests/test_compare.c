@@ -124,6 +124,32 @@ static int run(const char *cmd) {
 
 static const char *const VARIANTS[3] = {"power", "tree", "guided"};
 
+/* The string attribute name of path's EXR header into value ("" when none). */
+static void exr_attribute(const char *path, const char *name, char *value, size_t size) {
+    char err[IO_ERR_LEN];
+    int w, h;
+    value[0] = 0;
+    CHECK(io_exr_complete_attribute(path, &w, &h, name, value, size, err) == 0, "%s", err);
+}
+
+/* issue 27: a report image's header says how it was made: the compare command line, its own
+ * render's options (every option as JSON), the scene and its hash, the variant's name */
+static void check_provenance(const char *path, const char *variant, const char *options_part) {
+    static char value[16384];
+    exr_attribute(path, "candela:compareVariant", value, sizeof value);
+    CHECK(strcmp(value, variant) == 0, "%s: candela:compareVariant '%s', not '%s'", path, value, variant);
+    exr_attribute(path, "candela:options", value, sizeof value);
+    CHECK(value[0] == '{' && strstr(value, options_part), "%s: candela:options lacks %s: %s", path, options_part, value);
+    exr_attribute(path, "candela:commandLine", value, sizeof value);
+    CHECK(strstr(value, " compare ") != NULL, "%s: candela:commandLine '%s'", path, value);
+    exr_attribute(path, "candela:sceneHash", value, sizeof value);
+    CHECK(strlen(value) == 16 && strspn(value, "0123456789abcdef") == 16, "%s: candela:sceneHash '%s'", path, value);
+    exr_attribute(path, "software", value, sizeof value);
+    CHECK(strncmp(value, "candela ", 8) == 0, "%s: software '%s'", path, value);
+    exr_attribute(path, "candela:sppDone", value, sizeof value);
+    CHECK(atoi(value) > 0, "%s: candela:sppDone '%s'", path, value);
+}
+
 static void check_equal_spp(const char *bin, const char *scene, const char *dir) {
     char cmd[8192], path[4096];
     snprintf(cmd, sizeof cmd,
@@ -153,6 +179,7 @@ static void check_equal_spp(const char *bin, const char *scene, const char *dir)
     ref_noise_rel /= (double)n;
     CHECK(ref_var && ref_noise > 0.0, "reference.exr: no variance layer, or a zero one");
     free(ref_var);
+    check_provenance(path, "reference", "\"spp\": 16,");
 
     static Csv csv, conv;
     snprintf(path, sizeof path, "%s/table.csv", dir);
@@ -165,6 +192,7 @@ static void check_equal_spp(const char *bin, const char *scene, const char *dir)
         if (r < 0) continue;
         int vw, vh;
         snprintf(path, sizeof path, "%s/%s.exr", dir, VARIANTS[v]);
+        check_provenance(path, VARIANTS[v], v == 1 ? "\"max-depth\": 3," : v == 2 ? "\"guiding\": \"ris\"" : "\"light-sampler\": \"power\"");
         float *img = read_rgb(path, "", &vw, &vh);
         float *var = read_rgb(path, "variance.", &vw, &vh);
         if (!img || !var) { free(img); free(var); continue; }

@@ -30,6 +30,19 @@ mkdir -p "$tmp/batch" "$tmp/single"
 rc=$?
 [ $rc -eq 0 ] && ok || bad "batch 1-6 exit $rc"
 [ "$(logged "$tmp/batch/log.jsonl")" = "1 2 3 4 5 6" ] && ok || bad "batch log lists $(logged "$tmp/batch/log.jsonl")"
+# issue 27: each line says how its frame was made: the --version line and the frame's image
+# identity (its EXR's candela:identity, what --resume compares)
+python3 -c 'import json, sys
+ls = [json.loads(l) for l in open(sys.argv[1])]
+sys.exit(0 if ls and all(l["software"] == sys.argv[2] and l["identity"].startswith("scene=") and
+                         " seed=%d " % l["seed"] in l["identity"] for l in ls) else 1)' \
+  "$tmp/batch/log.jsonl" "$("$bin" --version)" && ok || bad "--frame-stats software/identity: $(head -c 600 "$tmp/batch/log.jsonl")"
+if command -v oiiotool >/dev/null 2>&1; then
+  want=$(oiiotool --info -v "$tmp/batch/f.0003.exr" | sed -n 's/^ *candela:identity: "\(.*\)"$/\1/p')
+  got=$(python3 -c 'import json, sys
+print([json.loads(l) for l in open(sys.argv[1]) if json.loads(l)["frame"] == 3][0]["identity"])' "$tmp/batch/log.jsonl")
+  [ -n "$want" ] && [ "$got" = "$want" ] && ok || bad "frame 3's logged identity '$got' is not its EXR's '$want'"
+fi
 for f in 1 2 3 4 5 6; do
   "$bin" render "$scene" --frames $f "${fast[@]}" -o "$tmp/single/f.####.exr" || bad "single frame $f failed"
   same_exr "$tmp/batch/f.000$f.exr" "$tmp/single/f.000$f.exr" && ok || bad "frame $f of the batch differs from its single-frame render"

@@ -224,7 +224,7 @@ static void test_png(void) {
     rgb[1] = 2.0f;
     const char *path = tmp_path("out.png");
     char err[IO_ERR_LEN] = "";
-    CHECK(io_write_png(path, W, H, rgb, err) == 0, "io_write_png: %s", err);
+    CHECK(io_write_png(path, W, H, rgb, NULL, 0, err) == 0, "io_write_png: %s", err);
     char tmpname[600];
     snprintf(tmpname, sizeof tmpname, "%s.tmp-%ld", path, (long)getpid());
     CHECK(!file_exists(tmpname), "temp file %s left behind", tmpname);
@@ -257,8 +257,51 @@ static void test_png(void) {
     const char *missing = tmp_path("missing.png");
     CHECK(io_load_image(missing, 0, &img, err) != 0, "missing png loaded");
     check_err(err, missing, "missing png");
-    CHECK(io_write_png(tmp_path("nodir/x.png"), W, H, rgb, err) != 0, "write into missing dir");
+    CHECK(io_write_png(tmp_path("nodir/x.png"), W, H, rgb, NULL, 0, err) != 0, "write into missing dir");
     check_err(err, tmp_path("nodir/x.png"), "png into missing dir");
+
+    /* text chunks (provenance, issue 27): "software" as the registered keyword Software in a
+     * tEXt, a long value in a zTXt, a UTF-8 value in an iTXt; the pixels are the same */
+    char longv[3000];
+    for (size_t i = 0; i < sizeof longv - 1; ++i) longv[i] = (char)('a' + i % 26);
+    longv[sizeof longv - 1] = 0;
+    IoExrAttribute attrs[3] = {{"software", "candela test"}, {"candela:options", longv},
+                               {"candela:scene", "/tmp/sc\xc3\xa8ne.gltf"}};
+    const char *tpath = tmp_path("text.png");
+    CHECK(io_write_png(tpath, W, H, rgb, attrs, 3, err) == 0, "io_write_png with text: %s", err);
+    FILE *f = fopen(tpath, "rb");
+    char bytes[8192];
+    size_t nb = f ? fread(bytes, 1, sizeof bytes, f) : 0;
+    if (f) fclose(f);
+    static const char *const want[3][2] = {{"tEXtSoftware", "candela test"}, {"zTXtcandela:options", NULL},
+                                           {"iTXtcandela:scene", NULL}};
+    for (int k = 0; k < 3; ++k) {
+        const char *at = NULL;
+        size_t wl = strlen(want[k][0]);
+        for (size_t i = 0; i + wl < nb && !at; ++i)
+            if (memcmp(bytes + i, want[k][0], wl + 1) == 0) at = bytes + i; /* the keyword's NUL too */
+        CHECK(at != NULL, "no %s chunk", want[k][0]);
+        if (at && want[k][1]) CHECK(strncmp(at + wl + 1, want[k][1], strlen(want[k][1])) == 0, "%s value", want[k][0]);
+    }
+    IoImage a, b;
+    if (io_load_image(path, 0, &a, err) == 0) {
+        if (io_load_image(tpath, 0, &b, err) == 0) {
+            CHECK(memcmp(a.rgba, b.rgba, sizeof(float) * 4 * W * H) == 0, "text chunks changed the pixels");
+            io_image_free(&b);
+        }
+        io_image_free(&a);
+    }
+    /* refused: no keyword, a space at an end, 80 characters, one keyword twice, no value */
+    IoExrAttribute badkey[4][1] = {{{"", "x"}}, {{" lead", "x"}}, {{"trail ", "x"}},
+                                   {{"0123456789012345678901234567890123456789012345678901234567890123456789012345678x", "x"}}};
+    for (int k = 0; k < 4; ++k)
+        CHECK(io_write_png(tmp_path("badtext.png"), W, H, rgb, badkey[k], 1, err) != 0, "keyword '%s' accepted",
+              badkey[k][0].name);
+    IoExrAttribute twice[2] = {{"software", "a"}, {"Software", "b"}};
+    CHECK(io_write_png(tmp_path("badtext.png"), W, H, rgb, twice, 2, err) != 0, "a keyword given twice accepted");
+    IoExrAttribute novalue[1] = {{"software", NULL}};
+    CHECK(io_write_png(tmp_path("badtext.png"), W, H, rgb, novalue, 1, err) != 0, "a text without a value accepted");
+    CHECK(!file_exists(tmp_path("badtext.png")), "a refused PNG left a file");
 }
 
 /* ---------------------------------------------------------------- 8-bit and float textures */
@@ -351,7 +394,7 @@ static void test_texture_forms(void) {
     }
     char err[IO_ERR_LEN] = "";
     const char *written = tmp_path("codes_written.png");
-    CHECK(io_write_png(written, 256, 1, rgb, err) == 0, "io_write_png: %s", err);
+    CHECK(io_write_png(written, 256, 1, rgb, NULL, 0, err) == 0, "io_write_png: %s", err);
     check_8bit_matches_float(written, 0, "io_write_png linear");
     check_8bit_matches_float(written, IO_IMAGE_SRGB, "io_write_png sRGB");
 
@@ -492,7 +535,7 @@ static void test_generated_gltf(void) {
     float px[4 * 2 * 3];
     for (int i = 0; i < 24; ++i) px[i] = (float)i / 23.0f;
     char err2[IO_ERR_LEN];
-    CHECK(io_write_png(tmp_path("tex.png"), 4, 2, px, err2) == 0, "tex.png: %s", err2);
+    CHECK(io_write_png(tmp_path("tex.png"), 4, 2, px, NULL, 0, err2) == 0, "tex.png: %s", err2);
     char top[1024];
     snprintf(top, sizeof top, textured, "tex.png");
     const char *texgltf = tmp_path("tex.gltf");
@@ -792,7 +835,7 @@ static void test_texture_budget(void) {
     float *plane = malloc(sizeof(float) * N * N);
     for (int i = 0; i < 3 * N * N; ++i) rgb[i] = (float)(i % 251) / 250.0f;
     for (int i = 0; i < N * N; ++i) plane[i] = (float)(i % 7);
-    CHECK(io_write_png(tmp_path("budget.png"), N, N, rgb, err) == 0, "budget.png: %s", err);
+    CHECK(io_write_png(tmp_path("budget.png"), N, N, rgb, NULL, 0, err) == 0, "budget.png: %s", err);
     const IoExrChannel ch[3] = {{"R", plane}, {"G", plane}, {"B", plane}};
     CHECK(io_write_exr(tmp_path("budget.exr"), N, N, ch, 3, NULL, 0, err) == 0, "budget.exr: %s", err);
     free(rgb);
