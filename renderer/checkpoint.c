@@ -6,7 +6,8 @@
  *   2 finished film), u32 width, u32 height, u32 identity length, the identity text,
  *   u64 spp_total, sample_begin, sample_count, u32 shard_index, shard_count,
  *   i32 iteration, i32 spp_done, u64 iteration_paths, u32 record length, the record text
- *   (version 2: CandelaOptions.checkpoint_record, what `--resume-from FILE` alone needs; empty in
+ *   (version 2: CandelaOptions.checkpoint_record, what `--resume-from FILE` alone needs and the
+ *   --version line of the build that wrote it; empty in
  *   a finished film),
  *   the sections (film; for a checkpoint also recorder, guiding, the two auto probes and the
  *   light sampler's learned state), each opening with its tag and version,

@@ -268,7 +268,7 @@ static void absolute_path(const char *path, char out[PATH_MAX]) {
 static CandelaCheckpointInfo resume_info;
 static char resume_identity[CANDELA_IDENTITY_LEN];
 static char resume_record[sizeof resume_info.record];
-static char record_text[3 * 3 * PATH_MAX + 64];
+static char record_text[3 * 3 * PATH_MAX + 1024]; /* 3 quoted paths, the keys and the quoted --version line */
 
 /* --resume-from FILE (issue 27): the render's options are the checkpoint's. Every image option
  * given as well must agree with it (all disagreements in one message, exit 2); the scene, -o and
@@ -361,6 +361,12 @@ static int resume_options(CandelaCommandLine *cl, const CandelaFlag *const *give
             else if (strcmp(c, "png") == 0 && !outputs_given) {
                 if (v) cl->png = v;
                 else cl->no_png = 1;
+            } else if (strcmp(c, "software") == 0 && v) {
+                char here[256];
+                software_line(here, sizeof here);
+                if (strcmp(v, here) != 0)
+                    fprintf(stderr, "candela: warning: %s was written by %s; this is %s (the options agree, the "
+                            "sampling code may not)\n", path, v, here);
             }
         }
         c = next;
@@ -554,7 +560,13 @@ int main(int argc, char **argv) {
             if (vals[k]) absolute_path(vals[k], abs_path);
             candela_identity_quote(vals[k] ? abs_path : NULL, q, sizeof q);
             n += (size_t)snprintf(record_text + n, sizeof record_text - n, "%s%s=%s", k ? " " : "", keys[k], q);
+            if (n >= sizeof record_text) n = sizeof record_text - 1; /* too long: checkpoint_write refuses it */
         }
+        /* and the build that wrote it (provenance; a resume by another build says so) */
+        char software[256];
+        software_line(software, sizeof software);
+        candela_identity_quote(software, q, sizeof q);
+        n += (size_t)snprintf(record_text + n, sizeof record_text - n, " software=%s", q);
         o.checkpoint_record = record_text;
     }
     if (candela_options_check(&o, flag_err) != 0) {

@@ -205,7 +205,12 @@ alone=(render "$scene" --res 32x24 --spp 64 --guiding mis --light-sampler cachep
 "$bin" "${alone[@]}" -o "$tmp/alone/full.exr" --quiet || bad "full render (alone)"
 (cd "$tmp/alone" && "$bin" "${alone[@]}" -o img.exr --checkpoint run.ckpt --quiet) || bad "render with --checkpoint (alone)"
 rm -f "$tmp/alone/img.exr"
-(cd "$tmp/elsewhere" && "$bin" render --resume-from ../alone/run.ckpt --quiet) || bad "render --resume-from FILE alone"
+# the record names the build that wrote it (its --version line, quoted): a resume by this build warns of nothing
+sw=$("$bin" --version | sed 's/ /%20/g')
+grep -a -q "software=\"$sw\"" "$tmp/alone/run.ckpt" && ok || bad "the checkpoint does not record the build ($sw)"
+(cd "$tmp/elsewhere" && "$bin" render --resume-from ../alone/run.ckpt 2>"$tmp/alone/resume.log" >/dev/null) ||
+  bad "render --resume-from FILE alone"
+grep -q "written by" "$tmp/alone/resume.log" && bad "a resume by the same build warned: $(cat "$tmp/alone/resume.log")"
 [ -e "$tmp/alone/img.exr" ] && ok || bad "resume alone did not write the recorded output ($(ls "$tmp/alone" "$tmp/elsewhere"))"
 [ -e "$tmp/alone/img.png" ] && bad "resume alone wrote a PNG the render did not (--no-png recorded)"
 same "$tmp/alone/full.exr" "$tmp/alone/img.exr" "resumed with --resume-from alone"
