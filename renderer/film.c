@@ -123,23 +123,32 @@ static void pixel_sample_variance(const Film *f, size_t i, double var[3]) {
     }
 }
 
-/* The mean over pixels and channels of the film's pixel means (pixels without samples count 0),
- * summed in pixel order: the same value for any thread count. */
-static double film_image_mean(const Film *f) {
-    size_t n = (size_t)f->width * (size_t)f->height;
-    double sum = 0.0;
-    for (size_t i = 0; i < n; ++i)
-        if (f->count[i] > 0) sum += (f->sum[3 * i] + f->sum[3 * i + 1] + f->sum[3 * i + 2]) / (3.0 * f->count[i]);
-    return n ? sum / (double)n : 0.0;
+/* sum_c sqrt(var_c / n) / sqrt(sum_c mean_c + 1e-4) */
+static double relative_error(const Film *f, size_t i, const double var[3]) {
+    double n = f->count[i], se = 0.0, sum = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        se += sqrt(var[k] / n);
+        sum += f->sum[3 * i + k] / n;
+    }
+    return se / sqrt(fmax(sum, 0.0) + 1e-4);
 }
 
-double film_pixel_error(const Film *f, size_t i, double image_mean) {
-    double n = f->count[i];
-    if (n < 2.0) return INFINITY;
-    double var[3];
-    pixel_sample_variance(f, i, var);
-    double se = sqrt((var[0] + var[1] + var[2]) / n);
-    return se / fmax(image_mean, 1e-12) * sqrt(ADAPTIVE_REFERENCE_SPP / n);
+double film_pixel_error(const Film *f, size_t i) {
+    if (f->count[i] < 2) return INFINITY;
+    int w = f->width, h = f->height, x = (int)(i % (size_t)w), y = (int)(i / (size_t)w);
+    double own[3], pooled[3] = {0, 0, 0}, v[3];
+    pixel_sample_variance(f, i, own);
+    int m = 0;
+    for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+            int nx = x + dx, ny = y + dy;
+            if (nx < 0 || nx >= w || ny < 0 || ny >= h) continue;
+            pixel_sample_variance(f, (size_t)ny * (size_t)w + (size_t)nx, v);
+            for (int k = 0; k < 3; ++k) pooled[k] += v[k];
+            ++m;
+        }
+    for (int k = 0; k < 3; ++k) pooled[k] /= m;
+    return fmax(relative_error(f, i, own), relative_error(f, i, pooled));
 }
 
 uint32_t film_adaptive_update(Film *f, float threshold) {
@@ -151,9 +160,8 @@ uint32_t film_adaptive_update(Film *f, float threshold) {
         for (size_t i = 0; i < (size_t)w * (size_t)h; ++i) active += !f->stopped[i];
         return active;
     }
-    double image_mean = film_image_mean(f);
     for (size_t i = 0; i < (size_t)w * (size_t)h; ++i)
-        state[i] = f->stopped[i] ? 0 : (film_pixel_error(f, i, image_mean) >= threshold ? 1 : 2);
+        state[i] = f->stopped[i] ? 0 : (film_pixel_error(f, i) >= threshold ? 1 : 2);
     uint32_t active = 0;
     for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {

@@ -60,24 +60,18 @@ void film_free(Film *f);
 void film_add_paths(Film *f, const PathState *ps, uint32_t count);
 /* Mean, variance of the mean (sample variance / n) and AOVs. 0 ok, -1 out of memory. */
 int film_resolve(const Film *f, CandelaImage *img);
-/* Adaptive sampling (renderer/README.md, "Adaptive sampling"). What one more sample buys a pixel
- * is the drop of its expected squared error, sigma^2/n - sigma^2/(n+1) ~ sigma^2/n^2 (sigma^2: the
- * per-sample variance summed over channels). Stopping every pixel at the same such value gives
- * n proportional to sigma, the allocation that minimises the image's MSE for a given number of
- * samples (Lagrange); stopping at equal error (n proportional to sigma^2, Cycles' rule) gives, at
- * the same budget, exactly the MSE of uniform sampling. As a number a user can set:
- *   error_i = SE_i / image mean * sqrt(16 / n_i),  SE_i = sqrt(sigma_i^2 / n_i),
- * the pixel's standard error relative to the image's mean value, compared with T at 16 samples,
- * 2 T at 64, 4 T at 256 (error_i < T  <=>  sigma_i / n_i < T * mean / 4). sigma_i is the pixel's
- * own sample variance: pooling it over neighbours was measured worse (it spreads a bright pixel's
- * variance onto its dark neighbours); a noisy neighbour still keeps a pixel going (below).
- * INFINITY below 2 samples. */
-#define ADAPTIVE_REFERENCE_SPP 16.0
-double film_pixel_error(const Film *f, size_t i, double image_mean);
+/* Adaptive sampling: pixel i's estimated error, sum_c SE_c / sqrt(sum_c mean_c + 1e-4) with SE_c
+ * the standard error of channel c's mean (Cycles' measure, after Dammertz et al. 2010: about the
+ * error after a gamma-2 display transform). SE_c comes from the pixel's own sample variance and,
+ * again, from the per-sample variance pooled over its 3 x 3 neighbourhood; the larger error
+ * counts, so a pixel whose few samples all missed a rare bright path that its neighbours found
+ * does not pass for converged. With Sobol' samples the sample variance overestimates the error:
+ * pixels stop late, not early. INFINITY below 2 samples. */
+double film_pixel_error(const Film *f, size_t i);
 /* At an iteration barrier: a pixel still sampling stops when its error and that of each of its
  * 8 neighbours still sampling are below the threshold (a noisy neighbour keeps it going, so a
  * pixel whose samples all missed a rare bright path does not stop alone). Needs f->stopped.
- * Returns the number of pixels still sampling. A function of the film alone. */
+ * Returns the number of pixels still sampling; 0 ok. A function of the film alone. */
 uint32_t film_adaptive_update(Film *f, float threshold);
 
 /* Work at an iteration barrier, when no ray is in flight: learned state (a light

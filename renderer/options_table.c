@@ -278,11 +278,9 @@ static const CandelaFlag FLAGS[] = {
            "the numbers of each path: Owen-scrambled Sobol' points (default) or independent uniforms (the renders before "
            "0.2)"),
     FLOAT("--noise-threshold", "T", 1e-6, 100.0, IMG(noise_threshold), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "0.01",
-          "adaptive sampling: a pixel stops once its error is below T",
-          "adaptive sampling: at each iteration barrier past --min-spp a pixel stops once its error and its 8 "
-          "neighbours' are below T; error = the pixel's standard error / the image's mean value x sqrt(16 / its "
-          "samples), so pixels take samples in proportion to their noise (the allocation of least MSE for the "
-          "samples spent; e.g. 0.2-2); --spp is the most any pixel gets"),
+          "adaptive sampling: a pixel stops below error T",
+          "adaptive sampling: a pixel stops once its error estimate (standard errors / sqrt(value), Cycles' measure) and "
+          "its neighbours' are below T (e.g. 0.01); --spp is the most any pixel gets"),
     INT("--min-spp", "N", 1, 1 << 20, IMG(min_spp), CANDELA_FIELD_INT, ALL_RENDER, 0, "8",
         "adaptive sampling: no pixel stops before N samples (default 16)",
         "adaptive sampling: no pixel stops before N samples (default 16); needs --noise-threshold"),

@@ -56,7 +56,7 @@ def main():
     ap.add_argument("--scenes", default="interior,blender_interior")
     ap.add_argument("--res", default="640x360")
     ap.add_argument("--spp", type=int, default=256, help="the most samples any pixel gets")
-    ap.add_argument("--thresholds", default="1,2")
+    ap.add_argument("--thresholds", default="0.1,0.2,0.4")
     ap.add_argument("--min-spp", type=int, default=16)
     ap.add_argument("--ref-spp", type=int, default=4096)
     ap.add_argument("--seeds", default="1,2")
