@@ -20,7 +20,7 @@ import os
 import subprocess
 import sys
 
-from image_error import mse, run_render
+from image_error import mse, oiio_mean, run_render
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENES = {
@@ -67,8 +67,9 @@ def main():
     seeds = [int(s) for s in a.seeds.split(",")]
     print("candela %s, %s, at most %d spp, min %d, reference %d spp, seeds %s\n" % (a.candela, a.res, a.spp, a.min_spp,
                                                                                   a.ref_spp, a.seeds))
-    print("| scene | threshold | mean spp | MSE adaptive | MSE plain | MSE ratio | relMSE ratio | time adaptive / plain | TTUV ratio |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("| scene | threshold | mean spp | MSE adaptive | MSE plain | MSE ratio | relMSE ratio | time adaptive / plain | TTUV ratio "
+          "| image mean adaptive / reference - 1 |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for name in a.scenes.split(","):
         scene, extra = SCENES[name]
         scene = os.path.join(ROOT, scene)
@@ -83,6 +84,8 @@ def main():
         for t in [float(x) for x in a.thresholds.split(",")]:
             m = {"ad": [0.0, 0.0, 0.0], "plain": [0.0, 0.0, 0.0]}
             mean_spp = 0.0
+            bias = 0.0  # a stopping rule that decides from a pixel's own samples can stop it low: watch the mean
+            ref_mean = oiio_mean([ref, "--ch", "R,G,B"])
             for seed in seeds:
                 out = os.path.join(a.out, "%s_ad_%g_%d.exr" % (name, t, seed))
                 st, ta = render(a, scene, out, a.spp, seed, extra + ["--noise-threshold", str(t), "--min-spp",
@@ -91,14 +94,16 @@ def main():
                 mean_spp += st["spp_mean"] / len(seeds)
                 outp = os.path.join(a.out, "%s_plain_%d_%d.exr" % (name, spp_plain, seed))
                 _, tp = render(a, scene, outp, spp_plain, seed, extra)
+                bias += (oiio_mean([out, "--ch", "R,G,B"]) / ref_mean - 1.0) / len(seeds)
                 for k, o, tt in (("ad", out, ta), ("plain", outp, tp)):
                     m[k][0] += mse(o, ref) / len(seeds)
                     m[k][1] += rel_mse(o, ref) / len(seeds)
                     m[k][2] += tt / len(seeds)
             r_mse = m["plain"][0] / m["ad"][0]
             r_t = m["ad"][2] / m["plain"][2]
-            print("| %s | %g | %.1f | %.3e | %.3e | %.2fx | %.2fx | %.2f | %.2fx |" % (
-                name, t, mean_spp, m["ad"][0], m["plain"][0], r_mse, m["plain"][1] / m["ad"][1], r_t, r_mse / r_t))
+            print("| %s | %g | %.1f | %.3e | %.3e | %.2fx | %.2fx | %.2f | %.2fx | %+.2f%% |" % (
+                name, t, mean_spp, m["ad"][0], m["plain"][0], r_mse, m["plain"][1] / m["ad"][1], r_t, r_mse / r_t,
+                100.0 * bias))
             sys.stdout.flush()
 
 
