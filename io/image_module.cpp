@@ -13,6 +13,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <exception>
+#include <fstream>
+#include <iterator>
 #include <memory>
 #include <new>
 #include <string>
@@ -52,6 +54,31 @@ static bool is_8bit(const OIIO::ImageSpec &spec) {
     return true;
 }
 
+// A JPEG's bytes without its APP13 segments (Photoshop IRB / IPTC-IIM metadata, which no texture
+// needs): OpenImageIO 2.4 (Debian 12) parses IPTC records past their segment's end (a heap
+// overflow in decode_iptc_iim that fuzz_image found; fixed upstream in OIIO 3.x, PR #5081). The
+// markers are walked up to the first scan; anything malformed is copied as it is, for OIIO to judge.
+static std::vector<unsigned char> jpeg_without_app13(const unsigned char *p, size_t n) {
+    std::vector<unsigned char> out;
+    out.reserve(n);
+    size_t i = 2; // after SOI (FF D8)
+    out.insert(out.end(), p, p + (n < 2 ? n : 2));
+    while (i + 4 <= n && p[i] == 0xFF) {
+        unsigned char m = p[i + 1];
+        if (m == 0xFF) { out.push_back(p[i]); ++i; continue; } // fill byte
+        if (m == 0xDA || m == 0xD9) break;                       // start of scan, end of image: the rest as is
+        if (m == 0x01 || (m >= 0xD0 && m <= 0xD7)) { out.insert(out.end(), p + i, p + i + 2); i += 2; continue; }
+        size_t len = (size_t)p[i + 2] << 8 | p[i + 3];
+        if (len < 2 || i + 2 + len > n) break;                   // malformed: the rest as is
+        if (m != 0xED) out.insert(out.end(), p + i, p + i + 2 + len);
+        i += 2 + len;
+    }
+    if (i < n) out.insert(out.end(), p + i, p + n);
+    return out;
+}
+
+static bool is_jpeg(const unsigned char *p, size_t n) { return n >= 3 && p[0] == 0xFF && p[1] == 0xD8 && p[2] == 0xFF; }
+
 static bool decode_oiio(const std::string &path, const void *mem, size_t mem_size, bool srgb, bool keep_8bit,
                   uint64_t max_bytes, IoImage *out, std::string *problem) {
     OIIO::ImageSpec config;
@@ -60,6 +87,22 @@ static bool decode_oiio(const std::string &path, const void *mem, size_t mem_siz
 
     std::unique_ptr<OIIO::Filesystem::IOMemReader> proxy;
     std::string name = path;
+    std::vector<unsigned char> jpeg; // a JPEG's bytes without APP13 (jpeg_without_app13)
+    if (!mem) { // a JPEG file is read here and decoded from memory
+        std::ifstream f(path, std::ios::binary);
+        unsigned char head[3] = {0, 0, 0};
+        if (f && f.read(reinterpret_cast<char *>(head), 3) && is_jpeg(head, 3)) {
+            std::vector<unsigned char> bytes(head, head + 3);
+            bytes.insert(bytes.end(), std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+            jpeg = jpeg_without_app13(bytes.data(), bytes.size());
+        }
+    } else if (is_jpeg(static_cast<const unsigned char *>(mem), mem_size)) {
+        jpeg = jpeg_without_app13(static_cast<const unsigned char *>(mem), mem_size);
+    }
+    if (!jpeg.empty()) {
+        mem = jpeg.data();
+        mem_size = jpeg.size();
+    }
     if (mem) {
         if (mem_size == 0) {
             *problem = "image data is empty";
