@@ -57,24 +57,33 @@ static bool is_8bit(const OIIO::ImageSpec &spec) {
 // A JPEG's bytes without its APP13 segments (Photoshop IRB / IPTC-IIM metadata, which no texture
 // needs): OpenImageIO 2.4 (Debian 12) parses IPTC records past their segment's end (a heap
 // overflow in decode_iptc_iim that fuzz_image found; fixed upstream in OIIO 3.x, PR #5081). The
-// markers are walked up to the first scan; anything malformed is copied as it is, for OIIO to judge.
-static std::vector<unsigned char> jpeg_without_app13(const unsigned char *p, size_t n) {
-    std::vector<unsigned char> out;
-    out.reserve(n);
-    size_t i = 2; // after SOI (FF D8)
-    out.insert(out.end(), p, p + (n < 2 ? n : 2));
-    while (i + 4 <= n && p[i] == 0xFF) {
+// marker segments are walked as libjpeg reads them up to the first scan (bytes between segments
+// skipped, as libjpeg does); false when a segment's length runs past the end or is below 2
+// (libjpeg would fail there too), so no APP13 can reach OIIO unseen.
+static bool jpeg_without_app13(const unsigned char *p, size_t n, std::vector<unsigned char> *out) {
+    out->clear();
+    out->reserve(n);
+    out->insert(out->end(), p, p + 2); // SOI (FF D8)
+    size_t i = 2;
+    for (;;) {
+        while (i < n && p[i] != 0xFF) ++i;       // garbage before a marker
+        while (i + 1 < n && p[i + 1] == 0xFF) ++i; // fill bytes
+        if (i + 1 >= n) return false;              // no scan
         unsigned char m = p[i + 1];
-        if (m == 0xFF) { out.push_back(p[i]); ++i; continue; } // fill byte
-        if (m == 0xDA || m == 0xD9) break;                       // start of scan, end of image: the rest as is
-        if (m == 0x01 || (m >= 0xD0 && m <= 0xD7)) { out.insert(out.end(), p + i, p + i + 2); i += 2; continue; }
+        if (m == 0xDA || m == 0xD9) break; // start of scan, end of image: the rest as is
+        if (m == 0x00 || m == 0x01 || (m >= 0xD0 && m <= 0xD7)) { // no length
+            out->insert(out->end(), p + i, p + i + 2);
+            i += 2;
+            continue;
+        }
+        if (i + 4 > n) return false;
         size_t len = (size_t)p[i + 2] << 8 | p[i + 3];
-        if (len < 2 || i + 2 + len > n) break;                   // malformed: the rest as is
-        if (m != 0xED) out.insert(out.end(), p + i, p + i + 2 + len);
+        if (len < 2 || i + 2 + len > n) return false;
+        if (m != 0xED) out->insert(out->end(), p + i, p + i + 2 + len);
         i += 2 + len;
     }
-    if (i < n) out.insert(out.end(), p + i, p + n);
-    return out;
+    out->insert(out->end(), p + i, p + n);
+    return true;
 }
 
 static bool is_jpeg(const unsigned char *p, size_t n) { return n >= 3 && p[0] == 0xFF && p[1] == 0xD8 && p[2] == 0xFF; }
@@ -94,10 +103,16 @@ static bool decode_oiio(const std::string &path, const void *mem, size_t mem_siz
         if (f && f.read(reinterpret_cast<char *>(head), 3) && is_jpeg(head, 3)) {
             std::vector<unsigned char> bytes(head, head + 3);
             bytes.insert(bytes.end(), std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
-            jpeg = jpeg_without_app13(bytes.data(), bytes.size());
+            if (!jpeg_without_app13(bytes.data(), bytes.size(), &jpeg)) {
+                *problem = "cannot open: malformed JPEG (its marker segments run past the end of the file)";
+                return false;
+            }
         }
     } else if (is_jpeg(static_cast<const unsigned char *>(mem), mem_size)) {
-        jpeg = jpeg_without_app13(static_cast<const unsigned char *>(mem), mem_size);
+        if (!jpeg_without_app13(static_cast<const unsigned char *>(mem), mem_size, &jpeg)) {
+            *problem = "cannot open: malformed JPEG (its marker segments run past the end of the data)";
+            return false;
+        }
     }
     if (!jpeg.empty()) {
         mem = jpeg.data();
