@@ -129,11 +129,14 @@ static int field_of_flags(uint32_t flags) {
     return c >= 1 && c <= GUIDE_SURFACE_CLASSES ? (int)c - 1 : -1;
 }
 
+int guide_field_of_normal(vec3 n) {
+    return n.x == 0.0f && n.y == 0.0f && n.z == 0.0f ? GUIDE_SURFACE_CLASSES : normal_class(n);
+}
+
 const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n, GuideCursor cursors[GUIDE_FIELDS]) {
     const GuideState *gs = &ig->guide;
     if (!gs->active) return NULL;
-    int volume = n.x == 0.0f && n.y == 0.0f && n.z == 0.0f;
-    int k = volume ? GUIDE_SURFACE_CLASSES : normal_class(n);
+    int k = guide_field_of_normal(n);
     const GuideField *f = gs->fields[k];
     if (!f) return NULL;
     const float x[3] = {p.x, p.y, p.z};

@@ -289,6 +289,8 @@ void guide_free(Integrator *ig);
  * medium field's (n zero); NULL while guiding is not active. cursors: one per field, zeroed at
  * the start of a stage (guiding.h: a spatially sorted sequence of lookups stays cheap). */
 const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n, GuideCursor cursors[GUIDE_FIELDS]);
+/* The field guide_lookup reads for normal n (surfaces: per orientation class; n zero: media). */
+int guide_field_of_normal(vec3 n);
 /* The recorder flags that carry a surface vertex's orientation class. */
 uint32_t guide_surface_flags(vec3 n);
 void guide_train_batch(Integrator *ig);

@@ -100,14 +100,6 @@ int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out
  * the scatter group's stratified pair and a guided vertex draws no more numbers than an
  * unguided one (the guide group's three lanes were 20% of a guided render's instructions). */
 static inline void scatter_numbers(const Scatter *s, DimsGroup *scatter, float u[6]);
-/* A hint for a guided Scatter, once its numbers are drawn: fetch the guide's table entry the
- * sample will read (a cache miss on most guided samples otherwise), so the vertex's other
- * work hides it. */
-static inline void scatter_prefetch_guided(const Scatter *s, const float u[6]) {
-    if (!s->guide) return;
-    if (s->guide_mode == SCATTER_GUIDE_RIS) guide_distribution_prefetch(s->guide, u[3]);
-    else if (u[0] >= SCATTER_GUIDE_ALPHA) guide_distribution_prefetch(s->guide, u[1]);
-}
 static inline void scatter_numbers(const Scatter *s, DimsGroup *scatter, float u[6]) {
     u[0] = scatter_uses_lobe_u(s) || s->guide ? dims_lane(scatter, 2) : 0.0f;
     u[1] = dims_lane(scatter, 0);
