@@ -243,7 +243,35 @@ static void test_threads(void) {
     recorder_free(r);
 }
 
+/* ---- the sort by path is stable, for narrow (radix) and wide (merge) ranges of path indices */
+static void check_stable_sort(uint64_t stride) {
+    RecorderSamples s = {0};
+    size_t n = 5000;
+    s.items = calloc(n, sizeof *s.items);
+    s.capacity = n;
+    CHECK(s.items != NULL, "allocation");
+    if (!s.items) return;
+    uint64_t x = 12345;
+    for (size_t i = 0; i < n; ++i) {
+        x = x * 6364136223846793005ull + 1442695040888963407ull;
+        s.items[i].path = 1000 + ((x >> 33) % 300) * stride; /* many samples per path, out of order */
+        s.items[i].pixel = (uint32_t)i;                       /* the original position */
+    }
+    s.count = n;
+    CHECK(recorder_samples_sort(&s) == 0, "sort");
+    int ok = s.count == n;
+    for (size_t i = 1; i < s.count && ok; ++i) {
+        const RecorderSample *a = &s.items[i - 1], *b = &s.items[i];
+        ok = a->path < b->path || (a->path == b->path && a->pixel < b->pixel);
+    }
+    CHECK(ok, "sorted by path, a path's samples in their order (stride %llu)", (unsigned long long)stride);
+    recorder_samples_free(&s);
+}
+
 int main(void) {
+    check_stable_sort(1);
+    check_stable_sort(1000003);
+    check_stable_sort(1ull << 40); /* beyond the radix keys: the merge sort */
     test_worked_example();
     test_sentinels();
     test_threads();
