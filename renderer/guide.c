@@ -111,26 +111,15 @@ void guide_free(Integrator *ig) {
     memset(gs, 0, sizeof *gs);
 }
 
-/* The orientation class of a normal: 2 x (axis of its largest component) + (that component < 0). */
-static int normal_class(vec3 n) {
-    float ax = fabsf(n.x), ay = fabsf(n.y), az = fabsf(n.z);
-    if (ax >= ay && ax >= az) return n.x < 0.0f;
-    if (ay >= az) return 2 + (n.y < 0.0f);
-    return 4 + (n.z < 0.0f);
-}
 
 #define GUIDE_CLASS_SHIFT 16 /* bits of the recorder flags above PV_FLAG_* and RECORDER_SAMPLE_PRIMARY */
 
-uint32_t guide_surface_flags(vec3 n) { return (uint32_t)(normal_class(n) + 1) << GUIDE_CLASS_SHIFT; }
+uint32_t guide_surface_flags(vec3 n) { return (uint32_t)(guide_field_of_normal(n) + 1) << GUIDE_CLASS_SHIFT; }
 
 static int field_of_flags(uint32_t flags) {
     if (flags & PV_FLAG_VOLUME) return GUIDE_SURFACE_CLASSES;
     uint32_t c = (flags >> GUIDE_CLASS_SHIFT) & 7u;
     return c >= 1 && c <= GUIDE_SURFACE_CLASSES ? (int)c - 1 : -1;
-}
-
-int guide_field_of_normal(vec3 n) {
-    return n.x == 0.0f && n.y == 0.0f && n.z == 0.0f ? GUIDE_SURFACE_CLASSES : normal_class(n);
 }
 
 const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n, GuideCursor cursors[GUIDE_FIELDS]) {

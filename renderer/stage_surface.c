@@ -265,6 +265,8 @@ typedef struct GuideAhead {
     uint32_t path;                 /* the path whose hit this is (UINT32_MAX: none) */
     int field;                     /* the field looked up, -1: none */
     const GuideDistribution *dist; /* its leaf at h.p */
+    DimsGroup scatter;             /* with dist: the vertex's scatter numbers, set up (dims_lane) */
+    PathDims dims;                 /* what scatter points to */
     SurfaceHit h;
 } GuideAhead;
 
@@ -280,14 +282,15 @@ static void guide_look_ahead(const Integrator *ig, uint32_t p, GuideAhead *a, Gu
     a->field = guide_field_of_normal(ng);
     a->dist = guide_lookup(ig, a->h.p, ng, cursors);
     if (!a->dist) return;
-    PathDims dims = path_dims(ig, p);
-    DimsGroup g = dims_group(&dims, ps->depth[p], DIMS_SCATTER);
+    a->dims = path_dims(ig, p);
+    a->scatter = dims_group(&a->dims, ps->depth[p], DIMS_SCATTER);
+    DimsGroup *g = &a->scatter;
     if (ig->guide.mode == SCATTER_GUIDE_RIS) { /* both candidates: the guide's from its own group (scatter_numbers) */
-        DimsGroup gg = dims_group(&dims, ps->depth[p], DIMS_GUIDE);
+        DimsGroup gg = dims_group(&a->dims, ps->depth[p], DIMS_GUIDE);
         guide_distribution_prefetch(a->dist, dims_lane(&gg, 0));
         guide_distribution_prefetch_pdf(a->dist);
-    } else if (dims_lane(&g, 2) >= SCATTER_GUIDE_ALPHA) { /* one-sample MIS picks the guide (scatter_numbers' lanes) */
-        guide_distribution_prefetch(a->dist, dims_lane(&g, 0));
+    } else if (dims_lane(g, 2) >= SCATTER_GUIDE_ALPHA) { /* one-sample MIS picks the guide (scatter_numbers' lanes) */
+        guide_distribution_prefetch(a->dist, dims_lane(g, 0));
     } else {
         guide_distribution_prefetch_pdf(a->dist);
     }
@@ -369,6 +372,10 @@ void stage_surface(const Integrator *ig, Slice *s) {
          * independent work */
         PathDims dims = path_dims(ig, p);
         DimsGroup g = dims_group(&dims, depth, DIMS_SCATTER); /* the direction's u, v, the lobe, the roulette */
+        if (a && a->dist) { /* the look-ahead set the group up: the same numbers without hashing again */
+            g = a->scatter;
+            g.dims = &dims;
+        }
         float u[6];
         scatter_numbers(&sc, &g, u);
         ScatterSample ss;
