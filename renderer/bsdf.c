@@ -433,12 +433,6 @@ vec3 bsdf_eval(const BsdfParams *p, vec3 wo, vec3 wi) {
     return eval_pdf(&q, wo, wi, NULL);
 }
 
-vec3 bsdf_eval_pdf(const BsdfParams *p, vec3 wo, vec3 wi, float *pdf) {
-    Prep q;
-    prepare(p, &q);
-    return eval_pdf(&q, wo, wi, pdf);
-}
-
 vec3 bsdf_prepared_eval_pdf(const BsdfPrepared *q, vec3 wo, vec3 wi, float *pdf) { return eval_pdf(q, wo, wi, pdf); }
 
 float bsdf_pdf(const BsdfParams *p, vec3 wo, vec3 wi) {
@@ -599,12 +593,6 @@ int bsdf_prepared_is_delta(const BsdfPrepared *q) {
 }
 
 int bsdf_prepared_has_transmission(const BsdfPrepared *q) { return q->t > 0.0f && q->m < 1.0f; }
-
-int bsdf_guidable(const BsdfParams *p) {
-    Prep q;
-    prepare(p, &q);
-    return bsdf_prepared_guidable(&q);
-}
 
 int bsdf_is_delta(const BsdfParams *p) {
     Prep q;

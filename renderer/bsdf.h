@@ -143,15 +143,13 @@ int bsdf_prepared_has_transmission(const BsdfPrepared *q);
 int bsdf_sample(const BsdfParams *p, vec3 wo, float u_lobe, float u1, float u2, BsdfSample *s);
 vec3 bsdf_eval(const BsdfParams *p, vec3 wo, vec3 wi);
 float bsdf_pdf(const BsdfParams *p, vec3 wo, vec3 wi);
-/* Both at once (next-event estimation needs both; one pass over the lobes). */
-vec3 bsdf_eval_pdf(const BsdfParams *p, vec3 wo, vec3 wi, float *pdf);
 /* 1 if every lobe of p is a delta (smooth glass with metallic 0, transmission 1, no coat): NEE is
  * useless there and the renderer skips it. */
 int bsdf_is_delta(const BsdfParams *p);
-/* 1 if path guiding may sample directions here: no delta lobe, and some lobe rougher than
- * BSDF_GUIDE_MIN_ROUGHNESS (perceptual; a diffuse lobe counts as fully rough). */
+/* Path guiding may sample directions where no lobe is a delta and some lobe is rougher than
+ * BSDF_GUIDE_MIN_ROUGHNESS (perceptual; a diffuse lobe counts as fully rough):
+ * bsdf_prepared_guidable. */
 #define BSDF_GUIDE_MIN_ROUGHNESS 0.05f
-int bsdf_guidable(const BsdfParams *p);
 /* 1 if p has a transmission lobe (the frame must not be flipped to face wo). */
 int bsdf_has_transmission(const BsdfParams *p);
 

@@ -32,10 +32,6 @@ static vec3 shading_normal_valid_for(vec3 ng, vec3 ns, vec3 wo) {
     return v3_normalize(n);
 }
 
-void scatter_init_surface(Scatter *s, const SurfaceHit *h, const BsdfParams *bsdf, vec3 wo_world) {
-    scatter_init_surface_prepared(s, h, bsdf, NULL, wo_world);
-}
-
 void scatter_init_surface_prepared(Scatter *s, const SurfaceHit *h, const BsdfParams *bsdf,
                                    const BsdfPrepared *prepared, vec3 wo_world) {
     s->guide = NULL;

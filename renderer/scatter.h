@@ -75,9 +75,8 @@ typedef struct ScatterSample {
     float guide_pdf;   /* the guide's pdf of wi (0: unguided) */
 } ScatterSample;
 
-/* The BSDF of a surface hit seen from direction wo_world (unit, pointing away from the hit). */
-void scatter_init_surface(Scatter *s, const SurfaceHit *h, const BsdfParams *bsdf, vec3 wo_world);
-/* The same with the BSDF already prepared from bsdf (scene_material_prepared), or NULL. */
+/* The BSDF of a surface hit seen from direction wo_world (unit, pointing away from the hit),
+ * prepared from bsdf (scene_material_prepared), or NULL: prepared here. */
 void scatter_init_surface_prepared(Scatter *s, const SurfaceHit *h, const BsdfParams *bsdf,
                                    const BsdfPrepared *prepared, vec3 wo_world);
 /* Whether sampling reads its lobe-choice number: a BSDF with more than one lobe (a Lambert-only

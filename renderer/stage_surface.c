@@ -278,7 +278,7 @@ static void guide_look_ahead(const Integrator *ig, uint32_t p, GuideAhead *a, Gu
     scene_surface_hit(ig->scene, hit->instance, hit->local_prim, hit->triangle, hit->u, hit->v, &a->h);
     a->path = p;
     vec3 ng = a->h.ng;
-    if (v3_dot(ps->ray[p].dir, ng) > 0.0f) ng = v3_neg(ng); /* the side seen (scatter_init_surface) */
+    if (v3_dot(ps->ray[p].dir, ng) > 0.0f) ng = v3_neg(ng); /* the side seen (scatter_init_surface_prepared) */
     a->field = guide_field_of_normal(ng);
     a->dist = guide_lookup(ig, a->h.p, ng, cursors);
     if (!a->dist) return;
