@@ -21,8 +21,9 @@
  * and its hit, scattering and NEE in the medium through the light-selection protocol and the
  * scattering interface, then back into the hit or escaped queue) sits between
  * stage_intersect and the hit/escaped stages; the radiance recorder sees every
- * contribution through path_add_radiance and every scattering event in stage_surface's
- * continuation, and trains at the barrier (a hook). */
+ * contribution through path_add_radiance and every scattering event in the surface and medium
+ * stages' continuations; its samples train the guiding fields after every batch
+ * (guide_train_batch), and the fields update at the iteration barrier (guide_barrier). */
 #ifndef CANDELA_INTEGRATOR_H
 #define CANDELA_INTEGRATOR_H
 
@@ -74,8 +75,8 @@ double film_pixel_error(const Film *f, size_t i);
  * Returns the number of pixels still sampling; 0 ok. A function of the film alone. */
 uint32_t film_adaptive_update(Film *f, float threshold);
 
-/* Work at an iteration barrier, when no ray is in flight: learned state (a light
- * sampler's visibility now; guiding training, volume estimator choices later) changes only here. */
+/* Work at an iteration barrier, when no ray is in flight: learned state (a light sampler's
+ * visibility, the guiding fields' update, the volume estimators' auto choices) changes only here. */
 typedef struct BarrierHook {
     void (*run)(void *user);
     void *user;
