@@ -12,11 +12,14 @@ ok()  { pass=$((pass + 1)); }
 bad() { fail=$((fail + 1)); echo "FAIL: $*" >&2; }
 
 # expect_error NAME PATTERN -- ARGS... : non-zero exit, exactly one stderr line containing
-# PATTERN, no crash (exit < 128), no file at $tmp/out.exr or $tmp/out.png
+# PATTERN, no crash (exit < 128), no file at $tmp/out.exr or $tmp/out.png; within 120 s, or
+# $limit s when set (limit=10 expect_error ...: a special file must be refused at once, and a
+# regression that blocks on it fails here in seconds instead of hanging the suite)
 expect_error() {
   local name=$1 pattern=$2; shift 3
   rm -f "$tmp/out.exr" "$tmp/out.png"
-  timeout 120 "$bin" "$@" >"$tmp/stdout" 2>"$tmp/stderr"; local rc=$?  # (124: hung, a failure)
+  timeout "${limit:-120}" "$bin" "$@" >"$tmp/stdout" 2>"$tmp/stderr"; local rc=$?
+  if [ $rc -eq 124 ]; then bad "$name: still running after ${limit:-120} s (blocked?), killed"; return; fi
   local lines; lines=$(grep -c . "$tmp/stderr")
   if [ $rc -eq 0 ] || [ $rc -ge 128 ]; then bad "$name: exit code $rc"; return; fi
   if [ "$lines" -ne 1 ]; then bad "$name: expected one error line, got $lines: $(cat "$tmp/stderr")"; return; fi
@@ -87,7 +90,7 @@ else
 fi
 rm -f "$tmp"/dump.* "$tmp"/g.*
 mkfifo "$tmp/fifo.exr"
-expect_error "fifo env" "not a regular file" -- render "$scene" --env "$tmp/fifo.exr" "${common[@]}"
+limit=10 expect_error "fifo env" "not a regular file" -- render "$scene" --env "$tmp/fifo.exr" "${common[@]}"
 rm -f "$tmp/fifo.exr"
 # statistics JSON stays valid JSON for a scene path with a quote and a backslash in it
 weird="$tmp/we\"i\\rd"
@@ -159,7 +162,7 @@ rm -f "$tmp/many.gltf"
 # a scene whose environment URI names a FIFO: refused, not blocked on (item 5)
 mkfifo "$tmp/env_fifo.exr"
 hostile "$tmp/env_fifo.gltf" 'd.setdefault("extras", {})["candela_environment"] = {"uri": "env_fifo.exr"}'
-expect_error "scene environment is a FIFO" "not a regular file" -- render "$tmp/env_fifo.gltf" "${common[@]}"
+limit=10 expect_error "scene environment is a FIFO" "not a regular file" -- render "$tmp/env_fifo.gltf" "${common[@]}"
 rm -f "$tmp/env_fifo.exr"
 # the texture budget: a 1024^2 8-bit texture (4 MiB as held: 8-bit files stay 8-bit) under
 # --texture-budget-mb 1 is refused, naming it, before it is decoded; under a budget of 4 MiB
@@ -535,7 +538,7 @@ ln -s shared/target.exr "$tmp/link.exr"
 if "$bin" render "$scene" -o "$tmp/link.exr" --no-png --res 8x8 --spp 1 --quiet && [ -L "$tmp/link.exr" ] &&
    [ -s "$tmp/shared/target.exr" ]; then ok; else bad "output through a symbolic link: $(ls -la "$tmp" "$tmp/shared")"; fi
 mkfifo "$tmp/fifo_out.exr"
-expect_error "output is a FIFO" "not a regular file" -- render "$scene" -o "$tmp/fifo_out.exr" --no-png --res 8x8 --spp 1 --quiet
+limit=10 expect_error "output is a FIFO" "not a regular file" -- render "$scene" -o "$tmp/fifo_out.exr" --no-png --res 8x8 --spp 1 --quiet
 rm -f "$tmp/fifo_out.exr"
 
 # a full disk (a small tmpfs, where this test may mount one): the PNG preview that does not fit
@@ -613,18 +616,18 @@ fi
 # in open() forever, a scene linked to /dev/zero was read to 4 GiB); a large variant list is
 # refused from its size, unread
 mkfifo "$tmp/in_fifo.gltf"; ln -s /dev/zero "$tmp/zero.gltf"
-expect_error "scene is a FIFO" "in_fifo.gltf: not a regular file (a FIFO)" -- render "$tmp/in_fifo.gltf" "${common[@]}"
-expect_error "scene is /dev/zero" "zero.gltf: not a regular file (a device)" -- render "$tmp/zero.gltf" "${common[@]}"
+limit=10 expect_error "scene is a FIFO" "in_fifo.gltf: not a regular file (a FIFO)" -- render "$tmp/in_fifo.gltf" "${common[@]}"
+limit=10 expect_error "scene is /dev/zero" "zero.gltf: not a regular file (a device)" -- render "$tmp/zero.gltf" "${common[@]}"
 mkfifo "$tmp/v_fifo.toml"; ln -s /dev/zero "$tmp/v_zero.json"
 head -c 1100000 /dev/zero | tr '\0' '#' > "$tmp/v_big.toml"
-expect_error "variants FIFO" "v_fifo.toml: not a regular file (a FIFO)" -- compare "$det" --spp 1 --res 8x8 --out-dir "$tmp/c29" \
+limit=10 expect_error "variants FIFO" "v_fifo.toml: not a regular file (a FIFO)" -- compare "$det" --spp 1 --res 8x8 --out-dir "$tmp/c29" \
   --quiet --variants "$tmp/v_fifo.toml"
-expect_error "variants /dev/zero" "v_zero.json: not a regular file (a device)" -- compare "$det" --spp 1 --res 8x8 \
+limit=10 expect_error "variants /dev/zero" "v_zero.json: not a regular file (a device)" -- compare "$det" --spp 1 --res 8x8 \
   --out-dir "$tmp/c29" --quiet --variants "$tmp/v_zero.json"
-expect_error "variants too large" "v_big.toml: 1100000 bytes, over the 1 MiB limit" -- compare "$det" --spp 1 --res 8x8 \
+limit=10 expect_error "variants too large" "v_big.toml: 1100000 bytes, over the 1 MiB limit" -- compare "$det" --spp 1 --res 8x8 \
   --out-dir "$tmp/c29" --quiet --variants "$tmp/v_big.toml"
 mkfifo "$tmp/ref_fifo.exr"
-expect_error "compare reference FIFO" "ref_fifo.exr: not a regular file (a FIFO)" -- compare "$det" --strategies tree --spp 1 \
+limit=10 expect_error "compare reference FIFO" "ref_fifo.exr: not a regular file (a FIFO)" -- compare "$det" --strategies tree --spp 1 \
   --res 8x8 --out-dir "$tmp/c29" --quiet --reference "$tmp/ref_fifo.exr"
 rm -f "$tmp/in_fifo.gltf" "$tmp/zero.gltf" "$tmp/v_fifo.toml" "$tmp/v_zero.json" "$tmp/v_big.toml" "$tmp/ref_fifo.exr"
 # --confine-to: an empty name (a farm script's unset variable) is refused, not "no
