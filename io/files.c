@@ -217,16 +217,21 @@ int io_path_inside(const char *path, const char *folder) {
 
 /* ---------------------------------------------------------------- output locks */
 
-int io_lock_output(const char *output, IoLock *lock, char err[IO_ERR_LEN]) {
-    lock->fd = -1;
-    lock->path[0] = 0;
+int io_lock_path(const char *output, char lock[IO_PATH_MAX + 8], char err[IO_ERR_LEN]) {
     char resolved[IO_PATH_MAX];
+    lock[0] = 0;
     if (io_output_path(output, resolved, err) != 0) return -1;
-    if (snprintf(lock->path, sizeof lock->path, "%s.lock", resolved) >= (int)sizeof lock->path) {
+    if (snprintf(lock, IO_PATH_MAX + 8, "%s.lock", resolved) >= IO_PATH_MAX + 8) {
         files_err(err, output, "path too long");
-        lock->path[0] = 0;
+        lock[0] = 0;
         return -1;
     }
+    return 0;
+}
+
+int io_lock_output(const char *output, IoLock *lock, char err[IO_ERR_LEN]) {
+    lock->fd = -1;
+    if (io_lock_path(output, lock->path, err) != 0) return -1;
     /* flock, not O_EXCL + a pid: the kernel drops a dead process's lock (a SIGKILL or a
      * power loss leaves a lock file nobody holds, which the next writer simply takes), and
      * NFS carries flock as a POSIX lock between hosts, where another host's pid means nothing.

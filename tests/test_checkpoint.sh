@@ -279,6 +279,17 @@ cp "$tmp/s1.film" "$tmp/s1.keep"
 expect_error "merge png onto a film" "s1.film: the merged PNG (--png) would replace a film being merged" -- merge -o "$tmp/keep.exr" \
   --png "$tmp/s1.film" "$tmp"/s0.film "$tmp"/s1.film "$tmp"/s2.film "$tmp"/s3.film
 same "$tmp/s1.film" "$tmp/s1.keep" "a refused merge changed a film"
+# the brief's own case: a shard given twice and the PNG onto it (the PNG is refused first)
+expect_error "merge png onto a film given twice" "s1.film: the merged PNG (--png) would replace a film being merged" -- \
+  merge -o "$tmp/keep.exr" --png "$tmp/s1.film" "$tmp"/s0.film "$tmp"/s1.film
+same "$tmp/s1.film" "$tmp/s1.keep" "a refused merge changed a film"
+# the merged EXR's lock file (emptied, then removed by the merge) may not be a film either
+cp "$tmp/s1.film" "$tmp/lk.exr.lock"
+expect_error "merge lock onto a film" "lk.exr.lock: the lock file of the merged EXR (-o) would replace a film being merged" -- \
+  merge -o "$tmp/lk.exr" "$tmp"/s0.film "$tmp/lk.exr.lock" "$tmp"/s2.film "$tmp"/s3.film
+same "$tmp/lk.exr.lock" "$tmp/s1.keep" "a refused merge changed the film named as its lock"
+[ ! -e "$tmp/lk.exr" ] && ok || bad "a refused merge wrote its EXR"
+rm -f "$tmp/lk.exr.lock"
 expect_error "checkpoint named as the image" "the checkpoint (--checkpoint) and the EXR (-o) are the same file" -- "${base[@]}" --spp 8 \
   -o "$tmp/keep.exr" --checkpoint "$tmp/keep.exr" --quiet
 expect_error "resume from the output" "the EXR (-o) would replace the checkpoint resumed (--resume-from)" -- "${base[@]}" --spp 64 \

@@ -664,6 +664,16 @@ expect_error "checkpoint is the EXR" "the checkpoint (--checkpoint) and the EXR 
   --checkpoint "$tmp/out.exr"
 expect_error "env is the EXR" "the EXR (-o) would replace the environment (--env)" -- render "$scene" "${common[@]}" --env "$tmp/out.exr"
 expect_error "partial png is the exr" "are the same file" -- render "$scene" "${common[@]}" --save-partial --png "$tmp/out.partial.exr"
+# an output's lock file (OUTPUT.lock: emptied to hold the writer's pid, removed when done) is an
+# output too: a scene under that name was emptied, then deleted
+cp "$scene" "$tmp/lk.exr.lock"; lk_sum=$(md5sum < "$tmp/lk.exr.lock")
+expect_error "lock over the scene" "lk.exr.lock: the lock file of the EXR (-o) would replace the scene" -- render "$tmp/lk.exr.lock" \
+  -o "$tmp/lk.exr" --res 16x16 --spp 1 --quiet
+[ -e "$tmp/lk.exr.lock" ] && [ "$(md5sum < "$tmp/lk.exr.lock")" = "$lk_sum" ] && [ ! -e "$tmp/lk.exr" ] && ok \
+  || bad "a scene named as the output's lock file was changed or removed"
+expect_error "lock over another output" "the statistics (--stats-json) and the lock file of the PNG preview (--png) are the same file" -- \
+  render "$scene" "${common[@]}" --stats-json "$tmp/out.png.lock"
+rm -f "$tmp/lk.exr.lock"
 # compare: a variant may change how the scene renders, never what the run reads or writes
 # (--dump-cachepoints wrote anywhere; --env was read outside --confine-to)
 rm -rf "$tmp/c29"
