@@ -650,6 +650,9 @@ clobber "stats over the scene" "the statistics (--stats-json) would replace the 
   --stats-json "$tmp/keep.gltf"
 clobber "checkpoint over the scene" "the checkpoint (--checkpoint) would replace the scene" render "$tmp/keep.gltf" "${common[@]}" \
   --checkpoint "$tmp/conf/../keep.gltf"
+# candela bench writes no image but its statistics (and a PLY): it replaced the scene unchecked
+clobber "bench stats over the scene" "keep.gltf: the statistics (--stats-json) would replace the scene" bench "$tmp/keep.gltf" \
+  --res 8x8 --spp 1 --quiet --stats-json "$tmp/keep.gltf"
 ln -s keep.gltf "$tmp/keep_link.png"
 clobber "png through a link to the scene" "the PNG preview (--png) would replace the scene" render "$tmp/keep.gltf" "${common[@]}" \
   --png "$tmp/keep_link.png"
