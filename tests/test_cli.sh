@@ -439,7 +439,7 @@ expect_error "variant missing value" "variant 'a': missing value for --max-depth
   --out-dir "$cmpd" --quiet --variants "a: --max-depth"
 expect_error "variant bad number" "variant 'a': invalid value 'x' for --max-depth" -- compare "$det" --spp 1 --res 8x8 \
   --out-dir "$cmpd" --quiet --variants "a: --max-depth x"
-expect_error "variant output flag" "variant 'a': unknown option '-o'" -- compare "$det" --spp 1 --res 8x8 \
+expect_error "variant output flag" "variant 'a': -o writes a file; a variant may only change render flags" -- compare "$det" --spp 1 --res 8x8 \
   --out-dir "$cmpd" --quiet --variants "a: -o x.exr"
 expect_error "variant spp" "variant 'a': --spp is the same for every variant" -- compare "$det" --spp 1 --res 8x8 \
   --out-dir "$cmpd" --quiet --variants "a: --spp 4"
@@ -681,10 +681,29 @@ rm -f "$tmp/lk.exr.lock"
 # (--dump-cachepoints wrote anywhere; --env was read outside --confine-to)
 rm -rf "$tmp/c29"
 cmp29=(compare "$det" --spp 1 --res 8x8 --ref-spp 1 --out-dir "$tmp/c29" --quiet)
-expect_error "variant dump" "variant 'a': --dump-cachepoints is not a variant's flag" -- "${cmp29[@]}" \
-  --variants "a: --light-sampler cachepoints --dump-cachepoints $tmp/anywhere.ply"
+expect_error "variant dump" "variant 'a': --dump-cachepoints writes a file; a variant may only change render flags" -- \
+  "${cmp29[@]}" --variants "a: --light-sampler cachepoints --dump-cachepoints $tmp/anywhere.ply"
 [ -e "$tmp/anywhere.ply" ] && bad "a variant's --dump-cachepoints wrote its file" || ok
-expect_error "variant confine" "variant 'a': --confine-to is not a variant's flag" -- "${cmp29[@]}" --variants "a: --confine-to /"
+# every flag that writes a file (the options table's files column) is refused by name, in both
+# forms (they were "unknown option", --png with "did you mean '--env'?")
+for w in "--checkpoint $tmp/anywhere.ckpt" "--stats-json $tmp/anywhere.json" "--png $tmp/anywhere.png" "-o $tmp/anywhere.exr" \
+         "--output=$tmp/anywhere.exr" "--frame-stats $tmp/anywhere.jsonl" "--resume-from $tmp/anywhere.ckpt" "--out-dir $tmp/anywhere"; do
+  flag=${w%% *}; flag=${flag%%=*}
+  expect_error "variant $flag" "variant 'b': $flag writes a file; a variant may only change render flags" -- "${cmp29[@]}" \
+    --variants "a: --light-sampler power; b: --light-sampler tree $w"
+done
+ls "$tmp"/anywhere* >/dev/null 2>&1 && bad "a refused variant wrote $(ls "$tmp"/anywhere*)" || ok
+expect_error "variant confine" "variant 'a': --confine-to is the same for every variant (give it to candela compare)" -- \
+  "${cmp29[@]}" --variants "a: --confine-to /"
+expect_error "variant frames" "variant 'a': --frames is not a variant's flag" -- "${cmp29[@]}" --variants "a: --frames 1-2"
+# a file a variant reads is there before anything renders (it failed after the reference had
+# rendered), never a FIFO (refused unread)
+expect_error "variant env missing" "variant 'b': --env $tmp/nosky.exr: cannot read" -- "${cmp29[@]}" \
+  --variants "a: --light-sampler power; b: --env $tmp/nosky.exr"
+mkfifo "$tmp/sky_fifo.exr"
+limit=10 expect_error "variant env FIFO" "variant 'a': --env $tmp/sky_fifo.exr: not a regular file (a FIFO)" -- "${cmp29[@]}" \
+  --variants "a: --env=$tmp/sky_fifo.exr"
+rm -f "$tmp/sky_fifo.exr"
 cp "$root/tests/scenes/env_constant.exr" "$tmp/sky.exr"
 expect_error "variant env outside --confine-to" "variant 'a': --env $tmp/sky.exr is outside" -- compare "$tmp/conf/scenes/up.gltf" \
   --spp 1 --res 8x8 --ref-spp 1 --out-dir "$tmp/c29" --quiet --confine-to "$tmp/conf" --variants "a: --env $tmp/sky.exr"
