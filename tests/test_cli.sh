@@ -164,6 +164,19 @@ mkfifo "$tmp/env_fifo.exr"
 hostile "$tmp/env_fifo.gltf" 'd.setdefault("extras", {})["candela_environment"] = {"uri": "env_fifo.exr"}'
 limit=10 expect_error "scene environment is a FIFO" "not a regular file" -- render "$tmp/env_fifo.gltf" "${common[@]}"
 rm -f "$tmp/env_fifo.exr"
+# issue 29: textures and VDBs go through the same door (opened once, unblocking, the decoder and
+# OpenVDB read that descriptor); an image file over its limit (4 GiB, from its size) is refused
+# unread: a JPEG was read whole into memory first (4 GiB, then std::bad_alloc or worse)
+mkfifo "$tmp/tex_fifo.png" "$tmp/vol_fifo.vdb"
+hostile "$tmp/tex_fifo.gltf" 'd["images"] = [{"uri": "tex_fifo.png"}]; d["textures"] = [{"source": 0}]; d["materials"][0].setdefault("pbrMetallicRoughness", {})["baseColorTexture"] = {"index": 0}'
+limit=10 expect_error "texture is a FIFO" "tex_fifo.png" -- render "$tmp/tex_fifo.gltf" "${common[@]}"
+hostile "$tmp/vol_fifo.gltf" 'd["nodes"].append({"name": "vol", "extras": {"candela_volume": {"uri": "vol_fifo.vdb"}}}); d["scenes"][0]["nodes"].append(len(d["nodes"]) - 1)'
+limit=10 expect_error "VDB is a FIFO" "vol_fifo.vdb: not a regular file" -- render "$tmp/vol_fifo.gltf" "${common[@]}"
+rm -f "$tmp/tex_fifo.png" "$tmp/vol_fifo.vdb" "$tmp/tex_fifo.gltf" "$tmp/vol_fifo.gltf"
+printf '\377\330\377' > "$tmp/huge.jpg"; truncate -s 4294967297 "$tmp/huge.jpg"  # sparse: no disk, no memory
+limit=10 expect_error "environment over the image limit" "huge.jpg: 4294967297 bytes, over the 4 GiB limit of an image file" -- \
+  render "$scene" --env "$tmp/huge.jpg" "${common[@]}"
+rm -f "$tmp/huge.jpg"
 # the texture budget: a 1024^2 8-bit texture (4 MiB as held: 8-bit files stay 8-bit) under
 # --texture-budget-mb 1 is refused, naming it, before it is decoded; under a budget of 4 MiB
 # (which 16 bytes per texel would exceed) and the default it loads, and the statistics report
