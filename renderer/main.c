@@ -669,6 +669,15 @@ int main(int argc, char **argv) {
 static int record_run_files(CandelaRunFiles *run, const CandelaOptions *o, const CandelaCompareOptions *co,
                             const CandelaBatchOptions *batch, int compare, int bench, int dump, const char *out,
                             const char *png, const char *stats_json, int save_partial, char err[CANDELA_ERR_LEN]) {
+    /* --confine-to names a folder (a file there confined everything to nothing: "SCENE is
+     * outside FILE"); an empty name never gets this far (options_table.c) */
+    struct stat cst;
+    int confine_found = o->confine_dir && stat(o->confine_dir, &cst) == 0;
+    if (o->confine_dir && (!confine_found || !S_ISDIR(cst.st_mode))) {
+        snprintf(err, CANDELA_ERR_LEN, "%.400s: --confine-to needs a folder (%s)", o->confine_dir,
+                 confine_found ? "this is not one" : strerror(errno));
+        return -1;
+    }
     /* --env is read like the scene's files: inside --confine-to when given (scene_load checks it
      * again for every render, a variant's too) */
     if (o->env_path && o->confine_dir && !io_path_inside(o->env_path, o->confine_dir)) {

@@ -648,6 +648,16 @@ rm -f "$tmp/in_fifo.gltf" "$tmp/zero.gltf" "$tmp/v_fifo.toml" "$tmp/v_zero.json"
 expect_error "empty --confine-to" "--confine-to needs a folder" -- render "$tmp/conf/scenes/up.gltf" --confine-to "" "${common[@]}"
 "$bin" render "$tmp/conf/scenes/up.gltf" --confine-to / -o "$tmp/root.exr" --no-png --res 8x8 --spp 1 --quiet && [ -s "$tmp/root.exr" ] \
   && ok || bad "--confine-to / refuses a scene"
+# ... "//" and "/." are "/" too; a file or a missing folder is refused as such (a file confined
+# every scene to nothing: "SCENE is outside FILE")
+for r in // /.; do
+  "$bin" render "$tmp/conf/scenes/up.gltf" --confine-to $r -o "$tmp/root.exr" --no-png --res 8x8 --spp 1 --quiet && [ -s "$tmp/root.exr" ] \
+    && ok || bad "--confine-to $r refuses a scene"
+done
+expect_error "--confine-to a file" "up.gltf: --confine-to needs a folder (this is not one)" -- render "$tmp/conf/scenes/up.gltf" \
+  --confine-to "$tmp/conf/scenes/up.gltf" "${common[@]}"
+expect_error "--confine-to nothing" "nowhere: --confine-to needs a folder (No such file or directory)" -- render "$tmp/conf/scenes/up.gltf" \
+  --confine-to "$tmp/nowhere" "${common[@]}"
 rm -f "$tmp/root.exr"
 
 # one rule for every output: none may replace an input of the run (the scene, a file it
