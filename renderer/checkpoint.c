@@ -452,6 +452,21 @@ int candela_merge_provenance(const char *out_exr, const char *png, const char *c
             }
             rc = -1;
         }
+        /* the samples a shard declares are the ones candela gives shard I/N (render.c's split,
+         * never empty: a render refuses --spp below N); a forged film claiming another range
+         * (twice its share, or none with sums left in) would still tile [0, spp) with others */
+        if (rc == 0) {
+            const uint64_t spp = h[i].id.spp_total, k = h[i].id.shard_index, nn = (uint64_t)num_files;
+            const uint64_t b = spp * k / nn, e = spp * (k + 1) / nn;
+            if (b == e || h[i].id.sample_begin != b || h[i].id.sample_count != e - b) {
+                snprintf(err, CANDELA_ERR_LEN,
+                         "%.300s: damaged header (its samples [%" PRIu64 ", %" PRIu64 ") are not shard %u/%u's of %" PRIu64
+                         " spp, [%" PRIu64 ", %" PRIu64 "))",
+                         files[i], h[i].id.sample_begin, h[i].id.sample_begin + h[i].id.sample_count, h[i].id.shard_index,
+                         num_files, spp, b, e);
+                rc = -1;
+            }
+        }
     }
     /* every shard exactly once, and their sample ranges tile [0, spp) */
     for (int i = 0; i < num_files; ++i) order[i] = -1;

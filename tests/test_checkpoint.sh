@@ -304,6 +304,7 @@ import struct, sys
 src, dst, what = sys.argv[1:4]
 b = bytearray(open(src, 'rb').read())
 w, h, idlen = struct.unpack_from('<3I', b, 8 + 12)
+samples = 8 + 24 + idlen                            # u64 spp_total, sample_begin, sample_count
 reclen, = struct.unpack_from('<I', b, 8 + 24 + idlen + 24 + 8 + 8 + 8)
 n = w * h
 film = 8 + 24 + idlen + 24 + 8 + 8 + 8 + 4 + reclen + 8 + 12  # header, record, film tag + version, film head
@@ -313,6 +314,10 @@ if what == 'nan': struct.pack_into('<d', b, sums + 8 * 5, float('nan'))
 elif what == 'inf': struct.pack_into('<d', b, sums + 3 * n * 8 + 8 * 7, float('inf'))
 elif what == 'zero': struct.pack_into('<%dI' % n, b, count, *([0] * n))
 elif what == 'wrap': struct.pack_into('<I', b, count + 4 * 3, 0xFFFFFFFF)
+elif what == 'grow':  # shard 2/4 of 16 spp claims [8, 16) and its pixels count 8
+    struct.pack_into('<QQ', b, samples + 8, 8, 8); struct.pack_into('<%dI' % n, b, count, *([8] * n))
+elif what == 'empty': # shard 3/4 claims [16, 16): no samples, no hits, but its sums stay
+    struct.pack_into('<QQ', b, samples + 8, 16, 0); struct.pack_into('<%dI' % (2 * n), b, count - 4 * n, *([0] * (2 * n)))
 h = 0xcbf29ce484222325
 for c in b[:-8]: h = ((h ^ c) * 0x100000001b3) & 0xFFFFFFFFFFFFFFFF
 struct.pack_into('<Q', b, len(b) - 8, h)
@@ -326,6 +331,14 @@ for what in nan inf zero wrap; do
   expect_error "merge a forged film ($what)" "f_$what.film: not a film candela wrote: .*$want" -- merge -o "$tmp/keep.exr" --no-png \
     "$tmp"/s0.film "$tmp/f_$what.film" "$tmp"/s2.film "$tmp"/s3.film
 done
+# ... or a shard declaring other samples than its index gives it (shard 2/4 claiming [8, 16) and
+# 3/4 none, still tiling [0, 16): merged with exit 0 into a wrong image)
+forge "$tmp/s2.film" "$tmp/f_grow.film" grow
+forge "$tmp/s3.film" "$tmp/f_empty.film" empty
+expect_error "merge forged sample ranges" "f_grow.film: damaged header (its samples \[8, 16) are not shard 2/4's of 16 spp, \[8, 12))" -- \
+  merge -o "$tmp/keep.exr" --no-png "$tmp"/s0.film "$tmp"/s1.film "$tmp/f_grow.film" "$tmp/f_empty.film"
+expect_error "merge an empty shard" "f_empty.film: damaged header (its samples \[16, 16) are not shard 3/4's of 16 spp, \[12, 16))" -- \
+  merge -o "$tmp/keep.exr" --no-png "$tmp"/s0.film "$tmp"/s1.film "$tmp/s2.film" "$tmp/f_empty.film"
 # the forger itself is right: an unchanged copy merges to the original's image
 forge "$tmp/s1.film" "$tmp/f_same.film" none
 "$bin" merge -o "$tmp/m4.exr" --no-png "$tmp"/s0.film "$tmp/f_same.film" "$tmp"/s2.film "$tmp"/s3.film && same "$tmp/m1.exr" "$tmp/m4.exr" \
