@@ -342,6 +342,15 @@ int checkpoint_load(const char *path, const CheckpointIdentity *id, CheckpointPr
     if (!f) return -1;
     const char *what = "film";
     int rc = h.width == (uint32_t)ig->film.width && h.height == (uint32_t)ig->film.height ? film_load(&ig->film, f) : -1;
+    /* its sums as a film to merge must be (a forged checkpoint's NaN or wrapped count went into
+     * the image): counts of spp_done, more only within the interrupted iteration */
+    char why[160];
+    const uint64_t done = (uint64_t)h.pr.spp_done, most = h.pr.iteration_paths ? id->sample_count : done;
+    if (rc == 0 && film_check_counts(&ig->film, done, most, "checkpoint", why, sizeof why) != 0) {
+        fclose(f);
+        snprintf(err, CANDELA_ERR_LEN, "%.300s: not a checkpoint candela wrote: %s", path, why);
+        return -1;
+    }
     if (rc == 0) { what = "radiance recorder"; rc = record_load(ig, f); }
     if (rc == 0) { what = "guiding"; rc = guide_load(ig, f); }
     if (rc == 0) { what = "in-scattering auto choice"; rc = auto_probe_load(&ig->inscatter_auto, ig->npixels, f); }

@@ -339,6 +339,16 @@ expect_error "merge forged sample ranges" "f_grow.film: damaged header (its samp
   merge -o "$tmp/keep.exr" --no-png "$tmp"/s0.film "$tmp"/s1.film "$tmp/f_grow.film" "$tmp/f_empty.film"
 expect_error "merge an empty shard" "f_empty.film: damaged header (its samples \[16, 16) are not shard 3/4's of 16 spp, \[12, 16))" -- \
   merge -o "$tmp/keep.exr" --no-png "$tmp"/s0.film "$tmp"/s1.film "$tmp/s2.film" "$tmp/f_empty.film"
+# a checkpoint is the same film with a record: a forged one's NaN went into the resumed image
+# and a wrapped count was taken (exit 0 both); its film is checked when loaded, before a sample
+forge "$ck" "$tmp/f_nan.ckpt" nan
+forge "$ck" "$tmp/f_wrap.ckpt" wrap
+expect_error "resume a forged checkpoint (nan)" "f_nan.ckpt: not a checkpoint candela wrote: .*holds a sum that is not a finite number" -- \
+  "${base[@]}" --spp 64 -o "$tmp/keep.exr" --resume-from "$tmp/f_nan.ckpt" --quiet
+expect_error "resume a forged checkpoint (wrap)" "f_wrap.ckpt: not a checkpoint candela wrote: pixel (3, 0) counts 4294967295 samples, the checkpoint declares" -- \
+  "${base[@]}" --spp 64 -o "$tmp/keep.exr" --resume-from "$tmp/f_wrap.ckpt" --quiet
+forge "$ck" "$tmp/f_same.ckpt" none
+"$bin" "${base[@]}" --spp 64 -o "$tmp/f_same.exr" --resume-from "$tmp/f_same.ckpt" --quiet && ok || bad "a re-checksummed checkpoint copy does not resume"
 # the forger itself is right: an unchanged copy merges to the original's image
 forge "$tmp/s1.film" "$tmp/f_same.film" none
 "$bin" merge -o "$tmp/m4.exr" --no-png "$tmp"/s0.film "$tmp/f_same.film" "$tmp"/s2.film "$tmp"/s3.film && same "$tmp/m1.exr" "$tmp/m4.exr" \
