@@ -219,10 +219,13 @@ static int variant_init(Variant *v, const char *name, size_t name_len, const cha
                          v->opts.confine_dir);
                 return -1;
             }
-            if (v->nreads < COMPARE_MAX_VARIANT_READS) {
-                v->reads[v->nreads] = path;
-                v->read_flag[v->nreads++] = row->name;
+            if (v->nreads == COMPARE_MAX_VARIANT_READS) { /* kept whole, never dropped unchecked */
+                snprintf(err, CANDELA_ERR_LEN, "variant '%s': more than %d flags that read files", v->name,
+                         COMPARE_MAX_VARIANT_READS);
+                return -1;
             }
+            v->reads[v->nreads] = path;
+            v->read_flag[v->nreads++] = row->name;
         }
     }
     char check_err[CANDELA_ERR_LEN];
