@@ -1,8 +1,8 @@
 /* io/files.c: how the program opens its inputs, tells files apart and keeps two processes from
  * writing one output (io.h, "files"; the rules in io/README.md). Plain C17, POSIX.
  *
- * Inputs are opened with O_NONBLOCK and checked with fstat before a byte is read: open() on a
- * FIFO blocks until a writer appears (forever, for a farm script's typo) and a device such as
+ * Inputs are checked with stat, opened with O_NONBLOCK and checked with fstat before a byte is
+ * read: open() on a FIFO blocks until a writer appears (forever, for a farm script's typo) and a device such as
  * /dev/zero never ends, so only regular files are read, and never more than the caller's limit
  * (the size is checked from fstat first, and the read stops at the limit if the file grows). */
 #include "io.h"
@@ -40,6 +40,13 @@ static void bytes_text(uint64_t n, char *buf, size_t len) {
     else snprintf(buf, len, "%llu bytes", (unsigned long long)n);
 }
 
+static const char *special_kind(mode_t mode) {
+    return S_ISDIR(mode)                         ? "a directory"
+           : S_ISFIFO(mode)                      ? "a FIFO"
+           : S_ISCHR(mode) || S_ISBLK(mode)      ? "a device"
+                                                 : "a socket or other special file";
+}
+
 int io_open_input(const char *path, uint64_t max_bytes, const char *what, int *fd_out, uint64_t *size,
                   char err[IO_ERR_LEN]) {
     *fd_out = -1;
@@ -48,23 +55,27 @@ int io_open_input(const char *path, uint64_t max_bytes, const char *what, int *f
         files_err(err, "(null)", "no path given");
         return -1;
     }
+    /* stat first: opening a device can act (a tape rewinds, a watchdog arms, /dev/tty without a
+     * terminal fails with its own error), so a name that is no regular file now is not opened */
+    struct stat st;
+    if (stat(path, &st) == 0 && !S_ISREG(st.st_mode)) {
+        files_err(err, path, "not a regular file (%s): not read", special_kind(st.st_mode));
+        return -1;
+    }
+    /* ... and fstat of what was opened (O_NONBLOCK: a FIFO swapped in meanwhile does not block
+     * the open), which is the file then read */
     int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
     if (fd < 0) {
         files_err(err, path, "cannot read: %s", strerror(errno));
         return -1;
     }
-    struct stat st;
     if (fstat(fd, &st) != 0) {
         files_err(err, path, "cannot read: %s", strerror(errno));
         close(fd);
         return -1;
     }
     if (!S_ISREG(st.st_mode)) {
-        files_err(err, path, "not a regular file (%s): not read",
-                  S_ISDIR(st.st_mode)                           ? "a directory"
-                  : S_ISFIFO(st.st_mode)                        ? "a FIFO"
-                  : S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode) ? "a device"
-                                                                : "a socket or other special file");
+        files_err(err, path, "not a regular file (%s): not read", special_kind(st.st_mode));
         close(fd);
         return -1;
     }
@@ -217,16 +228,21 @@ int io_path_inside(const char *path, const char *folder) {
 
 /* ---------------------------------------------------------------- output locks */
 
-int io_lock_output(const char *output, IoLock *lock, char err[IO_ERR_LEN]) {
-    lock->fd = -1;
-    lock->path[0] = 0;
+int io_lock_path(const char *output, char lock[IO_PATH_MAX + 8], char err[IO_ERR_LEN]) {
     char resolved[IO_PATH_MAX];
+    lock[0] = 0;
     if (io_output_path(output, resolved, err) != 0) return -1;
-    if (snprintf(lock->path, sizeof lock->path, "%s.lock", resolved) >= (int)sizeof lock->path) {
+    if (snprintf(lock, IO_PATH_MAX + 8, "%s.lock", resolved) >= IO_PATH_MAX + 8) {
         files_err(err, output, "path too long");
-        lock->path[0] = 0;
+        lock[0] = 0;
         return -1;
     }
+    return 0;
+}
+
+int io_lock_output(const char *output, IoLock *lock, char err[IO_ERR_LEN]) {
+    lock->fd = -1;
+    if (io_lock_path(output, lock->path, err) != 0) return -1;
     /* flock, not O_EXCL + a pid: the kernel drops a dead process's lock (a SIGKILL or a
      * power loss leaves a lock file nobody holds, which the next writer simply takes), and
      * NFS carries flock as a POSIX lock between hosts, where another host's pid means nothing.

@@ -8,13 +8,16 @@
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <exception>
-#include <fstream>
-#include <iterator>
 #include <memory>
 #include <new>
 #include <string>
@@ -94,19 +97,53 @@ static bool decode_oiio(const std::string &path, const void *mem, size_t mem_siz
     // glTF (and PNG) alpha is straight; keep it so (OIIO premultiplies by default).
     config.attribute("oiio:UnassociatedAlpha", 1);
 
+    // A file is opened once, through the program's input door (io_open_input: a regular file
+    // after symbolic links, never a FIFO's blocking open or a device's endless bytes, at most
+    // IO_MAX_IMAGE_BYTES from its size before a byte is read), and OpenImageIO reads that very
+    // descriptor through an IOProxy: no second open by name that a file swapped in between (a
+    // FIFO) could block. Declared before `in`, so the reader is gone before the file closes.
+    struct FileCloser {
+        FILE *f = nullptr;
+        ~FileCloser() { if (f) std::fclose(f); }
+    } file;
+    std::unique_ptr<OIIO::Filesystem::IOProxy> file_proxy;
     std::unique_ptr<OIIO::Filesystem::IOMemReader> proxy;
     std::string name = path;
     std::vector<unsigned char> jpeg; // a JPEG's bytes without APP13 (jpeg_without_app13)
-    if (!mem) { // a JPEG file is read here and decoded from memory
-        std::ifstream f(path, std::ios::binary);
+    if (!mem) {
+        int fd = -1;
+        uint64_t file_size = 0;
+        char ioerr[IO_ERR_LEN];
+        if (io_open_input(path.c_str(), IO_MAX_IMAGE_BYTES, "an image file", &fd, &file_size, ioerr) != 0) {
+            const std::string m(ioerr); // without the path, which the caller puts first
+            *problem = m.compare(0, path.size() + 2, path + ": ") == 0 ? m.substr(path.size() + 2) : m;
+            return false;
+        }
+        file.f = fdopen(fd, "rb");
+        if (!file.f) {
+            close(fd);
+            *problem = std::string("cannot read: ") + std::strerror(errno);
+            return false;
+        }
+        // a JPEG file is read here (its size, checked above, bounds the read) and decoded from
+        // memory without its APP13 segments
         unsigned char head[3] = {0, 0, 0};
-        if (f && f.read(reinterpret_cast<char *>(head), 3) && is_jpeg(head, 3)) {
-            std::vector<unsigned char> bytes(head, head + 3);
-            bytes.insert(bytes.end(), std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+        if (file_size >= 3 && pread(fd, head, 3, 0) == 3 && is_jpeg(head, 3)) {
+            std::vector<unsigned char> bytes(static_cast<size_t>(file_size));
+            size_t got = 0;
+            while (got < bytes.size()) {
+                ssize_t r = pread(fd, bytes.data() + got, bytes.size() - got, off_t(got));
+                if (r < 0 && errno == EINTR) continue;
+                if (r <= 0) break;
+                got += size_t(r);
+            }
+            bytes.resize(got);
             if (!jpeg_without_app13(bytes.data(), bytes.size(), &jpeg)) {
                 *problem = "cannot open: malformed JPEG (its marker segments run past the end of the file)";
                 return false;
             }
+        } else {
+            file_proxy.reset(new OIIO::Filesystem::IOFile(file.f, OIIO::Filesystem::IOProxy::Read));
         }
     } else if (is_jpeg(static_cast<const unsigned char *>(mem), mem_size)) {
         if (!jpeg_without_app13(static_cast<const unsigned char *>(mem), mem_size, &jpeg)) {
@@ -137,9 +174,33 @@ static bool decode_oiio(const std::string &path, const void *mem, size_t mem_siz
     // found a heap overflow somewhere behind io_load_image; its input was lost, see
     // tests/fuzz/README.md). A mislabelled file now gets "cannot open" instead.
     OIIO::attribute("try_all_readers", 0);
-    auto in = OIIO::ImageInput::open(name, &config);
+    // The reader is made from the format name alone (the extension): given a file name,
+    // ImageInput::create (and so ImageInput::open) first opens that name to ask the reader's
+    // valid_file, outside the descriptor opened above. A reader without IOProxy support (ICO,
+    // SGI, RLA, FITS, Cineon, ...) opens by name: it is given the opened descriptor's own name
+    // (/proc/self/fd/N, the same inode whatever the path names by then).
+    // (lower case: create() looks the format up in lower case but compares it with the name
+    // as given, and would take "PNG" for a file name)
+    std::string format = OIIO::Filesystem::extension(name, false);
+    for (char &ch : format) ch = char(std::tolower((unsigned char)ch));
+    auto in = OIIO::ImageInput::create(format.empty() ? name : format, false, &config);
     if (!in) {
         std::string e = OIIO::geterror();
+        *problem = "cannot open: " + (e.empty() ? std::string("unknown format") : e);
+        return false;
+    }
+    std::string open_name = name;
+    if (file_proxy) {
+        if (in->supports("ioproxy")) {
+            void *pp = file_proxy.get();
+            config.attribute("oiio:ioproxy", OIIO::TypeDesc::PTR, &pp);
+        } else {
+            open_name = "/proc/self/fd/" + std::to_string(fileno(file.f));
+        }
+    }
+    OIIO::ImageSpec opened;
+    if (!in->open(open_name, opened, config)) {
+        std::string e = in->geterror();
         *problem = "cannot open: " + (e.empty() ? std::string("unknown format") : e);
         return false;
     }

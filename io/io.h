@@ -41,11 +41,12 @@ void io_temp_end(void);
 void io_remove_active_temp(void);
 
 /* ---------------------------------------------------------------- files (io/files.c)
- * Inputs: every file the program reads itself (a scene and its buffers, variant lists,
- * checkpoints, shard films, a comparison's reference and key) is opened by io_open_input: a
+ * Inputs: every file the program reads (a scene and its buffers, images, VDBs, variant lists,
+ * checkpoints, shard films, a comparison's reference and key) is opened by io_open_input, once: a
  * symbolic link is followed, and anything but a regular file (a FIFO, which would block in
- * open(), a device such as /dev/zero, which never ends, a directory) is refused before a byte
- * is read, as is a file larger than max_bytes (0: no limit), from its size before reading.
+ * open(), a device such as /dev/zero, which never ends, a directory) is refused before it is
+ * opened (stat) and again by what was opened (fstat), as is a file larger than max_bytes (0: no
+ * limit), from its size before reading.
  * `what` names the input in that message ("a scene", ...). 0 ok, -1 with "PATH: problem". */
 int io_open_input(const char *path, uint64_t max_bytes, const char *what, int *fd, uint64_t *size,
                   char err[IO_ERR_LEN]);
@@ -57,6 +58,9 @@ int io_read_input(const char *path, uint64_t max_bytes, const char *what, void *
                   char err[IO_ERR_LEN]);
 /* The largest scene file (glTF JSON or GLB) and the largest buffer file a scene references. */
 #define IO_MAX_SCENE_BYTES ((uint64_t)0xFFFFFFF0u)
+/* The largest image file (a texture, an environment map, a frame's PNG read back): 2^28 pixels
+ * (the decoder's limit) of four float channels. */
+#define IO_MAX_IMAGE_BYTES ((uint64_t)4 << 30)
 
 /* Which file a path names, to tell whether two paths are one file (an output must never be an
  * input or another output of the same run): an existing file by device and inode (after
@@ -84,6 +88,10 @@ typedef struct IoLock {
 } IoLock;
 int io_lock_output(const char *output, IoLock *lock, char err[IO_ERR_LEN]);
 void io_unlock_output(IoLock *lock);
+/* The name of output's lock file (OUTPUT.lock beside its resolved path), as io_lock_output takes
+ * it: the lock is truncated and removed when done, so the outputs rule counts it as an output
+ * (renderer/runfiles.c) and an input of that name is refused, not destroyed. 0 ok. */
+int io_lock_path(const char *output, char lock[IO_PATH_MAX + 8], char err[IO_ERR_LEN]);
 /* The largest magnitude of a node's world transform entry (and so of a coordinate it places):
  * beyond it float rays lose all precision. Documented in README.md. */
 #define IO_MAX_COORDINATE 1e12

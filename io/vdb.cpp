@@ -608,19 +608,9 @@ bool VdbWalk::check(const std::string &grid_name, std::string *problem) {
     return ok;
 }
 
-// Opens path and walks it; false with a one-line problem.
-bool check_vdb_file(const char *path, const std::string &grid_name, std::string *problem) {
-    int fd = -1;
-    uint64_t size = 0;
-    char err[IO_ERR_LEN];
-    if (io_open_input(path, 0, "a VDB file", &fd, &size, err) != 0) { // regular files only, never blocking
-        const std::string m(err), p(path);
-        *problem = m.compare(0, p.size() + 2, p + ": ") == 0 ? m.substr(p.size() + 2) : m;
-        return false;
-    }
-    bool ok = VdbWalk(fd, size).check(grid_name, problem);
-    close(fd);
-    return ok;
+// Walks the open file fd (size bytes); false with a one-line problem.
+bool check_vdb_file(int fd, uint64_t size, const std::string &grid_name, std::string *problem) {
+    return VdbWalk(fd, size).check(grid_name, problem);
 }
 
 }  // namespace
@@ -636,16 +626,31 @@ static int vdb_load_vdb_grid(const char *path, const char *grid_name, IoVolumeGr
         candela_io::set_err(err, path, "not a regular file");
         return 1;
     }
+    // The file is opened once, through the program's input door (regular files only, never
+    // blocking), walked, and read by OpenVDB from that very descriptor's own name
+    // (/proc/self/fd/N: the same inode, whatever the path names by then), so a file swapped in
+    // after the walk (a FIFO, another VDB) is never read unchecked.
+    int fd = -1;
+    uint64_t size = 0;
+    if (io_open_input(path, 0, "a VDB file", &fd, &size, err) != 0) return 1;
+    struct FdCloser {
+        int fd;
+        ~FdCloser() { close(fd); }
+    } fd_closer{fd};
+    const std::string by_fd = "/proc/self/fd/" + std::to_string(fd);
+    // OpenVDB's messages name the file it opened; the user named another
+    auto named = [&](std::string m) {
+        for (size_t k; (k = m.find(by_fd)) != std::string::npos;) m.replace(k, by_fd.size(), path);
+        return m;
+    };
     try {
         openvdb_init_once();  // (the walk asks OpenVDB's metadata registry)
         std::string problem;
-        if (!check_vdb_file(path, grid_name, &problem)) {
+        if (!check_vdb_file(fd, size, grid_name, &problem)) {
             candela_io::set_err(err, path, problem);
             return 1;
         }
-        // OpenVDB opens the file again by name: a file replaced in between is read unchecked
-        // (input files are not expected to change while a scene loads)
-        openvdb::io::File file(path);
+        openvdb::io::File file(by_fd);
         file.open(false);  // no delayed loading: the whole grid is read (and checked) now
         if (!file.hasGrid(grid_name)) {
             std::string names;
@@ -671,7 +676,7 @@ static int vdb_load_vdb_grid(const char *path, const char *grid_name, IoVolumeGr
         set_name(out, grid_name);
         return 0;
     } catch (const std::exception &e) {
-        candela_io::set_err(err, path, std::string("not a readable VDB file: ") + e.what());
+        candela_io::set_err(err, path, "not a readable VDB file: " + named(e.what()));
     } catch (...) {
         candela_io::set_err(err, path, "not a readable VDB file");
     }

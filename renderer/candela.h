@@ -376,7 +376,8 @@ int candela_replay_rays(const CandelaOptions *o, const CandelaRayLog *log, int t
  * One rule for every output of a run (renderer/runfiles.c; README "Inputs and outputs"): it may
  * not be an input of the same run (the scene, any file the scene references, --env,
  * --resume-from, the films being merged, --variants, --reference, a variant's --env) nor another
- * output of it. Paths are compared by the file they name (device and inode, or the real folder
+ * output of it, and every output's lock file (OUTPUT.lock, emptied and removed by the run) counts
+ * as an output too. Paths are compared by the file they name (device and inode, or the real folder
  * and name of a file not there yet). The commands record every input and output before any
  * work; the first clash is one line in err ("PATH: the PNG preview (--png) would replace the
  * scene, an input of this run"). role names the file in that message. */

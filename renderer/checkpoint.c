@@ -342,6 +342,15 @@ int checkpoint_load(const char *path, const CheckpointIdentity *id, CheckpointPr
     if (!f) return -1;
     const char *what = "film";
     int rc = h.width == (uint32_t)ig->film.width && h.height == (uint32_t)ig->film.height ? film_load(&ig->film, f) : -1;
+    /* its sums as a film to merge must be (a forged checkpoint's NaN or wrapped count went into
+     * the image): counts of spp_done, more only within the interrupted iteration */
+    char why[160];
+    const uint64_t done = (uint64_t)h.pr.spp_done, most = h.pr.iteration_paths ? id->sample_count : done;
+    if (rc == 0 && film_check_counts(&ig->film, done, most, "checkpoint", why, sizeof why) != 0) {
+        fclose(f);
+        snprintf(err, CANDELA_ERR_LEN, "%.300s: not a checkpoint candela wrote: %s", path, why);
+        return -1;
+    }
     if (rc == 0) { what = "radiance recorder"; rc = record_load(ig, f); }
     if (rc == 0) { what = "guiding"; rc = guide_load(ig, f); }
     if (rc == 0) { what = "in-scattering auto choice"; rc = auto_probe_load(&ig->inscatter_auto, ig->npixels, f); }
@@ -451,6 +460,21 @@ int candela_merge_provenance(const char *out_exr, const char *png, const char *c
                 snprintf(err, CANDELA_ERR_LEN, "%s: %s", files[i], problem);
             }
             rc = -1;
+        }
+        /* the samples a shard declares are the ones candela gives shard I/N (render.c's split,
+         * never empty: a render refuses --spp below N); a forged film claiming another range
+         * (twice its share, or none with sums left in) would still tile [0, spp) with others */
+        if (rc == 0) {
+            const uint64_t spp = h[i].id.spp_total, k = h[i].id.shard_index, nn = (uint64_t)num_files;
+            const uint64_t b = spp * k / nn, e = spp * (k + 1) / nn;
+            if (b == e || h[i].id.sample_begin != b || h[i].id.sample_count != e - b) {
+                snprintf(err, CANDELA_ERR_LEN,
+                         "%.300s: damaged header (its samples [%" PRIu64 ", %" PRIu64 ") are not shard %u/%u's of %" PRIu64
+                         " spp, [%" PRIu64 ", %" PRIu64 "))",
+                         files[i], h[i].id.sample_begin, h[i].id.sample_begin + h[i].id.sample_count, h[i].id.shard_index,
+                         num_files, spp, b, e);
+                rc = -1;
+            }
         }
     }
     /* every shard exactly once, and their sample ranges tile [0, spp) */

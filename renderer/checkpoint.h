@@ -80,6 +80,9 @@ int film_load(Film *f, FILE *in);
 /* A loaded shard film fit to merge: every pixel's count equal to the shard's samples, sums
  * finite (film.c). -1 with the first bad pixel in what. */
 int film_check(const Film *f, uint64_t samples, char *what, size_t len);
+/* The same for a checkpoint's film: a pixel still sampling counts [done, most], one adaptive
+ * sampling stopped [1, done]. */
+int film_check_counts(const Film *f, uint64_t done, uint64_t most, const char *declares, char *what, size_t len);
 int record_save(const Integrator *ig, FILE *out);
 int record_load(Integrator *ig, FILE *in);
 int guide_save(const Integrator *ig, FILE *out);

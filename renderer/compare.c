@@ -46,7 +46,7 @@
 #include "options_table.h"
 #include "report.h"
 
-enum { COMPARE_MAX_VARIANTS = IO_MAX_VARIANTS, COMPARE_MAX_TIMING_RUNS = 15, COMPARE_NAME_MAX = 48 };
+enum { COMPARE_MAX_VARIANTS = IO_MAX_VARIANTS, COMPARE_MAX_TIMING_RUNS = 15, COMPARE_NAME_MAX = 48, COMPARE_MAX_VARIANT_READS = 8 };
 #define COMPARE_DEFAULT_STRATEGIES "uniform,power,tree,optimal,cachepoints,cachepoints-novis"
 /* equal time: the reference's spp when neither --ref-spp nor --reference is given (16 x spp,
  * the equal-SPP default, has no meaning when spp is only a cap) */
@@ -62,6 +62,9 @@ typedef struct Variant {
     CandelaOptions opts;
     int skipped;
     const char *why;
+    /* the files its flags read (--env: CANDELA_FILES_READS rows), pointing into words */
+    const char *reads[COMPARE_MAX_VARIANT_READS], *read_flag[COMPARE_MAX_VARIANT_READS];
+    int nreads;
     uint64_t image_hash; /* of the first render's pixels: repeats must match it */
     int runs, spp;
     double times[COMPARE_MAX_TIMING_RUNS], cp_times[COMPARE_MAX_TIMING_RUNS], pre_times[COMPARE_MAX_TIMING_RUNS];
@@ -167,25 +170,30 @@ static int variant_init(Variant *v, const char *name, size_t name_len, const cha
     v->opts = *base;
     for (int i = 0; i < v->argc; ++i) {
         const char *a = v->argv[i];
+        const int start = i; /* the flag's word (parsing moves i to its value) */
         /* the flag's own name, also when written --flag=value */
         size_t a_len = strncmp(a, "--", 2) == 0 && strchr(a, '=') ? (size_t)(strchr(a, '=') - a) : strlen(a);
         char name[64];
         snprintf(name, sizeof name, "%.*s", (int)(a_len < sizeof name ? a_len : sizeof name - 1), a);
         a = name;
-        if (strcmp(a, "--spp") == 0 || strcmp(a, "--seed") == 0 || strcmp(a, "--res") == 0) {
-            snprintf(err, CANDELA_ERR_LEN, "variant '%s': %s is the same for every variant (give it to candela compare)",
-                     v->name, a);
+        /* a variant changes how the scene renders, never which files the run writes (they are
+         * the report's, in --out-dir) nor what applies to every render: only the table's
+         * variant rows are taken, and another known flag is named with why (its row says) */
+        const CandelaFlag *row = candela_flag_find(a, 0);
+        if (row && !(row->commands & CANDELA_CMD_VARIANT)) {
+            if (row->files & CANDELA_FILES_WRITES)
+                snprintf(err, CANDELA_ERR_LEN,
+                         "variant '%s': %s writes a file; a variant may only change render flags (the report's files "
+                         "are candela compare's, in --out-dir)", v->name, a);
+            else if (row->render || (row->commands & CANDELA_CMD_COMPARE))
+                snprintf(err, CANDELA_ERR_LEN, "variant '%s': %s is the same for every variant (give it to candela compare)",
+                         v->name, a);
+            else
+                snprintf(err, CANDELA_ERR_LEN, "variant '%s': %s is not a variant's flag (a variant may only change render "
+                         "flags)", v->name, a);
             return -1;
         }
         char flag_err[CANDELA_ERR_LEN];
-        /* a variant changes how the scene renders, never which files the run reads or writes:
-         * --dump-cachepoints would write wherever it names (outside --out-dir), --confine-to would
-         * change the policy the comparison was given */
-        if (strcmp(a, "--dump-cachepoints") == 0 || strcmp(a, "--confine-to") == 0) {
-            snprintf(err, CANDELA_ERR_LEN, "variant '%s': %s is not a variant's flag (%s)", v->name, a,
-                     a[2] == 'd' ? "it writes a file outside the report" : "give it to candela compare");
-            return -1;
-        }
         int r = candela_parse_render_flag(&v->opts, v->argc, v->argv, &i, flag_err);
         if (r < 0) {
             snprintf(err, CANDELA_ERR_LEN, "variant '%s': %.400s", v->name, flag_err);
@@ -200,12 +208,25 @@ static int variant_init(Variant *v, const char *name, size_t name_len, const cha
                          a[0] == '-' ? "unknown option" : "unexpected argument", v->argv[i]);
             return -1;
         }
-    }
-    /* a variant's --env is read like the scene's files: inside --confine-to when given */
-    if (v->opts.env_path != base->env_path && v->opts.confine_dir && !io_path_inside(v->opts.env_path, v->opts.confine_dir)) {
-        snprintf(err, CANDELA_ERR_LEN, "variant '%s': --env %.200s is outside %.200s (--confine-to)", v->name, v->opts.env_path,
-                 v->opts.confine_dir);
-        return -1;
+        /* a file a variant reads (--env) is read like the scene's files: inside --confine-to when
+         * given, an input of the run and a regular file (record_report_files), all checked before
+         * the reference renders, not when the variant's turn comes */
+        if (row && (row->files & CANDELA_FILES_READS)) {
+            const char *eq = strchr(v->argv[start], '=');
+            const char *path = strncmp(v->argv[start], "--", 2) == 0 && eq ? eq + 1 : v->argv[i];
+            if (v->opts.confine_dir && !io_path_inside(path, v->opts.confine_dir)) {
+                snprintf(err, CANDELA_ERR_LEN, "variant '%s': %s %.150s is outside %.150s (--confine-to)", v->name, a, path,
+                         v->opts.confine_dir);
+                return -1;
+            }
+            if (v->nreads == COMPARE_MAX_VARIANT_READS) { /* kept whole, never dropped unchecked */
+                snprintf(err, CANDELA_ERR_LEN, "variant '%s': more than %d flags that read files", v->name,
+                         COMPARE_MAX_VARIANT_READS);
+                return -1;
+            }
+            v->reads[v->nreads] = path;
+            v->read_flag[v->nreads++] = row->name;
+        }
     }
     char check_err[CANDELA_ERR_LEN];
     if (candela_options_check(&v->opts, check_err) != 0) {
@@ -837,11 +858,28 @@ static int record_report_files(const CandelaCompareOptions *c, const Variant *vs
             if (candela_run_output(c->run, path, "a report file", err) != 0) return -1;
         }
     }
-    for (int i = 0; i < count; ++i) {
-        char role[96];
-        snprintf(role, sizeof role, "the --env of variant '%s'", vs[i].name);
-        if (candela_run_input(c->run, vs[i].opts.env_path, role, err) != 0) return -1;
-    }
+    for (int i = 0; i < count; ++i)
+        for (int k = 0; k < vs[i].nreads; ++k) {
+            char role[96];
+            snprintf(role, sizeof role, "the %s of variant '%s'", vs[i].read_flag[k], vs[i].name);
+            if (candela_run_input(c->run, vs[i].reads[k], role, err) != 0) return -1;
+        }
+    return 0;
+}
+
+/* Every file a variant reads is there to read (the input door: a regular file, opened without
+ * blocking), before the reference renders rather than at the variant's turn after it. */
+static int open_variant_inputs(const Variant *vs, int count, char err[CANDELA_ERR_LEN]) {
+    for (int i = 0; i < count; ++i)
+        for (int k = 0; k < vs[i].nreads; ++k) {
+            int fd;
+            char ioerr[IO_ERR_LEN];
+            if (io_open_input(vs[i].reads[k], 0, NULL, &fd, NULL, ioerr) != 0) {
+                snprintf(err, CANDELA_ERR_LEN, "variant '%s': %s %.380s", vs[i].name, vs[i].read_flag[k], ioerr);
+                return -1;
+            }
+            close(fd);
+        }
     return 0;
 }
 
@@ -858,7 +896,7 @@ int candela_compare(const CandelaOptions *base, const CandelaCompareOptions *c, 
         variants_free(vs, COMPARE_MAX_VARIANTS);
         return -1;
     }
-    if (c->run && record_report_files(c, vs, count, err) != 0) {
+    if ((c->run && record_report_files(c, vs, count, err) != 0) || open_variant_inputs(vs, count, err) != 0) {
         variants_free(vs, COMPARE_MAX_VARIANTS);
         return -1;
     }

@@ -236,17 +236,30 @@ int film_load(Film *f, FILE *in) {
            (f->stopped ? ckpt_get(in, f->stopped, n) : 0);
 }
 
-/* What a film file must hold to be merged (a forged or damaged shard's checksum can be right):
- * every pixel counts exactly the samples its shard declares (so a merged count is the render's
+/* What a film file must hold to be merged or resumed (a forged or damaged file's checksum can
+ * be right): every pixel counts the samples the file declares (so a merged count is the render's
  * spp, never 0 or wrapped), at most that many first hits, and every sum finite (sums of squares
- * and hit distances also >= 0). 0 ok, -1 with the first bad pixel in what. */
-int film_check(const Film *f, uint64_t samples, char *what, size_t len) {
+ * and hit distances also >= 0). A pixel still sampling counts [done, most] (most > done: a
+ * checkpoint of an interrupted iteration, part of whose paths are in); one adaptive sampling
+ * stopped (f->stopped, 0 or 1) counts [1, done]; `declares` names the file in the message ("shard").
+ * 0 ok, -1 with the first bad pixel in what. */
+int film_check_counts(const Film *f, uint64_t done, uint64_t most, const char *declares, char *what, size_t len) {
     size_t n = (size_t)f->width * (size_t)f->height;
     for (size_t i = 0; i < n; ++i) {
         const int x = (int)(i % (size_t)f->width), y = (int)(i / (size_t)f->width);
-        if (f->count[i] != samples) {
-            snprintf(what, len, "pixel (%d, %d) counts %u samples, the shard declares %llu", x, y, f->count[i],
-                     (unsigned long long)samples);
+        const int stopped = f->stopped && f->stopped[i];
+        if (f->stopped && f->stopped[i] > 1) {
+            snprintf(what, len, "pixel (%d, %d) has a stopped flag of %u", x, y, f->stopped[i]);
+            return -1;
+        }
+        const uint64_t lo = stopped ? 1 : done, hi = stopped ? done : most;
+        if (f->count[i] < lo || f->count[i] > hi) {
+            if (lo == hi)
+                snprintf(what, len, "pixel (%d, %d) counts %u samples, the %s declares %llu", x, y, f->count[i], declares,
+                         (unsigned long long)lo);
+            else
+                snprintf(what, len, "pixel (%d, %d) counts %u samples, not %llu to %llu%s", x, y, f->count[i],
+                         (unsigned long long)lo, (unsigned long long)hi, stopped ? " (stopped by adaptive sampling)" : "");
             return -1;
         }
         if (f->hits[i] > f->count[i]) {
@@ -266,4 +279,8 @@ int film_check(const Film *f, uint64_t samples, char *what, size_t len) {
         }
     }
     return 0;
+}
+
+int film_check(const Film *f, uint64_t samples, char *what, size_t len) {
+    return film_check_counts(f, samples, samples, "shard", what, len);
 }

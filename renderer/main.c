@@ -577,15 +577,16 @@ int main(int argc, char **argv) {
         fprintf(stderr, "candela: %s: --png names the EXR output itself\n", png);
         return 2;
     }
-    if (!bench) {
-        if (ensure_parent_dir(out) != 0) {
-            fprintf(stderr, "candela: %s: output directory cannot be made or is not writable (%s)\n", out, strerror(errno));
-            return 1;
-        }
-        if (png && ensure_parent_dir(png) != 0) {
-            fprintf(stderr, "candela: %s: output directory cannot be made or is not writable (%s)\n", png, strerror(errno));
-            return 1;
-        }
+    /* bench writes no image (its -o and --png are ignored), but its statistics and PLY like render */
+    if (!bench && ensure_parent_dir(out) != 0) {
+        fprintf(stderr, "candela: %s: output directory cannot be made or is not writable (%s)\n", out, strerror(errno));
+        return 1;
+    }
+    if (!bench && png && ensure_parent_dir(png) != 0) {
+        fprintf(stderr, "candela: %s: output directory cannot be made or is not writable (%s)\n", png, strerror(errno));
+        return 1;
+    }
+    {
         /* checked now too: a statistics file that cannot be written fails before the render */
         if (stats_json && ensure_parent_dir(stats_json) != 0) {
             fprintf(stderr, "candela: %s: output directory cannot be made or is not writable (%s)\n", stats_json, strerror(errno));
@@ -603,7 +604,8 @@ int main(int argc, char **argv) {
                     o.cachepoint_dump_path, strerror(errno));
             return 1;
         }
-        const char *outputs[6] = {out, png, stats_json, batch.stats_jsonl, o.checkpoint_path, o.cachepoint_dump_path};
+        const char *outputs[6] = {bench ? NULL : out, bench ? NULL : png, stats_json, batch.stats_jsonl, o.checkpoint_path,
+                                  o.cachepoint_dump_path};
         if (batch.stats_jsonl && ensure_parent_dir(batch.stats_jsonl) != 0) {
             fprintf(stderr, "candela: %s: output directory cannot be made or is not writable (%s)\n", batch.stats_jsonl,
                     strerror(errno));
@@ -644,9 +646,9 @@ int main(int argc, char **argv) {
      * files as it renders it, candela compare its report folder) */
     IoLock locks[5];
     int nlocks = 0, rc = 0;
-    const char *lock_these[5] = {batch.frames ? NULL : out, batch.frames ? NULL : png, stats_json, o.checkpoint_path,
-                                 o.cachepoint_dump_path};
-    for (int k = 0; k < 5 && rc == 0 && !compare && !bench; ++k) {
+    const char *lock_these[5] = {batch.frames || bench ? NULL : out, batch.frames || bench ? NULL : png, stats_json,
+                                 o.checkpoint_path, o.cachepoint_dump_path};
+    for (int k = 0; k < 5 && rc == 0 && !compare; ++k) {
         char ioerr[IO_ERR_LEN];
         if (!lock_these[k]) continue;
         if (io_lock_output(lock_these[k], &locks[nlocks], ioerr) != 0) {
@@ -667,6 +669,15 @@ int main(int argc, char **argv) {
 static int record_run_files(CandelaRunFiles *run, const CandelaOptions *o, const CandelaCompareOptions *co,
                             const CandelaBatchOptions *batch, int compare, int bench, int dump, const char *out,
                             const char *png, const char *stats_json, int save_partial, char err[CANDELA_ERR_LEN]) {
+    /* --confine-to names a folder (a file there confined everything to nothing: "SCENE is
+     * outside FILE"); an empty name never gets this far (options_table.c) */
+    struct stat cst;
+    int confine_found = o->confine_dir && stat(o->confine_dir, &cst) == 0;
+    if (o->confine_dir && (!confine_found || !S_ISDIR(cst.st_mode))) {
+        snprintf(err, CANDELA_ERR_LEN, "%.400s: --confine-to needs a folder (%s)", o->confine_dir,
+                 confine_found ? "this is not one" : strerror(errno));
+        return -1;
+    }
     /* --env is read like the scene's files: inside --confine-to when given (scene_load checks it
      * again for every render, a variant's too) */
     if (o->env_path && o->confine_dir && !io_path_inside(o->env_path, o->confine_dir)) {
@@ -683,12 +694,12 @@ static int record_run_files(CandelaRunFiles *run, const CandelaOptions *o, const
             return -1;
         return 0; /* the report's files: candela_compare, once it knows the variants */
     }
-    if (bench) return 0; /* writes nothing */
     if (candela_run_output(run, stats_json, "the statistics (--stats-json)", err) ||
         candela_run_output(run, batch->stats_jsonl, "the frame log (--frame-stats)", err) ||
         candela_run_output_continuing(run, o->checkpoint_path, "the checkpoint (--checkpoint)", o->resume_from, err) ||
         candela_run_output(run, o->cachepoint_dump_path, "the cache point dump (--dump-cachepoints)", err))
         return -1;
+    if (bench) return 0; /* no image: the statistics and the PLY above are all it writes */
     if (batch->frames) return 0; /* each frame's names: candela_batch_render */
     if (candela_run_output(run, out, o->shard_count ? "the shard's film (-o)" : "the EXR (-o)", err) ||
         candela_run_output(run, png, "the PNG preview (--png)", err))

@@ -222,17 +222,24 @@ static const int LIGHT_UNITS_VALUES[] = {CANDELA_LIGHT_UNITS_BLENDER, CANDELA_LI
 #define STRING(name, alias, meta, where, cmds, tol, ex, help, long_help) \
     {name, alias, CANDELA_FLAG_STRING, meta, 0, 0, NULL, NULL, NULL, where, CANDELA_FIELD_STR, NULL, cmds, tol, ex, help, long_help}
 #define CUSTOM(name, meta, render, image, set, get, show, cmds, tol, ex, help, long_help) \
-    {name, NULL, CANDELA_FLAG_CUSTOM, meta, 0, 0, NULL, NULL, NULL, render, 0, image, CANDELA_FIELD_NONE, set, cmds, tol, ex, help, long_help, get, show}
+    {name, NULL, CANDELA_FLAG_CUSTOM, meta, 0, 0, NULL, NULL, NULL, render, 0, image, CANDELA_FIELD_NONE, set, cmds, tol, ex, help, long_help, 0, get, show}
+/* rows whose value is a file the run reads (IN), writes (OUT) or both: CandelaFlag.files */
+#define IN CANDELA_FILES_READS
+#define OUT CANDELA_FILES_WRITES
+#define STRING_F(files, name, alias, meta, where, cmds, tol, ex, help, long_help) \
+    {name, alias, CANDELA_FLAG_STRING, meta, 0, 0, NULL, NULL, NULL, where, CANDELA_FIELD_STR, NULL, cmds, tol, ex, help, long_help, files}
+#define CUSTOM_F(files, name, meta, render, image, set, get, show, cmds, tol, ex, help, long_help) \
+    {name, NULL, CANDELA_FLAG_CUSTOM, meta, 0, 0, NULL, NULL, NULL, render, 0, image, CANDELA_FIELD_NONE, set, cmds, tol, ex, help, long_help, files, get, show}
 
 static const CandelaFlag FLAGS[] = {
     SWITCH("--help", "-h", CL(help), RENDERING | CANDELA_CMD_MERGE, 0, "print this command's flags, one line each",
            "print the command's flags, one line each, and exit (candela help FLAG explains one)"),
     /* outputs */
-    STRING("--output", "-o", "FILE.exr", CL(out), CANDELA_CMD_RENDER | CANDELA_CMD_GUIDE_DUMP | CANDELA_CMD_MERGE,
+    STRING_F(OUT, "--output", "-o", "FILE.exr", CL(out), CANDELA_CMD_RENDER | CANDELA_CMD_GUIDE_DUMP | CANDELA_CMD_MERGE,
            CANDELA_CMD_BENCH | CANDELA_CMD_COMPARE, "x.exr", "output EXR (default out/<scene name>.exr)",
            "output EXR (RGBA + albedo, N, Z, variance layers); default out/<scene name>.exr. Its folder is made when "
            "missing; the extension may be in any case (.exr, .EXR)"),
-    STRING("--png", NULL, "FILE.png", CL(png), CANDELA_CMD_RENDER | CANDELA_CMD_GUIDE_DUMP | CANDELA_CMD_MERGE,
+    STRING_F(OUT, "--png", NULL, "FILE.png", CL(png), CANDELA_CMD_RENDER | CANDELA_CMD_GUIDE_DUMP | CANDELA_CMD_MERGE,
            CANDELA_CMD_BENCH | CANDELA_CMD_COMPARE, "x.png", "preview PNG path (default: the EXR path with .png)",
            "preview PNG path (default: the EXR path with .png); its folder is made when missing"),
     SWITCH("--no-png", NULL, CL(no_png), CANDELA_CMD_RENDER | CANDELA_CMD_GUIDE_DUMP | CANDELA_CMD_MERGE,
@@ -242,12 +249,12 @@ static const CandelaFlag FLAGS[] = {
            "on Ctrl-C / SIGTERM, stop after the current batch (abandoning the rest of the iteration; with --checkpoint "
            "its state is written first) and write the image so far as NAME.partial.exr (exit 130); a second signal exits "
            "at once"),
-    STRING("--checkpoint", NULL, "FILE", CL(o.checkpoint_path), CANDELA_CMD_RENDER, NOT_RENDER(CANDELA_CMD_RENDER),
+    STRING_F(OUT, "--checkpoint", NULL, "FILE", CL(o.checkpoint_path), CANDELA_CMD_RENDER, NOT_RENDER(CANDELA_CMD_RENDER),
            "x.ckpt", "write the film and learned state to FILE now and then",
            "write the film and learned state to FILE at the barriers after about 4, 8, 16, 32, ... spp (the largest "
            "cumulative spp not above each) and when interrupted; atomically (FILE.tmp-PID, rename). Its folder is made "
            "when missing"),
-    STRING("--resume-from", NULL, "FILE", CL(o.resume_from), CANDELA_CMD_RENDER, NOT_RENDER(CANDELA_CMD_RENDER),
+    STRING_F(IN | OUT, "--resume-from", NULL, "FILE", CL(o.resume_from), CANDELA_CMD_RENDER, NOT_RENDER(CANDELA_CMD_RENDER),
            "x.ckpt", "continue the render FILE checkpointed (its scene, options, outputs)",
            "continue the render FILE checkpointed: the image equals the uninterrupted render's. The scene, every option "
            "that changes the image, the sample shard and the outputs come from the checkpoint (candela render "
@@ -379,7 +386,7 @@ static const CandelaFlag FLAGS[] = {
            "weigh cache point entries by the glossy BSDF lobe (default on)",
            "at glossy vertices weigh cache point entries by the BSDF lobe too, not only by the normal (default on; "
            "diffuse vertices unchanged)"),
-    CUSTOM("--dump-cachepoints", "FILE.ply", 1, 0, set_dump, get_dump, NULL, CANDELA_CMD_RENDER | CANDELA_CMD_BENCH | CANDELA_CMD_GUIDE_DUMP,
+    CUSTOM_F(OUT, "--dump-cachepoints", "FILE.ply", 1, 0, set_dump, get_dump, NULL, CANDELA_CMD_RENDER | CANDELA_CMD_BENCH | CANDELA_CMD_GUIDE_DUMP,
            CANDELA_CMD_COMPARE, "x.ply", "write the cache points after the render as an ASCII PLY",
            "write the cache points after the render as an ASCII PLY (position, radius, near/far counts, learned "
            "visibility, colour); an empty PLY (0 vertices) when --light-sampler auto picks another sampler. Its folder "
@@ -401,7 +408,7 @@ static const CandelaFlag FLAGS[] = {
            "glTF camera by name (default: the first, or a framing view)",
            "glTF camera by name (default: the first, or a framing view); an unknown name's error lists the scene's "
            "cameras"),
-    STRING("--env", NULL, "FILE", IMG(env_path), ALL_RENDER, 0, "sky.exr", "lat-long environment map (EXR/HDR/PNG...)",
+    STRING_F(IN, "--env", NULL, "FILE", IMG(env_path), ALL_RENDER, 0, "sky.exr", "lat-long environment map (EXR/HDR/PNG...)",
            "lat-long environment map (EXR/HDR/PNG...); it overrides the scene's"),
     FLOAT("--env-strength", "S", 0.0, 1e9, IMG(env_strength), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "2",
           "environment multiplier (default 1)", "environment multiplier (default 1)"),
@@ -412,7 +419,7 @@ static const CandelaFlag FLAGS[] = {
     INT("--batch", "N", 1, 1 << 22, RO(batch_size), CANDELA_FIELD_U32, ALL_RENDER, 0, "1024",
         "paths in flight per batch (default 2048 per thread)",
         "paths in flight per batch (default 2048 per thread; never changes the image)"),
-    STRING("--stats-json", NULL, "FILE", CL(stats_json), CANDELA_CMD_RENDER | CANDELA_CMD_BENCH | CANDELA_CMD_GUIDE_DUMP,
+    STRING_F(OUT, "--stats-json", NULL, "FILE", CL(stats_json), CANDELA_CMD_RENDER | CANDELA_CMD_BENCH | CANDELA_CMD_GUIDE_DUMP,
            CANDELA_CMD_COMPARE, "x.json", "write render statistics as JSON",
            "write render statistics as JSON (one render's; with --frames use --frame-stats). Its folder is made when "
            "missing"),
@@ -439,7 +446,7 @@ static const CandelaFlag FLAGS[] = {
            "check the command and print what it would render, loading nothing: 'shard I/N' and 'frame F EXR' per frame "
            "of this task (--frames), 'sample-shard I/N samples B-E of SPP FILM' or 'render EXR' "
            "(scenes/farm/candela_submit.sh asks candela so)"),
-    STRING("--frame-stats", NULL, "FILE.jsonl", CL(batch.stats_jsonl), CANDELA_CMD_RENDER, NOT_RENDER(CANDELA_CMD_RENDER),
+    STRING_F(OUT, "--frame-stats", NULL, "FILE.jsonl", CL(batch.stats_jsonl), CANDELA_CMD_RENDER, NOT_RENDER(CANDELA_CMD_RENDER),
            "x.jsonl", "append one JSON line per frame",
            "append one JSON line per frame (frame, time, seed, status, pose and cache point seconds, the --stats-json "
            "fields)"),
@@ -452,10 +459,11 @@ static const CandelaFlag FLAGS[] = {
            "the point whose learned directional pdf is written (OUT.guide.exr/.png), with the final iteration's training "
            "directions in its leaf (OUT.hist.*) and the spatial tree's leaves (OUT.leaves.ply); OUT = -o without .exr"),
     /* candela compare */
-    STRING("--variants", NULL, "SPEC", CL(co.variants), CANDELA_CMD_COMPARE, 0, "a: --spp 1",
+    STRING_F(IN, "--variants", NULL, "SPEC", CL(co.variants), CANDELA_CMD_COMPARE, 0, "a: --spp 1",
            "\"NAME: FLAGS; NAME: FLAGS\" or FILE.toml / FILE.json",
            "\"NAME: FLAGS; NAME: FLAGS\" or FILE.toml / FILE.json: any render flags per variant (not --spp, --seed, "
-           "--res); the first variant is the ratios' baseline (examples: scenes/compare/)"),
+           "--res, --confine-to, nor a flag that writes a file); the first variant is the ratios' baseline (examples: "
+           "scenes/compare/)"),
     STRING("--strategies", NULL, "LIST", CL(co.strategies), CANDELA_CMD_COMPARE, 0, "power,tree",
            "shorthand: NAME = --light-sampler NAME",
            "shorthand: NAME = --light-sampler NAME (default uniform,power,tree,optimal,cachepoints,cachepoints-novis; "
@@ -467,9 +475,9 @@ static const CandelaFlag FLAGS[] = {
     INT("--ref-spp", "N", 1, 1 << 20, CL(co.reference_spp), CANDELA_FIELD_INT, CANDELA_CMD_COMPARE, 0, "64",
         "reference spp (default 16 x --spp)",
         "reference spp (default 16 x --spp; 256 with --time-budget), tree sampler"),
-    STRING("--reference", NULL, "FILE.exr", CL(co.reference_path), CANDELA_CMD_COMPARE, 0, "ref.exr",
+    STRING_F(IN, "--reference", NULL, "FILE.exr", CL(co.reference_path), CANDELA_CMD_COMPARE, 0, "ref.exr",
            "reuse a reference instead of rendering one", "reuse a reference instead of rendering one"),
-    STRING("--out-dir", NULL, "DIR", CL(co.out_dir), CANDELA_CMD_COMPARE, 0, "report",
+    STRING_F(OUT, "--out-dir", NULL, "DIR", CL(co.out_dir), CANDELA_CMD_COMPARE, 0, "report",
            "report folder (default out/compare-<scene name>)", "the report folder (default out/compare-<scene name>)"),
     INT("--optimal-max-lights", "N", 0, 1 << 30, CL(co.optimal_max_lights), CANDELA_FIELD_INT, CANDELA_CMD_COMPARE, 0,
         "100", "skip optimal above N lights (default 5000; 0 = never)",
@@ -479,6 +487,8 @@ static const CandelaFlag FLAGS[] = {
         "render each variant N times (1-15, round-robin) and report the median time: robust timings on a busy machine "
         "(default 1; equal spp only)"),
 };
+#undef IN
+#undef OUT
 
 const CandelaFlag *candela_flags(size_t *count) {
     *count = sizeof FLAGS / sizeof FLAGS[0];

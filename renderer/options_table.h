@@ -48,6 +48,9 @@ typedef enum {
     CANDELA_FLAG_CUSTOM  /* set(): resolutions, I/N, X,Y,Z, ... (metavar says which) */
 } CandelaFlagKind;
 
+/* CandelaFlag.files */
+enum { CANDELA_FILES_READS = 1u << 0, CANDELA_FILES_WRITES = 1u << 1 };
+
 typedef enum { CANDELA_FIELD_INT, CANDELA_FIELD_U32, CANDELA_FIELD_U64, CANDELA_FIELD_FLOAT, CANDELA_FIELD_DOUBLE,
                CANDELA_FIELD_STR, CANDELA_FIELD_NONE } CandelaFieldType;
 
@@ -78,6 +81,10 @@ typedef struct CandelaFlag {
     const char *example;  /* a valid value (the tests feed every row its example); NULL for switches */
     const char *help;     /* one line */
     const char *long_help; /* candela help FLAG */
+    /* CANDELA_FILES_ bits: the value names a file (or folder) the run reads or writes. The
+     * outputs rule's inputs and outputs, and why a compare variant may not hold a flag that
+     * writes (its files are the report's) and a flag that reads is confined like the scene. */
+    unsigned files;
     /* CUSTOM rows whose value is in CandelaOptions: writes it as a JSON value (the provenance's
      * candela:options); NULL: the row is not there */
     void (*get)(const CandelaOptions *o, FILE *f);

@@ -4,7 +4,8 @@
  * Paths are compared by what they name (io_file_id: device and inode of an existing file, the
  * real folder and name of one that is not there yet), so "out/../s.gltf", a symbolic link to
  * the scene and a hard link all count as the scene. The commands fill the list before any
- * work (main.c, compare.c, batch.c); the first clash is the run's one error line. */
+ * work (main.c, compare.c, batch.c); the first clash is the run's one error line. An output
+ * brings its lock file (OUTPUT.lock, io_lock_output) along as a second output. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -80,17 +81,33 @@ int candela_run_output(CandelaRunFiles *r, const char *path, const char *role, c
     return candela_run_output_continuing(r, path, role, NULL, err);
 }
 
+/* The lock file beside an output (io_lock_path: OUTPUT.lock by its resolved path), and its role.
+ * A run truncates its locks and removes them when done, so a lock is an output like the file it
+ * guards: a scene or film named OUTPUT.lock would otherwise be emptied and deleted. */
+static void lock_of(const char *path, const char *role, char lock[IO_PATH_MAX + 8], char lock_role[128]) {
+    char ioerr[IO_ERR_LEN];
+    /* an output path the writer will refuse (a FIFO, a folder) fails there with its own line */
+    if (io_lock_path(path, lock, ioerr) != 0) snprintf(lock, IO_PATH_MAX + 8, "%.4000s.lock", path);
+    snprintf(lock_role, 128, "the lock file of %.100s", role);
+}
+
 int candela_run_output_continuing(CandelaRunFiles *r, const char *path, const char *role, const char *continued,
                                   char err[CANDELA_ERR_LEN]) {
     if (!path) return 0;
     IoFileId cid;
     if (continued) (void)io_file_id(continued, &cid);
-    if (clash(r, path, role, 1, 0, continued ? &cid : NULL, err) != 0) return -1;
-    return add(r, path, role, 1, err);
+    char lock[IO_PATH_MAX + 8], lock_role[128];
+    lock_of(path, role, lock, lock_role);
+    if (clash(r, path, role, 1, 0, continued ? &cid : NULL, err) != 0 || clash(r, lock, lock_role, 1, 0, NULL, err) != 0)
+        return -1;
+    return add(r, path, role, 1, err) != 0 || add(r, lock, lock_role, 1, err) != 0 ? -1 : 0;
 }
 
 int candela_run_check_output(const CandelaRunFiles *r, const char *path, const char *role, char err[CANDELA_ERR_LEN]) {
-    return path ? clash(r, path, role, 1, 0, NULL, err) : 0;
+    if (!path) return 0;
+    char lock[IO_PATH_MAX + 8], lock_role[128];
+    lock_of(path, role, lock, lock_role);
+    return clash(r, path, role, 1, 0, NULL, err) != 0 || clash(r, lock, lock_role, 1, 0, NULL, err) != 0 ? -1 : 0;
 }
 
 int candela_run_scene(CandelaRunFiles *r, const char *scene_path, char err[CANDELA_ERR_LEN]) {

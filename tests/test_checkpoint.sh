@@ -38,11 +38,13 @@ scene=$root/scenes/default.gltf
 base=(render "$scene" --res 32x24 --no-png --light-sampler cachepoints)
 
 # expect_error NAME PATTERN -- ARGS...: non-zero exit below 128, one stderr line with PATTERN,
-# and $tmp/keep.exr (a finished image from before) untouched
+# and $tmp/keep.exr (a finished image from before) untouched; within 120 s, or $limit s when
+# set (special files: refused at once, a blocking regression fails in seconds)
 expect_error() {
   local name=$1 pattern=$2; shift 3
   echo sentinel > "$tmp/keep.exr"
-  timeout 120 "$bin" "$@" >"$tmp/stdout" 2>"$tmp/stderr"; local rc=$?  # (124: hung, a failure)
+  timeout "${limit:-120}" "$bin" "$@" >"$tmp/stdout" 2>"$tmp/stderr"; local rc=$?
+  if [ $rc -eq 124 ]; then bad "$name: still running after ${limit:-120} s (blocked?), killed"; return; fi
   local lines; lines=$(grep -c . "$tmp/stderr")
   if [ $rc -eq 0 ] || [ $rc -ge 128 ]; then bad "$name: exit code $rc"; return; fi
   if [ "$lines" -ne 1 ]; then bad "$name: expected one error line, got $lines: $(cat "$tmp/stderr")"; return; fi
@@ -265,10 +267,10 @@ n=$(sed -n 's/.*interrupted after \([0-9]*\) of the 262144 spp of sample shard 1
 # --- issue 29: a FIFO or a device given as a checkpoint or a film is refused unread (fopen of a
 # FIFO blocked forever)
 mkfifo "$tmp/fifo.ckpt" "$tmp/fifo.film"
-expect_error "resume from a FIFO" "fifo.ckpt: not a regular file (a FIFO)" -- "${base[@]}" --spp 64 -o "$tmp/keep.exr" \
+limit=10 expect_error "resume from a FIFO" "fifo.ckpt: not a regular file (a FIFO)" -- "${base[@]}" --spp 64 -o "$tmp/keep.exr" \
   --resume-from "$tmp/fifo.ckpt" --quiet
-expect_error "merge a FIFO" "fifo.film: not a regular file (a FIFO)" -- merge -o "$tmp/keep.exr" "$tmp/fifo.film"
-expect_error "merge /dev/zero" "/dev/zero: not a regular file (a device)" -- merge -o "$tmp/keep.exr" /dev/zero
+limit=10 expect_error "merge a FIFO" "fifo.film: not a regular file (a FIFO)" -- merge -o "$tmp/keep.exr" "$tmp/fifo.film"
+limit=10 expect_error "merge /dev/zero" "/dev/zero: not a regular file (a device)" -- merge -o "$tmp/keep.exr" /dev/zero
 rm -f "$tmp/fifo.ckpt" "$tmp/fifo.film"
 
 # --- issue 29: the merged image never replaces a film being merged; a checkpoint never
@@ -277,6 +279,17 @@ cp "$tmp/s1.film" "$tmp/s1.keep"
 expect_error "merge png onto a film" "s1.film: the merged PNG (--png) would replace a film being merged" -- merge -o "$tmp/keep.exr" \
   --png "$tmp/s1.film" "$tmp"/s0.film "$tmp"/s1.film "$tmp"/s2.film "$tmp"/s3.film
 same "$tmp/s1.film" "$tmp/s1.keep" "a refused merge changed a film"
+# the brief's own case: a shard given twice and the PNG onto it (the PNG is refused first)
+expect_error "merge png onto a film given twice" "s1.film: the merged PNG (--png) would replace a film being merged" -- \
+  merge -o "$tmp/keep.exr" --png "$tmp/s1.film" "$tmp"/s0.film "$tmp"/s1.film
+same "$tmp/s1.film" "$tmp/s1.keep" "a refused merge changed a film"
+# the merged EXR's lock file (emptied, then removed by the merge) may not be a film either
+cp "$tmp/s1.film" "$tmp/lk.exr.lock"
+expect_error "merge lock onto a film" "lk.exr.lock: the lock file of the merged EXR (-o) would replace a film being merged" -- \
+  merge -o "$tmp/lk.exr" "$tmp"/s0.film "$tmp/lk.exr.lock" "$tmp"/s2.film "$tmp"/s3.film
+same "$tmp/lk.exr.lock" "$tmp/s1.keep" "a refused merge changed the film named as its lock"
+[ ! -e "$tmp/lk.exr" ] && ok || bad "a refused merge wrote its EXR"
+rm -f "$tmp/lk.exr.lock"
 expect_error "checkpoint named as the image" "the checkpoint (--checkpoint) and the EXR (-o) are the same file" -- "${base[@]}" --spp 8 \
   -o "$tmp/keep.exr" --checkpoint "$tmp/keep.exr" --quiet
 expect_error "resume from the output" "the EXR (-o) would replace the checkpoint resumed (--resume-from)" -- "${base[@]}" --spp 64 \
@@ -291,6 +304,7 @@ import struct, sys
 src, dst, what = sys.argv[1:4]
 b = bytearray(open(src, 'rb').read())
 w, h, idlen = struct.unpack_from('<3I', b, 8 + 12)
+samples = 8 + 24 + idlen                            # u64 spp_total, sample_begin, sample_count
 reclen, = struct.unpack_from('<I', b, 8 + 24 + idlen + 24 + 8 + 8 + 8)
 n = w * h
 film = 8 + 24 + idlen + 24 + 8 + 8 + 8 + 4 + reclen + 8 + 12  # header, record, film tag + version, film head
@@ -300,6 +314,10 @@ if what == 'nan': struct.pack_into('<d', b, sums + 8 * 5, float('nan'))
 elif what == 'inf': struct.pack_into('<d', b, sums + 3 * n * 8 + 8 * 7, float('inf'))
 elif what == 'zero': struct.pack_into('<%dI' % n, b, count, *([0] * n))
 elif what == 'wrap': struct.pack_into('<I', b, count + 4 * 3, 0xFFFFFFFF)
+elif what == 'grow':  # shard 2/4 of 16 spp claims [8, 16) and its pixels count 8
+    struct.pack_into('<QQ', b, samples + 8, 8, 8); struct.pack_into('<%dI' % n, b, count, *([8] * n))
+elif what == 'empty': # shard 3/4 claims [16, 16): no samples, no hits, but its sums stay
+    struct.pack_into('<QQ', b, samples + 8, 16, 0); struct.pack_into('<%dI' % (2 * n), b, count - 4 * n, *([0] * (2 * n)))
 h = 0xcbf29ce484222325
 for c in b[:-8]: h = ((h ^ c) * 0x100000001b3) & 0xFFFFFFFFFFFFFFFF
 struct.pack_into('<Q', b, len(b) - 8, h)
@@ -313,6 +331,24 @@ for what in nan inf zero wrap; do
   expect_error "merge a forged film ($what)" "f_$what.film: not a film candela wrote: .*$want" -- merge -o "$tmp/keep.exr" --no-png \
     "$tmp"/s0.film "$tmp/f_$what.film" "$tmp"/s2.film "$tmp"/s3.film
 done
+# ... or a shard declaring other samples than its index gives it (shard 2/4 claiming [8, 16) and
+# 3/4 none, still tiling [0, 16): merged with exit 0 into a wrong image)
+forge "$tmp/s2.film" "$tmp/f_grow.film" grow
+forge "$tmp/s3.film" "$tmp/f_empty.film" empty
+expect_error "merge forged sample ranges" "f_grow.film: damaged header (its samples \[8, 16) are not shard 2/4's of 16 spp, \[8, 12))" -- \
+  merge -o "$tmp/keep.exr" --no-png "$tmp"/s0.film "$tmp"/s1.film "$tmp/f_grow.film" "$tmp/f_empty.film"
+expect_error "merge an empty shard" "f_empty.film: damaged header (its samples \[16, 16) are not shard 3/4's of 16 spp, \[12, 16))" -- \
+  merge -o "$tmp/keep.exr" --no-png "$tmp"/s0.film "$tmp"/s1.film "$tmp/s2.film" "$tmp/f_empty.film"
+# a checkpoint is the same film with a record: a forged one's NaN went into the resumed image
+# and a wrapped count was taken (exit 0 both); its film is checked when loaded, before a sample
+forge "$ck" "$tmp/f_nan.ckpt" nan
+forge "$ck" "$tmp/f_wrap.ckpt" wrap
+expect_error "resume a forged checkpoint (nan)" "f_nan.ckpt: not a checkpoint candela wrote: .*holds a sum that is not a finite number" -- \
+  "${base[@]}" --spp 64 -o "$tmp/keep.exr" --resume-from "$tmp/f_nan.ckpt" --quiet
+expect_error "resume a forged checkpoint (wrap)" "f_wrap.ckpt: not a checkpoint candela wrote: pixel (3, 0) counts 4294967295 samples, the checkpoint declares" -- \
+  "${base[@]}" --spp 64 -o "$tmp/keep.exr" --resume-from "$tmp/f_wrap.ckpt" --quiet
+forge "$ck" "$tmp/f_same.ckpt" none
+"$bin" "${base[@]}" --spp 64 -o "$tmp/f_same.exr" --resume-from "$tmp/f_same.ckpt" --quiet && ok || bad "a re-checksummed checkpoint copy does not resume"
 # the forger itself is right: an unchanged copy merges to the original's image
 forge "$tmp/s1.film" "$tmp/f_same.film" none
 "$bin" merge -o "$tmp/m4.exr" --no-png "$tmp"/s0.film "$tmp/f_same.film" "$tmp"/s2.film "$tmp"/s3.film && same "$tmp/m1.exr" "$tmp/m4.exr" \

@@ -12,11 +12,14 @@ ok()  { pass=$((pass + 1)); }
 bad() { fail=$((fail + 1)); echo "FAIL: $*" >&2; }
 
 # expect_error NAME PATTERN -- ARGS... : non-zero exit, exactly one stderr line containing
-# PATTERN, no crash (exit < 128), no file at $tmp/out.exr or $tmp/out.png
+# PATTERN, no crash (exit < 128), no file at $tmp/out.exr or $tmp/out.png; within 120 s, or
+# $limit s when set (limit=10 expect_error ...: a special file must be refused at once, and a
+# regression that blocks on it fails here in seconds instead of hanging the suite)
 expect_error() {
   local name=$1 pattern=$2; shift 3
   rm -f "$tmp/out.exr" "$tmp/out.png"
-  timeout 120 "$bin" "$@" >"$tmp/stdout" 2>"$tmp/stderr"; local rc=$?  # (124: hung, a failure)
+  timeout "${limit:-120}" "$bin" "$@" >"$tmp/stdout" 2>"$tmp/stderr"; local rc=$?
+  if [ $rc -eq 124 ]; then bad "$name: still running after ${limit:-120} s (blocked?), killed"; return; fi
   local lines; lines=$(grep -c . "$tmp/stderr")
   if [ $rc -eq 0 ] || [ $rc -ge 128 ]; then bad "$name: exit code $rc"; return; fi
   if [ "$lines" -ne 1 ]; then bad "$name: expected one error line, got $lines: $(cat "$tmp/stderr")"; return; fi
@@ -87,7 +90,7 @@ else
 fi
 rm -f "$tmp"/dump.* "$tmp"/g.*
 mkfifo "$tmp/fifo.exr"
-expect_error "fifo env" "not a regular file" -- render "$scene" --env "$tmp/fifo.exr" "${common[@]}"
+limit=10 expect_error "fifo env" "not a regular file" -- render "$scene" --env "$tmp/fifo.exr" "${common[@]}"
 rm -f "$tmp/fifo.exr"
 # statistics JSON stays valid JSON for a scene path with a quote and a backslash in it
 weird="$tmp/we\"i\\rd"
@@ -159,8 +162,21 @@ rm -f "$tmp/many.gltf"
 # a scene whose environment URI names a FIFO: refused, not blocked on (item 5)
 mkfifo "$tmp/env_fifo.exr"
 hostile "$tmp/env_fifo.gltf" 'd.setdefault("extras", {})["candela_environment"] = {"uri": "env_fifo.exr"}'
-expect_error "scene environment is a FIFO" "not a regular file" -- render "$tmp/env_fifo.gltf" "${common[@]}"
+limit=10 expect_error "scene environment is a FIFO" "not a regular file" -- render "$tmp/env_fifo.gltf" "${common[@]}"
 rm -f "$tmp/env_fifo.exr"
+# issue 29: textures and VDBs go through the same door (opened once, unblocking, the decoder and
+# OpenVDB read that descriptor); an image file over its limit (4 GiB, from its size) is refused
+# unread: a JPEG was read whole into memory first (4 GiB, then std::bad_alloc or worse)
+mkfifo "$tmp/tex_fifo.png" "$tmp/vol_fifo.vdb"
+hostile "$tmp/tex_fifo.gltf" 'd["images"] = [{"uri": "tex_fifo.png"}]; d["textures"] = [{"source": 0}]; d["materials"][0].setdefault("pbrMetallicRoughness", {})["baseColorTexture"] = {"index": 0}'
+limit=10 expect_error "texture is a FIFO" "tex_fifo.png" -- render "$tmp/tex_fifo.gltf" "${common[@]}"
+hostile "$tmp/vol_fifo.gltf" 'd["nodes"].append({"name": "vol", "extras": {"candela_volume": {"uri": "vol_fifo.vdb"}}}); d["scenes"][0]["nodes"].append(len(d["nodes"]) - 1)'
+limit=10 expect_error "VDB is a FIFO" "vol_fifo.vdb: not a regular file" -- render "$tmp/vol_fifo.gltf" "${common[@]}"
+rm -f "$tmp/tex_fifo.png" "$tmp/vol_fifo.vdb" "$tmp/tex_fifo.gltf" "$tmp/vol_fifo.gltf"
+printf '\377\330\377' > "$tmp/huge.jpg"; truncate -s 4294967297 "$tmp/huge.jpg"  # sparse: no disk, no memory
+limit=10 expect_error "environment over the image limit" "huge.jpg: 4294967297 bytes, over the 4 GiB limit of an image file" -- \
+  render "$scene" --env "$tmp/huge.jpg" "${common[@]}"
+rm -f "$tmp/huge.jpg"
 # the texture budget: a 1024^2 8-bit texture (4 MiB as held: 8-bit files stay 8-bit) under
 # --texture-budget-mb 1 is refused, naming it, before it is decoded; under a budget of 4 MiB
 # (which 16 bytes per texel would exceed) and the default it loads, and the statistics report
@@ -436,7 +452,7 @@ expect_error "variant missing value" "variant 'a': missing value for --max-depth
   --out-dir "$cmpd" --quiet --variants "a: --max-depth"
 expect_error "variant bad number" "variant 'a': invalid value 'x' for --max-depth" -- compare "$det" --spp 1 --res 8x8 \
   --out-dir "$cmpd" --quiet --variants "a: --max-depth x"
-expect_error "variant output flag" "variant 'a': unknown option '-o'" -- compare "$det" --spp 1 --res 8x8 \
+expect_error "variant output flag" "variant 'a': -o writes a file; a variant may only change render flags" -- compare "$det" --spp 1 --res 8x8 \
   --out-dir "$cmpd" --quiet --variants "a: -o x.exr"
 expect_error "variant spp" "variant 'a': --spp is the same for every variant" -- compare "$det" --spp 1 --res 8x8 \
   --out-dir "$cmpd" --quiet --variants "a: --spp 4"
@@ -535,7 +551,7 @@ ln -s shared/target.exr "$tmp/link.exr"
 if "$bin" render "$scene" -o "$tmp/link.exr" --no-png --res 8x8 --spp 1 --quiet && [ -L "$tmp/link.exr" ] &&
    [ -s "$tmp/shared/target.exr" ]; then ok; else bad "output through a symbolic link: $(ls -la "$tmp" "$tmp/shared")"; fi
 mkfifo "$tmp/fifo_out.exr"
-expect_error "output is a FIFO" "not a regular file" -- render "$scene" -o "$tmp/fifo_out.exr" --no-png --res 8x8 --spp 1 --quiet
+limit=10 expect_error "output is a FIFO" "not a regular file" -- render "$scene" -o "$tmp/fifo_out.exr" --no-png --res 8x8 --spp 1 --quiet
 rm -f "$tmp/fifo_out.exr"
 
 # a full disk (a small tmpfs, where this test may mount one): the PNG preview that does not fit
@@ -613,18 +629,18 @@ fi
 # in open() forever, a scene linked to /dev/zero was read to 4 GiB); a large variant list is
 # refused from its size, unread
 mkfifo "$tmp/in_fifo.gltf"; ln -s /dev/zero "$tmp/zero.gltf"
-expect_error "scene is a FIFO" "in_fifo.gltf: not a regular file (a FIFO)" -- render "$tmp/in_fifo.gltf" "${common[@]}"
-expect_error "scene is /dev/zero" "zero.gltf: not a regular file (a device)" -- render "$tmp/zero.gltf" "${common[@]}"
+limit=10 expect_error "scene is a FIFO" "in_fifo.gltf: not a regular file (a FIFO)" -- render "$tmp/in_fifo.gltf" "${common[@]}"
+limit=10 expect_error "scene is /dev/zero" "zero.gltf: not a regular file (a device)" -- render "$tmp/zero.gltf" "${common[@]}"
 mkfifo "$tmp/v_fifo.toml"; ln -s /dev/zero "$tmp/v_zero.json"
 head -c 1100000 /dev/zero | tr '\0' '#' > "$tmp/v_big.toml"
-expect_error "variants FIFO" "v_fifo.toml: not a regular file (a FIFO)" -- compare "$det" --spp 1 --res 8x8 --out-dir "$tmp/c29" \
+limit=10 expect_error "variants FIFO" "v_fifo.toml: not a regular file (a FIFO)" -- compare "$det" --spp 1 --res 8x8 --out-dir "$tmp/c29" \
   --quiet --variants "$tmp/v_fifo.toml"
-expect_error "variants /dev/zero" "v_zero.json: not a regular file (a device)" -- compare "$det" --spp 1 --res 8x8 \
+limit=10 expect_error "variants /dev/zero" "v_zero.json: not a regular file (a device)" -- compare "$det" --spp 1 --res 8x8 \
   --out-dir "$tmp/c29" --quiet --variants "$tmp/v_zero.json"
-expect_error "variants too large" "v_big.toml: 1100000 bytes, over the 1 MiB limit" -- compare "$det" --spp 1 --res 8x8 \
+limit=10 expect_error "variants too large" "v_big.toml: 1100000 bytes, over the 1 MiB limit" -- compare "$det" --spp 1 --res 8x8 \
   --out-dir "$tmp/c29" --quiet --variants "$tmp/v_big.toml"
 mkfifo "$tmp/ref_fifo.exr"
-expect_error "compare reference FIFO" "ref_fifo.exr: not a regular file (a FIFO)" -- compare "$det" --strategies tree --spp 1 \
+limit=10 expect_error "compare reference FIFO" "ref_fifo.exr: not a regular file (a FIFO)" -- compare "$det" --strategies tree --spp 1 \
   --res 8x8 --out-dir "$tmp/c29" --quiet --reference "$tmp/ref_fifo.exr"
 rm -f "$tmp/in_fifo.gltf" "$tmp/zero.gltf" "$tmp/v_fifo.toml" "$tmp/v_zero.json" "$tmp/v_big.toml" "$tmp/ref_fifo.exr"
 # --confine-to: an empty name (a farm script's unset variable) is refused, not "no
@@ -632,6 +648,16 @@ rm -f "$tmp/in_fifo.gltf" "$tmp/zero.gltf" "$tmp/v_fifo.toml" "$tmp/v_zero.json"
 expect_error "empty --confine-to" "--confine-to needs a folder" -- render "$tmp/conf/scenes/up.gltf" --confine-to "" "${common[@]}"
 "$bin" render "$tmp/conf/scenes/up.gltf" --confine-to / -o "$tmp/root.exr" --no-png --res 8x8 --spp 1 --quiet && [ -s "$tmp/root.exr" ] \
   && ok || bad "--confine-to / refuses a scene"
+# ... "//" and "/." are "/" too; a file or a missing folder is refused as such (a file confined
+# every scene to nothing: "SCENE is outside FILE")
+for r in // /.; do
+  "$bin" render "$tmp/conf/scenes/up.gltf" --confine-to $r -o "$tmp/root.exr" --no-png --res 8x8 --spp 1 --quiet && [ -s "$tmp/root.exr" ] \
+    && ok || bad "--confine-to $r refuses a scene"
+done
+expect_error "--confine-to a file" "up.gltf: --confine-to needs a folder (this is not one)" -- render "$tmp/conf/scenes/up.gltf" \
+  --confine-to "$tmp/conf/scenes/up.gltf" "${common[@]}"
+expect_error "--confine-to nothing" "nowhere: --confine-to needs a folder (No such file or directory)" -- render "$tmp/conf/scenes/up.gltf" \
+  --confine-to "$tmp/nowhere" "${common[@]}"
 rm -f "$tmp/root.exr"
 
 # one rule for every output: none may replace an input of the run (the scene, a file it
@@ -647,6 +673,9 @@ clobber "stats over the scene" "the statistics (--stats-json) would replace the 
   --stats-json "$tmp/keep.gltf"
 clobber "checkpoint over the scene" "the checkpoint (--checkpoint) would replace the scene" render "$tmp/keep.gltf" "${common[@]}" \
   --checkpoint "$tmp/conf/../keep.gltf"
+# candela bench writes no image but its statistics (and a PLY): it replaced the scene unchecked
+clobber "bench stats over the scene" "keep.gltf: the statistics (--stats-json) would replace the scene" bench "$tmp/keep.gltf" \
+  --res 8x8 --spp 1 --quiet --stats-json "$tmp/keep.gltf"
 ln -s keep.gltf "$tmp/keep_link.png"
 clobber "png through a link to the scene" "the PNG preview (--png) would replace the scene" render "$tmp/keep.gltf" "${common[@]}" \
   --png "$tmp/keep_link.png"
@@ -661,14 +690,43 @@ expect_error "checkpoint is the EXR" "the checkpoint (--checkpoint) and the EXR 
   --checkpoint "$tmp/out.exr"
 expect_error "env is the EXR" "the EXR (-o) would replace the environment (--env)" -- render "$scene" "${common[@]}" --env "$tmp/out.exr"
 expect_error "partial png is the exr" "are the same file" -- render "$scene" "${common[@]}" --save-partial --png "$tmp/out.partial.exr"
+# an output's lock file (OUTPUT.lock: emptied to hold the writer's pid, removed when done) is an
+# output too: a scene under that name was emptied, then deleted
+cp "$scene" "$tmp/lk.exr.lock"; lk_sum=$(md5sum < "$tmp/lk.exr.lock")
+expect_error "lock over the scene" "lk.exr.lock: the lock file of the EXR (-o) would replace the scene" -- render "$tmp/lk.exr.lock" \
+  -o "$tmp/lk.exr" --res 16x16 --spp 1 --quiet
+[ -e "$tmp/lk.exr.lock" ] && [ "$(md5sum < "$tmp/lk.exr.lock")" = "$lk_sum" ] && [ ! -e "$tmp/lk.exr" ] && ok \
+  || bad "a scene named as the output's lock file was changed or removed"
+expect_error "lock over another output" "the statistics (--stats-json) and the lock file of the PNG preview (--png) are the same file" -- \
+  render "$scene" "${common[@]}" --stats-json "$tmp/out.png.lock"
+rm -f "$tmp/lk.exr.lock"
 # compare: a variant may change how the scene renders, never what the run reads or writes
 # (--dump-cachepoints wrote anywhere; --env was read outside --confine-to)
 rm -rf "$tmp/c29"
 cmp29=(compare "$det" --spp 1 --res 8x8 --ref-spp 1 --out-dir "$tmp/c29" --quiet)
-expect_error "variant dump" "variant 'a': --dump-cachepoints is not a variant's flag" -- "${cmp29[@]}" \
-  --variants "a: --light-sampler cachepoints --dump-cachepoints $tmp/anywhere.ply"
+expect_error "variant dump" "variant 'a': --dump-cachepoints writes a file; a variant may only change render flags" -- \
+  "${cmp29[@]}" --variants "a: --light-sampler cachepoints --dump-cachepoints $tmp/anywhere.ply"
 [ -e "$tmp/anywhere.ply" ] && bad "a variant's --dump-cachepoints wrote its file" || ok
-expect_error "variant confine" "variant 'a': --confine-to is not a variant's flag" -- "${cmp29[@]}" --variants "a: --confine-to /"
+# every flag that writes a file (the options table's files column) is refused by name, in both
+# forms (they were "unknown option", --png with "did you mean '--env'?")
+for w in "--checkpoint $tmp/anywhere.ckpt" "--stats-json $tmp/anywhere.json" "--png $tmp/anywhere.png" "-o $tmp/anywhere.exr" \
+         "--output=$tmp/anywhere.exr" "--frame-stats $tmp/anywhere.jsonl" "--resume-from $tmp/anywhere.ckpt" "--out-dir $tmp/anywhere"; do
+  flag=${w%% *}; flag=${flag%%=*}
+  expect_error "variant $flag" "variant 'b': $flag writes a file; a variant may only change render flags" -- "${cmp29[@]}" \
+    --variants "a: --light-sampler power; b: --light-sampler tree $w"
+done
+ls "$tmp"/anywhere* >/dev/null 2>&1 && bad "a refused variant wrote $(ls "$tmp"/anywhere*)" || ok
+expect_error "variant confine" "variant 'a': --confine-to is the same for every variant (give it to candela compare)" -- \
+  "${cmp29[@]}" --variants "a: --confine-to /"
+expect_error "variant frames" "variant 'a': --frames is not a variant's flag" -- "${cmp29[@]}" --variants "a: --frames 1-2"
+# a file a variant reads is there before anything renders (it failed after the reference had
+# rendered), never a FIFO (refused unread)
+expect_error "variant env missing" "variant 'b': --env $tmp/nosky.exr: cannot read" -- "${cmp29[@]}" \
+  --variants "a: --light-sampler power; b: --env $tmp/nosky.exr"
+mkfifo "$tmp/sky_fifo.exr"
+limit=10 expect_error "variant env FIFO" "variant 'a': --env $tmp/sky_fifo.exr: not a regular file (a FIFO)" -- "${cmp29[@]}" \
+  --variants "a: --env=$tmp/sky_fifo.exr"
+rm -f "$tmp/sky_fifo.exr"
 cp "$root/tests/scenes/env_constant.exr" "$tmp/sky.exr"
 expect_error "variant env outside --confine-to" "variant 'a': --env $tmp/sky.exr is outside" -- compare "$tmp/conf/scenes/up.gltf" \
   --spp 1 --res 8x8 --ref-spp 1 --out-dir "$tmp/c29" --quiet --confine-to "$tmp/conf" --variants "a: --env $tmp/sky.exr"

@@ -321,6 +321,14 @@ expect_error "frame over --env" "e.2.exr: frame 2's EXR would replace the enviro
   -o "$tmp/out/e.#.exr" --env "$tmp/out/e.2.exr" --res 16x12 --spp 1 --quiet
 expect_error "frame png over its exr" "are the same file" -- "$bin" render "$scene" --frames 1-3 -o "$tmp/out/e.#.exr" \
   --png "$tmp/out/../out/e.#.exr" --res 16x12 --spp 1 --quiet
+# ... and each frame's lock file (emptied, then removed, by the frame's render: a scene named so
+# was deleted once frame 2 began)
+mkdir -p "$tmp/lk"; cp "$scene" "$tmp/lk/e.2.exr.lock"
+expect_error "frame lock over the scene" "e.2.exr.lock: the lock file of frame 2's EXR would replace the scene" -- \
+  "$bin" render "$tmp/lk/e.2.exr.lock" --frames 1-3 -o "$tmp/lk/e.#.exr" --res 16x12 --spp 1 --quiet
+[ "$(ls "$tmp/lk")" = e.2.exr.lock ] && cmp -s "$scene" "$tmp/lk/e.2.exr.lock" && ok \
+  || bad "the scene named as a frame's lock changed, or a frame was written: $(ls "$tmp/lk")"
+rm -rf "$tmp/lk"
 
 echo "frames: $pass passed, $fail failed"
 [ $fail -eq 0 ]

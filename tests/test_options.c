@@ -145,6 +145,14 @@ int main(void) {
         int r = candela_parse_render_flag(&o, 2, argv, &i, err);
         CHECK(f->render ? r == 1 : r == 0, "%s: candela_parse_render_flag returned %d", f->name, r);
         CHECK(!(f->commands & CANDELA_CMD_VARIANT) || f->render, "%s: a variant flag that is not a render flag", f->name);
+        /* the files column (issue 29): a flag whose value names a file says whether the run reads
+         * or writes it (compare refuses every writer in a variant and confines every reader), and
+         * no variant flag writes one (its file would escape the report's folder) */
+        int names_file = f->metavar && (strncmp(f->metavar, "FILE", 4) == 0 || strcmp(f->name, "--out-dir") == 0);
+        CHECK(!names_file || f->files, "%s: its value names a file, its files column says nothing", f->name);
+        CHECK(!(f->files & ~(unsigned)(CANDELA_FILES_READS | CANDELA_FILES_WRITES)), "%s: files %#x", f->name, f->files);
+        CHECK(!(f->commands & CANDELA_CMD_VARIANT) || !(f->files & CANDELA_FILES_WRITES), "%s: a variant flag that writes a file",
+              f->name);
     }
 
     /* ranges and choices: what is outside refused with the flag named */

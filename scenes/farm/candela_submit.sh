@@ -169,14 +169,19 @@ EOF
   # The merge runs once every shard task has ended (afterany, not afterok: a task requeued by a
   # pre-emption passes through a failed-looking state, and afterok would cancel the merge). A
   # requeued task is queued again and its film missing: the merge waits while any task of the
-  # array is queued or running; a film still missing then belongs to a shard that failed.
+  # array is in a state that is not final (squeue -t all: a requeued task passes through
+  # REQUEUED / REQUEUE_HOLD, which squeue's default pending-running-completing list leaves out,
+  # so the merge took it for gone and failed); a film still missing then belongs to a shard
+  # that failed.
   cat > "$work/merge.sh" <<EOF
 #!/usr/bin/env bash
 set -u
 films=($(quote "${films[@]}"))
 missing() { local f m=""; for f in "\${films[@]}"; do [ -e "\$f" ] || m="\$m \$f"; done; echo "\$m"; }
+final='COMPLETED|FAILED|CANCELLED|TIMEOUT|NODE_FAIL|OUT_OF_MEMORY|BOOT_FAIL|DEADLINE'
 while [ -n "\$(missing)" ]; do
-  if queued=\$(squeue -h -j "\$CANDELA_SHARD_ARRAY" -o %i 2>/dev/null) && [ -z "\$queued" ]; then
+  if states=\$(squeue -h -t all -j "\$CANDELA_SHARD_ARRAY" -o %T 2>/dev/null) &&
+     [ -z "\$(grep -vxE "\$final" <<<"\$states" | grep .)" ]; then
     sleep 5 # a task that just finished: look once more
     [ -z "\$(missing)" ] && break
     echo "candela_submit: no shard task of job \$CANDELA_SHARD_ARRAY is left and these films are missing:\$(missing) (see the shard logs)" >&2
