@@ -189,6 +189,14 @@ static bool decode_oiio(const std::string &path, const void *mem, size_t mem_siz
         *problem = "cannot open: " + (e.empty() ? std::string("unknown format") : e);
         return false;
     }
+    // Every JPEG goes through jpeg_without_app13 (above): one whose bytes do not start as a JPEG
+    // does (FF D8 FF) but that the JPEG reader would take anyway (chosen by its extension) is
+    // refused, or its APP13 would reach OpenImageIO 2.4's decode_iptc_iim unseen (fuzz_image: a
+    // JPEG behind one stray byte).
+    if (jpeg.empty() && std::strcmp(in->format_name(), "jpeg") == 0) {
+        *problem = "cannot open: not a JPEG file (it does not start with the JPEG marker FF D8 FF)";
+        return false;
+    }
     std::string open_name = name;
     if (file_proxy) {
         if (in->supports("ioproxy")) {
