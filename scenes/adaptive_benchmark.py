@@ -9,7 +9,8 @@ rounded), both against a high-spp reference: MSE, relMSE, time and the time to u
                                          [--keep-reference]
 
 Scenes: interior (scenes/guiding_interior.gltf) and blender_interior
-(scenes/blender_interior/interior.gltf with --material-model blender3 --light-model blender3).
+(scenes/blender_interior/interior.gltf with --material-model blender3 --light-model blender3), the
+default ones; also default (scenes/default.gltf) and cornell_box (scenes/cornell_box.gltf).
 The reference is a plain render (sobol, another seed) at --ref-spp, kept in --out and reused
 while its .key file matches (the key names the binary's mtime; --keep-reference reuses it
 whatever build made it: a plain render, so only a change to plain sampling invalidates it). relMSE is the mean of (x - ref)^2 / (ref^2 + 0.01) over pixels
@@ -31,6 +32,8 @@ SCENES = {
     "interior": ("scenes/guiding_interior.gltf", []),
     "blender_interior": ("scenes/blender_interior/interior.gltf", ["--material-model", "blender3", "--light-model",
                                                                   "blender3"]),
+    "default": ("scenes/default.gltf", []),
+    "cornell_box": ("scenes/cornell_box.gltf", []),
 }
 
 
