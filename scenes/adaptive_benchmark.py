@@ -4,7 +4,7 @@
 rounded), both against a high-spp reference: MSE, relMSE, time and the time to unit variance.
 
     python3 scenes/adaptive_benchmark.py [--candela build/renderer/candela] [--scenes a,b]
-                                         [--res 640x360] [--spp 256] [--thresholds 0.02,0.05]
+                                         [--res 640x360] [--spp 256] [--thresholds 0.25,0.5,1]
                                          [--min-spp 16] [--ref-spp 4096] [--seeds 1,2] [--out DIR]
                                          [--keep-reference]
 
@@ -63,7 +63,7 @@ def main():
     ap.add_argument("--scenes", default="interior,blender_interior")
     ap.add_argument("--res", default="640x360")
     ap.add_argument("--spp", type=int, default=256, help="the most samples any pixel gets")
-    ap.add_argument("--thresholds", default="0.1,0.2,0.4")
+    ap.add_argument("--thresholds", default="0.25,0.5,1")
     ap.add_argument("--min-spp", type=int, default=16)
     ap.add_argument("--ref-spp", type=int, default=4096)
     ap.add_argument("--seeds", default="1,2")
