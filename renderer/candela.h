@@ -109,11 +109,12 @@ typedef struct CandelaOptions {
     uint32_t volume_budget_mb;  /* volume grids and the media built from them, in total; 0: no limit */
     CandelaGuiding guiding;
     CandelaSampler sampler;     /* --sampler */
-    /* adaptive sampling (--noise-threshold; 0: off): at each iteration barrier past min_spp a
-     * pixel whose estimated error (film.c: film_pixel_error) is below the threshold, and whose
-     * neighbours' are too, stops; spp stays the upper bound */
+    /* adaptive sampling (--noise-threshold; 0: off): at the first iteration barrier past min_spp
+     * (the pilot) every pixel's sample count is fixed from its neighbours' pilot statistics, never
+     * its own (film.c: unbiased); a pixel stops at the first barrier reaching it; spp stays the
+     * upper bound */
     float noise_threshold;
-    int min_spp;                /* --min-spp: no pixel stops before this many samples (0: CANDELA_DEFAULT_MIN_SPP) */
+    int min_spp;                /* --min-spp: the pilot, no pixel stops before it (0: CANDELA_DEFAULT_MIN_SPP) */
     double time_limit;          /* --time-limit S: stop at the first iteration barrier past S seconds of
                                  * the render's wall time, load included (0: none; the one option whose
                                  * image depends on the machine's speed) */

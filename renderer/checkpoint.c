@@ -367,7 +367,9 @@ int checkpoint_load(const char *path, const CheckpointIdentity *id, CheckpointPr
     if (rc == 0 && (at < 0 || (uint64_t)at + 8 != h.size)) { what = "end"; rc = -1; }
     if (rc != 0) {
         snprintf(err, CANDELA_ERR_LEN, "%s: the checkpoint's %s state does not fit this render%s", path, what,
-                 rc == -2 ? " (another cache point build)" : "");
+                 rc == -2 ? " (another cache point build)"
+                 : rc == -3 ? " (adaptive sampling by the rule before the pilot rule: render it again with this build)"
+                            : "");
         return -1;
     }
     *pr = h.pr;

@@ -74,7 +74,8 @@ int checkpoint_load(const char *path, const CheckpointIdentity *id, CheckpointPr
  * at the last barrier (the image itself is written then). */
 int checkpoint_due(int spp_done, int next_spp_done, int spp_total);
 
-/* The modules' sections. film_load checks the size (and the recorder AOV's presence). */
+/* The modules' sections. film_load checks the size (and the recorder AOV's presence); -3: an
+ * adaptive film of the rule before the pilot rule (not resumable). */
 int film_save(const Film *f, FILE *out);
 int film_load(Film *f, FILE *in);
 /* A loaded shard film fit to merge: every pixel's count equal to the shard's samples, sums

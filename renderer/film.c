@@ -31,6 +31,7 @@ void film_free(Film *f) {
     free(f->recorder);
     free(f->sel_aov);
     free(f->stopped);
+    free(f->target);
     memset(f, 0, sizeof *f);
 }
 
@@ -113,73 +114,126 @@ int film_resolve(const Film *f, CandelaImage *img) {
     return 0;
 }
 
-/* Per-sample variance of each channel of pixel i (0 with fewer than 2 samples). */
-static void pixel_sample_variance(const Film *f, size_t i, double var[3]) {
-    double n = f->count[i];
-    for (int k = 0; k < 3; ++k) {
-        double mean = n > 0.0 ? f->sum[3 * i + k] / n : 0.0;
-        double v = n > 1.0 ? (f->sum2[3 * i + k] - n * mean * mean) / (n - 1.0) : 0.0;
-        var[k] = v > 0.0 ? v : 0.0;
-    }
+/* ---------------------------------------------------------------- adaptive sampling
+ *
+ * The rule (renderer/README.md, --noise-threshold): every pixel takes the pilot, the samples of
+ * the first barrier at or past --min-spp (K samples, the same K for every pixel: none has
+ * stopped before). At that barrier each pixel gets a fixed target count
+ *
+ *   n_p = clamp(ceil(4 sigma_p / (T mu_p)), K, 2^30)      (the render caps it at --spp)
+ *
+ * with sigma_p^2 the per-sample variance (summed over channels) pooled over the pilots of the
+ * pixels in a square window around p (adaptive_radius), p itself left out, and mu_p the mean
+ * over channels of every other pixel's pilot mean (the image's mean without p). The pixel then
+ * stops at the first barrier where its count reaches n_p (the schedule's barriers: 16, 32, 64,
+ * then every 64 unguided). Targets never change after the pilot: checkpoints carry them
+ * (Film.target), and a resumed render stops the same pixels at the same barriers.
+ *
+ * Why n proportional to sigma: one more sample lowers a pixel's expected squared error by about
+ * sigma^2 / n^2; stopping all pixels at the same such value (sigma / n = T mu / 4) is the
+ * allocation of least summed squared error for the samples spent (Lagrange). Cycles' rule, which
+ * stops at equal error (n proportional to sigma^2), has, at the same budget, exactly uniform
+ * sampling's MSE. T keeps the scale of ea27fd5: a pixel's standard error relative to the image's
+ * mean, times sqrt(16 / n), below T.
+ *
+ * Why nothing of p's own samples: a rule that reads a pixel's own samples stops it early when
+ * those samples happen to be low (in a heavy-tailed interior a pixel that has not met a rare
+ * bright path has a low mean and a low variance), and that is a bias: ea27fd5 darkened images
+ * 6-13 %. Here n_p is a function of the other pixels' pilot samples alone. Every pixel's samples
+ * are drawn from its own random numbers (a function of seed, pixel and sample index: sequence.h),
+ * so for a fixed scene and fixed light sampling n_p is independent of p's samples x_1, x_2, ...,
+ * each of which has expectation the pixel's value m_p; hence
+ *   E[ (1/n_p) sum_{k <= n_p} x_k | n_p ] = m_p,   and E[estimate] = m_p:
+ * every pixel, and the image, is unbiased whatever the allocation (a poor allocation costs
+ * variance, never bias). Second-order caveat: what a render learns as it goes (cache points'
+ * visibility, path guiding's fields, the auto probes) is trained on every pixel's samples,
+ * p's early ones included, and the neighbours' pilots were drawn with it; n_p thus depends on
+ * p's early samples through the learned state, a coupling spread over the whole image (plain
+ * renders with learning have the same kind). Without learning (e.g. --light-sampler power or
+ * optimal, no guiding) the independence is exact. */
+
+/* sqrt(16): T compares a standard error relative to the image mean, times sqrt(16 / n) */
+#define ADAPTIVE_SCALE 4.0
+/* the largest target (a count the schedule never reaches: the render's --spp caps it) */
+#define ADAPTIVE_TARGET_MAX (1u << 30)
+
+/* The pooling window's half-width: about 1/24 of the image's shorter side (8 pixels at 320x180,
+ * 15 at 640x360). A pilot of 16 samples per pixel measures a heavy-tailed pixel's variance
+ * mostly by whether it met a rare path: pooled over 3 x 3 the allocation follows that noise and
+ * loses to uniform sampling (measured 0.65-0.87x on guiding_interior); the wide window costs
+ * little where noise has structure (scenes/RESULTS.md, "Adaptive sampling"). */
+static int adaptive_radius(int w, int h) {
+    int r = ((w < h ? w : h) + 12) / 24;
+    return r < 1 ? 1 : r;
 }
 
-/* sum_c sqrt(var_c / n) / sqrt(sum_c mean_c + 1e-4) */
-static double relative_error(const Film *f, size_t i, const double var[3]) {
-    double n = f->count[i], se = 0.0, sum = 0.0;
-    for (int k = 0; k < 3; ++k) {
-        se += sqrt(var[k] / n);
-        sum += f->sum[3 * i + k] / n;
-    }
-    return se / sqrt(fmax(sum, 0.0) + 1e-4);
-}
-
-double film_pixel_error(const Film *f, size_t i) {
-    if (f->count[i] < 2) return INFINITY;
-    int w = f->width, h = f->height, x = (int)(i % (size_t)w), y = (int)(i / (size_t)w);
-    double own[3], pooled[3] = {0, 0, 0}, v[3];
-    pixel_sample_variance(f, i, own);
-    int m = 0;
-    for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-            int nx = x + dx, ny = y + dy;
-            if (nx < 0 || nx >= w || ny < 0 || ny >= h) continue;
-            pixel_sample_variance(f, (size_t)ny * (size_t)w + (size_t)nx, v);
-            for (int k = 0; k < 3; ++k) pooled[k] += v[k];
-            ++m;
+/* The targets of every pixel from the film as it stands (the pilot). 0 ok, -1 out of memory. */
+static int adaptive_targets(Film *f, float threshold) {
+    const int w = f->width, h = f->height, r = adaptive_radius(w, h);
+    const size_t n = (size_t)w * (size_t)h, stride = (size_t)w + 1;
+    /* per pixel: the per-sample variance summed over channels (v) and the mean over channels (m),
+     * from the film's sums; then the summed-area table of v, (w + 1) x (h + 1) */
+    double *v = malloc(n * sizeof(double)), *m = malloc(n * sizeof(double));
+    double *sat = calloc(stride * ((size_t)h + 1), sizeof(double));
+    if (!v || !m || !sat) { free(v); free(m); free(sat); return -1; }
+    double image_sum = 0.0; /* in pixel order: the same for any thread count */
+    for (size_t i = 0; i < n; ++i) {
+        const double cnt = f->count[i];
+        v[i] = m[i] = 0.0;
+        for (int k = 0; k < 3; ++k) {
+            const double mean = cnt > 0.0 ? f->sum[3 * i + k] / cnt : 0.0;
+            const double var = cnt > 1.0 ? (f->sum2[3 * i + k] - cnt * mean * mean) / (cnt - 1.0) : 0.0;
+            v[i] += var > 0.0 ? var : 0.0;
+            m[i] += mean / 3.0;
         }
-    for (int k = 0; k < 3; ++k) pooled[k] /= m;
-    return fmax(relative_error(f, i, own), relative_error(f, i, pooled));
+        image_sum += m[i];
+    }
+    for (int y = 0; y < h; ++y) {
+        double row = 0.0;
+        for (int x = 0; x < w; ++x) {
+            row += v[(size_t)y * (size_t)w + (size_t)x];
+            sat[((size_t)y + 1) * stride + (size_t)x + 1] = sat[(size_t)y * stride + (size_t)x + 1] + row;
+        }
+    }
+    for (int y = 0; y < h; ++y) {
+        const int y0 = y - r < 0 ? 0 : y - r, y1 = y + r + 1 > h ? h : y + r + 1;
+        for (int x = 0; x < w; ++x) {
+            const int x0 = x - r < 0 ? 0 : x - r, x1 = x + r + 1 > w ? w : x + r + 1;
+            const size_t i = (size_t)y * (size_t)w + (size_t)x;
+            /* the window's neighbours, p left out (rounding can leave a tiny negative: 0) */
+            const double window = sat[(size_t)y1 * stride + (size_t)x1] - sat[(size_t)y0 * stride + (size_t)x1] -
+                                  sat[(size_t)y1 * stride + (size_t)x0] + sat[(size_t)y0 * stride + (size_t)x0] - v[i];
+            const int neighbours = (y1 - y0) * (x1 - x0) - 1;
+            double want = INFINITY; /* a 1 x 1 image: no neighbour to decide from, so no pixel stops early */
+            if (neighbours > 0) {
+                const double sigma = sqrt(window > 0.0 ? window / neighbours : 0.0);
+                const double mu = (image_sum - m[i]) / (double)(n - 1); /* the image's mean without p */
+                want = sigma > 0.0 ? ADAPTIVE_SCALE * sigma / ((double)threshold * mu) : 0.0;
+            }
+            const uint32_t pilot = f->count[i];
+            f->target[i] = !(want < (double)ADAPTIVE_TARGET_MAX) ? ADAPTIVE_TARGET_MAX
+                         : want <= (double)pilot                 ? pilot
+                                                                 : (uint32_t)ceil(want);
+        }
+    }
+    free(v); free(m); free(sat);
+    return 0;
 }
+
+int film_adaptive_pilot_done(const Film *f) { return f->target && f->target[0] != 0; }
 
 uint32_t film_adaptive_update(Film *f, float threshold) {
-    int w = f->width, h = f->height;
-    /* 1: still sampling and noisy; 2: still sampling, converged; 0: stopped before */
-    uint8_t *state = malloc((size_t)w * (size_t)h);
-    if (!state) { /* keep sampling everywhere: the image is right, only slower */
-        uint32_t active = 0;
-        for (size_t i = 0; i < (size_t)w * (size_t)h; ++i) active += !f->stopped[i];
+    const size_t n = (size_t)f->width * (size_t)f->height;
+    if (!film_adaptive_pilot_done(f) && adaptive_targets(f, threshold) != 0) {
+        uint32_t active = 0; /* out of memory: keep sampling everywhere (the image is right, only slower) */
+        for (size_t i = 0; i < n; ++i) active += !f->stopped[i];
         return active;
     }
-    for (size_t i = 0; i < (size_t)w * (size_t)h; ++i)
-        state[i] = f->stopped[i] ? 0 : (film_pixel_error(f, i) >= threshold ? 1 : 2);
     uint32_t active = 0;
-    for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) {
-            size_t i = (size_t)y * (size_t)w + (size_t)x;
-            if (state[i] == 0) continue;
-            int noisy = 0;
-            for (int dy = -1; dy <= 1 && !noisy; ++dy)
-                for (int dx = -1; dx <= 1; ++dx) {
-                    int nx = x + dx, ny = y + dy;
-                    if (nx >= 0 && nx < w && ny >= 0 && ny < h && state[(size_t)ny * (size_t)w + (size_t)nx] == 1) {
-                        noisy = 1;
-                        break;
-                    }
-                }
-            if (noisy) ++active;
-            else f->stopped[i] = 1;
-        }
-    free(state);
+    for (size_t i = 0; i < n; ++i) {
+        if (f->count[i] >= f->target[i]) f->stopped[i] = 1;
+        active += !f->stopped[i];
+    }
     return active;
 }
 
@@ -204,9 +258,13 @@ void candela_image_free(CandelaImage *img) {
 #define FILM_VERSION 1u
 
 /* Every Film array: the sums of L and L^2, counts, AOV sums, the recorder AOV and adaptive
- * sampling's stopped pixels. */
+ * sampling's stopped pixels and targets. Bit 2 alone (stopped pixels without targets) was the
+ * film of an adaptive render before the pilot rule (01f6ea2 and earlier): its pixels stopped by
+ * another rule, so it cannot be resumed (film_load: -3). The layout of films without adaptive
+ * sampling is unchanged, hence FILM_VERSION stays 1. */
+#define FILM_ADAPTIVE_BITS (1 << 2 | 1 << 3)
 static int32_t film_arrays(const Film *f) {
-    return (f->recorder != NULL) | (f->sel_aov != NULL) << 1 | (f->stopped != NULL) << 2;
+    return (f->recorder != NULL) | (f->sel_aov != NULL) << 1 | (f->stopped != NULL) << 2 | (f->target != NULL) << 3;
 }
 
 int film_save(const Film *f, FILE *out) {
@@ -219,21 +277,26 @@ int film_save(const Film *f, FILE *out) {
            ckpt_put(out, f->count, n * sizeof(uint32_t)) |
            (f->recorder ? ckpt_put(out, f->recorder, 3 * n * sizeof(double)) : 0) |
            (f->sel_aov ? ckpt_put(out, f->sel_aov, 6 * n * sizeof(double)) : 0) |
-           (f->stopped ? ckpt_put(out, f->stopped, n) : 0);
+           (f->stopped ? ckpt_put(out, f->stopped, n) : 0) |
+           (f->target ? ckpt_put(out, f->target, n * sizeof(uint32_t)) : 0);
 }
 
 int film_load(Film *f, FILE *in) {
     size_t n = (size_t)f->width * (size_t)f->height;
     int32_t head[3];
     if (ckpt_get_tag(in, FILM_TAG, FILM_VERSION) || ckpt_get(in, head, sizeof head)) return -1;
-    if (head[0] != f->width || head[1] != f->height || head[2] != film_arrays(f)) return -1;
+    if (head[0] != f->width || head[1] != f->height) return -1;
+    if (head[2] != film_arrays(f))
+        return (head[2] & FILM_ADAPTIVE_BITS) == 1 << 2 && (film_arrays(f) & FILM_ADAPTIVE_BITS) == FILM_ADAPTIVE_BITS
+                   ? -3 : -1;
     return ckpt_get(in, f->sum, 3 * n * sizeof(double)) | ckpt_get(in, f->sum2, 3 * n * sizeof(double)) |
            ckpt_get(in, f->albedo, 3 * n * sizeof(double)) | ckpt_get(in, f->normal, 3 * n * sizeof(double)) |
            ckpt_get(in, f->depth, n * sizeof(double)) | ckpt_get(in, f->hits, n * sizeof(uint32_t)) |
            ckpt_get(in, f->count, n * sizeof(uint32_t)) |
            (f->recorder ? ckpt_get(in, f->recorder, 3 * n * sizeof(double)) : 0) |
            (f->sel_aov ? ckpt_get(in, f->sel_aov, 6 * n * sizeof(double)) : 0) |
-           (f->stopped ? ckpt_get(in, f->stopped, n) : 0);
+           (f->stopped ? ckpt_get(in, f->stopped, n) : 0) |
+           (f->target ? ckpt_get(in, f->target, n * sizeof(uint32_t)) : 0);
 }
 
 /* What a film file must hold to be merged or resumed (a forged or damaged file's checksum can

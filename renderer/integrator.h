@@ -51,6 +51,8 @@ typedef struct Film {
     double *sel_aov;         /* 6 per pixel (the light sampler's AOV, CandelaOptions.aov_selection; else NULL):
                               * sums over the hits of its two false colours (light_sampler_aov) */
     uint8_t *stopped;        /* per pixel with adaptive sampling (else NULL): 1 once it stopped sampling */
+    uint32_t *target;        /* per pixel with adaptive sampling (else NULL): the samples it takes, fixed
+                              * at the pilot barrier from its neighbours' pilots (0 before) */
     int aov_spp;             /* film_resolve writes CandelaImage.spp */
 } Film;
 
@@ -61,19 +63,14 @@ void film_free(Film *f);
 void film_add_paths(Film *f, const PathState *ps, uint32_t count);
 /* Mean, variance of the mean (sample variance / n) and AOVs. 0 ok, -1 out of memory. */
 int film_resolve(const Film *f, CandelaImage *img);
-/* Adaptive sampling: pixel i's estimated error, sum_c SE_c / sqrt(sum_c mean_c + 1e-4) with SE_c
- * the standard error of channel c's mean (Cycles' measure, after Dammertz et al. 2010: about the
- * error after a gamma-2 display transform). SE_c comes from the pixel's own sample variance and,
- * again, from the per-sample variance pooled over its 3 x 3 neighbourhood; the larger error
- * counts, so a pixel whose few samples all missed a rare bright path that its neighbours found
- * does not pass for converged. With Sobol' samples the sample variance overestimates the error:
- * pixels stop late, not early. INFINITY below 2 samples. */
-double film_pixel_error(const Film *f, size_t i);
-/* At an iteration barrier: a pixel still sampling stops when its error and that of each of its
- * 8 neighbours still sampling are below the threshold (a noisy neighbour keeps it going, so a
- * pixel whose samples all missed a rare bright path does not stop alone). Needs f->stopped.
- * Returns the number of pixels still sampling; 0 ok. A function of the film alone. */
+/* Adaptive sampling (film.c has the rule and why it is unbiased). At an iteration barrier past
+ * --min-spp: the first call takes the film as it stands as the pilot (every pixel the same
+ * count) and fixes each pixel's target count from its neighbours' pilot statistics, never its
+ * own; every call stops the pixels whose count reached their target. Needs f->stopped and
+ * f->target. Returns the number of pixels still sampling. A function of the film alone. */
 uint32_t film_adaptive_update(Film *f, float threshold);
+/* 1 once the pilot has fixed the targets (f->target set), else 0. */
+int film_adaptive_pilot_done(const Film *f);
 
 /* Work at an iteration barrier, when no ray is in flight: learned state (a light sampler's
  * visibility, the guiding fields' update, the volume estimators' auto choices) changes only here. */

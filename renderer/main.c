@@ -144,7 +144,7 @@ static void print_stats(const CandelaStats *s) {
                 s->guide_dropped ? "; WARNING: out of memory, some training was lost" : "");
     if (s->spp_min != s->spp_done)
         fprintf(stderr, "  samples per pixel: %d to %d, mean %.1f%s\n", s->spp_min, s->spp_done, s->spp_mean,
-                s->adaptive_active_pixels ? "" : " (adaptive sampling: every pixel reached the noise threshold)");
+                s->adaptive_active_pixels ? "" : " (adaptive sampling: every pixel reached its target)");
     if (s->time_limited)
         fprintf(stderr, "  --time-limit: stopped at %d spp after %.1fs\n", s->spp_done, s->time_total);
     if (s->num_volumes)

@@ -284,13 +284,15 @@ static const CandelaFlag FLAGS[] = {
            "each path's numbers: Owen-scrambled Sobol' (default) or independent",
            "the numbers of each path: Owen-scrambled Sobol' points (default) or independent uniforms (the renders before "
            "0.2)"),
-    FLOAT("--noise-threshold", "T", 1e-6, 100.0, IMG(noise_threshold), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "0.01",
-          "adaptive sampling: a pixel stops below error T",
-          "adaptive sampling: a pixel stops once its error estimate (standard errors / sqrt(value), Cycles' measure) and "
-          "its neighbours' are below T (e.g. 0.01); --spp is the most any pixel gets"),
+    FLOAT("--noise-threshold", "T", 1e-6, 100.0, IMG(noise_threshold), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "0.5",
+          "adaptive sampling: samples per pixel from its neighbours' noise, larger T fewer",
+          "adaptive sampling, unbiased: after the pilot (--min-spp) each pixel's sample count is fixed from its "
+          "neighbours' pilot noise, never its own: n = 4 sigma / (T x image mean), the least-MSE allocation "
+          "(e.g. 0.25-2); --spp is the most any pixel gets"),
     INT("--min-spp", "N", 1, 1 << 20, IMG(min_spp), CANDELA_FIELD_INT, ALL_RENDER, 0, "8",
-        "adaptive sampling: no pixel stops before N samples (default 16)",
-        "adaptive sampling: no pixel stops before N samples (default 16); needs --noise-threshold"),
+        "adaptive sampling: the pilot every pixel takes (default 16)",
+        "adaptive sampling: the pilot, N samples every pixel takes, whose statistics fix the sample counts (the "
+        "first iteration barrier at or past N; default 16); needs --noise-threshold"),
     FLOAT("--time-limit", "S", 1e-6, 1e9, RO(time_limit), CANDELA_FIELD_DOUBLE, ALL_RENDER, 0, "60",
           "stop at the first iteration barrier past S seconds",
           "stop at the first iteration barrier past S seconds (load included) and write the image; its spp depend on "

@@ -166,8 +166,9 @@ int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene,
     ig->film.aov_spp = o->aov_spp;
     if (!fail && o->noise_threshold > 0.0f) {
         ig->film.stopped = calloc(ig->npixels, 1);
+        ig->film.target = calloc(ig->npixels, sizeof(uint32_t));
         ig->pixel_list = malloc((size_t)ig->npixels * sizeof(uint32_t));
-        fail = !ig->film.stopped || !ig->pixel_list;
+        fail = !ig->film.stopped || !ig->film.target || !ig->pixel_list;
     }
     if (!fail && o->aov_selection) {
         ig->film.sel_aov = calloc(6 * (size_t)ig->npixels, sizeof(double));

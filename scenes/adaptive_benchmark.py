@@ -4,17 +4,22 @@
 rounded), both against a high-spp reference: MSE, relMSE, time and the time to unit variance.
 
     python3 scenes/adaptive_benchmark.py [--candela build/renderer/candela] [--scenes a,b]
-                                         [--res 640x360] [--spp 256] [--thresholds 0.02,0.05]
+                                         [--res 640x360] [--spp 256] [--thresholds 0.25,0.5,1]
                                          [--min-spp 16] [--ref-spp 4096] [--seeds 1,2] [--out DIR]
                                          [--keep-reference]
 
 Scenes: interior (scenes/guiding_interior.gltf) and blender_interior
-(scenes/blender_interior/interior.gltf with --material-model blender3 --light-model blender3).
+(scenes/blender_interior/interior.gltf with --material-model blender3 --light-model blender3), the
+default ones; also default (scenes/default.gltf) and cornell_box (scenes/cornell_box.gltf).
 The reference is a plain render (sobol, another seed) at --ref-spp, kept in --out and reused
 while its .key file matches (the key names the binary's mtime; --keep-reference reuses it
 whatever build made it: a plain render, so only a change to plain sampling invalidates it). relMSE is the mean of (x - ref)^2 / (ref^2 + 0.01) over pixels
 and channels. Time is the render's wall clock without the scene load: run on an idle machine.
+The image mean against the reference's (mean over pixels and channels), averaged over the seeds,
+with two standard errors: across the seeds, and from the renders' and the reference's variance
+layers (sqrt(mean variance / 3 pixels) per render); the plain render's as the control.
 """
+import math
 import argparse
 import os
 import subprocess
@@ -27,6 +32,8 @@ SCENES = {
     "interior": ("scenes/guiding_interior.gltf", []),
     "blender_interior": ("scenes/blender_interior/interior.gltf", ["--material-model", "blender3", "--light-model",
                                                                   "blender3"]),
+    "default": ("scenes/default.gltf", []),
+    "cornell_box": ("scenes/cornell_box.gltf", []),
 }
 
 
@@ -56,7 +63,7 @@ def main():
     ap.add_argument("--scenes", default="interior,blender_interior")
     ap.add_argument("--res", default="640x360")
     ap.add_argument("--spp", type=int, default=256, help="the most samples any pixel gets")
-    ap.add_argument("--thresholds", default="0.1,0.2,0.4")
+    ap.add_argument("--thresholds", default="0.25,0.5,1")
     ap.add_argument("--min-spp", type=int, default=16)
     ap.add_argument("--ref-spp", type=int, default=4096)
     ap.add_argument("--seeds", default="1,2")
@@ -67,9 +74,10 @@ def main():
     seeds = [int(s) for s in a.seeds.split(",")]
     print("candela %s, %s, at most %d spp, min %d, reference %d spp, seeds %s\n" % (a.candela, a.res, a.spp, a.min_spp,
                                                                                   a.ref_spp, a.seeds))
+    print(subprocess.run([a.candela, "--version"], capture_output=True, text=True).stdout.strip() + "\n")
     print("| scene | threshold | mean spp | MSE adaptive | MSE plain | MSE ratio | relMSE ratio | time adaptive / plain | TTUV ratio "
-          "| image mean adaptive / reference - 1 |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+          "| image mean adaptive / reference - 1 (SE seeds, SE variance) | plain / reference - 1 | MSE ratio per seed |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for name in a.scenes.split(","):
         scene, extra = SCENES[name]
         scene = os.path.join(ROOT, scene)
@@ -84,26 +92,38 @@ def main():
         for t in [float(x) for x in a.thresholds.split(",")]:
             m = {"ad": [0.0, 0.0, 0.0], "plain": [0.0, 0.0, 0.0]}
             mean_spp = 0.0
-            bias = 0.0  # a stopping rule that decides from a pixel's own samples can stop it low: watch the mean
+            biases, plain_bias, var_se2, per_seed = [], 0.0, 0.0, []  # a rule that reads a pixel's own samples can stop it low
             ref_mean = oiio_mean([ref, "--ch", "R,G,B"])
+            w, h = (int(x) for x in a.res.split("x"))
+
+            def mean_se2(f):  # squared standard error of an image's mean, from its variance layer
+                return oiio_mean([f, "--ch", "variance.R,variance.G,variance.B"]) / (3.0 * w * h)
             for seed in seeds:
                 out = os.path.join(a.out, "%s_ad_%g_%d.exr" % (name, t, seed))
-                st, ta = render(a, scene, out, a.spp, seed, extra + ["--noise-threshold", str(t), "--min-spp",
+                st, ta = render(a, scene, out, a.spp, seed, extra + ["--aov", "spp", "--noise-threshold", str(t), "--min-spp",
                                                                      str(a.min_spp)])
                 spp_plain = max(1, int(round(st["spp_mean"])))
                 mean_spp += st["spp_mean"] / len(seeds)
                 outp = os.path.join(a.out, "%s_plain_%d_%d.exr" % (name, spp_plain, seed))
                 _, tp = render(a, scene, outp, spp_plain, seed, extra)
-                bias += (oiio_mean([out, "--ch", "R,G,B"]) / ref_mean - 1.0) / len(seeds)
+                biases.append(oiio_mean([out, "--ch", "R,G,B"]) / ref_mean - 1.0)
+                plain_bias += (oiio_mean([outp, "--ch", "R,G,B"]) / ref_mean - 1.0) / len(seeds)
+                var_se2 += mean_se2(out) / len(seeds) ** 2
+                pair = [mse(out, ref), mse(outp, ref)]
+                per_seed.append("%.2f" % (pair[1] / pair[0]))
                 for k, o, tt in (("ad", out, ta), ("plain", outp, tp)):
-                    m[k][0] += mse(o, ref) / len(seeds)
+                    m[k][0] += pair[k == "plain"] / len(seeds)
                     m[k][1] += rel_mse(o, ref) / len(seeds)
                     m[k][2] += tt / len(seeds)
             r_mse = m["plain"][0] / m["ad"][0]
             r_t = m["ad"][2] / m["plain"][2]
-            print("| %s | %g | %.1f | %.3e | %.3e | %.2fx | %.2fx | %.2f | %.2fx | %+.2f%% |" % (
+            bias = sum(biases) / len(biases)
+            k = len(biases)
+            se_seeds = math.sqrt(sum((b - bias) ** 2 for b in biases) / (k - 1) / k) if k > 1 else float("nan")
+            se_var = math.sqrt(var_se2 + mean_se2(ref)) / ref_mean
+            print("| %s | %g | %.1f | %.3e | %.3e | %.2fx | %.2fx | %.2f | %.2fx | %+.2f%% (%.2f%%, %.2f%%) | %+.2f%% | %s |" % (
                 name, t, mean_spp, m["ad"][0], m["plain"][0], r_mse, m["plain"][1] / m["ad"][1], r_t, r_mse / r_t,
-                100.0 * bias))
+                100.0 * bias, 100.0 * se_seeds, 100.0 * se_var, 100.0 * plain_bias, " ".join(per_seed)))
             sys.stdout.flush()
 
 

@@ -4,9 +4,10 @@
  * - adaptive: every pixel's sample count is a point of the schedule between --min-spp and
  *   --spp, some pixels stop early and some go on to --spp; the image and the counts are
  *   bit-identical for 1 and 2 threads and any batch size; the image agrees with a
- *   non-adaptive render of the same scene (per-pixel z^2 against both variances at most 1 plus
- *   5 sigma, image means within 5 standard errors); a threshold no pixel reaches gives the
- *   non-adaptive image bit for bit;
+ *   non-adaptive render of another seed at 256 spp (the pilot rule is unbiased: per-pixel z^2
+ *   against both variances at most 1 plus 5 sigma, each channel's image mean within 4 standard
+ *   errors); a threshold no pixel reaches gives the non-adaptive image bit for bit (the rule's
+ *   own properties on synthetic films: tests/test_adaptive_rule.c);
  * - --time-limit: a limit the first iteration already passes stops the render after it (1 spp,
  *   reported), an ample one changes nothing (no clock is asserted);
  * - clamps: a point light over a plane, direct light only (one NEE contribution per path): with
@@ -88,8 +89,9 @@ static void test_adaptive(void) {
         }
         candela_image_free(&c);
     }
-    /* agreement with a non-adaptive render of another seed (adaptive sampling stops a pixel by
-     * its own samples: consistent, not strictly unbiased, so the check is one-sided in z^2) */
+    /* agreement with a non-adaptive render of another seed: the pilot rule never reads a pixel's
+     * own samples, so each pixel's estimate is unbiased. z^2 is one-sided: with Sobol' samples
+     * the sample variance overestimates the error, so the mean z^2 is below 1 */
     CandelaOptions r = o;
     r.noise_threshold = 0.0f;
     r.min_spp = 0;
@@ -109,8 +111,8 @@ static void test_adaptive(void) {
             }
             double mz2 = m ? z2 / m : 0.0, tol = 5.0 * sqrt(2.0 / (m ? m : 1));
             CHECK(mz2 <= 1.0 + tol, "channel %d: mean z^2 %g against the non-adaptive render (at most 1 + %g)", k, mz2, tol);
-            CHECK(fabs(d / n) <= 5.0 * sqrt(v) / n, "channel %d: mean difference %g > 5 standard errors %g", k, d / n,
-                  5.0 * sqrt(v) / n);
+            CHECK(fabs(d / n) <= 4.0 * sqrt(v) / n, "channel %d: mean difference %g > 4 standard errors %g", k, d / n,
+                  4.0 * sqrt(v) / n);
         }
         candela_image_free(&ref);
     }

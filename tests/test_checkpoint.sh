@@ -5,7 +5,8 @@
 #   the course's example at 128 guided spp: 4, 8, 14, 22, 54;
 # - writing checkpoints does not change the image; resuming from one gives the uninterrupted
 #   render's EXR bit for bit (cache points, whose learned visibility the checkpoint carries,
-#   and --guiding mis);
+#   --guiding mis, adaptive sampling from before and after its pilot); an adaptive checkpoint of
+#   the rule before the pilot rule is refused;
 # - a render killed with SIGKILL after a checkpoint and resumed: bit-identical, and it left no
 #   finished-looking file; SIGTERM stops after the current batch (mid-iteration), writes the
 #   checkpoint and with --save-partial only NAME.partial.*; resuming that: bit-identical;
@@ -55,9 +56,9 @@ expect_error() {
 
 # --- schedule, identity of images with checkpoints, resume from the last checkpoint
 # (cpaov: the cache point AOV's film sums are saved and resumed too)
-# (adaptive: the film's stopped pixels are saved, and the pixels a resumed iteration renders
-# are exactly those the checkpoint's film still samples)
-adaptive=(--noise-threshold 0.2 --min-spp 4 --aov spp)
+# (adaptive: the film's stopped pixels and the targets fixed at the pilot (4 spp) are saved, and
+# the pixels a resumed iteration renders are exactly those the checkpoint's film still samples)
+adaptive=(--noise-threshold 0.25 --min-spp 4 --aov spp)
 for mode in default mis cpaov adaptive; do
   extra=(); [ $mode = mis ] && extra=(--guiding mis)
   [ $mode = cpaov ] && extra=(--light-sampler cachepoints --aov cachepoint)
@@ -97,6 +98,36 @@ else
 fi
 grep -q "samples per pixel: 4 to 64" "$tmp/log-adaptive" && ok ||
   bad "adaptive: no pixel stopped early: $(grep 'samples per pixel' "$tmp/log-adaptive")"
+# an adaptive checkpoint of the rule before the pilot rule (stopped pixels, no targets: made here
+# from a new one) is refused in one line, not resumed with pixels another rule stopped
+python3 - "$tmp/adaptive.ckpt" "$tmp/old-rule.ckpt" <<'PY'
+import struct, sys
+src, dst = sys.argv[1:3]
+b = bytearray(open(src, 'rb').read())
+w, h, idlen = struct.unpack_from('<3I', b, 8 + 12)
+reclen, = struct.unpack_from('<I', b, 8 + 24 + idlen + 24 + 8 + 8 + 8)
+n = w * h
+film = 8 + 24 + idlen + 24 + 8 + 8 + 8 + 4 + reclen + 8 + 12  # the film's arrays, after its tag, version, head
+mask, = struct.unpack_from('<i', b, film - 4)
+assert mask == 12, mask                                         # stopped pixels and targets
+struct.pack_into('<i', b, film - 4, 4)
+target = film + 4 * 3 * n * 8 + n * 8 + 2 * n * 4 + n           # after depth, hits, count and stopped
+del b[target:target + 4 * n]
+h = 0xcbf29ce484222325
+for c in b[:-8]: h = ((h ^ c) * 0x100000001b3) & 0xFFFFFFFFFFFFFFFF
+struct.pack_into('<Q', b, len(b) - 8, h)
+open(dst, 'wb').write(b)
+PY
+# a checkpoint from before the pilot (a passed --time-limit stops after 1 spp; the pilot is at 16):
+# the resumed render fixes the targets itself, bit-identical to the uninterrupted one
+pre=(--spp 64 --noise-threshold 0.25 --min-spp 16 --aov spp)
+"$bin" "${base[@]}" "${pre[@]}" -o "$tmp/full-pre.exr" --quiet || bad "full render (adaptive, pilot at 16)"
+"$bin" "${base[@]}" "${pre[@]}" -o "$tmp/part-pre.exr" --checkpoint "$tmp/pre.ckpt" --time-limit 1e-6 --quiet ||
+  bad "render stopped at 1 spp (adaptive)"
+"$bin" "${base[@]}" "${pre[@]}" -o "$tmp/res-pre.exr" --resume-from "$tmp/pre.ckpt" --quiet || bad "resume before the pilot"
+same "$tmp/full-pre.exr" "$tmp/res-pre.exr" "resumed from before the pilot (adaptive)"
+expect_error "adaptive checkpoint of the earlier rule" "old-rule.ckpt: the checkpoint's film state does not fit this render (adaptive sampling by the rule before the pilot rule" \
+  -- "${base[@]}" --spp 64 "${adaptive[@]}" -o "$tmp/keep.exr" --resume-from "$tmp/old-rule.ckpt" --quiet
 
 # progressive cache point insertion (at the barrier after 4 spp): the checkpoints after it carry
 # the inserted points, which a resumed render re-inserts before loading the learned state

@@ -82,7 +82,7 @@ int main(int argc, char **argv) {
     char scene[4096];
     snprintf(scene, sizeof scene, "%s/default.gltf", argv[2]);
     check_render(argv[1], scene, "--res 64x48 --spp 8", dir);
-    check_render(argv[1], scene, "--res 64x48 --spp 64 --noise-threshold 0.05 --min-spp 8", dir);
+    check_render(argv[1], scene, "--res 64x48 --spp 64 --noise-threshold 0.5 --min-spp 8", dir);
     snprintf(scene, sizeof scene, "%s/guiding_interior.gltf", argv[2]);
     check_render(argv[1], scene, "--res 48x32 --spp 32 --guiding mis", dir);
     char cmd[4200];
