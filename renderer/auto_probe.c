@@ -2,7 +2,8 @@
  * (--volume-cachepoint-scatter auto in inscatter.c, --volume-emission-sampling auto in
  * emission_auto.c; the paper's §5.2.3 names an automatic choice as wanted).
  *
- * While probing (the first AUTO_PROBE_ITERATIONS iterations: 1 + 1 + 2 = 4 spp) the feature is
+ * While probing (the first AUTO_PROBE_ITERATIONS iterations: 1 + 1 + 2 = 4 spp; 3 spp with guiding,
+ * whose training iterations are of 1 spp) the feature is
  * on everywhere and every path records, for the one medium it is attributed to, the feature's
  * share of its radiance as rendered (`on`) and as it would be without the feature (`off`: the
  * other technique alone, unweighted), and the feature's cost. What decides is the variance of a

@@ -28,25 +28,25 @@
 
 #define GUIDE_TRAINING_SPP 8 /* samples per pixel of training before guided sampling starts */
 
-/* --guiding auto. Its probe renders the first GUIDE_AUTO_PROBE_SPP unguided (the unguided
- * schedule's iterations of 1, 1 and 2 spp), measuring per pixel the variance of the paths'
- * radiance and of its part through two or more scattering vertices (what guiding can improve:
- * direct light is NEE's, with MIS), from consecutive samples' squared differences. f is that
- * indirect share of the variance, each pixel weighted by 1 / (mean^2 + 0.01) as relMSE weighs
- * it; the gain G that guiding may bring on the indirect part is how badly the function's own
- * sampling finds it, the indirect samples' variance over their mean squared over the image
- * (about 1.6 for a Cornell box lit from above, where guiding took off 1.5x of the indirect
- * variance; 3.7 for light through a window or off a bright patch, where it took off 4x). The
- * prediction for the rest of the render of n spp is
- *     variance ratio = (n_unguided + n_guided (1 - f + f / G)) / n
- *     time ratio     = (n_probe + n_train COST_TRAIN + n_guided_only COST_GUIDED) / n
- * (the probe's and the first 8 training spp are unguided, the recorder runs for the training
- * spp, the costs are the guiding benchmark's, scenes/RESULTS.md); guiding goes on when the
- * product is below GUIDE_AUTO_THRESHOLD, else it stays off and the render is the unguided one,
- * bit for bit, having paid for the probe's bookkeeping only. Deterministic: counts and film
- * sums, no clock. */
+/* --guiding auto. Its probe renders the first GUIDE_AUTO_PROBE_SPP as `mis` does (unguided
+ * iterations of 1 spp with the recorder training the fields: guided sampling starts only after
+ * GUIDE_TRAINING_SPP), measuring per pixel the variance of the paths' radiance and of its part
+ * through two or more scattering vertices (what guiding can improve: direct light is NEE's, with
+ * MIS), from consecutive samples' squared differences. f is that indirect share of the variance,
+ * each pixel weighted by 1 / (mean^2 + 0.01) as relMSE weighs it; the gain G that guiding may
+ * bring on the indirect part is how badly the function's own sampling finds it, the indirect
+ * samples' variance over their mean squared over the image (about 1.6 for a Cornell box lit from
+ * above, where guiding took off 1.5x of the indirect variance; 3.7 for light through a window or
+ * off a bright patch, where it took off 4x). For a render of n spp, s of them probed, T trained
+ * (U = GUIDE_TRAINING_SPP of them unguided), the prediction is
+ *     variance ratio = (U + (n - U) (1 - f + f / G)) / n
+ *     time ratio     = (T COST_TRAIN + (n - T) COST_GUIDED) / (s COST_TRAIN + n - s)
+ * (the probe's spp were recorded either way; the costs are the guiding benchmark's,
+ * scenes/RESULTS.md); guiding goes on when the product is below GUIDE_AUTO_THRESHOLD and the
+ * render goes on exactly as `mis` (bit for bit: the probe only reads), else the recorder stops
+ * and the render is the unguided one, bit for bit, having paid for the probe's recording only.
+ * Deterministic: counts and film sums, no clock. */
 #define GUIDE_AUTO_PROBE_SPP 4
-#define GUIDE_AUTO_PROBE_ITERATIONS 3 /* 1 + 1 + 2 spp */
 #define GUIDE_AUTO_MAX_GAIN 8.0
 #define GUIDE_AUTO_COST_TRAIN 1.9
 #define GUIDE_AUTO_COST_GUIDED 1.5
@@ -67,9 +67,8 @@ int guide_init(Integrator *ig) {
             guide_free(ig);
             return -1;
         }
-    } else {
-        gs->guided_from = 0;
     }
+    gs->guided_from = 0; /* auto probes with mis's schedule (guide_schedule_start) */
     GuideFieldParams params;
     guide_field_params_default(&params);
     if (ig->opt->guide_spatial_threshold > 0.0f) params.spatial_threshold = ig->opt->guide_spatial_threshold;
@@ -241,7 +240,7 @@ void guide_probe_batch(Integrator *ig) {
 }
 
 /* The probe's decision (above): guiding on from the next iteration, or off. */
-static void auto_decide(Integrator *ig, int next_iteration) {
+static void auto_decide(Integrator *ig) {
     GuideState *gs = &ig->guide;
     const Film *film = &ig->film;
     double v_total = 0.0, v_indirect = 0.0;
@@ -267,23 +266,21 @@ static void auto_decide(Integrator *ig, int next_iteration) {
         ind_mean2 += mi * mi;
     }
     double gain = ind_mean2 > 0.0 ? fmin(fmax(ind_var / ind_mean2, 1.0), GUIDE_AUTO_MAX_GAIN) : 1.0;
-    double n = ig->opt->spp, start = ig->spp_done;
-    double train = (double)ig->record.training_spp, unguided = fmin(start + GUIDE_TRAINING_SPP, n);
-    double guided = n - unguided, training = fmin(train, n - start), guided_only = fmax(n - start - training, 0.0);
-    double var = (unguided + guided * (1.0 - f + f / gain)) / n;
-    double time = (start + training * GUIDE_AUTO_COST_TRAIN + guided_only * GUIDE_AUTO_COST_GUIDED) / n;
+    double n = ig->opt->spp, probed = ig->spp_done;
+    double unguided = fmin(GUIDE_TRAINING_SPP, n), trained = fmax(fmin((double)ig->record.training_spp, n), probed);
+    double var = (unguided + (n - unguided) * (1.0 - f + f / gain)) / n;
+    double time = (trained * GUIDE_AUTO_COST_TRAIN + (n - trained) * GUIDE_AUTO_COST_GUIDED) /
+                  (probed * GUIDE_AUTO_COST_TRAIN + n - probed);
     gs->auto_ratio = (float)(var * time);
     gs->auto_indirect = (float)f;
     gs->auto_gain = (float)gain;
     int on = v_total > 0.0 && var * time < GUIDE_AUTO_THRESHOLD;
     gs->auto_state = on ? GUIDE_AUTO_ON : GUIDE_AUTO_OFF;
     probe_free(gs);
-    if (on) {
-        gs->train_start = ig->spp_done;
-        gs->guided_from = next_iteration;
-        ig->record.active = 1;
-    } else {
+    if (!on) { /* the unguided schedule from here on; nothing more is recorded */
+        gs->guided_from = -1;
         ig->record.active = ig->record.debug_aov;
+        if (!ig->record.active) recorder_samples_clear(&ig->record.batch);
     }
     if (!ig->opt->quiet)
         fprintf(stderr, "candela: --guiding auto: %s (indirect light %.0f%% of the relative variance, its relative variance "
@@ -296,9 +293,8 @@ int guide_schedule_start(const Integrator *ig) { return ig->guide.guided_from; }
 void guide_barrier(Integrator *ig) {
     GuideState *gs = &ig->guide;
     if (!gs->on) return;
-    if (gs->auto_state == GUIDE_AUTO_PROBING && ig->spp_done >= GUIDE_AUTO_PROBE_SPP)
-        auto_decide(ig, ig->iteration_index + 1);
-    if (gs->auto_state == GUIDE_AUTO_PROBING || gs->auto_state == GUIDE_AUTO_OFF) return;
+    if (gs->auto_state == GUIDE_AUTO_PROBING && ig->spp_done >= GUIDE_AUTO_PROBE_SPP) auto_decide(ig);
+    if (gs->auto_state == GUIDE_AUTO_OFF) return;
     /* ch. 2 §5.3.3: guided sampling only after the first 8 spp trained the fields */
     gs->active = ig->spp_done >= gs->train_start + GUIDE_TRAINING_SPP;
     if (!gs->pending) return; /* nothing new was recorded: the fields stay as they are */

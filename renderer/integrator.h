@@ -134,7 +134,7 @@ typedef struct GuideState {
     int pending;                  /* samples were recorded since the last update */
     /* --guiding auto (guide.c): probing during the first GUIDE_AUTO_PROBE_SPP, then on or off */
     int auto_state;               /* GUIDE_AUTO_NONE (a fixed mode), _PROBING, _ON, _OFF */
-    int train_start;              /* spp done when training began (0; auto: the probe's end) */
+    int train_start;              /* spp done when training began (0: auto probes with the recorder on) */
     int guided_from;              /* the first iteration of the guided schedule (render.c); -1: none */
     float auto_ratio, auto_indirect, auto_gain; /* the decision's prediction, indirect share and gain */
     float (*probe_prev)[2];       /* per pixel while probing: its last sample's L and indirect L */

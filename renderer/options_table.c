@@ -333,7 +333,7 @@ static const CandelaFlag FLAGS[] = {
            "path guiding (default off)",
            "path guiding (default off): mis = one-sample MIS of the BSDF or phase function and the learned guide (alpha "
            "0.5); ris = resampling of one candidate of each. Trains during the first 8 spp, then guides (iterations 1 x "
-           "8, then 2, 4, 8, 16, 16, ...); auto = mis where a probe over the first 4 spp predicts a gain, else off"),
+           "8, then 2, 4, 8, 16, 16, ...); auto = mis, kept after a probe over the first 4 spp only where it predicts a gain, else off"),
     INT("--guide-training-spp", "N", 1, 1 << 20, IMG(guide_training_spp), CANDELA_FIELD_INT, ALL_RENDER, 0, "8",
         "guiding learns from the first N spp",
         "guiding learns from the first N spp, then renders with what it learned (default: an eighth of --spp, at least "

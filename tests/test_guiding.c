@@ -13,8 +13,8 @@
  *       surfaces bit-identical and changes one with glass and glossy metal, and brightens
  *       nothing out of proportion (the image mean within 10%);
  *   (f) --guiding auto: on scenes/cornell_indirect.gltf (lit through the ceiling) its probe
- *       chooses guiding, converges to the unguided image and is bit-identical for 1 and 2
- *       threads; on scenes/default.gltf (direct light) it chooses off and the image is the
+ *       chooses guiding, converges to the unguided image, is bit-identical for 1 and 2 threads
+ *       and is the `mis` render bit for bit (the probe records and trains as mis does); on scenes/default.gltf (direct light) it chooses off and the image is the
  *       unguided render's bit for bit.
  * Scenes: tests/scenes/two_lights.gltf (a floor and a wall lit by an emissive quad and three
  * point lights: direct light with MIS plus diffuse interreflection, every surface guidable) and
@@ -210,7 +210,8 @@ static void test_auto(const char *indirect, const char *direct) {
     Render off = render(indirect, w, h, spp, CANDELA_GUIDING_OFF, 0, -1, 2, 0, 3);
     Render on = render(indirect, w, h, spp, CANDELA_GUIDING_AUTO, 0, -1, 2, 0, 4);
     Render on1 = render(indirect, w, h, spp, CANDELA_GUIDING_AUTO, 0, -1, 1, 0, 4);
-    if (off.ok && on.ok && on1.ok) {
+    Render mis = render(indirect, w, h, spp, CANDELA_GUIDING_MIS, 0, -1, 2, 0, 4);
+    if (off.ok && on.ok && on1.ok && mis.ok) {
         fprintf(stderr, "  (f) %s: auto %s, predicted ratio %.2f, indirect share %.2f, %d updates\n", indirect,
                 on.st.guide_auto == 1 ? "on" : "off", (double)on.st.guide_auto_ratio, (double)on.st.guide_auto_indirect,
                 on.st.guide_updates);
@@ -218,7 +219,10 @@ static void test_auto(const char *indirect, const char *direct) {
               "(f) auto did not guide the indirect-lit box (choice %d, %d updates)", on.st.guide_auto, on.st.guide_updates);
         image_agrees("auto on the indirect box", &on, &off, w, h);
         CHECK(memcmp(on.img.rgb, on1.img.rgb, (size_t)w * h * 3 * sizeof(float)) == 0, "(f) auto: 1 and 2 threads differ");
+        CHECK(memcmp(on.img.rgb, mis.img.rgb, (size_t)w * h * 3 * sizeof(float)) == 0,
+              "(f) auto on is not the mis render bit for bit");
     }
+    candela_image_free(&mis.img);
     candela_image_free(&off.img);
     candela_image_free(&on.img);
     candela_image_free(&on1.img);
