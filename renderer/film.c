@@ -145,12 +145,12 @@ int film_resolve(const Film *f, CandelaImage *img) {
  * each of which has expectation the pixel's value m_p; hence
  *   E[ (1/n_p) sum_{k <= n_p} x_k | n_p ] = m_p,   and E[estimate] = m_p:
  * every pixel, and the image, is unbiased whatever the allocation (a poor allocation costs
- * variance, never bias). Second-order caveat: what a render learns as it goes (cache points'
- * visibility, path guiding's fields, the auto probes) is trained on every pixel's samples,
+ * variance, never bias). Second-order caveat: what a render learns as it goes (the light
+ * sampler's learned visibility, path guiding's fields, the auto probes) is trained on every pixel's samples,
  * p's early ones included, and the neighbours' pilots were drawn with it; n_p thus depends on
  * p's early samples through the learned state, a coupling spread over the whole image (plain
- * renders with learning have the same kind). Without learning (e.g. --light-sampler power or
- * optimal, no guiding) the independence is exact. */
+ * renders with learning have the same kind). Without learning (a light sampler that learns
+ * nothing, no guiding) the independence is exact. */
 
 /* sqrt(16): T compares a standard error relative to the image mean, times sqrt(16 / n) */
 #define ADAPTIVE_SCALE 4.0

@@ -14,9 +14,8 @@
  * x mean(sigma_s(x_k)) / p_select(x_k), the same function of the vertices in both (the
  * trackers report the product). The phase-sampled continuation and everything after the first
  * scatter stay with the null-collision walk. */
-#include "integrator.h"
 #include "rng.h"
-#include "scatter.h"
+#include "vertex.h"
 
 #define INSCATTER_STATIONS 16 /* torch_mist, 160x90: 64 cost 0.07 G instructions per spp more (+14%) at the same variance */
 #define INSCATTER_DELTA 0.1f /* the defensive uniform share (spec §7.2) */
@@ -115,7 +114,7 @@ float inscatter_estimate(const Integrator *ig, Slice *s, uint32_t p, SceneRay ra
     vec3 contrib;
     uint32_t outcome;
     float visibility = 0.0f, added = 0.0f;
-    int sampled = direct_light_sample_u(ig, beta, &sc, &lc, u_light, &ls, &contrib, &outcome);
+    int sampled = vertex_direct_light_u(ig, beta, &sc, &lc, u_light, &ls, &contrib, &outcome);
     if (sampled) {
         float tfar = isinf(ls.distance) ? INFINITY : ls.distance * (1.0f - 1e-3f);
         s->shadow_rays++;

@@ -362,58 +362,6 @@ static inline void path_write_aovs(const PathState *ps, uint32_t p, vec3 albedo,
     ps->aov_depth[p] = depth;
 }
 
-/* Russian roulette on the throughput with refraction's radiance scaling removed: the path
- * survives with probability 1 - q, q = 1 - max(beta) rr_scale clamped to [0, 0.95], and its
- * throughput is divided by that. Returns 0 when the path is terminated. */
-#define RR_START_DEPTH 3 /* the first depth whose continuation is subject to the roulette, plus one */
-static inline int russian_roulette(vec3 *beta, double rr_scale, float u) {
-    /* compares, not libm calls; NaN -> 0 as fmaxf(0, NaN) */
-    float q = maxf(1.0f - v3_max_component(*beta) * (float)rr_scale, 0.0f);
-    q = minf(q, 0.95f);
-    if (u < q) return 0;
-    *beta = v3_scale(*beta, 1.0f / (1.0f - q));
-    return 1;
-}
-
-/* A scattering vertex hands on its MIS context (what a light found by the next ray is weighed
- * with) and the path moves to the next depth. */
-static inline void path_scattered(const PathState *ps, uint32_t p, vec3 pos, const LightSampleContext *lc, float pdf,
-                                  int delta) {
-    ps->prev_pos[p] = pos;
-    ps->prev_normal[p] = lc->n;
-    ps->prev_light_vertex[p] = lc->vertex;
-    ps->prev_scatter_pdf[p] = pdf;
-    ps->prev_delta[p] = (uint8_t)delta;
-    ps->prev_link_class[p] = (uint16_t)lc->link_class;
-    ps->depth[p] = ps->depth[p] + 1;
-}
-
-/* stage_shadow.c: transmittance (RGB) of a shadow segment starting in mesh medium
- * `medium` through the scene's media, with the path's shadow sub-stream of this depth (1
- * without media). */
-vec3 shadow_transmittance(const Integrator *ig, Slice *s, uint64_t key, uint32_t depth, uint32_t medium, vec3 o,
-                          vec3 d, float tmax);
-
-/* stage_surface.c: next-event estimation's sampling half, shared by surface and medium
- * vertices: the light sampler picks a light (its outcome token in *outcome either way), the
- * light is sampled and the scattering function evaluated, MIS-weighted with the power
- * heuristic. Returns 1 with the pending contribution (before visibility) in *contrib when it
- * is finite and non-zero. The vertex's bounce dimensions supply every random number. */
-struct Scatter;
-int direct_light_sample(const Integrator *ig, uint32_t p, const struct Scatter *sc, const LightSampleContext *lc,
-                        LightLiSample *ls, vec3 *contrib, uint32_t *outcome);
-/* The same with the throughput and the six uniforms (select, descend, the light's four) given
- * (a technique with its own random numbers: in-scattering sampling). */
-int direct_light_sample_u(const Integrator *ig, vec3 beta, const struct Scatter *sc, const LightSampleContext *lc,
-                          const float u[6], LightLiSample *ls, vec3 *contrib, uint32_t *outcome);
-/* stage_surface.c: the shape lights (spheres, rects, disks; suns when the ray escapes, tmax
- * INFINITY) that path p's ray crosses between its tnear and tmax add their radiance,
- * MIS-weighted against NEE from the previous vertex (README "Light shapes"; lights are
- * transparent to rays and invisible to camera rays, as Blender 3.4's lights are in Cycles).
- * in_medium: the medium walk gathers a segment's lights before its free flight, each times the
- * transmittance up to it, and then moves the ray's tnear past the segment. */
-void path_shape_emission(const Integrator *ig, Slice *s, uint32_t p, float tmax, int in_medium);
-
 /* inscatter.c: in-scattering sampling along camera rays (the paper's §4.2, spec §7.2-7.3), for
  * light samplers that provide scattering weights (light_sampler_inscatter_weight). A camera
  * segment through media gets a distance table (stations at the sampler's weights along it);

@@ -271,7 +271,7 @@ typedef struct LightLiSample {
     uint32_t triangle; /* area lights: the sampled triangle (for light_area_pdf_li) */
     uint32_t light;    /* the light's index (set by next-event estimation's selection) */
     float cost;        /* NEE's counted cost beyond a shadow ray: a volume light's line integral and
-                        * pdf (the auto choices' cost model; set by direct_light_sample_u) */
+                        * pdf (the auto choices' cost model; set by vertex_direct_light_u) */
 } LightLiSample;
 
 /* Samples a point on `light` as seen from ctx (ctx->n steers an area light's inner tree; use

@@ -16,15 +16,14 @@
  * exactly as a surface vertex does: the walk is deterministic whatever thread runs it. */
 #include <string.h>
 
-#include "integrator.h"
 #include "rng.h"
-#include "scatter.h"
+#include "vertex.h"
 
 typedef enum { WALK_SURFACE, WALK_ESCAPED, WALK_ENDED } WalkEnd;
 
 #define CAMERA_EMISSION_LINES 8
 
-/* NEE from a medium vertex: as at a surface (direct_light_sample), with the phase function and
+/* NEE from a medium vertex: as at a surface (vertex_direct_light), with the phase function and
  * the shadow ray traced now (the walk is depth-first). */
 static float medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec3 x, const Scatter *sc,
                                  const LightSampleContext *lc, float weight, float segment) {
@@ -33,7 +32,7 @@ static float medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec
     vec3 contrib;
     uint32_t outcome;
     float visibility = 0.0f, unweighted = 0.0f;
-    int sampled = direct_light_sample(ig, p, sc, lc, &ls, &contrib, &outcome);
+    int sampled = vertex_direct_light(ig, p, sc, lc, &ls, &contrib, &outcome);
     if (sampled) {
         float tfar = isinf(ls.distance) ? INFINITY : ls.distance * (1.0f - 1e-3f);
         s->shadow_rays++;
@@ -43,7 +42,7 @@ static float medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec
                 record_child(ig, s, p, ps->pv[p], x, ls.wi, tp, ls.pdf, ls.pdf, 0.0f, 1.0f, PV_FLAG_NEE | PV_FLAG_VOLUME, segment);
         }
         if (scene_visible1_masked(ig->scene, (SceneRay){x, 0.0f, ls.wi, tfar}, lights_shadow_mask(ig->lights, ls.light))) {
-            vec3 T = shadow_transmittance(ig, s, ps->rng_key[p], ps->depth[p], ps->medium[p], x, ls.wi, tfar);
+            vec3 T = vertex_shadow_transmittance(ig, s, ps->rng_key[p], ps->depth[p], ps->medium[p], x, ls.wi, tfar);
             visibility = clampf(v3_average(T), 0.0f, 1.0f);
             vec3 c = v3_mul(contrib, T);
             path_add_radiance(ig, p, v3_scale(c, weight), RADIANCE_DIRECT, ps->depth[p]);
@@ -95,16 +94,13 @@ static void add_volume_emission(const Integrator *ig, Slice *s, uint32_t p, cons
         if (v3_is_black(e)) continue;
         float w = 1.0f;
         uint32_t id = media_id(media, m);
-        if (lights->of_medium && m >= media->vdb && m < media->vdb + media->num_vdb && !ps->prev_delta[p] &&
-            ig->emission_auto.on[id]) {
+        LightSampleContext lc; /* (volume lights are never linked) */
+        if (lights->of_medium && m >= media->vdb && m < media->vdb + media->num_vdb && ig->emission_auto.on[id] &&
+            vertex_previous_context(ps, p, &lc)) {
             int32_t light = lights->of_medium[m - media->vdb];
-            if (light >= 0) {
-                LightSampleContext lc = {ps->prev_pos[p], ps->prev_normal[p], ps->prev_light_vertex[p]};
-                lc.link_class = ps->prev_link_class[p]; /* (volume lights are never linked) */
-                float pl = light_sampler_pmf(ig->light_sampler, &lc, (uint32_t)light) *
-                           light_volume_pdf_li(lights, &lights->lights[light], ps->prev_pos[p], ray.dir);
-                w = power_heuristic(ps->prev_scatter_pdf[p], pl);
-            }
+            if (light >= 0)
+                w = vertex_emitter_weight(ig, &lc, p, (uint32_t)light,
+                                          light_volume_pdf_li(lights, &lights->lights[light], lc.p, ray.dir));
         }
         vec3 c = v3_scale(v3_mul(beta, e), w);
         if (!v3_is_black(c) && v3_is_finite(c)) {
@@ -153,7 +149,7 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         /* the light shapes along the segment, each times the transmittance up to it, whatever
          * the free flight does next (as the emission above); the surface or escape stage then
          * starts past the segment (README "Light shapes") */
-        path_shape_emission(ig, s, p, tmax, 1);
+        vertex_shape_emission(ig, s, p, tmax, 1);
         media_sample_event(&view, o, d, 0.0f, tmax, b, &rng, &ev, &s->volume);
         if (ev.type == VOLUME_EVENT_ABSORBED) return WALK_ENDED;
         beta = v3_mul(beta, v3(ev.weight[0], ev.weight[1], ev.weight[2]));
@@ -194,19 +190,9 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         float u[6];
         scatter_numbers(&sc, &g, u);
         if (!scatter_sample_guided(&sc, u, &ss)) return WALK_ENDED;
-        beta = v3_mul(beta, ss.weight);
-        ps->rr_scale[p] *= ss.rr_factor;
-        if (depth + 1 >= RR_START_DEPTH &&
-            !russian_roulette(&beta, ps->rr_scale[p], dims_lane(&g, 3)))
-            return WALK_ENDED;
-        ps->throughput[p] = beta;
-        if (ig->record.active) { /* the continuation's vertex; the scattering event is done with the incoming one */
-            uint32_t incoming = ps->pv[p];
-            ps->pv[p] = record_child(ig, s, p, incoming, x, ss.wi, beta, ss.pdf, ss.scatter_pdf, ss.guide_pdf, 1.0f, PV_FLAG_VOLUME,
-                                     ev.t);
-            record_done(ig, s, p, incoming);
-        }
-        path_scattered(ps, p, x, &lc, ss.scatter_pdf, ss.delta); /* MIS against NEE: the function's pdf (scatter.h) */
+        uint32_t incoming = ps->pv[p];
+        if (!vertex_continue(ig, s, p, x, &ss, &g, &lc, 1.0f, PV_FLAG_VOLUME, ev.t)) return WALK_ENDED;
+        if (ig->record.active) record_done(ig, s, p, incoming); /* the scattering event is done with the incoming vertex */
         /* the next segment: its closest hit now (depth-first), then walk it */
         SceneRay next = {x, 0.0f, ss.wi, INFINITY};
         ps->ray[p] = next;

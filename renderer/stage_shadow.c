@@ -2,15 +2,7 @@
  * pending contribution times the transmittance of the media it crosses; either way its
  * outcome (the fraction that reached the light: the transmittance's average, 0 when
  * occluded) goes back to the light sampler, which may learn from it. */
-#include "integrator.h"
-#include "rng.h"
-
-vec3 shadow_transmittance(const Integrator *ig, Slice *s, uint64_t key, uint32_t depth, uint32_t medium, vec3 o,
-                          vec3 d, float tmax) {
-    RngStream stream = rng_stream(key, depth, RNG_STREAM_SHADOW);
-    VolumeRng rng = {rng_stream_next_cb, &stream};
-    return media_transmittance_segment(ig->media, medium, o, d, tmax, &rng, &s->volume);
-}
+#include "vertex.h"
 
 void stage_shadow(const Integrator *ig, Slice *s) {
     const PathState *ps = &ig->ps;
@@ -42,7 +34,7 @@ void stage_shadow(const Integrator *ig, Slice *s) {
                 vec3 T = v3s(1.0f);
                 if (media) {
                     const SceneRay *r = &ps->shadow_ray[p];
-                    T = shadow_transmittance(ig, s, ps->rng_key[p], ps->shadow_depth[p], ps->shadow_medium[p], r->org,
+                    T = vertex_shadow_transmittance(ig, s, ps->rng_key[p], ps->shadow_depth[p], ps->shadow_medium[p], r->org,
                                              r->dir, r->tfar);
                 }
                 visibility = media ? clampf(v3_average(T), 0.0f, 1.0f) : 1.0f;

@@ -7,9 +7,7 @@
  * scattering function samples a direction, Russian roulette, the next wave's ray). The hit
  * queue is in (primitive, Morton) order, so consecutive hits share materials, textures and
  * the light sampler's per-vertex lookups, and the path state is visited in random slot order: it is prefetched ahead. */
-#include "integrator.h"
-#include "rng.h"
-#include "scatter.h"
+#include "vertex.h"
 
 /* how many hits ahead the path state is prefetched; the hit's index triple at half that,
  * its vertices at a quarter (bench.gltf, 2 threads: 16 against 8, alternating runs, ratio
@@ -29,60 +27,11 @@ static void surface_emission(const Integrator *ig, uint32_t p, const SurfaceHit 
     vec3 le = scene_emitted_radiance(ig->scene, h, wo);
     if (v3_is_black(le)) return;
     float w = 1.0f;
-    if (!ps->prev_delta[p]) {
-        LightSampleContext lc = {ps->prev_pos[p], ps->prev_normal[p], ps->prev_light_vertex[p]};
-        lc.link_class = link_class;
-        float pl = light_sampler_pmf(ig->light_sampler, &lc, (uint32_t)light) *
-                   light_area_pdf_li(&ig->lights->lights[light], &lc, h->triangle, h->p, h->ng);
-        w = power_heuristic(ps->prev_scatter_pdf[p], pl);
-    }
+    LightSampleContext lc;
+    if (vertex_previous_context(ps, p, &lc))
+        w = vertex_emitter_weight(ig, &lc, p, (uint32_t)light,
+                                  light_area_pdf_li(&ig->lights->lights[light], &lc, h->triangle, h->p, h->ng));
     path_add_radiance(ig, p, v3_scale(v3_mul(ps->throughput[p], le), w), RADIANCE_EMISSION, ps->depth[p]);
-}
-
-/* One crossed shape light: its radiance with its MIS weight against NEE from the previous vertex
- * (in a medium walk, times the transmittance up to it: ratio tracking with a sub-stream of its
- * own per light). */
-typedef struct ShapeEmission { const Integrator *ig; Slice *s; uint32_t p; int in_medium; } ShapeEmission;
-static void shape_emission_add(void *user, uint32_t light, float t, vec3 le) {
-    const ShapeEmission *se = user;
-    const Integrator *ig = se->ig;
-    const PathState *ps = &ig->ps;
-    uint32_t p = se->p, link_class = ps->prev_link_class[p];
-    /* light linking: a light that does not reach the previous vertex adds nothing there */
-    if (link_class && !light_reaches(ig->lights, link_class, light)) return;
-    const SceneRay *ray = &ps->ray[p];
-    float w = 1.0f;
-    if (!ps->prev_delta[p]) {
-        vec3 prev = ps->prev_pos[p];
-        LightSampleContext lc = {prev, ps->prev_normal[p], ps->prev_light_vertex[p]};
-        lc.link_class = link_class;
-        /* the pdf from the previous vertex (a crossed medium boundary started this ray later) */
-        float tp = isinf(t) ? INFINITY : v3_length(v3_sub(v3_madd(ray->org, ray->dir, t), prev));
-        float pl = light_sampler_pmf(ig->light_sampler, &lc, light) *
-                   light_shape_pdf_li(&ig->lights->lights[light], prev, ray->dir, tp);
-        w = power_heuristic(ps->prev_scatter_pdf[p], pl);
-    }
-    vec3 c = v3_scale(v3_mul(ps->throughput[p], le), w);
-    if (se->in_medium && !v3_is_black(c)) {
-        RngStream stream = rng_stream(ps->rng_key[p], ps->depth[p],
-                                      RNG_STREAM_SHADOW + ((light + 1u) << 8) + ((uint32_t)ps->crossings[p] << 24));
-        VolumeRng rng = {rng_stream_next_cb, &stream};
-        vec3 T = media_transmittance_segment(ig->media, ps->medium[p], ray->org, ray->dir, t, &rng, &se->s->volume);
-        c = v3_mul(c, T);
-    }
-    path_add_radiance(ig, p, c, RADIANCE_EMISSION, ps->depth[p]);
-}
-
-void path_shape_emission(const Integrator *ig, Slice *s, uint32_t p, float tmax, int in_medium) {
-    const Lights *lights = ig->lights;
-    if (!lights->num_shapes) return;
-    const PathState *ps = &ig->ps;
-    /* camera rays do not see them: Blender 3.4's lights have visible_camera off (Cycles then
-     * skips them for camera rays), and they are Blender's lights */
-    if (ps->depth[p] == 0) return;
-    const SceneRay ray = ps->ray[p];
-    ShapeEmission se = {ig, s, p, in_medium};
-    lights_shape_crossings(lights, ray.org, ray.dir, ray.tnear, tmax, ps->prev_pos[p], shape_emission_add, &se);
 }
 
 /* The mesh medium on the side of the surface a ray in direction d leaves into: the surface's
@@ -112,77 +61,6 @@ static int cross_boundary(const Integrator *ig, Slice *s, uint32_t p, const Scen
     return 1;
 }
 
-/* Whether light_sample_li draws random numbers for the light (a point, spot or distant light
- * without a shape is one point, one direction). */
-static int light_sample_uses_u(const Light *l) {
-    return light_is_shape(l) || !(l->type == LIGHT_POINT || l->type == LIGHT_SPOT || l->type == LIGHT_DIRECTIONAL);
-}
-
-/* direct_light_sample_u with the light's four numbers given (u_light) or, with the vertex's light
- * group, drawn from the path's dimensions only if the selected light uses them: the same
- * numbers either way, so the same estimate. */
-static int direct_light_sample_core(const Integrator *ig, vec3 beta, const Scatter *sc, const LightSampleContext *lc,
-                                    float u_select, float u_descend, const float *u_light, DimsGroup *group,
-                                    LightLiSample *ls, vec3 *contrib, uint32_t *outcome) {
-    float pmf;
-    uint32_t li = light_sampler_select(ig->light_sampler, lc, u_select, u_descend, &pmf, outcome);
-    ls->light = pmf > 0.0f ? li : UINT32_MAX;
-    ls->cost = 0.0f;
-    if (!(pmf > 0.0f)) return 0;
-    const Light *light = &ig->lights->lights[li];
-    /* light linking: every strategy gives unlinked lights probability 0 (a strategy that
-     * could still land on one reports pmf 0 there): a guard, no sample */
-    if (lc->link_class && !light_reaches(ig->lights, lc->link_class, li)) return 0;
-    /* an emissive volume whose emission sampling is off (auto): found by tracking alone */
-    if (light->type == LIGHT_VOLUME && !ig->emission_auto.on[light->medium]) return 0;
-    float u[4] = {0.0f, 0.0f, 0.0f, 0.0f};
-    if (!group) {
-        for (int k = 0; k < 4; ++k) u[k] = u_light[k];
-    } else if (light_sample_uses_u(light)) {
-        /* the group's stratified pair (lanes 0, 1) goes to the light's 2D point: u0, u1 for shapes,
-         * u1, u2 for an emissive mesh, whose u0 picks the triangle (with independent numbers the
-         * order of the dimensions is kept: the images of the versions before Sobol') */
-        int mesh = light->type == LIGHT_AREA && group->dims->sobol;
-        u[mesh ? 1 : 0] = dims_lane(group, 0);
-        u[mesh ? 2 : 1] = dims_lane(group, 1);
-        u[mesh ? 0 : 2] = dims_lane(group, 3);
-        if (light->type == LIGHT_VOLUME) u[3] = dims_bounce(group->dims, group->depth, RNG_BOUNCE_LIGHT_X); /* only they read it */
-    }
-    uint64_t collisions = lc->stats ? lc->stats->collisions : 0;
-    int ok = light_sample_li(ig->lights, light, lc, u[0], u[1], u[2], u[3], ls);
-    /* a volume light: the line's end (a ray), the pdf's DDA (about a ray), its collisions */
-    if (light->type == LIGHT_VOLUME)
-        ls->cost = 2.0f + (lc->stats ? 0.1f * (float)(lc->stats->collisions - collisions) : 0.0f);
-    if (!ok) return 0;
-    float scatter_pdf = 0.0f;
-    vec3 f = scatter_eval(sc, ls->wi, ls->is_delta ? NULL : &scatter_pdf);
-    if (v3_is_black(f)) return 0;
-    float light_pdf = pmf * ls->pdf;
-    float w = ls->is_delta ? 1.0f : power_heuristic(light_pdf, scatter_pdf);
-    *contrib = v3_scale(v3_mul(v3_mul(beta, f), ls->radiance), w / light_pdf);
-    return v3_is_finite(*contrib) && !v3_is_black(*contrib);
-}
-
-int direct_light_sample_u(const Integrator *ig, vec3 beta, const Scatter *sc, const LightSampleContext *lc,
-                          const float u[6], LightLiSample *ls, vec3 *contrib, uint32_t *outcome) {
-    return direct_light_sample_core(ig, beta, sc, lc, u[0], u[1], u + 2, NULL, ls, contrib, outcome);
-}
-
-int direct_light_sample(const Integrator *ig, uint32_t p, const Scatter *sc, const LightSampleContext *lc,
-                        LightLiSample *ls, vec3 *contrib, uint32_t *outcome) {
-    const PathState *ps = &ig->ps;
-    PathDims dims = path_dims(ig, p);
-    uint32_t depth = ps->depth[p];
-    DimsGroup light = dims_group(&dims, depth, DIMS_LIGHT); /* the light's u, v, the selection, the light's w */
-    /* the descent number only for a sampler that reads it (the others ignore it) */
-    float u_descend = light_sampler_uses_descend(ig->light_sampler) ? dims_bounce(&dims, depth, RNG_BOUNCE_LIGHT_DESCEND)
-                                                                     : 0.0f;
-    float u_select = depth == 0 ? dims_bounce(&dims, depth, RNG_BOUNCE_LIGHT_SELECT) /* in the camera group */
-                                : dims_lane(&light, 2);
-    return direct_light_sample_core(ig, ps->throughput[p], sc, lc, u_select, u_descend, NULL, &light, ls,
-                                    contrib, outcome);
-}
-
 /* Next-event estimation from the vertex: the MIS-weighted contribution pending on a shadow ray
  * (queued when non-zero). The selection's outcome goes back to the sampler: from the shadow
  * stage when a ray is queued, from here (nothing got through) when not. */
@@ -193,7 +71,7 @@ static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, con
     LightLiSample ls;
     vec3 contrib;
     uint32_t outcome;
-    int sampled = direct_light_sample(ig, p, sc, lc, &ls, &contrib, &outcome);
+    int sampled = vertex_direct_light(ig, p, sc, lc, &ls, &contrib, &outcome);
     emission_probe_nee(ig, p, ls.light, 0.0f, ls.cost + (sampled ? 1.0f : 0.0f)); /* the shadow ray's part comes later */
     if (sampled) {
         vec3 o = offset_ray_origin(h->p, scatter_side_normal(sc, ls.wi));
@@ -223,29 +101,17 @@ static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, con
     light_sampler_record(ig->light_sampler, outcome, 0.0f); /* no shadow ray: nothing reached the light */
 }
 
-/* The continuation: with the direction the scattering function sampled (ss; NULL: none), the
- * roulette, and the next wave's ray with the MIS context of this vertex (and its recorder vertex,
- * a child of the incoming ray's). Returns 1 when the path goes on. */
+/* The continuation (vertex_continue) with the direction the scattering function sampled (ss;
+ * NULL: none), then the next wave's ray, on the side of the surface it leaves into. Returns 1 when
+ * the path goes on. */
 static int surface_continuation(const Integrator *ig, Slice *s, uint32_t p, const SurfaceHit *h,
-                                 const Scatter *sc, const LightSampleContext *lc, DimsGroup *g, const ScatterSample *sampled) {
+                                 const Scatter *sc, const LightSampleContext *lc, DimsGroup *g, const ScatterSample *ss) {
     const PathState *ps = &ig->ps;
-    uint32_t depth = ps->depth[p];
-    if (!sampled) return 0;
-    ScatterSample ss = *sampled;
-    vec3 beta = v3_mul(ps->throughput[p], ss.weight);
-    ps->rr_scale[p] *= ss.rr_factor;
-    if (!v3_is_finite(beta) || v3_is_black(beta)) return 0;
-    if (depth + 1 >= RR_START_DEPTH &&
-        !russian_roulette(&beta, ps->rr_scale[p], dims_lane(g, 3)))
-        return 0;
-    ps->throughput[p] = beta;
-    if (ss.transmitted) ps->medium[p] = side_medium(ig, p, h, ss.wi);
-    if (ig->record.active)
-        ps->pv[p] = record_child(ig, s, p, ps->pv[p], h->p, ss.wi, beta, ss.pdf, ss.scatter_pdf, ss.guide_pdf,
-                                 fabsf(v3_dot(ss.wi, sc->frame.n)), (ss.delta ? PV_FLAG_DELTA : 0u) | guide_surface_flags(sc->ng),
-                                 ps->hit[p].t);
-    path_scattered(ps, p, h->p, lc, ss.scatter_pdf, ss.delta); /* MIS against NEE: the function's pdf (scatter.h) */
-    ps->ray[p] = (SceneRay){offset_ray_origin(h->p, scatter_side_normal(sc, ss.wi)), 0.0f, ss.wi, INFINITY};
+    if (!ss) return 0;
+    uint32_t flags = ig->record.active ? (ss->delta ? PV_FLAG_DELTA : 0u) | guide_surface_flags(sc->ng) : 0u;
+    if (!vertex_continue(ig, s, p, h->p, ss, g, lc, fabsf(v3_dot(ss->wi, sc->frame.n)), flags, ps->hit[p].t)) return 0;
+    if (ss->transmitted) ps->medium[p] = side_medium(ig, p, h, ss->wi);
+    ps->ray[p] = (SceneRay){offset_ray_origin(h->p, scatter_side_normal(sc, ss->wi)), 0.0f, ss->wi, INFINITY};
     s->keys[s->num_rays] = sort_key_ray(ig, &ps->ray[p]);
     s->rays[s->num_rays++] = p;
     return 1;
@@ -323,7 +189,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
             guide_look_ahead(ig, s->hits[i + GUIDE_AHEAD], &ahead[(i + GUIDE_AHEAD) % GUIDE_AHEAD_RING], ahead_cursors);
         uint32_t p = s->hits[i];
         const SceneHit *hit = &ps->hit[p];
-        path_shape_emission(ig, s, p, hit->t, 0);
+        vertex_shape_emission(ig, s, p, hit->t, 0);
         if (scene_hit_primitive(scene, hit)->medium_boundary) {
             if (!cross_boundary(ig, s, p, hit)) path_end(ig, s, p);
             continue;

@@ -4,10 +4,13 @@
     python3 scenes/image_identity.py OLD_CANDELA NEW_CANDELA [--out DIR] [--res WxH] [--spp N]
 
 Renders every scene below with every light sampler (and the cache point variants) with both
-binaries at the same seed and compares the EXR files byte for byte (the writer is
-deterministic, so equal pixels give equal files). Generated many-light scenes are used when
-`python3 scenes/make_manylights.py` has written them to build/scenes/. Prints one line per
-render and exits non-zero if any pair differs or a render fails.
+binaries at the same seed, then the EXTRA renders (volumes, guiding, progressive and BSDF-aware
+cache points, a render resumed from a checkpoint), and compares the images' pixels bit for bit
+(`build/tests/exr_same`: every channel, not the header's provenance, which names the build; byte
+for byte when that program is absent). Generated scenes are used when
+`python3 scenes/make_manylights.py` and `python3 scenes/make_volumes.py` have written them to
+build/scenes/. Prints one line per render and exits non-zero if any pair differs or a render
+fails.
 """
 import argparse
 import filecmp
@@ -43,8 +46,47 @@ VARIANTS = [
     ("cachepoints-linear", ["--light-sampler", "cachepoints", "--cachepoint-build", "linear"]),
 ]
 
+VOLUMES = os.path.join(ROOT, "build", "scenes", "volumes")
+# (name, scene, flags): what the light-sampler matrix does not reach. "@ckpt" in a variant's
+# flags: render with --checkpoint, then again with --resume-from that checkpoint (the second
+# image is the one compared)
+EXTRA = [
+    ("torch_mist", os.path.join(VOLUMES, "torch_mist.gltf"), []),
+    ("camera_in_fog", os.path.join(VOLUMES, "camera_in_fog.gltf"), []),
+    ("glass_absorb", os.path.join(VOLUMES, "glass_absorb.gltf"), []),
+    ("cloud_point_env", os.path.join(VOLUMES, "cloud_point_env.gltf"), []),
+    ("cloud_point_env-guided", os.path.join(VOLUMES, "cloud_point_env.gltf"), ["--guiding", "mis"]),
+    ("rect_fog", os.path.join(ROOT, "tests", "scenes", "rect_fog.gltf"), []),
+    ("shapes_mix", os.path.join(ROOT, "tests", "scenes", "shapes_mix.gltf"), []),
+    ("cornell_indirect-mis", os.path.join(ROOT, "scenes", "cornell_indirect.gltf"), ["--guiding", "mis", "--spp", "24"]),
+    ("cornell_indirect-ris", os.path.join(ROOT, "scenes", "cornell_indirect.gltf"), ["--guiding", "ris", "--spp", "24"]),
+    ("cornell_indirect-auto", os.path.join(ROOT, "scenes", "cornell_indirect.gltf"), ["--guiding", "auto", "--spp", "24"]),
+    ("guiding_interior-mis-ckpt", os.path.join(ROOT, "scenes", "guiding_interior.gltf"),
+     ["--guiding", "mis", "--spp", "24", "@ckpt"]),
+    ("default-progressive", os.path.join(ROOT, "scenes", "default.gltf"),
+     ["--light-sampler", "cachepoints", "--cachepoint-progressive", "on", "--spp", "16"]),
+    ("default-bsdf-off", os.path.join(ROOT, "scenes", "default.gltf"),
+     ["--light-sampler", "cachepoints", "--cachepoint-bsdf", "off"]),
+]
+
+
+EXR_SAME = os.path.join(ROOT, "build", "tests", "exr_same")
+
+
+def same_images(a, b):
+    if os.access(EXR_SAME, os.X_OK):
+        return subprocess.run([EXR_SAME, a, b], capture_output=True).returncode == 0
+    return filecmp.cmp(a, b, shallow=False)
+
 
 def render(binary, scene, flags, out, res, spp):
+    if "@ckpt" in flags:
+        flags = [f for f in flags if f != "@ckpt"]
+        ckpt = out + ".ckpt"
+        good, err = render(binary, scene, flags + ["--checkpoint", ckpt], out + ".first.exr", res, spp)
+        if not good:
+            return good, err
+        return render(binary, scene, flags + ["--resume-from", ckpt], out, res, spp)
     cmd = [binary, "render", scene, "--res", res, "--spp", str(spp), "--seed", "7", "--quiet", "--no-png",
            "-o", out] + flags
     r = subprocess.run(cmd, capture_output=True, text=True)
@@ -85,12 +127,37 @@ def main():
                     ok = False
                 outs.append(out)
             total += 1
-            if ok and filecmp.cmp(outs[0], outs[1], shallow=False):
+            if ok and same_images(outs[0], outs[1]):
                 print(f"same   {name} {vname}")
             else:
                 if ok:
                     print(f"DIFFER {name} {vname}")
                 bad += 1
+    for name, scene, flags in EXTRA:
+        if not os.path.exists(scene):
+            print(f"skip   {name} (absent)")
+            continue
+        if a.only and not any(s in name for s in a.only.split(",")):
+            continue
+        outs = []
+        ok = True
+        for tag, binary in (("old", a.old), ("new", a.new)):
+            out = os.path.join(a.out, f"extra-{name}-{tag}.exr")
+            for f in (out, out + ".ckpt"):
+                if os.path.exists(f):
+                    os.remove(f)
+            good, err = render(binary, scene, flags, out, a.res, a.spp)
+            if not good:
+                print(f"FAIL   {name} ({tag}): {err}")
+                ok = False
+            outs.append(out)
+        total += 1
+        if ok and same_images(outs[0], outs[1]):
+            print(f"same   {name}")
+        else:
+            if ok:
+                print(f"DIFFER {name}")
+            bad += 1
     print(f"{total - bad} of {total} renders identical")
     return 1 if bad else 0
 

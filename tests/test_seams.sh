@@ -3,11 +3,12 @@
 # state, the film, the scattering interface) name no light-selection strategy; they reach
 # light selection only through the protocol of renderer/light_sampler.h. A strategy named
 # there would be a second place to change when a strategy (or a second caller of light
-# selection) is added. Usage: test_seams.sh SOURCE_ROOT
+# selection) is added. And no stage file calls a function another stage file defines (what
+# stages share is renderer/vertex.c's). Usage: test_seams.sh SOURCE_ROOT
 set -u
 root=${1:?usage: test_seams.sh SOURCE_ROOT}
 cd "$root/renderer" || exit 1
-files=$(ls stage_*.c wavefront.c integrator.h path_state.h path_state.c render.c sort.c film.c scatter.h scatter.c)
+files=$(ls stage_*.c wavefront.c integrator.h path_state.h path_state.c render.c sort.c film.c scatter.h scatter.c vertex.h vertex.c)
 pattern='cache ?points?|cachepoint|CachePoint|optimal|light_?tree|LightTree|CANDELA_LIGHT_SAMPLER_[A-Z]+|power_distribution'
 hits=$(grep -n -i -E "$pattern" $files)
 if [ -n "$hits" ]; then
@@ -23,3 +24,24 @@ if [ -n "$direct" ]; then
     exit 1
 fi
 echo "$(echo $files | wc -w) files checked: no strategy named"
+# stages do not use each other as libraries: what two stages share lives in vertex.c (or
+# integrator.h), so no stage file calls a function another stage file defines
+calls=""
+for def in stage_*.c; do
+    names=$(grep -E '^[A-Za-z_][A-Za-z0-9_ *]*[ *]([a-z_][a-z0-9_]*)\(' "$def" | grep -v -E '^(static|typedef)' |
+            sed -E 's/^[^(]*[ *]([a-z_][a-z0-9_]*)\(.*/\1/')
+    for name in $names; do
+        for use in stage_*.c; do
+            [ "$use" = "$def" ] && continue
+            hit=$(grep -n -E "\b$name\(" "$use")
+            [ -n "$hit" ] && calls="$calls$use calls $name (defined in $def): $hit
+"
+        done
+    done
+done
+if [ -n "$calls" ]; then
+    echo "FAIL: a stage calls a function of another stage file (move it to renderer/vertex.c):"
+    printf '%s' "$calls"
+    exit 1
+fi
+echo "$(ls stage_*.c | wc -l) stage files: none calls another's functions"
