@@ -21,7 +21,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "checkpoint.h"
+#include "ckpt_io.h"
 #include "integrator.h"
 
 typedef struct ProbeMedium {

@@ -24,6 +24,7 @@
 #include <unistd.h>
 
 #include "checkpoint.h"
+#include "feature.h"
 #include "io.h"
 #include "options_table.h"
 
@@ -310,9 +311,9 @@ int checkpoint_write(const char *path_arg, const CheckpointIdentity *id, const C
     if (rc == 0) rc = film_save(&ig->film, f);
     if (rc == 0 && !final) {
         uint32_t learns = sampler->ops->save_learned != NULL;
-        rc = record_save(ig, f) | guide_save(ig, f) | auto_probe_save(&ig->inscatter_auto, ig->npixels, f) |
-             auto_probe_save(&ig->emission_auto, ig->npixels, f) | ckpt_put_tag(f, LSAMPLER_TAG, LSAMPLER_VERSION) |
-             ckpt_put(f, &learns, sizeof learns);
+        rc = features_save(ig, f); /* each part in turn: the file's order */
+        rc |= ckpt_put_tag(f, LSAMPLER_TAG, LSAMPLER_VERSION);
+        rc |= ckpt_put(f, &learns, sizeof learns);
         if (rc == 0) rc = light_sampler_save_learned(sampler, f);
     }
     uint64_t sum = 0;
@@ -351,10 +352,7 @@ int checkpoint_load(const char *path, const CheckpointIdentity *id, CheckpointPr
         snprintf(err, CANDELA_ERR_LEN, "%.300s: not a checkpoint candela wrote: %s", path, why);
         return -1;
     }
-    if (rc == 0) { what = "radiance recorder"; rc = record_load(ig, f); }
-    if (rc == 0) { what = "guiding"; rc = guide_load(ig, f); }
-    if (rc == 0) { what = "in-scattering auto choice"; rc = auto_probe_load(&ig->inscatter_auto, ig->npixels, f); }
-    if (rc == 0) { what = "emission sampling auto choice"; rc = auto_probe_load(&ig->emission_auto, ig->npixels, f); }
+    if (rc == 0) rc = features_load(ig, f, &what);
     uint32_t learns = 0;
     if (rc == 0) {
         what = "light sampler";

@@ -1,7 +1,7 @@
-/* renderer/checkpoint.h (private): checkpoints and film files (checkpoint.c), and the
- * save/load pair each module of the renderer gives its own state (film.c, record.c, guide.c,
- * auto_probe.c; the light sampler's in its ops, guiding's and the cache points' in their
- * modules).
+/* renderer/checkpoint.h (private): checkpoints and film files (checkpoint.c), and the film's
+ * save/load pair (film.c). The integrator's features save and load their own state through the
+ * feature table (feature.h), the light sampler through its ops, guiding's fields and the cache
+ * points in their modules; all of them write with ckpt_io.h.
  *
  * A checkpoint is the state at a batch boundary: the film sums, every learned structure the
  * next batch reads or accumulates into, and where the render stands (iteration, samples done,
@@ -16,20 +16,8 @@
 #include <stdint.h>
 #include <stdio.h>
 
+#include "ckpt_io.h"
 #include "integrator.h"
-
-/* A module's section starts with its tag and version (checked on load). */
-static inline int ckpt_put(FILE *out, const void *p, size_t n) { return fwrite(p, 1, n, out) == n ? 0 : -1; }
-static inline int ckpt_get(FILE *in, void *p, size_t n) { return fread(p, 1, n, in) == n ? 0 : -1; }
-static inline int ckpt_put_tag(FILE *out, uint32_t tag, uint32_t version) {
-    uint32_t h[2] = {tag, version};
-    return ckpt_put(out, h, sizeof h);
-}
-static inline int ckpt_get_tag(FILE *in, uint32_t tag, uint32_t version) {
-    uint32_t h[2];
-    return ckpt_get(in, h, sizeof h) == 0 && h[0] == tag && h[1] == version ? 0 : -1;
-}
-#define CKPT_TAG(a, b, c, d) ((uint32_t)(a) | (uint32_t)(b) << 8 | (uint32_t)(c) << 16 | (uint32_t)(d) << 24)
 
 /* Where a render stands at a batch boundary. */
 typedef struct CheckpointProgress {
@@ -73,22 +61,5 @@ int checkpoint_load(const char *path, const CheckpointIdentity *id, CheckpointPr
  * [spp_done, next_spp_done): the barrier with the largest cumulative spp not above it. None
  * at the last barrier (the image itself is written then). */
 int checkpoint_due(int spp_done, int next_spp_done, int spp_total);
-
-/* The modules' sections. film_load checks the size (and the recorder AOV's presence); -3: an
- * adaptive film of the rule before the pilot rule (not resumable). */
-int film_save(const Film *f, FILE *out);
-int film_load(Film *f, FILE *in);
-/* A loaded shard film fit to merge: every pixel's count equal to the shard's samples, sums
- * finite (film.c). -1 with the first bad pixel in what. */
-int film_check(const Film *f, uint64_t samples, char *what, size_t len);
-/* The same for a checkpoint's film: a pixel still sampling counts [done, most], one adaptive
- * sampling stopped [1, done]. */
-int film_check_counts(const Film *f, uint64_t done, uint64_t most, const char *declares, char *what, size_t len);
-int record_save(const Integrator *ig, FILE *out);
-int record_load(Integrator *ig, FILE *in);
-int guide_save(const Integrator *ig, FILE *out);
-int guide_load(Integrator *ig, FILE *in);
-int auto_probe_save(const AutoProbe *ap, uint32_t npixels, FILE *out);
-int auto_probe_load(AutoProbe *ap, uint32_t npixels, FILE *in);
 
 #endif

@@ -5,7 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "checkpoint.h"
+#include "ckpt_io.h"
 #include "integrator.h"
 
 int film_alloc(Film *f, int w, int h) {

@@ -22,8 +22,8 @@
 
 #include "clock.h"
 #include "io.h"
-#include "checkpoint.h"
-#include "integrator.h"
+#include "ckpt_io.h"
+#include "feature.h"
 #include "scatter.h"
 
 #define GUIDE_TRAINING_SPP 8 /* samples per pixel of training before guided sampling starts */
@@ -52,7 +52,9 @@
 #define GUIDE_AUTO_COST_GUIDED 1.5
 #define GUIDE_AUTO_THRESHOLD 0.85
 
-int guide_init(Integrator *ig) {
+static void guide_free(Integrator *ig);
+
+static int guide_init(Integrator *ig) {
     GuideState *gs = &ig->guide;
     memset(gs, 0, sizeof *gs);
     gs->guided_from = -1;
@@ -100,7 +102,7 @@ static void probe_free(GuideState *gs) {
     gs->probe_samples = NULL;
 }
 
-void guide_free(Integrator *ig) {
+static void guide_free(Integrator *ig) {
     GuideState *gs = &ig->guide;
     probe_free(gs);
     for (int k = 0; k < GUIDE_FIELDS; ++k) guide_field_free(gs->fields[k]);
@@ -202,7 +204,7 @@ static void keep_last_samples(GuideState *gs, int k) {
     }
 }
 
-void guide_train_batch(Integrator *ig) {
+static void guide_train_batch(Integrator *ig) {
     GuideState *gs = &ig->guide;
     const RecorderSamples *batch = &ig->record.batch;
     if (!gs->on || !ig->record.active || batch->count == 0) return;
@@ -220,7 +222,7 @@ void guide_train_batch(Integrator *ig) {
     gs->train_seconds += clock_seconds() - t0;
 }
 
-void guide_probe_batch(Integrator *ig) {
+static void guide_probe_batch(Integrator *ig) {
     GuideState *gs = &ig->guide;
     if (gs->auto_state != GUIDE_AUTO_PROBING) return;
     const PathState *ps = &ig->ps;
@@ -288,9 +290,9 @@ static void auto_decide(Integrator *ig) {
                 var * time);
 }
 
-int guide_schedule_start(const Integrator *ig) { return ig->guide.guided_from; }
+static int guide_schedule_start(const Integrator *ig) { return ig->guide.guided_from; }
 
-void guide_barrier(Integrator *ig) {
+static void guide_barrier(Integrator *ig) {
     GuideState *gs = &ig->guide;
     if (!gs->on) return;
     if (gs->auto_state == GUIDE_AUTO_PROBING && ig->spp_done >= GUIDE_AUTO_PROBE_SPP) auto_decide(ig);
@@ -310,7 +312,7 @@ void guide_barrier(Integrator *ig) {
     if (ig->record.active && ig->spp_done < ig->opt->spp) gs->last_count = 0; /* guide-dump keeps the last trained iteration's */
 }
 
-void guide_report(const Integrator *ig, CandelaStats *st) {
+static void guide_report(const Integrator *ig, CandelaStats *st) {
     const GuideState *gs = &ig->guide;
     st->guide_auto = gs->auto_state == GUIDE_AUTO_ON ? 1 : gs->auto_state == GUIDE_AUTO_OFF ? 0 : -1;
     st->guide_auto_ratio = gs->auto_ratio;
@@ -363,7 +365,7 @@ static int write_plane(const char *prefix, const char *what, int w, int h, const
     return rc;
 }
 
-int guide_dump(const Integrator *ig, const float at[3], const char *prefix, char err[CANDELA_ERR_LEN]) {
+static int guide_dump(const Integrator *ig, const float at[3], const char *prefix, char err[CANDELA_ERR_LEN]) {
     const GuideState *gs = &ig->guide;
     if (!gs->on) { snprintf(err, CANDELA_ERR_LEN, "guide-dump: guiding is off"); return -1; }
     /* the surface orientation whose leaf at the point learned from the most samples */
@@ -470,7 +472,7 @@ int guide_dump(const Integrator *ig, const float at[3], const char *prefix, char
  * sampling is on, whether samples wait for the next update, the statistics' counts, and --guiding
  * auto's state (while probing, its per-pixel sums). guide-dump's `last` samples are not kept: a
  * dump is a render of its own. */
-int guide_save(const Integrator *ig, FILE *out) {
+static int guide_save(const Integrator *ig, FILE *out) {
     const GuideState *gs = &ig->guide;
     int32_t flags[7] = {gs->on, gs->active, gs->pending, gs->updates, gs->auto_state, gs->train_start, gs->guided_from};
     float prediction[3] = {gs->auto_ratio, gs->auto_indirect, gs->auto_gain};
@@ -489,7 +491,7 @@ int guide_save(const Integrator *ig, FILE *out) {
     return rc;
 }
 
-int guide_load(Integrator *ig, FILE *in) {
+static int guide_load(Integrator *ig, FILE *in) {
     GuideState *gs = &ig->guide;
     int32_t flags[7];
     float prediction[3];
@@ -526,3 +528,46 @@ int guide_load(Integrator *ig, FILE *in) {
     gs->samples_trained = trained;
     return 0;
 }
+
+/* After a batch: the fields learn from its samples, and auto's probe takes its sums. */
+static void guide_batch_end(Integrator *ig, Slice *slices, uint32_t n) {
+    (void)slices;
+    (void)n;
+    guide_train_batch(ig);
+    guide_probe_batch(ig);
+}
+
+/* guide-dump reads the guiding field's leaf at --at: the fields span the scene's bounds, and a
+ * point outside them has no leaf of its own (the nearest one's box would not hold it). Said
+ * before the render, not after it. */
+static int guide_validate(const CandelaOptions *o, const Scene *scene, char err[CANDELA_ERR_LEN]) {
+    if (!o->guide_dump_prefix) return 0;
+    const float *at = o->guide_dump_at;
+    const vec3 lo = scene->bounds_min, hi = scene->bounds_max;
+    if (at[0] >= lo.x && at[0] <= hi.x && at[1] >= lo.y && at[1] <= hi.y && at[2] >= lo.z && at[2] <= hi.z) return 0;
+    snprintf(err, CANDELA_ERR_LEN,
+             "%s: guide-dump --at %g,%g,%g is outside the scene's bounds [%g %g %g] - [%g %g %g], which the guiding "
+             "field covers",
+             o->scene_path, (double)at[0], (double)at[1], (double)at[2], (double)lo.x, (double)lo.y, (double)lo.z,
+             (double)hi.x, (double)hi.y, (double)hi.z);
+    return -1;
+}
+
+static int guide_finish(Integrator *ig, char err[CANDELA_ERR_LEN]) {
+    const CandelaOptions *o = ig->opt;
+    return o->guide_dump_prefix ? guide_dump(ig, o->guide_dump_at, o->guide_dump_prefix, err) : 0;
+}
+
+const IntegratorFeature feature_guiding = {
+    .name = "guiding",
+    .validate = guide_validate,
+    .init = guide_init,
+    .free = guide_free,
+    .batch_end = guide_batch_end,
+    .barrier = guide_barrier,
+    .schedule_start = guide_schedule_start,
+    .report = guide_report,
+    .finish = guide_finish,
+    .save = guide_save,
+    .load = guide_load,
+};

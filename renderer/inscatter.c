@@ -14,6 +14,7 @@
  * x mean(sigma_s(x_k)) / p_select(x_k), the same function of the vertices in both (the
  * trackers report the product). The phase-sampled continuation and everything after the first
  * scatter stay with the null-collision walk. */
+#include "feature.h"
 #include "rng.h"
 #include "vertex.h"
 
@@ -146,23 +147,37 @@ int inscatter_segment_on(const Integrator *ig, const MediaView *view) {
     return 0;
 }
 
-static void inscatter_auto_barrier(void *user) {
-    Integrator *ig = user;
-    auto_probe_barrier(&ig->inscatter_auto, ig->opt->quiet);
-}
+static void inscatter_auto_barrier(Integrator *ig) { auto_probe_barrier(&ig->inscatter_auto, ig->opt->quiet); }
 
 /* The probe attributes a path to the medium of its first camera segment that ran the technique
  * (the view's first medium); `on` is that segment's NEE by both techniques (MIS-weighted),
  * `off` the walk's own NEE unweighted: what the pixel gets without the technique. */
-void inscatter_probe_batch(Integrator *ig, const Slice *slices, uint32_t n) {
+static void inscatter_probe_batch(Integrator *ig, Slice *slices, uint32_t n) {
     const PathState *ps = &ig->ps;
     auto_probe_batch(&ig->inscatter_auto, ig, slices, n, ps->probe_medium, ps->probe_mis, ps->probe_null,
                      ps->probe_cost);
 }
 
-int inscatter_init(Integrator *ig, int mode) {
-    int rc = auto_probe_init(&ig->inscatter_auto, "--volume-cachepoint-scatter", media_count(ig->media), ig->npixels,
-                             mode);
-    if (rc == 0 && mode == 2) integrator_add_barrier_hook(ig, inscatter_auto_barrier, ig);
-    return rc;
+/* In-scattering sampling runs where there are media and lights and the light sampler gives
+ * scattering weights; --volume-cachepoint-scatter on (1) or auto (2) there. */
+static int inscatter_init(Integrator *ig) {
+    const CandelaOptions *o = ig->opt;
+    ig->inscatter = o->volume_inscatter_sampling != 0 && media_any(ig->media) && ig->lights->count > 0 &&
+                    light_sampler_has_inscatter(ig->light_sampler);
+    return auto_probe_init(&ig->inscatter_auto, "--volume-cachepoint-scatter", media_count(ig->media), ig->npixels,
+                           ig->inscatter ? o->volume_inscatter_sampling : 0);
 }
+
+static void inscatter_free(Integrator *ig) { auto_probe_free(&ig->inscatter_auto); }
+static int inscatter_save(const Integrator *ig, FILE *out) { return auto_probe_save(&ig->inscatter_auto, ig->npixels, out); }
+static int inscatter_load(Integrator *ig, FILE *in) { return auto_probe_load(&ig->inscatter_auto, ig->npixels, in); }
+
+const IntegratorFeature feature_inscatter_auto = {
+    .name = "in-scattering auto choice",
+    .init = inscatter_init,
+    .free = inscatter_free,
+    .batch_end = inscatter_probe_batch,
+    .barrier = inscatter_auto_barrier,
+    .save = inscatter_save,
+    .load = inscatter_load,
+};

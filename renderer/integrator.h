@@ -28,6 +28,7 @@
 #define CANDELA_INTEGRATOR_H
 
 #include <pthread.h>
+#include <stdio.h>
 #include <stdint.h>
 
 #include "candela.h"
@@ -63,6 +64,16 @@ void film_free(Film *f);
 void film_add_paths(Film *f, const PathState *ps, uint32_t count);
 /* Mean, variance of the mean (sample variance / n) and AOVs. 0 ok, -1 out of memory. */
 int film_resolve(const Film *f, CandelaImage *img);
+/* The film's checkpoint section (ckpt_io.h). film_load checks the size (and the recorder AOV's presence); -3: an
+ * adaptive film of the rule before the pilot rule (not resumable). */
+int film_save(const Film *f, FILE *out);
+int film_load(Film *f, FILE *in);
+/* A loaded shard film fit to merge: every pixel's count equal to the shard's samples, sums
+ * finite (film.c). -1 with the first bad pixel in what. */
+int film_check(const Film *f, uint64_t samples, char *what, size_t len);
+/* The same for a checkpoint's film: a pixel still sampling counts [done, most], one adaptive
+ * sampling stopped [1, done]. */
+int film_check_counts(const Film *f, uint64_t done, uint64_t most, const char *declares, char *what, size_t len);
 /* Adaptive sampling (film.c has the rule and why it is unbiased). At an iteration barrier past
  * --min-spp: the first call takes the film as it stands as the pilot (every pixel the same
  * count) and fixes each pixel's target count from its neighbours' pilot statistics, never its
@@ -191,7 +202,8 @@ int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene,
                     const SceneMedia *media, const LightSampler *sampler, uint32_t batch);
 void integrator_free(Integrator *ig);
 void integrator_run_batch(Integrator *ig, ThreadPool *pool, CandelaStats *stats);
-void integrator_add_barrier_hook(Integrator *ig, void (*run)(void *user), void *user);
+/* a barrier hook of the caller's (the light sampler's learning): -1 when MAX_BARRIER_HOOKS are taken */
+int integrator_add_barrier_hook(Integrator *ig, void (*run)(void *user), void *user);
 void integrator_barrier(Integrator *ig);
 
 /* bench.c: appends rays[items[i]] (i < n) to the benchmark's ray log (bounce rays with an
@@ -259,9 +271,8 @@ typedef enum {
     RADIANCE_DIRECT       /* next-event estimation through an unoccluded shadow ray */
 } RadianceSource;
 
-/* record.c: the radiance recorder's side of the wavefront (see there). */
-int record_init(Integrator *ig);
-void record_free(Integrator *ig);
+/* record.c: the radiance recorder's side of the wavefront (see there; its lifecycle is its
+ * entry in the feature table, feature.h). */
 /* A camera ray: its vertex is the camera; path skipping is decided here. */
 void record_camera(const Integrator *ig, uint32_t p, uint64_t path);
 /* A child vertex of `parent` for a ray leaving pos in dir with throughput tp, or the parent
@@ -273,16 +284,10 @@ uint32_t record_child(const Integrator *ig, Slice *s, uint32_t p, uint32_t paren
 /* The holder of vertex pv in path p lets go (records and backpropagates at zero). */
 void record_done(const Integrator *ig, Slice *s, uint32_t p, uint32_t pv);
 void record_radiance(const Integrator *ig, uint32_t p, vec3 c, RadianceSource source);
-/* After a batch: flush the threads' caches, merge and sort the samples (RecordState.batch). */
-void record_batch_end(Integrator *ig, Slice *slices, uint32_t n);
-/* At the iteration barrier: the next iteration's path skipping, the counts. */
-void record_barrier(Integrator *ig);
-void record_report(const Integrator *ig, CandelaStats *st);
 
-/* guide.c: path guiding (see there). */
+/* guide.c: path guiding (see there; its lifecycle, training, auto's probe, guide-dump and
+ * checkpoints are its entry in the feature table, feature.h). */
 #define GUIDE_MAX_VOLUME_VERTICES 8 /* medium vertices of a path that are guided (stage_medium.c) */
-int guide_init(Integrator *ig);
-void guide_free(Integrator *ig);
 /* The learned distribution at p: a surface's with normal n (its orientation class), or the
  * medium field's (n zero); NULL while guiding is not active. cursors: one per field, zeroed at
  * the start of a stage (guiding.h: a spatially sorted sequence of lookups stays cheap). */
@@ -298,19 +303,6 @@ static inline int guide_field_of_normal(vec3 n) {
 }
 /* The recorder flags that carry a surface vertex's orientation class. */
 uint32_t guide_surface_flags(vec3 n);
-void guide_train_batch(Integrator *ig);
-/* --guiding auto's probe after a batch: per pixel, consecutive samples' squared differences of
- * the path's radiance and of its indirect part (path_add_radiance's probe_indirect). */
-void guide_probe_batch(Integrator *ig);
-void guide_barrier(Integrator *ig);
-/* The first iteration of the guided schedule (render.c: 8 x 1 spp, then 2, 4, ... capped); -1:
- * the unguided schedule throughout (guiding off, or auto while probing and once off). */
-int guide_schedule_start(const Integrator *ig);
-void guide_report(const Integrator *ig, CandelaStats *st);
-/* candela guide-dump: the learned distribution at the point (PREFIX.guide.exr/.png), a
- * histogram of the last iteration's training directions in its leaf (PREFIX.hist.exr/.png) and
- * the spatial leaves (PREFIX.leaves.ply). 0 ok, -1 with a message. */
-int guide_dump(const Integrator *ig, const float at[3], const char *prefix, char err[CANDELA_ERR_LEN]);
 
 /* Every addition to a path's radiance goes through here (throughput and MIS weight already
  * applied): the one place the radiance recorder observes the contributions of a path, and
@@ -376,14 +368,15 @@ float inscatter_estimate(const Integrator *ig, Slice *s, uint32_t p, SceneRay ra
 /* Whether a camera segment through these media uses the technique (a function of the media
  * and of the iteration's state only, so both techniques agree on it). */
 int inscatter_segment_on(const Integrator *ig, const MediaView *view);
-/* In-scattering sampling's per-medium state (mode 0 off, 1 on, 2 auto) and its probe's
- * accounting after each batch: per path, the camera segment's NEE with and without the
- * technique. 0 ok, -1 out of memory. */
-int inscatter_init(Integrator *ig, int mode);
-void inscatter_probe_batch(Integrator *ig, const Slice *slices, uint32_t n);
+/* In-scattering sampling's per-medium state (off, on, auto) and its probe's accounting after
+ * each batch (per path, the camera segment's NEE with and without the technique) are its entry
+ * in the feature table (feature.h). */
 
 int auto_probe_init(AutoProbe *ap, const char *flag, uint32_t num_media, uint32_t npixels, int mode);
 void auto_probe_free(AutoProbe *ap);
+/* its checkpoint section (the features' save / load hooks) */
+int auto_probe_save(const AutoProbe *ap, uint32_t npixels, FILE *out);
+int auto_probe_load(AutoProbe *ap, uint32_t npixels, FILE *in);
 /* After a batch, in path order: per path the medium it is attributed to (media_id + 1, 0:
  * none), the feature's share of its radiance as rendered and without the feature, its cost. */
 void auto_probe_batch(AutoProbe *ap, const Integrator *ig, const Slice *slices, uint32_t n, const uint32_t *medium,
@@ -407,9 +400,8 @@ static inline double sample_variance(double n, double sum, double sum2) {
 
 /* emission_auto.c: --volume-emission-sampling on / auto, as in-scattering sampling above: all
  * emissive volumes sample their emission by NEE during the probe (4 spp), then only those where
- * the estimated time to unit variance is lower with it. 0 ok, -1 out of memory. */
-int emission_auto_init(Integrator *ig, int mode);
-void emission_probe_batch(Integrator *ig, const Slice *slices, uint32_t n);
+ * the estimated time to unit variance is lower with it (its entry in the feature table,
+ * feature.h). */
 /* The probe's record of a contribution of an emissive medium's emission to path p: `on` what
  * the path added (MIS-weighted NEE or tracking), `off` what tracking alone would add, cost. */
 static inline void emission_probe_add(const Integrator *ig, uint32_t p, uint32_t medium_id, float on, float off,

@@ -22,8 +22,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "checkpoint.h"
-#include "integrator.h"
+#include "ckpt_io.h"
+#include "feature.h"
 #include "rng.h"
 
 #define RECORD_BUDGET_DEFAULT 4         /* vertices per path (the seed's soft budget) */
@@ -34,7 +34,7 @@ static float hash_uniform(uint64_t key, uint64_t salt) {
     return (float)(rng_mix64(key ^ rng_mix64(salt + 0x5265636f72646572ull)) >> 40) * 0x1.0p-24f;
 }
 
-int record_init(Integrator *ig) {
+static int record_init(Integrator *ig) {
     const CandelaOptions *o = ig->opt;
     RecordState *rs = &ig->record;
     memset(rs, 0, sizeof *rs);
@@ -60,10 +60,14 @@ int record_init(Integrator *ig) {
     vec3 ext = v3_sub(ig->scene->bounds_max, ig->scene->bounds_min);
     float diag = v3_length(ext);
     rs->min_distance = isfinite(diag) ? RECORD_MIN_DISTANCE_REL * diag : 0.0f;
+    if (rs->debug_aov) { /* the film's recorder-debug AOV */
+        ig->film.recorder = calloc(3 * (size_t)ig->npixels, sizeof(double));
+        if (!ig->film.recorder) return -1;
+    }
     return 0;
 }
 
-void record_free(Integrator *ig) {
+static void record_free(Integrator *ig) {
     RecordState *rs = &ig->record;
     for (int k = 0; k < MAX_SLICES; ++k) recorder_samples_free(&rs->samples[k].s);
     recorder_samples_free(&rs->batch);
@@ -147,8 +151,9 @@ static void sort_slices(void *ctx, size_t begin, size_t end, int thread_index) {
         if (recorder_samples_sort(&c->rs->samples[k].s) != 0) c->failed[k] = 1;
 }
 
-void record_batch_end(Integrator *ig, Slice *slices, uint32_t n) {
+static void record_batch_end(Integrator *ig, Slice *slices, uint32_t n) {
     RecordState *rs = &ig->record;
+    if (!rs->active) return;
     RecorderSamples *all = &rs->batch;
     recorder_samples_clear(all);
     size_t total = 0;
@@ -184,7 +189,7 @@ void record_batch_end(Integrator *ig, Slice *slices, uint32_t n) {
     rs->iteration_samples += all->count;
 }
 
-void record_barrier(Integrator *ig) {
+static void record_barrier(Integrator *ig) {
     RecordState *rs = &ig->record;
     if (!rs->recorder) return;
     RecorderStats st;
@@ -206,7 +211,7 @@ void record_barrier(Integrator *ig) {
     }
 }
 
-void record_report(const Integrator *ig, CandelaStats *st) {
+static void record_report(const Integrator *ig, CandelaStats *st) {
     const RecordState *rs = &ig->record;
     if (!rs->recorder) return;
     RecorderStats rst;
@@ -230,7 +235,7 @@ void record_report(const Integrator *ig, CandelaStats *st) {
  * counts so far (the recorder's own and the paths'), the skip probability in force, whether
  * rays still carry vertices, and the totals of the statistics. No vertex is live at a batch
  * boundary, so nothing else of the recorder is needed. */
-int record_save(const Integrator *ig, FILE *out) {
+static int record_save(const Integrator *ig, FILE *out) {
     const RecordState *rs = &ig->record;
     RecorderStats st = {0};
     if (rs->recorder) recorder_stats(rs->recorder, &st);
@@ -241,7 +246,7 @@ int record_save(const Integrator *ig, FILE *out) {
            ckpt_put(out, &rs->path_skip, sizeof rs->path_skip) | ckpt_put(out, counts, sizeof counts);
 }
 
-int record_load(Integrator *ig, FILE *in) {
+static int record_load(Integrator *ig, FILE *in) {
     RecordState *rs = &ig->record;
     int32_t flags[2];
     uint64_t counts[8];
@@ -262,3 +267,17 @@ int record_load(Integrator *ig, FILE *in) {
     recorder_restore_counts(rs->recorder, counts[6], counts[7]);
     return 0;
 }
+
+static void record_slice_begin(Integrator *ig, Slice *s, uint32_t k) { s->record_samples = &ig->record.samples[k].s; }
+
+const IntegratorFeature feature_recorder = {
+    .name = "radiance recorder",
+    .init = record_init,
+    .free = record_free,
+    .slice_begin = record_slice_begin,
+    .batch_end = record_batch_end,
+    .barrier = record_barrier,
+    .report = record_report,
+    .save = record_save,
+    .load = record_load,
+};

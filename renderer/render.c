@@ -18,7 +18,7 @@
 
 #include "checkpoint.h"
 #include "clock.h"
-#include "integrator.h"
+#include "feature.h"
 
 /* The default batch gives each thread a slice of this many paths. Shading visits the slice's
  * path state in hit order, i.e. in random slot order: at ~150 bytes of state read or written
@@ -27,7 +27,7 @@
 #define DEFAULT_PATHS_PER_THREAD 2048u
 #define MAX_BATCH_SIZE (1u << 22)
 #define DEFAULT_MAX_ITERATION_SPP 64
-#define GUIDED_MAX_ITERATION_SPP 16
+#define TRAIN_MAX_ITERATION_SPP 16
 
 
 /* ---------------------------------------------------------------- progress */
@@ -123,13 +123,13 @@ static void spp_statistics(const Film *f, CandelaStats *st) {
 
 /* Samples per pixel of iteration i: 1, 1, 2, 4, 8, ... capped, and never past the total. (The
  * shift is bounded: at iteration 32 an unbounded 1 << 31 overflowed and the schedule ran
- * backwards.) Guided (ch. 2 §5.2), from iteration guided_from on (0 for --guiding mis / ris,
- * after the probe for auto; -1: never): 8 x 1 spp while guiding trains, then 2, 4, 8, ...
+ * backwards.) A feature's training schedule (features_schedule_start; path guiding's, ch. 2
+ * §5.2), from iteration train_from on (-1: none): 8 x 1 spp while it trains, then 2, 4, 8, ...
  * capped at its own maximum. */
-static int iteration_spp(int iteration, int max_iteration_spp, int max_guided_spp, int remaining, int guided_from) {
-    int guided = guided_from >= 0 && iteration >= guided_from;
-    int first = guided ? guided_from + 8 : 2; /* the iterations of 1 spp end here */
-    int cap = guided ? max_guided_spp : max_iteration_spp;
+static int iteration_spp(int iteration, int max_iteration_spp, int max_train_spp, int remaining, int train_from) {
+    int training = train_from >= 0 && iteration >= train_from;
+    int first = training ? train_from + 8 : 2; /* the iterations of 1 spp end here */
+    int cap = training ? max_train_spp : max_iteration_spp;
     int k = iteration - first + 1;
     int spp = iteration < first ? 1 : (k >= 30 ? cap : 1 << k);
     if (spp > cap) spp = cap;
@@ -208,21 +208,10 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
             return -1;
         }
     }
-    /* guide-dump reads the guiding field's leaf at --at: the fields span the scene's bounds, and
-     * a point outside them has no leaf of its own (the nearest one's box would not hold it).
-     * Said now, not after the render. */
-    if (o->guide_dump_prefix) {
-        const float *at = o->guide_dump_at;
-        const vec3 lo = r->scene.bounds_min, hi = r->scene.bounds_max;
-        if (!(at[0] >= lo.x && at[0] <= hi.x && at[1] >= lo.y && at[1] <= hi.y && at[2] >= lo.z && at[2] <= hi.z)) {
-            snprintf(err, CANDELA_ERR_LEN,
-                     "%s: guide-dump --at %g,%g,%g is outside the scene's bounds [%g %g %g] - [%g %g %g], which the guiding "
-                     "field covers",
-                     o->scene_path, (double)at[0], (double)at[1], (double)at[2], (double)lo.x, (double)lo.y, (double)lo.z,
-                     (double)hi.x, (double)hi.y, (double)hi.z);
-            render_free_frame(r);
-            return -1;
-        }
+    /* what a feature cannot do with this scene, said before anything is built */
+    if (features_validate(o, &r->scene, err) != 0) {
+        render_free_frame(r);
+        return -1;
     }
     if (media_build(&r->media, &r->scene, o->scene_path, (uint64_t)o->volume_budget_mb << 20, err) != 0) {
         render_free_frame(r);
@@ -277,14 +266,18 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
     Integrator *ig = &r->ig;
     ig->ray_log = ray_log;
     ig->pool = r->pool;
-    if (light_sampler_has_barrier(&r->sampler)) integrator_add_barrier_hook(ig, light_sampler_barrier_hook, &r->sampler);
+    if (light_sampler_has_barrier(&r->sampler) && integrator_add_barrier_hook(ig, light_sampler_barrier_hook, &r->sampler) != 0) {
+        snprintf(err, CANDELA_ERR_LEN, "%s: internal error: too many barrier hooks", o->scene_path);
+        render_free_frame(r);
+        return -1;
+    }
     update_pixel_list(ig); /* adaptive sampling: every pixel to begin with */
     stats->time_build = clock_seconds() - t_loaded;
 
     Progress progress = {o->quiet, isatty(2), clock_seconds(), 0.0}; /* the first report comes at once */
     int max_iter_spp = o->max_iteration_spp > 0 ? o->max_iteration_spp : DEFAULT_MAX_ITERATION_SPP;
-    /* guided: smaller iterations, so the fields update often (ch. 2 §5.2: a smaller maximum) */
-    int max_guided_spp = o->max_iteration_spp > 0 ? o->max_iteration_spp : GUIDED_MAX_ITERATION_SPP;
+    /* a feature's schedule: smaller iterations, so what it learns updates often (ch. 2 §5.2) */
+    int max_train_spp = o->max_iteration_spp > 0 ? o->max_iteration_spp : TRAIN_MAX_ITERATION_SPP;
     uint64_t total_paths = (uint64_t)npixels * (uint64_t)o->spp, done_paths = 0;
     CheckpointProgress at = {0, 0, 0}; /* where the render stands (a resumed one: where the checkpoint stood) */
     if (o->resume_from) {
@@ -297,9 +290,9 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
         update_pixel_list(ig); /* adaptive sampling: the pixels the checkpoint's film still samples */
         int cumulative = 0, k = 0;
         for (; k < at.iteration && cumulative < o->spp; ++k)
-            cumulative += iteration_spp(k, max_iter_spp, max_guided_spp, o->spp - cumulative, guide_schedule_start(ig));
+            cumulative += iteration_spp(k, max_iter_spp, max_train_spp, o->spp - cumulative, features_schedule_start(ig));
         uint64_t iteration_total =
-            (uint64_t)ig->iteration_pixels * (uint64_t)iteration_spp(k, max_iter_spp, max_guided_spp, o->spp - cumulative, guide_schedule_start(ig));
+            (uint64_t)ig->iteration_pixels * (uint64_t)iteration_spp(k, max_iter_spp, max_train_spp, o->spp - cumulative, features_schedule_start(ig));
         if (k != at.iteration || cumulative != at.spp_done || at.spp_done >= o->spp ||
             (at.iteration_paths >= iteration_total && at.iteration_paths > 0)) {
             snprintf(err, CANDELA_ERR_LEN, "%s: its progress (iteration %d, %d spp) is not a point of this render's schedule",
@@ -314,7 +307,7 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
     int min_spp = o->min_spp > 0 ? o->min_spp : CANDELA_DEFAULT_MIN_SPP;
     ig->spp_done = spp_done;
     for (; spp_done < o->spp && ig->iteration_pixels > 0; ++iteration) {
-        int spp_i = iteration_spp(iteration, max_iter_spp, max_guided_spp, o->spp - spp_done, guide_schedule_start(ig));
+        int spp_i = iteration_spp(iteration, max_iter_spp, max_train_spp, o->spp - spp_done, features_schedule_start(ig));
         ig->iteration_spp = spp_i;
         ig->iteration_index = iteration;
         ig->sample_base = sample_begin + (uint64_t)spp_done;
@@ -370,7 +363,7 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
             limited = 1;
             break;
         }
-        int next = spp_done + iteration_spp(iteration + 1, max_iter_spp, max_guided_spp, o->spp - spp_done, guide_schedule_start(ig));
+        int next = spp_done + iteration_spp(iteration + 1, max_iter_spp, max_train_spp, o->spp - spp_done, features_schedule_start(ig));
         if (o->checkpoint_path && checkpoint_due(spp_done, next, o->spp)) {
             if (checkpoint_write(o->checkpoint_path, &identity, &at, ig, &r->sampler, 0, err) != 0) {
                 fprintf(stderr, "candela: warning: %s (the render goes on)\n", err); /* a later one may succeed */
@@ -404,9 +397,8 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
         return -1;
     }
     stats->time_total = clock_seconds() - t_start;
-    record_report(ig, stats);
-    guide_report(ig, stats);
-    if (o->guide_dump_prefix && guide_dump(ig, o->guide_dump_at, o->guide_dump_prefix, err) != 0) {
+    features_report(ig, stats);
+    if (features_finish(ig, err) != 0) {
         render_free_frame(r);
         return -1;
     }

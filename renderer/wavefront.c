@@ -10,7 +10,7 @@
 #include <string.h>
 
 #include "clock.h"
-#include "integrator.h"
+#include "feature.h"
 
 
 
@@ -73,7 +73,8 @@ void integrator_run_batch(Integrator *ig, ThreadPool *pool, CandelaStats *st) {
         slices[k] = (Slice){.begin = b, .end = e, .rays = ig->queue_rays + b, .hits = ig->queue_hits + b,
                             .escaped = ig->queue_escaped + b, .shadows = ig->queue_shadows + b,
                             .keys = ig->sort_keys + b, .keys_tmp = ig->sort_keys_tmp + b,
-                            .items_tmp = ig->sort_items_tmp + b, .record_samples = &ig->record.samples[k].s};
+                            .items_tmp = ig->sort_items_tmp + b};
+        features_slice_begin(ig, &slices[k], k);
     }
     SliceCtx c = {ig, slices};
     double t_region = clock_seconds();
@@ -104,11 +105,7 @@ void integrator_run_batch(Integrator *ig, ThreadPool *pool, CandelaStats *st) {
     st->paths += ig->batch_count;
     st->rays_camera += ig->batch_count;
     double t_learn = clock_seconds(); /* learning from the batch: serial phases */
-    if (ig->record.active) record_batch_end(ig, slices, n);
-    guide_train_batch(ig);
-    inscatter_probe_batch(ig, slices, n);
-    guide_probe_batch(ig);
-    emission_probe_batch(ig, slices, n);
+    features_batch_end(ig, slices, n);
     st->time_learn += clock_seconds() - t_learn;
     /* film: serial, in path order, so every pixel sums its samples in sample order */
     double t = clock_seconds();
@@ -116,13 +113,14 @@ void integrator_run_batch(Integrator *ig, ThreadPool *pool, CandelaStats *st) {
     st->time_film += clock_seconds() - t;
 }
 
-void integrator_add_barrier_hook(Integrator *ig, void (*run)(void *user), void *user) {
-    if (ig->num_hooks < MAX_BARRIER_HOOKS) ig->hooks[ig->num_hooks++] = (BarrierHook){run, user};
+int integrator_add_barrier_hook(Integrator *ig, void (*run)(void *user), void *user) {
+    if (ig->num_hooks >= MAX_BARRIER_HOOKS) return -1;
+    ig->hooks[ig->num_hooks++] = (BarrierHook){run, user};
+    return 0;
 }
 
 void integrator_barrier(Integrator *ig) {
-    record_barrier(ig);
-    guide_barrier(ig);
+    features_barrier(ig);
     for (int i = 0; i < ig->num_hooks; ++i) ig->hooks[i].run(ig->hooks[i].user);
 }
 
@@ -135,8 +133,6 @@ int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene,
     ig->media = media;
     ig->camera_medium = media_at_point(media, xform_point(scene->camera.xform, v3s(0.0f)));
     ig->light_sampler = sampler;
-    ig->inscatter = o->volume_inscatter_sampling != 0 && media_any(media) && lights->count > 0 &&
-                    light_sampler_has_inscatter(sampler);
     ig->npixels = (uint32_t)scene->camera.width * (uint32_t)scene->camera.height;
     ig->iteration_pixels = ig->npixels;
     if (o->sampler == CANDELA_SAMPLER_SOBOL) {
@@ -156,13 +152,7 @@ int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene,
     int fail = !ig->queue_rays || !ig->queue_hits || !ig->queue_escaped || !ig->queue_shadows || !ig->sort_keys ||
                !ig->sort_keys_tmp || !ig->sort_items_tmp;
     fail = fail || path_state_alloc(&ig->ps, batch) != 0 || film_alloc(&ig->film, scene->camera.width, scene->camera.height) != 0;
-    fail = fail || inscatter_init(ig, ig->inscatter ? o->volume_inscatter_sampling : 0) != 0;
-    fail = fail || emission_auto_init(ig, lights->count > 0 ? o->volume_emission_sampling : 0) != 0;
-    fail = fail || record_init(ig) != 0 || guide_init(ig) != 0;
-    if (!fail && ig->record.debug_aov) {
-        ig->film.recorder = calloc(3 * (size_t)ig->npixels, sizeof(double));
-        fail = !ig->film.recorder;
-    }
+    fail = fail || features_init(ig) != 0;
     ig->film.aov_spp = o->aov_spp;
     if (!fail && o->noise_threshold > 0.0f) {
         ig->film.stopped = calloc(ig->npixels, 1);
@@ -184,10 +174,7 @@ void integrator_free(Integrator *ig) {
     free(ig->sort_keys); free(ig->sort_keys_tmp); free(ig->sort_items_tmp);
     film_free(&ig->film);
     free(ig->pixel_list);
-    auto_probe_free(&ig->inscatter_auto);
-    auto_probe_free(&ig->emission_auto);
-    record_free(ig);
-    guide_free(ig);
+    features_free(ig);
     pthread_mutex_destroy(&ig->ray_log_mutex);
     memset(ig, 0, sizeof *ig);
 }

@@ -4,7 +4,8 @@
 # light selection only through the protocol of renderer/light_sampler.h. A strategy named
 # there would be a second place to change when a strategy (or a second caller of light
 # selection) is added. And no stage file calls a function another stage file defines (what
-# stages share is renderer/vertex.c's). Usage: test_seams.sh SOURCE_ROOT
+# stages share is renderer/vertex.c's). And wavefront.c, checkpoint.c and render.c reach the
+# integrator's features through the feature table only. Usage: test_seams.sh SOURCE_ROOT
 set -u
 root=${1:?usage: test_seams.sh SOURCE_ROOT}
 cd "$root/renderer" || exit 1
@@ -45,3 +46,17 @@ if [ -n "$calls" ]; then
     exit 1
 fi
 echo "$(ls stage_*.c | wc -l) stage files: none calls another's functions"
+# the integrator's features (feature.h: the recorder, guiding, the volume auto choices) are
+# reached through the feature table only: the driver, the render loop and the checkpoint file
+# name none of them in code (comments may say why)
+named=$(for f in wavefront.c checkpoint.c render.c; do
+    perl -0pe 's{/\*.*?\*/}{}gs; s{//[^\n]*}{}g' "$f" |
+        grep -n -i -E 'guid|\b(record|guide|inscatter|emission_auto|emission_probe|auto_probe)_[a-z0-9_]*\s*\(|\big->(record|guide|inscatter|inscatter_auto|emission_auto)\b' |
+        sed "s|^|$f:|"
+done)
+if [ -n "$named" ]; then
+    echo "FAIL: a feature is named outside the feature table (add a hook to renderer/feature.h):"
+    echo "$named"
+    exit 1
+fi
+echo "wavefront.c, checkpoint.c, render.c: no feature named"
