@@ -4,7 +4,8 @@
  * Inputs are checked with stat, opened with O_NONBLOCK and checked with fstat before a byte is
  * read: open() on a FIFO blocks until a writer appears (forever, for a farm script's typo) and a device such as
  * /dev/zero never ends, so only regular files are read, and never more than the caller's limit
- * (the size is checked from fstat first, and the read stops at the limit if the file grows). */
+ * (the size is checked from fstat first, and the read stops at the limit if the file grows).
+ * Also io_fmt / io_err (io_err.h), the one-line messages of every C file of io/. */
 #include "io.h"
 #include "io_err.h"
 
