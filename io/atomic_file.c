@@ -147,7 +147,7 @@ void io_remove_stale_temps(const char *path) {
 /* ---------------------------------------------------------------- one atomic write */
 
 /* The stream a writer gets is stdio over the temporary's descriptor through these functions
- * (fopencookie), so that the first failing read, write or close is kept with its errno
+ * (fopencookie), so that the first failing read or write is kept with its errno
  * (af->error): a full disk is then said as "No space left on device" however many stdio calls
  * came after the one that failed (ferror keeps no reason, and errno is anyone's by then). */
 static ssize_t cookie_read(void *c, char *buf, size_t n) {
