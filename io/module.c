@@ -6,7 +6,6 @@
 #include <dlfcn.h>
 #include <limits.h>
 #include <pthread.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -90,7 +89,7 @@ static void *open_module(const char *file, const char *entry, const char *needed
         return sym;
     }
     io_fmt(why, IO_ERR_LEN, "%s not found (%s; looked in %s%s)", file, needed_for, looked,
-             getenv("CANDELA_MODULE_DIR") ? ", from CANDELA_MODULE_DIR" : "");
+           getenv("CANDELA_MODULE_DIR") ? ", from CANDELA_MODULE_DIR" : "");
     return NULL;
 }
 

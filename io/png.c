@@ -9,13 +9,10 @@
 
 #include <png.h>
 
-#include <errno.h>
 #include <setjmp.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 typedef struct PngBuffer {
     unsigned char *data;
