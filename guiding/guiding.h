@@ -215,9 +215,10 @@ int guide_direction_uv(const float dir[3], float *u, float *v);
 /* The pdf over the (u, v) octahedral square on a w x h grid (row-major, v down the rows),
  * in units of solid-angle pdf, for inspection. */
 void guide_distribution_image(const GuideDistribution *d, int w, int h, float *out);
-/* Writes the spatial tree's leaves as an ASCII PLY of boxes (8 vertices, 6 faces each). 0 ok;
- * -1 with errno on failure. */
-int guide_field_write_ply(const GuideField *f, const char *path);
+/* Writes the spatial tree's leaves as an ASCII PLY of boxes (8 vertices, 6 faces each) to out
+ * (the caller names the file and writes it atomically: renderer/guide.c through io's writer),
+ * flushed. 0 ok; -1 with errno on failure. */
+int guide_field_write_ply(const GuideField *f, FILE *out);
 /* Checkpoints: the field's whole learned state (trees, counts, update count) in native byte
  * order, with its own magic and format version. load replaces the state of a field created
  * with the same parameters; on failure (-1: a short, damaged or foreign record, or out of

@@ -1039,13 +1039,11 @@ void guide_distribution_image(const GuideDistribution *d, int w, int h, float *o
 
 /* ------------------------------------------------------------------ PLY */
 
-int guide_field_write_ply(const GuideField *f, const char *path) {
-    if (!f || !path) {
+int guide_field_write_ply(const GuideField *f, FILE *fp) {
+    if (!f || !fp) {
         errno = EINVAL;
         return -1;
     }
-    FILE *fp = fopen(path, "w");
-    if (!fp) return -1;
     int bad = 0;
     uint32_t n = f->leaf_count;
     /* Per vertex (repeated on a box's 8 corners): the samples the leaf's sampling tree was
@@ -1075,20 +1073,12 @@ int guide_field_write_ply(const GuideField *f, const char *path) {
             bad |= fprintf(fp, "4 %lu %lu %lu %lu\n", base + faces[k][0], base + faces[k][1], base + faces[k][2],
                            base + faces[k][3]) < 0;
     }
-    if (!bad && ferror(fp)) {
-        bad = 1;
-        errno = EIO;
-    }
-    int saved = errno;
-    if (fclose(fp) != 0) {
-        if (!bad) saved = errno;
-        bad = 1;
-    }
-    if (bad) {
-        errno = saved ? saved : EIO;
+    /* what the stream still buffers is written now, so that a full disk is this call's failure */
+    if (!bad && (fflush(fp) != 0 || ferror(fp))) {
+        if (!errno) errno = EIO;
         return -1;
     }
-    return 0;
+    return bad ? -1 : 0;
 }
 
 /* ------------------------------------------------------------------ checkpoint (save / load) */

@@ -2,24 +2,20 @@
  * (OpenEXRCore). Plain C17.
  *
  * Writer: one scanline part, FLOAT channels, ZIP compression, channels in the alphabetical
- * order EXR requires, written to "PATH.tmp-PID" and renamed.
+ * order EXR requires, written through the atomic writer (io_atomic_begin: PATH.tmp-PID, synced,
+ * renamed).
  * Reader: any scanline file; the requested channel (HALF, FLOAT or UINT) is returned as float. */
 #include "io.h"
+#include "io_err.h"
 
 #include <openexr.h>
 #include <Imath/half.h> /* imath_half_to_float: HALF channels as float */
 
-#include <dirent.h>
 #include <errno.h>
-#include <fcntl.h>
-#include <limits.h>
-#include <signal.h>
-#include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 /* The OpenEXR error callback has no user pointer usable with the default file streams, so the
@@ -30,19 +26,6 @@ static void exr_capture_error(exr_const_context_t ctxt, exr_result_t code, const
     (void)ctxt;
     snprintf(exr_last_msg, sizeof exr_last_msg, "%s",
              msg ? msg : exr_get_default_error_message(code));
-}
-
-static void exr_set_err(char err[IO_ERR_LEN], const char *path, const char *fmt, ...) {
-    if (!err) return;
-    int k = snprintf(err, IO_ERR_LEN, "%s: ", path ? path : "(null)");
-    if (k < 0) k = 0;
-    if (k > IO_ERR_LEN - 1) k = IO_ERR_LEN - 1;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(err + k, (size_t)(IO_ERR_LEN - k), fmt, ap);
-    va_end(ap);
-    for (char *p = err; *p; ++p)
-        if (*p == '\n' || *p == '\r') *p = ' ';
 }
 
 /* Library message for rv: the captured one if any, else the default text. */
@@ -69,51 +52,6 @@ static int cmp_channel(const void *a, const void *b) {
     return strcmp(((const SortedChannel *)a)->name, ((const SortedChannel *)b)->name);
 }
 
-int io_output_path(const char *path, char resolved[IO_PATH_MAX], char err[IO_ERR_LEN]) {
-    char cur[IO_PATH_MAX];
-    if (snprintf(cur, sizeof cur, "%s", path) >= (int)sizeof cur) {
-        exr_set_err(err, path, "path too long");
-        return 1;
-    }
-    for (int hops = 0; hops < 40; ++hops) {
-        struct stat st;
-        if (lstat(cur, &st) != 0) break; /* a new file: written here */
-        if (S_ISLNK(st.st_mode)) {
-            char target[IO_PATH_MAX];
-            ssize_t n = readlink(cur, target, sizeof target - 1);
-            if (n < 0 || n >= (ssize_t)sizeof target - 1) {
-                exr_set_err(err, path, "cannot read the symbolic link");
-                return 1;
-            }
-            target[n] = 0;
-            if (target[0] == '/') {
-                memcpy(cur, target, (size_t)n + 1);
-            } else { /* relative to the link's folder */
-                char *slash = strrchr(cur, '/');
-                size_t dir = slash ? (size_t)(slash - cur) + 1 : 0;
-                if (dir + (size_t)n + 1 > sizeof cur) {
-                    exr_set_err(err, path, "path too long");
-                    return 1;
-                }
-                memcpy(cur + dir, target, (size_t)n + 1);
-            }
-            continue;
-        }
-        if (!S_ISREG(st.st_mode)) {
-            exr_set_err(err, path, "not a regular file (a directory, device or FIFO): not replaced");
-            return 1;
-        }
-        break;
-    }
-    struct stat st;
-    if (lstat(cur, &st) == 0 && S_ISLNK(st.st_mode)) {
-        exr_set_err(err, path, "too many levels of symbolic links");
-        return 1;
-    }
-    memcpy(resolved, cur, strlen(cur) + 1);
-    return 0;
-}
-
 /* OpenEXR 3.1.5 (Debian 12) stores a ZIP chunk whose compressed size equals its raw size as
  * compressed data, while every reader takes a chunk of exactly the raw size to be stored raw
  * (upstream issue #2306, fixed in 3.2 by storing such a chunk raw): a 2x2 image of 0, 0, 0, 25
@@ -128,60 +66,78 @@ static exr_result_t compress_unambiguous(exr_encode_pipeline_t *enc) {
     return rv;
 }
 
+/* The library's writes, to the atomic file's descriptor (the bytes and offsets its own file
+ * writer would use); the first failure's errno is kept in af->error. */
+static int64_t exr_output_write(exr_const_context_t ctxt, void *user, const void *buffer, uint64_t sz, uint64_t offset,
+                                exr_stream_error_func_ptr_t error_cb) {
+    IoAtomicFile *af = user;
+    uint64_t done = 0;
+    while (done < sz) {
+        ssize_t w = pwrite(af->fd, (const char *)buffer + done, (size_t)(sz - done), (off_t)(offset + done));
+        if (w < 0 && errno == EINTR) continue;
+        if (w <= 0) {
+            int e = w < 0 ? errno : EIO;
+            if (!af->error) af->error = e;
+            error_cb(ctxt, EXR_ERR_WRITE_IO, "write error: %s", strerror(e));
+            return -1;
+        }
+        done += (uint64_t)w;
+    }
+    return (int64_t)done;
+}
+
 int io_write_exr(const char *path_arg, int width, int height, const IoExrChannel *channels,
                  int num_channels, const IoExrAttribute *attributes, int num_attributes,
                  char err[IO_ERR_LEN]) {
     if (err) err[0] = 0;
     if (!path_arg || !*path_arg) {
-        exr_set_err(err, "(null)", "no path given");
+        io_err(err, "(null)", "no path given");
         return 1;
     }
-    /* a symbolic link gets the image written to its target (the temp file beside it) */
-    char path[IO_PATH_MAX];
-    if (io_output_path(path_arg, path, err) != 0) return 1;
+    const char *path = path_arg; /* the arguments' messages name it as given */
     if (width <= 0 || height <= 0 || (int64_t)width * height > ((int64_t)1 << 31)) {
-        exr_set_err(err, path, "invalid image size %dx%d", width, height);
+        io_err(err, path, "invalid image size %dx%d", width, height);
         return 1;
     }
     if (!channels || num_channels <= 0 || num_channels > 1024) {
-        exr_set_err(err, path, "invalid channel list (%d channels)", num_channels);
+        io_err(err, path, "invalid channel list (%d channels)", num_channels);
         return 1;
     }
     if (num_attributes < 0 || (num_attributes > 0 && !attributes)) {
-        exr_set_err(err, path, "invalid attribute list (%d attributes)", num_attributes);
+        io_err(err, path, "invalid attribute list (%d attributes)", num_attributes);
         return 1;
     }
     int need_longnames = 0;
     for (int i = 0; i < num_attributes; ++i) {
         if (!attributes[i].name || !attributes[i].name[0] || !attributes[i].value) {
-            exr_set_err(err, path, "attribute %d has no name or no value", i);
+            io_err(err, path, "attribute %d has no name or no value", i);
             return 1;
         }
         if (strlen(attributes[i].name) > 255) {
-            exr_set_err(err, path, "attribute name too long (%zu chars)", strlen(attributes[i].name));
+            io_err(err, path, "attribute name too long (%zu chars)", strlen(attributes[i].name));
             return 1;
         }
         if (strlen(attributes[i].name) > 31) need_longnames = 1;
         if (strlen(attributes[i].value) > (size_t)INT32_MAX / 2) {
-            exr_set_err(err, path, "attribute '%s' too long", attributes[i].name);
+            io_err(err, path, "attribute '%s' too long", attributes[i].name);
             return 1;
         }
     }
 
     SortedChannel *sorted = malloc(sizeof *sorted * (size_t)num_channels);
     if (!sorted) {
-        exr_set_err(err, path, "out of memory");
+        io_err(err, path, "out of memory");
         return 1;
     }
     for (int i = 0; i < num_channels; ++i) {
         if (!channels[i].name || !channels[i].name[0] || !channels[i].data) {
-            exr_set_err(err, path, "channel %d has no name or no data", i);
+            io_err(err, path, "channel %d has no name or no data", i);
             free(sorted);
             return 1;
         }
         size_t len = strlen(channels[i].name);
         if (len > 255) {
-            exr_set_err(err, path, "channel name too long (%zu chars)", len);
+            io_err(err, path, "channel name too long (%zu chars)", len);
             free(sorted);
             return 1;
         }
@@ -192,31 +148,32 @@ int io_write_exr(const char *path_arg, int width, int height, const IoExrChannel
     qsort(sorted, (size_t)num_channels, sizeof *sorted, cmp_channel);
     for (int i = 1; i < num_channels; ++i) {
         if (strcmp(sorted[i - 1].name, sorted[i].name) == 0) {
-            exr_set_err(err, path, "duplicate channel name '%s'", sorted[i].name);
+            io_err(err, path, "duplicate channel name '%s'", sorted[i].name);
             free(sorted);
             return 1;
         }
     }
 
-    size_t tmplen = strlen(path) + 32;
-    char *tmp = malloc(tmplen);
-    if (!tmp) {
+    /* through the one atomic writer (io.h): the library writes the temporary's descriptor
+     * (exr_output_write), which keeps a failed write's reason */
+    IoAtomicFile af;
+    if (io_atomic_begin(&af, path_arg, NULL, err) != 0) {
         free(sorted);
-        exr_set_err(err, path, "out of memory");
         return 1;
     }
-    snprintf(tmp, tmplen, "%s.tmp-%ld", path, (long)getpid());
-    io_temp_begin(tmp);
+    path = af.path;
 
     exr_last_msg[0] = 0;
     exr_context_initializer_t init = exr_init();
+    init.user_data = &af;
+    init.write_fn = exr_output_write;
     exr_context_t ctxt = NULL;
     exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
     int have_enc = 0;
     exr_result_t (*library_compress)(exr_encode_pipeline_t *) = NULL;
     int part = 0;
     const char *stage = "cannot open";
-    exr_result_t rv = exr_start_write(&ctxt, tmp, EXR_WRITE_FILE_DIRECTLY, &init);
+    exr_result_t rv = exr_start_write(&ctxt, path, EXR_WRITE_FILE_DIRECTLY, &init);
     if (rv != EXR_ERR_SUCCESS) goto fail;
     stage = "cannot write header";
     if (need_longnames && (rv = exr_set_longname_support(ctxt, 1)) != EXR_ERR_SUCCESS) goto fail;
@@ -296,37 +253,15 @@ int io_write_exr(const char *path_arg, int width, int height, const IoExrChannel
     ctxt = NULL;
     if (rv != EXR_ERR_SUCCESS) goto fail;
     free(sorted);
-    sorted = NULL;
-    /* on disk before the rename makes it the image (a crash then never leaves an empty file
-     * under the final name) */
-    int fd = open(tmp, O_RDONLY);
-    if (fd < 0 || fsync(fd) != 0) {
-        exr_set_err(err, path, "cannot sync %s: %s", tmp, strerror(errno));
-        if (fd >= 0) close(fd);
-        remove(tmp);
-        io_temp_end();
-        free(tmp);
-        return 1;
-    }
-    close(fd);
-    if (rename(tmp, path) != 0) {
-        exr_set_err(err, path, "cannot rename %s: %s", tmp, strerror(errno));
-        remove(tmp);
-        io_temp_end();
-        free(tmp);
-        return 1;
-    }
-    io_temp_end();
-    free(tmp);
-    return 0;
+    return io_atomic_commit(&af, err);
 
 fail:
-    exr_set_err(err, path, "%s: %s", stage, exr_msg(rv));
+    /* a failed write says why (a full disk), not only where the library was */
+    if (af.error) io_err(err, path, "cannot write: %s", strerror(af.error));
+    else io_err(err, path, "%s: %s", stage, exr_msg(rv));
     if (have_enc) exr_encoding_destroy(ctxt, &enc);
     if (ctxt) exr_finish(&ctxt);
-    remove(tmp);
-    io_temp_end();
-    free(tmp);
+    io_atomic_abort(&af);
     free(sorted);
     return 1;
 }
@@ -363,6 +298,24 @@ static int64_t exr_input_size(exr_const_context_t ctxt, void *user) {
     return (int64_t)((const ExrInput *)user)->size;
 }
 
+/* The EXR at path opened through the input door (a FIFO would block in the library's own
+ * open()), the library reading from that descriptor through the callbacks above: 1 when the door
+ * refused it (err says why, nothing to close); else 0, with the library's answer in *rv and the
+ * context in *ctxt (NULL when it failed). *input must stay where it is while ctxt is open. */
+static int exr_start_input(const char *path, ExrInput *input, exr_context_t *ctxt, exr_result_t *rv,
+                           char err[IO_ERR_LEN]) {
+    *input = (ExrInput){-1, 0};
+    *ctxt = NULL;
+    if (io_open_input(path, 0, "an EXR", &input->fd, &input->size, err) != 0) return 1;
+    exr_last_msg[0] = 0;
+    exr_context_initializer_t init = exr_init();
+    init.user_data = input;
+    init.read_fn = exr_input_read;
+    init.size_fn = exr_input_size;
+    *rv = exr_start_read(ctxt, path, &init);
+    return 0;
+}
+
 int io_read_exr_channel(const char *path, const char *channel, int *width, int *height,
                         float **data, char err[IO_ERR_LEN]) {
     if (err) err[0] = 0;
@@ -370,24 +323,18 @@ int io_read_exr_channel(const char *path, const char *channel, int *width, int *
     if (width) *width = 0;
     if (height) *height = 0;
     if (!path || !*path) {
-        exr_set_err(err, "(null)", "no path given");
+        io_err(err, "(null)", "no path given");
         return 1;
     }
     if (!channel || !data || !width || !height) {
-        exr_set_err(err, path, "invalid arguments");
+        io_err(err, path, "invalid arguments");
         return 1;
     }
 
-    /* through the input door (a FIFO would block in the library's own open()); the library
-     * then reads from this descriptor */
-    ExrInput input = {-1, 0};
-    if (io_open_input(path, 0, "an EXR", &input.fd, &input.size, err) != 0) return 1;
-    exr_last_msg[0] = 0;
-    exr_context_initializer_t init = exr_init();
-    init.user_data = &input;
-    init.read_fn = exr_input_read;
-    init.size_fn = exr_input_size;
-    exr_context_t ctxt = NULL;
+    ExrInput input;
+    exr_context_t ctxt;
+    exr_result_t rv;
+    if (exr_start_input(path, &input, &ctxt, &rv, err) != 0) return 1;
     exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
     int have_dec = 0;
     uint8_t *raw = NULL;
@@ -395,8 +342,6 @@ int io_read_exr_channel(const char *path, const char *channel, int *width, int *
     const char *stage = "cannot open";
     char problem[IO_ERR_LEN];
     problem[0] = 0;
-
-    exr_result_t rv = exr_start_read(&ctxt, path, &init);
     if (rv != EXR_ERR_SUCCESS) goto fail;
 
     stage = "cannot read header";
@@ -513,9 +458,9 @@ int io_read_exr_channel(const char *path, const char *channel, int *width, int *
 
 fail:
     if (problem[0])
-        exr_set_err(err, path, "%s", problem);
+        io_err(err, path, "%s", problem);
     else
-        exr_set_err(err, path, "%s: %s", stage, exr_msg(rv));
+        io_err(err, path, "%s: %s", stage, exr_msg(rv));
     if (have_dec) exr_decoding_destroy(ctxt, &dec);
     if (ctxt) exr_finish(&ctxt);
     close(input.fd);
@@ -533,21 +478,16 @@ int io_exr_complete_attribute(const char *path, int *width, int *height, const c
     if (err) err[0] = 0;
     if (value && size) value[0] = 0;
     *width = *height = 0;
-    ExrInput input = {-1, 0};
-    if (io_open_input(path, 0, "an EXR", &input.fd, &input.size, err) != 0) return 1;
-    exr_last_msg[0] = 0;
-    exr_context_initializer_t init = exr_init();
-    init.user_data = &input;
-    init.read_fn = exr_input_read;
-    init.size_fn = exr_input_size;
-    exr_context_t ctxt = NULL;
+    ExrInput input;
+    exr_context_t ctxt;
+    exr_result_t rv;
+    if (exr_start_input(path, &input, &ctxt, &rv, err) != 0) return 1;
     const char *stage = "cannot open";
     char problem[IO_ERR_LEN] = "";
     int nparts = 0;
     exr_storage_t storage;
     exr_attr_box2i_t dw;
     int32_t lines = 0;
-    exr_result_t rv = exr_start_read(&ctxt, path, &init);
     if (rv != EXR_ERR_SUCCESS) goto fail;
     stage = "cannot read header";
     if ((rv = exr_get_count(ctxt, &nparts)) != EXR_ERR_SUCCESS || (nparts >= 1 && (rv = exr_get_storage(ctxt, 0, &storage)) != EXR_ERR_SUCCESS) ||
@@ -592,73 +532,9 @@ int io_exr_complete_attribute(const char *path, int *width, int *height, const c
     *height = (int)h;
     return 0;
 fail:
-    if (problem[0]) exr_set_err(err, path, "%s", problem);
-    else exr_set_err(err, path, "%s: %s", stage, exr_msg(rv));
+    if (problem[0]) io_err(err, path, "%s", problem);
+    else io_err(err, path, "%s: %s", stage, exr_msg(rv));
     if (ctxt) exr_finish(&ctxt);
     close(input.fd);
     return 1;
-}
-
-/* ---------------------------------------------------------------- the active temporary file */
-
-/* The one piece of process-wide mutable state in io/: a signal handler must be able to find
- * the file to remove without locks or allocation. */
-static char active_temp[4096];
-static volatile sig_atomic_t active_temp_set;
-
-void io_remove_stale_temps(const char *path) {
-    const char *slash = strrchr(path, '/');
-    const char *base = slash ? slash + 1 : path;
-    const size_t base_len = strlen(base);
-    char dir[IO_PATH_MAX];
-    if (!slash) {
-        snprintf(dir, sizeof dir, ".");
-    } else if ((size_t)(slash - path) + 1 < sizeof dir) {
-        memcpy(dir, path, (size_t)(slash - path) + 1); /* with the slash: "/" stays the root */
-        dir[slash - path + 1] = 0;
-    } else {
-        return;
-    }
-    if (base_len == 0) return;
-    DIR *d = opendir(dir);
-    if (!d) return; /* the writer reports the folder's problem itself */
-    const int dfd = dirfd(d);
-    const pid_t self = getpid();
-    for (struct dirent *e; (e = readdir(d)) != NULL;) {
-        const char *n = e->d_name;
-        if (strncmp(n, base, base_len) != 0 || strncmp(n + base_len, ".tmp-", 5) != 0) continue;
-        /* exactly the digits "%ld" gives for a pid: no sign, no leading zero */
-        const char *digits = n + base_len + 5;
-        size_t k = strspn(digits, "0123456789");
-        if (k == 0 || k > 10 || digits[k] != 0 || digits[0] == '0') continue;
-        long long pid = strtoll(digits, NULL, 10);
-        if (pid > INT_MAX || (pid_t)pid == self) continue;
-        if (kill((pid_t)pid, 0) == 0 || errno != ESRCH) continue; /* alive (EPERM: someone else's) */
-        struct stat st;
-        if (fstatat(dfd, n, &st, AT_SYMLINK_NOFOLLOW) == 0 && S_ISREG(st.st_mode)) unlinkat(dfd, n, 0);
-    }
-    closedir(d);
-}
-
-void io_temp_begin(const char *tmp_path) {
-    /* tmp_path is "PATH.tmp-PID": PATH's stale temporaries go first */
-    const char *mark = NULL;
-    for (const char *p = strstr(tmp_path, ".tmp-"); p; p = strstr(p + 1, ".tmp-")) mark = p;
-    if (mark && (size_t)(mark - tmp_path) < IO_PATH_MAX) {
-        char path[IO_PATH_MAX];
-        memcpy(path, tmp_path, (size_t)(mark - tmp_path));
-        path[mark - tmp_path] = 0;
-        io_remove_stale_temps(path);
-    }
-    active_temp_set = 0;
-    size_t n = strlen(tmp_path);
-    if (n >= sizeof active_temp) return; /* not registered: too long (the write still works) */
-    memcpy(active_temp, tmp_path, n + 1);
-    active_temp_set = 1;
-}
-
-void io_temp_end(void) { active_temp_set = 0; }
-
-void io_remove_active_temp(void) {
-    if (active_temp_set) unlink(active_temp);
 }

@@ -4,8 +4,10 @@
  * Inputs are checked with stat, opened with O_NONBLOCK and checked with fstat before a byte is
  * read: open() on a FIFO blocks until a writer appears (forever, for a farm script's typo) and a device such as
  * /dev/zero never ends, so only regular files are read, and never more than the caller's limit
- * (the size is checked from fstat first, and the read stops at the limit if the file grows). */
+ * (the size is checked from fstat first, and the read stops at the limit if the file grows).
+ * Also io_fmt / io_err (io_err.h), the one-line messages of every C file of io/. */
 #include "io.h"
+#include "io_err.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -18,16 +20,20 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#if defined(__GNUC__)
-__attribute__((format(printf, 3, 4)))
-#endif
-static void files_err(char err[IO_ERR_LEN], const char *path, const char *fmt, ...) {
+void io_fmt(char *buf, size_t len, const char *format, ...) {
+    va_list ap;
+    va_start(ap, format);
+    vsnprintf(buf, len, format, ap);
+    va_end(ap);
+}
+
+void io_err(char err[IO_ERR_LEN], const char *path, const char *format, ...) {
     if (!err) return;
-    int k = snprintf(err, IO_ERR_LEN, "%.300s: ", path ? path : "(null)");
+    int k = snprintf(err, IO_ERR_LEN, "%.400s: ", path ? path : "(null)");
     if (k < 0 || k >= IO_ERR_LEN) k = 0;
     va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(err + k, (size_t)(IO_ERR_LEN - k), fmt, ap);
+    va_start(ap, format);
+    vsnprintf(err + k, (size_t)(IO_ERR_LEN - k), format, ap);
     va_end(ap);
     for (char *p = err; *p; ++p)
         if (*p == '\n' || *p == '\r') *p = ' ';
@@ -52,37 +58,37 @@ int io_open_input(const char *path, uint64_t max_bytes, const char *what, int *f
     *fd_out = -1;
     if (size) *size = 0;
     if (!path || !*path) {
-        files_err(err, "(null)", "no path given");
+        io_err(err, "(null)", "no path given");
         return -1;
     }
     /* stat first: opening a device can act (a tape rewinds, a watchdog arms, /dev/tty without a
      * terminal fails with its own error), so a name that is no regular file now is not opened */
     struct stat st;
     if (stat(path, &st) == 0 && !S_ISREG(st.st_mode)) {
-        files_err(err, path, "not a regular file (%s): not read", special_kind(st.st_mode));
+        io_err(err, path, "not a regular file (%s): not read", special_kind(st.st_mode));
         return -1;
     }
     /* ... and fstat of what was opened (O_NONBLOCK: a FIFO swapped in meanwhile does not block
      * the open), which is the file then read */
     int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
     if (fd < 0) {
-        files_err(err, path, "cannot read: %s", strerror(errno));
+        io_err(err, path, "cannot read: %s", strerror(errno));
         return -1;
     }
     if (fstat(fd, &st) != 0) {
-        files_err(err, path, "cannot read: %s", strerror(errno));
+        io_err(err, path, "cannot read: %s", strerror(errno));
         close(fd);
         return -1;
     }
     if (!S_ISREG(st.st_mode)) {
-        files_err(err, path, "not a regular file (%s): not read", special_kind(st.st_mode));
+        io_err(err, path, "not a regular file (%s): not read", special_kind(st.st_mode));
         close(fd);
         return -1;
     }
     if (max_bytes && (uint64_t)st.st_size > max_bytes) {
         char limit[32];
         bytes_text(max_bytes, limit, sizeof limit);
-        files_err(err, path, "%llu bytes, over the %s limit of %.60s", (unsigned long long)st.st_size, limit,
+        io_err(err, path, "%llu bytes, over the %s limit of %.60s", (unsigned long long)st.st_size, limit,
                   what ? what : "this input");
         close(fd);
         return -1;
@@ -100,7 +106,7 @@ FILE *io_open_input_file(const char *path, uint64_t max_bytes, const char *what,
     if (io_open_input(path, max_bytes, what, &fd, size, err) != 0) return NULL;
     FILE *f = fdopen(fd, "rb");
     if (!f) {
-        files_err(err, path, "cannot read: %s", strerror(errno));
+        io_err(err, path, "cannot read: %s", strerror(errno));
         close(fd);
     }
     return f;
@@ -114,7 +120,7 @@ int io_read_input(const char *path, uint64_t max_bytes, const char *what, void *
     uint64_t declared;
     if (io_open_input(path, max_bytes, what, &fd, &declared, err) != 0) return -1;
     if (declared > (uint64_t)SIZE_MAX - 2) {
-        files_err(err, path, "too large to read");
+        io_err(err, path, "too large to read");
         close(fd);
         return -1;
     }
@@ -123,7 +129,7 @@ int io_read_input(const char *path, uint64_t max_bytes, const char *what, void *
     size_t cap = (size_t)declared + 1, n = 0;
     unsigned char *buf = malloc(cap + 1);
     if (!buf) {
-        files_err(err, path, "out of memory reading it");
+        io_err(err, path, "out of memory reading it");
         close(fd);
         return -1;
     }
@@ -134,7 +140,7 @@ int io_read_input(const char *path, uint64_t max_bytes, const char *what, void *
             unsigned char *p = realloc(buf, cap + grow + 1);
             if (!p) {
                 free(buf);
-                files_err(err, path, "out of memory reading it");
+                io_err(err, path, "out of memory reading it");
                 close(fd);
                 return -1;
             }
@@ -144,7 +150,7 @@ int io_read_input(const char *path, uint64_t max_bytes, const char *what, void *
         ssize_t r = read(fd, buf + n, cap - n);
         if (r < 0 && errno == EINTR) continue;
         if (r < 0) {
-            files_err(err, path, "read error: %s", strerror(errno));
+            io_err(err, path, "read error: %s", strerror(errno));
             free(buf);
             close(fd);
             return -1;
@@ -156,7 +162,7 @@ int io_read_input(const char *path, uint64_t max_bytes, const char *what, void *
     if (max_bytes && n > max_bytes) {
         char limit[32];
         bytes_text(max_bytes, limit, sizeof limit);
-        files_err(err, path, "grew past the %s limit while read", limit);
+        io_err(err, path, "grew past the %s limit while read", limit);
         free(buf);
         return -1;
     }
@@ -233,7 +239,7 @@ int io_lock_path(const char *output, char lock[IO_PATH_MAX + 8], char err[IO_ERR
     lock[0] = 0;
     if (io_output_path(output, resolved, err) != 0) return -1;
     if (snprintf(lock, IO_PATH_MAX + 8, "%s.lock", resolved) >= IO_PATH_MAX + 8) {
-        files_err(err, output, "path too long");
+        io_err(err, output, "path too long");
         lock[0] = 0;
         return -1;
     }
@@ -251,7 +257,7 @@ int io_lock_output(const char *output, IoLock *lock, char err[IO_ERR_LEN]) {
     for (int attempt = 0; attempt < 16; ++attempt) {
         int fd = open(lock->path, O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK, 0666);
         if (fd < 0) {
-            files_err(err, output, "cannot create its lock file %.200s: %s", lock->path, strerror(errno));
+            io_err(err, output, "cannot create its lock file %.200s: %s", lock->path, strerror(errno));
             lock->path[0] = 0;
             return -1;
         }
@@ -264,7 +270,7 @@ int io_lock_output(const char *output, IoLock *lock, char err[IO_ERR_LEN]) {
                 pid[strcspn(pid, "\n")] = 0;
                 char who[96];
                 snprintf(who, sizeof who, "%s%s%s", pid[0] ? " (pid " : "", pid, pid[0] ? ")" : "");
-                files_err(err, output, "another candela%s is writing it (its lock %.200s is held): not started", who,
+                io_err(err, output, "another candela%s is writing it (its lock %.200s is held): not started", who,
                           lock->path);
                 close(fd);
                 lock->path[0] = 0;
@@ -288,7 +294,7 @@ int io_lock_output(const char *output, IoLock *lock, char err[IO_ERR_LEN]) {
         }
         close(fd); /* removed by its previous holder after we opened it: take the new one */
     }
-    files_err(err, output, "cannot take its lock file %.200s (it keeps changing)", lock->path);
+    io_err(err, output, "cannot take its lock file %.200s (it keeps changing)", lock->path);
     lock->path[0] = 0;
     return -1;
 }

@@ -343,9 +343,10 @@ static int decode_entry(const char *path, const void *mem, size_t mem_size, int 
 
 }  // namespace candela_io
 
-extern "C" __attribute__((visibility("default"))) int candela_io_image_module(const IoModuleHost *host,
-                                                                             IoImageModule *module) {
-    if (!host || host->abi != IO_MODULE_ABI || !module) return 1;
+extern "C" __attribute__((visibility("default"))) int candela_io_image_module(const IoModuleHost *host, void *table,
+                                                                              size_t table_size) {
+    if (!host || host->abi != IO_MODULE_ABI || !table || table_size != sizeof(IoImageModule)) return 1;
+    IoImageModule *module = static_cast<IoImageModule *>(table);
     io_module_set_host(host);
     module->abi = IO_MODULE_ABI;
     module->decode = candela_io::decode_entry;

@@ -5,8 +5,9 @@
  * read and write. No C++ type crosses this header. Every function that can fail returns 0 on
  * success and non-zero on failure, with a one-line message "FILE: problem" in err.
  * Ownership: a loaded IoScene / IoImage owns all its arrays; free with io_scene_free /
- * io_image_free. Writers write to "PATH.tmp-PID" and rename, so a crash never leaves a
- * half-written file under the final name. */
+ * io_image_free. Every writer writes through io_atomic_begin / io_atomic_commit (PATH.tmp-PID,
+ * synced, then renamed), so a crash or a full disk never leaves a half-written file under the
+ * final name. */
 #ifndef CANDELA_IO_H
 #define CANDELA_IO_H
 
@@ -20,12 +21,36 @@ extern "C" {
 
 #define IO_ERR_LEN 512
 
-/* The temporary file being written (writers write PATH.tmp-PID, then rename it): registered
- * while it exists so that a signal handler can remove it with io_remove_active_temp (which is
- * async-signal-safe): an interrupted write leaves no file behind. One writer at a time (the
- * program writes its outputs one after another). io_temp_begin also removes PATH's stale
- * temporaries (io_remove_stale_temps). */
-void io_temp_begin(const char *tmp_path);
+/* ---------------------------------------------------------------- atomic files (io/atomic_file.c)
+ * Every output file is written by this protocol, by every writer (EXR, PNG, statistics JSON,
+ * checkpoints and films, the comparison report's files, cache point and guiding dumps, VDB
+ * files; io/README.md "Writing an output"): io_atomic_begin resolves PATH (io_output_path),
+ * removes PATH's stale temporaries (io_remove_stale_temps), registers PATH.tmp-PID for the signal
+ * handler (io_remove_active_temps) and, given a stdio mode ("wb", or "w+b" for a writer that
+ * reads back what it wrote), opens it as the stream af->f; the writer writes af->f (or, mode
+ * NULL, the descriptor af->fd, keeping the first write's errno in af->error, or has a library
+ * write the file named af->tmp, which then exists, empty); io_atomic_commit then checks every
+ * write, flush and close, syncs the file and renames it to PATH. Any failure removes the temporary and leaves
+ * PATH as it was, with one line "PATH: cannot write: REASON" (e.g. "No space left on device")
+ * in err; io_atomic_abort gives up a write the writer found wrong itself. 0 ok. */
+#define IO_PATH_MAX 4096
+#define IO_TEMP_PATH_MAX (IO_PATH_MAX + 32)
+typedef struct IoAtomicFile {
+    FILE *f;                     /* the temporary as a stream (NULL for a write by name) */
+    char path[IO_PATH_MAX];      /* the final name, a symbolic link followed to its target */
+    char tmp[IO_TEMP_PATH_MAX];  /* PATH.tmp-PID */
+    int fd;                      /* the temporary's descriptor (writes without a stream) */
+    int error;                   /* the errno of the first failed write (0: none) */
+    int slot;                    /* internal: its place in the signal handler's registry */
+} IoAtomicFile;
+int io_atomic_begin(IoAtomicFile *af, const char *path, const char *mode, char err[IO_ERR_LEN]);
+int io_atomic_commit(IoAtomicFile *af, char err[IO_ERR_LEN]);
+void io_atomic_abort(IoAtomicFile *af);
+/* The whole file at once: size bytes of data written to path by the protocol above. */
+int io_atomic_write(const char *path, const void *data, size_t size, char err[IO_ERR_LEN]);
+/* Removes the temporaries of the writes in progress: for a signal handler (async-signal-safe:
+ * no lock, no allocation), so that an interrupted write leaves no file behind. */
+void io_remove_active_temps(void);
 /* Removes the files named exactly PATH.tmp-PID beside PATH whose PID is no live process
  * (kill(PID, 0) fails with ESRCH): what a SIGKILL, crash or power loss during a write left, which
  * no signal handler could remove. A live writer's file (another process writing PATH) stays, and
@@ -35,10 +60,7 @@ void io_remove_stale_temps(const char *path);
 /* Where a writer puts PATH: a symbolic link is followed to its target (so a link into a shared
  * render folder gets the image, not replaced by a regular file), an existing directory, device
  * or FIFO is refused with a one-line error. 0 ok. */
-#define IO_PATH_MAX 4096
 int io_output_path(const char *path, char resolved[IO_PATH_MAX], char err[IO_ERR_LEN]);
-void io_temp_end(void);
-void io_remove_active_temp(void);
 
 /* ---------------------------------------------------------------- files (io/files.c)
  * Inputs: every file the program reads (a scene and its buffers, images, VDBs, variant lists,

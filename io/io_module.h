@@ -9,8 +9,8 @@
  *   candela_io_vdb.so    vdb.cpp: reading, building and writing VDB grids (OpenVDB)
  * Everything else in io/ (glTF, EXR through the OpenEXR C API, PNG through libpng, files) is in
  * the program. Each module exports one C entry point, which receives the host's functions the
- * module calls back (so that the temporary-file registry the signal handler reads is the
- * program's own) and fills a table of the module's functions. No C++ type crosses it.
+ * module calls back (so that a file a module writes goes through the program's own atomic
+ * writer, whose registry the signal handler reads) and fills a table of the module's functions. No C++ type crosses it.
  *
  * Where a module is looked for (module.c): $CANDELA_MODULE_DIR when set (only there), else the
  * program's own folder, ../io beside it (the build tree: build/renderer/candela and
@@ -30,16 +30,22 @@ extern "C" {
 #endif
 
 /* Bumped whenever a table below changes: a module of another version is refused. */
-#define IO_MODULE_ABI 1
+#define IO_MODULE_ABI 2
 
-/* What a module calls back in the program (io/files.c). */
+/* What a module calls back in the program (io/atomic_file.c, io/files.c). */
 typedef struct IoModuleHost {
     int abi;
-    void (*temp_begin)(const char *tmp_path);
-    void (*temp_end)(void);
+    int (*atomic_begin)(IoAtomicFile *af, const char *path, const char *mode, char err[IO_ERR_LEN]);
+    int (*atomic_commit)(IoAtomicFile *af, char err[IO_ERR_LEN]);
+    void (*atomic_abort)(IoAtomicFile *af);
     int (*open_input)(const char *path, uint64_t max_bytes, const char *what, int *fd, uint64_t *size,
                       char err[IO_ERR_LEN]);
 } IoModuleHost;
+
+/* A module's entry point: checks the host's version, keeps it (io_module_set_host) and fills
+ * its table (table_size bytes: a table of another size is refused), whose first member is the
+ * abi. One signature for every module, so that module.c loads them all by one function. */
+typedef int (*IoModuleEntry)(const IoModuleHost *host, void *table, size_t table_size);
 
 /* candela_io_image.so. decode: io_internal.hpp's decode_image with a C signature (problem:
  * the one-line reason without a file-name prefix). */
@@ -50,7 +56,7 @@ typedef struct IoImageModule {
 } IoImageModule;
 #define IO_IMAGE_MODULE_FILE "candela_io_image.so"
 #define IO_IMAGE_MODULE_ENTRY "candela_io_image_module"
-int candela_io_image_module(const IoModuleHost *host, IoImageModule *module);
+int candela_io_image_module(const IoModuleHost *host, void *table, size_t table_size);
 
 /* candela_io_vdb.so: io.h's VDB functions that need OpenVDB. */
 typedef struct IoVdbModule {
@@ -66,15 +72,15 @@ typedef struct IoVdbModule {
 } IoVdbModule;
 #define IO_VDB_MODULE_FILE "candela_io_vdb.so"
 #define IO_VDB_MODULE_ENTRY "candela_io_vdb_module"
-int candela_io_vdb_module(const IoModuleHost *host, IoVdbModule *module);
+int candela_io_vdb_module(const IoModuleHost *host, void *table, size_t table_size);
 
 /* The module's table, loading it on first use (thread-safe); NULL with "PREFIX: problem" in
  * err when it cannot be loaded (the problem names the module file and `needed_for`). */
 const IoImageModule *io_image_module(const char *prefix, const char *needed_for, char err[IO_ERR_LEN]);
 const IoVdbModule *io_vdb_module(const char *prefix, const char *needed_for, char err[IO_ERR_LEN]);
 
-/* Inside a module: the host the entry point was given (module_host.cpp forwards io_temp_begin,
- * io_temp_end and io_open_input to it). */
+/* Inside a module: the host the entry point was given (module_host.c forwards io_atomic_begin,
+ * io_atomic_commit, io_atomic_abort and io_open_input to it). */
 void io_module_set_host(const IoModuleHost *host);
 
 #ifdef __cplusplus

@@ -1,29 +1,16 @@
 /* io/module.c: loads the heavy adapters (io_module.h) on first use, and the io.h functions
  * that go through them: the VDB ones here, image decoding in image.cpp. */
 #include "io_module.h"
+#include "io_err.h"
 
 #include <dlfcn.h>
 #include <limits.h>
 #include <pthread.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
-
-/* snprintf that may truncate (messages are one line of at most IO_ERR_LEN) */
-static void fmt(char *buf, size_t len, const char *format, ...) __attribute__((format(printf, 3, 4)));
-static void fmt(char *buf, size_t len, const char *format, ...) {
-    va_list ap;
-    va_start(ap, format);
-    vsnprintf(buf, len, format, ap);
-    va_end(ap);
-}
-
-static void set_err(char err[IO_ERR_LEN], const char *prefix, const char *problem) {
-    if (err) fmt(err, IO_ERR_LEN, "%s: %s", prefix ? prefix : "(null)", problem);
-}
 
 #ifdef CANDELA_IO_STATIC_MODULES
 /* libFuzzer builds: both adapters are linked in and call io/files.c directly */
@@ -32,8 +19,9 @@ void io_module_set_host(const IoModuleHost *host) { (void)host; }
 
 static const IoModuleHost host = {
     .abi = IO_MODULE_ABI,
-    .temp_begin = io_temp_begin,
-    .temp_end = io_temp_end,
+    .atomic_begin = io_atomic_begin,
+    .atomic_commit = io_atomic_commit,
+    .atomic_abort = io_atomic_abort,
     .open_input = io_open_input,
 };
 
@@ -44,7 +32,7 @@ static int module_dirs(char dirs[MAX_DIRS][PATH_MAX]) {
     int n = 0;
     const char *env = getenv("CANDELA_MODULE_DIR");
     if (env && *env) {
-        fmt(dirs[n++], PATH_MAX, "%s", env);
+        io_fmt(dirs[n++], PATH_MAX, "%s", env);
         return n;
     }
     char exe[PATH_MAX];
@@ -54,15 +42,15 @@ static int module_dirs(char dirs[MAX_DIRS][PATH_MAX]) {
         char *slash = strrchr(exe, '/');
         if (slash) {
             *slash = 0;
-            fmt(dirs[n++], PATH_MAX, "%s", exe);
-            fmt(dirs[n++], PATH_MAX, "%s/../io", exe);
+            io_fmt(dirs[n++], PATH_MAX, "%s", exe);
+            io_fmt(dirs[n++], PATH_MAX, "%s/../io", exe);
 #ifdef CANDELA_MODULE_REL_DIR
-            fmt(dirs[n++], PATH_MAX, "%s/%s", exe, CANDELA_MODULE_REL_DIR);
+            io_fmt(dirs[n++], PATH_MAX, "%s/%s", exe, CANDELA_MODULE_REL_DIR);
 #endif
         }
     }
 #ifdef CANDELA_MODULE_INSTALL_DIR
-    fmt(dirs[n++], PATH_MAX, "%s", CANDELA_MODULE_INSTALL_DIR);
+    io_fmt(dirs[n++], PATH_MAX, "%s", CANDELA_MODULE_INSTALL_DIR);
 #endif
     return n;
 }
@@ -75,11 +63,11 @@ static void *open_module(const char *file, const char *entry, const char *needed
     char looked[IO_ERR_LEN] = "";
     for (int i = 0; i < n; ++i) {
         char path[PATH_MAX + 64];
-        fmt(path, sizeof path, "%s/%s", dirs[i], file);
+        io_fmt(path, sizeof path, "%s/%s", dirs[i], file);
         struct stat st;
         if (stat(path, &st) != 0) {
             size_t used = strlen(looked);
-            fmt(looked + used, sizeof looked - used, "%s%s", used ? ", " : "", dirs[i]);
+            io_fmt(looked + used, sizeof looked - used, "%s%s", used ? ", " : "", dirs[i]);
             continue;
         }
         /* RTLD_LOCAL: the library's symbols stay out of the program's scope. RTLD_LAZY: its
@@ -90,18 +78,18 @@ static void *open_module(const char *file, const char *entry, const char *needed
         void *handle = dlopen(path, RTLD_LAZY | RTLD_LOCAL);
         if (!handle) {
             const char *e = dlerror();
-            fmt(why, IO_ERR_LEN, "cannot load %s (%s): %s", path, needed_for, e ? e : "dlopen failed");
+            io_fmt(why, IO_ERR_LEN, "cannot load %s (%s): %s", path, needed_for, e ? e : "dlopen failed");
             return NULL;
         }
         void *sym = dlsym(handle, entry);
         if (!sym) {
-            fmt(why, IO_ERR_LEN, "%s has no %s (%s): a module of another build?", path, entry, needed_for);
+            io_fmt(why, IO_ERR_LEN, "%s has no %s (%s): a module of another build?", path, entry, needed_for);
             return NULL;
         }
         return sym;
     }
-    fmt(why, IO_ERR_LEN, "%s not found (%s; looked in %s%s)", file, needed_for, looked,
-             getenv("CANDELA_MODULE_DIR") ? ", from CANDELA_MODULE_DIR" : "");
+    io_fmt(why, IO_ERR_LEN, "%s not found (%s; looked in %s%s)", file, needed_for, looked,
+           getenv("CANDELA_MODULE_DIR") ? ", from CANDELA_MODULE_DIR" : "");
     return NULL;
 }
 
@@ -109,57 +97,54 @@ static void *open_module(const char *file, const char *entry, const char *needed
 
 static pthread_mutex_t lock = PTHREAD_MUTEX_INITIALIZER;
 
-typedef int (*ImageEntry)(const IoModuleHost *, IoImageModule *);
-typedef int (*VdbEntry)(const IoModuleHost *, IoVdbModule *);
+/* One module: where it is, and its state, tried once (under the lock) and kept. */
+typedef struct Module {
+    const char *file, *entry;
+    IoModuleEntry linked; /* CANDELA_IO_STATIC_MODULES: the entry point linked in */
+    void *table;          /* the module's table (IoImageModule, IoVdbModule), filled by its entry */
+    size_t table_size;
+    int state;            /* 0 not tried, 1 loaded, -1 failed (why holds the reason) */
+    char why[IO_ERR_LEN];
+} Module;
 
-const IoImageModule *io_image_module(const char *prefix, const char *needed_for, char err[IO_ERR_LEN]) {
-    static IoImageModule module;
-    static int state; /* 0 not tried, 1 loaded, -1 failed (why holds the reason) */
-    static char why[IO_ERR_LEN];
+/* The module's table, loading it on first use; NULL with "PREFIX: why" in err. */
+static const void *module_table(Module *m, const char *prefix, const char *needed_for, char err[IO_ERR_LEN]) {
     pthread_mutex_lock(&lock);
-    if (state == 0) {
-#ifdef CANDELA_IO_STATIC_MODULES
-        ImageEntry fn = candela_io_image_module;
-#else
-        ImageEntry fn;
-        void *sym = open_module(IO_IMAGE_MODULE_FILE, IO_IMAGE_MODULE_ENTRY, needed_for, why);
-        memcpy(&fn, &sym, sizeof fn);
+    if (m->state == 0) {
+        IoModuleEntry fn = m->linked;
+#ifndef CANDELA_IO_STATIC_MODULES
+        void *sym = open_module(m->file, m->entry, needed_for, m->why);
+        memcpy(&fn, &sym, sizeof fn); /* dlsym's object pointer as the function it names (POSIX) */
 #endif
-        if (fn && (fn(&host, &module) != 0 || module.abi != IO_MODULE_ABI)) {
-            fmt(why, sizeof why, "%s is of another version (%s)", IO_IMAGE_MODULE_FILE, needed_for);
+        if (fn && (fn(&host, m->table, m->table_size) != 0 || *(const int *)m->table != IO_MODULE_ABI)) {
+            io_fmt(m->why, sizeof m->why, "%s is of another version (%s)", m->file, needed_for);
             fn = NULL;
         }
-        state = fn ? 1 : -1;
+        m->state = fn ? 1 : -1;
     }
+    const int state = m->state;
     pthread_mutex_unlock(&lock);
-    if (state == 1) return &module;
-    set_err(err, prefix, why);
+    if (state == 1) return m->table;
+    io_err(err, prefix, "%s", m->why);
     return NULL;
 }
 
-const IoVdbModule *io_vdb_module(const char *prefix, const char *needed_for, char err[IO_ERR_LEN]) {
-    static IoVdbModule module;
-    static int state;
-    static char why[IO_ERR_LEN];
-    pthread_mutex_lock(&lock);
-    if (state == 0) {
 #ifdef CANDELA_IO_STATIC_MODULES
-        VdbEntry fn = candela_io_vdb_module;
+#define LINKED(entry) entry
 #else
-        VdbEntry fn;
-        void *sym = open_module(IO_VDB_MODULE_FILE, IO_VDB_MODULE_ENTRY, needed_for, why);
-        memcpy(&fn, &sym, sizeof fn);
+#define LINKED(entry) NULL
 #endif
-        if (fn && (fn(&host, &module) != 0 || module.abi != IO_MODULE_ABI)) {
-            fmt(why, sizeof why, "%s is of another version (%s)", IO_VDB_MODULE_FILE, needed_for);
-            fn = NULL;
-        }
-        state = fn ? 1 : -1;
-    }
-    pthread_mutex_unlock(&lock);
-    if (state == 1) return &module;
-    set_err(err, prefix, why);
-    return NULL;
+
+const IoImageModule *io_image_module(const char *prefix, const char *needed_for, char err[IO_ERR_LEN]) {
+    static IoImageModule table;
+    static Module m = {IO_IMAGE_MODULE_FILE, IO_IMAGE_MODULE_ENTRY, LINKED(candela_io_image_module), &table, sizeof table, 0, ""};
+    return module_table(&m, prefix, needed_for, err);
+}
+
+const IoVdbModule *io_vdb_module(const char *prefix, const char *needed_for, char err[IO_ERR_LEN]) {
+    static IoVdbModule table;
+    static Module m = {IO_VDB_MODULE_FILE, IO_VDB_MODULE_ENTRY, LINKED(candela_io_vdb_module), &table, sizeof table, 0, ""};
+    return module_table(&m, prefix, needed_for, err);
 }
 
 /* ---------------------------------------------------------------- VDB (io.h) */
@@ -172,11 +157,11 @@ int io_load_vdb_grid(const char *path, const char *grid_name, IoVolumeGrid *grid
     /* the checks that need no OpenVDB first: a missing file says so, module or not */
     struct stat st;
     if (stat(path, &st) != 0) {
-        set_err(err, path, "cannot open: no such file");
+        io_err(err, path, "cannot open: no such file");
         return 1;
     }
     if (!S_ISREG(st.st_mode)) {
-        set_err(err, path, "not a regular file");
+        io_err(err, path, "not a regular file");
         return 1;
     }
     const IoVdbModule *m = io_vdb_module(path, VDB_NEEDED, err);

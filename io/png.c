@@ -1,33 +1,18 @@
 /* io/png.c: 8-bit sRGB PNGs through libpng (io_write_png), encoded in memory, then written
- * atomically (temp name + rename) with every write, flush, sync and close checked: an image
+ * atomically (io_atomic_write: temp name, sync, rename) with every write, flush, sync and close checked: an image
  * library's writer once reported success on a full disk and a truncated file was renamed into
  * place (issue 13 item 10). The chunks are the ones OpenImageIO wrote before (IHDR, oFFs 0 0,
  * IDAT, IEND), so a plain render needs no image library beyond libpng; provenance attributes
  * (issue 27) go into text chunks (tEXt, zTXt, iTXt) before IDAT. */
 #include "io.h"
+#include "io_err.h"
 
 #include <png.h>
 
-#include <errno.h>
 #include <setjmp.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
-
-/* snprintf that may truncate (messages are one line of at most IO_ERR_LEN) */
-static void fmt(char *buf, size_t len, const char *format, ...) __attribute__((format(printf, 3, 4)));
-static void fmt(char *buf, size_t len, const char *format, ...) {
-    va_list ap;
-    va_start(ap, format);
-    vsnprintf(buf, len, format, ap);
-    va_end(ap);
-}
-
-static void set_err(char err[IO_ERR_LEN], const char *prefix, const char *problem) {
-    if (err) fmt(err, IO_ERR_LEN, "%s: %s", prefix, problem);
-}
 
 typedef struct PngBuffer {
     unsigned char *data;
@@ -57,7 +42,7 @@ static void png_buffer_flush(png_structp png) { (void)png; }
 /* The message of the last libpng error (one per encode, which runs on one thread). */
 static _Thread_local char png_problem[256];
 static void png_on_error(png_structp png, png_const_charp msg) {
-    fmt(png_problem, sizeof png_problem, "%s", msg);
+    io_fmt(png_problem, sizeof png_problem, "%s", msg);
     png_longjmp(png, 1);
 }
 static void png_on_warning(png_structp png, png_const_charp msg) { (void)png; (void)msg; }
@@ -99,13 +84,13 @@ static int encode_png(const unsigned char *px, int width, int height, png_textp 
                       char problem[256]) {
     png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, png_on_error, png_on_warning);
     if (!png) {
-        fmt(problem, 256, "cannot create the PNG encoder");
+        io_fmt(problem, 256, "cannot create the PNG encoder");
         return 1;
     }
     png_infop info = png_create_info_struct(png);
     png_bytep *volatile rows = NULL;
     if (!info || setjmp(png_jmpbuf(png))) {
-        fmt(problem, 256, "%s", info ? png_problem : "cannot create the PNG encoder");
+        io_fmt(problem, 256, "%s", info ? png_problem : "cannot create the PNG encoder");
         free((void *)rows);
         png_destroy_write_struct(&png, info ? &info : NULL);
         return 1;
@@ -131,24 +116,23 @@ int io_write_png(const char *path_arg, int width, int height, const float *rgb, 
                  int num_attributes, char err[IO_ERR_LEN]) {
     if (err) err[0] = 0;
     if (!path_arg || !*path_arg) {
-        set_err(err, "(null)", "no path given");
+        io_err(err, "(null)", "no path given");
         return 1;
     }
-    char path[IO_PATH_MAX];
-    if (io_output_path(path_arg, path, err) != 0) return 1;
+    const char *path = path_arg;
     if (width <= 0 || height <= 0 || !rgb || (long long)width * height > (1LL << 31) / 3) {
-        set_err(err, path, "invalid image size or no pixels");
+        io_err(err, path, "invalid image size or no pixels");
         return 1;
     }
     if (num_attributes < 0 || (num_attributes > 0 && !attributes)) {
-        set_err(err, path, "invalid attribute list");
+        io_err(err, path, "invalid attribute list");
         return 1;
     }
     png_textp text = NULL;
     if (num_attributes > 0) {
         text = calloc((size_t)num_attributes, sizeof *text);
         if (!text) {
-            set_err(err, path, "cannot write: out of memory");
+            io_err(err, path, "cannot write: out of memory");
             return 1;
         }
     }
@@ -158,19 +142,19 @@ int io_write_png(const char *path_arg, int width, int height, const float *rgb, 
         const char *key = png_keyword(name);
         int bad = 0;
         if (png_keyword_ok(key) != 0) {
-            fmt(msg, sizeof msg, "attribute \"%.100s\": not a PNG keyword (1-79 Latin-1 characters)", name);
+            io_fmt(msg, sizeof msg, "attribute \"%.100s\": not a PNG keyword (1-79 Latin-1 characters)", name);
             bad = 1;
         } else if (!attributes[k].value) {
-            fmt(msg, sizeof msg, "attribute \"%.100s\" has no value", name);
+            io_fmt(msg, sizeof msg, "attribute \"%.100s\" has no value", name);
             bad = 1;
         }
         for (int j = 0; j < k && !bad; ++j)
             if (strcmp(text[j].key, key) == 0) {
-                fmt(msg, sizeof msg, "attribute \"%.100s\" given twice", key);
+                io_fmt(msg, sizeof msg, "attribute \"%.100s\" given twice", key);
                 bad = 1;
             }
         if (bad) {
-            set_err(err, path, msg);
+            io_err(err, path, "%s", msg);
             free(text);
             return 1;
         }
@@ -182,7 +166,7 @@ int io_write_png(const char *path_arg, int width, int height, const float *rgb, 
     const size_t n = (size_t)width * (size_t)height * 3;
     unsigned char *px = malloc(n);
     if (!px) {
-        set_err(err, path, "cannot write: out of memory");
+        io_err(err, path, "cannot write: out of memory");
         free(text);
         return 1;
     }
@@ -198,47 +182,13 @@ int io_write_png(const char *path_arg, int width, int height, const float *rgb, 
     free(px);
     free(text);
     if (rc != 0 || bytes.size == 0) {
-        char msg[IO_ERR_LEN];
-        fmt(msg, sizeof msg, "cannot encode: %s", rc ? problem : "no data");
-        set_err(err, path, msg);
+        io_err(err, path, "cannot encode: %s", rc ? problem : "no data");
         free(bytes.data);
         return 1;
     }
 
-    char tmp[IO_PATH_MAX + 32];
-    fmt(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
-    io_temp_begin(tmp);
-    char msg[IO_ERR_LEN];
-    FILE *f = fopen(tmp, "wb");
-    if (!f) {
-        fmt(msg, sizeof msg, "cannot open for writing: %s", strerror(errno));
-        set_err(err, path, msg);
-        free(bytes.data);
-        io_temp_end();
-        return 1;
-    }
-    int written = fwrite(bytes.data, 1, bytes.size, f) == bytes.size && fflush(f) == 0 && fsync(fileno(f)) == 0;
-    int saved = errno;
+    /* the one atomic writer (io.h): PATH.tmp-PID, every write, flush and sync checked, renamed */
+    rc = io_atomic_write(path_arg, bytes.data, bytes.size, err);
     free(bytes.data);
-    if (fclose(f) != 0 && written) {
-        written = 0;
-        saved = errno;
-    }
-    if (!written) {
-        remove(tmp);
-        fmt(msg, sizeof msg, "cannot write: %s", strerror(saved));
-        set_err(err, path, msg);
-        io_temp_end();
-        return 1;
-    }
-    if (rename(tmp, path) != 0) {
-        const char *e = strerror(errno);
-        remove(tmp);
-        fmt(msg, sizeof msg, "cannot rename %s: %s", tmp, e);
-        set_err(err, path, msg);
-        io_temp_end();
-        return 1;
-    }
-    io_temp_end();
-    return 0;
+    return rc;
 }

@@ -717,27 +717,21 @@ static int vdb_write_vdb_dense(const char *path, const char *const *names, const
         candela_io::set_err(err, path, "invalid dense grid size");
         return 1;
     }
-    std::string tmp = std::string(path) + ".tmp-" + std::to_string((long)getpid());
-    io_temp_begin(tmp.c_str());
-    struct TempEnd {
-        ~TempEnd() { io_temp_end(); }
-    } temp_end;
+    // through the program's atomic writer (io.h; module_host.c): OpenVDB writes the temporary by
+    // name, the program syncs and renames it
+    IoAtomicFile af;
+    if (io_atomic_begin(&af, path, nullptr, err) != 0) return 1;
     try {
         openvdb_init_once();
         openvdb::GridPtrVec grids;
         for (int g = 0; g < num_grids; ++g) grids.push_back(dense_grid(values[g], nx, ny, nz, index_to_world, names[g]));
-        openvdb::io::File file(tmp);
+        openvdb::io::File file(af.tmp);
         file.write(grids);
         file.close();
-        if (std::rename(tmp.c_str(), path) != 0) {
-            std::remove(tmp.c_str());
-            candela_io::set_err(err, path, "cannot rename the written file into place");
-            return 1;
-        }
-        return 0;
+        return io_atomic_commit(&af, err);
     } catch (const std::exception &e) {
-        std::remove(tmp.c_str());
-        candela_io::set_err(err, path, std::string("cannot write: ") + e.what());
+        io_atomic_abort(&af);
+        candela_io::set_err(err, af.path, std::string("cannot write: ") + e.what());
     }
     return 1;
 }
@@ -804,9 +798,10 @@ static int vdb_volume_grid_from_voxels(const int32_t *ijk, const float *values, 
     return 1;
 }
 
-extern "C" __attribute__((visibility("default"))) int candela_io_vdb_module(const IoModuleHost *host,
-                                                                           IoVdbModule *module) {
-    if (!host || host->abi != IO_MODULE_ABI || !module) return 1;
+extern "C" __attribute__((visibility("default"))) int candela_io_vdb_module(const IoModuleHost *host, void *table,
+                                                                            size_t table_size) {
+    if (!host || host->abi != IO_MODULE_ABI || !table || table_size != sizeof(IoVdbModule)) return 1;
+    IoVdbModule *module = static_cast<IoVdbModule *>(table);
     io_module_set_host(host);
     module->abi = IO_MODULE_ABI;
     module->load_grid = vdb_load_vdb_grid;

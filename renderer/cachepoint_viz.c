@@ -2,11 +2,9 @@
  * point dump"). The colours are a pure function of an index, so the AOV of a pixel names the
  * point its first-hit vertex used (Li et al. 2024, §3.3: the single nearest point) and the
  * PLY's colour of that point is the same one. */
-#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
-#include <unistd.h>
 
 #include "cachepoint_viz.h"
 #include "io.h"
@@ -52,28 +50,15 @@ static void write_points(FILE *f, const CachePoints *cp) {
     }
 }
 
-int cachepoint_write_ply(const CachePoints *cp, const char *path_arg, char err[CANDELA_ERR_LEN]) {
-    char path[IO_PATH_MAX], ioerr[IO_ERR_LEN];
-    if (io_output_path(path_arg, path, ioerr) != 0) {
-        snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
-        return -1;
+int cachepoint_write_ply(const CachePoints *cp, const char *path, char err[CANDELA_ERR_LEN]) {
+    /* through io's atomic writer: PATH.tmp-PID, checked, synced, renamed (io.h) */
+    IoAtomicFile af;
+    char ioerr[IO_ERR_LEN];
+    int rc = io_atomic_begin(&af, path, "w", ioerr);
+    if (rc == 0) {
+        write_points(af.f, cp);
+        rc = io_atomic_commit(&af, ioerr);
     }
-    char tmp[IO_PATH_MAX + 32];
-    snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
-    FILE *f = fopen(tmp, "w");
-    if (!f) {
-        snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot open for writing: %s", path, strerror(errno));
-        return -1;
-    }
-    io_temp_begin(tmp);
-    write_points(f, cp);
-    int synced = !ferror(f) && fflush(f) == 0 && fsync(fileno(f)) == 0;
-    if (fclose(f) != 0 || !synced || rename(tmp, path) != 0) {
-        remove(tmp);
-        io_temp_end();
-        snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot write", path);
-        return -1;
-    }
-    io_temp_end();
-    return 0;
+    if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
+    return rc ? -1 : 0;
 }

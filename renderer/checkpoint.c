@@ -15,13 +15,11 @@
  * The checksum is verified before anything is parsed, so a truncated file (a checkpoint being
  * written when the machine died leaves only NAME.tmp-PID, but a copy may be cut) or a damaged one
  * is refused with one line, never half-loaded. */
-#include <errno.h>
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <unistd.h>
 
 #include "checkpoint.h"
 #include "feature.h"
@@ -293,20 +291,17 @@ int candela_checkpoint_info(const char *path, CandelaCheckpointInfo *info, char 
 
 /* ---------------------------------------------------------------- write */
 
-int checkpoint_write(const char *path_arg, const CheckpointIdentity *id, const CheckpointProgress *pr, Integrator *ig,
+int checkpoint_write(const char *path, const CheckpointIdentity *id, const CheckpointProgress *pr, Integrator *ig,
                      const LightSampler *sampler, int final, char err[CANDELA_ERR_LEN]) {
-    char path[IO_PATH_MAX], ioerr[IO_ERR_LEN], tmp[IO_PATH_MAX + 32];
-    if (io_output_path(path_arg, path, ioerr) != 0) {
+    /* through io's atomic writer (PATH.tmp-PID, checked, synced, renamed: io.h); "w+b": the
+     * checksum reads back what was written */
+    IoAtomicFile af;
+    char ioerr[IO_ERR_LEN];
+    if (io_atomic_begin(&af, path, "w+b", ioerr) != 0) {
         snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
         return -1;
     }
-    snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
-    FILE *f = fopen(tmp, "w+b");
-    if (!f) {
-        snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot open for writing: %s", path, strerror(errno));
-        return -1;
-    }
-    io_temp_begin(tmp);
+    FILE *f = af.f;
     int rc = write_header(f, final ? CKPT_KIND_FILM : CKPT_KIND_CHECKPOINT, ig->film.width, ig->film.height, id, pr);
     if (rc == 0) rc = film_save(&ig->film, f);
     if (rc == 0 && !final) {
@@ -321,16 +316,17 @@ int checkpoint_write(const char *path_arg, const CheckpointIdentity *id, const C
     if (size < 0 || hash_prefix(f, (uint64_t)size, &sum) != 0 || fseek(f, 0, SEEK_END) != 0 ||
         ckpt_put(f, &sum, sizeof sum) != 0)
         rc = -1;
-    int synced = rc == 0 && fflush(f) == 0 && fsync(fileno(f)) == 0;
-    if (fclose(f) != 0 || !synced || rename(tmp, path) != 0) {
-        int e = errno;
-        remove(tmp);
-        io_temp_end();
-        snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot write the %s: %s", path, final ? "film" : "checkpoint",
-                 rc == 0 ? strerror(e) : "write failed (disk full?)");
+    /* a failed write keeps its reason (af.error: "No space left on device"), which commit
+     * gives; a failure without one (the read-back of the checksum) is said here */
+    if (rc != 0 && !af.error) {
+        io_atomic_abort(&af);
+        snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot write the %s: write failed", path, final ? "film" : "checkpoint");
         return -1;
     }
-    io_temp_end();
+    if (io_atomic_commit(&af, ioerr) != 0) {
+        snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
+        return -1;
+    }
     return 0;
 }
 

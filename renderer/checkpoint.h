@@ -49,7 +49,7 @@ int checkpoint_identity(const CandelaOptions *o, int width, int height, uint64_t
 /* Before anything is built: the checkpoint at path belongs to this render (same identity), is
  * intact (checksum) and is a checkpoint, not a finished film. -1 with a one-line message. */
 int checkpoint_check(const char *path, const CheckpointIdentity *id, char err[CANDELA_ERR_LEN]);
-/* Writes the state (atomically: PATH.tmp-PID, then rename). final: a finished film (a shard's
+/* Writes the state through io's atomic writer (io_atomic_begin: PATH.tmp-PID, synced, renamed). final: a finished film (a shard's
  * result, what `candela merge` reads), which holds the film only. -1 with a message. */
 int checkpoint_write(const char *path, const CheckpointIdentity *id, const CheckpointProgress *pr, Integrator *ig,
                      const LightSampler *sampler, int final, char err[CANDELA_ERR_LEN]);

@@ -448,8 +448,19 @@ static int guide_dump(const Integrator *ig, const float at[3], const char *prefi
     if (rc == 0) {
         char path[4096];
         snprintf(path, sizeof path, "%s.leaves.ply", prefix);
-        if (guide_field_write_ply(gs->fields[best], path) != 0) {
-            snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot write (%s)", path, strerror(errno));
+        /* through io's atomic writer, as the planes (io.h) */
+        IoAtomicFile af;
+        char ioerr[IO_ERR_LEN];
+        int prc = io_atomic_begin(&af, path, "w", ioerr);
+        if (prc == 0 && guide_field_write_ply(gs->fields[best], af.f) != 0 && !af.error) {
+            snprintf(ioerr, sizeof ioerr, "%.400s: cannot write: %s", af.path, strerror(errno));
+            io_atomic_abort(&af);
+            prc = -1;
+        } else if (prc == 0) {
+            prc = io_atomic_commit(&af, ioerr); /* a failed write was kept with its reason (af.error) */
+        }
+        if (prc != 0) {
+            snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
             return -1;
         }
         if (!ig->opt->quiet)

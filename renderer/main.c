@@ -49,7 +49,7 @@ static volatile sig_atomic_t interrupts;
 static void on_interrupt(int sig) {
     (void)sig;
     if (interrupts++ > 0) {
-        io_remove_active_temp();
+        io_remove_active_temps();
         _exit(130);
     }
 }

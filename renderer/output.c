@@ -1,10 +1,8 @@
 /* renderer/output.c: EXR/PNG output and the statistics JSON. */
-#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
-#include <unistd.h>
 
 #include <math.h>
 
@@ -189,33 +187,19 @@ static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s, 
     fprintf(f, "  \"peak_memory_bytes\": %zu\n}\n", s->peak_memory_bytes);
 }
 
-int candela_write_stats_json(const char *path_arg, const CandelaOptions *o, const CandelaStats *s,
+int candela_write_stats_json(const char *path, const CandelaOptions *o, const CandelaStats *s,
                              const CandelaProvenance *provenance, char err[CANDELA_ERR_LEN]) {
-    char path[IO_PATH_MAX], ioerr[IO_ERR_LEN];
-    if (io_output_path(path_arg, path, ioerr) != 0) {
-        snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
-        return -1;
+    /* through io's atomic writer: PATH.tmp-PID, checked, synced, renamed (io.h) */
+    IoAtomicFile af;
+    char ioerr[IO_ERR_LEN];
+    int rc = io_atomic_begin(&af, path, "w", ioerr);
+    if (rc == 0) {
+        stats_json(af.f, o, s, provenance);
+        rc = io_atomic_commit(&af, ioerr);
     }
-    char tmp[IO_PATH_MAX + 32];
-    snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
-    FILE *f = fopen(tmp, "w");
-    if (!f) {
-        snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot open for writing: %s", path, strerror(errno));
-        return -1;
-    }
-    io_temp_begin(tmp);
-    stats_json(f, o, s, provenance);
-    int synced = fflush(f) == 0 && fsync(fileno(f)) == 0;
-    if (fclose(f) != 0 || !synced || rename(tmp, path) != 0) {
-        remove(tmp);
-        io_temp_end();
-        snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot write", path);
-        return -1;
-    }
-    io_temp_end();
-    return 0;
+    if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
+    return rc ? -1 : 0;
 }
-
 
 int candela_stats_json_line(const CandelaOptions *o, const CandelaStats *s, char **json) {
     char *buf = NULL;

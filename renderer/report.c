@@ -3,13 +3,11 @@
  * The plots are SVG written here (no plotting dependency): log-log axes with decade ticks
  * (and 2x, 5x ticks when the data span less than two decades), one polyline with markers per
  * series, a legend. Browsers show them inline through <img>. */
-#include <errno.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 #include "io.h"
 #include "report.h"
@@ -54,19 +52,8 @@ void report_text_free(ReportText *t) {
 
 int report_write_text(const char *path, const ReportText *t, char err[CANDELA_ERR_LEN]) {
     if (t->failed) { snprintf(err, CANDELA_ERR_LEN, "%.400s: out of memory", path); return -1; }
-    char tmp[IO_PATH_MAX + 32];
-    snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
-    io_remove_stale_temps(path);
-    FILE *f = fopen(tmp, "w");
-    if (!f) { snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot write: %s", path, strerror(errno)); return -1; }
-    int bad = t->len && fwrite(t->s, 1, t->len, f) != t->len;
-    bad |= ferror(f);
-    bad |= fclose(f) != 0;
-    if (bad || rename(tmp, path) != 0) {
-        snprintf(err, CANDELA_ERR_LEN, "%.400s: cannot write: %s", path, strerror(errno));
-        remove(tmp);
-        return -1;
-    }
+    char ioerr[IO_ERR_LEN];
+    if (io_atomic_write(path, t->s, t->len, ioerr) != 0) { snprintf(err, CANDELA_ERR_LEN, "%s", ioerr); return -1; }
     return 0;
 }
 

@@ -18,7 +18,8 @@ void report_printf(ReportText *t, const char *fmt, ...) __attribute__((format(pr
 /* Appends s with & < > " escaped for HTML (and SVG). */
 void report_html(ReportText *t, const char *s);
 void report_text_free(ReportText *t);
-/* Writes t to PATH.tmp-PID and renames it to path (never a half-written file). */
+/* Writes t to path through io's atomic writer (io_atomic_write: PATH.tmp-PID, synced, renamed; never
+ * a half-written file). */
 int report_write_text(const char *path, const ReportText *t, char err[CANDELA_ERR_LEN]);
 
 /* One convergence snapshot: the image after spp samples, seconds into the render. */

@@ -566,6 +566,13 @@ if mount -t tmpfs -o size=256k tmpfs "$tmp/tfs" 2>/dev/null; then
   if [ "$rc" -ne 0 ] && [ ! -e "$tmp/tfs/o.png" ] && grep -q "No space left" "$tmp/full.err" &&
      ! ls "$tmp/tfs" | grep -q tmp-; then ok
   else bad "full disk: exit $rc, $(ls "$tmp/tfs" | tr '\n' ' ') $(cat "$tmp/full.err")"; fi
+  # ... and so do the statistics (io's one atomic writer: the reason, which this writer did not
+  # give before issue 30), with the disk now full to the last byte
+  head -c 1M /dev/zero > "$tmp/tfs/fill2" 2>/dev/null
+  "$bin" render "$scene" -o "$tmp/full2.exr" --no-png --res 8x8 --spp 1 --quiet --stats-json "$tmp/tfs/s.json" 2>"$tmp/full.err"; rc=$?
+  if [ "$rc" -ne 0 ] && [ ! -e "$tmp/tfs/s.json" ] && [ "$(grep -c . "$tmp/full.err")" -eq 1 ] &&
+     grep -q "$tmp/tfs/s.json: cannot write: No space left on device" "$tmp/full.err" && ! ls "$tmp/tfs" | grep -q tmp-; then ok
+  else bad "full disk (statistics): exit $rc, $(ls "$tmp/tfs" | tr '\n' ' ') $(cat "$tmp/full.err")"; fi
   umount "$tmp/tfs"
 else
   echo "full-disk check skipped: cannot mount a tmpfs here"

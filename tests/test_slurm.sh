@@ -130,6 +130,24 @@ grep -qF -- "--threads $cores " "$tmp0/n.err" && ok || bad "no -c: the job scrip
 arrays --frames 1-2 >/dev/null
 grep -qF -- "--cpus-per-task=$cores " "$tmp0/n.err" && grep -qF -- "--threads $cores " "$tmp0/n.err" && ok ||
   bad "no -c (frames): --cpus-per-task=$cores and --threads $cores expected: $(cat "$tmp0/n.err")"
+# the job scripts are written as candela's outputs are (FILE.tmp-PID, synced, renamed): on a full
+# disk (a small tmpfs, where this test may mount one) the submission fails in one line naming the
+# script and the reason, and leaves neither a cut job script nor a temporary
+mkdir -p "$tmp0/full"
+if mount -t tmpfs -o size=16k tmpfs "$tmp0/full" 2>/dev/null; then
+  mkdir "$tmp0/full/work"
+  head -c 1M /dev/zero > "$tmp0/full/fill" 2>/dev/null
+  "$submit" --dry-run --candela "$bin" --work-dir "$tmp0/full/work" --sample-shards 2 -o "$tmp0/full.exr" "$scene" \
+    >/dev/null 2>"$tmp0/full.err"; rc=$?
+  left=$(ls -A "$tmp0/full/work")
+  if [ $rc -eq 2 ] && [ "$(grep -c . "$tmp0/full.err")" -eq 1 ] &&
+     grep -q "^candela_submit: $tmp0/full/work/shard.sh: cannot write: No space left on device\$" "$tmp0/full.err" &&
+     [ -z "$left" ]; then ok
+  else bad "job scripts on a full disk: exit $rc, left '$left', $(cat "$tmp0/full.err")"; fi
+  umount "$tmp0/full"
+else
+  echo "full-disk job script check skipped: cannot mount a tmpfs here"
+fi
 
 [ "$(id -u)" -eq 0 ] || skip "the test cluster runs its daemons as root (SlurmUser=root)"
 for c in munged munge slurmctld slurmd sbatch sinfo scontrol; do

@@ -108,6 +108,17 @@ if [ -z "$work" ]; then
 fi
 mkdir -p "$work"; work=$(cd "$work" && pwd)
 quote() { local s; s=$(printf '%q ' "$@"); printf '%s' "${s% }"; } # shell-quoted words, for the job scripts
+# write_script FILE: the job script on stdin into FILE, made executable, written as candela writes
+# its outputs (io/README.md "Writing an output"): to FILE.tmp-PID, synced, then renamed, so that a
+# full disk or a killed submission never leaves a cut job script for sbatch; a failure is one line
+# naming the file and the reason, and leaves no temporary
+write_script() {
+  local tmp="$1.tmp-$$" why
+  if ! why=$( { cat > "$tmp" && chmod +x "$tmp" && sync -- "$tmp" && mv -f -- "$tmp" "$1"; } 2>&1 ); then
+    rm -f -- "$tmp"
+    why=$(head -n 1 <<<"$why"); die "$1: cannot write: ${why##*: }"
+  fi
+}
 
 sbatch_opts=(--parsable --job-name="$job_name" --cpus-per-task="$cpus" --signal=B:TERM@120)
 [ -n "$partition" ] && sbatch_opts+=(--partition="$partition")
@@ -150,7 +161,7 @@ if [ -n "$shards" ]; then
   [ -n "$shards" ] || die "candela --dry-run printed no shard count: $checked"
   # a new render: nothing of an earlier one is resumed or merged
   [ $dry -eq 1 ] || rm -f "$work"/shard.*.ckpt "$work"/shard.*.film
-  cat > "$work/shard.sh" <<EOF
+  write_script "$work/shard.sh" <<EOF
 #!/usr/bin/env bash
 # one sample shard (array task \$SLURM_ARRAY_TASK_ID of $shards), resumed from its checkpoint when requeued
 set -eu
@@ -173,7 +184,7 @@ EOF
   # REQUEUED / REQUEUE_HOLD, which squeue's default pending-running-completing list leaves out,
   # so the merge took it for gone and failed); a film still missing then belongs to a shard
   # that failed.
-  cat > "$work/merge.sh" <<EOF
+  write_script "$work/merge.sh" <<EOF
 #!/usr/bin/env bash
 set -u
 films=($(quote "${films[@]}"))
@@ -191,7 +202,6 @@ while [ -n "\$(missing)" ]; do
 done
 exec $(quote "$candela" merge -o "$output") "\${films[@]}"
 EOF
-  chmod +x "$work/shard.sh" "$work/merge.sh"
   array_opts=("${sbatch_opts[@]}" --array="0-$((shards - 1))$throttle" --output="$work/shard.%a.log")
   array_id=$(submit "$work/shard.sh" "${array_opts[@]}")
   merge_opts=("${sbatch_opts[@]}" --cpus-per-task=1 --dependency=afterany:"$array_id"
@@ -216,13 +226,12 @@ else
     [ -n "$tasks" ] || die "candela --dry-run printed no task count: $checked"
     [ "$tasks" -le "$nframes" ] || die "--tasks $tasks is more than the $nframes frames (every task needs a frame)"
   fi
-  cat > "$work/frames.sh" <<EOF
+  write_script "$work/frames.sh" <<EOF
 #!/usr/bin/env bash
 # array task \$SLURM_ARRAY_TASK_ID of $tasks: candela takes its share of the frames from SLURM_ARRAY_TASK_*
 set -eu
 exec $(quote "$candela" render "$scene" "${render_args[@]}") --threads $cpus --frames $(quote "$frames") $resume -o $(quote "$output")
 EOF
-  chmod +x "$work/frames.sh"
   opts=("${sbatch_opts[@]}" --array="0-$((tasks - 1))$throttle" --output="$work/frames.%a.log")
   [ $wait -eq 1 ] && [ $dry -eq 0 ] && opts+=(--wait)
   array_id=$(submit "$work/frames.sh" "${opts[@]}")
