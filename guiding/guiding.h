@@ -48,7 +48,7 @@ typedef struct RecorderVertexInit {
     float bsdf_pdf;   /* the scattering function's own pdf of it */
     float guide_pdf;  /* the guide's pdf of it (0: not guided) */
     float cosine;     /* |cos| between the direction and the surface's normal (1 in media): the
-                       * factor guiding learns the radiance times (product guiding, renderer/guide.c) */
+                       * factor guiding learns the radiance times (product guiding, renderer/integrator/guide.c) */
     uint32_t flags;   /* PV_FLAG_* */
     uint32_t pixel;
     uint64_t path;    /* the path's index in the render: the sort key of its samples */
@@ -216,7 +216,7 @@ int guide_direction_uv(const float dir[3], float *u, float *v);
  * in units of solid-angle pdf, for inspection. */
 void guide_distribution_image(const GuideDistribution *d, int w, int h, float *out);
 /* Writes the spatial tree's leaves as an ASCII PLY of boxes (8 vertices, 6 faces each) to out
- * (the caller names the file and writes it atomically: renderer/guide.c through io's writer),
+ * (the caller names the file and writes it atomically: renderer/integrator/guide.c through io's writer),
  * flushed. 0 ok; -1 with errno on failure. */
 int guide_field_write_ply(const GuideField *f, FILE *out);
 /* Checkpoints: the field's whole learned state (trees, counts, update count) in native byte

@@ -112,7 +112,7 @@ int io_lock_output(const char *output, IoLock *lock, char err[IO_ERR_LEN]);
 void io_unlock_output(IoLock *lock);
 /* The name of output's lock file (OUTPUT.lock beside its resolved path), as io_lock_output takes
  * it: the lock is truncated and removed when done, so the outputs rule counts it as an output
- * (renderer/runfiles.c) and an input of that name is refused, not destroyed. 0 ok. */
+ * (renderer/app/runfiles.c) and an input of that name is refused, not destroyed. 0 ok. */
 int io_lock_path(const char *output, char lock[IO_PATH_MAX + 8], char err[IO_ERR_LEN]);
 /* The largest magnitude of a node's world transform entry (and so of a coordinate it places):
  * beyond it float rays lose all precision. Documented in README.md. */

@@ -15,7 +15,7 @@
 typedef enum {
     CANDELA_LIGHT_SAMPLER_UNIFORM = 0,
     CANDELA_LIGHT_SAMPLER_POWER = 1,
-    CANDELA_LIGHT_SAMPLER_TREE = 2,  /* light BVH (Conty Estevez & Kulla 2018), renderer/lighttree.h */
+    CANDELA_LIGHT_SAMPLER_TREE = 2,  /* light BVH (Conty Estevez & Kulla 2018), renderer/lights/lighttree.h */
     CANDELA_LIGHT_SAMPLER_OPTIMAL = 3, /* every light's estimate per vertex: the paper's reference */
     CANDELA_LIGHT_SAMPLER_CACHEPOINTS = 4, /* cache points (Li et al. 2024), cachepoints/ */
     CANDELA_LIGHT_SAMPLER_AUTO = 5 /* the default: one of the above chosen per scene (light_sampler.c) */
@@ -27,11 +27,11 @@ typedef enum {
     CANDELA_GUIDING_MIS = 1, /* one-sample MIS of the BSDF and the guide, alpha = 0.5 (ch. 1 §3.2) */
     CANDELA_GUIDING_RIS = 2, /* RIS with one BSDF and one guide candidate (ch. 1 §3.3) */
     CANDELA_GUIDING_AUTO = 3 /* MIS where a probe over the first 4 spp predicts a lower time to unit
-                              * variance, else off (renderer/guide.c) */
+                              * variance, else off (renderer/integrator/guide.c) */
 } CandelaGuiding;
 const char *candela_guiding_name(CandelaGuiding g); /* "off", "mis", "ris", "auto" */
 
-/* --sampler: where the numbers of a path's fixed dimensions come from (renderer/sequence.h). */
+/* --sampler: where the numbers of a path's fixed dimensions come from (renderer/util/sequence.h). */
 typedef enum CandelaSampler {
     CANDELA_SAMPLER_SOBOL = 0,       /* Owen-scrambled Sobol' (Burley 2020), the default */
     CANDELA_SAMPLER_INDEPENDENT = 1  /* independent hashed uniforms (the renders before Sobol') */
@@ -43,13 +43,13 @@ typedef enum {
 } CandelaLightUnits;
 
 /* How punctual lights are shaped (issue 14): glTF's KHR_lights_punctual, or Blender 3.4's
- * Cycles for a scene Blender's glTF exporter wrote (spot cones: renderer/lights.c). */
+ * Cycles for a scene Blender's glTF exporter wrote (spot cones: renderer/lights/lights.c). */
 typedef enum {
     CANDELA_LIGHT_MODEL_GLTF = 0,     /* spot: glTF's squared linear ramp in cos between the cones */
     CANDELA_LIGHT_MODEL_BLENDER3 = 1  /* spot: Cycles 3.4's cos x smoothstep over spot_blend */
 } CandelaLightModel;
 
-/* Which BSDF materials get (issue 14; renderer/bsdf.h has the formulas). */
+/* Which BSDF materials get (issue 14; renderer/materials/bsdf.h has the formulas). */
 typedef enum {
     CANDELA_MATERIAL_MODEL_GLTF = 0,     /* glTF 2.0 Appendix B + KHR_materials_* as specified */
     CANDELA_MATERIAL_MODEL_BLENDER3 = 1  /* Blender 3.4's Principled v1 as its glTF importer sets it up */
@@ -126,7 +126,7 @@ typedef struct CandelaOptions {
     const char *guide_dump_prefix; /* candela guide-dump: write the learned field at guide_dump_at */
     float guide_dump_at[3];
     /* guide-dump's files' provenance (software, command line, host, date; NULL: none): the
-     * scene and its hash, the options, the position are added (renderer/guide.c) */
+     * scene and its hash, the options, the position are added (renderer/integrator/guide.c) */
     const struct CandelaProvenance *guide_dump_provenance;
     float guide_spatial_threshold; /* PPG's c: a leaf splits past c sqrt(spp of the iteration); 0: default */
     float path_regularization;  /* gamma of path-space regularisation (ch. 1 §7; 0: off, 0.01: the course's) */
@@ -137,7 +137,7 @@ typedef struct CandelaOptions {
     const char *cachepoint_dump_path; /* --dump-cachepoints FILE.ply: the points after the render (NULL: none) */
     uint32_t recorder_mb;       /* the radiance recorder's vertex storage bound; 0: default (256) */
     int recorder_budget;        /* vertices per path before skipping (path and vertex); 0: none; -1: default (4) */
-    /* checkpoints (renderer/checkpoint.c): write the film and learned state to this file at the
+    /* checkpoints (renderer/app/checkpoint.c): write the film and learned state to this file at the
      * barriers of the checkpoint-skipping schedule and when stopped (NULL: never) */
     const char *checkpoint_path;
     const char *resume_from;    /* continue the checkpoint in this file (NULL: start afresh) */
@@ -151,7 +151,7 @@ typedef struct CandelaOptions {
     int (*on_iteration)(void *user, const struct CandelaIterationInfo *info);
     void *on_iteration_user;
     /* what a checkpoint records beside the identity, for `--resume-from FILE` alone: the CLI's
-     * `scene="..." output="..." png="..."|-` (absolute paths, renderer/options_table.h's string
+     * `scene="..." output="..." png="..."|-` (absolute paths, renderer/app/options_table.h's string
      * form); NULL: nothing */
     const char *checkpoint_record;
 } CandelaOptions;
@@ -169,7 +169,7 @@ typedef struct CandelaIterationInfo {
  * finished image would hold if the render stopped here. */
 void candela_iteration_mean(const CandelaIterationInfo *info, float *rgb);
 
-/* The render flags of the command line (renderer/flags.c): argv[*i] and, if it takes one, its
+/* The render flags of the command line (renderer/app/flags.c): argv[*i] and, if it takes one, its
  * value. Returns 1 when it was a render flag (o set, *i on its last word), 0 when argv[*i] is
  * not a render flag (nothing changed), -1 on a missing or bad value (err: one line, no
  * program-name prefix). candela render and candela compare's variants share it. */
@@ -325,7 +325,7 @@ typedef struct CandelaCheckpointInfo {
 int candela_checkpoint_info(const char *path, CandelaCheckpointInfo *info, char err[CANDELA_ERR_LEN]);
 
 /* ---------------------------------------------------------------- provenance
- * How an image was made (renderer/provenance.c; README "Output"): string attributes written
+ * How an image was made (renderer/app/provenance.c; README "Output"): string attributes written
  * into the EXR's header (and the statistics JSON's "provenance" object). The CLI fills one per
  * run: candela_provenance_begin (software, candela:commandLine, candela:host, capDate),
  * candela_provenance_scene (candela:scene, candela:sceneHash), candela_provenance_render after
@@ -356,7 +356,7 @@ int candela_provenance_identity(CandelaProvenance *p, const CandelaOptions *o, i
 int candela_provenance_copy(CandelaProvenance *dst, const CandelaProvenance *src);
 void candela_provenance_free(CandelaProvenance *p);
 /* The render options as one JSON object {"spp": 16, "light-sampler": "auto", ...}: every render
- * option row of renderer/options_table.c by its flag name (malloc'd; NULL out of memory). */
+ * option row of renderer/app/options_table.c by its flag name (malloc'd; NULL out of memory). */
 char *candela_options_json(const CandelaOptions *o);
 /* A JSON string literal of s, escaped by io_json_quote (nlohmann/json: quotes, backslashes and
  * control characters escaped, invalid UTF-8 replaced); "null" when out of memory. */
@@ -374,7 +374,7 @@ int candela_replay_rays(const CandelaOptions *o, const CandelaRayLog *log, int t
                         double *seconds, char err[CANDELA_ERR_LEN]);
 
 /* ---------------------------------------------------------------- a run's files
- * One rule for every output of a run (renderer/runfiles.c; README "Inputs and outputs"): it may
+ * One rule for every output of a run (renderer/app/runfiles.c; README "Inputs and outputs"): it may
  * not be an input of the same run (the scene, any file the scene references, --env,
  * --resume-from, the films being merged, --variants, --reference, a variant's --env) nor another
  * output of it, and every output's lock file (OUTPUT.lock, emptied and removed by the run) counts
@@ -400,7 +400,7 @@ int candela_run_check_output(const CandelaRunFiles *r, const char *path, const c
 void candela_run_files_free(CandelaRunFiles *r);
 
 /* candela compare: every variant at equal spp (or equal time) against a reference, and a
- * report folder (renderer/compare.c, renderer/report.c). */
+ * report folder (renderer/app/compare.c, renderer/app/report.c). */
 typedef struct CandelaCompareOptions {
     const char *strategies;      /* comma-separated, e.g. "uniform,power,tree,optimal"; NULL: the default list */
     int reference_spp;           /* 0: 16 x spp */
@@ -447,7 +447,7 @@ int candela_write_stats_json(const char *path, const CandelaOptions *o, const Ca
 int candela_stats_json_line(const CandelaOptions *o, const CandelaStats *s, char **json);
 
 /* ---------------------------------------------------------------- animation frames
- * A session loads a scene once and renders it at many animation times (renderer/render.c):
+ * A session loads a scene once and renders it at many animation times (renderer/app/render.c):
  * meshes, textures and volume grids load once; per frame the scene is posed (instance
  * transforms, Embree's top-level scene), and media, lights and the light sampler (cache
  * points) are rebuilt for that pose. A session frame at time t renders exactly what a fresh
@@ -476,7 +476,7 @@ void candela_session_close(CandelaSession *session);
  * i.e. the (f + 1)-th number of the splitmix64 stream seeded with --seed (README "Animation"). */
 uint64_t candela_frame_seed(uint64_t seed, int64_t frame);
 
-/* candela render --frames (renderer/batch.c). */
+/* candela render --frames (renderer/app/batch.c). */
 typedef struct CandelaBatchOptions {
     const char *frames;       /* "A-B[:step]" or a comma list of frames and ranges */
     double fps;               /* frame f is time f / fps (default 24) */

@@ -1,5 +1,5 @@
 /* tests/test_adaptive_rule.c: adaptive sampling's pilot rule on synthetic films
- * (film_adaptive_update, renderer/film.c), with samples of known distributions.
+ * (film_adaptive_update, renderer/integrator/film.c), with samples of known distributions.
  *
  * - independence: a pixel's target is a function of the other pixels' pilots only. Changing one
  *   pixel's pilot sums (a firefly added, its samples zeroed) leaves its own target bit for bit and

@@ -449,7 +449,7 @@ static void test_env_marked(void) {
 
 /* plastic_plane (scenes/make_scenes.py): a smooth plastic plane (rho 0.5, F0 0.04) under the
  * constant environment, seen orthographically from straight above (wo = n at every pixel), in
- * both material models (renderer/bsdf.h):
+ * both material models (renderer/materials/bsdf.h):
  *   gltf      L = (F(1) + rho Dg) Lenv, Dg = int (1 - F(h.n)) cos / pi = 2 int_0^1 (1 - F(sqrt((1+u)/2))) u du
  *             (h.n = cos(theta_i / 2)), F Schlick of F0 0.04; the smooth mirror reflects F(1) Lenv;
  *   blender3  L = (Fr(1, 1.5) + rho (1 - 1/42)) Lenv: Principled v1's Specular 0.5 mirror (Cycles'

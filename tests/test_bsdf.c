@@ -1,4 +1,4 @@
-/* tests/test_bsdf.c: the BSDFs of renderer/bsdf.h, both material models (glTF Appendix B and
+/* tests/test_bsdf.c: the BSDFs of renderer/materials/bsdf.h, both material models (glTF Appendix B and
  * Blender 3.4's Principled v1).
  *
  * (a) white furnace: albedo by importance sampling (mean of f |cos| / pdf) and by a uniform

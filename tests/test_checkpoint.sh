@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Checkpoints, resume, interruption and sample shards at the CLI (renderer/checkpoint.c):
+# Checkpoints, resume, interruption and sample shards at the CLI (renderer/app/checkpoint.c):
 # - the checkpoint-skipping schedule (ch. 2 §5.2.2): 4, 8, 16, 32 spp unguided; 4, 8, 14, 22
 #   on the guided schedule (cumulative 1..8, 10, 14, 22, 38, 54, 64), never the last barrier;
 #   the course's example at 128 guided spp: 4, 8, 14, 22, 54;

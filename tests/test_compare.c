@@ -1,7 +1,7 @@
 /* tests/test_compare.c: `candela compare` on the default scene, end to end, through the CLI.
  *
  * The report's numbers are checked against metrics this test computes itself from the EXRs
- * the report wrote (its own loops, not renderer/metrics.c): RMSE, relMSE, MAE and the mean
+ * the report wrote (its own loops, not renderer/app/metrics.c): RMSE, relMSE, MAE and the mean
  * variance to the CSV's print precision, TTUV = mean variance x time and the ratios against
  * the first variant; every variant at the requested spp; the convergence snapshots end at
  * the final image; the crops PNG holds the reference's and the variants' pixels at the crop

@@ -1,4 +1,4 @@
-/* Light BVH (renderer/lighttree.c), on Light structs built in memory (no scene):
+/* Light BVH (renderer/lights/lighttree.c), on Light structs built in memory (no scene):
  *   (a) 10,000 random point/spot lights with random powers, a few one- and two-sided area
  *       lights, a directional light and a zero-power light: at 50 random contexts (surface
  *       points and medium points) the pmf sums to 1 over all lights, 100k selections report

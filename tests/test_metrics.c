@@ -1,4 +1,4 @@
-/* tests/test_metrics.c: candela compare's metrics (renderer/metrics.h) on images whose errors
+/* tests/test_metrics.c: candela compare's metrics (renderer/app/metrics.h) on images whose errors
  * are known by hand, and the arithmetic of time to unit variance. */
 #include <math.h>
 

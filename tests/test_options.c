@@ -1,4 +1,4 @@
-/* tests/test_options.c: the command line's options table (renderer/options_table.c, issue 27).
+/* tests/test_options.c: the command line's options table (renderer/app/options_table.c, issue 27).
  *
  * Every row parses its example value in both forms (--flag value, --flag=value) to the same
  * result, for every command that lists it; the render rows are exactly what

@@ -1,4 +1,4 @@
-/* tests/test_rng.c: statistical checks of the counter-based generator in renderer/rng.h.
+/* tests/test_rng.c: statistical checks of the counter-based generator in renderer/util/rng.h.
  *
  * All checks use 1e6 draws and 5-sigma bounds (or a chi-square p-value > 1e-3), with fixed
  * keys, so the outcome is deterministic. The draws are taken along each axis of the key space

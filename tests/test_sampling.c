@@ -1,4 +1,4 @@
-/* tests/test_sampling.c: every warp and tabulated distribution of renderer/sampling.h.
+/* tests/test_sampling.c: every warp and tabulated distribution of renderer/util/sampling.h.
  *
  * For each sampler, the samples are mapped to a parameter square (s, t) in [0,1)^2 (for
  * directions: s from the polar angle, t = phi / 2pi) and histogrammed. The pdf, converted to a

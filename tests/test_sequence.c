@@ -1,4 +1,4 @@
-/* tests/test_sequence.c: the Owen-scrambled Sobol' sequence of renderer/sequence.h.
+/* tests/test_sequence.c: the Owen-scrambled Sobol' sequence of renderer/util/sequence.h.
  *
  * - the generator: the tables equal the direction numbers' matrix product for random indices;
  *   the unscrambled first two dimensions are a (0,2)-sequence (every aligned block of 2^m

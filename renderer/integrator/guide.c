@@ -1,0 +1,584 @@
+/* renderer/integrator/guide.c: path guiding in the wavefront (--guiding off|mis|ris).
+ *
+ * Guiding fields (guiding/guiding.h: Practical Path Guiding's SD-tree) over the scene bounds:
+ * one for medium vertices (PPG knows no media; the digest's §2 asks for separate statistics)
+ * and six for surface vertices, one per orientation class of the shading normal (its largest
+ * component and sign). A spatial leaf of a room's corner holds floor, wall and ceiling points
+ * whose incident light comes from different hemispheres: one shared distribution sent a quarter
+ * of the guide's samples below the surface and spread the rest over every orientation's lobes
+ * (scenes/guiding_interior.gltf). After every batch the recorder's samples
+ * (record.c; sorted by path, so the order never depends on the thread count) train the
+ * building trees: continuation vertices only, not NEE vertices, and not directions from delta
+ * lobes (ch. 1 §5: the guide learns indirect plus MIS-weighted direct light, as the emission a
+ * continuation's subtree found is already MIS-weighted), zero-radiance samples included
+ * (ch. 1 §8.1). At each iteration barrier the fields update (PPG's spatial split at
+ * c sqrt(spp of the iteration), quadtree refinement); guided sampling starts once 8 spp have
+ * trained them (ch. 2 §5.2, §5.3.3), on the guided schedule of render.c. */
+#include <math.h>
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "clock.h"
+#include "io.h"
+#include "ckpt_io.h"
+#include "feature.h"
+#include "scatter.h"
+
+#define GUIDE_TRAINING_SPP 8 /* samples per pixel of training before guided sampling starts */
+
+/* --guiding auto. Its probe renders the first GUIDE_AUTO_PROBE_SPP as `mis` does (unguided
+ * iterations of 1 spp with the recorder training the fields: guided sampling starts only after
+ * GUIDE_TRAINING_SPP), measuring per pixel the variance of the paths' radiance and of its part
+ * through two or more scattering vertices (what guiding can improve: direct light is NEE's, with
+ * MIS), from consecutive samples' squared differences. f is that indirect share of the variance,
+ * each pixel weighted by 1 / (mean^2 + 0.01) as relMSE weighs it; the gain G that guiding may
+ * bring on the indirect part is how badly the function's own sampling finds it, the indirect
+ * samples' variance over their mean squared over the image (about 1.6 for a Cornell box lit from
+ * above, where guiding took off 1.5x of the indirect variance; 3.7 for light through a window or
+ * off a bright patch, where it took off 4x). For a render of n spp, s of them probed, T trained
+ * (U = GUIDE_TRAINING_SPP of them unguided), the prediction is
+ *     variance ratio = (U + (n - U) (1 - f + f / G)) / n
+ *     time ratio     = (T COST_TRAIN + (n - T) COST_GUIDED) / (s COST_TRAIN + n - s)
+ * (the probe's spp were recorded either way; the costs are the guiding benchmark's,
+ * scenes/RESULTS.md); guiding goes on when the product is below GUIDE_AUTO_THRESHOLD and the
+ * render goes on exactly as `mis` (bit for bit: the probe only reads), else the recorder stops
+ * and the render is the unguided one, bit for bit, having paid for the probe's recording only.
+ * Deterministic: counts and film sums, no clock. */
+#define GUIDE_AUTO_PROBE_SPP 4
+#define GUIDE_AUTO_MAX_GAIN 8.0
+#define GUIDE_AUTO_COST_TRAIN 1.9
+#define GUIDE_AUTO_COST_GUIDED 1.5
+#define GUIDE_AUTO_THRESHOLD 0.85
+
+static void guide_free(Integrator *ig);
+
+static int guide_init(Integrator *ig) {
+    GuideState *gs = &ig->guide;
+    memset(gs, 0, sizeof *gs);
+    gs->guided_from = -1;
+    if (ig->opt->guiding == CANDELA_GUIDING_OFF) return 0;
+    if (ig->opt->guiding == CANDELA_GUIDING_AUTO) {
+        gs->auto_state = GUIDE_AUTO_PROBING;
+        gs->probe_prev = calloc(ig->npixels, sizeof *gs->probe_prev);
+        gs->probe_d2 = calloc(ig->npixels, sizeof *gs->probe_d2);
+        gs->probe_samples = calloc(ig->npixels, sizeof *gs->probe_samples);
+        gs->probe_sum = calloc(ig->npixels, sizeof *gs->probe_sum);
+        if (!gs->probe_prev || !gs->probe_d2 || !gs->probe_samples || !gs->probe_sum) {
+            guide_free(ig);
+            return -1;
+        }
+    }
+    gs->guided_from = 0; /* auto probes with mis's schedule (guide_schedule_start) */
+    GuideFieldParams params;
+    guide_field_params_default(&params);
+    if (ig->opt->guide_spatial_threshold > 0.0f) params.spatial_threshold = ig->opt->guide_spatial_threshold;
+    params.spatial_filter = ig->opt->guide_spatial_filter;
+    const float lo[3] = {ig->scene->bounds_min.x, ig->scene->bounds_min.y, ig->scene->bounds_min.z};
+    const float hi[3] = {ig->scene->bounds_max.x, ig->scene->bounds_max.y, ig->scene->bounds_max.z};
+    gs->on = 1;
+    for (int k = 0; k < GUIDE_FIELDS; ++k) {
+        if (k == GUIDE_SURFACE_CLASSES && !media_any(ig->media)) break;
+        gs->fields[k] = guide_field_create(lo, hi, &params);
+        if (!gs->fields[k]) {
+            guide_free(ig);
+            return -1;
+        }
+    }
+    gs->keep_last = ig->opt->guide_dump_prefix != NULL;
+    gs->mode = ig->opt->guiding == CANDELA_GUIDING_RIS ? SCATTER_GUIDE_RIS : SCATTER_GUIDE_MIS;
+    return 0;
+}
+
+static void probe_free(GuideState *gs) {
+    free(gs->probe_prev);
+    free(gs->probe_d2);
+    free(gs->probe_samples);
+    free(gs->probe_sum);
+    gs->probe_sum = NULL;
+    gs->probe_prev = NULL;
+    gs->probe_d2 = NULL;
+    gs->probe_samples = NULL;
+}
+
+static void guide_free(Integrator *ig) {
+    GuideState *gs = &ig->guide;
+    probe_free(gs);
+    for (int k = 0; k < GUIDE_FIELDS; ++k) guide_field_free(gs->fields[k]);
+    for (int k = 0; k < GUIDE_FIELDS; ++k) free(gs->train[k]);
+    free(gs->last);
+    free(gs->last_class);
+    memset(gs, 0, sizeof *gs);
+}
+
+
+#define GUIDE_CLASS_SHIFT 16 /* bits of the recorder flags above PV_FLAG_* and RECORDER_SAMPLE_PRIMARY */
+
+uint32_t guide_surface_flags(vec3 n) { return (uint32_t)(guide_field_of_normal(n) + 1) << GUIDE_CLASS_SHIFT; }
+
+static int field_of_flags(uint32_t flags) {
+    if (flags & PV_FLAG_VOLUME) return GUIDE_SURFACE_CLASSES;
+    uint32_t c = (flags >> GUIDE_CLASS_SHIFT) & 7u;
+    return c >= 1 && c <= GUIDE_SURFACE_CLASSES ? (int)c - 1 : -1;
+}
+
+const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n, GuideCursor cursors[GUIDE_FIELDS]) {
+    const GuideState *gs = &ig->guide;
+    if (!gs->active) return NULL;
+    int k = guide_field_of_normal(n);
+    const GuideField *f = gs->fields[k];
+    if (!f) return NULL;
+    const float x[3] = {p.x, p.y, p.z};
+    /* hits come sorted spatially: the descent resumes from the last one's deepest node holding
+     * the point (the answer is the same either way, so the cursors never change an image) */
+    return guide_field_lookup_cursor(f, x, &cursors[k]);
+}
+
+/* The samples of one field, in the batch's order. */
+/* Field k's samples of the batch, in batch order, into its own scratch, and recorded into it
+ * (the fields are independent: they train on the threads, each in its deterministic order). */
+static void train_field(GuideState *gs, int k, const RecorderSamples *batch) {
+    gs->train_count[k] = 0;
+    gs->field_failed[k] = 0;
+    if (batch->count > gs->train_capacity[k]) {
+        GuideTrainingSample *t = realloc(gs->train[k], batch->count * sizeof *t);
+        if (!t) { gs->field_failed[k] = 1; return; } /* training loses a batch; the image is not affected */
+        gs->train[k] = t;
+        gs->train_capacity[k] = batch->count;
+    }
+    size_t n = 0;
+    for (size_t i = 0; i < batch->count; ++i) {
+        const RecorderSample *s = &batch->items[i];
+        if (s->flags & (PV_FLAG_NEE | PV_FLAG_DELTA)) continue;
+        if (field_of_flags(s->flags) != k) continue;
+        GuideTrainingSample *t = &gs->train[k][n++];
+        memcpy(t->pos, s->pos, sizeof t->pos);
+        memcpy(t->dir, s->dir, sizeof t->dir);
+        /* surfaces learn L |cos theta| (the product the function's f |cos| multiplies, exact for a
+         * diffuse surface; the fields are per orientation class, so a leaf's vertices share
+         * nearly one normal); media learn L (cosine 1) */
+        t->radiance = (0.2126f * s->radiance[0] + 0.7152f * s->radiance[1] + 0.0722f * s->radiance[2]) * s->cosine;
+        t->pdf = s->pdf;
+    }
+    guide_field_record(gs->fields[k], gs->train[k], n);
+    gs->train_count[k] = n;
+}
+
+typedef struct FieldCtx {
+    GuideState *gs;
+    const RecorderSamples *batch;
+    float iteration_spp;
+} FieldCtx;
+
+static void train_fields(void *ctx, size_t begin, size_t end, int thread_index) {
+    (void)thread_index;
+    FieldCtx *c = ctx;
+    for (size_t k = begin; k < end; ++k)
+        if (c->gs->fields[k]) train_field(c->gs, (int)k, c->batch);
+}
+
+static void update_fields(void *ctx, size_t begin, size_t end, int thread_index) {
+    (void)thread_index;
+    FieldCtx *c = ctx;
+    for (size_t k = begin; k < end; ++k)
+        c->gs->field_failed[k] = c->gs->fields[k] && guide_field_update(c->gs->fields[k], c->iteration_spp) != 0;
+}
+
+/* guide-dump's histogram: the surface fields' samples of the batch, appended in field order. */
+static void keep_last_samples(GuideState *gs, int k) {
+    size_t n = gs->train_count[k];
+    if (k < GUIDE_SURFACE_CLASSES && gs->keep_last && n > 0) {
+        if (gs->last_count + n > gs->last_capacity) {
+            size_t cap = 2 * (gs->last_count + n);
+            GuideTrainingSample *l = realloc(gs->last, cap * sizeof *l);
+            uint8_t *c = l ? realloc(gs->last_class, cap) : NULL;
+            if (l) gs->last = l;
+            if (c) gs->last_class = c;
+            if (!l || !c) { gs->dropped = 1; return; }
+            gs->last_capacity = cap;
+        }
+        memcpy(gs->last + gs->last_count, gs->train[k], n * sizeof *gs->train[k]);
+        memset(gs->last_class + gs->last_count, k, n);
+        gs->last_count += n;
+    }
+}
+
+static void guide_train_batch(Integrator *ig) {
+    GuideState *gs = &ig->guide;
+    const RecorderSamples *batch = &ig->record.batch;
+    if (!gs->on || !ig->record.active || batch->count == 0) return;
+    gs->pending = 1;
+    double t0 = clock_seconds();
+    FieldCtx c = {gs, batch, 0.0f};
+    if (ig->pool) threadpool_parallel_for(ig->pool, GUIDE_FIELDS, 1, train_fields, &c);
+    else train_fields(&c, 0, GUIDE_FIELDS, 0);
+    for (int k = 0; k < GUIDE_FIELDS; ++k) {
+        if (!gs->fields[k]) continue;
+        if (gs->field_failed[k]) gs->dropped = 1;
+        gs->samples_trained += gs->train_count[k];
+        keep_last_samples(gs, k);
+    }
+    gs->train_seconds += clock_seconds() - t0;
+}
+
+static void guide_probe_batch(Integrator *ig) {
+    GuideState *gs = &ig->guide;
+    if (gs->auto_state != GUIDE_AUTO_PROBING) return;
+    const PathState *ps = &ig->ps;
+    for (uint32_t p = 0; p < ig->batch_count; ++p) { /* path order: each pixel's samples in sample order */
+        uint32_t px = ps->pixel[p];
+        float L = v3_luminance(ps->radiance[p]), I = ps->probe_indirect[p];
+        if (!isfinite(L) || !isfinite(I)) L = I = 0.0f;
+        if (gs->probe_samples[px]++ > 0) {
+            double dl = (double)L - gs->probe_prev[px][0], di = (double)I - gs->probe_prev[px][1];
+            gs->probe_d2[px][0] += dl * dl;
+            gs->probe_d2[px][1] += di * di;
+        }
+        gs->probe_prev[px][0] = L;
+        gs->probe_prev[px][1] = I;
+        gs->probe_sum[px] += I;
+    }
+}
+
+/* The probe's decision (above): guiding on from the next iteration, or off. */
+static void auto_decide(Integrator *ig) {
+    GuideState *gs = &ig->guide;
+    const Film *film = &ig->film;
+    double v_total = 0.0, v_indirect = 0.0;
+    for (uint32_t i = 0; i < ig->npixels; ++i) {
+        uint32_t n = gs->probe_samples[i];
+        if (n < 2 || film->count[i] == 0) continue;
+        double c = film->count[i];
+        double mean = (0.2126 * film->sum[3 * i] + 0.7152 * film->sum[3 * i + 1] + 0.0722 * film->sum[3 * i + 2]) / c;
+        double w = 1.0 / (mean * mean + 0.01) / (2.0 * (n - 1)); /* E[(x_k - x_k-1)^2] = 2 var */
+        v_total += w * gs->probe_d2[i][0];
+        v_indirect += w * gs->probe_d2[i][1];
+    }
+    double f = v_total > 0.0 ? fmin(v_indirect / v_total, 1.0) : 0.0;
+    /* how badly the function's own sampling finds the indirect light: its samples' variance
+     * over their mean squared, over the image (a smooth indirect field, as in a Cornell box lit
+     * from above, about 1.6; light through a window or off a bright patch, 3.6 or more) */
+    double ind_var = 0.0, ind_mean2 = 0.0;
+    for (uint32_t i = 0; i < ig->npixels; ++i) {
+        uint32_t n = gs->probe_samples[i];
+        if (n < 2) continue;
+        double mi = gs->probe_sum[i] / n;
+        ind_var += gs->probe_d2[i][1] / (2.0 * (n - 1));
+        ind_mean2 += mi * mi;
+    }
+    double gain = ind_mean2 > 0.0 ? fmin(fmax(ind_var / ind_mean2, 1.0), GUIDE_AUTO_MAX_GAIN) : 1.0;
+    double n = ig->opt->spp, probed = ig->spp_done;
+    double unguided = fmin(GUIDE_TRAINING_SPP, n), trained = fmax(fmin((double)ig->record.training_spp, n), probed);
+    double var = (unguided + (n - unguided) * (1.0 - f + f / gain)) / n;
+    double time = (trained * GUIDE_AUTO_COST_TRAIN + (n - trained) * GUIDE_AUTO_COST_GUIDED) /
+                  (probed * GUIDE_AUTO_COST_TRAIN + n - probed);
+    gs->auto_ratio = (float)(var * time);
+    gs->auto_indirect = (float)f;
+    gs->auto_gain = (float)gain;
+    int on = v_total > 0.0 && var * time < GUIDE_AUTO_THRESHOLD;
+    gs->auto_state = on ? GUIDE_AUTO_ON : GUIDE_AUTO_OFF;
+    probe_free(gs);
+    if (!on) { /* the unguided schedule from here on; nothing more is recorded */
+        gs->guided_from = -1;
+        ig->record.active = ig->record.debug_aov;
+        if (!ig->record.active) recorder_samples_clear(&ig->record.batch);
+    }
+    if (!ig->opt->quiet)
+        fprintf(stderr, "candela: --guiding auto: %s (indirect light %.0f%% of the relative variance, its relative variance "
+                        "%.2f; estimated time to unit variance x%.2f with guiding)\n", on ? "on" : "off", 100.0 * f, gain,
+                var * time);
+}
+
+static int guide_schedule_start(const Integrator *ig) { return ig->guide.guided_from; }
+
+static void guide_barrier(Integrator *ig) {
+    GuideState *gs = &ig->guide;
+    if (!gs->on) return;
+    if (gs->auto_state == GUIDE_AUTO_PROBING && ig->spp_done >= GUIDE_AUTO_PROBE_SPP) auto_decide(ig);
+    if (gs->auto_state == GUIDE_AUTO_OFF) return;
+    /* ch. 2 §5.3.3: guided sampling only after the first 8 spp trained the fields */
+    gs->active = ig->spp_done >= gs->train_start + GUIDE_TRAINING_SPP;
+    if (!gs->pending) return; /* nothing new was recorded: the fields stay as they are */
+    gs->pending = 0;
+    double t0 = clock_seconds();
+    FieldCtx c = {gs, NULL, (float)ig->iteration_spp};
+    if (ig->pool) threadpool_parallel_for(ig->pool, GUIDE_FIELDS, 1, update_fields, &c);
+    else update_fields(&c, 0, GUIDE_FIELDS, 0);
+    for (int k = 0; k < GUIDE_FIELDS; ++k)
+        if (gs->field_failed[k]) gs->dropped = 1;
+    gs->updates++;
+    gs->train_seconds += clock_seconds() - t0;
+    if (ig->record.active && ig->spp_done < ig->opt->spp) gs->last_count = 0; /* guide-dump keeps the last trained iteration's */
+}
+
+static void guide_report(const Integrator *ig, CandelaStats *st) {
+    const GuideState *gs = &ig->guide;
+    st->guide_auto = gs->auto_state == GUIDE_AUTO_ON ? 1 : gs->auto_state == GUIDE_AUTO_OFF ? 0 : -1;
+    st->guide_auto_ratio = gs->auto_ratio;
+    st->guide_auto_indirect = gs->auto_indirect;
+    if (!gs->on) return;
+    st->guide_updates = gs->updates;
+    st->guide_train_seconds = gs->train_seconds;
+    st->guide_samples = gs->samples_trained;
+    st->guide_leaves = 0;
+    st->guide_bytes = 0;
+    for (int k = 0; k < GUIDE_FIELDS; ++k)
+        if (gs->fields[k]) {
+            st->guide_leaves += guide_field_num_leaves(gs->fields[k]);
+            st->guide_bytes += guide_field_bytes(gs->fields[k]);
+        }
+    st->guide_dropped = gs->dropped;
+}
+
+/* Writes an image as EXR (R = G = B = v) and a PNG preview scaled to its maximum, both with the
+ * attributes of prov (NULL: none) and candela:guideDumpPlane = what. */
+static int write_plane(const char *prefix, const char *what, int w, int h, const float *v, CandelaProvenance *prov,
+                       char err[CANDELA_ERR_LEN]) {
+    char path[4096], ioerr[IO_ERR_LEN];
+    size_t n = (size_t)w * (size_t)h;
+    float *rgb = malloc(3 * n * sizeof *rgb);
+    if (!rgb) { snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", prefix); return -1; }
+    float vmax = 0.0f;
+    for (size_t i = 0; i < n; ++i) vmax = fmaxf(vmax, v[i]);
+    const IoExrChannel ch[3] = {{"R", v}, {"G", v}, {"B", v}};
+    snprintf(path, sizeof path, "%s.%s.exr", prefix, what);
+    IoExrAttribute attrs[CANDELA_PROVENANCE_MAX];
+    int nattrs = 0;
+    if (prov) {
+        if (candela_provenance_set(prov, "candela:guideDumpPlane", what) != 0) {
+            free(rgb);
+            snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", prefix);
+            return -1;
+        }
+        nattrs = prov->count;
+        for (int k = 0; k < nattrs; ++k) attrs[k] = (IoExrAttribute){prov->attrs[k].name, prov->attrs[k].value};
+    }
+    int rc = io_write_exr(path, w, h, ch, 3, nattrs ? attrs : NULL, nattrs, ioerr);
+    if (rc == 0) {
+        for (size_t i = 0; i < n; ++i) rgb[3 * i] = rgb[3 * i + 1] = rgb[3 * i + 2] = vmax > 0.0f ? sqrtf(v[i] / vmax) : 0.0f;
+        snprintf(path, sizeof path, "%s.%s.png", prefix, what);
+        rc = io_write_png(path, w, h, rgb, nattrs ? attrs : NULL, nattrs, ioerr);
+    }
+    free(rgb);
+    if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
+    return rc;
+}
+
+static int guide_dump(const Integrator *ig, const float at[3], const char *prefix, char err[CANDELA_ERR_LEN]) {
+    const GuideState *gs = &ig->guide;
+    if (!gs->on) { snprintf(err, CANDELA_ERR_LEN, "guide-dump: guiding is off"); return -1; }
+    /* the surface orientation whose leaf at the point learned from the most samples */
+    int best = 0;
+    double most = -1.0;
+    for (int k = 0; k < GUIDE_SURFACE_CLASSES; ++k) {
+        double learned = guide_distribution_samples(guide_field_lookup(gs->fields[k], at));
+        if (learned > most) { most = learned; best = k; }
+    }
+    static const char *const class_names[GUIDE_SURFACE_CLASSES] = {"+x", "-x", "+y", "-y", "+z", "-z"};
+    enum { W = 128, H = 128 }; /* the octahedral (u, v) square (guiding.h): u across, v down */
+    float *img = calloc((size_t)W * H, sizeof *img);
+    if (!img) { snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", prefix); return -1; }
+    const GuideDistribution *d = guide_field_lookup(gs->fields[best], at);
+    float lo[3], hi[3];
+    guide_distribution_bounds(d, lo, hi);
+    /* the leaf must hold the point (render.c refused a point outside the field before
+     * rendering; this keeps a dump from ever describing another place) */
+    if (!(at[0] >= lo[0] && at[0] <= hi[0] && at[1] >= lo[1] && at[1] <= hi[1] && at[2] >= lo[2] && at[2] <= hi[2])) {
+        snprintf(err, CANDELA_ERR_LEN, "%s: guide-dump --at %g,%g,%g is in no leaf of the guiding field", prefix, (double)at[0],
+                 (double)at[1], (double)at[2]);
+        free(img);
+        return -1;
+    }
+    guide_distribution_image(d, W, H, img);
+    /* how the files were made (issue 27): the run's provenance, the scene and its hash, the
+     * options, the samples done, the position and the leaf's surface orientation */
+    CandelaProvenance prov = {0};
+    const CandelaOptions *o = ig->opt;
+    if (o->guide_dump_provenance) {
+        char num[32], pos[96];
+        snprintf(num, sizeof num, "%d", ig->spp_done);
+        snprintf(pos, sizeof pos, "%.9g,%.9g,%.9g", (double)at[0], (double)at[1], (double)at[2]);
+        char *options = candela_options_json(o);
+        int prc = candela_provenance_copy(&prov, o->guide_dump_provenance);
+        if (prc == 0 && candela_provenance_scene(&prov, o->scene_path, err) != 0) {
+            candela_provenance_free(&prov);
+            free(options);
+            free(img);
+            return -1;
+        }
+        if (prc == 0)
+            prc = (options == NULL) | candela_provenance_set(&prov, "candela:options", options) |
+                  candela_provenance_set(&prov, "candela:sppDone", num) |
+                  candela_provenance_set(&prov, "candela:guideDumpAt", pos) |
+                  candela_provenance_set(&prov, "candela:guideDumpClass", class_names[best]);
+        free(options);
+        if (prc != 0) {
+            candela_provenance_free(&prov);
+            free(img);
+            snprintf(err, CANDELA_ERR_LEN, "%s: out of memory", prefix);
+            return -1;
+        }
+    }
+    CandelaProvenance *pp = o->guide_dump_provenance ? &prov : NULL;
+    int rc = write_plane(prefix, "guide", W, H, img, pp, err);
+    size_t in_leaf = 0;
+    if (rc == 0) {
+        /* the training directions of the final iteration inside the leaf's box (blurrier than
+         * the model: they marginalise over the box; the seed's ch. 2 §4.4) */
+        memset(img, 0, (size_t)W * H * sizeof *img);
+        for (size_t i = 0; i < gs->last_count; ++i) {
+            const GuideTrainingSample *t = &gs->last[i];
+            if (gs->last_class[i] != best) continue;
+            if (t->pos[0] < lo[0] || t->pos[0] > hi[0] || t->pos[1] < lo[1] || t->pos[1] > hi[1] || t->pos[2] < lo[2] ||
+                t->pos[2] > hi[2])
+                continue;
+            float u, v;
+            if (!guide_direction_uv(t->dir, &u, &v)) continue;
+            int x = (int)(u * W), y = (int)(v * H);
+            x = x < 0 ? 0 : x >= W ? W - 1 : x;
+            y = y < 0 ? 0 : y >= H ? H - 1 : y;
+            img[(size_t)y * W + x] += 1.0f;
+            ++in_leaf;
+        }
+        rc = write_plane(prefix, "hist", W, H, img, pp, err);
+    }
+    candela_provenance_free(&prov);
+    free(img);
+    if (rc == 0) {
+        char path[4096];
+        snprintf(path, sizeof path, "%s.leaves.ply", prefix);
+        /* through io's atomic writer, as the planes (io.h) */
+        IoAtomicFile af;
+        char ioerr[IO_ERR_LEN];
+        int prc = io_atomic_begin(&af, path, "w", ioerr);
+        if (prc == 0 && guide_field_write_ply(gs->fields[best], af.f) != 0 && !af.error) {
+            snprintf(ioerr, sizeof ioerr, "%.400s: cannot write: %s", af.path, strerror(errno));
+            io_atomic_abort(&af);
+            prc = -1;
+        } else if (prc == 0) {
+            prc = io_atomic_commit(&af, ioerr); /* a failed write was kept with its reason (af.error) */
+        }
+        if (prc != 0) {
+            snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
+            return -1;
+        }
+        if (!ig->opt->quiet)
+            fprintf(stderr,
+                    "candela: guide-dump at (%g, %g, %g), surfaces facing %s: leaf [%g %g %g] - [%g %g %g], learned from "
+                    "%.0f samples, %zu training directions of the last trained iteration; wrote %s.guide.exr/.png, "
+                    "%s.hist.exr/.png, %s\n",
+                    at[0], at[1], at[2], class_names[best], lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], guide_distribution_samples(d), in_leaf,
+                    prefix, prefix, path);
+    }
+    return rc;
+}
+
+/* ---------------------------------------------------------------- checkpoints */
+
+#define GUIDE_TAG CKPT_TAG('G', 'U', 'I', 'D')
+#define GUIDE_VERSION 2u
+
+/* The fields (guiding/sdtree.c saves each whole: sampling and building trees), whether guided
+ * sampling is on, whether samples wait for the next update, the statistics' counts, and --guiding
+ * auto's state (while probing, its per-pixel sums). guide-dump's `last` samples are not kept: a
+ * dump is a render of its own. */
+static int guide_save(const Integrator *ig, FILE *out) {
+    const GuideState *gs = &ig->guide;
+    int32_t flags[7] = {gs->on, gs->active, gs->pending, gs->updates, gs->auto_state, gs->train_start, gs->guided_from};
+    float prediction[3] = {gs->auto_ratio, gs->auto_indirect, gs->auto_gain};
+    uint32_t present = 0;
+    for (int k = 0; k < GUIDE_FIELDS; ++k) present |= (uint32_t)(gs->fields[k] != NULL) << k;
+    int rc = ckpt_put_tag(out, GUIDE_TAG, GUIDE_VERSION) | ckpt_put(out, flags, sizeof flags) |
+             ckpt_put(out, prediction, sizeof prediction) |
+             ckpt_put(out, &present, sizeof present) | ckpt_put(out, &gs->samples_trained, sizeof gs->samples_trained);
+    if (rc == 0 && gs->auto_state == GUIDE_AUTO_PROBING)
+        rc = ckpt_put(out, gs->probe_prev, ig->npixels * sizeof *gs->probe_prev) |
+             ckpt_put(out, gs->probe_d2, ig->npixels * sizeof *gs->probe_d2) |
+             ckpt_put(out, gs->probe_samples, ig->npixels * sizeof *gs->probe_samples) |
+             ckpt_put(out, gs->probe_sum, ig->npixels * sizeof *gs->probe_sum);
+    for (int k = 0; k < GUIDE_FIELDS && rc == 0; ++k)
+        if (gs->fields[k]) rc = guide_field_save(gs->fields[k], out);
+    return rc;
+}
+
+static int guide_load(Integrator *ig, FILE *in) {
+    GuideState *gs = &ig->guide;
+    int32_t flags[7];
+    float prediction[3];
+    uint32_t present = 0, expected = 0;
+    uint64_t trained;
+    for (int k = 0; k < GUIDE_FIELDS; ++k) expected |= (uint32_t)(gs->fields[k] != NULL) << k;
+    if (ckpt_get_tag(in, GUIDE_TAG, GUIDE_VERSION) || ckpt_get(in, flags, sizeof flags) ||
+        ckpt_get(in, prediction, sizeof prediction) ||
+        ckpt_get(in, &present, sizeof present) || ckpt_get(in, &trained, sizeof trained))
+        return -1;
+    if (flags[0] != gs->on || present != expected) return -1;
+    /* a fixed mode stays itself; auto may have moved on from probing */
+    int fixed = gs->auto_state == GUIDE_AUTO_NONE;
+    if (fixed ? flags[4] != GUIDE_AUTO_NONE : (flags[4] < GUIDE_AUTO_PROBING || flags[4] > GUIDE_AUTO_OFF)) return -1;
+    if (flags[5] < 0 || flags[6] < -1) return -1;
+    if (flags[4] == GUIDE_AUTO_PROBING &&
+        (ckpt_get(in, gs->probe_prev, ig->npixels * sizeof *gs->probe_prev) ||
+         ckpt_get(in, gs->probe_d2, ig->npixels * sizeof *gs->probe_d2) ||
+         ckpt_get(in, gs->probe_samples, ig->npixels * sizeof *gs->probe_samples) ||
+         ckpt_get(in, gs->probe_sum, ig->npixels * sizeof *gs->probe_sum)))
+        return -1;
+    gs->auto_state = flags[4];
+    gs->train_start = flags[5];
+    gs->guided_from = flags[6];
+    gs->auto_ratio = prediction[0];
+    gs->auto_indirect = prediction[1];
+    gs->auto_gain = prediction[2];
+    if (gs->auto_state == GUIDE_AUTO_ON || gs->auto_state == GUIDE_AUTO_OFF) probe_free(gs);
+    for (int k = 0; k < GUIDE_FIELDS; ++k)
+        if (gs->fields[k] && guide_field_load(gs->fields[k], in) != 0) return -1;
+    gs->active = flags[1] != 0;
+    gs->pending = flags[2] != 0;
+    gs->updates = flags[3];
+    gs->samples_trained = trained;
+    return 0;
+}
+
+/* After a batch: the fields learn from its samples, and auto's probe takes its sums. */
+static void guide_batch_end(Integrator *ig, Slice *slices, uint32_t n) {
+    (void)slices;
+    (void)n;
+    guide_train_batch(ig);
+    guide_probe_batch(ig);
+}
+
+/* guide-dump reads the guiding field's leaf at --at: the fields span the scene's bounds, and a
+ * point outside them has no leaf of its own (the nearest one's box would not hold it). Said
+ * before the render, not after it. */
+static int guide_validate(const CandelaOptions *o, const Scene *scene, char err[CANDELA_ERR_LEN]) {
+    if (!o->guide_dump_prefix) return 0;
+    const float *at = o->guide_dump_at;
+    const vec3 lo = scene->bounds_min, hi = scene->bounds_max;
+    if (at[0] >= lo.x && at[0] <= hi.x && at[1] >= lo.y && at[1] <= hi.y && at[2] >= lo.z && at[2] <= hi.z) return 0;
+    snprintf(err, CANDELA_ERR_LEN,
+             "%s: guide-dump --at %g,%g,%g is outside the scene's bounds [%g %g %g] - [%g %g %g], which the guiding "
+             "field covers",
+             o->scene_path, (double)at[0], (double)at[1], (double)at[2], (double)lo.x, (double)lo.y, (double)lo.z,
+             (double)hi.x, (double)hi.y, (double)hi.z);
+    return -1;
+}
+
+static int guide_finish(Integrator *ig, char err[CANDELA_ERR_LEN]) {
+    const CandelaOptions *o = ig->opt;
+    return o->guide_dump_prefix ? guide_dump(ig, o->guide_dump_at, o->guide_dump_prefix, err) : 0;
+}
+
+const IntegratorFeature feature_guiding = {
+    .name = "guiding",
+    .validate = guide_validate,
+    .init = guide_init,
+    .free = guide_free,
+    .batch_end = guide_batch_end,
+    .barrier = guide_barrier,
+    .schedule_start = guide_schedule_start,
+    .report = guide_report,
+    .finish = guide_finish,
+    .save = guide_save,
+    .load = guide_load,
+};
