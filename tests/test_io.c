@@ -1696,8 +1696,9 @@ static void test_files(void) {
  * with plain light nodes (roots and children of a moved parent, named and not, point, spot and
  * directional records, named and not), beside what the pass leaves to tinygltf (a light node with
  * a light shape in its extras, a light record with extras, a camera, a node outside the scene),
- * loaded with the pass forced on and off: the lights and the node walk are equal field for
- * field, and a light index out of range on a plain node fails with the same message. */
+ * loaded with the pass forced on and off, as .gltf and as GLB: the lights and the node walk are
+ * equal field for field, and a light index out of range on a plain node fails with the same
+ * message. */
 static void test_bulk_lights(void) {
     static const char *const doc_fmt =
         "{\"asset\":{\"version\":\"2.0\"},\"extensionsUsed\":[\"KHR_lights_punctual\"],\"scene\":0,"
@@ -1724,12 +1725,20 @@ static void test_bulk_lights(void) {
         "{\"name\":\"with_extras\",\"type\":\"point\",\"intensity\":7,\"extras\":{\"note\":1}},"
         "{\"type\":\"spot\",\"spot\":{\"outerConeAngle\":0.3}}]}}}\n";
     char err_on[IO_ERR_LEN] = "", err_off[IO_ERR_LEN] = "";
-    for (int bad = 0; bad < 2; ++bad) {
-        const char *path = tmp_path("bulk.gltf");
-        FILE *f = fopen(path, "w");
+    for (int variant = 0; variant < 4; ++variant) {
+        const int bad = variant & 1, glb = variant >> 1; /* a GLB has its JSON chunk replaced */
+        const char *path = tmp_path(glb ? "bulk.glb" : "bulk.gltf");
+        char json[8192];
+        int n = snprintf(json, sizeof json, doc_fmt, bad ? 99 : 1);
+        while (n % 4) json[n++] = ' ';
+        FILE *f = fopen(path, "wb");
         CHECK(f != NULL, "cannot write %s", path);
         if (!f) return;
-        fprintf(f, doc_fmt, bad ? 99 : 1);
+        if (glb) {
+            const uint32_t head[5] = {0x46546C67u, 2u, (uint32_t)(20 + n), (uint32_t)n, 0x4E4F534Au};
+            fwrite(head, sizeof head, 1, f);
+        }
+        fwrite(json, 1, (size_t)n, f);
         fclose(f);
         IoLoadOptions on = {0}, off = {0};
         on.bulk_min_lights = 1;
@@ -1739,10 +1748,10 @@ static void test_bulk_lights(void) {
         const int ra = io_load_gltf_opts(path, &on, &a, err_on), rb = io_load_gltf_opts(path, &off, &b, err_off);
         if (bad) {
             CHECK(ra != 0 && rb != 0 && strcmp(err_on, err_off) == 0 && strstr(err_on, "light 99 out of range"),
-                  "bulk pass on / off, a plain node's light out of range: '%s' / '%s'", err_on, err_off);
+                  "%s, bulk pass on / off, a plain node's light out of range: '%s' / '%s'", path, err_on, err_off);
             continue;
         }
-        CHECK(ra == 0 && rb == 0, "bulk pass on / off: %s / %s", err_on, err_off);
+        CHECK(ra == 0 && rb == 0, "%s, bulk pass on / off: %s / %s", path, err_on, err_off);
         if (ra != 0 || rb != 0) return;
         CHECK(a.num_lights == 9 && b.num_lights == a.num_lights, "lights: %u with the pass, %u without (9)",
               a.num_lights, b.num_lights);
