@@ -27,6 +27,7 @@
 #include <map>
 #include <new>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -403,6 +404,9 @@ class Loader {
     Loader &operator=(const Loader &) = delete;
 
     void run(IoScene *out);
+    size_t bulk_min_lights_ = 0;                // IoLoadOptions.bulk_min_lights (0: BULK_MIN_LIGHTS)
+    void (*phase_done_)(void *, int) = nullptr; // IoLoadOptions.phase_done
+    void *phase_user_ = nullptr;
 
   private:
     std::string path_, dir_;
@@ -477,6 +481,52 @@ class Loader {
         std::memset(p, 0, sizeof *p);
     }
 
+    // Light records of the file, in its order (KHR_lights_punctual "lights"): every light the
+    // nodes may place, whether tinygltf or the bulk pass (below) read it.
+    struct LightDef {
+        uint32_t name_at = 0, name_len = 0; // in names_
+        int32_t type = -1;                  // IO_LIGHT_*, or -1: type_name_ holds what the file says
+        bool has_color = false;
+        double color[3] = {1, 1, 1}, intensity = 1.0, range = 0.0, inner = 0.0, outer = 0.7853981634;
+    };
+    std::vector<LightDef> light_defs_;
+    std::map<size_t, std::string> type_name_; // light index -> an unknown "type" (for its error)
+    // The bulk pass (io/README.md, "Memory"): a file with many lights has its plain light nodes
+    // (a name, TRS, a KHR_lights_punctual light and nothing else) and plain light records read
+    // into these compact records while nlohmann parses it, and the rest handed to tinygltf, whose
+    // Model would hold ~1.1 KB per light node and record plus their JSON tree.
+    struct BulkNode {
+        uint32_t name_at = 0, name_len = 0; // in names_
+        int32_t light = -1;
+        uint8_t has_t = 0, has_r = 0, has_s = 0;
+        double t[3] = {0, 0, 0}, q[4] = {0, 0, 0, 1}, s[3] = {1, 1, 1};
+    };
+    bool bulk_ = false;
+    std::vector<BulkNode> bulk_nodes_;
+    std::vector<int32_t> kept_of_gltf_; // bulk_: glTF node -> index in m_.nodes, or -1 - its bulk record
+    std::vector<int32_t> light_kept_;   // bulk_: glTF light -> index in m_.lights, or -1 (read by the pass)
+    std::string names_;                 // the bulk records' names, back to back
+    std::string name_of(uint32_t at, uint32_t len) const { return names_.substr(at, len); }
+    size_t gltf_node_count() const { return bulk_ ? kept_of_gltf_.size() : m_.nodes.size(); }
+    // The tinygltf node of a glTF node index, or null for a bulk record.
+    const tinygltf::Node *gltf_node(size_t i) const {
+        if (!bulk_) return &m_.nodes[i];
+        const int32_t k = kept_of_gltf_[i];
+        return k >= 0 ? &m_.nodes[size_t(k)] : nullptr;
+    }
+    std::string gltf_node_name(size_t i) const {
+        if (const tinygltf::Node *n = gltf_node(i)) return n->name;
+        const BulkNode &b = bulk_nodes_[size_t(-1 - kept_of_gltf_[i])];
+        return name_of(b.name_at, b.name_len);
+    }
+    bool bulk_pass(const unsigned char *json, size_t len, std::string *kept);
+    bool use_bulk_pass(const unsigned char *json, size_t len, std::string *kept);
+    void convert_light_defs();
+    void place_bulk(int gi, const Mat4 &parent, int32_t parent_walk);
+    template <class What>
+    void place_light(size_t l, const std::string &node_name, const What &what, const double *world_m,
+                     int32_t walk_index, const tinygltf::Node *node);
+
     void parse();
     void check_animation_indices(const unsigned char *json, size_t len);
     void check_required_extensions();
@@ -506,6 +556,221 @@ class Loader {
     void transfer(IoScene *out);
 };
 
+// How many light nodes make the bulk pass worth its second parse: below this the file goes to
+// tinygltf whole, as it always did (its JSON tree and Model cost ~5 KB per light node, 5 GB for
+// issue 28's street of 1M lights; 20 MB at this count).
+static constexpr size_t BULK_MIN_LIGHTS = 4096;
+
+static size_t count_occurrences(const unsigned char *p, size_t n, const char *what) {
+    const size_t w = std::strlen(what);
+    size_t count = 0;
+    for (const unsigned char *at = p, *end = p + n;
+         (at = std::search(at, end, what, what + w)) != end; at += w)
+        ++count;
+    return count;
+}
+
+static bool number_array(const nlohmann::json &v, size_t n, double *out) {
+    if (!v.is_array() || v.size() != n) return false;
+    for (size_t k = 0; k < n; ++k) {
+        if (!v[k].is_number()) return false;
+        out[k] = v[k].get<double>();
+    }
+    return true;
+}
+
+// The bulk pass: nlohmann parses the JSON with a callback that takes each plain light node
+// ({"name", "translation", "rotation", "scale", "extensions": {"KHR_lights_punctual":
+// {"light": i}}} and nothing else) and each plain light record ("name", "type", "color",
+// "intensity", "range", "spot" with its two angles) as it completes, stores it compactly and
+// drops it from the tree, so the tree never holds them; what is left (every other node, kept in
+// its place by kept_of_gltf_, and the rest of the file) is written back as JSON for tinygltf.
+// Values are read as tinygltf reads them (nlohmann's doubles, tinygltf's defaults), so a light
+// comes out the same either way. False: the file is not one the pass handles (malformed JSON,
+// duplicate top-level keys); tinygltf then parses it whole and reports what it finds.
+bool Loader::bulk_pass(const unsigned char *json, size_t len, std::string *kept) {
+    std::string key_at[4];
+    size_t n_nodes_arrays = 0, n_light_arrays = 0;
+    int32_t kept_nodes = 0, kept_lights = 0;
+    auto in_nodes = [&]() { return key_at[1] == "nodes"; };
+    auto in_lights = [&]() {
+        return key_at[1] == "extensions" && key_at[2] == "KHR_lights_punctual" && key_at[3] == "lights";
+    };
+    auto add_name = [&](const nlohmann::json &o, uint32_t *at, uint32_t *n) {
+        auto it = o.find("name");
+        if (it == o.end()) return;
+        const std::string &name = it->get_ref<const std::string &>();
+        *at = uint32_t(names_.size());
+        *n = uint32_t(name.size());
+        names_ += name;
+    };
+    auto plain_node = [&](const nlohmann::json &o) {
+        if (!o.is_object() || names_.size() > UINT32_MAX / 2) return false;
+        BulkNode b;
+        bool light = false;
+        for (auto it = o.begin(); it != o.end(); ++it) {
+            const std::string &k = it.key();
+            const nlohmann::json &v = it.value();
+            if (k == "name") {
+                if (!v.is_string()) return false;
+            } else if (k == "translation") {
+                if (!number_array(v, 3, b.t)) return false;
+                b.has_t = 1;
+            } else if (k == "rotation") {
+                if (!number_array(v, 4, b.q)) return false;
+                b.has_r = 1;
+            } else if (k == "scale") {
+                if (!number_array(v, 3, b.s)) return false;
+                b.has_s = 1;
+            } else if (k == "extensions") {
+                if (!v.is_object() || v.size() != 1) return false;
+                auto lp = v.find("KHR_lights_punctual");
+                if (lp == v.end() || !lp->is_object() || lp->size() != 1) return false;
+                auto li = lp->find("light");
+                if (li == lp->end() || !li->is_number_unsigned() || li->get<uint64_t>() >= 2147483648u) return false;
+                b.light = int32_t(li->get<uint64_t>());
+                light = true;
+            } else {
+                return false;
+            }
+        }
+        if (!light) return false;
+        add_name(o, &b.name_at, &b.name_len);
+        bulk_nodes_.push_back(b);
+        return true;
+    };
+    auto plain_light = [&](const nlohmann::json &o) {
+        if (!o.is_object() || names_.size() > UINT32_MAX / 2) return false;
+        LightDef d;
+        std::string type;
+        bool spot_seen = false;
+        for (auto it = o.begin(); it != o.end(); ++it) {
+            const std::string &k = it.key();
+            const nlohmann::json &v = it.value();
+            if (k == "name" || k == "type") {
+                if (!v.is_string()) return false;
+                if (k == "type") type = v.get<std::string>();
+            } else if (k == "color") {
+                if (!number_array(v, 3, d.color)) return false;
+                d.has_color = true;
+            } else if (k == "intensity" || k == "range") {
+                if (!v.is_number()) return false;
+                (k == "intensity" ? d.intensity : d.range) = v.get<double>();
+            } else if (k == "spot") {
+                if (!v.is_object()) return false;
+                for (auto a = v.begin(); a != v.end(); ++a) {
+                    if (!a.value().is_number()) return false;
+                    if (a.key() == "innerConeAngle") d.inner = a.value().get<double>();
+                    else if (a.key() == "outerConeAngle") d.outer = a.value().get<double>();
+                    else return false;
+                }
+                spot_seen = true;
+            } else {
+                return false;
+            }
+        }
+        if (type == "point" || type == "directional") {
+            if (spot_seen) return false; // tinygltf ignores it; leave that to tinygltf
+            d.type = type == "point" ? IO_LIGHT_POINT : IO_LIGHT_DIRECTIONAL;
+        } else if (type == "spot" && spot_seen) {
+            d.type = IO_LIGHT_SPOT;
+        } else {
+            return false;
+        }
+        add_name(o, &d.name_at, &d.name_len);
+        light_defs_.push_back(d);
+        return true;
+    };
+    nlohmann::json d;
+    try {
+        d = nlohmann::json::parse(json, json + len, [&](int depth, nlohmann::json::parse_event_t e, nlohmann::json &v) {
+            using E = nlohmann::json::parse_event_t;
+            if (e == E::key && depth >= 1 && depth <= 3) {
+                key_at[depth] = v.get<std::string>();
+                for (int k = depth + 1; k <= 3; ++k) key_at[k].clear();
+                if (depth == 1 && key_at[1] == "nodes") ++n_nodes_arrays;
+                if (depth == 3 && in_lights()) ++n_light_arrays;
+                return true;
+            }
+            const bool done = e == E::value || e == E::object_end || e == E::array_end;
+            if (done && depth == 2 && in_nodes()) { // an element of "nodes" completed
+                if (plain_node(v)) {
+                    kept_of_gltf_.push_back(-int32_t(bulk_nodes_.size()));
+                    return false;
+                }
+                kept_of_gltf_.push_back(kept_nodes++);
+            } else if (done && depth == 4 && in_lights()) { // an element of the lights completed
+                if (plain_light(v)) {
+                    light_kept_.push_back(-1);
+                    return false;
+                }
+                light_defs_.emplace_back();
+                light_kept_.push_back(kept_lights++);
+            }
+            return true;
+        });
+    } catch (const std::bad_alloc &) {
+        throw;
+    } catch (const std::exception &) {
+        d = nlohmann::json();
+        n_nodes_arrays = 2; // malformed: tinygltf reports it
+    }
+    if (n_nodes_arrays > 1 || n_light_arrays > 1 || kept_of_gltf_.size() > size_t(INT32_MAX) ||
+        light_defs_.size() > size_t(INT32_MAX)) {
+        bulk_nodes_ = std::vector<BulkNode>();
+        kept_of_gltf_ = std::vector<int32_t>();
+        light_kept_ = std::vector<int32_t>();
+        light_defs_ = std::vector<LightDef>();
+        names_ = std::string();
+        return false;
+    }
+    kept_of_gltf_.shrink_to_fit();
+    light_kept_.shrink_to_fit();
+    *kept = d.dump();
+    return true;
+}
+
+// Every light record as place_light reads it, in the file's order: tinygltf's, and the bulk
+// pass's where it read them.
+void Loader::convert_light_defs() {
+    if (!bulk_) light_defs_.assign(m_.lights.size(), LightDef{});
+    for (size_t i = 0; i < light_defs_.size(); ++i) {
+        if (bulk_ && light_kept_[i] < 0) continue;
+        const tinygltf::Light &src = m_.lights[bulk_ ? size_t(light_kept_[i]) : i];
+        LightDef &d = light_defs_[i];
+        if (!src.name.empty()) {
+            d.name_at = uint32_t(names_.size());
+            d.name_len = uint32_t(src.name.size());
+            names_ += src.name;
+        }
+        if (src.type == "point")
+            d.type = IO_LIGHT_POINT;
+        else if (src.type == "spot")
+            d.type = IO_LIGHT_SPOT;
+        else if (src.type == "directional")
+            d.type = IO_LIGHT_DIRECTIONAL;
+        else
+            type_name_[i] = src.type;
+        d.has_color = src.color.size() == 3;
+        for (int c = 0; c < 3; ++c) d.color[c] = d.has_color ? src.color[size_t(c)] : 1.0;
+        d.intensity = src.intensity;
+        d.range = src.range;
+        d.inner = src.spot.innerConeAngle;
+        d.outer = src.spot.outerConeAngle;
+    }
+}
+
+// The bulk pass when the file has many light nodes (BULK_MIN_LIGHTS); false: tinygltf reads it whole.
+bool Loader::use_bulk_pass(const unsigned char *json, size_t len, std::string *kept) {
+    const size_t lights = count_occurrences(json, len, "\"KHR_lights_punctual\"");
+    if (lights < (bulk_min_lights_ ? bulk_min_lights_ : BULK_MIN_LIGHTS)) return false;
+    // reserved from counts of the text (upper bounds), so the records never grow by doubling
+    bulk_nodes_.reserve(lights);
+    light_defs_.reserve(std::min(lights, count_occurrences(json, len, "\"type\"")));
+    bulk_ = bulk_pass(json, len, kept);
+    return bulk_;
+}
+
 void Loader::parse() {
     std::vector<unsigned char> bytes;
     std::string problem;
@@ -522,6 +787,7 @@ void Loader::parse() {
 
     std::string err, warn_s;
     bool ok = false;
+    std::string kept; // the bulk pass's JSON (a .gltf file's whole text; a GLB's JSON chunk)
     try {
         if (bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0) {
             // Validate the GLB container ourselves first: tinygltf 2.7.0's BIN-chunk bound
@@ -546,10 +812,33 @@ void Loader::parse() {
             }
             if (json_depth(bytes.data() + 20, json_len) > JSON_MAX_DEPTH)
                 fail(strf("JSON nests deeper than %d levels", JSON_MAX_DEPTH));
-            ok = tg.LoadBinaryFromMemory(&m_, &err, &warn_s, bytes.data(), length, dir_);
+            uint32_t glb_length = length;
+            if (use_bulk_pass(bytes.data() + 20, json_len, &kept)) {
+                // the GLB again, its JSON chunk the pass's (padded with spaces, as GLB pads it)
+                while (kept.size() % 4) kept += ' ';
+                const size_t bin = bin_at < length ? length - size_t(bin_at) : 0;
+                if (kept.size() + bin + 20 > UINT32_MAX) fail("GLB too large after the bulk pass");
+                std::vector<unsigned char> glb(20 + kept.size() + bin);
+                auto put = [&](size_t off, uint32_t v) { std::memcpy(glb.data() + off, &v, 4); };
+                std::memcpy(glb.data(), bytes.data(), 8);
+                put(8, uint32_t(glb.size()));
+                put(12, uint32_t(kept.size()));
+                put(16, 0x4E4F534Au);
+                std::memcpy(glb.data() + 20, kept.data(), kept.size());
+                if (bin) std::memcpy(glb.data() + 20 + kept.size(), bytes.data() + bin_at, bin);
+                bytes.swap(glb);
+                glb_length = uint32_t(bytes.size());
+            }
+            ok = tg.LoadBinaryFromMemory(&m_, &err, &warn_s, bytes.data(), glb_length, dir_);
         } else {
             if (json_depth(bytes.data(), bytes.size()) > JSON_MAX_DEPTH)
                 fail(strf("JSON nests deeper than %d levels", JSON_MAX_DEPTH));
+            if (use_bulk_pass(bytes.data(), bytes.size(), &kept)) {
+                if (kept.size() > UINT32_MAX) fail("JSON too large after the bulk pass");
+                std::vector<unsigned char>().swap(bytes); // the file's text: no longer needed
+                bytes.assign(kept.begin(), kept.end());
+                std::string().swap(kept);
+            }
             ok = tg.LoadASCIIFromString(&m_, &err, &warn_s, reinterpret_cast<const char *>(bytes.data()),
                                         static_cast<unsigned int>(bytes.size()), dir_);
         }
@@ -1107,13 +1396,15 @@ void Loader::material_medium(const tinygltf::Material &src, const std::string &w
     }
 }
 
+static Mat4 trs_local(const double t[3], const double q0[4], const double s[3], IoNode *walk);
+
 void Loader::flatten_nodes() {
-    const size_t n = m_.nodes.size();
+    const size_t n = gltf_node_count();
     // A valid glTF node graph is a forest: every node has at most one parent. Checking that
     // up front makes the traversal below finite (no cycles, no shared subtrees).
     std::vector<int> parent(n, -1);
     for (size_t i = 0; i < n; ++i)
-        for (int c : m_.nodes[i].children) {
+        for (int c : gltf_node(i) ? gltf_node(i)->children : std::vector<int>()) {
             if (c < 0 || size_t(c) >= n) fail(strf("node %zu: child %d out of range", i, c));
             if (parent[size_t(c)] != -1 || size_t(c) == i)
                 fail(strf("node %d has more than one parent (node graph is not a tree)", c));
@@ -1152,12 +1443,20 @@ void Loader::flatten_nodes() {
         bool animated;       // a channel moves this node or an ancestor
     };
     node_of_gltf_.assign(n, -1);
+    if (bulk_) { // sized once: growing by doubling would hold old and new arrays at once
+        nodes_.reserve(n);
+        lights_.reserve(bulk_nodes_.size());
+    }
     std::vector<Item> stack;
     for (size_t k = roots.size(); k-- > 0;) stack.push_back({roots[k], identity(), -1, false});
     while (!stack.empty()) {
         Item it = stack.back();
         stack.pop_back();
-        const tinygltf::Node &node = m_.nodes[size_t(it.node)];
+        if (!gltf_node(size_t(it.node))) { // a bulk record: a plain light node
+            place_bulk(it.node, it.parent, it.parent_walk);
+            continue;
+        }
+        const tinygltf::Node &node = *gltf_node(size_t(it.node));
         const std::string what = strf("node %d ('%s')", it.node, node.name.c_str());
         const bool animated = it.animated || channel_target[size_t(it.node)];
         // the node as io_scene_pose re-places it (io.h, IoNode): the same local transform as below
@@ -1185,22 +1484,7 @@ void Loader::flatten_nodes() {
             for (size_t k = 0; k < node.translation.size(); ++k) t[k] = node.translation[k];
             for (size_t k = 0; k < node.rotation.size(); ++k) q[k] = node.rotation[k];
             for (size_t k = 0; k < node.scale.size(); ++k) s[k] = node.scale[k];
-            for (int k = 0; k < 3; ++k) walk.translation[k] = t[k];
-            for (int k = 0; k < 4; ++k) walk.rotation[k] = q[k];
-            for (int k = 0; k < 3; ++k) walk.scale[k] = s[k];
-            double qn = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-            if (qn > 0.0 && std::isfinite(qn))
-                for (double &c : q) c /= qn;
-            const double x = q[0], y = q[1], z = q[2], w = q[3];
-            // R (column-major) scaled per column: M = T * R * S
-            const double r[9] = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w), 2 * (x * z - y * w),
-                                 2 * (x * y - z * w), 1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
-                                 2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y)};
-            for (int c = 0; c < 3; ++c)
-                for (int row = 0; row < 3; ++row) local.m[c * 4 + row] = r[c * 3 + row] * s[c];
-            local.m[12] = t[0];
-            local.m[13] = t[1];
-            local.m[14] = t[2];
+            local = trs_local(t, q, s, &walk);
         }
         nodes_.push_back(walk);
         const Mat4 world = mul(it.parent, local);
@@ -1280,50 +1564,109 @@ void Loader::flatten_nodes() {
             const tinygltf::Value *li = member(*lp, "light");
             if (!li || !li->IsNumber()) fail(what + ": KHR_lights_punctual without a light index");
             const int l = index_value(*li);
-            if (l < 0 || size_t(l) >= m_.lights.size())
+            if (l < 0 || size_t(l) >= light_defs_.size())
                 fail(strf("%s: light %.17g out of range (%zu lights)", what.c_str(), li->GetNumberAsDouble(),
-                          m_.lights.size()));
-            const tinygltf::Light &src = m_.lights[size_t(l)];
-            IoLight d{};
-            copy_name(d.name, src.name.empty() ? node.name : src.name);
-            if (src.type == "point")
-                d.type = IO_LIGHT_POINT;
-            else if (src.type == "spot")
-                d.type = IO_LIGHT_SPOT;
-            else if (src.type == "directional")
-                d.type = IO_LIGHT_DIRECTIONAL;
-            else
-                fail(strf("%s: light %d has unknown type '%s'", what.c_str(), l, src.type.c_str()));
-            for (int c = 0; c < 3; ++c) d.color[c] = src.color.size() == 3 ? float(src.color[size_t(c)]) : 1.0f;
-            d.intensity = float(src.intensity);
-            for (int c = 0; c < 3; ++c) {
-                const double e = double(src.intensity) * double(d.color[c]);
-                if (!std::isfinite(e) || std::fabs(e) > IO_MAX_EMISSION || !std::isfinite(d.intensity))
-                    fail(strf("%s: light intensity out of range (intensity x colour = %g; the limit is %g)",
-                              what.c_str(), e, IO_MAX_EMISSION));
-            }
-            d.range = float(src.range);
-            d.inner_cone_angle = float(src.spot.innerConeAngle);
-            d.outer_cone_angle = float(src.spot.outerConeAngle);
-            d.position[0] = float(world.m[12]);
-            d.position[1] = float(world.m[13]);
-            d.position[2] = float(world.m[14]);
-            double dir[3] = {-world.m[8], -world.m[9], -world.m[10]};
-            double len = std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
-            if (len > 0.0 && std::isfinite(len)) {
-                for (int c = 0; c < 3; ++c) d.direction[c] = float(dir[c] / len);
-            } else {
-                d.direction[2] = -1.0f;
-            }
-            d.node = walk_index;
-            light_shape_extras(node, what, d);
-            lights_.push_back(d);
+                          light_defs_.size()));
+            place_light(size_t(l), node.name, what, world.m, walk_index, &node);
         } else if (raw_member_start(node.extras_json_string, "candela_light")) {
             warn(what + ": extras.candela_light on a node without a KHR_lights_punctual light; ignored");
         }
         if (raw_member_start(node.extras_json_string, "candela_area_light")) load_area_light(node, what, world, walk_index);
         for (size_t k = node.children.size(); k-- > 0;) stack.push_back({node.children[k], world, walk_index, animated});
     }
+}
+
+// A node's local matrix from its TRS (rotation normalised; M = T * R * S), also kept in its walk
+// record for io_scene_pose.
+static Mat4 trs_local(const double t[3], const double q0[4], const double s[3], IoNode *walk) {
+    Mat4 local = identity();
+    double q[4] = {q0[0], q0[1], q0[2], q0[3]};
+    for (int k = 0; k < 3; ++k) walk->translation[k] = t[k];
+    for (int k = 0; k < 4; ++k) walk->rotation[k] = q[k];
+    for (int k = 0; k < 3; ++k) walk->scale[k] = s[k];
+    double qn = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    if (qn > 0.0 && std::isfinite(qn))
+        for (double &c : q) c /= qn;
+    const double x = q[0], y = q[1], z = q[2], w = q[3];
+    // R (column-major) scaled per column: M = T * R * S
+    const double r[9] = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w), 2 * (x * z - y * w),
+                         2 * (x * y - z * w), 1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
+                         2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y)};
+    for (int c = 0; c < 3; ++c)
+        for (int row = 0; row < 3; ++row) local.m[c * 4 + row] = r[c * 3 + row] * s[c];
+    local.m[12] = t[0];
+    local.m[13] = t[1];
+    local.m[14] = t[2];
+    return local;
+}
+
+// A bulk record in the node walk: what flatten_nodes does for a node with a light and nothing else.
+void Loader::place_bulk(int gi, const Mat4 &parent, int32_t parent_walk) {
+    const BulkNode &b = bulk_nodes_[size_t(-1 - kept_of_gltf_[size_t(gi)])];
+    const std::string name = name_of(b.name_at, b.name_len);
+    auto what = [&]() { return strf("node %d ('%s')", gi, name.c_str()); }; // for a message only
+    IoNode walk{};
+    copy_name(walk.name, name);
+    walk.gltf_node = gi;
+    walk.parent = parent_walk;
+    const int32_t walk_index = int32_t(nodes_.size());
+    node_of_gltf_[size_t(gi)] = walk_index;
+    const Mat4 local = trs_local(b.t, b.q, b.s, &walk);
+    nodes_.push_back(walk);
+    const Mat4 world = mul(parent, local);
+    bool finite = true;
+    double largest = 0.0;
+    for (double e : world.m) {
+        finite = finite && std::isfinite(e);
+        largest = std::max(largest, std::fabs(e));
+    }
+    if (!finite || largest > IO_MAX_COORDINATE)
+        fail(strf("%s: transform out of range (an entry is %s; the limit is %g)", what().c_str(),
+                  finite ? strf("%g", largest).c_str() : "not finite", IO_MAX_COORDINATE));
+    if (size_t(b.light) >= light_defs_.size())
+        fail(strf("%s: light %.17g out of range (%zu lights)", what().c_str(), double(b.light), light_defs_.size()));
+    place_light(size_t(b.light), name, what, world.m, walk_index, nullptr);
+}
+
+// The IoLight of light record l placed by a node's world matrix (node: its tinygltf node, for
+// the light shape in its extras; null for a bulk record, which has no extras).
+template <class What>
+void Loader::place_light(size_t l, const std::string &node_name, const What &what, const double *world_m,
+                         int32_t walk_index, const tinygltf::Node *node) {
+    auto w = [&]() -> std::string { // the node's name for a message, made only for one
+        if constexpr (std::is_invocable_v<What>) return what();
+        else return what;
+    };
+    const LightDef &src = light_defs_[l];
+    IoLight d{};
+    copy_name(d.name, src.name_len ? name_of(src.name_at, src.name_len) : node_name);
+    if (src.type < 0)
+        fail(strf("%s: light %d has unknown type '%s'", w().c_str(), int(l), type_name_[l].c_str()));
+    d.type = src.type;
+    for (int c = 0; c < 3; ++c) d.color[c] = src.has_color ? float(src.color[c]) : 1.0f;
+    d.intensity = float(src.intensity);
+    for (int c = 0; c < 3; ++c) {
+        const double e = double(src.intensity) * double(d.color[c]);
+        if (!std::isfinite(e) || std::fabs(e) > IO_MAX_EMISSION || !std::isfinite(d.intensity))
+            fail(strf("%s: light intensity out of range (intensity x colour = %g; the limit is %g)",
+                      w().c_str(), e, IO_MAX_EMISSION));
+    }
+    d.range = float(src.range);
+    d.inner_cone_angle = float(src.inner);
+    d.outer_cone_angle = float(src.outer);
+    d.position[0] = float(world_m[12]);
+    d.position[1] = float(world_m[13]);
+    d.position[2] = float(world_m[14]);
+    double dir[3] = {-world_m[8], -world_m[9], -world_m[10]};
+    double len = std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+    if (len > 0.0 && std::isfinite(len)) {
+        for (int c = 0; c < 3; ++c) d.direction[c] = float(dir[c] / len);
+    } else {
+        d.direction[2] = -1.0f;
+    }
+    d.node = walk_index;
+    if (node) light_shape_extras(*node, w(), d);
+    lights_.push_back(d);
 }
 
 // extras.candela_light {"radius": r} on a point or spot light, {"angle": deg} on a directional
@@ -1438,15 +1781,22 @@ void Loader::load_area_light(const tinygltf::Node &node, const std::string &what
 // tinygltf drops empty arrays and objects from extras, and an empty "include" list (a light
 // that illuminates nothing) must not read as no list at all.
 void Loader::convert_light_links() {
+    // only a scene that links lights pays for the name map (1M light nodes: ~1 s, ~100 MB)
+    bool any = false;
+    for (size_t w = 0; w < nodes_.size() && !any; ++w)
+        if (const tinygltf::Node *n = gltf_node(size_t(nodes_[w].gltf_node)))
+            any = raw_member_start(n->extras_json_string, "candela_light_linking") != 0;
+    if (!any) return;
     std::map<std::string, std::vector<int32_t>> by_name; // node name -> walk indices
     for (size_t w = 0; w < nodes_.size(); ++w)
-        by_name[m_.nodes[size_t(nodes_[w].gltf_node)].name].push_back(int32_t(w));
+        by_name[gltf_node_name(size_t(nodes_[w].gltf_node))].push_back(int32_t(w));
     std::vector<int32_t> instances_of_node(nodes_.size(), -1); // first instance of a node (one per node)
     for (size_t i = 0; i < instances_.size(); ++i)
         if (instances_of_node[size_t(instances_[i].node)] < 0) instances_of_node[size_t(instances_[i].node)] = int32_t(i);
     for (size_t w = 0; w < nodes_.size(); ++w) {
         const int gi = nodes_[w].gltf_node;
-        const tinygltf::Node &node = m_.nodes[size_t(gi)];
+        if (!gltf_node(size_t(gi))) continue; // a bulk record has no extras
+        const tinygltf::Node &node = *gltf_node(size_t(gi));
         if (!raw_member_start(node.extras_json_string, "candela_light_linking")) continue;
         const std::string what = strf("node %d ('%s'): extras.candela_light_linking", gi, node.name.c_str());
         nlohmann::json extras;
@@ -1550,7 +1900,7 @@ void Loader::convert_animations() {
                 warn(what + ": target path '" + ch.target_path + "' is not supported; the channel is ignored");
                 continue;
             }
-            if (ch.target_node < 0 || size_t(ch.target_node) >= m_.nodes.size())
+            if (ch.target_node < 0 || size_t(ch.target_node) >= gltf_node_count())
                 fail(strf("%s: target node %d out of range", what.c_str(), ch.target_node));
             const int32_t walk = node_of_gltf_.empty() ? -1 : node_of_gltf_[size_t(ch.target_node)];
             if (walk < 0) continue; // a node outside the loaded scene
@@ -1739,6 +2089,7 @@ T *c_array(const std::vector<T> &v) {
 void Loader::transfer(IoScene *out) {
     // Allocate every array first, then hand over ownership in one step that cannot fail.
     IoScene s{};
+    size_t n_lights = 0, n_nodes = 0;
     try {
         s.primitives = c_array(prims_);
         s.meshes = c_array(meshes_);
@@ -1746,9 +2097,13 @@ void Loader::transfer(IoScene *out) {
         s.materials = c_array(materials_);
         s.images = c_array(images_);
         s.lights = c_array(lights_);
+        n_lights = lights_.size();
+        std::vector<IoLight>().swap(lights_); // no owned pointers: freed as soon as copied
         s.cameras = c_array(cameras_);
         s.volumes = c_array(volumes_);
         s.nodes = c_array(nodes_);
+        n_nodes = nodes_.size();
+        std::vector<IoNode>().swap(nodes_);
         s.channels = c_array(channels_);
         s.light_links = c_array(light_links_);
         s.link_instances = c_array(link_instances_);
@@ -1764,10 +2119,10 @@ void Loader::transfer(IoScene *out) {
     out->instances = s.instances;   out->num_instances = uint32_t(instances_.size());
     out->materials = s.materials;   out->num_materials = uint32_t(materials_.size());
     out->images = s.images;         out->num_images = uint32_t(images_.size());
-    out->lights = s.lights;         out->num_lights = uint32_t(lights_.size());
+    out->lights = s.lights;         out->num_lights = uint32_t(n_lights);
     out->cameras = s.cameras;       out->num_cameras = uint32_t(cameras_.size());
     out->volumes = s.volumes;       out->num_volumes = uint32_t(volumes_.size());
-    out->nodes = s.nodes;           out->num_nodes = uint32_t(nodes_.size());
+    out->nodes = s.nodes;           out->num_nodes = uint32_t(n_nodes);
     out->channels = s.channels;     out->num_channels = uint32_t(channels_.size());
     out->light_links = s.light_links; out->num_light_links = uint32_t(light_links_.size());
     out->link_instances = s.link_instances; out->num_link_instances = uint32_t(link_instances_.size());
@@ -1786,20 +2141,31 @@ void Loader::transfer(IoScene *out) {
 
 void Loader::run(IoScene *out) {
     parse();
+    if (phase_done_) phase_done_(phase_user_, IO_PHASE_PARSED);
     check_required_extensions();
     warn_unrendered();
     convert_meshes();
     convert_materials();
+    convert_light_defs();
     flatten_nodes();
     convert_light_links();
     convert_animations();
     if (prims_.size() > UINT32_MAX || instances_.size() > UINT32_MAX) fail("scene too large");
     IoScene tmp{};
     environment(&tmp);
+    // tinygltf's model (the file's buffers among it) and the bulk records are converted: freed
+    // before the arrays are copied out, so the copies do not add to them (io/README.md, "Memory")
+    m_ = tinygltf::Model();
+    std::vector<BulkNode>().swap(bulk_nodes_);
+    std::vector<LightDef>().swap(light_defs_);
+    std::vector<int32_t>().swap(kept_of_gltf_);
+    std::vector<int32_t>().swap(node_of_gltf_);
+    std::string().swap(names_);
     transfer(out);
     std::memcpy(out->env_path, tmp.env_path, sizeof out->env_path);
     out->env_strength = tmp.env_strength;
     out->env_rotation_deg = tmp.env_rotation_deg;
+    if (phase_done_) phase_done_(phase_user_, IO_PHASE_FLATTENED);
 }
 
 }  // namespace
@@ -1840,7 +2206,23 @@ extern "C" int io_gltf_references(const char *path, IoPathList *list, char err[I
             set_err(err, path, strf("JSON nests deeper than %d levels", JSON_MAX_DEPTH));
             return -1;
         }
-        const nlohmann::json d = nlohmann::json::parse(json, json + json_len);
+        // Only what is listed below is kept while nlohmann parses: a node without extras and the
+        // light records are dropped as they complete (a street of 1M light nodes held ~1 GB of
+        // JSON tree here, before the load).
+        std::string top, ext, ext_key;
+        const nlohmann::json d = nlohmann::json::parse(json, json + json_len, [&](int depth, nlohmann::json::parse_event_t e, nlohmann::json &v) {
+            using E = nlohmann::json::parse_event_t;
+            if (e == E::key) {
+                if (depth == 1) top = v.get<std::string>(), ext.clear(), ext_key.clear();
+                else if (depth == 2) ext = v.get<std::string>(), ext_key.clear();
+                else if (depth == 3) ext_key = v.get<std::string>();
+                return true;
+            }
+            const bool done = e == E::value || e == E::object_end || e == E::array_end;
+            if (done && depth == 2 && top == "nodes") return v.is_object() && v.contains("extras");
+            if (done && depth == 4 && top == "extensions" && ext == "KHR_lights_punctual" && ext_key == "lights") return false;
+            return true;
+        });
         const std::string dir = dir_of(path);
         auto uri_of = [](const nlohmann::json &o) -> std::string {
             if (!o.is_object()) return "";
@@ -1937,6 +2319,11 @@ extern "C" int io_load_gltf_opts(const char *path, const IoLoadOptions *opts, Io
     try {
         Loader loader(path, confine, opts ? opts->texture_budget_bytes : 0, opts ? opts->volume_budget_bytes : 0,
                       !(opts && opts->no_warnings));
+        if (opts) {
+            loader.phase_done_ = opts->phase_done;
+            loader.bulk_min_lights_ = opts->bulk_min_lights;
+            loader.phase_user_ = opts->phase_user;
+        }
         loader.run(scene);
         return 0;
     } catch (const LoadError &e) {

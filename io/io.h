@@ -466,7 +466,17 @@ typedef struct IoLoadOptions {
     uint64_t volume_budget_bytes;
     /* non-zero: warnings are counted (IoScene.num_warnings) but not printed (--no-warnings) */
     int no_warnings;
+    /* optional: called when the file is parsed (IO_PHASE_PARSED: JSON and buffers read) and when
+     * the scene is flattened (IO_PHASE_FLATTENED: meshes, materials, textures, nodes, lights), so
+     * the caller can time and measure each (the renderer's phases, candela.h) */
+    void (*phase_done)(void *user, int phase);
+    void *phase_user;
+    /* the bulk pass (io/README.md, "Memory") reads plain light nodes itself when the file names
+     * KHR_lights_punctual at least this often (0: the default, 4096; UINT32_MAX: never). Both
+     * ways load the same scene; tests compare them. */
+    uint32_t bulk_min_lights;
 } IoLoadOptions;
+enum { IO_PHASE_PARSED = 0, IO_PHASE_FLATTENED = 1 };
 int io_load_gltf_opts(const char *path, const IoLoadOptions *opts, IoScene *scene, char err[IO_ERR_LEN]);
 void io_scene_free(IoScene *scene);
 /* The files a glTF / GLB references (buffers, images, VDBs, environments; not data: URIs),

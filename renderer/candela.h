@@ -191,8 +191,25 @@ int candela_light_sampler_parse(const char *name, CandelaLightSampler *s); /* 0 
  * training and the auto probes after each batch), film and barrier (iteration barriers and
  * adaptive sampling's decisions) are serial phases. The threads' own per-stage times are in
  * stage_thread_seconds. */
+/* The phases of a render from file to first image (issue 28), each with its wall seconds, the
+ * render's peak resident memory by its end (so the phase that raised the peak is where it
+ * grows; not reset between phases, render.c) and the resident memory at its end: parse (the glTF's
+ * JSON and buffers read: tinygltf, and the loader's bulk pass over light nodes), flatten (the
+ * rest of the loader: meshes, materials and textures, the node walk, lights), embree (the
+ * render-time scene: Embree's mesh and top-level builds, camera, environment), lights (media
+ * and the light list), sampler (the light sampler's build: the light tree, cache points) and
+ * first_iteration (the first iteration's samples). A frame of a session (--frames) has no load
+ * phases of its own. */
+enum {
+    CANDELA_PHASE_PARSE, CANDELA_PHASE_FLATTEN, CANDELA_PHASE_EMBREE, CANDELA_PHASE_LIGHTS, CANDELA_PHASE_SAMPLER,
+    CANDELA_PHASE_FIRST_ITERATION, CANDELA_PHASES
+};
+const char *candela_phase_name(int phase);
+
 typedef struct CandelaStats {
     double time_load, time_build, time_total;
+    double phase_seconds[CANDELA_PHASES];
+    size_t phase_peak_bytes[CANDELA_PHASES], phase_rss_bytes[CANDELA_PHASES];
     double time_generate, time_sort, time_trace, time_medium, time_shade, time_shadow, time_film;
     double time_learn, time_barrier;
     /* per-thread detail: seconds per stage (generate, sort, trace, medium, shade, shadow) each

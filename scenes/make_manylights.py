@@ -17,6 +17,10 @@ rather than committed. Blender light units (cd, lux; the renderer divides by 683
   spotlights.gltf      96 narrow spot lights (1 to 8 degree cones) over a large floor
   street.gltf          the night street of issue 12: the city with 20,000 lights (18,000 on
                        facades, 2,000 street lights), seen from its street camera
+  street_1m.gltf       issue 28's production-scale street: city_1m written as Blender's exporter
+                       writes light objects (every node and light definition named, one light
+                       definition per light), 211 MB; street_100k and street_20k (tests/test_phases.sh)
+                       the same at 100,000 and 20,000 lights
   glossy.gltf          a wet night plaza (issue 12, BSDF-aware selection): 4x4 blocks, a glossy
                        wet floor (roughness 0.15), polished metal facades (roughness 0.3) on half
                        the buildings, diffuse concrete on the rest; 4,000 window and street lights
@@ -79,12 +83,16 @@ def write_compact(g, path):
 # ----------------------------------------------------------------------------------------------
 
 
-def city(out, name, n_lights, seed=1):
+def city(out, name, n_lights, seed=1, per_light=False):
     """8x8 blocks of 16 m with 8 m streets (a 184 m square); one building per block, 12-60 m
     tall. 90% of the lights are window lights 0.25 m in front of a facade (warm or cool, 80-800
     cd at 1,000 lights), 10% street lights at 6 m (6000 cd at 1,000 lights). Intensities scale
     with 1000 / n_lights, so every member of the scale series has the same total power and
-    the same exposure. The camera stands in a street at 1.7 m."""
+    the same exposure. The camera stands in a street at 1.7 m.
+
+    per_light: written as Blender's glTF exporter writes a scene of light objects, every node
+    named and with its own named light definition (issue 28's street: about 232 bytes of JSON
+    per light instead of 102); the same lights at the same places."""
     rng = random.Random(seed)
     g = Gltf('candela scenes/make_manylights.py')
     ground = g.material('asphalt', base=(0.08, 0.08, 0.09), roughness=0.8)
@@ -111,6 +119,18 @@ def city(out, name, n_lights, seed=1):
     street = light_def(g, 'point', scale * 6000.0, (1.0, 0.85, 0.6))
     n_street = max(1, n_lights // 10)
     n_window = n_lights - n_street
+    shared = len(g.lights)
+
+    def place(light, p):
+        if not per_light:
+            light_node(g, light, p)
+            return
+        k = len(g.lights) - shared
+        own = dict(g.lights[light], name='Lamp.%07d' % k)
+        g.lights.append(own)
+        light_node(g, len(g.lights) - 1, p)
+        g.doc['nodes'][-1] = dict(name='Lamp.%07d' % k, **g.doc['nodes'][-1])
+
     for _ in range(n_window):
         x0, z0, height = buildings[rng.randrange(len(buildings))]
         face = rng.randrange(4)
@@ -126,14 +146,14 @@ def city(out, name, n_lights, seed=1):
         else:
             p = (x0 + B + off, y, z0 + t)
         pal = warm if rng.random() < 0.7 else cool
-        light_node(g, pal[rng.randrange(8)], p)
+        place(pal[rng.randrange(8)], p)
     for k in range(n_street):
         # along the streets between blocks, both directions
         street_i = rng.randrange(N + 1)
         along = -h + rng.random() * span
         across = -h + S / 2 + street_i * (B + S) + (rng.random() - 0.5) * S * 0.8
         p = (across, 6.0, along) if k % 2 == 0 else (along, 6.0, across)
-        light_node(g, street, p)
+        place(street, p)
     street_x = -h + S / 2 + 4 * (B + S)
     g.perspective('street', (street_x, 1.7, h - 10.0), (street_x + 6.0, 12.0, -h / 2), 60.0, aspect=16 / 9)
     write_compact(g, os.path.join(out, name + '.gltf'))
@@ -256,7 +276,7 @@ def glossy(out, seed=5):
         else:
             p = (x0 + B + off, y, z0 + t)
         pal = warm if rng.random() < 0.7 else cool
-        light_node(g, pal[rng.randrange(8)], p)
+        place(pal[rng.randrange(8)], p)
     for k in range(400):
         street_i = rng.randrange(N + 1)
         along = -h + rng.random() * span
@@ -287,6 +307,9 @@ def main():
         ('city_10k', lambda: city(out, 'city_10k', 10000)),
         ('city_100k', lambda: city(out, 'city_100k', 100000)),
         ('city_1m', lambda: city(out, 'city_1m', 1000000)),
+        ('street_1m', lambda: city(out, 'street_1m', 1000000, per_light=True)),
+        ('street_100k', lambda: city(out, 'street_100k', 100000, per_light=True)),
+        ('street_20k', lambda: city(out, 'street_20k', 20000, per_light=True)),
     ]
     for name, job in jobs:
         if only is None or name in only:

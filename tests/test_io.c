@@ -1692,6 +1692,92 @@ static void test_files(void) {
     unlink(hard);
 }
 
+/* The bulk pass (io/README.md, "Memory"; issue 28) loads the same scene as tinygltf alone: a file
+ * with plain light nodes (roots and children of a moved parent, named and not, point, spot and
+ * directional records, named and not), beside what the pass leaves to tinygltf (a light node with
+ * a light shape in its extras, a light record with extras, a camera, a node outside the scene),
+ * loaded with the pass forced on and off, as .gltf and as GLB: the lights and the node walk are
+ * equal field for field, and a light index out of range on a plain node fails with the same
+ * message. */
+static void test_bulk_lights(void) {
+    static const char *const doc_fmt =
+        "{\"asset\":{\"version\":\"2.0\"},\"extensionsUsed\":[\"KHR_lights_punctual\"],\"scene\":0,"
+        "\"scenes\":[{\"nodes\":[0,1,2,3,5,6,7,8,10]}],"
+        "\"nodes\":["
+        /* 0 */ "{\"name\":\"Lamp.a\",\"translation\":[1,2,3],\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}},"
+        /* 1 */ "{\"translation\":[-1,0.5,2],\"rotation\":[0.2,0.3,0.1,0.9],\"extensions\":{\"KHR_lights_punctual\":{\"light\":1}}},"
+        /* 2 */ "{\"name\":\"Sun\",\"rotation\":[0.7071068,0,0,0.7071068],\"extensions\":{\"KHR_lights_punctual\":{\"light\":2}}},"
+        /* 3 */ "{\"name\":\"parent\",\"translation\":[10,0,0],\"rotation\":[0,0.3826834,0,0.9238795],\"scale\":[2,2,2],\"children\":[4,9]},"
+        /* 4 */ "{\"name\":\"child\",\"translation\":[0,1,0],\"scale\":[1,3,1],\"extensions\":{\"KHR_lights_punctual\":{\"light\":%d}}},"
+        /* 5 */ "{\"name\":\"shaped\",\"translation\":[0,4,0],\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}},"
+        "\"extras\":{\"candela_light\":{\"radius\":0.25}}},"
+        /* 6 */ "{\"name\":\"extra_record\",\"translation\":[3,3,3],\"extensions\":{\"KHR_lights_punctual\":{\"light\":3}}},"
+        /* 7 */ "{\"name\":\"cam\",\"translation\":[0,1,10],\"camera\":0},"
+        /* 8 */ "{\"name\":\"Lamp.b\",\"translation\":[5,1,-2],\"extensions\":{\"KHR_lights_punctual\":{\"light\":4}}},"
+        /* 9 */ "{\"name\":\"child2\",\"translation\":[0,0,1],\"extensions\":{\"KHR_lights_punctual\":{\"light\":2}}},"
+        /* 10 */ "{\"name\":\"Lamp.c\",\"translation\":[2,0.25,-7.5],\"extensions\":{\"KHR_lights_punctual\":{\"light\":4}}},"
+        /* 11, not in the scene */ "{\"name\":\"away\",\"translation\":[9,9,9],\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}}],"
+        "\"cameras\":[{\"type\":\"perspective\",\"perspective\":{\"yfov\":0.8,\"znear\":0.1}}],"
+        "\"extensions\":{\"KHR_lights_punctual\":{\"lights\":["
+        "{\"name\":\"warm\",\"type\":\"point\",\"color\":[1,0.75,0.5],\"intensity\":120.5,\"range\":30},"
+        "{\"type\":\"spot\",\"intensity\":3e3,\"spot\":{\"innerConeAngle\":0.1,\"outerConeAngle\":0.6}},"
+        "{\"type\":\"directional\",\"color\":[0.9,0.9,1],\"intensity\":2},"
+        "{\"name\":\"with_extras\",\"type\":\"point\",\"intensity\":7,\"extras\":{\"note\":1}},"
+        "{\"type\":\"spot\",\"spot\":{\"outerConeAngle\":0.3}}]}}}\n";
+    char err_on[IO_ERR_LEN] = "", err_off[IO_ERR_LEN] = "";
+    for (int variant = 0; variant < 4; ++variant) {
+        const int bad = variant & 1, glb = variant >> 1; /* a GLB has its JSON chunk replaced */
+        const char *path = tmp_path(glb ? "bulk.glb" : "bulk.gltf");
+        char json[8192];
+        int n = snprintf(json, sizeof json, doc_fmt, bad ? 99 : 1);
+        while (n % 4) json[n++] = ' ';
+        FILE *f = fopen(path, "wb");
+        CHECK(f != NULL, "cannot write %s", path);
+        if (!f) return;
+        if (glb) {
+            const uint32_t head[5] = {0x46546C67u, 2u, (uint32_t)(20 + n), (uint32_t)n, 0x4E4F534Au};
+            fwrite(head, sizeof head, 1, f);
+        }
+        fwrite(json, 1, (size_t)n, f);
+        fclose(f);
+        IoLoadOptions on = {0}, off = {0};
+        on.bulk_min_lights = 1;
+        off.bulk_min_lights = UINT32_MAX;
+        on.no_warnings = off.no_warnings = 1;
+        IoScene a, b;
+        const int ra = io_load_gltf_opts(path, &on, &a, err_on), rb = io_load_gltf_opts(path, &off, &b, err_off);
+        if (bad) {
+            CHECK(ra != 0 && rb != 0 && strcmp(err_on, err_off) == 0 && strstr(err_on, "light 99 out of range"),
+                  "%s, bulk pass on / off, a plain node's light out of range: '%s' / '%s'", path, err_on, err_off);
+            continue;
+        }
+        CHECK(ra == 0 && rb == 0, "%s, bulk pass on / off: %s / %s", path, err_on, err_off);
+        if (ra != 0 || rb != 0) return;
+        CHECK(a.num_lights == 9 && b.num_lights == a.num_lights, "lights: %u with the pass, %u without (9)",
+              a.num_lights, b.num_lights);
+        CHECK(a.num_nodes == b.num_nodes && a.num_cameras == 1 && b.num_cameras == 1, "nodes %u / %u, cameras %u / %u",
+              a.num_nodes, b.num_nodes, a.num_cameras, b.num_cameras);
+        for (uint32_t i = 0; i < a.num_lights && i < b.num_lights; ++i)
+            CHECK(memcmp(&a.lights[i], &b.lights[i], sizeof a.lights[i]) == 0, "light %u ('%s' / '%s') differs", i,
+                  a.lights[i].name, b.lights[i].name);
+        for (uint32_t i = 0; i < a.num_nodes && i < b.num_nodes; ++i) {
+            const IoNode *x = &a.nodes[i], *y = &b.nodes[i];
+            CHECK(strcmp(x->name, y->name) == 0 && x->gltf_node == y->gltf_node && x->parent == y->parent &&
+                      x->has_matrix == y->has_matrix && memcmp(x->translation, y->translation, sizeof x->translation) == 0 &&
+                      memcmp(x->rotation, y->rotation, sizeof x->rotation) == 0 &&
+                      memcmp(x->scale, y->scale, sizeof x->scale) == 0,
+                  "walk node %u ('%s' / '%s') differs", i, x->name, y->name);
+        }
+        CHECK(memcmp(a.cameras, b.cameras, sizeof *a.cameras) == 0, "the camera differs");
+        /* the names the records give, else the node's */
+        CHECK(a.num_lights == 9 && strcmp(a.lights[0].name, "warm") == 0 && strcmp(a.lights[2].name, "Sun") == 0 &&
+                  a.lights[5].radius == 0.25f,
+              "names / shapes: '%s' '%s' radius %g", a.lights[0].name, a.lights[2].name, (double)a.lights[5].radius);
+        io_scene_free(&a);
+        io_scene_free(&b);
+    }
+}
+
 int main(int argc, char **argv) {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/candela-test-io-XXXXXX");
     if (!mkdtemp(tmpdir)) {
@@ -1704,6 +1790,7 @@ int main(int argc, char **argv) {
     test_image_errors_do_not_leak();
     test_generated_gltf();
     test_texture_budget();
+    test_bulk_lights();
     test_vdb_generated();
     test_material_media();
     test_clearcoat();

@@ -112,6 +112,13 @@ static void print_stats(const CandelaStats *s) {
             s->time_shadow, s->time_learn, s->time_film, s->time_barrier, candela_stats_other_seconds(s), s->time_total, (unsigned long long)s->rays_camera,
             (unsigned long long)s->rays_bounce, (unsigned long long)s->rays_shadow,
             render > 0 ? (double)rays / render * 1e-6 : 0.0, (double)s->peak_memory_bytes / (1024.0 * 1024.0));
+    /* the phases from file to first image: wall time and the peak memory by each one's end
+     * (candela.h, CANDELA_PHASE_*) */
+    fprintf(stderr, "  phases (wall, peak memory so far):");
+    for (int k = 0; k < CANDELA_PHASES; ++k)
+        fprintf(stderr, "%s %s %.3fs %.0f MiB", k ? "," : "", candela_phase_name(k), s->phase_seconds[k],
+                (double)s->phase_peak_bytes[k] / (1024.0 * 1024.0));
+    fputc('\n', stderr);
     if (s->num_textures)
         fprintf(stderr, "  textures: %u (%u 8-bit, %u float), %.1f MiB decoded\n", s->num_textures,
                 s->num_textures_8bit, s->num_textures - s->num_textures_8bit,

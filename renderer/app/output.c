@@ -131,6 +131,13 @@ static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s, 
                "\"barrier\": %.6f, \"other\": %.6f, \"total\": %.6f},\n",
             s->time_load, s->time_build, s->time_generate, s->time_sort, s->time_trace, s->time_medium, s->time_shade,
             s->time_shadow, s->time_learn, s->time_film, s->time_barrier, candela_stats_other_seconds(s), s->time_total);
+    /* the phases from file to first image: wall seconds, the peak memory by the phase's end and
+     * the resident memory at its end (candela.h) */
+    fputs("  \"phases\": {", f);
+    for (int k = 0; k < CANDELA_PHASES; ++k)
+        fprintf(f, "%s\"%s\": {\"seconds\": %.6f, \"peak_bytes\": %zu, \"rss_bytes\": %zu}", k ? ", " : "",
+                candela_phase_name(k), s->phase_seconds[k], s->phase_peak_bytes[k], s->phase_rss_bytes[k]);
+    fputs("},\n", f);
     /* the per-thread detail: each stage's seconds in a thread, averaged over a batch's threads */
     fprintf(f, "  \"stage_thread_seconds\": {\"threads\": %d, \"generate\": %.6f, \"sort\": %.6f, \"trace\": %.6f, "
                "\"medium\": %.6f, \"shade\": %.6f, \"shadow\": %.6f},\n",

@@ -89,6 +89,38 @@ static size_t peak_rss_bytes(void) {
     return (size_t)ru.ru_maxrss * 1024u;
 }
 
+/* Resident memory now (VmRSS), 0 where /proc is not there. */
+static size_t rss_bytes(void) {
+    FILE *f = fopen("/proc/self/status", "r");
+    size_t kb = 0;
+    if (f) {
+        char line[256];
+        while (fgets(line, sizeof line, f))
+            if (sscanf(line, "VmRSS: %zu kB", &kb) == 1) break;
+        fclose(f);
+    }
+    return kb * 1024u;
+}
+
+/* Phases (candela.h, CANDELA_PHASE_*): the high-water mark is read, never reset, between
+ * phases: a reset would also lower what the kernel reports as the process's maximum resident
+ * size at exit (/usr/bin/time, getrusage of a child), which the issue's acceptance is measured
+ * with. So a phase's peak is the render's peak so far, and the phase that raised it is the one
+ * where it grows; the resident size at its end is beside it. */
+void phase_mark(ScenePhases *p, int phase) {
+    double now = clock_seconds();
+    p->seconds[phase] += now - p->t;
+    p->rss[phase] = rss_bytes(); /* first: the high-water mark read after it is at least it */
+    p->peak[phase] = peak_rss_bytes();
+    p->t = now;
+}
+
+const char *candela_phase_name(int phase) {
+    static const char *const names[CANDELA_PHASES] = {"parse", "flatten", "embree", "lights", "sampler",
+                                                      "first_iteration"};
+    return phase >= 0 && phase < CANDELA_PHASES ? names[phase] : "?";
+}
+
 /* ---------------------------------------------------------------- render */
 
 static void light_sampler_barrier_hook(void *sampler) { light_sampler_barrier(sampler); }
@@ -145,6 +177,7 @@ typedef struct Render {
     Integrator ig;
     int have_scene, have_lights, have_media, have_sampler, have_integrator;
     int warned_unlit; /* "no lights and no environment" said once per session */
+    ScenePhases phases; /* this render's (or frame's) phase clock (candela.h, CANDELA_PHASE_*) */
 } Render;
 
 /* What one frame builds from the (posed) scene: media, lights, light sampler, integrator. The
@@ -224,6 +257,7 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
         return -1;
     }
     r->have_lights = 1;
+    phase_mark(&r->phases, CANDELA_PHASE_LIGHTS);
     if (r->lights.count == 0 && !o->no_warnings && !r->warned_unlit) {
         fprintf(stderr, "%s: warning: the scene has no lights and no environment (no punctual light, no emissive "
                         "material, no --env or candela_environment): the image is black\n", o->scene_path);
@@ -273,6 +307,7 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
     }
     update_pixel_list(ig); /* adaptive sampling: every pixel to begin with */
     stats->time_build = clock_seconds() - t_loaded;
+    phase_mark(&r->phases, CANDELA_PHASE_SAMPLER);
 
     Progress progress = {o->quiet, isatty(2), clock_seconds(), 0.0}; /* the first report comes at once */
     int max_iter_spp = o->max_iteration_spp > 0 ? o->max_iteration_spp : DEFAULT_MAX_ITERATION_SPP;
@@ -303,6 +338,7 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
         done_paths = (uint64_t)npixels * (uint64_t)at.spp_done + at.iteration_paths;
     }
     int spp_done = at.spp_done, iteration = at.iteration, stopped = 0, limited = 0;
+    const int first_iteration = at.iteration; /* this run's first (a resumed render's too) */
     uint64_t resume_paths = at.iteration_paths;
     int min_spp = o->min_spp > 0 ? o->min_spp : CANDELA_DEFAULT_MIN_SPP;
     ig->spp_done = spp_done;
@@ -344,6 +380,7 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
             total_paths = done_paths + (uint64_t)ig->iteration_pixels * (uint64_t)(o->spp - spp_done);
         }
         stats->time_barrier += clock_seconds() - t_barrier; /* statistics only: no decision reads it */
+        if (iteration == first_iteration) phase_mark(&r->phases, CANDELA_PHASE_FIRST_ITERATION);
         report_progress(&progress, done_paths, total_paths, done_paths == total_paths);
         at = (CheckpointProgress){iteration + 1, spp_done, 0};
         if (o->on_iteration) {
@@ -410,6 +447,11 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
     int rc = film_resolve(&ig->film, image);
     if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s: out of memory resolving the film", o->scene_path);
     stats->peak_memory_bytes = peak_rss_bytes();
+    for (int k = 0; k < CANDELA_PHASES; ++k) {
+        stats->phase_seconds[k] = r->phases.seconds[k];
+        stats->phase_peak_bytes[k] = r->phases.peak[k];
+        stats->phase_rss_bytes[k] = r->phases.rss[k];
+    }
     render_free_frame(r);
     return rc;
 }
@@ -425,7 +467,8 @@ int candela_render(const CandelaOptions *o, CandelaImage *image, CandelaStats *s
     if (!r) { snprintf(err, CANDELA_ERR_LEN, "candela: out of memory"); return -1; }
     peak_rss_reset();
     double t_start = clock_seconds();
-    if (scene_load(&r->scene, o, err) != 0) { render_free(r); return -1; }
+    r->phases.t = t_start;
+    if (scene_load_phased(&r->scene, o, &r->phases, err) != 0) { render_free(r); return -1; }
     r->have_scene = 1;
     /* a single render is unposed (a frame batch, candela_session_*, renders animation times) */
     if (r->scene.io.num_channels > 0 && !o->no_warnings)
@@ -489,6 +532,8 @@ int candela_session_render(CandelaSession *s, const CandelaOptions *o, double se
     double t_start = clock_seconds();
     if (scene_pose(&s->r->scene, o, seconds, &frame->instances_moved, err) != 0) return -1;
     frame->time_pose = clock_seconds() - t_start;
+    memset(&s->r->phases, 0, sizeof s->r->phases); /* a frame's own phases: no load (peaks since the frame's start) */
+    s->r->phases.t = clock_seconds();
     return render_frame(s->r, o, image, stats, NULL, t_start, err);
 }
 

@@ -501,13 +501,23 @@ static int shadow_link_masks(Scene *scene, uint32_t **instance_mask, char err[CA
     return 0;
 }
 
+static void io_phase_done(void *user, int io_phase) {
+    phase_mark(user, io_phase == IO_PHASE_PARSED ? CANDELA_PHASE_PARSE : CANDELA_PHASE_FLATTEN);
+}
+
 int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
+    return scene_load_phased(scene, o, NULL, err);
+}
+
+int scene_load_phased(Scene *scene, const CandelaOptions *o, ScenePhases *phases, char err[CANDELA_ERR_LEN]) {
     memset(scene, 0, sizeof *scene);
     char ioerr[IO_ERR_LEN];
     IoLoadOptions lo = {.confine_dir = o->confine_dir,
                         .texture_budget_bytes = (uint64_t)o->texture_budget_mb << 20,
                         .volume_budget_bytes = (uint64_t)o->volume_budget_mb << 20,
-                        .no_warnings = o->no_warnings};
+                        .no_warnings = o->no_warnings,
+                        .phase_done = phases ? io_phase_done : NULL,
+                        .phase_user = phases};
     if (io_load_gltf_opts(o->scene_path, &lo, &scene->io, ioerr) != 0) {
         snprintf(err, CANDELA_ERR_LEN, "%s", ioerr);
         return -1;
@@ -684,6 +694,7 @@ int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN])
         if (bad && !o->quiet && !o->no_warnings)
             fprintf(stderr, "%s: warning: %zu non-finite or negative environment values set to 0\n", env_path, bad);
     }
+    if (phases) phase_mark(phases, CANDELA_PHASE_EMBREE);
     return 0;
 }
 

@@ -100,6 +100,17 @@ typedef struct Scene {
 /* Loads the glTF, applies options (camera choice, resolution, environment) and builds the
  * Embree scene. */
 int scene_load(Scene *scene, const CandelaOptions *o, char err[CANDELA_ERR_LEN]);
+/* The phase clock of a render (candela.h, CANDELA_PHASE_*): phase_mark ends `phase` now, adding
+ * the seconds since the previous mark, with the render's peak memory so far and the resident
+ * memory now (render.c). */
+typedef struct ScenePhases {
+    double t;
+    double seconds[CANDELA_PHASES];
+    size_t peak[CANDELA_PHASES], rss[CANDELA_PHASES];
+} ScenePhases;
+void phase_mark(ScenePhases *p, int phase);
+/* scene_load, marking the parse, flatten and embree phases on `phases` (NULL: none). */
+int scene_load_phased(Scene *scene, const CandelaOptions *o, ScenePhases *phases, char err[CANDELA_ERR_LEN]);
 void scene_free(Scene *scene);
 /* Re-places the loaded scene at animation time `seconds` (io_scene_pose): the instances that
  * moved get their new transforms (Embree's top-level scene is rebuilt when any did; meshes and
