@@ -330,8 +330,8 @@ void medium_free(Medium *m) {
     free(m->majorant.sigma_maj);
     free(m->majorant.sigma_min);
     free(m->majorant.sigma_maj_coarse);
-    free(m->majorant.brick);
-    free(m->majorant.brick_uniform);
+    free(m->majorant.bricks.entries);
+    free(m->majorant.regions.entries);
     free(m->majorant.brick_maj);
     free(m->majorant.brick_min);
     emission_free(m);

@@ -69,6 +69,18 @@ typedef struct VolumeGrid {
 /* media_emission_line_at's VOLUME_LINE_COARSE caps the emission term at one expected
  * collision per this many voxels (VOLUME_LINE_STANDARD, media_emission_line: one per voxel) */
 #define VOLUME_LINE_COARSE_VOXELS 8
+/* An open-addressing hash table of the sparse majorant: key 0 is an empty slot; an entry is a
+ * uniform brick or region (slot -1: majorant, control) or a brick's cells (slot: their offset /
+ * 512 in brick_maj / brick_min). */
+typedef struct MajorantEntry {
+    uint64_t key;
+    int32_t slot;
+    float maj, ctl;
+} MajorantEntry;
+typedef struct MajorantTable {
+    MajorantEntry *entries;      /* capacity a power of 2, at most half full */
+    uint64_t mask, count;        /* capacity - 1, entries held */
+} MajorantTable;
 typedef struct MajorantGrid {
     int32_t origin[3];           /* index of cell (0,0,0)'s first voxel */
     int32_t dims[3];             /* cells per axis */
@@ -80,22 +92,25 @@ typedef struct MajorantGrid {
      * collision per VOLUME_LINE_COARSE_VOXELS voxels (media_emission_line_at's COARSE
      * density); NULL for media that do not emit */
     float *sigma_maj_coarse;
-    /* Sparse form (sigma_maj NULL, brick non-NULL): a grid whose dense form would be large and
-     * mostly empty or constant (two small clouds far apart, a constant tile filling a huge box)
-     * is held in bricks of VOLUME_MAJORANT_BRICK^3 cells. A brick whose padded box holds no voxel
-     * data (only tiles, empty space included) is two numbers, the majorant and control of the
-     * largest and smallest tile value it touches (exact inside a tile, looser by at most a brick
-     * along a tile's border); the others hold their 8^3 cells, computed as the dense form does.
-     * Memory then follows what the file holds, not its bounding box, and the DDA crosses a
-     * uniform brick in one step. Only media that do not emit (the emission-energy grid is dense
-     * over the cells). origin is a multiple of 64. */
-    int32_t bdims[3];            /* bricks per axis */
-    int32_t *brick;              /* per brick: its cells' offset / 512 in brick_maj / brick_min, or -1: uniform */
-    float *brick_uniform;        /* per brick: (majorant, control) of a uniform brick */
+    /* Sparse form (sigma_maj NULL, bricks.entries non-NULL): a grid whose dense form would be
+     * large and mostly empty or constant (two small clouds far apart, a constant tile filling a
+     * huge box) is held in bricks of VOLUME_MAJORANT_BRICK^3 cells, found through two hash tables
+     * (majorant.c): regions (VOLUME_MAJORANT_REGION^3 cells, the 4096^3 voxels of a NanoVDB root
+     * entry) hold the majorant and control of a brick nobody stored there, and bricks hold either
+     * two numbers (a brick whose padded box holds no voxel data: the largest and smallest tile
+     * value it touches, exact inside a tile, looser by at most a brick along a tile's border) or
+     * their 8^3 cells, computed as the dense form does. Only the bricks the tree's leaves and
+     * tiles reach (with the trilinear footprint's ring) and the regions of the root's entries and
+     * their neighbours are stored: memory follows the nodes the file holds, not its bounding box,
+     * and the DDA crosses an absent region or a uniform brick in one step. Only media that do not
+     * emit (the emission-energy grid is dense over the cells). origin is a multiple of 4096. */
+    MajorantTable bricks, regions;
+    float outside_maj, outside_ctl; /* majorant and control of an absent region (the background) */
     float *brick_maj, *brick_min;/* 512 cells per non-uniform brick, x fastest */
     uint64_t bytes;              /* memory held by the grid (either form) */
 } MajorantGrid;
 #define VOLUME_MAJORANT_BRICK 8
+#define VOLUME_MAJORANT_REGION 512 /* cells: 4096 voxels, a NanoVDB root entry */
 /* Below this many cells the majorant grid is always dense (the form every scene so far uses,
  * and the faster one to walk); above it the sparse form is used when it needs less than half
  * the memory (VolumeDesc.dense_cells_max overrides it, for tests). */
