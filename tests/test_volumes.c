@@ -1868,6 +1868,39 @@ static void test_majorant_sparse(void) {
         io_volume_grid_free(&g);
     }
 
+    /* the regions' defaults and borders: two root tiles of different values side by side, a
+     * 128^3 upper tile of a third value inside one, an 8^3 box of a fourth, voxels on the
+     * borders; bounds and tiling over rays aimed at every border */
+    {
+        const int32_t boxes[4 * 6] = {0,    0,    0,    4095, 4095, 4095, 4096, 0,   0,   8191, 4095, 4095,
+                                      3968, 3968, 3968, 4095, 4095, 4095, 4096, 512, 512, 4103, 519,  519};
+        const float bvals[4] = {0.25f, 1.0f, 2.5f, 0.0f};
+        const int32_t vox[3 * 3] = {4095, 100, 100, 4096, 4095, 4095, 8191, 0, 0};
+        const float vv[3] = {4.0f, 0.0f, 6.0f};
+        rc = io_volume_grid_from_voxels(vox, vv, 3, boxes, bvals, 4, i2w, "density", &g, err);
+        CHECK(rc == 0, "root tiles side by side: %s", err);
+        if (rc == 0) {
+            VolumeDesc desc = grid_desc(&g, 3.0f, 0.5f);
+            Medium m;
+            rc = medium_init_vdb(&m, &desc, err);
+            CHECK(rc == 0, "root tiles side by side: %s", err);
+            if (rc == 0) {
+                printf("sparse majorant, two root tiles and details: %.2f MiB\n", m.memory_bytes / 1048576.0);
+                CHECK(m.majorant.bricks.entries != NULL && m.memory_bytes < (16u << 20), "root tiles: %.1f MiB, sparse %d",
+                      m.memory_bytes / 1048576.0, m.majorant.bricks.entries != NULL);
+                const float targets[6][3] = {{4.096f, 2.0f, 2.0f},     {4.0f, 4.0f, 4.0f},      {4.1f, 0.516f, 0.516f},
+                                             {4.0955f, 0.1f, 0.1f},    {8.1915f, 0.0f, 0.0f},   {4.096f, 4.0955f, 4.0955f}};
+                long segments = 0, tiling = 0;
+                long violations = majorant_rays(&m, &r, 1200, targets, 6, &segments, &tiling);
+                violations += majorant_rays(&m, &r, 400, NULL, 0, &segments, &tiling);
+                CHECK(violations == 0, "root tiles: %ld points above their majorant or below their control", violations);
+                CHECK(tiling == 0, "root tiles: %ld tiling errors", tiling);
+                medium_free(&m);
+            }
+            io_volume_grid_free(&g);
+        }
+    }
+
     /* a voxel of 1e30: world bounds beyond the coordinate limit, refused at once by the reader;
      * and a grid of 100 m voxels that a node scales by 1e11, by the medium */
     const float one = 1.0f;

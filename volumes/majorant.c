@@ -360,26 +360,28 @@ static void sp_tile(SparseWalk *w, const Medium *m, const int32_t lo[3], int32_t
     if (maj != ref_maj || ctl != ref_ctl) sp_mark_box(w, lo, size, 0);
 }
 
-/* The default of a root child's region: the pair of its upper node's tiles when they all share
- * one (a fill with some detail: the bricks the detail and the region's border reach are
- * stored, not every tile's), else the background's. */
+/* The default of a root child's region: the pair most of its upper node's tiles share (a fill
+ * with some detail: the bricks the detail and the region's border reach are stored, not every
+ * tile's). Any default is correct (tiles of another pair are marked, and a region whose default
+ * is not the background's has its border marked); the majority (Boyer-Moore's vote, one pass)
+ * stores the fewest bricks. */
 static void sp_child_default(const SparseWalk *w, const Medium *m, pnanovdb_buf_t buf, pnanovdb_upper_handle_t upper,
                              float *maj, float *ctl) {
     const pnanovdb_grid_type_t F = PNANOVDB_GRID_TYPE_FLOAT;
-    int any = 0;
+    uint32_t votes = 0;
     float m0 = w->bg_maj, c0 = w->bg_ctl;
     for (uint32_t n = 0; n < PNANOVDB_UPPER_TABLE_COUNT; ++n) {
         if (pnanovdb_upper_get_child_mask(buf, upper, n)) continue;
         float v = vol_clean(pnanovdb_read_float(buf, pnanovdb_upper_get_table_address(F, buf, upper, n))), a, c;
         sp_pair(m, v, v, &a, &c);
-        if (!any) {
+        if (votes == 0) {
             m0 = a;
             c0 = c;
-            any = 1;
-        } else if (a != m0 || c != c0) {
-            m0 = w->bg_maj;
-            c0 = w->bg_ctl;
-            break;
+            votes = 1;
+        } else if (a == m0 && c == c0) {
+            ++votes;
+        } else {
+            --votes;
         }
     }
     *maj = m0;
