@@ -588,10 +588,10 @@ static void test_majorant(void) {
         int rc = medium_init_vdb(&m, &desc, err);
         CHECK(rc == 0, "random grid %d: %s", trial, err);
         if (rc == 0 && pass == 1)
-            CHECK(emissive ? m.majorant.bricks.entries == NULL : m.majorant.bricks.entries != NULL && m.majorant.sigma_maj == NULL,
-                  "grid %d: the sparse form %s", trial, emissive ? "built for an emitting medium" : "not built");
+            CHECK(m.majorant.bricks.entries != NULL && m.majorant.sigma_maj == NULL, "grid %d: the sparse form not built%s",
+                  trial, emissive ? " (emitting)" : "");
         if (rc == 0) {
-            if (pass == 1 && !emissive) sparse_rays += 400;
+            if (pass == 1) sparse_rays += 400;
             for (int ray = 0; ray < 400; ++ray) {
                 float o[3], d[3];
                 for (int k = 0; k < 3; ++k) {
@@ -896,7 +896,7 @@ static double pdf_sphere_integral(const Medium *m, const float o[3], int nz, int
  * of half the resolution, i.e. another index space), and 2: a temperature grid with a hot spot
  * in a constant density. */
 enum { ES_NX = 20, ES_NY = 12, ES_NZ = 16, ES_NT = 24 };
-static int emission_test_medium(int which, Medium *m, IoVolumeGrid *g, IoVolumeGrid *ge) {
+static int emission_test_medium(int which, Medium *m, IoVolumeGrid *g, IoVolumeGrid *ge, uint64_t dense_cells_max) {
     char err[IO_ERR_LEN] = "";
     int nx = which == 2 ? ES_NT : ES_NX, ny = which == 2 ? ES_NT : ES_NY, nz = which == 2 ? ES_NT : ES_NZ;
     size_t n = (size_t)nx * ny * nz;
@@ -938,6 +938,7 @@ static int emission_test_medium(int which, Medium *m, IoVolumeGrid *g, IoVolumeG
     free(ev);
     if (rc) return -1;
     VolumeDesc desc = grid_desc(g, 2.0f, 0.3f);
+    desc.dense_cells_max = dense_cells_max;
     desc.emission_scale = 3.0f;
     const float color[3] = {1.0f, 0.6f, 0.3f};
     if (which == 2) {
@@ -997,10 +998,15 @@ static void test_emission_sampling(void) {
             io_volume_grid_free(&g);
         }
     }
-    for (int which = 0; which < 4; ++which) {
+    /* each medium in the dense form, then in the sparse form (forced: the emission-energy grid
+     * over the bricks' slots, the pdf's DDA crossing empty blocks at once) */
+    for (int pass = 0; pass < 8; ++pass) {
+        const int which = pass % 4, sparse = pass >= 4;
         Medium m;
         IoVolumeGrid g, ge;
-        if (emission_test_medium(which, &m, &g, &ge)) continue;
+        if (emission_test_medium(which, &m, &g, &ge, sparse ? 1 : 0)) continue;
+        CHECK((m.majorant.bricks.entries != NULL) == sparse, "emission medium %d: the %s form not built", which,
+              sparse ? "sparse" : "dense");
         float cen[3];
         medium_emission_centroid(&m, cen);
         CHECK(medium_emission_power(&m) > 0.0f, "medium %d does not emit", which);
@@ -1046,8 +1052,8 @@ static void test_emission_sampling(void) {
         for (int oi = 0; oi < 4; ++oi) {
             double integral = pdf_sphere_integral(&m, origins[oi], 500, 1000);
             CHECK(fabs(integral - 1.0) < 3e-3, "medium %d origin %d: pdf integrates to %.6f", which, oi, integral);
-            printf("emission pdf medium %d origin %d (%s): integral over the sphere %.6f\n", which, oi,
-                   oi < 2 ? "inside" : "outside", integral);
+            printf("emission pdf medium %d%s origin %d (%s): integral over the sphere %.6f\n", which, sparse ? " (sparse)" : "",
+                   oi, oi < 2 ? "inside" : "outside", integral);
         }
         /* the directions of sampled points against the pdf (chi-square), and the returned
          * volume pdf against the cell's P_v / V_v being positive and the point in the bounds */
@@ -1094,8 +1100,8 @@ static void test_emission_sampling(void) {
             double stat, pval = chi2_pvalue(obs, expv, BZ * BP, &dof, &stat);
             CHECK(pval > 1e-4, "medium %d origin %d: sampled directions vs pdf, chi2 %g dof %d p %g", which, oi, stat,
                   dof, pval);
-            printf("emission sampling medium %d origin %d: chi2 %.1f dof %d p %.4f (expected total %.4f of %d)\n", which,
-                   oi, stat, dof, pval, tot / NS, NS);
+            printf("emission sampling medium %d%s origin %d: chi2 %.1f dof %d p %.4f (expected total %.4f of %d)\n", which,
+                   sparse ? " (sparse)" : "", oi, stat, dof, pval, tot / NS, NS);
         }
         medium_free(&m);
         io_volume_grid_free(&g);
@@ -1207,8 +1213,8 @@ static void test_emission_line(void) {
      * sum of emitted_by against emitted */
     Medium a, b;
     IoVolumeGrid ga, gea, gb, geb;
-    if (emission_test_medium(0, &a, &ga, &gea)) return;
-    if (emission_test_medium(2, &b, &gb, &geb)) {
+    if (emission_test_medium(0, &a, &ga, &gea, 0)) return;
+    if (emission_test_medium(2, &b, &gb, &geb, 0)) {
         medium_free(&a);
         io_volume_grid_free(&ga);
         io_volume_grid_free(&gea);
@@ -1866,6 +1872,72 @@ static void test_majorant_sparse(void) {
             medium_free(&m);
         }
         io_volume_grid_free(&g);
+    }
+
+    /* an emitting medium: two emitting 4^3 blobs 5,104 voxels apart (at 5,100 the dense form needed
+     * 9 GB, over the default budget; 5,104 keeps both blobs at the same place in their cells, so
+     * the floored border cells match): the sparse form with its emission-energy grid over the bricks'
+     * slots, its power twice one blob's (dense), samples from both blobs in proportion, each
+     * with a positive pdf along its direction */
+    {
+        int32_t ijk[2 * 64 * 3];
+        float vals[2 * 64];
+        int n = 0;
+        for (int b = 0; b < 2; ++b)
+            for (int i = 0; i < 64; ++i) {
+                ijk[3 * n] = (b ? 5104 : 0) + i % 4;
+                ijk[3 * n + 1] = (b ? 5104 : 0) + i / 4 % 4;
+                ijk[3 * n + 2] = (b ? 5104 : 0) + i / 16;
+                vals[n++] = 1.0f + 0.25f * (float)(i % 5);
+            }
+        IoVolumeGrid gd = {0}, ge = {0}, gd1 = {0}, ge1 = {0};
+        int ok = io_volume_grid_from_voxels(ijk, vals, 128, NULL, NULL, 0, i2w, "density", &gd, err) == 0;
+        ok = ok && io_volume_grid_from_voxels(ijk, vals, 128, NULL, NULL, 0, i2w, "emission", &ge, err) == 0;
+        ok = ok && io_volume_grid_from_voxels(ijk, vals, 64, NULL, NULL, 0, i2w, "density", &gd1, err) == 0;
+        ok = ok && io_volume_grid_from_voxels(ijk, vals, 64, NULL, NULL, 0, i2w, "emission", &ge1, err) == 0;
+        CHECK(ok, "emitting blobs: %s", err);
+        if (ok) {
+            VolumeDesc desc = grid_desc(&gd, 50.0f, 0.5f), one = grid_desc(&gd1, 50.0f, 0.5f);
+            desc.emission = &ge;
+            one.emission = &ge1;
+            desc.emission_scale = one.emission_scale = 2.0f;
+            Medium m, m1;
+            int rc2 = medium_init_vdb(&m, &desc, err);
+            CHECK(rc2 == 0, "emitting blobs: %s", err);
+            int rc1 = medium_init_vdb(&m1, &one, err);
+            CHECK(rc1 == 0, "one emitting blob: %s", err);
+            if (rc2 == 0 && rc1 == 0) {
+                printf("sparse majorant, two emitting blobs 5104 voxels apart: %.2f MiB, power %.6g (one blob %.6g)\n",
+                       m.memory_bytes / 1048576.0, (double)medium_emission_power(&m), (double)medium_emission_power(&m1));
+                CHECK(m.majorant.bricks.entries != NULL && m.memory_bytes < (1u << 20), "emitting blobs: %.2f MiB, sparse %d",
+                      m.memory_bytes / 1048576.0, m.majorant.bricks.entries != NULL);
+                CHECK(fabs(medium_emission_power(&m) - 2.0 * medium_emission_power(&m1)) < 1e-5 * medium_emission_power(&m),
+                      "emitting blobs: power %g, not twice %g", (double)medium_emission_power(&m), (double)medium_emission_power(&m1));
+                const float o[3] = {2.5f, 2.6f, 2.4f};
+                long far = 0, bad = 0;
+                enum { NS = 20000 };
+                for (int i = 0; i < NS; ++i) {
+                    float p[3];
+                    float pv = medium_emission_sample(&m, (float)urand(&r), (float)urand(&r), (float)urand(&r), (float)urand(&r), p);
+                    far += p[0] > 1.0f;
+                    float d[3] = {p[0] - o[0], p[1] - o[1], p[2] - o[2]};
+                    if (!(pv > 0.0f) || !(medium_emission_pdf(&m, o, d) > 0.0f)) ++bad;
+                }
+                CHECK(bad == 0, "emitting blobs: %ld samples with a zero pdf", bad);
+                CHECK(fabs((double)far - 0.5 * NS) < 5.0 * sqrt(0.25 * NS), "emitting blobs: %ld of %d samples in the far blob", far, NS);
+                /* majorant bounds over rays aimed at both blobs */
+                const float targets[2][3] = {{0.002f, 0.002f, 0.002f}, {5.106f, 5.106f, 5.106f}};
+                long segments = 0, tiling = 0;
+                long violations = majorant_rays(&m, &r, 1000, targets, 2, &segments, &tiling);
+                CHECK(violations == 0 && tiling == 0, "emitting blobs: %ld violations, %ld tiling errors", violations, tiling);
+            }
+            if (rc2 == 0) medium_free(&m);
+            if (rc1 == 0) medium_free(&m1);
+        }
+        io_volume_grid_free(&gd);
+        io_volume_grid_free(&ge);
+        io_volume_grid_free(&gd1);
+        io_volume_grid_free(&ge1);
     }
 
     /* the regions' defaults and borders: two root tiles of different values side by side, a

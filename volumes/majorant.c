@@ -113,9 +113,12 @@ static float block_table_max(const BlockTable *b, const int64_t lo[3], const int
 typedef struct EmitContext {
     const double *i2w;      /* the density grid's index to world (double) */
     const VolumeGrid *ag;   /* the emission (or temperature) grid */
-    const BlockTable *aux;  /* its block maxima */
+    const BlockTable *aux;  /* its block maxima (the dense form), else: */
+    struct AuxCache *cache; /* its block maxima found as asked (the sparse form) */
     float factor, cap;      /* lum(sigma_a L_e) per sigma_t and aux value; c_vox / voxel_size */
 } EmitContext;
+
+static float aux_cache_max(struct AuxCache *c, const int64_t lo[3], const int64_t hi[3]);
 
 /* One majorant cell c (cell indices; its blocks at bx, by in the block tables, whose z layers
  * below, at and above it are zs[0..2]): the majorant (before the slack), the coarse one, the
@@ -160,7 +163,7 @@ static void cell_values(const Medium *m, const BlockTable *dens, const BlockTabl
             vlo[k] = (int64_t)fmax(floor(lo[k]) - 1.0, -4e9);
             vhi[k] = (int64_t)fmin(floor(hi[k]) + 2.0, 4e9);
         }
-        float amax = block_table_max(ec->aux, vlo, vhi);
+        float amax = ec->aux ? block_table_max(ec->aux, vlo, vhi) : aux_cache_max(ec->cache, vlo, vhi);
         float e = m->emission.buffer ? amax : (amax >= BLACKBODY_MIN_KELVIN ? 1.0f : 0.0f);
         term = st * ec->factor * e; /* kappa = 1 */
         maj = vmaxf(st, vminf(term, ec->cap));
@@ -224,23 +227,6 @@ static int brick_tiles(GridReader *r, const int32_t vox0[3], float *hi_out, floa
 
 /* ---- the sparse form's hash tables (MajorantTable, volumes.h) */
 
-/* Brick and region coordinates are cells / 8 and cells / 512 from the grid's origin: below
- * 2^19 (index bounds within 2^21, medium.c), packed 21 bits per axis; +1 keeps 0 for empty. */
-static inline uint64_t sp_key(int32_t x, int32_t y, int32_t z) {
-    return ((uint64_t)(uint32_t)x | (uint64_t)(uint32_t)y << 21 | (uint64_t)(uint32_t)z << 42) + 1;
-}
-static inline uint64_t sp_slot(const MajorantTable *t, uint64_t key) {
-    uint64_t h = key * 0x9E3779B97F4A7C15ull;
-    return (h ^ (h >> 31)) & t->mask;
-}
-static inline const MajorantEntry *sp_find(const MajorantTable *t, uint64_t key) {
-    for (uint64_t i = sp_slot(t, key);; i = (i + 1) & t->mask) {
-        const MajorantEntry *e = &t->entries[i];
-        if (e->key == key) return e;
-        if (!e->key) return NULL;
-    }
-}
-
 /* What the sparse tables may still take (the budget's share; 0: none) and what they hold. */
 typedef struct SparseMem {
     uint64_t budget, used;
@@ -300,6 +286,52 @@ static void sp_pair(const Medium *m, float hi, float lo, float *maj, float *ctl)
     float c = vminf(m->density_scale * lo, VOLUME_MAX_SIGMA_T) * VOL_CONTROL_SLACK;
     *maj = st * VOL_MAJORANT_SLACK;
     *ctl = c < st ? c : 0.0f;
+}
+
+/* An emitting medium's aux grid (emission or temperature) as the sparse form reads it: its 8^3
+ * block maxima found as the cells ask for them and kept (the dense form's table over the aux
+ * grid's box would be the box again), over the same block range as that table. */
+struct AuxCache {
+    GridReader reader;
+    int32_t lo[3], hi[3]; /* blocks (voxels / 8) of the aux grid's box, as block tables cover it */
+    MajorantTable table;
+    SparseMem mem;        /* unbounded: it holds one entry per block read, in proportion to the data */
+};
+
+static float aux_block(struct AuxCache *c, int32_t bx, int32_t by, int32_t bz) {
+    uint64_t key = sp_key(bx - c->lo[0], by - c->lo[1], bz - c->lo[2]);
+    if (c->table.entries) {
+        const MajorantEntry *e = sp_find(&c->table, key);
+        if (e) return e->maj;
+    }
+    uint32_t level;
+    float v = grid_voxel_level(&c->reader, 8 * bx, 8 * by, 8 * bz, &level);
+    if (level == 0) { /* a leaf: the max of its clean values, as block_layer_fill takes it */
+        pnanovdb_leaf_handle_t leaf = c->reader.acc.leaf;
+        v = 0.0f;
+        for (uint32_t i = 0; i < 512; ++i)
+            v = vmaxf(v, vol_clean(pnanovdb_read_float(
+                             c->reader.buf, pnanovdb_leaf_get_table_address(PNANOVDB_GRID_TYPE_FLOAT, c->reader.buf, leaf, i))));
+    }
+    if (c->table.entries) sp_insert(&c->table, key, v, 0.0f, &c->mem, NULL); /* NULL (memory): read again next time */
+    return v;
+}
+
+/* block_table_max over the cache: the max over the blocks overlapping voxels [lo, hi] within
+ * the aux grid's box (0 beyond it). */
+static float aux_cache_max(struct AuxCache *c, const int64_t lo[3], const int64_t hi[3]) {
+    int32_t b0[3], b1[3];
+    for (int k = 0; k < 3; ++k) {
+        int64_t a = lo[k] >= 0 ? lo[k] / 8 : -((-lo[k] + 7) / 8), b = hi[k] >= 0 ? hi[k] / 8 : -((-hi[k] + 7) / 8);
+        if (b < c->lo[k] || a > c->hi[k]) return 0.0f;
+        b0[k] = a < c->lo[k] ? c->lo[k] : (int32_t)a;
+        b1[k] = b > c->hi[k] ? c->hi[k] : (int32_t)b;
+    }
+    float mx = 0.0f;
+    for (int32_t z = b0[2]; z <= b1[2]; ++z)
+        for (int32_t y = b0[1]; y <= b1[1]; ++y)
+            for (int32_t x = b0[0]; x <= b1[0]; ++x) mx = vmaxf(mx, aux_block(c, x, y, z));
+    return mx;
 }
 
 /* What the tree walk collects: the bricks the data reaches and the regions of the root. */
@@ -406,12 +438,21 @@ static void sp_walk_tree(SparseWalk *w, const Medium *m, pnanovdb_buf_t buf) {
                             (int32_t)(uint32_t)(((key >> 21) & 0x1FFFFF) << 12), (int32_t)(uint32_t)((key & 0x1FFFFF) << 12)};
             int child = pnanovdb_root_tile_get_child(buf, tile) != 0;
             float maj = w->bg_maj, ctl = w->bg_ctl;
+            float tile_maj = w->bg_maj, tile_ctl = w->bg_ctl;
             if (!child) {
                 float v = pnanovdb_read_float(buf, pnanovdb_root_tile_get_value_address(F, buf, tile));
-                sp_pair(m, vol_clean(v), vol_clean(v), &maj, &ctl);
-                if (maj == w->bg_maj && ctl == w->bg_ctl) continue; /* the background's value */
+                sp_pair(m, vol_clean(v), vol_clean(v), &tile_maj, &tile_ctl);
+                if (tile_maj == w->bg_maj && tile_ctl == w->bg_ctl) continue; /* the background's value */
+                maj = tile_maj;
+                ctl = tile_ctl;
             } else if (pass != 1) {
                 sp_child_default(w, m, buf, pnanovdb_root_get_child(F, buf, root, tile), &maj, &ctl);
+            }
+            /* an emitting medium: every region defaults to the background (absent bricks must
+             * not emit: their extinction is the background's 0) */
+            if (m->emissive) {
+                maj = w->bg_maj;
+                ctl = w->bg_ctl;
             }
             int32_t r[3];
             int out = 0;
@@ -441,7 +482,10 @@ static void sp_walk_tree(SparseWalk *w, const Medium *m, pnanovdb_buf_t buf) {
             /* a region of another value than the background: its shell (inside and out, where
              * the neighbours' values meet its own) */
             if (maj != w->bg_maj || ctl != w->bg_ctl) sp_mark_box(w, o, 4096, 1);
-            if (!child) continue;
+            if (!child) {
+                if (m->emissive) sp_mark_box(w, o, 4096, 0); /* an emitting tile: every brick */
+                continue;
+            }
             pnanovdb_upper_handle_t upper = pnanovdb_root_get_child(F, buf, root, tile);
             for (uint32_t n = 0; n < PNANOVDB_UPPER_TABLE_COUNT && !w->fail; ++n) {
                 int32_t uo[3];
@@ -464,15 +508,19 @@ static void sp_walk_tree(SparseWalk *w, const Medium *m, pnanovdb_buf_t buf) {
         }
 }
 
-/* The sparse form (MajorantGrid, volumes.h) of a medium that does not emit. Returns 1 without
- * building it when it would take at least half of dense_bytes (the dense form is then as good
- * and faster to walk) unless forced (a test's dense_cells_max), 0 when built, -1 with err (the
- * budget, memory). */
+/* The sparse form (MajorantGrid, volumes.h). Returns 1 without building it when it would take
+ * at least half of dense_bytes (the dense form is then as good and faster to walk) unless
+ * forced (a test's dense_cells_max), or when an emitting medium's background has extinction;
+ * 0 when built (an emitting medium's per-cell emission bound in *bound, slot layout), -1 with
+ * err (the budget, memory). ec: the emission context (factor, cap, grids) of an emitting
+ * medium. */
 static int sparse_build(Medium *m, uint64_t dense_bytes, uint64_t budget, int forced, char err[IO_ERR_LEN],
-                        const char *name) {
+                        const char *name, const EmitContext *ec_in, float **bound) {
     MajorantGrid *mg = &m->majorant;
     const VolumeGrid *g = &m->density;
     enum { B = VOLUME_MAJORANT_BRICK, BV = 8 * VOLUME_MAJORANT_BRICK, BC = B * B * B };
+    const int emissive = m->emissive;
+    if (bound) *bound = NULL;
     for (int k = 0; k < 3; ++k) {
         int32_t v0 = 4096 * floor_div(g->index_min[k] - 2, 4096); /* regions aligned to the root's */
         mg->origin[k] = v0;
@@ -486,13 +534,20 @@ static int sparse_build(Medium *m, uint64_t dense_bytes, uint64_t budget, int fo
         reader.buf, pnanovdb_address_offset(reader.acc.root.address,
                                             PNANOVDB_GRID_TYPE_GET(PNANOVDB_GRID_TYPE_FLOAT, root_off_background))));
     sp_pair(m, bg, bg, &w.bg_maj, &w.bg_ctl);
+    if (emissive && w.bg_maj > 0.0f) { /* the background would emit everywhere: the dense form */
+        memset(mg, 0, sizeof *mg);
+        return 1;
+    }
     mg->outside_maj = w.bg_maj;
     mg->outside_ctl = w.bg_ctl;
+    struct AuxCache cache = {0};
+    float *bnd = NULL;
     if (sp_table_init(&mg->bricks, &mem) || sp_table_init(&mg->regions, &mem)) goto oom;
     sp_walk_tree(&w, m, reader.buf);
     if (w.fail) goto fail;
     /* every brick the data reaches: two numbers when its padded box holds no voxel data (and
-     * then its region's default when equal), else its cells */
+     * then its region's default when equal; in an emitting medium only an empty one), else its
+     * cells */
     uint64_t dense = 0;
     for (uint64_t i = 0; i <= mg->bricks.mask; ++i) {
         MajorantEntry *e = &mg->bricks.entries[i];
@@ -501,18 +556,22 @@ static int sparse_build(Medium *m, uint64_t dense_bytes, uint64_t budget, int fo
         const int32_t bb[3] = {(int32_t)(k & 0x1FFFFF), (int32_t)(k >> 21 & 0x1FFFFF), (int32_t)(k >> 42 & 0x1FFFFF)};
         const int32_t vox0[3] = {mg->origin[0] + BV * bb[0], mg->origin[1] + BV * bb[1], mg->origin[2] + BV * bb[2]};
         float vhi, vlo;
-        if (brick_tiles(&reader, vox0, &vhi, &vlo)) {
-            sp_pair(m, vhi, vlo, &e->maj, &e->ctl);
+        int uniform = brick_tiles(&reader, vox0, &vhi, &vlo);
+        if (uniform) sp_pair(m, vhi, vlo, &e->maj, &e->ctl);
+        if (uniform && (!emissive || e->maj == 0.0f)) {
+            if (emissive) e->ctl = 0.0f; /* the coarse majorant, as empty */
             e->slot = -1;
         } else {
             e->slot = (int32_t)dense++;
         }
         /* its region must be stored (a brick lies within a ring of an entry's region) */
-        MajorantEntry *re = sp_insert(&mg->regions, sp_key(bb[0] / B / B, bb[1] / B / B, bb[2] / B / B), w.bg_maj,
-                                      w.bg_ctl, &mem, NULL);
-        if (!re) goto fail;
+        if (!sp_insert(&mg->regions, sp_key(bb[0] / B / B, bb[1] / B / B, bb[2] / B / B), w.bg_maj, w.bg_ctl, &mem, NULL))
+            goto fail;
     }
-    const uint64_t cells_bytes = dense * BC * 2 * sizeof(float);
+    /* per non-uniform brick: its cells' majorant and control (or coarse majorant), its
+     * coordinates; an emitting medium's emission bound and emission-energy grid on top */
+    const uint64_t cells_bytes =
+        dense * (BC * (emissive ? 3 * sizeof(float) + EMISSION_BYTES_PER_CELL : 2 * sizeof(float)) + 3 * sizeof(int32_t));
     const uint64_t bytes = mem.used + cells_bytes;
     if (2 * bytes >= dense_bytes && !forced) {
         free(mg->bricks.entries);
@@ -525,28 +584,47 @@ static int sparse_build(Medium *m, uint64_t dense_bytes, uint64_t budget, int fo
         mem.used = bytes;
         goto fail;
     }
+    if (dense * BC >= ((uint64_t)1 << 31)) goto oom; /* cell indices are int32 (emission.c) */
     mg->brick_maj = malloc((size_t)(dense ? dense : 1) * BC * sizeof(float));
     mg->brick_min = malloc((size_t)(dense ? dense : 1) * BC * sizeof(float));
+    mg->brick_at = malloc((size_t)(dense ? dense : 1) * 3 * sizeof(int32_t));
+    if (emissive) {
+        bnd = malloc((size_t)(dense ? dense : 1) * BC * sizeof(float));
+        const VolumeGrid *ag = ec_in->ag;
+        grid_reader_init(&cache.reader, ag);
+        for (int k = 0; k < 3; ++k) {
+            cache.lo[k] = floor_div8(ag->index_min[k] - 2);
+            cache.hi[k] = floor_div8(ag->index_max[k] + 2);
+        }
+        if (sp_table_init(&cache.table, &cache.mem)) goto oom;
+    }
+    EmitContext ec = {0};
+    if (emissive) {
+        ec = *ec_in;
+        ec.aux = NULL;
+        ec.cache = &cache;
+    }
     /* a non-uniform brick's cells from the block maxima (and minima) of its 64^3 voxels and
      * their ring, exactly as the dense form computes a cell */
     BlockTable dens = {0}, dmin = {0};
     const int32_t zero[3] = {0, 0, 0}, tdims[3] = {B + 2, B + 2, B + 2};
-    if (!mg->brick_maj || !mg->brick_min || block_table_alloc(&dens, zero, tdims, B + 2, BLK_FACES) ||
-        block_table_alloc(&dmin, zero, tdims, B + 2, BLK_FACES)) {
+    if (!mg->brick_maj || !mg->brick_min || !mg->brick_at || (emissive && !bnd) ||
+        block_table_alloc(&dens, zero, tdims, B + 2, BLK_FACES) ||
+        (!emissive && block_table_alloc(&dmin, zero, tdims, B + 2, BLK_FACES))) {
         free(dens.v);
         free(dmin.v);
         goto oom;
     }
-    EmitContext none = {0};
     for (uint64_t i = 0; i <= mg->bricks.mask; ++i) {
         const MajorantEntry *e = &mg->bricks.entries[i];
         if (!e->key || e->slot < 0) continue;
         uint64_t k = e->key - 1;
         const int32_t bb[3] = {(int32_t)(k & 0x1FFFFF), (int32_t)(k >> 21 & 0x1FFFFF), (int32_t)(k >> 42 & 0x1FFFFF)};
+        memcpy(mg->brick_at + 3 * (size_t)e->slot, bb, sizeof bb);
         for (int a = 0; a < 3; ++a) dens.origin[a] = dmin.origin[a] = mg->origin[a] + BV * bb[a] - 8;
         for (int32_t lz = 0; lz < B + 2; ++lz) {
             block_layer_fill(&dens, &reader, lz, lz, 0);
-            block_layer_fill(&dmin, &reader, lz, lz, 1);
+            if (!emissive) block_layer_fill(&dmin, &reader, lz, lz, 1);
         }
         float *maj = mg->brick_maj + (size_t)e->slot * BC, *mn = mg->brick_min + (size_t)e->slot * BC;
         for (int32_t lz = 0; lz < B; ++lz) {
@@ -554,16 +632,22 @@ static int sparse_build(Medium *m, uint64_t dense_bytes, uint64_t budget, int fo
             for (int32_t ly = 0; ly < B; ++ly)
                 for (int32_t lx = 0; lx < B; ++lx) {
                     const int32_t c[3] = {B * bb[0] + lx, B * bb[1] + ly, B * bb[2] + lz};
+                    const size_t l = (size_t)(lx + B * (ly + B * lz));
                     float mj, coarse, term, ctl;
-                    cell_values(m, &dens, &dmin, lx + 1, ly + 1, zs, &none, c, &mj, &coarse, &term, &ctl);
-                    maj[lx + B * (ly + B * lz)] = mj * VOL_MAJORANT_SLACK;
-                    mn[lx + B * (ly + B * lz)] = ctl;
+                    cell_values(m, &dens, emissive ? NULL : &dmin, lx + 1, ly + 1, zs, &ec, c, &mj, &coarse, &term, &ctl);
+                    maj[l] = mj * VOL_MAJORANT_SLACK;
+                    mn[l] = emissive ? coarse * VOL_MAJORANT_SLACK : ctl;
+                    if (bnd) bnd[(size_t)e->slot * BC + l] = term;
                 }
         }
     }
     free(dens.v);
     free(dmin.v);
-    mg->bytes = bytes;
+    free(cache.table.entries);
+    mg->nslots = (int32_t)dense;
+    mg->bytes = mem.used + dense * (BC * 2 * sizeof(float) + 3 * sizeof(int32_t));
+    if (bound) *bound = bnd;
+    else free(bnd);
     return 0;
 fail:
     if (mem.over) {
@@ -575,6 +659,9 @@ fail:
         free(mg->regions.entries);
         free(mg->brick_maj);
         free(mg->brick_min);
+        free(mg->brick_at);
+        free(cache.table.entries);
+        free(bnd);
         memset(mg, 0, sizeof *mg);
         return -1;
     }
@@ -583,6 +670,9 @@ oom:
     free(mg->regions.entries);
     free(mg->brick_maj);
     free(mg->brick_min);
+    free(mg->brick_at);
+    free(cache.table.entries);
+    free(bnd);
     memset(mg, 0, sizeof *mg);
     if (err) snprintf(err, IO_ERR_LEN, "%s: out of memory building the majorant grid", name);
     return -1;
@@ -607,8 +697,19 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **em
      * and the emission-energy grid it becomes */
     const uint64_t dense_bytes =
         (uint64_t)ncells * (m->emissive ? 2 * sizeof(float) + sizeof(float) + EMISSION_BYTES_PER_CELL : 2 * sizeof(float));
-    if (!m->emissive && (uint64_t)ncells > (dense_cells_max ? dense_cells_max : VOLUME_MAJORANT_DENSE_CELLS)) {
-        int rc = sparse_build(m, dense_bytes, budget, dense_cells_max != 0, err, name);
+    /* lum(sigma_a L_e) <= sigma_t x emission_scale x (this) x aux value: the emission grid's
+     * lum((1 - albedo) colour); for a blackbody (luminance 1, non-negative RGB) the largest
+     * 1 - albedo. */
+    const VolumeGrid *ag = m->emission.buffer ? &m->emission : &m->temperature;
+    EmitContext ec = {i2w, ag, NULL, NULL, 0.0f, 0.0f};
+    if (m->emissive) {
+        float absorb[3];
+        for (int k = 0; k < 3; ++k) absorb[k] = (1.0f - m->albedo[k]) * (m->emission.buffer ? m->emission_color[k] : 1.0f);
+        ec.factor = m->emission_scale * (m->emission.buffer ? vlum(absorb) : vmax3(absorb));
+    }
+    ec.cap = voxel_size > 0.0f ? 1.0f / voxel_size : 0.0f; /* c_vox / voxel_size, c_vox = 1 */
+    if ((uint64_t)ncells > (dense_cells_max ? dense_cells_max : VOLUME_MAJORANT_DENSE_CELLS)) {
+        int rc = sparse_build(m, dense_bytes, budget, dense_cells_max != 0, err, name, &ec, emit_bound);
         if (rc <= 0) return rc; /* built (0) or failed (-1); 1: the dense form is no larger */
         for (int k = 0; k < 3; ++k) { /* back to the dense form's cells */
             int32_t c0 = floor_div8(g->index_min[k] - 2), c1 = floor_div8(g->index_max[k] + 2);
@@ -651,7 +752,6 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **em
     if (!fail && m->emissive && emit_bound) fail = !(bound = calloc((size_t)ncells, sizeof(float)));
 
     /* The emission (or temperature) grid's block maxima over its own index space. */
-    const VolumeGrid *ag = m->emission.buffer ? &m->emission : &m->temperature;
     if (!fail && m->emissive) {
         int32_t o[3], d[3];
         for (int k = 0; k < 3; ++k) {
@@ -681,16 +781,7 @@ int majorant_build(Medium *m, const double i2w[16], float voxel_size, float **em
         return -1;
     }
 
-    /* lum(sigma_a L_e) <= sigma_t x emission_scale x (this) x aux value: the emission grid's
-     * lum((1 - albedo) colour); for a blackbody (luminance 1, non-negative RGB) the largest
-     * 1 - albedo. */
-    EmitContext ec = {i2w, ag, &aux, 0.0f, 0.0f};
-    if (m->emissive) {
-        float absorb[3];
-        for (int k = 0; k < 3; ++k) absorb[k] = (1.0f - m->albedo[k]) * (m->emission.buffer ? m->emission_color[k] : 1.0f);
-        ec.factor = m->emission_scale * (m->emission.buffer ? vlum(absorb) : vmax3(absorb));
-    }
-    ec.cap = voxel_size > 0.0f ? 1.0f / voxel_size : 0.0f; /* c_vox / voxel_size, c_vox = 1 */
+    ec.aux = &aux;
 
     GridReader reader;
     grid_reader_init(&reader, g);
@@ -733,25 +824,34 @@ static int finite3(const float v[3]) { return isfinite(v[0]) && isfinite(v[1]) &
 /* The sparse form's cell c (inside dims): majorant and, when asked, control (else 0). Returns
  * the edge in cells of the uniform block around c that holds them: VOLUME_MAJORANT_REGION (an
  * absent region), VOLUME_MAJORANT_BRICK (a uniform or absent brick) or 1 (a brick's cell). */
-static inline int32_t sparse_cell(const MajorantGrid *mg, const int32_t c[3], int control, float *maj, float *ctl) {
+static inline int32_t sparse_cell(const MajorantGrid *mg, const int32_t c[3], int mode, float *maj, float *ctl) {
     enum { B = VOLUME_MAJORANT_BRICK, R = VOLUME_MAJORANT_REGION };
+    /* mode (MajorantIterator.control): 0 the majorant, 1 with the control, 2 the coarse
+     * majorant (an emitting medium: the second numbers) */
+    float first, second;
+    int32_t blk;
     const MajorantEntry *r = sp_find(&mg->regions, sp_key(c[0] / R, c[1] / R, c[2] / R));
     if (!r) {
-        *maj = mg->outside_maj;
-        *ctl = control ? mg->outside_ctl : 0.0f;
-        return R;
+        first = mg->outside_maj;
+        second = mg->outside_ctl;
+        blk = R;
+    } else {
+        const MajorantEntry *e = sp_find(&mg->bricks, sp_key(c[0] / B, c[1] / B, c[2] / B));
+        if (!e || e->slot < 0) {
+            if (!e) e = r;
+            first = e->maj;
+            second = e->ctl;
+            blk = B;
+        } else {
+            size_t i = (size_t)e->slot * (B * B * B) + (size_t)(c[0] % B) + B * ((size_t)(c[1] % B) + B * (size_t)(c[2] % B));
+            first = mg->brick_maj[i];
+            second = mg->brick_min[i];
+            blk = 1;
+        }
     }
-    const MajorantEntry *e = sp_find(&mg->bricks, sp_key(c[0] / B, c[1] / B, c[2] / B));
-    if (!e || e->slot < 0) {
-        if (!e) e = r;
-        *maj = e->maj;
-        *ctl = control ? e->ctl : 0.0f;
-        return B;
-    }
-    size_t i = (size_t)e->slot * (B * B * B) + (size_t)(c[0] % B) + B * ((size_t)(c[1] % B) + B * (size_t)(c[2] % B));
-    *maj = mg->brick_maj[i];
-    *ctl = control ? mg->brick_min[i] : 0.0f;
-    return 1;
+    *maj = mode == 2 ? second : first;
+    *ctl = mode == 1 ? second : 0.0f;
+    return blk;
 }
 
 void medium_majorant_begin(const Medium *m, const float o[3], const float d[3], float tmin, float tmax,
@@ -1025,7 +1125,7 @@ void medium_majorant_begin_control(const Medium *m, const float o[3], const floa
                                    MajorantIterator *it) {
     medium_majorant_begin(m, o, d, tmin, tmax, it);
     if (m->kind != MEDIUM_HOMOGENEOUS) it->cells_min = m->majorant.sigma_min;
-    if (it->sparse) {
+    if (it->sparse && !m->emissive) { /* an emitting medium has no control (sigma_min NULL) */
         it->control = 1;
         sparse_cell(it->sparse, it->cell, 1, &it->cur_maj, &it->cur_min);
     }
@@ -1035,4 +1135,8 @@ void medium_majorant_begin_coarse(const Medium *m, const float o[3], const float
                                   MajorantIterator *it) {
     medium_majorant_begin_control(m, o, d, tmin, tmax, it);
     if (m->kind != MEDIUM_HOMOGENEOUS && m->majorant.sigma_maj_coarse) it->cells = m->majorant.sigma_maj_coarse;
+    if (it->sparse && m->emissive) { /* the bricks' second numbers */
+        it->control = 2;
+        sparse_cell(it->sparse, it->cell, 2, &it->cur_maj, &it->cur_min);
+    }
 }

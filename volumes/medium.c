@@ -319,7 +319,9 @@ int medium_init_vdb(Medium *m, const VolumeDesc *desc, char err[IO_ERR_LEN]) {
     const EmissionEnergyGrid *e = &m->emission_energy;
     m->memory_bytes = m->majorant.bytes;
     if (e->density)
-        m->memory_bytes += (uint64_t)m->majorant.dims[0] * (uint64_t)m->majorant.dims[1] * (uint64_t)m->majorant.dims[2] *
+        m->memory_bytes += (m->majorant.bricks.entries ? (uint64_t)m->majorant.nslots * 512u
+                                                       : (uint64_t)m->majorant.dims[0] * (uint64_t)m->majorant.dims[1] *
+                                                             (uint64_t)m->majorant.dims[2]) *
                                sizeof(float) +
                            (uint64_t)e->count * (sizeof(int32_t) + sizeof(double));
     return 0;
@@ -334,6 +336,7 @@ void medium_free(Medium *m) {
     free(m->majorant.regions.entries);
     free(m->majorant.brick_maj);
     free(m->majorant.brick_min);
+    free(m->majorant.brick_at);
     emission_free(m);
     memset(m, 0, sizeof *m);
 }

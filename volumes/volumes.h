@@ -102,11 +102,16 @@ typedef struct MajorantGrid {
      * their 8^3 cells, computed as the dense form does. Only the bricks the tree's leaves and
      * tiles reach (with the trilinear footprint's ring) and the regions of the root's entries and
      * their neighbours are stored: memory follows the nodes the file holds, not its bounding box,
-     * and the DDA crosses an absent region or a uniform brick in one step. Only media that do not
-     * emit (the emission-energy grid is dense over the cells). origin is a multiple of 4096. */
+     * and the DDA crosses an absent region or a uniform brick in one step. In an emitting medium
+     * every brick that can emit holds its cells (uniform bricks and regions are empty there: the
+     * background's extinction must be 0), and the emission-energy grid follows the same slots
+     * (cell index slot x 512 + cell in the brick). origin is a multiple of 4096. */
     MajorantTable bricks, regions;
     float outside_maj, outside_ctl; /* majorant and control of an absent region (the background) */
-    float *brick_maj, *brick_min;/* 512 cells per non-uniform brick, x fastest */
+    float *brick_maj, *brick_min;/* 512 cells per non-uniform brick, x fastest; an emitting
+                                  * medium's brick_min holds the coarse majorant, not a control */
+    int32_t *brick_at;           /* per non-uniform brick (slot): its brick coordinates (3) */
+    int32_t nslots;              /* non-uniform bricks */
     uint64_t bytes;              /* memory held by the grid (either form) */
 } MajorantGrid;
 #define VOLUME_MAJORANT_BRICK 8
@@ -130,7 +135,8 @@ typedef struct MajorantGrid {
  * Built by medium_init_vdb when the medium emits; all zero (count 0) otherwise and for
  * homogeneous media. Fields are the module's. */
 typedef struct EmissionEnergyGrid {
-    float *density;              /* per majorant cell (majorant layout): P_v / V_v (1/m^3) */
+    float *density;              /* per majorant cell (majorant layout; the sparse form: slot x 512 +
+                                  * cell in the brick): P_v / V_v (1/m^3) */
     int32_t *cells;              /* linear indices of the cells with E_v > 0, ascending */
     double *cdf;                 /* cdf[i] = sum of P over cells[0..i]; cdf[count - 1] = 1 */
     int32_t count;
