@@ -898,6 +898,36 @@ static double pdf_sphere_integral(const Medium *m, const float o[3], int nz, int
 enum { ES_NX = 20, ES_NY = 12, ES_NZ = 16, ES_NT = 24 };
 static int emission_test_medium(int which, Medium *m, IoVolumeGrid *g, IoVolumeGrid *ge, uint64_t dense_cells_max) {
     char err[IO_ERR_LEN] = "";
+    if (which == 4) {
+        /* tiles: a 512^3 emitting box (4^3 upper-node tiles of density and emission) with voxels
+         * of detail: in the sparse form its inner bricks are uniform emitting bricks (one entry of
+         * the energy CDF each, crossed at once by the pdf's DDA), the others hold their cells */
+        float i2w4[16];
+        scale_translate(i2w4, 1.0f / 512.0f, -0.5f, -0.5f, -0.5f);
+        const int32_t box[6] = {0, 0, 0, 511, 511, 511};
+        const float dbox = 1.5f, ebox = 2.0f;
+        const int32_t hot[3 * 3] = {100, 200, 300, 256, 256, 256, 500, 10, 400};
+        const float hd[3] = {6.0f, 0.5f, 3.0f}, he[3] = {9.0f, 0.0f, 4.0f};
+        int rc4 = io_volume_grid_from_voxels(hot, hd, 3, box, &dbox, 1, i2w4, "density", g, err);
+        if (rc4 == 0 && (rc4 = io_volume_grid_from_voxels(hot, he, 3, box, &ebox, 1, i2w4, "emission", ge, err)) != 0)
+            io_volume_grid_free(g);
+        CHECK(rc4 == 0, "emission medium 4: %s", err);
+        if (rc4) return -1;
+        VolumeDesc desc = grid_desc(g, 2.0f, 0.3f);
+        desc.dense_cells_max = dense_cells_max;
+        desc.emission = ge;
+        desc.emission_scale = 3.0f;
+        rc4 = medium_init_vdb(m, &desc, err);
+        CHECK(rc4 == 0, "emission medium 4: %s", err);
+        if (rc4) {
+            io_volume_grid_free(g);
+            io_volume_grid_free(ge);
+            return -1;
+        }
+        if (dense_cells_max)
+            CHECK(m->majorant.nubricks > 0, "emission medium 4: %d uniform emitting bricks", m->majorant.nubricks);
+        return 0;
+    }
     int nx = which == 2 ? ES_NT : ES_NX, ny = which == 2 ? ES_NT : ES_NY, nz = which == 2 ? ES_NT : ES_NZ;
     size_t n = (size_t)nx * ny * nz;
     float *dv = malloc(sizeof(float) * n), *ev = malloc(sizeof(float) * n), i2w[16];
@@ -1000,8 +1030,8 @@ static void test_emission_sampling(void) {
     }
     /* each medium in the dense form, then in the sparse form (forced: the emission-energy grid
      * over the bricks' slots, the pdf's DDA crossing empty blocks at once) */
-    for (int pass = 0; pass < 8; ++pass) {
-        const int which = pass % 4, sparse = pass >= 4;
+    for (int pass = 0; pass < 10; ++pass) {
+        const int which = pass % 5, sparse = pass >= 5;
         Medium m;
         IoVolumeGrid g, ge;
         if (emission_test_medium(which, &m, &g, &ge, sparse ? 1 : 0)) continue;

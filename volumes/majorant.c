@@ -118,7 +118,38 @@ typedef struct EmitContext {
     float factor, cap;      /* lum(sigma_a L_e) per sigma_t and aux value; c_vox / voxel_size */
 } EmitContext;
 
-static float aux_cache_max(struct AuxCache *c, const int64_t lo[3], const int64_t hi[3]);
+static float aux_cache_max(struct AuxCache *c, const int64_t lo[3], const int64_t hi[3], float *min_out);
+
+/* The aux grid's voxels [vlo, vhi] whose blocks bound the aux field over the density-index box
+ * [p0 - 2, p0 + size + 2] (a cell's box, size 8, with its slack; a brick's, size 64). */
+static void aux_box(const EmitContext *ec, const double p0[3], double size, int64_t vlo[3], int64_t vhi[3]) {
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int corner = 0; corner < 8; ++corner) {
+        double p[3], w[3];
+        for (int k = 0; k < 3; ++k) p[k] = p0[k] + ((corner >> k & 1) ? size + 2.0 : -2.0);
+        for (int r = 0; r < 3; ++r) w[r] = ec->i2w[r] * p[0] + ec->i2w[4 + r] * p[1] + ec->i2w[8 + r] * p[2] + ec->i2w[12 + r];
+        for (int r = 0; r < 3; ++r) {
+            const float *a = ec->ag->world_to_index;
+            double q = a[r] * w[0] + a[4 + r] * w[1] + a[8 + r] * w[2] + a[12 + r];
+            lo[r] = fmin(lo[r], q);
+            hi[r] = fmax(hi[r], q);
+        }
+    }
+    for (int k = 0; k < 3; ++k) {
+        vlo[k] = (int64_t)fmax(floor(lo[k]) - 1.0, -4e9);
+        vhi[k] = (int64_t)fmin(floor(hi[k]) + 2.0, 4e9);
+    }
+}
+
+/* A cell's majorant, coarse majorant and (uncapped) emission term from its extinction bound st
+ * and the aux grid's bound amax over its footprint (the header's formula). */
+static void emit_terms(const Medium *m, const EmitContext *ec, float st, float amax, float *maj, float *coarse,
+                       float *term) {
+    float e = m->emission.buffer ? amax : (amax >= BLACKBODY_MIN_KELVIN ? 1.0f : 0.0f);
+    *term = st * ec->factor * e; /* kappa = 1 */
+    *maj = vmaxf(st, vminf(*term, ec->cap));
+    *coarse = vmaxf(st, vminf(*term, ec->cap * (1.0f / VOLUME_LINE_COARSE_VOXELS)));
+}
 
 /* One majorant cell c (cell indices; its blocks at bx, by in the block tables, whose z layers
  * below, at and above it are zs[0..2]): the majorant (before the slack), the coarse one, the
@@ -144,30 +175,11 @@ static void cell_values(const Medium *m, const BlockTable *dens, const BlockTabl
     float st = vminf(m->density_scale * dmax, VOLUME_MAX_SIGMA_T);
     float maj = st, maj_coarse = st, term = 0.0f;
     if (m->emissive && st > 0.0f) {
-        /* the cell's box (with its slack) in the aux grid's index space */
-        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-        for (int corner = 0; corner < 8; ++corner) {
-            double p[3], w[3];
-            for (int k = 0; k < 3; ++k) p[k] = mg->origin[k] + 8.0 * c[k] + ((corner >> k & 1) ? 10.0 : -2.0);
-            for (int r = 0; r < 3; ++r)
-                w[r] = ec->i2w[r] * p[0] + ec->i2w[4 + r] * p[1] + ec->i2w[8 + r] * p[2] + ec->i2w[12 + r];
-            for (int r = 0; r < 3; ++r) {
-                const float *a = ec->ag->world_to_index;
-                double q = a[r] * w[0] + a[4 + r] * w[1] + a[8 + r] * w[2] + a[12 + r];
-                lo[r] = fmin(lo[r], q);
-                hi[r] = fmax(hi[r], q);
-            }
-        }
+        const double p0[3] = {mg->origin[0] + 8.0 * c[0], mg->origin[1] + 8.0 * c[1], mg->origin[2] + 8.0 * c[2]};
         int64_t vlo[3], vhi[3];
-        for (int k = 0; k < 3; ++k) {
-            vlo[k] = (int64_t)fmax(floor(lo[k]) - 1.0, -4e9);
-            vhi[k] = (int64_t)fmin(floor(hi[k]) + 2.0, 4e9);
-        }
-        float amax = ec->aux ? block_table_max(ec->aux, vlo, vhi) : aux_cache_max(ec->cache, vlo, vhi);
-        float e = m->emission.buffer ? amax : (amax >= BLACKBODY_MIN_KELVIN ? 1.0f : 0.0f);
-        term = st * ec->factor * e; /* kappa = 1 */
-        maj = vmaxf(st, vminf(term, ec->cap));
-        maj_coarse = vmaxf(st, vminf(term, ec->cap * (1.0f / VOLUME_LINE_COARSE_VOXELS)));
+        aux_box(ec, p0, 8.0, vlo, vhi);
+        float amax = ec->aux ? block_table_max(ec->aux, vlo, vhi) : aux_cache_max(ec->cache, vlo, vhi, NULL);
+        emit_terms(m, ec, st, amax, &maj, &maj_coarse, &term);
     }
     *maj_out = maj;
     *coarse_out = maj_coarse;
@@ -298,39 +310,83 @@ struct AuxCache {
     SparseMem mem;        /* unbounded: it holds one entry per block read, in proportion to the data */
 };
 
-static float aux_block(struct AuxCache *c, int32_t bx, int32_t by, int32_t bz) {
+static float aux_block(struct AuxCache *c, int32_t bx, int32_t by, int32_t bz, float *min_out) {
     uint64_t key = sp_key(bx - c->lo[0], by - c->lo[1], bz - c->lo[2]);
     if (c->table.entries) {
         const MajorantEntry *e = sp_find(&c->table, key);
-        if (e) return e->maj;
+        if (e) {
+            *min_out = e->ctl;
+            return e->maj;
+        }
     }
     uint32_t level;
-    float v = grid_voxel_level(&c->reader, 8 * bx, 8 * by, 8 * bz, &level);
+    float v = grid_voxel_level(&c->reader, 8 * bx, 8 * by, 8 * bz, &level), mn = v;
     if (level == 0) { /* a leaf: the max of its clean values, as block_layer_fill takes it */
         pnanovdb_leaf_handle_t leaf = c->reader.acc.leaf;
         v = 0.0f;
-        for (uint32_t i = 0; i < 512; ++i)
-            v = vmaxf(v, vol_clean(pnanovdb_read_float(
-                             c->reader.buf, pnanovdb_leaf_get_table_address(PNANOVDB_GRID_TYPE_FLOAT, c->reader.buf, leaf, i))));
+        mn = FLT_MAX;
+        for (uint32_t i = 0; i < 512; ++i) {
+            float x = vol_clean(pnanovdb_read_float(
+                c->reader.buf, pnanovdb_leaf_get_table_address(PNANOVDB_GRID_TYPE_FLOAT, c->reader.buf, leaf, i)));
+            v = vmaxf(v, x);
+            mn = vminf(mn, x);
+        }
     }
-    if (c->table.entries) sp_insert(&c->table, key, v, 0.0f, &c->mem, NULL); /* NULL (memory): read again next time */
+    if (c->table.entries) sp_insert(&c->table, key, v, mn, &c->mem, NULL); /* NULL (memory): read again next time */
+    *min_out = mn;
     return v;
 }
 
 /* block_table_max over the cache: the max over the blocks overlapping voxels [lo, hi] within
  * the aux grid's box (0 beyond it). */
-static float aux_cache_max(struct AuxCache *c, const int64_t lo[3], const int64_t hi[3]) {
+static float aux_cache_max(struct AuxCache *c, const int64_t lo[3], const int64_t hi[3], float *min_out) {
+    /* min_out: the smallest value over the blocks, or -1 when the range leaves the aux box
+     * (where the field is 0 whatever the blocks hold) */
     int32_t b0[3], b1[3];
+    int clipped = 0;
     for (int k = 0; k < 3; ++k) {
         int64_t a = lo[k] >= 0 ? lo[k] / 8 : -((-lo[k] + 7) / 8), b = hi[k] >= 0 ? hi[k] / 8 : -((-hi[k] + 7) / 8);
-        if (b < c->lo[k] || a > c->hi[k]) return 0.0f;
+        if (b < c->lo[k] || a > c->hi[k]) {
+            if (min_out) *min_out = -1.0f;
+            return 0.0f;
+        }
+        clipped |= a < c->lo[k] || b > c->hi[k];
         b0[k] = a < c->lo[k] ? c->lo[k] : (int32_t)a;
         b1[k] = b > c->hi[k] ? c->hi[k] : (int32_t)b;
     }
-    float mx = 0.0f;
-    for (int32_t z = b0[2]; z <= b1[2]; ++z)
-        for (int32_t y = b0[1]; y <= b1[1]; ++y)
-            for (int32_t x = b0[0]; x <= b1[0]; ++x) mx = vmaxf(mx, aux_block(c, x, y, z));
+    /* by 128^3 regions (16^3 blocks): one that an upper node's tile or the root holds (level
+     * >= 2) is one value, read once (an emitting tile's box would be 134 M blocks); the others
+     * block by block */
+    float mx = 0.0f, mn = FLT_MAX, bm;
+    int32_t r0[3], r1[3];
+    for (int k = 0; k < 3; ++k) {
+        r0[k] = floor_div(b0[k], 16);
+        r1[k] = floor_div(b1[k], 16);
+    }
+    for (int32_t rz = r0[2]; rz <= r1[2]; ++rz)
+        for (int32_t ry = r0[1]; ry <= r1[1]; ++ry)
+            for (int32_t rx = r0[0]; rx <= r1[0]; ++rx) {
+                uint32_t level;
+                float v = grid_voxel_level(&c->reader, 128 * rx, 128 * ry, 128 * rz, &level);
+                if (level >= 2) {
+                    mx = vmaxf(mx, v);
+                    mn = vminf(mn, v);
+                    continue;
+                }
+                const int32_t rr[3] = {rx, ry, rz};
+                int32_t q0[3], q1[3];
+                for (int k = 0; k < 3; ++k) {
+                    q0[k] = b0[k] > 16 * rr[k] ? b0[k] : 16 * rr[k];
+                    q1[k] = b1[k] < 16 * rr[k] + 15 ? b1[k] : 16 * rr[k] + 15;
+                }
+                for (int32_t z = q0[2]; z <= q1[2]; ++z)
+                    for (int32_t y = q0[1]; y <= q1[1]; ++y)
+                        for (int32_t x = q0[0]; x <= q1[0]; ++x) {
+                            mx = vmaxf(mx, aux_block(c, x, y, z, &bm));
+                            mn = vminf(mn, bm);
+                        }
+            }
+    if (min_out) *min_out = clipped ? -1.0f : mn;
     return mx;
 }
 
@@ -542,13 +598,26 @@ static int sparse_build(Medium *m, uint64_t dense_bytes, uint64_t budget, int fo
     mg->outside_ctl = w.bg_ctl;
     struct AuxCache cache = {0};
     float *bnd = NULL;
+    EmitContext ec = {0};
+    if (emissive) { /* the aux grid's blocks, read as the cells ask for them */
+        ec = *ec_in;
+        ec.aux = NULL;
+        ec.cache = &cache;
+        const VolumeGrid *ag = ec_in->ag;
+        grid_reader_init(&cache.reader, ag);
+        for (int k = 0; k < 3; ++k) {
+            cache.lo[k] = floor_div8(ag->index_min[k] - 2);
+            cache.hi[k] = floor_div8(ag->index_max[k] + 2);
+        }
+        if (sp_table_init(&cache.table, &cache.mem)) goto oom;
+    }
     if (sp_table_init(&mg->bricks, &mem) || sp_table_init(&mg->regions, &mem)) goto oom;
     sp_walk_tree(&w, m, reader.buf);
     if (w.fail) goto fail;
     /* every brick the data reaches: two numbers when its padded box holds no voxel data (and
      * then its region's default when equal; in an emitting medium only an empty one), else its
      * cells */
-    uint64_t dense = 0;
+    uint64_t dense = 0, nuni = 0;
     for (uint64_t i = 0; i <= mg->bricks.mask; ++i) {
         MajorantEntry *e = &mg->bricks.entries[i];
         if (!e->key) continue;
@@ -558,8 +627,36 @@ static int sparse_build(Medium *m, uint64_t dense_bytes, uint64_t budget, int fo
         float vhi, vlo;
         int uniform = brick_tiles(&reader, vox0, &vhi, &vlo);
         if (uniform) sp_pair(m, vhi, vlo, &e->maj, &e->ctl);
-        if (uniform && (!emissive || e->maj == 0.0f)) {
-            if (emissive) e->ctl = 0.0f; /* the coarse majorant, as empty */
+        e->emit = 0.0f;
+        if (uniform && emissive && e->maj > 0.0f) {
+            /* an emitting brick is uniform when its density is one tile value, all its voxel
+             * centres lie in the active box (no cell clipped, every centre counted) and the aux
+             * grid is one value over its footprint: then every cell has the same majorant,
+             * coarse majorant, emission bound and energy, and the brick is one entry of the
+             * emission-energy CDF (a 4096^3 emitting tile: 262,144 entries, not 134 M cells) */
+            int inside = vhi == vlo;
+            for (int a = 0; a < 3; ++a)
+                inside = inside && vox0[a] >= g->index_min[a] && vox0[a] + BV - 1 <= g->index_max[a];
+            float amin = -1.0f, amax = 0.0f;
+            if (inside) {
+                const double p0[3] = {vox0[0], vox0[1], vox0[2]};
+                int64_t alo[3], ahi[3];
+                aux_box(&ec, p0, (double)BV, alo, ahi);
+                amax = aux_cache_max(&cache, alo, ahi, &amin);
+            }
+            if (inside && amin == amax) {
+                float st = vminf(m->density_scale * vhi, VOLUME_MAX_SIGMA_T), mj, coarse, term;
+                emit_terms(m, &ec, st, amax, &mj, &coarse, &term);
+                e->maj = mj * VOL_MAJORANT_SLACK;
+                e->ctl = coarse * VOL_MAJORANT_SLACK;
+                e->emit = term;
+                e->slot = -1;
+                nuni += term > 0.0f;
+            } else {
+                e->slot = (int32_t)dense++;
+            }
+        } else if (uniform) {
+            if (emissive) e->ctl = e->maj; /* the coarse majorant: an empty brick's */
             e->slot = -1;
         } else {
             e->slot = (int32_t)dense++;
@@ -571,11 +668,13 @@ static int sparse_build(Medium *m, uint64_t dense_bytes, uint64_t budget, int fo
     /* per non-uniform brick: its cells' majorant and control (or coarse majorant), its
      * coordinates; an emitting medium's emission bound and emission-energy grid on top */
     const uint64_t cells_bytes =
-        dense * (BC * (emissive ? 3 * sizeof(float) + EMISSION_BYTES_PER_CELL : 2 * sizeof(float)) + 3 * sizeof(int32_t));
+        dense * (BC * (emissive ? 3 * sizeof(float) + EMISSION_BYTES_PER_CELL : 2 * sizeof(float)) + 3 * sizeof(int32_t)) +
+        nuni * (3 * sizeof(int32_t) + EMISSION_BYTES_PER_CELL);
     const uint64_t bytes = mem.used + cells_bytes;
     if (2 * bytes >= dense_bytes && !forced) {
         free(mg->bricks.entries);
         free(mg->regions.entries);
+        free(cache.table.entries);
         memset(mg, 0, sizeof *mg);
         return 1;
     }
@@ -588,38 +687,29 @@ static int sparse_build(Medium *m, uint64_t dense_bytes, uint64_t budget, int fo
     mg->brick_maj = malloc((size_t)(dense ? dense : 1) * BC * sizeof(float));
     mg->brick_min = malloc((size_t)(dense ? dense : 1) * BC * sizeof(float));
     mg->brick_at = malloc((size_t)(dense ? dense : 1) * 3 * sizeof(int32_t));
-    if (emissive) {
-        bnd = malloc((size_t)(dense ? dense : 1) * BC * sizeof(float));
-        const VolumeGrid *ag = ec_in->ag;
-        grid_reader_init(&cache.reader, ag);
-        for (int k = 0; k < 3; ++k) {
-            cache.lo[k] = floor_div8(ag->index_min[k] - 2);
-            cache.hi[k] = floor_div8(ag->index_max[k] + 2);
-        }
-        if (sp_table_init(&cache.table, &cache.mem)) goto oom;
-    }
-    EmitContext ec = {0};
-    if (emissive) {
-        ec = *ec_in;
-        ec.aux = NULL;
-        ec.cache = &cache;
-    }
+    mg->ubrick_at = malloc((size_t)(nuni ? nuni : 1) * 3 * sizeof(int32_t));
+    if (emissive) bnd = malloc((size_t)(dense ? dense : 1) * BC * sizeof(float));
     /* a non-uniform brick's cells from the block maxima (and minima) of its 64^3 voxels and
      * their ring, exactly as the dense form computes a cell */
     BlockTable dens = {0}, dmin = {0};
     const int32_t zero[3] = {0, 0, 0}, tdims[3] = {B + 2, B + 2, B + 2};
-    if (!mg->brick_maj || !mg->brick_min || !mg->brick_at || (emissive && !bnd) ||
+    if (!mg->brick_maj || !mg->brick_min || !mg->brick_at || !mg->ubrick_at || (emissive && !bnd) ||
         block_table_alloc(&dens, zero, tdims, B + 2, BLK_FACES) ||
         (!emissive && block_table_alloc(&dmin, zero, tdims, B + 2, BLK_FACES))) {
         free(dens.v);
         free(dmin.v);
         goto oom;
     }
+    size_t ui = 0;
     for (uint64_t i = 0; i <= mg->bricks.mask; ++i) {
         const MajorantEntry *e = &mg->bricks.entries[i];
-        if (!e->key || e->slot < 0) continue;
+        if (!e->key) continue;
         uint64_t k = e->key - 1;
         const int32_t bb[3] = {(int32_t)(k & 0x1FFFFF), (int32_t)(k >> 21 & 0x1FFFFF), (int32_t)(k >> 42 & 0x1FFFFF)};
+        if (e->slot < 0) {
+            if (e->emit > 0.0f) memcpy(mg->ubrick_at + 3 * ui++, bb, sizeof bb);
+            continue;
+        }
         memcpy(mg->brick_at + 3 * (size_t)e->slot, bb, sizeof bb);
         for (int a = 0; a < 3; ++a) dens.origin[a] = dmin.origin[a] = mg->origin[a] + BV * bb[a] - 8;
         for (int32_t lz = 0; lz < B + 2; ++lz) {
@@ -645,7 +735,8 @@ static int sparse_build(Medium *m, uint64_t dense_bytes, uint64_t budget, int fo
     free(dmin.v);
     free(cache.table.entries);
     mg->nslots = (int32_t)dense;
-    mg->bytes = mem.used + dense * (BC * 2 * sizeof(float) + 3 * sizeof(int32_t));
+    mg->nubricks = (int32_t)nuni;
+    mg->bytes = mem.used + dense * (BC * 2 * sizeof(float) + 3 * sizeof(int32_t)) + nuni * 3 * sizeof(int32_t);
     if (bound) *bound = bnd;
     else free(bnd);
     return 0;
@@ -660,6 +751,7 @@ fail:
         free(mg->brick_maj);
         free(mg->brick_min);
         free(mg->brick_at);
+        free(mg->ubrick_at);
         free(cache.table.entries);
         free(bnd);
         memset(mg, 0, sizeof *mg);
@@ -671,6 +763,7 @@ oom:
     free(mg->brick_maj);
     free(mg->brick_min);
     free(mg->brick_at);
+    free(mg->ubrick_at);
     free(cache.table.entries);
     free(bnd);
     memset(mg, 0, sizeof *mg);

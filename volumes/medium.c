@@ -337,6 +337,7 @@ void medium_free(Medium *m) {
     free(m->majorant.brick_maj);
     free(m->majorant.brick_min);
     free(m->majorant.brick_at);
+    free(m->majorant.ubrick_at);
     emission_free(m);
     memset(m, 0, sizeof *m);
 }

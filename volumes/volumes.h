@@ -76,6 +76,8 @@ typedef struct MajorantEntry {
     uint64_t key;
     int32_t slot;
     float maj, ctl;
+    float emit;  /* a uniform brick of an emitting medium: its cells' emission-energy density
+                  * P_v / V_v (1/m^3; 0: it does not emit); its emission bound during the build */
 } MajorantEntry;
 typedef struct MajorantTable {
     MajorantEntry *entries;      /* capacity a power of 2, at most half full */
@@ -103,15 +105,19 @@ typedef struct MajorantGrid {
      * tiles reach (with the trilinear footprint's ring) and the regions of the root's entries and
      * their neighbours are stored: memory follows the nodes the file holds, not its bounding box,
      * and the DDA crosses an absent region or a uniform brick in one step. In an emitting medium
-     * every brick that can emit holds its cells (uniform bricks and regions are empty there: the
-     * background's extinction must be 0), and the emission-energy grid follows the same slots
-     * (cell index slot x 512 + cell in the brick). origin is a multiple of 4096. */
+     * regions are empty (the background's extinction must be 0) and a brick that can emit holds
+     * its cells, unless it is a uniform emitting brick (one density tile value inside the active
+     * box, one aux value over its footprint: MajorantEntry.emit, listed in ubrick_at); the
+     * emission-energy grid follows the slots (cell index slot x 512 + cell in the brick, then
+     * one index per uniform emitting brick). origin is a multiple of 4096. */
     MajorantTable bricks, regions;
     float outside_maj, outside_ctl; /* majorant and control of an absent region (the background) */
     float *brick_maj, *brick_min;/* 512 cells per non-uniform brick, x fastest; an emitting
                                   * medium's brick_min holds the coarse majorant, not a control */
     int32_t *brick_at;           /* per non-uniform brick (slot): its brick coordinates (3) */
     int32_t nslots;              /* non-uniform bricks */
+    int32_t *ubrick_at;          /* an emitting medium's uniform emitting bricks: coordinates (3) */
+    int32_t nubricks;
     uint64_t bytes;              /* memory held by the grid (either form) */
 } MajorantGrid;
 #define VOLUME_MAJORANT_BRICK 8
