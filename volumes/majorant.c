@@ -1012,7 +1012,9 @@ void medium_majorant_begin(const Medium *m, const float o[3], const float d[3], 
     it->t_grid1 = g1;
     /* The entry cell (clamped: the entry point lies on the box's surface up to rounding; a
      * cell off by one there is left at once through a zero-length piece). */
-    int32_t stride[3] = {1, mg->dims[0], mg->dims[0] * mg->dims[1]};
+    /* the linear index is the dense form's (the sparse form's cells may number past 2^31) */
+    const int dense_form = mg->bricks.entries == NULL;
+    int32_t stride[3] = {1, dense_form ? mg->dims[0] : 0, dense_form ? mg->dims[0] * mg->dims[1] : 0};
     it->index = 0;
     for (int k = 0; k < 3; ++k) {
         float p = it->o_index[k] + (g0 - t0) * it->d_index[k];
