@@ -58,7 +58,9 @@ done
 # issue 29: small VDBs whose costs followed their bounding box, not their data (the majorant
 # grid): two 4^3 blobs 5,100 voxels apart (19 KB; 2.2 GB and 25 s, three such nodes over 6 GB),
 # one tile filling 4096^3 voxels (594 bytes; 1.2 GB and 10 s), a voxel of 1e30 (16 s in the
-# cache point build). Now the volumes' memory is reported (statistics JSON) in proportion to
+# cache point build); and the blobs 600,000 voxels apart, which a majorant over a dense
+# directory of bricks refused (more than 2^28 cells), and emitting blobs 5,100 apart (the
+# dense form refused: 9 GB over the default budget). Now the volumes' memory is reported (statistics JSON) in proportion to
 # the data, --volume-budget-mb bounds it per scene, and the voxel is refused with one line.
 "$py" - "$tmp/v29" <<'PY'
 import os, sys, pyopenvdb as vdb
@@ -69,6 +71,17 @@ b = grid(); a = b.getAccessor()
 for base in (0, 5100):
     for i in range(64): a.setValueOn((base + i % 4, base + i // 4 % 4, base + i // 16), 1.0)
 vdb.write(out + '/blobs.vdb', grids=[b])
+f = grid(); a = f.getAccessor()  # 600,000 voxels apart: past the first sparse form's 2^28 cells
+for base in (0, 600000):
+    for i in range(64): a.setValueOn((base + i % 4, base + i // 4 % 4, base + i // 16), 1.0)
+vdb.write(out + '/blobs_far.vdb', grids=[f])
+gs = []  # emitting blobs (density and emission): the dense form needed 9 GB, over the default budget
+for name in ('density', 'emission'):
+    e = grid(); e.name = name; a = e.getAccessor()
+    for base in (0, 5100):
+        for i in range(64): a.setValueOn((base + i % 4, base + i // 4 % 4, base + i // 16), 1.0)
+    gs.append(e)
+vdb.write(out + '/eblobs.vdb', grids=gs)
 h = vdb.FloatGrid(); h.name = 'density'; h.getAccessor().setValueOn((0, 0, 0), 1.0)
 h.transform = vdb.createLinearTransform(voxelSize=1e30); vdb.write(out + '/huge.vdb', grids=[h])
 PY
@@ -78,13 +91,15 @@ import json, sys
 src, dst, uri, n = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
 d = json.load(open(src))
 for i in range(n):
-    d["nodes"].append({"name": "vol%d" % i, "translation": [0.1 * i, 0, 0], "extras": {"candela_volume": {"uri": uri}}})
+    v = {"uri": uri}
+    if uri.startswith("e"): v["emission_grid"] = "emission"
+    d["nodes"].append({"name": "vol%d" % i, "translation": [0.1 * i, 0, 0], "extras": {"candela_volume": v}})
     d["scenes"][d.get("scene", 0)]["nodes"].append(len(d["nodes"]) - 1)
 json.dump(d, open(dst, "w"))
 PY
 }
-v29 tile tile.vdb 1; v29 blobs blobs.vdb 3; v29 huge huge.vdb 1
-for s in tile blobs; do
+v29 tile tile.vdb 1; v29 blobs blobs.vdb 3; v29 huge huge.vdb 1; v29 blobs_far blobs_far.vdb 3; v29 eblobs eblobs.vdb 1
+for s in tile blobs blobs_far eblobs; do
   if timeout 300 "$bin" render "$tmp/v29/$s.gltf" --res 8x8 --spp 1 --quiet --no-png -o "$tmp/v29/$s.exr" --stats-json "$tmp/v29/$s.json" \
        2>"$tmp/v29/$s.err" && "$py" -c 'import json, sys; b = json.load(open(sys.argv[1]))["volumes"]["bytes"]; print(b); sys.exit(0 if 0 < b < 64 << 20 else 1)' \
        "$tmp/v29/$s.json" >"$tmp/v29/$s.bytes"; then ok

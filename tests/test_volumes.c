@@ -588,10 +588,10 @@ static void test_majorant(void) {
         int rc = medium_init_vdb(&m, &desc, err);
         CHECK(rc == 0, "random grid %d: %s", trial, err);
         if (rc == 0 && pass == 1)
-            CHECK(emissive ? m.majorant.brick == NULL : m.majorant.brick != NULL && m.majorant.sigma_maj == NULL,
-                  "grid %d: the sparse form %s", trial, emissive ? "built for an emitting medium" : "not built");
+            CHECK(m.majorant.bricks.entries != NULL && m.majorant.sigma_maj == NULL, "grid %d: the sparse form not built%s",
+                  trial, emissive ? " (emitting)" : "");
         if (rc == 0) {
-            if (pass == 1 && !emissive) sparse_rays += 400;
+            if (pass == 1) sparse_rays += 400;
             for (int ray = 0; ray < 400; ++ray) {
                 float o[3], d[3];
                 for (int k = 0; k < 3; ++k) {
@@ -896,8 +896,38 @@ static double pdf_sphere_integral(const Medium *m, const float o[3], int nz, int
  * of half the resolution, i.e. another index space), and 2: a temperature grid with a hot spot
  * in a constant density. */
 enum { ES_NX = 20, ES_NY = 12, ES_NZ = 16, ES_NT = 24 };
-static int emission_test_medium(int which, Medium *m, IoVolumeGrid *g, IoVolumeGrid *ge) {
+static int emission_test_medium(int which, Medium *m, IoVolumeGrid *g, IoVolumeGrid *ge, uint64_t dense_cells_max) {
     char err[IO_ERR_LEN] = "";
+    if (which == 4) {
+        /* tiles: a 512^3 emitting box (4^3 upper-node tiles of density and emission) with voxels
+         * of detail: in the sparse form its inner bricks are uniform emitting bricks (one entry of
+         * the energy CDF each, crossed at once by the pdf's DDA), the others hold their cells */
+        float i2w4[16];
+        scale_translate(i2w4, 1.0f / 512.0f, -0.5f, -0.5f, -0.5f);
+        const int32_t box[6] = {0, 0, 0, 511, 511, 511};
+        const float dbox = 1.5f, ebox = 2.0f;
+        const int32_t hot[3 * 3] = {100, 200, 300, 256, 256, 256, 500, 10, 400};
+        const float hd[3] = {6.0f, 0.5f, 3.0f}, he[3] = {9.0f, 0.0f, 4.0f};
+        int rc4 = io_volume_grid_from_voxels(hot, hd, 3, box, &dbox, 1, i2w4, "density", g, err);
+        if (rc4 == 0 && (rc4 = io_volume_grid_from_voxels(hot, he, 3, box, &ebox, 1, i2w4, "emission", ge, err)) != 0)
+            io_volume_grid_free(g);
+        CHECK(rc4 == 0, "emission medium 4: %s", err);
+        if (rc4) return -1;
+        VolumeDesc desc = grid_desc(g, 2.0f, 0.3f);
+        desc.dense_cells_max = dense_cells_max;
+        desc.emission = ge;
+        desc.emission_scale = 3.0f;
+        rc4 = medium_init_vdb(m, &desc, err);
+        CHECK(rc4 == 0, "emission medium 4: %s", err);
+        if (rc4) {
+            io_volume_grid_free(g);
+            io_volume_grid_free(ge);
+            return -1;
+        }
+        if (dense_cells_max)
+            CHECK(m->majorant.nubricks > 0, "emission medium 4: %d uniform emitting bricks", m->majorant.nubricks);
+        return 0;
+    }
     int nx = which == 2 ? ES_NT : ES_NX, ny = which == 2 ? ES_NT : ES_NY, nz = which == 2 ? ES_NT : ES_NZ;
     size_t n = (size_t)nx * ny * nz;
     float *dv = malloc(sizeof(float) * n), *ev = malloc(sizeof(float) * n), i2w[16];
@@ -938,6 +968,7 @@ static int emission_test_medium(int which, Medium *m, IoVolumeGrid *g, IoVolumeG
     free(ev);
     if (rc) return -1;
     VolumeDesc desc = grid_desc(g, 2.0f, 0.3f);
+    desc.dense_cells_max = dense_cells_max;
     desc.emission_scale = 3.0f;
     const float color[3] = {1.0f, 0.6f, 0.3f};
     if (which == 2) {
@@ -997,10 +1028,15 @@ static void test_emission_sampling(void) {
             io_volume_grid_free(&g);
         }
     }
-    for (int which = 0; which < 4; ++which) {
+    /* each medium in the dense form, then in the sparse form (forced: the emission-energy grid
+     * over the bricks' slots, the pdf's DDA crossing empty blocks at once) */
+    for (int pass = 0; pass < 10; ++pass) {
+        const int which = pass % 5, sparse = pass >= 5;
         Medium m;
         IoVolumeGrid g, ge;
-        if (emission_test_medium(which, &m, &g, &ge)) continue;
+        if (emission_test_medium(which, &m, &g, &ge, sparse ? 1 : 0)) continue;
+        CHECK((m.majorant.bricks.entries != NULL) == sparse, "emission medium %d: the %s form not built", which,
+              sparse ? "sparse" : "dense");
         float cen[3];
         medium_emission_centroid(&m, cen);
         CHECK(medium_emission_power(&m) > 0.0f, "medium %d does not emit", which);
@@ -1046,8 +1082,8 @@ static void test_emission_sampling(void) {
         for (int oi = 0; oi < 4; ++oi) {
             double integral = pdf_sphere_integral(&m, origins[oi], 500, 1000);
             CHECK(fabs(integral - 1.0) < 3e-3, "medium %d origin %d: pdf integrates to %.6f", which, oi, integral);
-            printf("emission pdf medium %d origin %d (%s): integral over the sphere %.6f\n", which, oi,
-                   oi < 2 ? "inside" : "outside", integral);
+            printf("emission pdf medium %d%s origin %d (%s): integral over the sphere %.6f\n", which, sparse ? " (sparse)" : "",
+                   oi, oi < 2 ? "inside" : "outside", integral);
         }
         /* the directions of sampled points against the pdf (chi-square), and the returned
          * volume pdf against the cell's P_v / V_v being positive and the point in the bounds */
@@ -1094,8 +1130,8 @@ static void test_emission_sampling(void) {
             double stat, pval = chi2_pvalue(obs, expv, BZ * BP, &dof, &stat);
             CHECK(pval > 1e-4, "medium %d origin %d: sampled directions vs pdf, chi2 %g dof %d p %g", which, oi, stat,
                   dof, pval);
-            printf("emission sampling medium %d origin %d: chi2 %.1f dof %d p %.4f (expected total %.4f of %d)\n", which,
-                   oi, stat, dof, pval, tot / NS, NS);
+            printf("emission sampling medium %d%s origin %d: chi2 %.1f dof %d p %.4f (expected total %.4f of %d)\n", which,
+                   sparse ? " (sparse)" : "", oi, stat, dof, pval, tot / NS, NS);
         }
         medium_free(&m);
         io_volume_grid_free(&g);
@@ -1207,8 +1243,8 @@ static void test_emission_line(void) {
      * sum of emitted_by against emitted */
     Medium a, b;
     IoVolumeGrid ga, gea, gb, geb;
-    if (emission_test_medium(0, &a, &ga, &gea)) return;
-    if (emission_test_medium(2, &b, &gb, &geb)) {
+    if (emission_test_medium(0, &a, &ga, &gea, 0)) return;
+    if (emission_test_medium(2, &b, &gb, &geb, 0)) {
         medium_free(&a);
         io_volume_grid_free(&ga);
         io_volume_grid_free(&gea);
@@ -1738,7 +1774,15 @@ static void test_majorant_sparse(void) {
     TestRng r = {2929};
     float i2w[16];
     scale_translate(i2w, 1e-3f, 0.0f, 0.0f, 0.0f); /* 1 mm voxels: the blobs 5.1 m apart */
-    /* two 4^3 blobs, 5,100 voxels apart along the diagonal */
+    /* two 4^3 blobs, 5,100 voxels apart along the diagonal (the finding), then 6,000 (the box
+     * beyond 2^28 cells, which the bricks' dense directory refused) and 600,000 (a 600 m box of
+     * 1 mm voxels): the same 40 KiB of tables, whatever the gap */
+    IoVolumeGrid g;
+    int rc;
+    static const int32_t seps[3] = {5100, 6000, 600000};
+    for (int si = 0; si < 3; ++si) {
+    const int32_t sep = seps[si];
+    const float sep_m = 1e-3f * (float)sep;
     int32_t ijk[2 * 64 * 3];
     float vals[2 * 64];
     int n = 0;
@@ -1746,14 +1790,13 @@ static void test_majorant_sparse(void) {
         for (int z = 0; z < 4; ++z)
             for (int y = 0; y < 4; ++y)
                 for (int x = 0; x < 4; ++x) {
-                    int32_t base = b ? 5100 : 0;
+                    int32_t base = b ? sep : 0;
                     ijk[3 * n] = base + x;
                     ijk[3 * n + 1] = base + y;
                     ijk[3 * n + 2] = base + z;
                     vals[n++] = (float)(0.5 + 1.5 * urand(&r));
                 }
-    IoVolumeGrid g;
-    int rc = io_volume_grid_from_voxels(ijk, vals, (size_t)n, NULL, NULL, 0, i2w, "density", &g, err);
+    rc = io_volume_grid_from_voxels(ijk, vals, (size_t)n, NULL, NULL, 0, i2w, "density", &g, err);
     CHECK(rc == 0, "two blobs: %s", err);
     if (rc == 0) {
         VolumeDesc desc = grid_desc(&g, 80.0f, 0.5f);
@@ -1763,11 +1806,11 @@ static void test_majorant_sparse(void) {
         if (rc == 0) {
             const MajorantGrid *mg = &m.majorant;
             double dense = 2.0 * 4.0 * mg->dims[0] * (double)mg->dims[1] * mg->dims[2];
-            printf("sparse majorant, two blobs 5100 voxels apart: %d x %d x %d cells, %.2f MiB (dense %.0f MiB), medium %.2f MiB\n",
-                   mg->dims[0], mg->dims[1], mg->dims[2], mg->bytes / 1048576.0, dense / 1048576.0, m.memory_bytes / 1048576.0);
-            CHECK(mg->brick != NULL && mg->sigma_maj == NULL, "two blobs: not the sparse form");
-            CHECK(m.memory_bytes < (16u << 20), "two blobs: %.1f MiB for 128 voxels", m.memory_bytes / 1048576.0);
-            const float targets[2][3] = {{0.002f, 0.002f, 0.002f}, {5.102f, 5.102f, 5.102f}};
+            printf("sparse majorant, two blobs %d voxels apart: %d x %d x %d cells, %.2f MiB (dense %.0f MiB), medium %.2f MiB\n",
+                   sep, mg->dims[0], mg->dims[1], mg->dims[2], mg->bytes / 1048576.0, dense / 1048576.0, m.memory_bytes / 1048576.0);
+            CHECK(mg->bricks.entries != NULL && mg->sigma_maj == NULL, "two blobs: not the sparse form");
+            CHECK(m.memory_bytes < (256u << 10), "two blobs %d apart: %.2f MiB for 128 voxels", sep, m.memory_bytes / 1048576.0);
+            const float targets[2][3] = {{0.002f, 0.002f, 0.002f}, {sep_m + 0.002f, sep_m + 0.002f, sep_m + 0.002f}};
             long segments = 0, tiling = 0;
             long violations = majorant_rays(&m, &r, 3000, targets, 2, &segments, &tiling);
             violations += majorant_rays(&m, &r, 1000, NULL, 0, &segments, &tiling);
@@ -1777,7 +1820,7 @@ static void test_majorant_sparse(void) {
              * run between them (it crossed ~1,900 cells one by one) */
             const float o[3] = {-0.01f, -0.01f, -0.01f}, d[3] = {0.57735027f, 0.57735027f, 0.57735027f};
             MajorantIterator it;
-            medium_majorant_begin(&m, o, d, 0.0f, 10.0f, &it);
+            medium_majorant_begin(&m, o, d, 0.0f, 2.0f * sep_m, &it);
             float t0, t1, maj;
             int k = 0;
             double tau_maj = 0.0;
@@ -1791,7 +1834,7 @@ static void test_majorant_sparse(void) {
             double tau = 0.0;
             const double step = 1e-3 / 64.0 * 1.7320508;
             for (int b = 0; b < 2; ++b) {
-                double a = (b ? 5.1 : 0.0) - 0.002, e = (b ? 5.1 : 0.0) + 0.006; /* along each axis */
+                double a = (b ? (double)sep * 1e-3 : 0.0) - 0.002, e = (b ? (double)sep * 1e-3 : 0.0) + 0.006; /* along each axis */
                 double ta = (a - o[0]) / d[0], tb = (e - o[0]) / d[0];
                 for (double t = ta + 0.5 * step; t < tb; t += step) {
                     float p[3] = {o[0] + (float)t * d[0], o[1] + (float)t * d[1], o[2] + (float)t * d[2]};
@@ -1805,7 +1848,7 @@ static void test_majorant_sparse(void) {
             VolumeStats st = {0};
             for (int i = 0; i < 20000; ++i) {
                 float T[3];
-                media_transmittance(&view, o, d, 0.0f, 10.0f, &rng, T, &st);
+                media_transmittance(&view, o, d, 0.0f, 2.0f * sep_m, &rng, T, &st);
                 acc_add(&tr, T[0]);
             }
             printf("sparse majorant: diagonal %d segments (majorant depth %.2f), T %.5f +- %.5f, exp(-tau) %.5f\n", k, tau_maj,
@@ -1816,12 +1859,13 @@ static void test_majorant_sparse(void) {
         }
         /* the per-medium budget (a share of the scene's --volume-budget-mb) */
         VolumeDesc small = grid_desc(&g, 400.0f, 0.5f);
-        small.memory_budget = 1u << 20;
+        small.memory_budget = 16u << 10; /* the blobs take about 40 KiB */
         Medium m2;
         rc = medium_init_vdb(&m2, &small, err);
         CHECK(rc != 0 && one_line(err) && strstr(err, "of volume memory left"), "two blobs over a 1 MiB budget: %s",
               rc ? err : "built");
         io_volume_grid_free(&g);
+    }
     }
 
     /* a tile filling 4096^3 voxels (one root tile) and a voxel of data inside */
@@ -1838,7 +1882,7 @@ static void test_majorant_sparse(void) {
         CHECK(rc == 0, "tile fill: %s", err);
         if (rc == 0) {
             printf("sparse majorant, a 4096^3 tile: %.2f MiB (NanoVDB %.1f KiB)\n", m.memory_bytes / 1048576.0, g.size / 1024.0);
-            CHECK(m.majorant.brick != NULL && m.memory_bytes < (16u << 20), "tile fill: %.1f MiB", m.memory_bytes / 1048576.0);
+            CHECK(m.majorant.bricks.entries != NULL && m.memory_bytes < (16u << 20), "tile fill: %.1f MiB", m.memory_bytes / 1048576.0);
             const float targets[1][3] = {{2.0005f, 2.0005f, 2.0005f}};
             long segments = 0, tiling = 0;
             long violations = majorant_rays(&m, &r, 600, targets, 1, &segments, &tiling);
@@ -1858,6 +1902,105 @@ static void test_majorant_sparse(void) {
             medium_free(&m);
         }
         io_volume_grid_free(&g);
+    }
+
+    /* an emitting medium: two emitting 4^3 blobs 5,104 voxels apart (at 5,100 the dense form needed
+     * 9 GB, over the default budget; 5,104 keeps both blobs at the same place in their cells, so
+     * the floored border cells match): the sparse form with its emission-energy grid over the bricks'
+     * slots, its power twice one blob's (dense), samples from both blobs in proportion, each
+     * with a positive pdf along its direction */
+    {
+        int32_t ijk[2 * 64 * 3];
+        float vals[2 * 64];
+        int n = 0;
+        for (int b = 0; b < 2; ++b)
+            for (int i = 0; i < 64; ++i) {
+                ijk[3 * n] = (b ? 5104 : 0) + i % 4;
+                ijk[3 * n + 1] = (b ? 5104 : 0) + i / 4 % 4;
+                ijk[3 * n + 2] = (b ? 5104 : 0) + i / 16;
+                vals[n++] = 1.0f + 0.25f * (float)(i % 5);
+            }
+        IoVolumeGrid gd = {0}, ge = {0}, gd1 = {0}, ge1 = {0};
+        int ok = io_volume_grid_from_voxels(ijk, vals, 128, NULL, NULL, 0, i2w, "density", &gd, err) == 0;
+        ok = ok && io_volume_grid_from_voxels(ijk, vals, 128, NULL, NULL, 0, i2w, "emission", &ge, err) == 0;
+        ok = ok && io_volume_grid_from_voxels(ijk, vals, 64, NULL, NULL, 0, i2w, "density", &gd1, err) == 0;
+        ok = ok && io_volume_grid_from_voxels(ijk, vals, 64, NULL, NULL, 0, i2w, "emission", &ge1, err) == 0;
+        CHECK(ok, "emitting blobs: %s", err);
+        if (ok) {
+            VolumeDesc desc = grid_desc(&gd, 50.0f, 0.5f), one = grid_desc(&gd1, 50.0f, 0.5f);
+            desc.emission = &ge;
+            one.emission = &ge1;
+            desc.emission_scale = one.emission_scale = 2.0f;
+            Medium m, m1;
+            int rc2 = medium_init_vdb(&m, &desc, err);
+            CHECK(rc2 == 0, "emitting blobs: %s", err);
+            int rc1 = medium_init_vdb(&m1, &one, err);
+            CHECK(rc1 == 0, "one emitting blob: %s", err);
+            if (rc2 == 0 && rc1 == 0) {
+                printf("sparse majorant, two emitting blobs 5104 voxels apart: %.2f MiB, power %.6g (one blob %.6g)\n",
+                       m.memory_bytes / 1048576.0, (double)medium_emission_power(&m), (double)medium_emission_power(&m1));
+                CHECK(m.majorant.bricks.entries != NULL && m.memory_bytes < (1u << 20), "emitting blobs: %.2f MiB, sparse %d",
+                      m.memory_bytes / 1048576.0, m.majorant.bricks.entries != NULL);
+                CHECK(fabs(medium_emission_power(&m) - 2.0 * medium_emission_power(&m1)) < 1e-5 * medium_emission_power(&m),
+                      "emitting blobs: power %g, not twice %g", (double)medium_emission_power(&m), (double)medium_emission_power(&m1));
+                const float o[3] = {2.5f, 2.6f, 2.4f};
+                long far = 0, bad = 0;
+                enum { NS = 20000 };
+                for (int i = 0; i < NS; ++i) {
+                    float p[3];
+                    float pv = medium_emission_sample(&m, (float)urand(&r), (float)urand(&r), (float)urand(&r), (float)urand(&r), p);
+                    far += p[0] > 1.0f;
+                    float d[3] = {p[0] - o[0], p[1] - o[1], p[2] - o[2]};
+                    if (!(pv > 0.0f) || !(medium_emission_pdf(&m, o, d) > 0.0f)) ++bad;
+                }
+                CHECK(bad == 0, "emitting blobs: %ld samples with a zero pdf", bad);
+                CHECK(fabs((double)far - 0.5 * NS) < 5.0 * sqrt(0.25 * NS), "emitting blobs: %ld of %d samples in the far blob", far, NS);
+                /* majorant bounds over rays aimed at both blobs */
+                const float targets[2][3] = {{0.002f, 0.002f, 0.002f}, {5.106f, 5.106f, 5.106f}};
+                long segments = 0, tiling = 0;
+                long violations = majorant_rays(&m, &r, 1000, targets, 2, &segments, &tiling);
+                CHECK(violations == 0 && tiling == 0, "emitting blobs: %ld violations, %ld tiling errors", violations, tiling);
+            }
+            if (rc2 == 0) medium_free(&m);
+            if (rc1 == 0) medium_free(&m1);
+        }
+        io_volume_grid_free(&gd);
+        io_volume_grid_free(&ge);
+        io_volume_grid_free(&gd1);
+        io_volume_grid_free(&ge1);
+    }
+
+    /* the regions' defaults and borders: two root tiles of different values side by side, a
+     * 128^3 upper tile of a third value inside one, an 8^3 box of a fourth, voxels on the
+     * borders; bounds and tiling over rays aimed at every border */
+    {
+        const int32_t boxes[4 * 6] = {0,    0,    0,    4095, 4095, 4095, 4096, 0,   0,   8191, 4095, 4095,
+                                      3968, 3968, 3968, 4095, 4095, 4095, 4096, 512, 512, 4103, 519,  519};
+        const float bvals[4] = {0.25f, 1.0f, 2.5f, 0.0f};
+        const int32_t vox[3 * 3] = {4095, 100, 100, 4096, 4095, 4095, 8191, 0, 0};
+        const float vv[3] = {4.0f, 0.0f, 6.0f};
+        rc = io_volume_grid_from_voxels(vox, vv, 3, boxes, bvals, 4, i2w, "density", &g, err);
+        CHECK(rc == 0, "root tiles side by side: %s", err);
+        if (rc == 0) {
+            VolumeDesc desc = grid_desc(&g, 3.0f, 0.5f);
+            Medium m;
+            rc = medium_init_vdb(&m, &desc, err);
+            CHECK(rc == 0, "root tiles side by side: %s", err);
+            if (rc == 0) {
+                printf("sparse majorant, two root tiles and details: %.2f MiB\n", m.memory_bytes / 1048576.0);
+                CHECK(m.majorant.bricks.entries != NULL && m.memory_bytes < (16u << 20), "root tiles: %.1f MiB, sparse %d",
+                      m.memory_bytes / 1048576.0, m.majorant.bricks.entries != NULL);
+                const float targets[6][3] = {{4.096f, 2.0f, 2.0f},     {4.0f, 4.0f, 4.0f},      {4.1f, 0.516f, 0.516f},
+                                             {4.0955f, 0.1f, 0.1f},    {8.1915f, 0.0f, 0.0f},   {4.096f, 4.0955f, 4.0955f}};
+                long segments = 0, tiling = 0;
+                long violations = majorant_rays(&m, &r, 1200, targets, 6, &segments, &tiling);
+                violations += majorant_rays(&m, &r, 400, NULL, 0, &segments, &tiling);
+                CHECK(violations == 0, "root tiles: %ld points above their majorant or below their control", violations);
+                CHECK(tiling == 0, "root tiles: %ld tiling errors", tiling);
+                medium_free(&m);
+            }
+            io_volume_grid_free(&g);
+        }
     }
 
     /* a voxel of 1e30: world bounds beyond the coordinate limit, refused at once by the reader;

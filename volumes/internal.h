@@ -112,6 +112,25 @@ void grid_emission(const Medium *m, GridReader *aux, const float p[3], float le[
 void blackbody_lookup(float kelvin, float rgb[3]);
 #define BLACKBODY_MIN_KELVIN 500.0f
 
+/* ---------------------------------------------------------------- the sparse majorant's tables */
+
+/* Brick and region coordinates are cells / 8 and cells / 512 from the grid's origin: below
+ * 2^19 (index bounds within 2^21, medium.c), packed 21 bits per axis; +1 keeps 0 for empty. */
+static inline uint64_t sp_key(int32_t x, int32_t y, int32_t z) {
+    return ((uint64_t)(uint32_t)x | (uint64_t)(uint32_t)y << 21 | (uint64_t)(uint32_t)z << 42) + 1;
+}
+static inline uint64_t sp_slot(const MajorantTable *t, uint64_t key) {
+    uint64_t h = key * 0x9E3779B97F4A7C15ull;
+    return (h ^ (h >> 31)) & t->mask;
+}
+static inline const MajorantEntry *sp_find(const MajorantTable *t, uint64_t key) {
+    for (uint64_t i = sp_slot(t, key);; i = (i + 1) & t->mask) {
+        const MajorantEntry *e = &t->entries[i];
+        if (e->key == key) return e;
+        if (!e->key) return NULL;
+    }
+}
+
 /* Builds m->majorant (majorant.c) from the density grid's index-to-world transform i2w
  * (node x grid, double); 0 ok, -1 out of memory or an absurd size (err). When the medium
  * emits and emit_bound is not NULL, *emit_bound gets a malloc'd array (the caller frees it)

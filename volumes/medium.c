@@ -319,7 +319,9 @@ int medium_init_vdb(Medium *m, const VolumeDesc *desc, char err[IO_ERR_LEN]) {
     const EmissionEnergyGrid *e = &m->emission_energy;
     m->memory_bytes = m->majorant.bytes;
     if (e->density)
-        m->memory_bytes += (uint64_t)m->majorant.dims[0] * (uint64_t)m->majorant.dims[1] * (uint64_t)m->majorant.dims[2] *
+        m->memory_bytes += (m->majorant.bricks.entries ? (uint64_t)m->majorant.nslots * 512u
+                                                       : (uint64_t)m->majorant.dims[0] * (uint64_t)m->majorant.dims[1] *
+                                                             (uint64_t)m->majorant.dims[2]) *
                                sizeof(float) +
                            (uint64_t)e->count * (sizeof(int32_t) + sizeof(double));
     return 0;
@@ -330,10 +332,12 @@ void medium_free(Medium *m) {
     free(m->majorant.sigma_maj);
     free(m->majorant.sigma_min);
     free(m->majorant.sigma_maj_coarse);
-    free(m->majorant.brick);
-    free(m->majorant.brick_uniform);
+    free(m->majorant.bricks.entries);
+    free(m->majorant.regions.entries);
     free(m->majorant.brick_maj);
     free(m->majorant.brick_min);
+    free(m->majorant.brick_at);
+    free(m->majorant.ubrick_at);
     emission_free(m);
     memset(m, 0, sizeof *m);
 }

@@ -69,6 +69,20 @@ typedef struct VolumeGrid {
 /* media_emission_line_at's VOLUME_LINE_COARSE caps the emission term at one expected
  * collision per this many voxels (VOLUME_LINE_STANDARD, media_emission_line: one per voxel) */
 #define VOLUME_LINE_COARSE_VOXELS 8
+/* An open-addressing hash table of the sparse majorant: key 0 is an empty slot; an entry is a
+ * uniform brick or region (slot -1: majorant, control) or a brick's cells (slot: their offset /
+ * 512 in brick_maj / brick_min). */
+typedef struct MajorantEntry {
+    uint64_t key;
+    int32_t slot;
+    float maj, ctl;
+    float emit;  /* a uniform brick of an emitting medium: its cells' emission-energy density
+                  * P_v / V_v (1/m^3; 0: it does not emit); its emission bound during the build */
+} MajorantEntry;
+typedef struct MajorantTable {
+    MajorantEntry *entries;      /* capacity a power of 2, at most half full */
+    uint64_t mask, count;        /* capacity - 1, entries held */
+} MajorantTable;
 typedef struct MajorantGrid {
     int32_t origin[3];           /* index of cell (0,0,0)'s first voxel */
     int32_t dims[3];             /* cells per axis */
@@ -80,22 +94,34 @@ typedef struct MajorantGrid {
      * collision per VOLUME_LINE_COARSE_VOXELS voxels (media_emission_line_at's COARSE
      * density); NULL for media that do not emit */
     float *sigma_maj_coarse;
-    /* Sparse form (sigma_maj NULL, brick non-NULL): a grid whose dense form would be large and
-     * mostly empty or constant (two small clouds far apart, a constant tile filling a huge box)
-     * is held in bricks of VOLUME_MAJORANT_BRICK^3 cells. A brick whose padded box holds no voxel
-     * data (only tiles, empty space included) is two numbers, the majorant and control of the
-     * largest and smallest tile value it touches (exact inside a tile, looser by at most a brick
-     * along a tile's border); the others hold their 8^3 cells, computed as the dense form does.
-     * Memory then follows what the file holds, not its bounding box, and the DDA crosses a
-     * uniform brick in one step. Only media that do not emit (the emission-energy grid is dense
-     * over the cells). origin is a multiple of 64. */
-    int32_t bdims[3];            /* bricks per axis */
-    int32_t *brick;              /* per brick: its cells' offset / 512 in brick_maj / brick_min, or -1: uniform */
-    float *brick_uniform;        /* per brick: (majorant, control) of a uniform brick */
-    float *brick_maj, *brick_min;/* 512 cells per non-uniform brick, x fastest */
+    /* Sparse form (sigma_maj NULL, bricks.entries non-NULL): a grid whose dense form would be
+     * large and mostly empty or constant (two small clouds far apart, a constant tile filling a
+     * huge box) is held in bricks of VOLUME_MAJORANT_BRICK^3 cells, found through two hash tables
+     * (majorant.c): regions (VOLUME_MAJORANT_REGION^3 cells, the 4096^3 voxels of a NanoVDB root
+     * entry) hold the majorant and control of a brick nobody stored there, and bricks hold either
+     * two numbers (a brick whose padded box holds no voxel data: the largest and smallest tile
+     * value it touches, exact inside a tile, looser by at most a brick along a tile's border) or
+     * their 8^3 cells, computed as the dense form does. Only the bricks the tree's leaves and
+     * tiles reach (with the trilinear footprint's ring) and the regions of the root's entries and
+     * their neighbours are stored: memory follows the nodes the file holds, not its bounding box,
+     * and the DDA crosses an absent region or a uniform brick in one step. In an emitting medium
+     * regions are empty (the background's extinction must be 0) and a brick that can emit holds
+     * its cells, unless it is a uniform emitting brick (one density tile value inside the active
+     * box, one aux value over its footprint: MajorantEntry.emit, listed in ubrick_at); the
+     * emission-energy grid follows the slots (cell index slot x 512 + cell in the brick, then
+     * one index per uniform emitting brick). origin is a multiple of 4096. */
+    MajorantTable bricks, regions;
+    float outside_maj, outside_ctl; /* majorant and control of an absent region (the background) */
+    float *brick_maj, *brick_min;/* 512 cells per non-uniform brick, x fastest; an emitting
+                                  * medium's brick_min holds the coarse majorant, not a control */
+    int32_t *brick_at;           /* per non-uniform brick (slot): its brick coordinates (3) */
+    int32_t nslots;              /* non-uniform bricks */
+    int32_t *ubrick_at;          /* an emitting medium's uniform emitting bricks: coordinates (3) */
+    int32_t nubricks;
     uint64_t bytes;              /* memory held by the grid (either form) */
 } MajorantGrid;
 #define VOLUME_MAJORANT_BRICK 8
+#define VOLUME_MAJORANT_REGION 512 /* cells: 4096 voxels, a NanoVDB root entry */
 /* Below this many cells the majorant grid is always dense (the form every scene so far uses,
  * and the faster one to walk); above it the sparse form is used when it needs less than half
  * the memory (VolumeDesc.dense_cells_max overrides it, for tests). */
@@ -115,7 +141,8 @@ typedef struct MajorantGrid {
  * Built by medium_init_vdb when the medium emits; all zero (count 0) otherwise and for
  * homogeneous media. Fields are the module's. */
 typedef struct EmissionEnergyGrid {
-    float *density;              /* per majorant cell (majorant layout): P_v / V_v (1/m^3) */
+    float *density;              /* per majorant cell (majorant layout; the sparse form: slot x 512 +
+                                  * cell in the brick): P_v / V_v (1/m^3) */
     int32_t *cells;              /* linear indices of the cells with E_v > 0, ascending */
     double *cdf;                 /* cdf[i] = sum of P over cells[0..i]; cdf[count - 1] = 1 */
     int32_t count;
