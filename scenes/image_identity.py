@@ -93,6 +93,28 @@ def render(binary, scene, flags, out, res, spp):
     return r.returncode == 0, r.stderr.strip()
 
 
+def compare(a, label, stem, scene, flags):
+    """Renders scene with both binaries; prints one line; 1 when they differ or one failed."""
+    outs = []
+    ok = True
+    for tag, binary in (("old", a.old), ("new", a.new)):
+        out = os.path.join(a.out, f"{stem}-{tag}.exr")
+        for f in (out, out + ".ckpt"):
+            if os.path.exists(f):
+                os.remove(f)
+        good, err = render(binary, scene, flags, out, a.res, a.spp)
+        if not good:
+            print(f"FAIL   {label} ({tag}): {err}")
+            ok = False
+        outs.append(out)
+    if ok and same_images(outs[0], outs[1]):
+        print(f"same   {label}")
+        return 0
+    if ok:
+        print(f"DIFFER {label}")
+    return 1
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("old")
@@ -115,49 +137,16 @@ def main():
         for vname, flags in VARIANTS:
             if vname.startswith("optimal") and "1k" in name:
                 continue  # O(lights) per vertex: slow and adds nothing the other scenes do not test
-            outs = []
-            ok = True
-            for tag, binary in (("old", a.old), ("new", a.new)):
-                out = os.path.join(a.out, f"{name}-{vname}-{tag}.exr")
-                if os.path.exists(out):
-                    os.remove(out)
-                good, err = render(binary, scene, flags, out, a.res, a.spp)
-                if not good:
-                    print(f"FAIL   {name} {vname} ({tag}): {err}")
-                    ok = False
-                outs.append(out)
             total += 1
-            if ok and same_images(outs[0], outs[1]):
-                print(f"same   {name} {vname}")
-            else:
-                if ok:
-                    print(f"DIFFER {name} {vname}")
-                bad += 1
+            bad += compare(a, f"{name} {vname}", f"{name}-{vname}", scene, flags)
     for name, scene, flags in EXTRA:
         if not os.path.exists(scene):
             print(f"skip   {name} (absent)")
             continue
         if a.only and not any(s in name for s in a.only.split(",")):
             continue
-        outs = []
-        ok = True
-        for tag, binary in (("old", a.old), ("new", a.new)):
-            out = os.path.join(a.out, f"extra-{name}-{tag}.exr")
-            for f in (out, out + ".ckpt"):
-                if os.path.exists(f):
-                    os.remove(f)
-            good, err = render(binary, scene, flags, out, a.res, a.spp)
-            if not good:
-                print(f"FAIL   {name} ({tag}): {err}")
-                ok = False
-            outs.append(out)
         total += 1
-        if ok and same_images(outs[0], outs[1]):
-            print(f"same   {name}")
-        else:
-            if ok:
-                print(f"DIFFER {name}")
-            bad += 1
+        bad += compare(a, name, f"extra-{name}", scene, flags)
     print(f"{total - bad} of {total} renders identical")
     return 1 if bad else 0
 

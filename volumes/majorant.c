@@ -609,9 +609,9 @@ static int sparse_build(Medium *m, uint64_t dense_bytes, uint64_t budget, int fo
             cache.lo[k] = floor_div8(ag->index_min[k] - 2);
             cache.hi[k] = floor_div8(ag->index_max[k] + 2);
         }
-        if (sp_table_init(&cache.table, &cache.mem)) goto oom;
+        if (sp_table_init(&cache.table, &cache.mem)) goto fail;
     }
-    if (sp_table_init(&mg->bricks, &mem) || sp_table_init(&mg->regions, &mem)) goto oom;
+    if (sp_table_init(&mg->bricks, &mem) || sp_table_init(&mg->regions, &mem)) goto fail;
     sp_walk_tree(&w, m, reader.buf);
     if (w.fail) goto fail;
     /* every brick the data reaches: two numbers when its padded box holds no voxel data (and
@@ -683,7 +683,7 @@ static int sparse_build(Medium *m, uint64_t dense_bytes, uint64_t budget, int fo
         mem.used = bytes;
         goto fail;
     }
-    if (dense * BC >= ((uint64_t)1 << 31)) goto oom; /* cell indices are int32 (emission.c) */
+    if (dense * BC >= ((uint64_t)1 << 31)) goto fail; /* cell indices are int32 (emission.c) */
     mg->brick_maj = malloc((size_t)(dense ? dense : 1) * BC * sizeof(float));
     mg->brick_min = malloc((size_t)(dense ? dense : 1) * BC * sizeof(float));
     mg->brick_at = malloc((size_t)(dense ? dense : 1) * 3 * sizeof(int32_t));
@@ -698,7 +698,7 @@ static int sparse_build(Medium *m, uint64_t dense_bytes, uint64_t budget, int fo
         (!emissive && block_table_alloc(&dmin, zero, tdims, B + 2, BLK_FACES))) {
         free(dens.v);
         free(dmin.v);
-        goto oom;
+        goto fail;
     }
     size_t ui = 0;
     for (uint64_t i = 0; i <= mg->bricks.mask; ++i) {
@@ -741,23 +741,7 @@ static int sparse_build(Medium *m, uint64_t dense_bytes, uint64_t budget, int fo
     else free(bnd);
     return 0;
 fail:
-    if (mem.over) {
-        if (err)
-            snprintf(err, IO_ERR_LEN, "%s: its majorant grid needs %s%.1f MiB, over the %.1f MiB of volume memory left",
-                     name, mem.used > budget ? "" : "more than ", (double)(mem.used > budget ? mem.used : budget) / 1048576.0,
-                     (double)budget / 1048576.0);
-        free(mg->bricks.entries);
-        free(mg->regions.entries);
-        free(mg->brick_maj);
-        free(mg->brick_min);
-        free(mg->brick_at);
-        free(mg->ubrick_at);
-        free(cache.table.entries);
-        free(bnd);
-        memset(mg, 0, sizeof *mg);
-        return -1;
-    }
-oom:
+    /* the budget's message, or out of memory: either way nothing is kept */
     free(mg->bricks.entries);
     free(mg->regions.entries);
     free(mg->brick_maj);
@@ -767,6 +751,13 @@ oom:
     free(cache.table.entries);
     free(bnd);
     memset(mg, 0, sizeof *mg);
+    if (mem.over) {
+        if (err)
+            snprintf(err, IO_ERR_LEN, "%s: its majorant grid needs %s%.1f MiB, over the %.1f MiB of volume memory left",
+                     name, mem.used > budget ? "" : "more than ", (double)(mem.used > budget ? mem.used : budget) / 1048576.0,
+                     (double)budget / 1048576.0);
+        return -1;
+    }
     if (err) snprintf(err, IO_ERR_LEN, "%s: out of memory building the majorant grid", name);
     return -1;
 }
