@@ -384,6 +384,8 @@ expect_error "did you mean" "unknown option '--spl' (did you mean '--spp'?)" -- 
 [ $("$bin" render "$scene" --spl 4 "${common[@]}" >/dev/null 2>&1; echo $?) = 2 ] && ok || bad "--spl: exit status"
 expect_error "did you mean (= form)" "unknown option '--lightsampler' (did you mean '--light-sampler'?)" -- render "$scene" --lightsampler=power "${common[@]}"
 expect_error "no suggestion" "unknown option '--xyzzy' (see candela render --help)" -- render "$scene" --xyzzy "${common[@]}"
+expect_error "compare --stats-json" "candela compare writes its numbers into its report" -- compare "$scene" --spp 1 --res 8x8 \
+    --strategies uniform,power --stats-json "$tmp/cmp-stats.json"
 expect_error "compare's flag in render" "unknown option '--timing-runs'" -- render "$scene" --timing-runs 2 "${common[@]}"
 expect_error "merge did you mean" "unknown merge option '--pgn' (did you mean '--png'?)" -- merge -o "$tmp/m.exr" --pgn x.png a.film
 expect_error "variant did you mean" "variant 'a': unknown option '--guding' (did you mean '--guiding'?)" -- compare "$scene" --spp 1 --res 8x8 \

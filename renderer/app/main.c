@@ -546,6 +546,11 @@ int main(int argc, char **argv) {
         fprintf(stderr, "candela: --shard, --resume, --fps and --frame-stats need --frames\n");
         return 2;
     }
+    if (compare && stats_json) { /* it used to be accepted and ignored */
+        fprintf(stderr, "candela: --stats-json writes one render's statistics; candela compare writes its numbers into its "
+                        "report (--out-dir)\n");
+        return 2;
+    }
     if (batch.frames && stats_json) {
         fprintf(stderr, "candela: --stats-json writes one render's statistics; with --frames use --frame-stats FILE.jsonl\n");
         return 2;
