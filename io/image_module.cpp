@@ -90,6 +90,33 @@ static bool jpeg_without_app13(const unsigned char *p, size_t n, std::vector<uns
 }
 
 static bool is_jpeg(const unsigned char *p, size_t n) { return n >= 3 && p[0] == 0xFF && p[1] == 0xD8 && p[2] == 0xFF; }
+static bool is_png(const unsigned char *p, size_t n) { return n >= 8 && std::memcmp(p, "\x89PNG\r\n\x1a\n", 8) == 0; }
+
+// A PNG whose chunks do not fit in its bytes is refused before libpng sees it: libpng allocates a
+// chunk's declared length (up to 2^31 - 1) before reading it, so a 280-byte file whose tEXt chunk
+// declared 2 GB took 2 GB and 4 s (fuzz_image). The chunk headers are walked up to IEND
+// (read_at(offset, buffer, 8) reads one); a file that ends at a chunk boundary is left to libpng.
+template <class ReadAt> static bool png_chunks_fit(ReadAt read_at, uint64_t size, std::string *problem) {
+    uint64_t at = 8;
+    unsigned char h[8];
+    while (at + 8 <= size) {
+        if (!read_at(at, h)) {
+            *problem = std::string("cannot read: ") + std::strerror(errno);
+            return false;
+        }
+        uint64_t len = (uint64_t)h[0] << 24 | (uint64_t)h[1] << 16 | (uint64_t)h[2] << 8 | h[3];
+        if (len > 0x7FFFFFFFu || at + 12 + len > size) {
+            char type[5] = {0, 0, 0, 0, 0};
+            for (int k = 0; k < 4; ++k) type[k] = std::isalpha(h[4 + k]) ? char(h[4 + k]) : '?';
+            *problem = "cannot open: malformed PNG (its chunk '" + std::string(type) + "' declares " + std::to_string(len) +
+                       " bytes, past the end of the file)";
+            return false;
+        }
+        if (std::memcmp(h + 4, "IEND", 4) == 0) return true;
+        at += 12 + len;
+    }
+    return true;
+}
 
 static bool decode_oiio(const std::string &path, const void *mem, size_t mem_size, bool srgb, bool keep_8bit,
                   uint64_t max_bytes, IoImage *out, std::string *problem) {
@@ -126,9 +153,15 @@ static bool decode_oiio(const std::string &path, const void *mem, size_t mem_siz
             return false;
         }
         // a JPEG file is read here (its size, checked above, bounds the read) and decoded from
-        // memory without its APP13 segments
-        unsigned char head[3] = {0, 0, 0};
-        if (file_size >= 3 && pread(fd, head, 3, 0) == 3 && is_jpeg(head, 3)) {
+        // memory without its APP13 segments; a PNG's chunks are checked against its size
+        unsigned char head[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+        size_t head_n = file_size >= 8 ? 8 : size_t(file_size);
+        if (head_n > 0 && pread(fd, head, head_n, 0) != ssize_t(head_n)) head_n = 0;
+        if (is_png(head, head_n) &&
+            !png_chunks_fit([fd](uint64_t at, unsigned char *h) { return pread(fd, h, 8, off_t(at)) == 8; }, file_size,
+                            problem))
+            return false;
+        if (is_jpeg(head, head_n)) {
             std::vector<unsigned char> bytes(static_cast<size_t>(file_size));
             size_t got = 0;
             while (got < bytes.size()) {
@@ -145,6 +178,11 @@ static bool decode_oiio(const std::string &path, const void *mem, size_t mem_siz
         } else {
             file_proxy.reset(new OIIO::Filesystem::IOFile(file.f, OIIO::Filesystem::IOProxy::Read));
         }
+    } else if (is_png(static_cast<const unsigned char *>(mem), mem_size)) {
+        const unsigned char *bytes = static_cast<const unsigned char *>(mem);
+        if (!png_chunks_fit([bytes](uint64_t at, unsigned char *h) { std::memcpy(h, bytes + at, 8); return true; }, mem_size,
+                            problem))
+            return false;
     } else if (is_jpeg(static_cast<const unsigned char *>(mem), mem_size)) {
         if (!jpeg_without_app13(static_cast<const unsigned char *>(mem), mem_size, &jpeg)) {
             *problem = "cannot open: malformed JPEG (its marker segments run past the end of the data)";

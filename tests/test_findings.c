@@ -7,6 +7,9 @@
  * The files (see tests/fuzz/README.md):
  *   png_truncated_leak.png   fuzz_image's finding: a PNG cut inside a chunk (OpenImageIO 2.4
  *                            leaks a string when libpng longjmps out of its read callback)
+ *   png_huge_chunk.png       fuzz_image's finding: a 280-byte PNG whose second tEXt chunk declares
+ *                            2,046,820,441 bytes (libpng allocated them: 2 GB and 4 s); refused
+ *                            from its chunk headers
  *   vdb_truncated.vdb        tests/fuzz/corpus/vdb/fog_blosc.vdb cut at 6000 bytes (the kind of
  *                            file that made OpenVDB ask for a 3.5 TB buffer)
  *   vdb_absurd_chunk.vdb     fog_blosc.vdb with a leaf's blosc chunk size (int64 at byte 10111)
@@ -85,6 +88,20 @@ static void test_png_finding(void) {
         return;
     }
     check_err(err, path, NULL, "truncated png");
+}
+
+static void test_png_huge_chunk(void) {
+    char path[1200];
+    snprintf(path, sizeof path, "%s/tests/bad/png_huge_chunk.png", root);
+    IoImage img;
+    char err[IO_ERR_LEN] = "";
+    int rc = io_load_image(path, 0, &img, err);
+    CHECK(rc != 0, "the PNG with a 2 GB chunk loaded");
+    if (rc == 0) {
+        io_image_free(&img);
+        return;
+    }
+    check_err(err, path, "its chunk 'tEXt' declares 2046820441 bytes", "png huge chunk");
 }
 
 static void test_exr_finding(void) {
@@ -189,6 +206,7 @@ int main(int argc, char **argv) {
         return 1;
     }
     test_png_finding();
+    test_png_huge_chunk();
     test_exr_finding();
     test_vdb_findings();
     test_vdb_damage();
