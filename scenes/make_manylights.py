@@ -276,7 +276,7 @@ def glossy(out, seed=5):
         else:
             p = (x0 + B + off, y, z0 + t)
         pal = warm if rng.random() < 0.7 else cool
-        place(pal[rng.randrange(8)], p)
+        light_node(g, pal[rng.randrange(8)], p)
     for k in range(400):
         street_i = rng.randrange(N + 1)
         along = -h + rng.random() * span
