@@ -91,7 +91,7 @@ typedef struct BarrierHook {
 } BarrierHook;
 #define MAX_BARRIER_HOOKS 8
 
-/* auto_probe.c: the measurement behind the `auto` choices of the volume estimators. */
+/* volume_auto.c: the probe behind the `auto` choices of the volume estimators (one per choice). */
 #define AUTO_PROBE_ITERATIONS 3 /* 1 + 1 + 2 spp */
 typedef struct AutoProbe {
     const char *flag;      /* the CLI flag, for the message */
@@ -164,7 +164,7 @@ typedef struct Integrator {
     uint32_t camera_medium;   /* the mesh medium the camera is in (media.h) */
     int inscatter;            /* in-scattering sampling on camera segments (inscatter.c) may run */
     /* per medium (media_id): whether its camera segments use in-scattering sampling, and whether
-     * NEE samples its emission (on: all; auto: decided after a probe, auto_probe.c) */
+     * NEE samples its emission (on: all; auto: decided after a probe, volume_auto.c) */
     AutoProbe inscatter_auto, emission_auto;
     PathState ps;
     SobolTables sobol_tables;
@@ -434,24 +434,14 @@ int inscatter_table(const Integrator *ig, SceneRay ray, float tmax, const MediaV
  * balance heuristic against null-collision tracking (Eq. 10), added through the funnel. */
 float inscatter_estimate(const Integrator *ig, Slice *s, uint32_t p, SceneRay ray, const MediaView *view,
                          const VolumeDistanceTable *tab, uint32_t *hint, float *scratch, float *cost);
-/* Whether a camera segment through these media uses the technique (a function of the media
- * and of the iteration's state only, so both techniques agree on it). */
-int inscatter_segment_on(const Integrator *ig, const MediaView *view);
-/* In-scattering sampling's per-medium state (off, on, auto) and its probe's accounting after
- * each batch (per path, the camera segment's NEE with and without the technique) are its entry
- * in the feature table (feature.h). */
 
-int auto_probe_init(AutoProbe *ap, const char *flag, uint32_t num_media, uint32_t npixels, int mode);
-void auto_probe_free(AutoProbe *ap);
-/* its checkpoint section (the features' save / load hooks) */
-int auto_probe_save(const AutoProbe *ap, uint32_t npixels, FILE *out);
-int auto_probe_load(AutoProbe *ap, uint32_t npixels, FILE *in);
-/* After a batch, in path order: per path the medium it is attributed to (media_id + 1, 0:
- * none), the feature's share of its radiance as rendered and without the feature, its cost. */
-void auto_probe_batch(AutoProbe *ap, const Integrator *ig, const Slice *slices, uint32_t n, const uint32_t *medium,
-                      const float *on, const float *off, const float *cost);
-/* At each barrier; decides after AUTO_PROBE_ITERATIONS. */
-void auto_probe_barrier(AutoProbe *ap, int quiet);
+/* volume_auto.c: the volume estimators' `auto` choices, in-scattering sampling's and emission
+ * sampling's: each a per-medium state (off, on, auto) and a probe (AutoProbe) whose accounting
+ * after each batch and decision at a barrier are its entry in the feature table (feature.h);
+ * the probes' records, path by path, are the inline functions below. */
+/* Whether a camera segment through these media uses in-scattering sampling (a function of the
+ * media and of the iteration's state only, so both techniques agree on it). */
+int inscatter_segment_on(const Integrator *ig, const MediaView *view);
 
 /* The auto choices' rule (both probes): with V_path the variance of the paths' radiance
  * measured with the feature on, V_on / V_off that of the feature's share of it with and
@@ -467,7 +457,7 @@ static inline double sample_variance(double n, double sum, double sum2) {
     return n > 1.0 ? fmax((sum2 - sum * sum / n) / (n - 1.0), 0.0) : 0.0;
 }
 
-/* emission_auto.c: --volume-emission-sampling on / auto, as in-scattering sampling above: all
+/* --volume-emission-sampling on / auto (volume_auto.c), as in-scattering sampling above: all
  * emissive volumes sample their emission by NEE during the probe (4 spp), then only those where
  * the estimated time to unit variance is lower with it (its entry in the feature table,
  * feature.h). */
