@@ -65,7 +65,7 @@ static void sample_channel(const IoAnimChannel *c, double t, int ncomp, double o
     /* a rotation is normalised where it becomes a matrix (trs_matrix, as the loader does) */
 }
 
-/* Local matrix from TRS: the loader's formula (gltf_loader.cpp, flatten_nodes). */
+/* Local matrix from TRS: the loader's formula (gltf_loader.cpp, trs_local). */
 static void trs_matrix(const double t[3], const double q_in[4], const double s[3], double m[16]) {
     double q[4] = {q_in[0], q_in[1], q_in[2], q_in[3]};
     double qn = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);

@@ -69,7 +69,7 @@ typedef struct CandelaOptions {
     int max_depth;             /* surface vertices of a path; 1 = direct light only */
     int max_volume_bounces;    /* scattering events in media per path (0: default) */
     int volume_emission_sampling; /* 1: emissive volumes are lights too (NEE, §4.3); 0: found by tracking only;
-                                   * 2: auto (per volume, after a probe: emission_auto.c) */
+                                   * 2: auto (per volume, after a probe: volume_auto.c) */
     int volume_inscatter_sampling; /* --volume-cachepoint-scatter: in-scattering sampling along camera rays (§4.2): 0 off, 1 on,
                                     * 2 auto
                                     * (needs the cachepoints light sampler) */

@@ -5,7 +5,9 @@
 # there would be a second place to change when a strategy (or a second caller of light
 # selection) is added. And no stage file calls a function another stage file defines (what
 # stages share is renderer/integrator/vertex.c's). And wavefront.c, checkpoint.c and render.c reach the
-# integrator's features through the feature table only. Usage: test_seams.sh SOURCE_ROOT
+# integrator's features through the feature table only. And the stages and the vertex module call
+# the recorder's hooks unconditionally: whether it records is tested inside them (integrator.h).
+# Usage: test_seams.sh SOURCE_ROOT
 set -u
 root=${1:?usage: test_seams.sh SOURCE_ROOT}
 cd "$root/renderer" || exit 1
@@ -60,3 +62,15 @@ if [ -n "$named" ]; then
     exit 1
 fi
 echo "wavefront.c, checkpoint.c, render.c: no feature named"
+# the recorder's on/off test lives inside its hooks (record_vertex_child, record_nee_vertex, ...,
+# integrator.h): a stage or the vertex module that tests record.active is a second place to
+# change when the recorder's condition does (guide.c decides it; record.c is the recorder)
+tested=$(for f in integrator/stage_*.c integrator/vertex.h integrator/vertex.c; do
+    perl -0pe 's{/\*.*?\*/}{}gs; s{//[^\n]*}{}g' "$f" | grep -n -E 'record\s*(\.|->)\s*active' | sed "s|^|$f:|"
+done)
+if [ -n "$tested" ]; then
+    echo "FAIL: the recorder's on/off test outside its hooks (call a record_* hook of integrator.h, which tests it):"
+    echo "$tested"
+    exit 1
+fi
+echo "stage files, vertex.h, vertex.c: the recorder's on/off test only inside its hooks"

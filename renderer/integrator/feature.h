@@ -2,10 +2,11 @@
  *
  * A feature is a part of the integrator with state that lives across batches and iterations:
  * the radiance recorder, path guiding, and the volume estimators' `auto` choices
- * (in-scattering sampling, emission sampling). Each exports one IntegratorFeature from its own
- * file; feature.c lists them in order, and the integrator's driver (wavefront.c), the render
- * loop (render.c) and the checkpoint file (checkpoint.c) loop over that table through the
- * functions below and name no feature (tests/test_seams.sh checks it). Adding a feature is its
+ * (in-scattering sampling, emission sampling). Each exports one IntegratorFeature from its file
+ * (the two volume auto choices share volume_auto.c and its probe); feature.c lists them in
+ * order, and the integrator's driver (wavefront.c), the render loop (render.c) and the
+ * checkpoint file (checkpoint.c) loop over that table through the functions below and name no
+ * feature (tests/test_seams.sh checks it). Adding a feature is its
  * file and one row of the table (ARCHITECTURE.md, "Integrator features").
  *
  * Each hook decides for itself whether its feature is on (a feature that is off does nothing
@@ -37,8 +38,8 @@ typedef struct IntegratorFeature {
 
 extern const IntegratorFeature feature_recorder;        /* record.c */
 extern const IntegratorFeature feature_guiding;         /* guide.c */
-extern const IntegratorFeature feature_inscatter_auto;  /* inscatter.c */
-extern const IntegratorFeature feature_emission_auto;   /* emission_auto.c */
+extern const IntegratorFeature feature_inscatter_auto;  /* volume_auto.c */
+extern const IntegratorFeature feature_emission_auto;   /* volume_auto.c */
 
 /* The loops over the table (feature.c). */
 int features_validate(const CandelaOptions *o, const Scene *scene, char err[CANDELA_ERR_LEN]);

@@ -13,8 +13,9 @@
  * the spec): p_null / p_cachepoint = [product over the null vertices of mean(sigma_n) / sigma_maj]
  * x mean(sigma_s(x_k)) / p_select(x_k), the same function of the vertices in both (the
  * trackers report the product). The phase-sampled continuation and everything after the first
- * scatter stay with the null-collision walk. */
-#include "feature.h"
+ * scatter stay with the null-collision walk. Whether a segment uses the technique (on, off, or
+ * auto's choice per medium) is volume_auto.c's. */
+#include "integrator.h"
 #include "rng.h"
 #include "vertex.h"
 
@@ -136,48 +137,3 @@ float inscatter_estimate(const Integrator *ig, Slice *s, uint32_t p, SceneRay ra
     light_sampler_record(ig->light_sampler, outcome, visibility);
     return added;
 }
-
-/* ---------------------------------------------------------------- auto (auto_probe.c) */
-
-/* A segment uses the technique while probing, or when one of its media chose it. */
-int inscatter_segment_on(const Integrator *ig, const MediaView *view) {
-    if (ig->inscatter_auto.active) return 1;
-    for (int i = 0; i < view->count; ++i)
-        if (ig->inscatter_auto.on[media_id(ig->media, view->media[i])]) return 1;
-    return 0;
-}
-
-static void inscatter_auto_barrier(Integrator *ig) { auto_probe_barrier(&ig->inscatter_auto, ig->opt->quiet); }
-
-/* The probe attributes a path to the medium of its first camera segment that ran the technique
- * (the view's first medium); `on` is that segment's NEE by both techniques (MIS-weighted),
- * `off` the walk's own NEE unweighted: what the pixel gets without the technique. */
-static void inscatter_probe_batch(Integrator *ig, Slice *slices, uint32_t n) {
-    const PathState *ps = &ig->ps;
-    auto_probe_batch(&ig->inscatter_auto, ig, slices, n, ps->probe_medium, ps->probe_mis, ps->probe_null,
-                     ps->probe_cost);
-}
-
-/* In-scattering sampling runs where there are media and lights and the light sampler gives
- * scattering weights; --volume-cachepoint-scatter on (1) or auto (2) there. */
-static int inscatter_init(Integrator *ig) {
-    const CandelaOptions *o = ig->opt;
-    ig->inscatter = o->volume_inscatter_sampling != 0 && media_any(ig->media) && ig->lights->count > 0 &&
-                    light_sampler_has_inscatter(ig->light_sampler);
-    return auto_probe_init(&ig->inscatter_auto, "--volume-cachepoint-scatter", media_count(ig->media), ig->npixels,
-                           ig->inscatter ? o->volume_inscatter_sampling : 0);
-}
-
-static void inscatter_free(Integrator *ig) { auto_probe_free(&ig->inscatter_auto); }
-static int inscatter_save(const Integrator *ig, FILE *out) { return auto_probe_save(&ig->inscatter_auto, ig->npixels, out); }
-static int inscatter_load(Integrator *ig, FILE *in) { return auto_probe_load(&ig->inscatter_auto, ig->npixels, in); }
-
-const IntegratorFeature feature_inscatter_auto = {
-    .name = "in-scattering auto choice",
-    .init = inscatter_init,
-    .free = inscatter_free,
-    .batch_end = inscatter_probe_batch,
-    .barrier = inscatter_auto_barrier,
-    .save = inscatter_save,
-    .load = inscatter_load,
-};

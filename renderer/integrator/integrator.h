@@ -91,7 +91,7 @@ typedef struct BarrierHook {
 } BarrierHook;
 #define MAX_BARRIER_HOOKS 8
 
-/* auto_probe.c: the measurement behind the `auto` choices of the volume estimators. */
+/* volume_auto.c: the probe behind the `auto` choices of the volume estimators (one per choice). */
 #define AUTO_PROBE_ITERATIONS 3 /* 1 + 1 + 2 spp */
 typedef struct AutoProbe {
     const char *flag;      /* the CLI flag, for the message */
@@ -164,7 +164,7 @@ typedef struct Integrator {
     uint32_t camera_medium;   /* the mesh medium the camera is in (media.h) */
     int inscatter;            /* in-scattering sampling on camera segments (inscatter.c) may run */
     /* per medium (media_id): whether its camera segments use in-scattering sampling, and whether
-     * NEE samples its emission (on: all; auto: decided after a probe, auto_probe.c) */
+     * NEE samples its emission (on: all; auto: decided after a probe, volume_auto.c) */
     AutoProbe inscatter_auto, emission_auto;
     PathState ps;
     SobolTables sobol_tables;
@@ -285,6 +285,79 @@ uint32_t record_child(const Integrator *ig, Slice *s, uint32_t p, uint32_t paren
 void record_done(const Integrator *ig, Slice *s, uint32_t p, uint32_t pv);
 void record_radiance(const Integrator *ig, uint32_t p, vec3 c, RadianceSource source);
 
+/* The recorder's hooks as the stages call them, unconditionally: each tests whether the recorder
+ * is on (record.active, set by guiding at the barrier) itself, so no stage does (as Cycles'
+ * guiding_record_* hooks do). Inline, so a stage compiles to the branch it had when it tested the
+ * flag at the call site; vectors are passed by pointer because a vec3 passed by value is copied
+ * before the test (measured with callgrind: +1.3% in stage_surface with the recorder off). */
+/* Radiance added to path p (path_add_radiance). */
+static inline void record_vertex_radiance(const Integrator *ig, uint32_t p, const vec3 *c, RadianceSource source) {
+    if (ig->record.active) record_radiance(ig, p, *c, source);
+}
+/* The path's ray continues from a scattering vertex: its vertex becomes the child of the one it
+ * carried (vertex_continue). */
+static inline void record_vertex_child(const Integrator *ig, Slice *s, uint32_t p, const vec3 *pos, const vec3 *dir,
+                                       const vec3 *tp, float pdf, float scatter_pdf, float guide_pdf, float cosine,
+                                       uint32_t flags, float segment) {
+    if (ig->record.active)
+        ig->ps.pv[p] =
+            record_child(ig, s, p, ig->ps.pv[p], *pos, *dir, *tp, pdf, scatter_pdf, guide_pdf, cosine, flags, segment);
+}
+/* The throughput of an NEE ray, for its recorder vertex: the contribution per unit of the
+ * light's radiance (so its sample is the radiance that arrived). */
+static inline vec3 nee_throughput(vec3 contrib, vec3 radiance) {
+    return v3(radiance.x > 0.0f ? contrib.x / radiance.x : 0.0f, radiance.y > 0.0f ? contrib.y / radiance.y : 0.0f,
+              radiance.z > 0.0f ? contrib.z / radiance.z : 0.0f);
+}
+
+/* An NEE ray leaves pos toward a light sampled with pdf: its vertex (shadow_pv), a child of the
+ * path's, with nee_throughput of its contribution times weight (the medium's MIS weight; 1 at a
+ * surface) and the light's radiance. */
+static inline void record_nee_vertex(const Integrator *ig, Slice *s, uint32_t p, const vec3 *pos, const vec3 *dir,
+                                     const vec3 *contrib, float weight, const vec3 *radiance, float pdf, uint32_t flags,
+                                     float segment) {
+    if (ig->record.active)
+        ig->ps.shadow_pv[p] = record_child(ig, s, p, ig->ps.pv[p], *pos, *dir, nee_throughput(v3_scale(*contrib, weight), *radiance),
+                                           pdf, pdf, 0.0f, 1.0f, flags, segment);
+}
+/* The NEE ray of path p is done (its contribution added): its vertex is released. */
+static inline void record_nee_done(const Integrator *ig, Slice *s, uint32_t p) {
+    if (ig->record.active) {
+        record_done(ig, s, p, ig->ps.shadow_pv[p]);
+        ig->ps.shadow_pv[p] = PV_CAMERA;
+    }
+}
+/* A scattering event is done with the vertex of the ray that arrived (`incoming`); continued: 0
+ * when the path ends there (its ray then carries no vertex). */
+static inline void record_scatter_done(const Integrator *ig, Slice *s, uint32_t p, uint32_t incoming, int continued) {
+    if (ig->record.active) {
+        if (!continued) ig->ps.pv[p] = PV_CAMERA;
+        record_done(ig, s, p, incoming);
+    }
+}
+/* The path ends (path_end): its ray's vertex is released. */
+static inline void record_path_end(const Integrator *ig, Slice *s, uint32_t p) {
+    if (ig->record.active) {
+        record_done(ig, s, p, ig->ps.pv[p]);
+        ig->ps.pv[p] = PV_CAMERA;
+    }
+}
+/* The recorder vertex the ray of hit j of the slice carries (when there is such a hit),
+ * prefetched a few hits before its shading. */
+static inline void record_prefetch_hit(const Integrator *ig, const Slice *s, uint32_t j) {
+    if (ig->record.active && j < s->num_hits) recorder_prefetch(ig->record.recorder, ig->ps.pv[s->hits[j]]);
+}
+/* The NEE vertices of the shadow rays items[0..m), and then their parents (read from the
+ * vertices: prefetched after them), while the rays are traced. */
+static inline void record_prefetch_shadows(const Integrator *ig, const uint32_t *items, uint32_t m) {
+    if (ig->record.active)
+        for (uint32_t k = 0; k < m; ++k) recorder_prefetch(ig->record.recorder, ig->ps.shadow_pv[items[k]]);
+}
+static inline void record_prefetch_shadow_parents(const Integrator *ig, const uint32_t *items, uint32_t m) {
+    if (ig->record.active)
+        for (uint32_t k = 0; k < m; ++k) recorder_prefetch_parent(ig->record.recorder, ig->ps.shadow_pv[items[k]]);
+}
+
 /* guide.c: path guiding (see there; its lifecycle, training, auto's probe, guide-dump and
  * checkpoints are its entry in the feature table, feature.h). */
 #define GUIDE_MAX_VOLUME_VERTICES 8 /* medium vertices of a path that are guided (stage_medium.c) */
@@ -303,6 +376,12 @@ static inline int guide_field_of_normal(vec3 n) {
 }
 /* The recorder flags that carry a surface vertex's orientation class. */
 uint32_t guide_surface_flags(vec3 n);
+/* The recorder's flags of a surface vertex a path continues from (a recorder hook, above: 0,
+ * nothing computed, while the recorder is off): delta, and the orientation class guiding
+ * learns it in. */
+static inline uint32_t record_surface_flags(const Integrator *ig, int delta, const vec3 *ng) {
+    return ig->record.active ? (delta ? PV_FLAG_DELTA : 0u) | guide_surface_flags(*ng) : 0u;
+}
 
 /* Every addition to a path's radiance goes through here (throughput and MIS weight already
  * applied): the one place the radiance recorder observes the contributions of a path, and
@@ -323,22 +402,12 @@ static inline void path_add_radiance(const Integrator *ig, uint32_t p, vec3 cont
     ig->ps.radiance[p] = v3_add(ig->ps.radiance[p], contribution);
     /* --guiding auto's probe: the light guiding could help with (two or more bounces) */
     if (ig->guide.auto_state == GUIDE_AUTO_PROBING && vertices >= 2) ig->ps.probe_indirect[p] += v3_luminance(contribution);
-    if (ig->record.active) record_radiance(ig, p, contribution, source);
-}
-
-/* The throughput of an NEE ray, for its recorder vertex: the contribution per unit of the
- * light's radiance (so its sample is the radiance that arrived). */
-static inline vec3 nee_throughput(vec3 contrib, vec3 radiance) {
-    return v3(radiance.x > 0.0f ? contrib.x / radiance.x : 0.0f, radiance.y > 0.0f ? contrib.y / radiance.y : 0.0f,
-              radiance.z > 0.0f ? contrib.z / radiance.z : 0.0f);
+    record_vertex_radiance(ig, p, &contribution, source);
 }
 
 /* The path ends: its ray's vertex is released. */
 static inline void path_end(const Integrator *ig, Slice *s, uint32_t p) {
-    if (ig->record.active) {
-        record_done(ig, s, p, ig->ps.pv[p]);
-        ig->ps.pv[p] = PV_CAMERA;
-    }
+    record_path_end(ig, s, p);
 }
 
 /* What path p draws its fixed dimensions with (sequence.h: dims_camera, dims_bounce). */
@@ -365,24 +434,14 @@ int inscatter_table(const Integrator *ig, SceneRay ray, float tmax, const MediaV
  * balance heuristic against null-collision tracking (Eq. 10), added through the funnel. */
 float inscatter_estimate(const Integrator *ig, Slice *s, uint32_t p, SceneRay ray, const MediaView *view,
                          const VolumeDistanceTable *tab, uint32_t *hint, float *scratch, float *cost);
-/* Whether a camera segment through these media uses the technique (a function of the media
- * and of the iteration's state only, so both techniques agree on it). */
-int inscatter_segment_on(const Integrator *ig, const MediaView *view);
-/* In-scattering sampling's per-medium state (off, on, auto) and its probe's accounting after
- * each batch (per path, the camera segment's NEE with and without the technique) are its entry
- * in the feature table (feature.h). */
 
-int auto_probe_init(AutoProbe *ap, const char *flag, uint32_t num_media, uint32_t npixels, int mode);
-void auto_probe_free(AutoProbe *ap);
-/* its checkpoint section (the features' save / load hooks) */
-int auto_probe_save(const AutoProbe *ap, uint32_t npixels, FILE *out);
-int auto_probe_load(AutoProbe *ap, uint32_t npixels, FILE *in);
-/* After a batch, in path order: per path the medium it is attributed to (media_id + 1, 0:
- * none), the feature's share of its radiance as rendered and without the feature, its cost. */
-void auto_probe_batch(AutoProbe *ap, const Integrator *ig, const Slice *slices, uint32_t n, const uint32_t *medium,
-                      const float *on, const float *off, const float *cost);
-/* At each barrier; decides after AUTO_PROBE_ITERATIONS. */
-void auto_probe_barrier(AutoProbe *ap, int quiet);
+/* volume_auto.c: the volume estimators' `auto` choices, in-scattering sampling's and emission
+ * sampling's: each a per-medium state (off, on, auto) and a probe (AutoProbe) whose accounting
+ * after each batch and decision at a barrier are its entry in the feature table (feature.h);
+ * the probes' records, path by path, are the inline functions below. */
+/* Whether a camera segment through these media uses in-scattering sampling (a function of the
+ * media and of the iteration's state only, so both techniques agree on it). */
+int inscatter_segment_on(const Integrator *ig, const MediaView *view);
 
 /* The auto choices' rule (both probes): with V_path the variance of the paths' radiance
  * measured with the feature on, V_on / V_off that of the feature's share of it with and
@@ -398,7 +457,7 @@ static inline double sample_variance(double n, double sum, double sum2) {
     return n > 1.0 ? fmax((sum2 - sum * sum / n) / (n - 1.0), 0.0) : 0.0;
 }
 
-/* emission_auto.c: --volume-emission-sampling on / auto, as in-scattering sampling above: all
+/* --volume-emission-sampling on / auto (volume_auto.c), as in-scattering sampling above: all
  * emissive volumes sample their emission by NEE during the probe (4 spp), then only those where
  * the estimated time to unit variance is lower with it (its entry in the feature table,
  * feature.h). */

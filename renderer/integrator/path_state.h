@@ -56,13 +56,13 @@
     F(uint32_t, shadow_medium, N)   /* the mesh medium it starts in */                          \
     F(uint32_t, shadow_light, N)    /* the light it aims at */                                   \
     F(uint32_t, shadow_pv, N)       /* the recorder's vertex of the shadow ray (PVIndex) */      \
-    /* -- the probe of in-scattering sampling auto (inscatter.c), first iterations only */     \
+    /* -- the probe of in-scattering sampling auto (volume_auto.c), first iterations only */   \
     F(uint32_t, probe_medium, N)    /* the medium (media_id + 1) of its first camera segment   \
                                      * that ran in-scattering sampling; 0: none */              \
     F(float, probe_null, N)         /* that NEE by tracking alone, unweighted (luminance) */     \
     F(float, probe_mis, N)          /* the same NEE by both techniques, MIS-weighted */          \
     F(float, probe_cost, N)         /* in-scattering sampling's cost (rays + collisions / 10) */ \
-    /* -- the probe of emission sampling auto (emission_auto.c) */                              \
+    /* -- the probe of emission sampling auto (volume_auto.c) */                                \
     F(uint32_t, probe_em_medium, N) /* the first emissive medium (media_id + 1) it met; 0: none */ \
     F(float, probe_em_on, N)        /* that medium's emission: NEE and tracking, MIS-weighted */ \
     F(float, probe_em_off, N)       /* the same by tracking alone (unweighted) */                \

@@ -36,11 +36,8 @@ static float medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec
     if (sampled) {
         float tfar = isinf(ls.distance) ? INFINITY : ls.distance * (1.0f - 1e-3f);
         s->shadow_rays++;
-        if (ig->record.active) { /* the NEE vertex, released below once its ray is traced */
-            vec3 tp = nee_throughput(v3_scale(contrib, weight), ls.radiance);
-            ps->shadow_pv[p] =
-                record_child(ig, s, p, ps->pv[p], x, ls.wi, tp, ls.pdf, ls.pdf, 0.0f, 1.0f, PV_FLAG_NEE | PV_FLAG_VOLUME, segment);
-        }
+        /* the NEE vertex, released below once its ray is traced */
+        record_nee_vertex(ig, s, p, &x, &ls.wi, &contrib, weight, &ls.radiance, ls.pdf, PV_FLAG_NEE | PV_FLAG_VOLUME, segment);
         if (scene_visible1_masked(ig->scene, (SceneRay){x, 0.0f, ls.wi, tfar}, lights_shadow_mask(ig->lights, ls.light))) {
             vec3 T = vertex_shadow_transmittance(ig, s, ps->rng_key[p], ps->depth[p], ps->medium[p], x, ls.wi, tfar);
             visibility = clampf(v3_average(T), 0.0f, 1.0f);
@@ -48,10 +45,7 @@ static float medium_direct_light(const Integrator *ig, Slice *s, uint32_t p, vec
             path_add_radiance(ig, p, v3_scale(c, weight), RADIANCE_DIRECT, ps->depth[p]);
             unweighted = v3_luminance(c);
         }
-        if (ig->record.active) {
-            record_done(ig, s, p, ps->shadow_pv[p]);
-            ps->shadow_pv[p] = PV_CAMERA;
-        }
+        record_nee_done(ig, s, p);
     }
     emission_probe_nee(ig, p, ls.light, unweighted * weight, ls.cost + (sampled ? 1.0f : 0.0f));
     light_sampler_record(ig->light_sampler, outcome, visibility);
@@ -192,7 +186,7 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         if (!scatter_sample_guided(&sc, u, &ss)) return WALK_ENDED;
         uint32_t incoming = ps->pv[p];
         if (!vertex_continue(ig, s, p, x, &ss, &g, &lc, 1.0f, PV_FLAG_VOLUME, ev.t)) return WALK_ENDED;
-        if (ig->record.active) record_done(ig, s, p, incoming); /* the scattering event is done with the incoming vertex */
+        record_scatter_done(ig, s, p, incoming, 1); /* the scattering event is done with the incoming vertex */
         /* the next segment: its closest hit now (depth-first), then walk it */
         SceneRay next = {x, 0.0f, ss.wi, INFINITY};
         ps->ray[p] = next;

@@ -16,8 +16,7 @@ void stage_shadow(const Integrator *ig, Slice *s) {
         const uint32_t *items = s->shadows + b;
         /* the learning state the outcomes will update arrives while the rays are traced */
         for (uint32_t k = 0; k < m; ++k) light_sampler_prefetch_outcome(sampler, ps->shadow_outcome[items[k]]);
-        if (ig->record.active)
-            for (uint32_t k = 0; k < m; ++k) recorder_prefetch(ig->record.recorder, ps->shadow_pv[items[k]]);
+        record_prefetch_shadows(ig, items, m);
         if (shadow_linking) {
             for (uint32_t k = 0; k < m; ++k) masks[k] = lights_shadow_mask(ig->lights, ps->shadow_light[items[k]]);
             scene_occluded_masked(ig->scene, ps->shadow_ray, items, m, masks, occluded);
@@ -25,8 +24,7 @@ void stage_shadow(const Integrator *ig, Slice *s) {
             scene_occluded(ig->scene, ps->shadow_ray, items, m, occluded);
         }
         /* an NEE vertex hands its emission to its parent, which shading left long ago */
-        if (ig->record.active)
-            for (uint32_t k = 0; k < m; ++k) recorder_prefetch_parent(ig->record.recorder, ps->shadow_pv[items[k]]);
+        record_prefetch_shadow_parents(ig, items, m);
         for (uint32_t k = 0; k < m; ++k) {
             uint32_t p = items[k];
             float visibility = 0.0f;
@@ -43,10 +41,7 @@ void stage_shadow(const Integrator *ig, Slice *s) {
                 if (ig->emission_auto.active) emission_probe_nee(ig, p, ps->shadow_light[p], v3_luminance(c), 0.0f);
             }
             light_sampler_record(sampler, ps->shadow_outcome[p], visibility);
-            if (ig->record.active) {
-                record_done(ig, s, p, ps->shadow_pv[p]);
-                ps->shadow_pv[p] = PV_CAMERA;
-            }
+            record_nee_done(ig, s, p);
         }
     }
 }

@@ -92,9 +92,7 @@ static void surface_direct_light(const Integrator *ig, Slice *s, uint32_t p, con
         ps->shadow_depth[p] = depth;
         ps->shadow_medium[p] = side_medium(ig, p, h, ls.wi);
         ps->shadow_light[p] = ls.light; /* also its shadow-linking ray mask (stage_shadow.c) */
-        if (ig->record.active)
-            ps->shadow_pv[p] = record_child(ig, s, p, ps->pv[p], h->p, ls.wi, nee_throughput(contrib, ls.radiance), ls.pdf,
-                                            ls.pdf, 0.0f, 1.0f, PV_FLAG_NEE, ps->hit[p].t);
+        record_nee_vertex(ig, s, p, &h->p, &ls.wi, &contrib, 1.0f, &ls.radiance, ls.pdf, PV_FLAG_NEE, ps->hit[p].t);
         s->shadows[s->num_shadows++] = p;
         return;
     }
@@ -108,7 +106,7 @@ static int surface_continuation(const Integrator *ig, Slice *s, uint32_t p, cons
                                  const Scatter *sc, const LightSampleContext *lc, DimsGroup *g, const ScatterSample *ss) {
     const PathState *ps = &ig->ps;
     if (!ss) return 0;
-    uint32_t flags = ig->record.active ? (ss->delta ? PV_FLAG_DELTA : 0u) | guide_surface_flags(sc->ng) : 0u;
+    uint32_t flags = record_surface_flags(ig, ss->delta, &sc->ng);
     if (!vertex_continue(ig, s, p, h->p, ss, g, lc, fabsf(v3_dot(ss->wi, sc->frame.n)), flags, ps->hit[p].t)) return 0;
     if (ss->transmitted) ps->medium[p] = side_medium(ig, p, h, ss->wi);
     ps->ray[p] = (SceneRay){offset_ray_origin(h->p, scatter_side_normal(sc, ss->wi)), 0.0f, ss->wi, INFINITY};
@@ -183,8 +181,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
         if (i + SHADE_PREFETCH / 2 < s->num_hits) scene_prefetch_hit_indices(scene, &ps->hit[s->hits[i + SHADE_PREFETCH / 2]]);
         if (i + SHADE_PREFETCH / 4 < s->num_hits) scene_prefetch_hit_vertices(scene, &ps->hit[s->hits[i + SHADE_PREFETCH / 4]]);
         /* the recorder vertex the hit's ray carries (its pv was fetched a few hits earlier) */
-        if (ig->record.active && i + SHADE_PREFETCH / 2 < s->num_hits)
-            recorder_prefetch(ig->record.recorder, ps->pv[s->hits[i + SHADE_PREFETCH / 2]]);
+        record_prefetch_hit(ig, s, i + SHADE_PREFETCH / 2);
         if (look_ahead && i + GUIDE_AHEAD < s->num_hits)
             guide_look_ahead(ig, s->hits[i + GUIDE_AHEAD], &ahead[(i + GUIDE_AHEAD) % GUIDE_AHEAD_RING], ahead_cursors);
         uint32_t p = s->hits[i];
@@ -251,9 +248,6 @@ void stage_surface(const Integrator *ig, Slice *s) {
             light_sampler_aov(ig->light_sampler, &lc, &ps->aov_sel_point[p], &ps->aov_sel_light[p]);
         if (!delta && ig->lights->count > 0) surface_direct_light(ig, s, p, &h, &sc, &lc);
         int continued = surface_continuation(ig, s, p, &h, &sc, &lc, &g, sampled ? &ss : NULL);
-        if (ig->record.active) { /* the scattering event is done with the incoming vertex */
-            if (!continued) ps->pv[p] = PV_CAMERA;
-            record_done(ig, s, p, incoming);
-        }
+        record_scatter_done(ig, s, p, incoming, continued); /* the scattering event is done with the incoming vertex */
     }
 }

@@ -103,9 +103,7 @@ static inline int vertex_continue(const Integrator *ig, Slice *s, uint32_t p, ve
     if (!v3_is_finite(beta) || v3_is_black(beta)) return 0;
     if (ps->depth[p] + 1 >= RR_START_DEPTH && !russian_roulette(&beta, ps->rr_scale[p], dims_lane(g, 3))) return 0;
     ps->throughput[p] = beta;
-    if (ig->record.active)
-        ps->pv[p] = record_child(ig, s, p, ps->pv[p], x, ss->wi, beta, ss->pdf, ss->scatter_pdf, ss->guide_pdf, cos_term,
-                                 flags, segment);
+    record_vertex_child(ig, s, p, &x, &ss->wi, &beta, ss->pdf, ss->scatter_pdf, ss->guide_pdf, cos_term, flags, segment);
     path_scattered(ps, p, x, lc, ss->scatter_pdf, ss->delta); /* MIS against NEE: the function's pdf (scatter.h) */
     return 1;
 }

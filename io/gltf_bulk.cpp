@@ -1,0 +1,233 @@
+// io/gltf_bulk.cpp: the bulk pass (io/README.md, "Memory: a scene of a million light nodes"): a
+// file with many light nodes has its plain light nodes and light records read into compact
+// records while nlohmann parses it, the rest handed to tinygltf; the node walk places a bulk
+// record as it would the node.
+#include "gltf_internal.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <exception>
+#include <new>
+#include <string>
+#include <vector>
+
+namespace candela_io::gltf {
+
+// How many light nodes make the bulk pass worth its second parse: below this the file goes to
+// tinygltf whole, as it always did (its JSON tree and Model cost ~5 KB per light node, 5 GB for
+// issue 28's street of 1M lights; 20 MB at this count).
+static constexpr size_t BULK_MIN_LIGHTS = 4096;
+
+static size_t count_occurrences(const unsigned char *p, size_t n, const char *what) {
+    const size_t w = std::strlen(what);
+    size_t count = 0;
+    for (const unsigned char *at = p, *end = p + n;
+         (at = std::search(at, end, what, what + w)) != end; at += w)
+        ++count;
+    return count;
+}
+
+static bool number_array(const nlohmann::json &v, size_t n, double *out) {
+    if (!v.is_array() || v.size() != n) return false;
+    for (size_t k = 0; k < n; ++k) {
+        if (!v[k].is_number()) return false;
+        out[k] = v[k].get<double>();
+    }
+    return true;
+}
+
+// The bulk pass: nlohmann parses the JSON with a callback that takes each plain light node
+// ({"name", "translation", "rotation", "scale", "extensions": {"KHR_lights_punctual":
+// {"light": i}}} and nothing else) and each plain light record ("name", "type", "color",
+// "intensity", "range", "spot" with its two angles) as it completes, stores it compactly and
+// drops it from the tree, so the tree never holds them; what is left (every other node, kept in
+// its place by kept_of_gltf_, and the rest of the file) is written back as JSON for tinygltf.
+// Values are read as tinygltf reads them (nlohmann's doubles, tinygltf's defaults), so a light
+// comes out the same either way. False: the file is not one the pass handles (malformed JSON,
+// duplicate top-level keys); tinygltf then parses it whole and reports what it finds.
+bool Loader::bulk_pass(const unsigned char *json, size_t len, std::string *kept) {
+    std::string key_at[4];
+    size_t n_nodes_arrays = 0, n_light_arrays = 0;
+    int32_t kept_nodes = 0, kept_lights = 0;
+    auto in_nodes = [&]() { return key_at[1] == "nodes"; };
+    auto in_lights = [&]() {
+        return key_at[1] == "extensions" && key_at[2] == "KHR_lights_punctual" && key_at[3] == "lights";
+    };
+    auto add_name = [&](const nlohmann::json &o, uint32_t *at, uint32_t *n) {
+        auto it = o.find("name");
+        if (it == o.end()) return;
+        const std::string &name = it->get_ref<const std::string &>();
+        *at = uint32_t(names_.size());
+        *n = uint32_t(name.size());
+        names_ += name;
+    };
+    auto plain_node = [&](const nlohmann::json &o) {
+        if (!o.is_object() || names_.size() > UINT32_MAX / 2) return false;
+        BulkNode b;
+        bool light = false;
+        for (auto it = o.begin(); it != o.end(); ++it) {
+            const std::string &k = it.key();
+            const nlohmann::json &v = it.value();
+            if (k == "name") {
+                if (!v.is_string()) return false;
+            } else if (k == "translation") {
+                if (!number_array(v, 3, b.t)) return false;
+                b.has_t = 1;
+            } else if (k == "rotation") {
+                if (!number_array(v, 4, b.q)) return false;
+                b.has_r = 1;
+            } else if (k == "scale") {
+                if (!number_array(v, 3, b.s)) return false;
+                b.has_s = 1;
+            } else if (k == "extensions") {
+                if (!v.is_object() || v.size() != 1) return false;
+                auto lp = v.find("KHR_lights_punctual");
+                if (lp == v.end() || !lp->is_object() || lp->size() != 1) return false;
+                auto li = lp->find("light");
+                if (li == lp->end() || !li->is_number_unsigned() || li->get<uint64_t>() >= 2147483648u) return false;
+                b.light = int32_t(li->get<uint64_t>());
+                light = true;
+            } else {
+                return false;
+            }
+        }
+        if (!light) return false;
+        add_name(o, &b.name_at, &b.name_len);
+        bulk_nodes_.push_back(b);
+        return true;
+    };
+    auto plain_light = [&](const nlohmann::json &o) {
+        if (!o.is_object() || names_.size() > UINT32_MAX / 2) return false;
+        LightDef d;
+        std::string type;
+        bool spot_seen = false;
+        for (auto it = o.begin(); it != o.end(); ++it) {
+            const std::string &k = it.key();
+            const nlohmann::json &v = it.value();
+            if (k == "name" || k == "type") {
+                if (!v.is_string()) return false;
+                if (k == "type") type = v.get<std::string>();
+            } else if (k == "color") {
+                if (!number_array(v, 3, d.color)) return false;
+                d.has_color = true;
+            } else if (k == "intensity" || k == "range") {
+                if (!v.is_number()) return false;
+                (k == "intensity" ? d.intensity : d.range) = v.get<double>();
+            } else if (k == "spot") {
+                if (!v.is_object()) return false;
+                for (auto a = v.begin(); a != v.end(); ++a) {
+                    if (!a.value().is_number()) return false;
+                    if (a.key() == "innerConeAngle") d.inner = a.value().get<double>();
+                    else if (a.key() == "outerConeAngle") d.outer = a.value().get<double>();
+                    else return false;
+                }
+                spot_seen = true;
+            } else {
+                return false;
+            }
+        }
+        if (type == "point" || type == "directional") {
+            if (spot_seen) return false; // tinygltf ignores it; leave that to tinygltf
+            d.type = type == "point" ? IO_LIGHT_POINT : IO_LIGHT_DIRECTIONAL;
+        } else if (type == "spot" && spot_seen) {
+            d.type = IO_LIGHT_SPOT;
+        } else {
+            return false;
+        }
+        add_name(o, &d.name_at, &d.name_len);
+        light_defs_.push_back(d);
+        return true;
+    };
+    nlohmann::json d;
+    try {
+        d = nlohmann::json::parse(json, json + len, [&](int depth, nlohmann::json::parse_event_t e, nlohmann::json &v) {
+            using E = nlohmann::json::parse_event_t;
+            if (e == E::key && depth >= 1 && depth <= 3) {
+                key_at[depth] = v.get<std::string>();
+                for (int k = depth + 1; k <= 3; ++k) key_at[k].clear();
+                if (depth == 1 && key_at[1] == "nodes") ++n_nodes_arrays;
+                if (depth == 3 && in_lights()) ++n_light_arrays;
+                return true;
+            }
+            const bool done = e == E::value || e == E::object_end || e == E::array_end;
+            if (done && depth == 2 && in_nodes()) { // an element of "nodes" completed
+                if (plain_node(v)) {
+                    kept_of_gltf_.push_back(-int32_t(bulk_nodes_.size()));
+                    return false;
+                }
+                kept_of_gltf_.push_back(kept_nodes++);
+            } else if (done && depth == 4 && in_lights()) { // an element of the lights completed
+                if (plain_light(v)) {
+                    light_kept_.push_back(-1);
+                    return false;
+                }
+                light_defs_.emplace_back();
+                light_kept_.push_back(kept_lights++);
+            }
+            return true;
+        });
+    } catch (const std::bad_alloc &) {
+        throw;
+    } catch (const std::exception &) {
+        d = nlohmann::json();
+        n_nodes_arrays = 2; // malformed: tinygltf reports it
+    }
+    if (n_nodes_arrays > 1 || n_light_arrays > 1 || kept_of_gltf_.size() > size_t(INT32_MAX) ||
+        light_defs_.size() > size_t(INT32_MAX)) {
+        bulk_nodes_ = std::vector<BulkNode>();
+        kept_of_gltf_ = std::vector<int32_t>();
+        light_kept_ = std::vector<int32_t>();
+        light_defs_ = std::vector<LightDef>();
+        names_ = std::string();
+        return false;
+    }
+    kept_of_gltf_.shrink_to_fit();
+    light_kept_.shrink_to_fit();
+    *kept = d.dump();
+    return true;
+}
+
+// The bulk pass when the file has many light nodes (BULK_MIN_LIGHTS); false: tinygltf reads it whole.
+bool Loader::use_bulk_pass(const unsigned char *json, size_t len, std::string *kept) {
+    const size_t lights = count_occurrences(json, len, "\"KHR_lights_punctual\"");
+    if (lights < (bulk_min_lights_ ? bulk_min_lights_ : BULK_MIN_LIGHTS)) return false;
+    // reserved from counts of the text (upper bounds), so the records never grow by doubling
+    bulk_nodes_.reserve(lights);
+    light_defs_.reserve(std::min(lights, count_occurrences(json, len, "\"type\"")));
+    bulk_ = bulk_pass(json, len, kept);
+    return bulk_;
+}
+
+// A bulk record in the node walk: what flatten_nodes does for a node with a light and nothing else.
+void Loader::place_bulk(int gi, const Mat4 &parent, int32_t parent_walk) {
+    const BulkNode &b = bulk_nodes_[size_t(-1 - kept_of_gltf_[size_t(gi)])];
+    const std::string name = name_of(b.name_at, b.name_len);
+    const BulkWhat what{gi, &name}; // for a message only
+    IoNode walk{};
+    copy_name(walk.name, name);
+    walk.gltf_node = gi;
+    walk.parent = parent_walk;
+    const int32_t walk_index = int32_t(nodes_.size());
+    node_of_gltf_[size_t(gi)] = walk_index;
+    const Mat4 local = trs_local(b.t, b.q, b.s, &walk);
+    nodes_.push_back(walk);
+    const Mat4 world = mul(parent, local);
+    bool finite = true;
+    double largest = 0.0;
+    for (double e : world.m) {
+        finite = finite && std::isfinite(e);
+        largest = std::max(largest, std::fabs(e));
+    }
+    if (!finite || largest > IO_MAX_COORDINATE)
+        fail(strf("%s: transform out of range (an entry is %s; the limit is %g)", what().c_str(),
+                  finite ? strf("%g", largest).c_str() : "not finite", IO_MAX_COORDINATE));
+    if (size_t(b.light) >= light_defs_.size())
+        fail(strf("%s: light %.17g out of range (%zu lights)", what().c_str(), double(b.light), light_defs_.size()));
+    place_light(size_t(b.light), name, what, world.m, walk_index, nullptr);
+}
+
+}  // namespace candela_io::gltf
