@@ -59,6 +59,13 @@ bool is_regular_file(const std::string &p);
 // The file-reference policy (--confine-to): file resolves inside folder_real ("": anywhere).
 bool inside_folder(const std::string &file, const std::string &folder_real);
 
+// The scene-references listing's fast path (gltf_references.cpp): simdjson over json[0, len),
+// readable up to capacity (len + JSON_FAST_PADDING at least); false: it gave up (the nlohmann
+// listing decides), found untouched.
+constexpr size_t JSON_FAST_PADDING = 64;
+bool references_fast(unsigned char *json, size_t len, size_t capacity, const std::string &dir,
+                     std::vector<std::string> *found);
+
 struct FsUser {
     std::string dir, confine;
 };

@@ -1689,6 +1689,30 @@ static void test_files(void) {
     CHECK(refs.count == 4, "references: %d files, want 4", refs.count);
     for (int i = 0; i < refs.count && i < 4; ++i) CHECK(strcmp(refs.paths[i], want[i]) == 0, "reference %d: %s, want %s", i, refs.paths[i], want[i]);
     io_path_list_free(&refs);
+    /* values of the wrong type are passed over, a key given twice in an object gives its last
+     * value (as nlohmann, tinygltf's parser, keeps it), the asset's and the scenes'
+     * environments are listed; the listing's order is buffers, images, volumes, environments.
+     * Once read by simdjson (gltf_references.cpp), once with a UTF-8 byte order mark, which
+     * simdjson 3.0 refuses and nlohmann skips: the fallback listing, the same answer. */
+    const char *odd = "{\"asset\":{\"version\":\"2.0\",\"extras\":{\"candela_environment\":{\"uri\":\"a.exr\"}}},"
+                      "\"images\":{\"uri\":\"x.png\"},\"buffers\":[{\"uri\":3},{\"uri\":\"one.bin\",\"uri\":\"two.bin\"}],"
+                      "\"nodes\":[5,{\"extras\":7},{\"extras\":{\"candela_volume\":{\"uri\":3}}},"
+                      "{\"name\":\"v\",\"extras\":{\"candela_volume\":{\"uri\":\"v%41.vdb\"}}}],"
+                      "\"scenes\":[{\"extras\":{\"candela_environment\":{\"uri\":\"s.exr\"}}},3]}";
+    const char *odd_want[4] = {"two.bin", "vA.vdb", "a.exr", "s.exr"};
+    for (int bom = 0; bom < 2; ++bom) {
+        char doc[1024];
+        snprintf(doc, sizeof doc, "%s%s", bom ? "\xEF\xBB\xBF" : "", odd);
+        write_bytes(scene, doc, strlen(doc));
+        CHECK(io_gltf_references(scene, &refs, err) == 0, "references (bom %d): %s", bom, err);
+        CHECK(refs.count == 4, "references (bom %d): %d files, want 4", bom, refs.count);
+        for (int i = 0; i < refs.count && i < 4; ++i) {
+            char w[600];
+            snprintf(w, sizeof w, "%s/%s", tmpdir, odd_want[i]);
+            CHECK(strcmp(refs.paths[i], w) == 0, "reference %d (bom %d): %s, want %s", i, bom, refs.paths[i], w);
+        }
+        io_path_list_free(&refs);
+    }
     unlink(hard);
 }
 
