@@ -22,11 +22,13 @@ namespace candela_io::gltf {
 // issue 28's street of 1M lights; 20 MB at this count).
 static constexpr size_t BULK_MIN_LIGHTS = 4096;
 
+// glibc's memmem (SIMD, two-way), not std::search: on the 1M-light street's 211 MB the two
+// counts took 0.5 s of CPU with std::search (perf: find_if and memcmp, 4.7% of the run).
 static size_t count_occurrences(const unsigned char *p, size_t n, const char *what) {
     const size_t w = std::strlen(what);
     size_t count = 0;
     for (const unsigned char *at = p, *end = p + n;
-         (at = std::search(at, end, what, what + w)) != end; at += w)
+         (at = static_cast<const unsigned char *>(::memmem(at, size_t(end - at), what, w))) != nullptr; at += w)
         ++count;
     return count;
 }
