@@ -8,7 +8,7 @@
 # 2. Correctness: the render succeeds; its statistics count what the generator says it wrote
 #    (OUT.counts.json): lights (one per punctual light, per emissive primitive instance, per
 #    emissive volume, plus the sky), triangles after instancing, instances, textures, volumes;
-#    the image (tests/exr_stats) has no NaN or infinity, is lit (mean > 0, at least half the
+#    the image (tests/exr_stats) has no NaN or infinity, is lit (mean > 0, at least 90% of the
 #    pixels not black) and has no black tile in an 8 x 8 grid.
 # 3. Memory (builds without sanitizers: SANITIZE is meson's b_sanitize): the scene's growth
 #    from 1 block (0.5%) to 3 blocks (1%; the same distinct meshes and textures, so the
@@ -69,7 +69,7 @@ for s in ('p1', 'p05'):
     check(got['volumes']['count'] == want['volumes'], '%s: volumes %d, expected %d' % (s, got['volumes']['count'], want['volumes']))
     check(img['nonfinite'] == 0, '%s: %d non-finite values' % (s, img['nonfinite']))
     check(min(img['mean']) > 0.0, '%s: mean %s' % (s, img['mean']))
-    check(img['lit_fraction'] >= 0.5, '%s: only %.3f of the pixels are lit' % (s, img['lit_fraction']))
+    check(img['lit_fraction'] >= 0.9, '%s: only %.3f of the pixels are lit (at least 0.9; 0.98 measured)' % (s, img['lit_fraction']))
     check(img['black_tiles'] == 0, '%s: %d black tiles' % (s, img['black_tiles']))
 if os.environ.get('SANITIZE', 'none') != 'none':
     print('memory not checked: built with -fsanitize=%s' % os.environ['SANITIZE'])
