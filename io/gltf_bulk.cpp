@@ -5,6 +5,7 @@
 #include "gltf_internal.hpp"
 
 #include <nlohmann/json.hpp>
+#include <simdjson.h>
 
 #include <algorithm>
 #include <cmath>
@@ -13,6 +14,7 @@
 #include <exception>
 #include <new>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace candela_io::gltf {
@@ -193,15 +195,331 @@ bool Loader::bulk_pass(const unsigned char *json, size_t len, std::string *kept)
     return true;
 }
 
-// The bulk pass when the file has many light nodes (BULK_MIN_LIGHTS); false: tinygltf reads it whole.
+// ---- the bulk pass with simdjson (On-Demand: no tree, GB/s; nlohmann read the 1M-light
+// street at ~15 MB/s: its lexer, strtod and the per-node trees it built and dropped were most of
+// the load's CPU). It reads what bulk_pass reads, as nlohmann would give it, and hands the same
+// records and the same JSON (the file's own text for what it keeps: nothing is re-serialised) to
+// tinygltf. Anything it is unsure of makes it give up (false, nothing kept) and bulk_pass runs.
+
+namespace od = simdjson::ondemand;
+
+// The text of a value (an object or array whole; a scalar's token), consumed.
+static std::string_view raw_of(od::value v) {
+    od::json_type t = v.type();
+    if (t == od::json_type::object) {
+        od::object o = v.get_object();
+        return o.raw_json();
+    }
+    if (t == od::json_type::array) {
+        od::array a = v.get_array();
+        return a.raw_json();
+    }
+    return v.raw_json_token();
+}
+
+// A field's key as written (escapes and all, without the quotes): read before unescaped_key.
+static std::string_view raw_key(od::field &f) {
+    const char *k = f.key().raw();
+    size_t n = 0;
+    for (size_t backslashes = 0; k[n] != '"' || backslashes % 2; ++n) backslashes = k[n] == '\\' ? backslashes + 1 : 0;
+    return std::string_view(k, n);
+}
+
+// A number as nlohmann gives it as a double: an integer token is read as an integer first, so
+// "-0" is +0 (simdjson's double would keep the sign).
+static bool fast_number(od::value v, double *out) {
+    if (v.type() != od::json_type::number) return false;
+    const std::string_view token = v.raw_json_token();
+    double d;
+    if (v.get_double().get(d)) return false;
+    if (d == 0.0 && token.find_first_of(".eE") == std::string_view::npos) d = 0.0;
+    *out = d;
+    return true;
+}
+
+static bool fast_numbers(od::value v, size_t n, double *out) {
+    od::array a;
+    if (v.get_array().get(a)) return false;
+    size_t k = 0;
+    for (od::value e : a) {
+        if (k == n || !fast_number(e, &out[k])) return false;
+        ++k;
+    }
+    return k == n;
+}
+
+// Each key of an object once (a key given twice: not plain; tinygltf reads such a record).
+struct SeenKeys {
+    uint32_t seen = 0;
+    bool first(int bit) { return !(seen >> bit & 1u) && (seen |= 1u << bit, true); }
+};
+
+// One element of "nodes" or of the lights, parsed again on its own (raw_of gave its text).
+struct ElementParser {
+    od::parser parser;
+    od::document doc; // what the object returned reads through
+    std::string text; // the element and simdjson's padding, reused
+    od::object object(std::string_view raw) {
+        text.assign(raw);
+        text.append(simdjson::SIMDJSON_PADDING, ' ');
+        doc = parser.iterate(simdjson::padded_string_view(text.data(), raw.size(), text.size()));
+        return doc.get_object();
+    }
+};
+
+bool Loader::fast_plain_node(ElementParserRef ep, std::string_view raw) {
+    BulkNode b;
+    std::string_view name;
+    bool has_name = false, light = false;
+    SeenKeys keys;
+    od::object o = static_cast<ElementParser *>(ep)->object(raw);
+    for (auto f : o) {
+        std::string_view k = f.unescaped_key();
+        od::value v = f.value();
+        if (k == "name") {
+            if (!keys.first(0) || v.get_string().get(name)) return false;
+            has_name = true;
+        } else if (k == "translation") {
+            if (!keys.first(1) || !fast_numbers(v, 3, b.t)) return false;
+            b.has_t = 1;
+        } else if (k == "rotation") {
+            if (!keys.first(2) || !fast_numbers(v, 4, b.q)) return false;
+            b.has_r = 1;
+        } else if (k == "scale") {
+            if (!keys.first(3) || !fast_numbers(v, 3, b.s)) return false;
+            b.has_s = 1;
+        } else if (k == "extensions") {
+            if (!keys.first(4)) return false;
+            od::object ext;
+            if (v.get_object().get(ext)) return false;
+            size_t n_ext = 0;
+            for (auto e : ext) {
+                if (++n_ext > 1 || e.unescaped_key().value() != "KHR_lights_punctual") return false;
+                od::object lp;
+                if (e.value().get_object().get(lp)) return false;
+                size_t n_lp = 0;
+                for (auto l : lp) {
+                    uint64_t index;
+                    if (++n_lp > 1 || l.unescaped_key().value() != "light" || l.value().get_uint64().get(index) ||
+                        index >= 2147483648u)
+                        return false;
+                    b.light = int32_t(index);
+                }
+                if (n_lp != 1) return false;
+            }
+            if (n_ext != 1) return false;
+            light = true;
+        } else {
+            return false;
+        }
+    }
+    if (!light || names_.size() > UINT32_MAX / 2) return false;
+    if (has_name) {
+        b.name_at = uint32_t(names_.size());
+        b.name_len = uint32_t(name.size());
+        names_.append(name);
+    }
+    bulk_nodes_.push_back(b);
+    return true;
+}
+
+bool Loader::fast_plain_light(ElementParserRef ep, std::string_view raw) {
+    LightDef d;
+    std::string_view name, type;
+    bool has_name = false, spot_seen = false;
+    SeenKeys keys;
+    od::object o = static_cast<ElementParser *>(ep)->object(raw);
+    for (auto f : o) {
+        std::string_view k = f.unescaped_key();
+        od::value v = f.value();
+        if (k == "name") {
+            if (!keys.first(0) || v.get_string().get(name)) return false;
+            has_name = true;
+        } else if (k == "type") {
+            if (!keys.first(1) || v.get_string().get(type)) return false;
+        } else if (k == "color") {
+            if (!keys.first(2) || !fast_numbers(v, 3, d.color)) return false;
+            d.has_color = true;
+        } else if (k == "intensity") {
+            if (!keys.first(3) || !fast_number(v, &d.intensity)) return false;
+        } else if (k == "range") {
+            if (!keys.first(4) || !fast_number(v, &d.range)) return false;
+        } else if (k == "spot") {
+            if (!keys.first(5)) return false;
+            od::object spot;
+            if (v.get_object().get(spot)) return false;
+            SeenKeys angles;
+            for (auto a : spot) {
+                std::string_view ak = a.unescaped_key();
+                if (ak == "innerConeAngle") {
+                    if (!angles.first(0) || !fast_number(a.value(), &d.inner)) return false;
+                } else if (ak == "outerConeAngle") {
+                    if (!angles.first(1) || !fast_number(a.value(), &d.outer)) return false;
+                } else {
+                    return false;
+                }
+            }
+            spot_seen = true;
+        } else {
+            return false;
+        }
+    }
+    if (type == "point" || type == "directional") {
+        if (spot_seen) return false; // tinygltf ignores it; leave that to tinygltf
+        d.type = type == "point" ? IO_LIGHT_POINT : IO_LIGHT_DIRECTIONAL;
+    } else if (type == "spot" && spot_seen) {
+        d.type = IO_LIGHT_SPOT;
+    } else {
+        return false;
+    }
+    if (names_.size() > UINT32_MAX / 2) return false;
+    if (has_name) {
+        d.name_at = uint32_t(names_.size());
+        d.name_len = uint32_t(name.size());
+        names_.append(name);
+    }
+    light_defs_.push_back(d);
+    return true;
+}
+
+bool Loader::bulk_pass_fast(const unsigned char *json, size_t len, std::string *kept) {
+    std::string out;
+    out.reserve(len / 64);
+    ElementParser element;
+    size_t n_nodes_arrays = 0, n_light_arrays = 0;
+    int32_t kept_nodes = 0, kept_lights = 0;
+    try {
+        simdjson::padded_string text(reinterpret_cast<const char *>(json), len);
+        od::parser parser;
+        od::document doc = parser.iterate(text);
+        od::object top = doc.get_object();
+        out += '{';
+        bool first_top = true;
+        for (od::field field : top) {
+            const std::string_view key_text = raw_key(field);
+            const std::string_view key = field.unescaped_key();
+            od::value v = field.value();
+            if (!first_top) out += ',';
+            first_top = false;
+            out += '"';
+            out += key_text;
+            out += "\":";
+            if (key == "nodes") {
+                if (++n_nodes_arrays > 1) return false;
+                od::array nodes;
+                if (v.get_array().get(nodes)) return false;
+                out += '[';
+                bool first = true;
+                for (od::value e : nodes) {
+                    const std::string_view raw = raw_of(e);
+                    if (!raw.empty() && raw.front() == '{' && fast_plain_node(&element, raw)) {
+                        kept_of_gltf_.push_back(-int32_t(bulk_nodes_.size()));
+                        continue;
+                    }
+                    kept_of_gltf_.push_back(kept_nodes++);
+                    if (!first) out += ',';
+                    first = false;
+                    out += raw;
+                }
+                out += ']';
+            } else if (key == "extensions" && v.type() == od::json_type::object) {
+                out += '{';
+                bool first_ext = true;
+                for (od::field ext : v.get_object()) {
+                    const std::string_view ext_text = raw_key(ext);
+                    const std::string_view ext_key = ext.unescaped_key();
+                    od::value ev = ext.value();
+                    if (!first_ext) out += ',';
+                    first_ext = false;
+                    out += '"';
+                    out += ext_text;
+                    out += "\":";
+                    if (ext_key != "KHR_lights_punctual" || ev.type() != od::json_type::object) {
+                        out += raw_of(ev);
+                        continue;
+                    }
+                    out += '{';
+                    bool first_lp = true;
+                    for (od::field lp : ev.get_object()) {
+                        const std::string_view lp_text = raw_key(lp);
+                        const std::string_view lp_key = lp.unescaped_key();
+                        od::value lv = lp.value();
+                        if (!first_lp) out += ',';
+                        first_lp = false;
+                        out += '"';
+                        out += lp_text;
+                        out += "\":";
+                        if (lp_key != "lights") {
+                            out += raw_of(lv);
+                            continue;
+                        }
+                        if (++n_light_arrays > 1) return false;
+                        od::array lights;
+                        if (lv.get_array().get(lights)) return false;
+                        out += '[';
+                        bool first = true;
+                        for (od::value e : lights) {
+                            const std::string_view raw = raw_of(e);
+                            if (!raw.empty() && raw.front() == '{' && fast_plain_light(&element, raw)) {
+                                light_kept_.push_back(-1);
+                                continue;
+                            }
+                            light_defs_.emplace_back();
+                            light_kept_.push_back(kept_lights++);
+                            if (!first) out += ',';
+                            first = false;
+                            out += raw;
+                        }
+                        out += ']';
+                    }
+                    out += '}';
+                }
+                out += '}';
+            } else {
+                out += raw_of(v);
+            }
+        }
+        out += '}';
+        const char *rest;
+        if (!doc.current_location().get(rest)) return false; // text after the top-level object: nlohmann judges it
+    } catch (const simdjson::simdjson_error &) {
+        return false;
+    }
+    if (kept_of_gltf_.size() > size_t(INT32_MAX) || light_defs_.size() > size_t(INT32_MAX)) return false;
+    kept_of_gltf_.shrink_to_fit();
+    light_kept_.shrink_to_fit();
+    kept->swap(out);
+    return true;
+}
+
+// The bulk pass when the file has many light nodes (BULK_MIN_LIGHTS); false: tinygltf reads it
+// whole. simdjson's pass first, nlohmann's when it gives up.
 bool Loader::use_bulk_pass(const unsigned char *json, size_t len, std::string *kept) {
     const size_t lights = count_occurrences(json, len, "\"KHR_lights_punctual\"");
     if (lights < (bulk_min_lights_ ? bulk_min_lights_ : BULK_MIN_LIGHTS)) return false;
     // reserved from counts of the text (upper bounds), so the records never grow by doubling
+    const size_t types = std::min(lights, count_occurrences(json, len, "\"type\""));
     bulk_nodes_.reserve(lights);
-    light_defs_.reserve(std::min(lights, count_occurrences(json, len, "\"type\"")));
+    light_defs_.reserve(types);
+    if (!bulk_slow_ && bulk_pass_fast(json, len, kept)) {
+        bulk_ = bulk_fast_ = true;
+        return true;
+    }
+    reset_bulk();
+    bulk_nodes_.reserve(lights);
+    light_defs_.reserve(types);
     bulk_ = bulk_pass(json, len, kept);
     return bulk_;
+}
+
+// Back to no bulk records (a pass that gave up, or a load read again).
+void Loader::reset_bulk() {
+    bulk_ = bulk_fast_ = false;
+    bulk_nodes_ = std::vector<BulkNode>();
+    kept_of_gltf_ = std::vector<int32_t>();
+    light_kept_ = std::vector<int32_t>();
+    light_defs_ = std::vector<LightDef>();
+    names_ = std::string();
 }
 
 // A bulk record in the node walk: what flatten_nodes does for a node with a light and nothing else.

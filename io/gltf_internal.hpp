@@ -29,6 +29,7 @@
 #include <cstdio>
 #include <map>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -286,6 +287,7 @@ class Loader {
 
     // gltf_loader.cpp: the core walk
     void parse();
+    void parse_again_slow();
     void check_required_extensions();
     void warn_unrendered();
     void flatten_nodes();
@@ -294,6 +296,15 @@ class Loader {
     // gltf_bulk.cpp: the bulk pass
     bool bulk_pass(const unsigned char *json, size_t len, std::string *kept);
     bool use_bulk_pass(const unsigned char *json, size_t len, std::string *kept);
+    // the same with simdjson (false: it gave up; bulk_pass then runs); bulk_fast_: it was used,
+    // bulk_slow_: a load read again after tinygltf refused the fast pass's JSON, so that a
+    // malformed file fails with the message it gets without it
+    using ElementParserRef = void *;
+    bool bulk_pass_fast(const unsigned char *json, size_t len, std::string *kept);
+    bool fast_plain_node(ElementParserRef ep, std::string_view raw);
+    bool fast_plain_light(ElementParserRef ep, std::string_view raw);
+    void reset_bulk();
+    bool bulk_fast_ = false, bulk_slow_ = false;
     void place_bulk(int gi, const Mat4 &parent, int32_t parent_walk);
     // gltf_meshes.cpp: accessors and meshes
     const unsigned char *view_span(int bvi, long long offset, size_t need, const std::string &what,

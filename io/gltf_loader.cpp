@@ -112,6 +112,13 @@ static int json_depth(const unsigned char *p, size_t n) {
     return deepest;
 }
 
+void Loader::parse_again_slow() {
+    m_ = tinygltf::Model();
+    reset_bulk();
+    bulk_slow_ = true;
+    parse();
+}
+
 void Loader::parse() {
     std::vector<unsigned char> bytes;
     std::string problem;
@@ -188,8 +195,12 @@ void Loader::parse() {
     } catch (const std::bad_alloc &) {
         throw;
     } catch (const std::exception &e) {
+        if (bulk_fast_) return parse_again_slow();
         fail(std::string("malformed glTF: ") + e.what());
     }
+    // simdjson's bulk pass validates what it reads, not what it passes on: a file tinygltf
+    // refuses is read again without it, so it fails with the message it always got
+    if (!ok && bulk_fast_) return parse_again_slow();
     // tinygltf's warnings, one per line
     size_t start = 0;
     while (start < warn_s.size()) {
