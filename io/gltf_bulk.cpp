@@ -382,6 +382,21 @@ bool Loader::fast_plain_light(ElementParserRef ep, std::string_view raw) {
     return true;
 }
 
+// A key met for the first time in its object (false: given twice). nlohmann keeps a repeated
+// key's last value, so a pass that read records under its first one would hand tinygltf a file
+// whose lights it never sees: such a file is read by tinygltf whole (refuse_bulk).
+static bool first_key(std::vector<std::string> *seen, std::string_view key) {
+    for (const std::string &k : *seen)
+        if (k == key) return false;
+    seen->emplace_back(key);
+    return true;
+}
+
+bool Loader::refuse_bulk() {
+    bulk_refused_ = true;
+    return false;
+}
+
 bool Loader::bulk_pass_fast(const unsigned char *json, size_t len, std::string *kept) {
     std::string out;
     out.reserve(len / 64);
@@ -395,9 +410,11 @@ bool Loader::bulk_pass_fast(const unsigned char *json, size_t len, std::string *
         od::object top = doc.get_object();
         out += '{';
         bool first_top = true;
+        std::vector<std::string> top_keys;
         for (od::field field : top) {
             const std::string_view key_text = raw_key(field);
             const std::string_view key = field.unescaped_key();
+            if (!first_key(&top_keys, key)) return refuse_bulk();
             od::value v = field.value();
             if (!first_top) out += ',';
             first_top = false;
@@ -425,9 +442,11 @@ bool Loader::bulk_pass_fast(const unsigned char *json, size_t len, std::string *
             } else if (key == "extensions" && v.type() == od::json_type::object) {
                 out += '{';
                 bool first_ext = true;
+                std::vector<std::string> ext_keys;
                 for (od::field ext : v.get_object()) {
                     const std::string_view ext_text = raw_key(ext);
                     const std::string_view ext_key = ext.unescaped_key();
+                    if (!first_key(&ext_keys, ext_key)) return refuse_bulk();
                     od::value ev = ext.value();
                     if (!first_ext) out += ',';
                     first_ext = false;
@@ -440,9 +459,11 @@ bool Loader::bulk_pass_fast(const unsigned char *json, size_t len, std::string *
                     }
                     out += '{';
                     bool first_lp = true;
+                    std::vector<std::string> lp_keys;
                     for (od::field lp : ev.get_object()) {
                         const std::string_view lp_text = raw_key(lp);
                         const std::string_view lp_key = lp.unescaped_key();
+                        if (!first_key(&lp_keys, lp_key)) return refuse_bulk();
                         od::value lv = lp.value();
                         if (!first_lp) out += ',';
                         first_lp = false;
@@ -506,6 +527,7 @@ bool Loader::use_bulk_pass(const unsigned char *json, size_t len, std::string *k
         return true;
     }
     reset_bulk();
+    if (bulk_refused_) return false; // a key given twice where the pass reads: tinygltf alone
     bulk_nodes_.reserve(lights);
     light_defs_.reserve(types);
     bulk_ = bulk_pass(json, len, kept);

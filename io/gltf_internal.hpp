@@ -304,7 +304,8 @@ class Loader {
     bool fast_plain_node(ElementParserRef ep, std::string_view raw);
     bool fast_plain_light(ElementParserRef ep, std::string_view raw);
     void reset_bulk();
-    bool bulk_fast_ = false, bulk_slow_ = false;
+    bool refuse_bulk(); // bulk_refused_: neither pass may read this file (a key given twice)
+    bool bulk_fast_ = false, bulk_slow_ = false, bulk_refused_ = false;
     void place_bulk(int gi, const Mat4 &parent, int32_t parent_walk);
     // gltf_meshes.cpp: accessors and meshes
     const unsigned char *view_span(int bvi, long long offset, size_t need, const std::string &what,

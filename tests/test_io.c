@@ -1802,6 +1802,37 @@ static void test_bulk_lights(void) {
     }
 }
 
+/* A key given twice where the bulk pass reads (here "extensions", the first holding the light
+ * records): nlohmann keeps the last, so tinygltf alone sees no lights; the pass must not read the
+ * first one's (it leaves the file to tinygltf), so the scene is the same with the pass forced on. */
+static void test_bulk_duplicate_keys(void) {
+    const char *doc =
+        "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0,1]}],"
+        "\"extensions\":{\"KHR_lights_punctual\":{\"lights\":[{\"type\":\"point\",\"intensity\":5}]}},"
+        "\"nodes\":[{\"translation\":[0,1,0],\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}},"
+        "{\"name\":\"cam\",\"translation\":[0,1,10],\"camera\":0}],"
+        "\"cameras\":[{\"type\":\"perspective\",\"perspective\":{\"yfov\":0.8,\"znear\":0.1}}],"
+        "\"extensions\":{}}";
+    const char *path = tmp_path("bulk_dup.gltf");
+    write_bytes(path, doc, strlen(doc));
+    IoLoadOptions on, off;
+    memset(&on, 0, sizeof on);
+    memset(&off, 0, sizeof off);
+    on.bulk_min_lights = 1;
+    off.bulk_min_lights = UINT32_MAX;
+    on.no_warnings = off.no_warnings = 1;
+    IoScene a, b;
+    char err_on[IO_ERR_LEN], err_off[IO_ERR_LEN];
+    int ra = io_load_gltf_opts(path, &on, &a, err_on), rb = io_load_gltf_opts(path, &off, &b, err_off);
+    CHECK((ra == 0) == (rb == 0), "duplicate extensions, bulk pass on / off: %d '%s' / %d '%s'", ra, err_on, rb, err_off);
+    if (ra != 0 && rb != 0) CHECK(strcmp(err_on, err_off) == 0, "duplicate extensions: '%s' / '%s'", err_on, err_off);
+    if (ra == 0 && rb == 0)
+        CHECK(a.num_lights == b.num_lights, "duplicate extensions: %u lights with the pass, %u without", a.num_lights,
+              b.num_lights);
+    if (ra == 0) io_scene_free(&a);
+    if (rb == 0) io_scene_free(&b);
+}
+
 int main(int argc, char **argv) {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/candela-test-io-XXXXXX");
     if (!mkdtemp(tmpdir)) {
@@ -1815,6 +1846,7 @@ int main(int argc, char **argv) {
     test_generated_gltf();
     test_texture_budget();
     test_bulk_lights();
+    test_bulk_duplicate_keys();
     test_vdb_generated();
     test_material_media();
     test_clearcoat();
