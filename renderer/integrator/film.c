@@ -7,6 +7,7 @@
 
 #include "ckpt_io.h"
 #include "integrator.h"
+#include "film.h"
 
 int film_alloc(Film *f, int w, int h) {
     size_t n = (size_t)w * (size_t)h;

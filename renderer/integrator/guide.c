@@ -25,6 +25,7 @@
 #include "ckpt_io.h"
 #include "feature.h"
 #include "scatter.h"
+#include "guide.h"
 
 #define GUIDE_TRAINING_SPP 8 /* samples per pixel of training before guided sampling starts */
 

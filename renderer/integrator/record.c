@@ -25,6 +25,7 @@
 #include "ckpt_io.h"
 #include "feature.h"
 #include "rng.h"
+#include "record.h"
 
 #define RECORD_BUDGET_DEFAULT 4         /* vertices per path (the seed's soft budget) */
 #define RECORD_DEEP_PROBABILITY 0.25f   /* a vertex past the budget is recorded with this (§5.1.3) */

@@ -3,6 +3,7 @@
  * are functions of (seed, pixel, sample) (sequence.h). */
 #include "integrator.h"
 #include "rng.h"
+#include "record.h"
 
 void stage_generate(const Integrator *ig, Slice *s) {
     const PathState *ps = &ig->ps; /* the arrays, not the integrator, are written */

@@ -18,6 +18,10 @@
 
 #include "rng.h"
 #include "vertex.h"
+#include "guide.h"
+#include "inscatter.h"
+#include "record.h"
+#include "volume_auto.h"
 
 typedef enum { WALK_SURFACE, WALK_ESCAPED, WALK_ENDED } WalkEnd;
 

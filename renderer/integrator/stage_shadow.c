@@ -3,6 +3,8 @@
  * outcome (the fraction that reached the light: the transmittance's average, 0 when
  * occluded) goes back to the light sampler, which may learn from it. */
 #include "vertex.h"
+#include "record.h"
+#include "volume_auto.h"
 
 void stage_shadow(const Integrator *ig, Slice *s) {
     const PathState *ps = &ig->ps;

@@ -8,6 +8,9 @@
  * queue is in (primitive, Morton) order, so consecutive hits share materials, textures and
  * the light sampler's per-vertex lookups, and the path state is visited in random slot order: it is prefetched ahead. */
 #include "vertex.h"
+#include "guide.h"
+#include "record.h"
+#include "volume_auto.h"
 
 /* how many hits ahead the path state is prefetched; the hit's index triple at half that,
  * its vertices at a quarter (bench.gltf, 2 threads: 16 against 8, alternating runs, ratio

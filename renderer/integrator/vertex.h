@@ -6,14 +6,43 @@
  *     queues the shadow ray), and the transmittance of a shadow ray through the media,
  *   - the light shapes a ray crosses,
  *   - the continuation: the scattering function's (or the guide's) sample applied to the
- *     throughput, the Russian roulette, the recorder's child vertex and the MIS context handed on.
+ *     throughput, the Russian roulette, the recorder's child vertex and the MIS context handed on,
+ *   - the radiance funnel every contribution goes through (path_add_radiance), and a path's end.
  * A stage owns its queues and what is particular to it (a surface's boundary crossings and
  * shadow-ray offsets, the medium's free flights and its depth-first tracing). */
 #ifndef CANDELA_VERTEX_H
 #define CANDELA_VERTEX_H
 
 #include "integrator.h"
+#include "record.h"
 #include "scatter.h"
+
+/* Every addition to a path's radiance goes through here (throughput and MIS weight already
+ * applied): the one place the radiance recorder observes the contributions of a path, and
+ * where --clamp-direct / --clamp-indirect apply. An emitter or the environment found by the
+ * path's ray goes to that ray's vertex, a shadow ray's contribution to the NEE vertex. depth:
+ * that of the ray that found the emitter (emission, environment) or of the vertex that sampled
+ * the light (direct), so the light reaches the camera through depth (depth + 1) scattering
+ * vertices; at most one is "direct" (Cycles' clamps: the camera's emitters, NEE at the first
+ * hit, and the first hit's BSDF samples that find a light), the rest indirect. */
+static inline void path_add_radiance(const Integrator *ig, uint32_t p, vec3 contribution, RadianceSource source,
+                                     uint32_t depth) {
+    uint32_t vertices = source == RADIANCE_DIRECT ? depth + 1 : depth;
+    float limit = vertices <= 1 ? ig->opt->clamp_direct : ig->opt->clamp_indirect;
+    if (limit > 0.0f) { /* the largest channel to the limit, hue kept (biased: off by default) */
+        float m = v3_max_component(contribution);
+        if (m > limit) contribution = v3_scale(contribution, limit / m);
+    }
+    ig->ps.radiance[p] = v3_add(ig->ps.radiance[p], contribution);
+    /* --guiding auto's probe: the light guiding could help with (two or more bounces) */
+    if (ig->guide.auto_state == GUIDE_AUTO_PROBING && vertices >= 2) ig->ps.probe_indirect[p] += v3_luminance(contribution);
+    record_vertex_radiance(ig, p, &contribution, source);
+}
+
+/* The path ends: its ray's vertex is released. */
+static inline void path_end(const Integrator *ig, Slice *s, uint32_t p) {
+    record_path_end(ig, s, p);
+}
 
 /* The previous vertex's light-selection context (what its NEE used, kept in the path state),
  * for weighing light the path found against NEE from there. Returns 0 when the previous vertex

@@ -40,6 +40,7 @@
 
 #include "ckpt_io.h"
 #include "feature.h"
+#include "volume_auto.h"
 
 /* ---------------------------------------------------------------- the probe */
 
