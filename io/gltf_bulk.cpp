@@ -392,6 +392,32 @@ static bool first_key(std::vector<std::string> *seen, std::string_view key) {
     return true;
 }
 
+// The kept JSON is written as the file's own text: a member's key (as written) after a comma
+// unless it is the object's first, an array element likewise.
+static void put_member(std::string *out, bool *first, std::string_view key_text) {
+    if (!*first) *out += ',';
+    *first = false;
+    *out += '"';
+    *out += key_text;
+    *out += "\":";
+}
+static void put_element(std::string *out, bool *first, std::string_view raw) {
+    if (!*first) *out += ',';
+    *first = false;
+    *out += raw;
+}
+
+// The next member of an object the pass copies: its key, unescaped, in *key; written to out.
+// False when the object gave it before (first_key).
+static bool copy_member(od::field &f, std::vector<std::string> *seen, std::string *out, bool *first,
+                        std::string_view *key) {
+    const std::string_view text = raw_key(f);
+    *key = f.unescaped_key();
+    if (!first_key(seen, *key)) return false;
+    put_member(out, first, text);
+    return true;
+}
+
 bool Loader::refuse_bulk() {
     bulk_refused_ = true;
     return false;
@@ -412,15 +438,9 @@ bool Loader::bulk_pass_fast(const unsigned char *json, size_t len, std::string *
         bool first_top = true;
         std::vector<std::string> top_keys;
         for (od::field field : top) {
-            const std::string_view key_text = raw_key(field);
-            const std::string_view key = field.unescaped_key();
-            if (!first_key(&top_keys, key)) return refuse_bulk();
+            std::string_view key;
+            if (!copy_member(field, &top_keys, &out, &first_top, &key)) return refuse_bulk();
             od::value v = field.value();
-            if (!first_top) out += ',';
-            first_top = false;
-            out += '"';
-            out += key_text;
-            out += "\":";
             if (key == "nodes") {
                 if (++n_nodes_arrays > 1) return false;
                 od::array nodes;
@@ -434,9 +454,7 @@ bool Loader::bulk_pass_fast(const unsigned char *json, size_t len, std::string *
                         continue;
                     }
                     kept_of_gltf_.push_back(kept_nodes++);
-                    if (!first) out += ',';
-                    first = false;
-                    out += raw;
+                    put_element(&out, &first, raw);
                 }
                 out += ']';
             } else if (key == "extensions" && v.type() == od::json_type::object) {
@@ -444,15 +462,9 @@ bool Loader::bulk_pass_fast(const unsigned char *json, size_t len, std::string *
                 bool first_ext = true;
                 std::vector<std::string> ext_keys;
                 for (od::field ext : v.get_object()) {
-                    const std::string_view ext_text = raw_key(ext);
-                    const std::string_view ext_key = ext.unescaped_key();
-                    if (!first_key(&ext_keys, ext_key)) return refuse_bulk();
+                    std::string_view ext_key;
+                    if (!copy_member(ext, &ext_keys, &out, &first_ext, &ext_key)) return refuse_bulk();
                     od::value ev = ext.value();
-                    if (!first_ext) out += ',';
-                    first_ext = false;
-                    out += '"';
-                    out += ext_text;
-                    out += "\":";
                     if (ext_key != "KHR_lights_punctual" || ev.type() != od::json_type::object) {
                         out += raw_of(ev);
                         continue;
@@ -461,15 +473,9 @@ bool Loader::bulk_pass_fast(const unsigned char *json, size_t len, std::string *
                     bool first_lp = true;
                     std::vector<std::string> lp_keys;
                     for (od::field lp : ev.get_object()) {
-                        const std::string_view lp_text = raw_key(lp);
-                        const std::string_view lp_key = lp.unescaped_key();
-                        if (!first_key(&lp_keys, lp_key)) return refuse_bulk();
+                        std::string_view lp_key;
+                        if (!copy_member(lp, &lp_keys, &out, &first_lp, &lp_key)) return refuse_bulk();
                         od::value lv = lp.value();
-                        if (!first_lp) out += ',';
-                        first_lp = false;
-                        out += '"';
-                        out += lp_text;
-                        out += "\":";
                         if (lp_key != "lights") {
                             out += raw_of(lv);
                             continue;
@@ -487,9 +493,7 @@ bool Loader::bulk_pass_fast(const unsigned char *json, size_t len, std::string *
                             }
                             light_defs_.emplace_back();
                             light_kept_.push_back(kept_lights++);
-                            if (!first) out += ',';
-                            first = false;
-                            out += raw;
+                            put_element(&out, &first, raw);
                         }
                         out += ']';
                     }
