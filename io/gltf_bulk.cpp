@@ -431,6 +431,16 @@ bool Loader::bulk_pass_fast(const unsigned char *json, size_t len, std::string *
     int32_t kept_nodes = 0, kept_lights = 0;
     try {
         simdjson::padded_string text(reinterpret_cast<const char *>(json), len);
+        {
+            // On-Demand is not a validating parser: past the values it reads it may accept what
+            // is not JSON (fuzz_gltf: a member `"animations": "x": ]` loaded with the pass and
+            // failed without it). simdjson's DOM parser validates the whole text first (its tape
+            // freed before the pass); a file it refuses goes to nlohmann's pass, which reports
+            // what tinygltf would.
+            simdjson::dom::parser validator;
+            simdjson::dom::element root;
+            if (validator.parse(text).get(root)) return false;
+        }
         od::parser parser;
         od::document doc = parser.iterate(text);
         od::object top = doc.get_object();
