@@ -35,6 +35,15 @@ static size_t count_occurrences(const unsigned char *p, size_t n, const char *wh
     return count;
 }
 
+// The IO_LIGHT_* of a plain light record of this type (with or without a "spot" object), or -1:
+// not plain (a spot without its angles, a point or directional light with them, which tinygltf
+// ignores, or an unknown type: left to tinygltf). Both passes decide by it.
+static int32_t plain_light_type(std::string_view type, bool spot_seen) {
+    if (type == "point" || type == "directional")
+        return spot_seen ? -1 : type == "point" ? IO_LIGHT_POINT : IO_LIGHT_DIRECTIONAL;
+    return type == "spot" && spot_seen ? IO_LIGHT_SPOT : -1;
+}
+
 static bool number_array(const nlohmann::json &v, size_t n, double *out) {
     if (!v.is_array() || v.size() != n) return false;
     for (size_t k = 0; k < n; ++k) {
@@ -64,10 +73,7 @@ bool Loader::bulk_pass(const unsigned char *json, size_t len, std::string *kept)
     auto add_name = [&](const nlohmann::json &o, uint32_t *at, uint32_t *n) {
         auto it = o.find("name");
         if (it == o.end()) return;
-        const std::string &name = it->get_ref<const std::string &>();
-        *at = uint32_t(names_.size());
-        *n = uint32_t(name.size());
-        names_ += name;
+        store_name(it->get_ref<const std::string &>(), at, n);
     };
     auto plain_node = [&](const nlohmann::json &o) {
         if (!o.is_object() || names_.size() > UINT32_MAX / 2) return false;
@@ -134,14 +140,8 @@ bool Loader::bulk_pass(const unsigned char *json, size_t len, std::string *kept)
                 return false;
             }
         }
-        if (type == "point" || type == "directional") {
-            if (spot_seen) return false; // tinygltf ignores it; leave that to tinygltf
-            d.type = type == "point" ? IO_LIGHT_POINT : IO_LIGHT_DIRECTIONAL;
-        } else if (type == "spot" && spot_seen) {
-            d.type = IO_LIGHT_SPOT;
-        } else {
-            return false;
-        }
+        d.type = plain_light_type(type, spot_seen);
+        if (d.type < 0) return false;
         add_name(o, &d.name_at, &d.name_len);
         light_defs_.push_back(d);
         return true;
@@ -267,6 +267,13 @@ struct ElementParser {
     }
 };
 
+// A bulk record's name, appended to names_ (its place and length in *at, *len).
+void Loader::store_name(std::string_view name, uint32_t *at, uint32_t *len) {
+    *at = uint32_t(names_.size());
+    *len = uint32_t(name.size());
+    names_.append(name);
+}
+
 bool Loader::fast_plain_node(ElementParserRef ep, std::string_view raw) {
     BulkNode b;
     std::string_view name;
@@ -314,11 +321,7 @@ bool Loader::fast_plain_node(ElementParserRef ep, std::string_view raw) {
         }
     }
     if (!light || names_.size() > UINT32_MAX / 2) return false;
-    if (has_name) {
-        b.name_at = uint32_t(names_.size());
-        b.name_len = uint32_t(name.size());
-        names_.append(name);
-    }
+    if (has_name) store_name(name, &b.name_at, &b.name_len);
     bulk_nodes_.push_back(b);
     return true;
 }
@@ -364,20 +367,10 @@ bool Loader::fast_plain_light(ElementParserRef ep, std::string_view raw) {
             return false;
         }
     }
-    if (type == "point" || type == "directional") {
-        if (spot_seen) return false; // tinygltf ignores it; leave that to tinygltf
-        d.type = type == "point" ? IO_LIGHT_POINT : IO_LIGHT_DIRECTIONAL;
-    } else if (type == "spot" && spot_seen) {
-        d.type = IO_LIGHT_SPOT;
-    } else {
-        return false;
-    }
+    d.type = plain_light_type(type, spot_seen);
+    if (d.type < 0) return false;
     if (names_.size() > UINT32_MAX / 2) return false;
-    if (has_name) {
-        d.name_at = uint32_t(names_.size());
-        d.name_len = uint32_t(name.size());
-        names_.append(name);
-    }
+    if (has_name) store_name(name, &d.name_at, &d.name_len);
     light_defs_.push_back(d);
     return true;
 }

@@ -304,6 +304,7 @@ class Loader {
     bool fast_plain_node(ElementParserRef ep, std::string_view raw);
     bool fast_plain_light(ElementParserRef ep, std::string_view raw);
     void reset_bulk();
+    void store_name(std::string_view name, uint32_t *at, uint32_t *len);
     bool refuse_bulk(); // bulk_refused_: neither pass may read this file (a key given twice)
     bool bulk_fast_ = false, bulk_slow_ = false, bulk_refused_ = false;
     void place_bulk(int gi, const Mat4 &parent, int32_t parent_walk);
