@@ -3,6 +3,7 @@
 paper's Fig. 1 scale (4.9 million lights) with production geometry, as one .glb.
 
 usage: make_production.py [-o OUT.glb] [--scale S]     (default build/scenes/production.glb, S 1)
+       make_production.py [-o OUT.glb] --lights L --triangles T    (e.g. --lights 100k --triangles 10M)
 
 Deterministic (fixed seeds, Mersenne Twister; nothing downloaded): running it twice writes
 byte-identical files (the VDB's header UUID is written as a fixed one). Python 3's standard
@@ -42,10 +43,42 @@ At S = 1: 5,049,236 lights as the paper counts them (307,200 punctual: 256,000 p
 36 fires), 309,797 lights as Candela counts them, 59.8 million triangles after instancing
 (1.5 million distinct), 17,701 mesh instances, 300 textures; a 148 MB .glb, made in ~20 s.
 At S = 0.01 (3 blocks): 52,898 lights (3,600 punctual), 0.69 million triangles, 5.8 MB.
+--scale S writes the same bytes as before --lights and --triangles existed.
+
+--lights L --triangles T (issue 28's scaling table; counts as 10000, 10k, 5M): L lights as the
+paper counts them and T triangles after instancing, independently (one alone: the other at the
+full scene's 11.85 triangles per light). The rule (plan_targets):
+  - emissive triangles E = min(0.939 L, T / 2): the full scene's mix (93.9% of its lights are
+    emissive triangles, 6.1% punctual) while the emissive triangles are at most half the
+    triangles; past that (5M lights in 1M triangles: 4.7M emissive triangles cannot fit) the
+    rest of the lights are punctual, so L holds and T holds;
+  - B = max(1, round((T - E) / 215,143)) blocks: each block about the full scene's
+    non-emissive geometry (ground tile and four buildings always; then up to 40 props and as
+    many trees as fill the block's share of T);
+  - emissive meshes per block in a fixed order (two lit facades per building, the sign, a
+    string of bulbs, the other facades, up to 8 more strings), each placed while the emissive
+    triangles stay within the blocks' share of E; lit-window panes subdivided s x s more when a
+    block's share passes 80% of what its meshes hold at s = 1 (37,000; the full scene 18,523);
+  - then P = L - E' - fires punctual lights (E' the emissive triangles placed), spread evenly
+    over the blocks in the full scene's mix (lanterns, up-lights, shop spots, street lamps, path
+    lights), so L is met exactly and T within half a mesh (a tree, ~6,000 triangles); E' is
+    within half an emissive mesh of E (the mix drifts at small L: 10k lights in 1M triangles
+    get 9,840 emissive triangles and 158 punctual lights, not 9,392 and 606);
+  - the distinct meshes, textures and fires follow the blocks as --scale B / 256 would.
+A warning on stderr when either count misses its target by more than 3%. Memory and time
+grow with the punctual lights (nodes kept as their JSON, ~110 bytes each) and the distinct
+triangles. Measured (a busy 2-core machine, CPU seconds beside the wall): 5M lights in 50M
+triangles (211 blocks, 304k punctual lights) 51 s (9.6 s CPU), max RSS 348 MiB, a 128 MB .glb;
+5M in 1M triangles (2 blocks, 4.48M punctual lights) 50 s (38 s CPU), 1.6 GiB, 473 MB.
+
+stdout: one JSON line, OUT.counts.json's counts plus "output" (the path); with targets also
+lights_target, triangles_target, emissive_capped (E was T / 2) and window_subdivision. The
+summary line goes to stderr.
 """
 
 import argparse
 import array
+import contextlib
 import json
 import math
 import os
@@ -78,6 +111,39 @@ FIXED_UUID = b'00000000-0000-4000-8000-000000000028'  # the VDB header's UUID (d
 VARIANTS = {'building': (48, 2), 'tree': (12, 2), 'prop': (20, 5), 'ground': (16, 2),
             'window_pattern': (2, 1), 'sign': (32, 2), 'string': (16, 2), 'texture': (300, 12),
             'fire': (36, 2)}
+
+
+# --lights / --triangles (plan_targets): the full scene's numbers (--scale 1, measured)
+FULL_PUNCTUAL, FULL_EMISSIVE, FULL_TRIANGLES = 307200, 4742000, 59818620
+EMISSIVE_SHARE = FULL_EMISSIVE / (FULL_PUNCTUAL + FULL_EMISSIVE)  # 0.939 of the non-volume lights
+MAX_EMISSIVE_SHARE = 0.5      # of the triangles: at least half of them are the city the lights light
+BLOCK_NON_EMISSIVE = 215143   # non-emissive triangles of a full-scene block ((59,818,620 - 4,742,000) / 256)
+FACADE_EMISSIVE = 1940        # emissive triangles of a lit-window mesh (one facade) at subdivision 1, mean
+SMALL_EMISSIVE = 1500         # ... of a neon sign or a string of bulbs (a block holds 1 sign and up to 9 strings)
+TRIANGLES_PER_LIGHT = FULL_TRIANGLES / 5049236   # the full scene's ratio: a target given alone
+# the full scene's punctual mix per block: lanterns, facade up-lights, shop spots, street lamps, path lights
+PUNCTUAL_MIX = (('lantern', 700), ('uplight', 144), ('shop', 40), ('lamp', 16), ('path', 300))
+
+
+def plan_targets(lights, triangles):
+    """The rule for --lights L --triangles T (lights as the paper counts them): emissive
+    triangles E = min(0.939 L, T / 2) (the full scene's mix, but at most half the triangles:
+    a scene's lights need a city to light, and 5M lights in 1M triangles cannot be 4.7M
+    emissive triangles), the other L - E lights punctual (less the fires); blocks
+    B = max(1, round((T - E) / 215,143)) so that each block holds about the full scene's
+    non-emissive geometry (four buildings and a ground tile always; props and trees fill the
+    rest); lit-window panes subdivided s x s more, s the least for which a block's share of E
+    is at most 80% of what its emissive meshes hold (16 facades, a sign and 9 strings:
+    16 x 1,940 s^2 + 10 x 1,500; s = 1 up to 37,000 a block, the full scene's 18,523)."""
+    emissive = EMISSIVE_SHARE * lights
+    capped = emissive > MAX_EMISSIVE_SHARE * triangles
+    emissive = min(emissive, MAX_EMISSIVE_SHARE * triangles)
+    blocks = max(1, int(round((triangles - emissive) / BLOCK_NON_EMISSIVE)))
+    sub = 1
+    while emissive / blocks > 0.8 * (16 * FACADE_EMISSIVE * sub * sub + 10 * SMALL_EMISSIVE):
+        sub += 1
+    return {'blocks': blocks, 'emissive_triangles': int(round(emissive)), 'emissive_capped': capped,
+            'window_subdivision': sub}
 
 
 def variants(kind, scale):
@@ -294,22 +360,24 @@ def building_mesh(name, rng, mats, windows_out):
     return m, H
 
 
-def window_mesh(name, rng, material, windows, lit_fraction):
-    """Lit windows of one facade: each lit pane 4 x 4 quads (32 emissive triangles), 6 cm in
-    front of the recessed pane, facing out."""
+def window_mesh(name, rng, material, windows, lit_fraction, sub=1):
+    """Lit windows of one facade: each lit pane 4 sub x 6 sub quads (48 sub^2 emissive
+    triangles), 6 cm in front of the recessed pane, facing out. sub > 1 only with --lights /
+    --triangles targets whose emissive triangles are denser than the full scene's per block."""
     rects, P = windows
     m = Mesh(name)
     p = m.prim(material)
     d = -0.25 + 0.06
+    nu, nv = 4 * sub, 6 * sub
     for (u0, v0, u1, v1) in rects:
         if rng.random() >= lit_fraction:
             continue
-        for i in range(4):
-            for j in range(6):
-                a0, a1 = u0 + (u1 - u0) * i / 4, u0 + (u1 - u0) * (i + 1) / 4
-                b0, b1 = v0 + (v1 - v0) * j / 6, v0 + (v1 - v0) * (j + 1) / 6
+        for i in range(nu):
+            for j in range(nv):
+                a0, a1 = u0 + (u1 - u0) * i / nu, u0 + (u1 - u0) * (i + 1) / nu
+                b0, b1 = v0 + (v1 - v0) * j / nv, v0 + (v1 - v0) * (j + 1) / nv
                 p.quad(P(a0, b0, d), P(a1, b0, d), P(a1, b1, d), P(a0, b1, d),
-                       ((i / 4, j / 6), ((i + 1) / 4, j / 6), ((i + 1) / 4, (j + 1) / 6), (i / 4, (j + 1) / 6)))
+                       ((i / nu, j / nv), ((i + 1) / nu, j / nv), ((i + 1) / nu, (j + 1) / nv), (i / nu, (j + 1) / nv)))
     return m
 
 
@@ -514,6 +582,7 @@ class Doc:
                         {'magFilter': 9729, 'minFilter': 9729, 'wrapS': 10497, 'wrapT': 10497}],
                     'accessors': [], 'bufferViews': [], 'buffers': [], 'cameras': []}
         self.lights = []
+        self.light_nodes = []  # the punctual light nodes, as their JSON (bytes): compact at millions
         self.mesh_index = {}
         self.mesh_info = []   # per glTF mesh: (triangles, emissive primitives, emissive triangles)
 
@@ -563,10 +632,24 @@ class Doc:
         self.doc['scenes'][0]['nodes'].append(len(self.doc['nodes']) - 1)
 
     def write(self, path):
+        """The .glb: the nodes are self.doc's followed by self.light_nodes. The two node lists
+        are spliced into json.dumps's output (as json.dumps would write them) so that millions
+        of light nodes are never a list of dicts."""
         doc = dict(self.doc)
         doc['extensions'] = {'KHR_lights_punctual': {'lights': self.lights}}
         doc['buffers'] = [{'byteLength': len(self.bin)}]
-        js = json.dumps(doc, separators=(',', ':')).encode('utf-8')
+        n_nodes = len(self.doc['nodes']) + len(self.light_nodes)
+        assert self.doc['scenes'][0]['nodes'] == list(range(len(self.doc['nodes'])))
+        doc['nodes'] = '@NODES@'
+        doc['scenes'] = [dict(self.doc['scenes'][0], nodes='@SCENE_NODES@')]
+        head = json.dumps(doc, separators=(',', ':')).encode('utf-8')
+        a, rest = head.split(b'"@SCENE_NODES@"')
+        b, c = rest.split(b'"@NODES@"')
+        nodes = [json.dumps(n, separators=(',', ':')).encode('utf-8') for n in self.doc['nodes']]
+        nodes.extend(self.light_nodes)
+        js = b''.join((a, b'[', ','.join(map(str, range(n_nodes))).encode('ascii'), b']', b,
+                       b'[', b','.join(nodes), b']', c))
+        del nodes
         js += b' ' * (-len(js) % 4)
         while len(self.bin) % 4:
             self.bin.append(0)
@@ -617,7 +700,8 @@ def yrot(a):
 # ----------------------------------------------------------------------------------------------
 
 
-def build(out, scale):
+def build(out, scale, targets=None):
+    """Writes the scene; targets (lights, triangles) instead of scale: plan_targets's rule."""
     stem = os.path.splitext(out)[0]
     folder = os.path.dirname(os.path.abspath(out))
     base = os.path.basename(stem)
@@ -625,7 +709,13 @@ def build(out, scale):
     rng = random.Random(28)
     d = Doc()
 
-    n_blocks = max(1, int(round(FULL_BLOCKS * scale)))
+    sub = 1
+    if targets:
+        plan = plan_targets(*targets)
+        n_blocks, sub = plan['blocks'], plan['window_subdivision']
+        scale = n_blocks / FULL_BLOCKS   # the distinct meshes, textures and fires follow the blocks
+    else:
+        n_blocks = max(1, int(round(FULL_BLOCKS * scale)))
     nx = int(math.ceil(math.sqrt(n_blocks)))
     nz = int(math.ceil(n_blocks / nx))
     pitch = BLOCK + STREET
@@ -676,7 +766,7 @@ def build(out, scale):
         for face in range(4):
             pats = []
             for p in range(n_pat):
-                pats.append(d.add_mesh(window_mesh('windows%02d_%d_%d' % (k, face, p), grng, wm, wins[face], 0.42), emissive))
+                pats.append(d.add_mesh(window_mesh('windows%02d_%d_%d' % (k, face, p), grng, wm, wins[face], 0.42, sub), emissive))
             per_face.append(pats)
         buildings.append((bi, h, per_face))
     trees = [d.add_mesh(tree_mesh('tree%02d' % k, grng, mats(3)), emissive) for k in range(variants('tree', scale))]
@@ -721,11 +811,12 @@ def build(out, scale):
     lights_nodes = []
 
     def light_node(li, t, q=None):
-        n = {'translation': rv(t, 3)}
+        # the node's JSON as json.dumps writes {'translation', 'rotation', 'extensions'}
+        # (float repr), kept as bytes: 4.5 million of them as dicts would take ~4 GB
+        n = '{"translation":[%r,%r,%r]' % tuple(rv(t, 3))
         if q is not None:
-            n['rotation'] = rv(q, 6)
-        n['extensions'] = {'KHR_lights_punctual': {'light': li}}
-        lights_nodes.append(n)
+            n += ',"rotation":[%r,%r,%r,%r]' % tuple(rv(q, 6))
+        lights_nodes.append((n + ',"extensions":{"KHR_lights_punctual":{"light":%d}}}' % li).encode('ascii'))
 
     counts = {'punctual_lights': 0, 'point_lights': 0, 'spot_lights': 0, 'emissive_instances': 0,
               'emissive_triangles': 0, 'emissive_primitive_instances': 0, 'triangles': 0,
@@ -746,7 +837,140 @@ def build(out, scale):
     x_origin = -(nx - 1) * pitch / 2
     z_origin = -(nz - 1) * pitch / 2
     block_centres = []
-    for b in range(n_blocks):
+
+    def blocks_to_targets(lights_target, triangles_target):
+        """The blocks of a --lights/--triangles scene (plan_targets's rule): each block's
+        ground and four buildings, then its emissive meshes, props and trees, each kind placed
+        while the running total stays within the target's share of the blocks so far (error
+        diffusion: the emissive triangles and the triangles end within half a mesh of their
+        targets); then, over the blocks evenly, the punctual lights that make up the light
+        count exactly (what the emissive meshes and the fires leave)."""
+        n_fire = variants('fire', scale)
+        lights_free = max(0, lights_target - n_fire)          # lights other than the fires
+        emissive_goal = min(plan['emissive_triangles'], lights_free)
+        tris_goal = (triangles_target - d.mesh_info[haze][0]
+                     - n_fire * d.mesh_info[brazier_mesh][0])  # placed after the blocks
+        weights = [w for _, w in PUNCTUAL_MIX]
+        total_w = sum(weights)
+        edge = BLOCK / 2 - 1.2
+        block_lots = []
+
+        def around(cx, cz, a, local):
+            ca, sa = math.cos(a), math.sin(a)
+            return cx + ca * local[0] + sa * local[1], cz - sa * local[0] + ca * local[1]
+
+        for b in range(n_blocks):
+            bx, bz = x_origin + (b % nx) * pitch, z_origin + (b // nx) * pitch
+            block_centres.append((bx, bz))
+            share = (b + 1) / n_blocks
+            place(grounds[brng.randrange(len(grounds))], (bx, 0.0, bz))
+            lots = []
+            for lot in range(4):
+                cx = bx + (-10.0 if lot % 2 == 0 else 10.0)
+                cz = bz + (-10.0 if lot < 2 else 10.0)
+                bi, h, per_face = buildings[brng.randrange(len(buildings))]
+                sy = brng.uniform(0.9, 1.6)
+                a = (math.pi / 2) * brng.randrange(4)
+                q = yrot(a)
+                place(bi, (cx, 0.15, cz), (1.0, sy, 1.0), q)
+                lots.append((cx, cz, a, q, sy, h, per_face, brng.sample(range(4), 4)))
+            # emissive meshes, in the order they light up: two facades of each building (the
+            # full scene's), the sign, the string of bulbs, the other two facades, more strings
+            e_goal = emissive_goal * share
+            slots = ([('facade', lot, 0) for lot in range(4)] + [('facade', lot, 1) for lot in range(4)]
+                     + [('sign',), ('string',)] + [('facade', lot, 2) for lot in range(4)]
+                     + [('facade', lot, 3) for lot in range(4)] + [('string',)] * 8)
+            for slot in slots:
+                if slot[0] == 'facade':
+                    cx, cz, a, q, sy, h, per_face, faces = lots[slot[1]]
+                    f = faces[slot[2]]
+                    mesh = per_face[f][brng.randrange(len(per_face[f]))]
+                    args = ((cx, 0.15, cz), (1.0, sy, 1.0), q)
+                elif slot[0] == 'sign':
+                    mesh = signs[brng.randrange(len(signs))]
+                    args = ((bx + brng.uniform(-12, 12), brng.uniform(4.0, 6.0), bz + BLOCK / 2 - 1.0),)
+                else:
+                    mesh = strings[brng.randrange(len(strings))]
+                    args = ((bx + BLOCK / 2 + STREET / 2, 6.0, bz + brng.uniform(-15, 15)), None, yrot(0.0))
+                if counts['emissive_triangles'] + d.mesh_info[mesh][2] / 2 <= e_goal:
+                    place(mesh, *args)
+            # props (at most the full scene's 40), then trees, while the triangles fit
+            t_goal = tris_goal * share
+            for k in range(40):
+                side = k % 4
+                t = brng.uniform(-edge, edge)
+                kind, pm = props[brng.randrange(len(props))]
+                if counts['triangles'] + d.mesh_info[pm][0] / 2 > t_goal:
+                    continue
+                if kind == 4:   # cars park in the street
+                    p = [(t, edge + 4.5), (t, -edge - 4.5), (edge + 4.5, t), (-edge - 4.5, t)][side]
+                    place(pm, (bx + p[0], 0.0, bz + p[1]), None, yrot(0.0 if side >= 2 else math.pi / 2))
+                else:
+                    p = [(t, edge + 0.6), (t, -edge - 0.6), (edge + 0.6, t), (-edge - 0.6, t)][side]
+                    place(pm, (bx + p[0], 0.15, bz + p[1]), None, yrot(brng.uniform(0, 6.28)))
+            k = 0
+            while True:
+                tm = trees[brng.randrange(len(trees))]
+                if counts['triangles'] + d.mesh_info[tm][0] / 2 > t_goal:
+                    break
+                side = k % 4
+                t = brng.uniform(-edge + 1, edge - 1)
+                p = [(t, edge), (t, -edge), (edge, t), (-edge, t)][side]
+                place(tm, (bx + p[0], 0.15, bz + p[1]), None, yrot(brng.uniform(0, 6.28)))
+                k += 1
+            block_lots.append(lots)
+        # punctual lights: the lights the emissive triangles and fires leave, spread evenly
+        # over the blocks, each block's in the full scene's mix
+        n_punctual = max(0, lights_free - counts['emissive_triangles'])
+        for b in range(n_blocks):
+            bx, bz = block_centres[b]
+            lots = block_lots[b]
+            n = n_punctual * (b + 1) // n_blocks - n_punctual * b // n_blocks
+            cum = [0]
+            for w in weights:
+                cum.append(cum[-1] + w)
+            kinds = [n * cum[i + 1] // total_w - n * cum[i] // total_w for i in range(len(weights))]
+            n_lantern, n_up, n_shop, n_lamp, n_path = kinds
+            for j in range(n_lantern):
+                cx, cz, a, q, sy, h, per_face, faces = lots[j % 4]
+                f = brng.randrange(4)
+                u = brng.uniform(-7.5, 7.5)
+                y = 0.15 + sy * brng.uniform(1.5, h - 1.0)
+                wx, wz = around(cx, cz, a, [(u, 8.5), (-u, -8.5), (8.5, -u), (-8.5, u)][f])
+                light_node(lantern[brng.randrange(16)], (wx, y, wz))
+                counts['point_lights'] += 1
+            for j in range(n_up):
+                cx, cz, a, q, sy, h, per_face, faces = lots[j % 4]
+                f = brng.randrange(4)
+                u = brng.uniform(-7.5, 7.5)
+                wx, wz = around(cx, cz, a, [(u, 9.0), (-u, -9.0), (9.0, -u), (-9.0, u)][f])
+                light_node(uplt[brng.randrange(8)], (wx, 0.4, wz), up)
+                counts['spot_lights'] += 1
+            for j in range(n_shop):
+                cx, cz, a, q, sy, h, per_face, faces = lots[j % 4]
+                f = brng.randrange(4)
+                u = brng.uniform(-7.0, 7.0)
+                wx, wz = around(cx, cz, a, [(u, 8.8), (-u, -8.8), (8.8, -u), (-8.8, u)][f])
+                light_node(shop[brng.randrange(8)], (wx, 3.2, wz), down)
+                counts['spot_lights'] += 1
+            per_side = max(1, (n_lamp + 3) // 4)
+            for j in range(n_lamp):
+                side = j % 4
+                t = -edge + 2 * edge * (j // 4 + 0.5) / per_side
+                p = [(t, edge + 2.0), (t, -edge - 2.0), (edge + 2.0, t), (-edge - 2.0, t)][side]
+                light_node(lamp[brng.randrange(8)], (bx + p[0], 6.8, bz + p[1]), down)
+                counts['spot_lights'] += 1
+            for j in range(n_path):
+                side = j % 4
+                t = brng.uniform(-edge, edge)
+                p = [(t, edge - 0.3), (t, -edge + 0.3), (edge - 0.3, t), (-edge + 0.3, t)][side]
+                light_node(path[brng.randrange(8)], (bx + p[0], 0.65, bz + p[1]))
+                counts['point_lights'] += 1
+
+    if targets:
+        blocks_to_targets(*targets)
+    # (with targets, the loop below makes no block)
+    for b in range(0 if targets else n_blocks):
         bx, bz = x_origin + (b % nx) * pitch, z_origin + (b // nx) * pitch
         block_centres.append((bx, bz))
         place(grounds[brng.randrange(len(grounds))], (bx, 0.0, bz))
@@ -854,17 +1078,20 @@ def build(out, scale):
 
     for n in mesh_nodes:
         d.node(n)
-    for n in lights_nodes:
-        d.node(n)
+    d.light_nodes = lights_nodes
     counts['punctual_lights'] = len(lights_nodes)
 
     sky_uri = base + '_sky.exr'
     d.doc['scenes'][0]['extras'] = {'candela_environment': {'uri': sky_uri, 'strength': 1.0}}
-    write_exr(os.path.join(folder, sky_uri), 16, 8,
-              lambda x, y: (0.004 + 0.004 * y / 7, 0.006 + 0.004 * y / 7, 0.012 + 0.004 * y / 7))
+    with contextlib.redirect_stdout(sys.stderr):   # stdout is the counts' JSON
+        write_exr(os.path.join(folder, sky_uri), 16, 8,
+                  lambda x, y: (0.004 + 0.004 * y / 7, 0.006 + 0.004 * y / 7, 0.012 + 0.004 * y / 7))
     write_fire_vdb(os.path.join(folder, fire_uri))
     d.write(out)
 
+    if targets:
+        counts.update({'lights_target': targets[0], 'triangles_target': targets[1],
+                       'emissive_capped': plan['emissive_capped'], 'window_subdivision': sub})
     distinct = sum(t for t, _, _ in d.mesh_info)
     counts.update({
         'scale': scale, 'blocks': n_blocks, 'distinct_meshes': len(d.mesh_info), 'distinct_triangles': distinct,
@@ -879,20 +1106,57 @@ def build(out, scale):
     return counts
 
 
+def count_arg(text):
+    """10000, 10k, 1.5M, 5e6: a count."""
+    t = text.strip().lower()
+    mult = {'k': 10 ** 3, 'm': 10 ** 6}.get(t[-1:], 1)
+    try:
+        v = float(t[:-1] if mult > 1 else t) * mult
+    except ValueError:
+        raise argparse.ArgumentTypeError('not a count: %r (e.g. 100000, 100k, 5M)' % text)
+    if not (v >= 1 and v == v and v < 1e12):
+        raise argparse.ArgumentTypeError('not a count: %r' % text)
+    return int(round(v))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('-o', '--output', default=os.path.join(ROOT, 'build', 'scenes', 'production.glb'))
-    ap.add_argument('--scale', type=float, default=1.0, help='1: the full scene; 0.01: the 1%% version')
+    ap.add_argument('--scale', type=float, default=None, help='1: the full scene (the default); 0.01: the 1%% version')
+    ap.add_argument('--lights', type=count_arg, default=None,
+                    help='target lights as the paper counts them (punctual + emissive triangles + volumes), e.g. 100k')
+    ap.add_argument('--triangles', type=count_arg, default=None, help='target triangles after instancing, e.g. 10M')
     a = ap.parse_args()
-    if not (0.0 < a.scale <= 4.0):
+    targets = None
+    if a.lights is not None or a.triangles is not None:
+        if a.scale is not None:
+            sys.exit('make_production.py: --scale or --lights/--triangles, not both')
+        lights = a.lights if a.lights is not None else int(round(a.triangles / TRIANGLES_PER_LIGHT))
+        tris = a.triangles if a.triangles is not None else int(round(a.lights * TRIANGLES_PER_LIGHT))
+        if not (100 <= lights <= 20000000):
+            sys.exit('make_production.py: --lights must be in [100, 20M] (got %d)' % lights)
+        if not (100000 <= tris <= 250000000):
+            sys.exit('make_production.py: --triangles must be in [100k, 250M] (got %d; a block\'s ground and '
+                     'buildings alone are ~50k)' % tris)
+        targets = (lights, tris)
+    elif a.scale is None:
+        a.scale = 1.0
+    if targets is None and not (0.0 < a.scale <= 4.0):
         sys.exit('make_production.py: --scale must be in (0, 4] (got %g)' % a.scale)
-    c = build(a.output, a.scale)
-    print('wrote %s (%d bytes): %d lights as the paper counts them (%d punctual: %d points, %d spots; '
-          '%d emissive triangles in %d emissive mesh instances; %d emissive volumes), %d renderer lights, '
-          '%d triangles after instancing (%d distinct), %d instances, %d textures'
-          % (a.output, c['glb_bytes'], c['lights_paper'], c['punctual_lights'], c['point_lights'],
-             c['spot_lights'], c['emissive_triangles'], c['emissive_instances'], c['volumes'],
-             c['renderer_lights'], c['triangles'], c['distinct_triangles'], c['instances'], c['textures']))
+    c = build(a.output, a.scale, targets)
+    sys.stderr.write('wrote %s (%d bytes): %d lights as the paper counts them (%d punctual: %d points, %d spots; '
+                     '%d emissive triangles in %d emissive mesh instances; %d emissive volumes), %d renderer lights, '
+                     '%d triangles after instancing (%d distinct), %d instances, %d textures\n'
+                     % (a.output, c['glb_bytes'], c['lights_paper'], c['punctual_lights'], c['point_lights'],
+                        c['spot_lights'], c['emissive_triangles'], c['emissive_instances'], c['volumes'],
+                        c['renderer_lights'], c['triangles'], c['distinct_triangles'], c['instances'], c['textures']))
+    if targets:
+        for what, got, want in (('lights', c['lights_paper'], targets[0]), ('triangles', c['triangles'], targets[1])):
+            if abs(got - want) > 0.03 * want:
+                sys.stderr.write('make_production.py: warning: %d %s, %.1f%% from the target %d\n'
+                                 % (got, what, 100.0 * (got - want) / want, want))
+    # stdout: what was written, one JSON line (the counts file's content and the output's path)
+    print(json.dumps(dict(c, output=os.path.abspath(a.output)), sort_keys=True))
 
 
 if __name__ == '__main__':
