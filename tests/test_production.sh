@@ -18,6 +18,9 @@
 #    469,060 more triangles after instancing: 20 and 157 bytes per triangle). Measured when
 #    this test was written: loader 63 bytes per light, render 1,159 (cache points most of
 #    it); the 1% render's peak at most 768 MiB (measured 422). RSS of one process, no timing.
+# 4. --lights/--triangles targets: 20k lights exactly, 1M triangles within 3%, stdout's JSON
+#    the counts file's; scenes/production_scaling.py renders its smallest cell (10k x 1M) at
+#    64x36 into a table row (no failure) with the generator's counts and Candela's light count.
 # usage: test_production.sh CANDELA_BINARY SOURCE_ROOT EXR_STATS BUILD_DIR [SANITIZE]
 set -u
 BIN=$1
@@ -41,6 +44,37 @@ done
 diff -r "$TMP/a" "$TMP/b" >/dev/null || bad "the generator wrote different files twice: $(diff -rq "$TMP/a" "$TMP/b" | head -3)"
 "$py" "$ROOT/scenes/make_production.py" -o "$TMP/a/p05.glb" --scale 0.005 >"$TMP/gen_c.log" 2>&1 \
     || { bad "generator: $(tail -n 3 "$TMP/gen_c.log")"; exit 1; }
+
+# --lights/--triangles targets (issue 28's scaling table): the light count exact, the triangles
+# within 3%, stdout's JSON line the counts file's; and scenes/production_scaling.py on its
+# smallest cell (64x36, 2 spp): a row, not a failure, whose counts are the generator's
+"$py" "$ROOT/scenes/make_production.py" -o "$TMP/t/t.glb" --lights 20k --triangles 1M >"$TMP/t.stdout" 2>"$TMP/t.log" \
+    || { bad "generator with targets: $(tail -n 3 "$TMP/t.log")"; exit 1; }
+"$py" "$ROOT/scenes/production_scaling.py" --lights 10k --triangles 1M --res 64x36 --spp 2 --threads 2 \
+    --candela "$BIN" --scene-dir "$TMP/scaling" >"$TMP/scaling.md" 2>"$TMP/scaling.log" \
+    || bad "production_scaling.py: exit $?: $(tail -n 3 "$TMP/scaling.log") $(tail -n 1 "$TMP/scaling.md")"
+python3 - "$TMP" <<'PY' || fail=1
+import json, os, sys
+tmp = sys.argv[1]
+fails = []
+c = json.load(open(os.path.join(tmp, 't', 't.counts.json')))
+out = json.loads(open(os.path.join(tmp, 't.stdout')).read())
+if dict(c, output=os.path.join(tmp, 't', 't.glb')) != out:
+    fails.append('stdout %s is not the counts file %s' % (out, c))
+if c['lights_paper'] != 20000 or c['punctual_lights'] + c['emissive_triangles'] + c['volumes'] != 20000:
+    fails.append('--lights 20k: %d lights (%d punctual, %d emissive triangles, %d volumes)'
+                 % (c['lights_paper'], c['punctual_lights'], c['emissive_triangles'], c['volumes']))
+if abs(c['triangles'] - 1000000) > 30000:
+    fails.append('--triangles 1M: %d triangles' % c['triangles'])
+sc = json.load(open(os.path.join(tmp, 'scaling', 'production_10k_1M.counts.json')))
+row = '| 10k | 10,000 | {:,} | 1M | {:.2f}M | cachepoints |'.format(sc['renderer_lights'], sc['triangles'] / 1e6)
+table = open(os.path.join(tmp, 'scaling.md')).read()
+if row not in table or 'failed' in table:
+    fails.append('production_scaling.py: no row starting %r in:\n%s' % (row, table))
+for f in fails:
+    print('FAIL: ' + f)
+sys.exit(1 if fails else 0)
+PY
 
 for s in p1 p05; do
     "$BIN" render "$TMP/a/$s.glb" --res 160x90 --spp 2 --threads 2 --no-png -q \
