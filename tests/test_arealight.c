@@ -10,7 +10,11 @@
  *       large sheet (both printed);
  *   (e) the fallback: from behind a one-sided sheet the root has no importance, so the area
  *       CDF is used, and the pdf function agrees; small lights (<= 8 triangles) build no tree;
- *   (f) a 1,000,000-triangle mesh builds (its time is printed, not asserted). */
+ *   (f) a 1,000,000-triangle mesh builds (its time is printed, not asserted);
+ *   (g) the refit of another instance (light_tree_refit_triangles): over the same vertices it
+ *       equals the build bit for bit; over a rotated, non-uniformly scaled, mirrored and moved
+ *       copy it passes (a)-(c); a copy with another triangle count, or with a triangle that no
+ *       longer emits, is refused (the caller builds). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -254,10 +258,70 @@ static void test_small_and_million(void) {
     free_light(&big);
 }
 
+/* (g) the refit: `src` moved by the affine map x -> M x + o */
+static Light moved_copy(const Light *src, const float M[9], vec3 o) {
+    Light l = *src;
+    memset(&l.tri_tree, 0, sizeof l.tri_tree);
+    memset(&l.triangles, 0, sizeof l.triangles);
+    uint32_t nt = src->triangles.n;
+    l.world_vertices = malloc((size_t)nt * 9 * sizeof(float));
+    float *areas = malloc(nt * sizeof(float));
+    double total = 0.0;
+    for (uint32_t t = 0; t < nt; ++t) {
+        vec3 w[3];
+        for (int v = 0; v < 3; ++v) {
+            const float *x = src->world_vertices + 9 * (size_t)t + 3 * v;
+            w[v] = v3(M[0] * x[0] + M[1] * x[1] + M[2] * x[2] + o.x, M[3] * x[0] + M[4] * x[1] + M[5] * x[2] + o.y,
+                      M[6] * x[0] + M[7] * x[1] + M[8] * x[2] + o.z);
+            memcpy(l.world_vertices + 9 * (size_t)t + 3 * v, &w[v], 3 * sizeof(float));
+        }
+        areas[t] = 0.5f * v3_length(v3_cross(v3_sub(w[1], w[0]), v3_sub(w[2], w[0])));
+        total += areas[t];
+    }
+    dist1d_init(&l.triangles, areas, nt);
+    free(areas);
+    l.area = (float)total;
+    return l;
+}
+
+static void test_refit(void) {
+    Light l = grid_light(sheet, 32, 32, 5.0f, 0);
+    LightTree same;
+    CHECK(light_tree_refit_triangles(&same, &l.tri_tree, l.world_vertices, l.triangles.n, v3_luminance(l.emission), 0) == 0,
+          "refit over the same vertices failed");
+    CHECK(same.node_count == l.tri_tree.node_count &&
+              memcmp(same.nodes, l.tri_tree.nodes, same.node_count * sizeof *same.nodes) == 0 &&
+              memcmp(same.trail, l.tri_tree.trail, l.triangles.n * sizeof *same.trail) == 0,
+          "refit over the same vertices differs from the build");
+    light_tree_free(&same);
+    /* rotated about y by 50 degrees, scaled (2, 0.5, 1.5), mirrored in x (det < 0: normals flip) */
+    float c = cosf(0.8727f), s = sinf(0.8727f);
+    float M[9] = {-2.0f * c, 0.0f, 1.5f * s, 0.0f, 0.5f, 0.0f, 2.0f * s, 0.0f, 1.5f * c}; /* R_y diag(-2, .5, 1.5) */
+    Light m = moved_copy(&l, M, v3(3.0f, 1.0f, -2.0f));
+    CHECK(light_tree_refit_triangles(&m.tri_tree, &l.tri_tree, m.world_vertices, m.triangles.n, v3_luminance(m.emission),
+                                     0) == 0,
+          "refit of the moved copy failed");
+    /* the mirror turns the one-sided sheet to face -y: a receiver below it, facing up */
+    check_pmf("sheet, refit copy", &m, v3(-1, 0, -6), v3(7, 2, 2));
+    check_unbiased("sheet, refit copy", &m, (LightSampleContext){v3(3.5f, 0.4f, -1.5f), v3(0, 1, 0)});
+    LightTree refused;
+    /* another count */
+    CHECK(light_tree_refit_triangles(&refused, &l.tri_tree, m.world_vertices, m.triangles.n - 1, 1.0f, 0) == 1 &&
+              refused.node_count == 0,
+          "refit over another triangle count was not refused");
+    /* triangle 7 collapsed to a point: it emits nothing here */
+    for (int v = 1; v < 3; ++v) memcpy(m.world_vertices + 9 * 7 + 3 * v, m.world_vertices + 9 * 7, 3 * sizeof(float));
+    CHECK(light_tree_refit_triangles(&refused, &l.tri_tree, m.world_vertices, m.triangles.n, 1.0f, 0) == 1,
+          "refit with a triangle that no longer emits was not refused");
+    free_light(&m);
+    free_light(&l);
+}
+
 int main(void) {
     test_bumpy_sheet();
     test_sphere();
     test_variance();
     test_small_and_million();
+    test_refit();
     return test_exit();
 }

@@ -27,7 +27,9 @@ static int push_light(Lights *ls, uint32_t *cap, const Light *l) {
     return 0;
 }
 
-static int build_area_light(const Scene *scene, uint32_t instance, uint32_t local, Light *l) {
+/* topology: another instance's inner tree of the same primitive to refit (NULL: build one). */
+static int build_area_light(const Scene *scene, uint32_t instance, uint32_t local, const LightTree *topology,
+                            Light *l) {
     const SceneInstance *inst = &scene->instances[instance];
     const IoMesh *mesh = &scene->io.meshes[inst->mesh];
     uint32_t global = mesh->first_primitive + local;
@@ -63,7 +65,11 @@ static int build_area_light(const Scene *scene, uint32_t instance, uint32_t loca
     l->emission = v3_max(e, v3s(0.0f));
     l->two_sided = mat->double_sided ? 1 : 0;
     l->power = PI_F * l->area * fmaxf(v3_luminance(e), 0.0f) * (mat->double_sided ? 2.0f : 1.0f);
-    if (light_area_tree_build(l) != 0) { light_area_free(l); return -1; }
+    int tr = 1;
+    if (topology && l->triangles.n > LIGHT_AREA_TREE_MAX_CDF)
+        tr = light_tree_refit_triangles(&l->tri_tree, topology, l->world_vertices, l->triangles.n,
+                                        v3_luminance(l->emission), l->two_sided);
+    if (tr < 0 || (tr > 0 && light_area_tree_build(l) != 0)) { light_area_free(l); return -1; }
     return 0;
 }
 
@@ -406,6 +412,14 @@ int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, Candel
         }
         if (push_light(ls, &cap, &l) != 0) goto oom;
     }
+    /* Per primitive: the light whose inner tree later instances of it refit (UINT32_MAX: none
+     * yet). The split search runs once per distinct emissive primitive, not once per instance. */
+    uint32_t *tree_of_prim = NULL;
+    if (scene->io.num_primitives) {
+        tree_of_prim = malloc(scene->io.num_primitives * sizeof *tree_of_prim);
+        if (!tree_of_prim) goto oom;
+        for (uint32_t k = 0; k < scene->io.num_primitives; ++k) tree_of_prim[k] = UINT32_MAX;
+    }
     for (uint32_t i = 0; i < scene->io.num_instances; ++i) {
         const SceneInstance *inst = &scene->instances[i];
         const IoMesh *mesh = &scene->io.meshes[inst->mesh];
@@ -417,13 +431,17 @@ int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, Candel
                 sp->io->num_triangles == 0)
                 continue;
             Light l;
-            if (build_area_light(scene, i, k, &l) != 0) goto oom;
+            uint32_t g = mesh->first_primitive + k, from = tree_of_prim[g];
+            const LightTree *topology = from != UINT32_MAX ? &ls->lights[from].tri_tree : NULL;
+            if (build_area_light(scene, i, k, topology, &l) != 0) { free(tree_of_prim); goto oom; }
             if (!(l.area > 0.0f)) { light_area_free(&l); continue; }
+            if (from == UINT32_MAX && l.tri_tree.node_count) tree_of_prim[g] = ls->count;
             l.link = link_of_node && scene->io.instances[i].node >= 0 ? link_of_node[scene->io.instances[i].node] : -1;
             ls->of_primitive[inst->primitive_base + k] = (int32_t)ls->count;
-            if (push_light(ls, &cap, &l) != 0) { light_area_free(&l); goto oom; }
+            if (push_light(ls, &cap, &l) != 0) { light_area_free(&l); free(tree_of_prim); goto oom; }
         }
     }
+    free(tree_of_prim);
     /* emissive volumes (§4.3): one light each, sampled in proportion to their emission energy */
     if (media && media->num_vdb > 0) {
         ls->of_medium = malloc(media->num_vdb * sizeof *ls->of_medium);

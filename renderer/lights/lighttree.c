@@ -248,6 +248,21 @@ __attribute__((noinline)) static void child_probs(const LightTree *t, uint32_t n
     *p1 = i1 / s;
 }
 
+static void node_set(LightTreeNode *nd, const LB *b) {
+    nd->bmin = b->bmin;
+    nd->bmax = b->bmax;
+    nd->w = b->w;
+    nd->cos_o = b->cos_o;
+    nd->cos_e = b->cos_e;
+    nd->phi = b->phi;
+    nd->two_sided = b->two_sided;
+}
+
+static LB node_bounds(const LightTreeNode *nd) {
+    LB b = {nd->bmin, nd->bmax, nd->w, nd->cos_o, nd->cos_e, nd->phi, nd->two_sided};
+    return b;
+}
+
 /* ---------------------------------------------------------------- build */
 
 typedef struct Item {
@@ -396,13 +411,7 @@ static LB build_node(Builder *B, uint32_t start, uint32_t end, uint64_t trail, i
     if (end - start == 1) {
         const Item *it = &B->items[start];
         nd = &t->nodes[idx];
-        nd->bmin = it->b.bmin;
-        nd->bmax = it->b.bmax;
-        nd->w = it->b.w;
-        nd->cos_o = it->b.cos_o;
-        nd->cos_e = it->b.cos_e;
-        nd->phi = it->b.phi;
-        nd->two_sided = it->b.two_sided;
+        node_set(nd, &it->b);
         nd->child = 0;
         nd->light = it->light;
         t->trail[it->light] = trail;
@@ -419,13 +428,7 @@ static LB build_node(Builder *B, uint32_t start, uint32_t end, uint64_t trail, i
     LB r = build_node(B, mid, end, trail | ((uint64_t)1 << depth), depth + 1, sorted);
     LB u = lb_union(&l, &r);
     nd = &t->nodes[idx];
-    nd->bmin = u.bmin;
-    nd->bmax = u.bmax;
-    nd->w = u.w;
-    nd->cos_o = u.cos_o;
-    nd->cos_e = u.cos_e;
-    nd->phi = u.phi;
-    nd->two_sided = u.two_sided;
+    node_set(nd, &u);
     nd->child = second;
     nd->light = LIGHT_TREE_INTERIOR;
     return u;
@@ -512,31 +515,42 @@ oom:
     return -1;
 }
 
+/* One triangle's leaf bounds (an emitter of luminance x area, x2 when two-sided; its normal
+ * cone a single direction, a cosine emitter). 0: it emits nothing (zero or non-finite area or
+ * bounds) and is left out of the tree. */
+static int triangle_bounds(const float *v, float scale, int two_sided, LB *out) {
+    vec3 a = v3(v[0], v[1], v[2]), b = v3(v[3], v[4], v[5]), c = v3(v[6], v[7], v[8]);
+    vec3 n = v3_cross(v3_sub(b, a), v3_sub(c, a));
+    float len = v3_length(n);
+    float phi = 0.5f * len * scale;
+    if (!(len > 0.0f) || !isfinite(len) || !(phi > 0.0f) || !isfinite(phi)) return 0; /* emits nothing */
+    out->bmin = v3_min(a, v3_min(b, c));
+    out->bmax = v3_max(a, v3_max(b, c));
+    if (!v3_is_finite(out->bmin) || !v3_is_finite(out->bmax)) return 0;
+    out->w = v3_scale(n, 1.0f / len);
+    out->cos_o = 1.0f;
+    out->two_sided = two_sided ? 1u : 0u;
+    out->cos_e = 0.0f; /* theta_e = pi/2: a cosine emitter */
+    out->phi = phi;
+    return 1;
+}
+
+/* relative powers are all that matter; a black (or odd) luminance falls back to area */
+static float triangle_power_scale(float luminance, int two_sided) {
+    return (luminance > 0.0f && isfinite(luminance) ? luminance : 1.0f) * (two_sided ? 2.0f : 1.0f);
+}
+
 int light_tree_build_triangles(LightTree *t, const float *world_vertices, uint32_t count, float luminance,
                                int two_sided) {
     memset(t, 0, sizeof *t);
     if (count == 0) return 0;
     Builder B = {t, NULL, NULL, NULL};
     if (builder_begin(t, &B, count) != 0) goto oom;
-    /* relative powers are all that matter; a black (or odd) luminance falls back to area */
-    float scale = (luminance > 0.0f && isfinite(luminance) ? luminance : 1.0f) * (two_sided ? 2.0f : 1.0f);
+    float scale = triangle_power_scale(luminance, two_sided);
     uint32_t m = 0;
     for (uint32_t i = 0; i < count; ++i) {
-        const float *v = world_vertices + 9 * (size_t)i;
-        vec3 a = v3(v[0], v[1], v[2]), b = v3(v[3], v[4], v[5]), c = v3(v[6], v[7], v[8]);
-        vec3 n = v3_cross(v3_sub(b, a), v3_sub(c, a));
-        float len = v3_length(n);
-        float phi = 0.5f * len * scale;
-        if (!(len > 0.0f) || !isfinite(len) || !(phi > 0.0f) || !isfinite(phi)) continue; /* emits nothing */
         Item *it = &B.items[m];
-        it->b.bmin = v3_min(a, v3_min(b, c));
-        it->b.bmax = v3_max(a, v3_max(b, c));
-        if (!v3_is_finite(it->b.bmin) || !v3_is_finite(it->b.bmax)) continue;
-        it->b.w = v3_scale(n, 1.0f / len);
-        it->b.cos_o = 1.0f;
-        it->b.two_sided = two_sided ? 1u : 0u;
-        it->b.cos_e = 0.0f; /* theta_e = pi/2: a cosine emitter */
-        it->b.phi = phi;
+        if (!triangle_bounds(world_vertices + 9 * (size_t)i, scale, two_sided, &it->b)) continue;
         it->c = v3_scale(v3_add(it->b.bmin, it->b.bmax), 0.5f);
         it->light = i;
         t->kind[i] = LIGHT_TREE_BVH;
@@ -552,6 +566,51 @@ oom:
     builder_free(&B);
     light_tree_free(t);
     return -1;
+}
+
+int light_tree_refit_triangles(LightTree *t, const LightTree *topology, const float *world_vertices, uint32_t count,
+                               float luminance, int two_sided) {
+    memset(t, 0, sizeof *t);
+    if (topology->light_count != count || topology->num_infinite) return 1;
+    if (count == 0) return 0;
+    float scale = triangle_power_scale(luminance, two_sided);
+    /* the same triangles must emit: a leaf set that differs needs a build of its own */
+    for (uint32_t i = 0; i < count; ++i) {
+        LB b;
+        if (triangle_bounds(world_vertices + 9 * (size_t)i, scale, two_sided, &b) !=
+            (topology->kind[i] == LIGHT_TREE_BVH))
+            return 1;
+    }
+    size_t nn = topology->node_count;
+    t->light_count = count;
+    t->node_count = topology->node_count;
+    t->nodes = malloc((nn ? nn : 1) * sizeof *t->nodes);
+    t->depth = malloc(nn ? nn : 1);
+    t->trail = malloc(count * sizeof *t->trail);
+    t->kind = malloc(count);
+    if (!t->nodes || !t->depth || !t->trail || !t->kind) { light_tree_free(t); return -1; }
+    memcpy(t->nodes, topology->nodes, nn * sizeof *t->nodes);
+    memcpy(t->depth, topology->depth, nn);
+    memcpy(t->trail, topology->trail, count * sizeof *t->trail);
+    memcpy(t->kind, topology->kind, count);
+    /* children follow their parent in the depth-first array, so one backward pass sees both
+     * children of a node before the node: the same lb_union as the build, bottom-up */
+    for (size_t k = nn; k-- > 0;) {
+        LightTreeNode *nd = &t->nodes[k];
+        LB b;
+        memset(&b, 0, sizeof b);
+        if (nd->light != LIGHT_TREE_INTERIOR) {
+            triangle_bounds(world_vertices + 9 * (size_t)nd->light, scale, two_sided, &b);
+        } else {
+            LB l = node_bounds(&t->nodes[k + 1]), r = node_bounds(&t->nodes[nd->child]);
+            b = lb_union(&l, &r);
+        }
+        node_set(nd, &b);
+    }
+    t->p_inf = 0.0f;
+    t->p_bvh = topology->p_bvh;
+    t->pmf_inf = 0.0f;
+    return 0;
 }
 
 void light_tree_free(LightTree *t) {

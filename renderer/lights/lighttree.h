@@ -91,6 +91,15 @@ int light_tree_build_enabled(LightTree *t, const Light *lights, uint32_t count, 
  * of memory (t is then empty). */
 int light_tree_build_triangles(LightTree *t, const float *world_vertices, uint32_t count, float luminance,
                                int two_sided);
+/* The same tree over another placement of the same triangles (another instance of an emissive
+ * mesh): `topology`'s splits, with every node's bounds, cone and power recomputed from
+ * world_vertices bottom-up (no split search: the cache points paper's street instances one
+ * emissive mesh thousands of times). Selection stays exact for any tree; only how well the
+ * splits fit a sheared or non-uniformly scaled copy can differ. 0 ok, 1 the topology does not
+ * fit (another count, or other triangles emit nothing: build instead), -1 out of memory (t is
+ * then empty). */
+int light_tree_refit_triangles(LightTree *t, const LightTree *topology, const float *world_vertices, uint32_t count,
+                               float luminance, int two_sided);
 void light_tree_free(LightTree *t);
 /* Picks a light for ctx with u in [0,1); *pmf is its probability. Always returns an index
  * < count (0 when nothing is selectable, with *pmf = 0). */
