@@ -354,7 +354,7 @@ static const CandelaFlag FLAGS[] = {
            "resolution, 1..16384 per side and at most 64 megapixels (default: 640 wide, camera aspect); the same for "
            "every compare variant"),
     CUSTOM("--crop", "X0,Y0,X1,Y1", 1, 1, set_crop, get_crop, show_crop, RENDERING, 0, "8,4,24,12",
-           "render only the pixels [X0,X1) x [Y0,Y1) of the --res image, into an image of the crop's size",
+           "render only pixels [X0,X1) x [Y0,Y1) of the image, at the crop's size",
            "render only the pixels [X0, X1) x [Y0, Y1) of the full image (pbrt's --pixelbounds, Blender's border "
            "render): the camera and every pixel's rays and random numbers are the full image's, and the EXR and PNG "
            "are the crop's size, (X1 - X0) x (Y1 - Y0). Without a light sampler or guide that learns (uniform, power, "
