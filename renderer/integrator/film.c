@@ -126,7 +126,9 @@ int film_resolve(const Film *f, CandelaImage *img) {
  *
  * with sigma_p^2 the per-sample variance (summed over channels) pooled over the pilots of the
  * pixels in a square window around p (adaptive_radius), p itself left out, and mu_p the mean
- * over channels of every other pixel's pilot mean (the image's mean without p). The pixel then
+ * over channels of every other pixel's pilot mean (the image's mean without p; with --crop the
+ * film, hence the image here, is the crop, while the window keeps the full image's scale:
+ * Film.window_side). The pixel then
  * stops at the first barrier where its count reaches n_p (the schedule's barriers: 16, 32, 64,
  * then every 64 unguided). Targets never change after the pilot: checkpoints carry them
  * (Film.target), and a resumed render stops the same pixels at the same barriers.
