@@ -63,6 +63,11 @@ typedef struct CandelaOptions {
     const char *scene_path;
     const char *camera_name;   /* NULL: first camera, or a default view framing the scene */
     int width, height;         /* 0: from the camera's aspect (width 640) */
+    /* --crop X0,Y0,X1,Y1 (crop[2] == 0: none, the whole image): render only the pixels
+     * [X0, X1) x [Y0, Y1) of the width x height image. The camera and every pixel's rays and random
+     * numbers are the full image's (a pixel's numbers are a function of the seed, its full-image
+     * position and the sample: renderer/util/sequence.h); the image is the crop's size. */
+    int crop[4];
     int spp;                   /* samples per pixel in total */
     uint64_t seed;
     int threads;               /* 0: all cores */
@@ -263,6 +268,7 @@ typedef struct CandelaStats {
     double spp_mean;
     uint32_t spp_histogram[21];
     uint32_t adaptive_active_pixels; /* adaptive sampling: pixels still sampling at the end (0: all stopped) */
+    int image_width, image_height;   /* the resolved resolution (the full image's with --crop) */
     int time_limited;                /* --time-limit stopped the render before --spp */
 } CandelaStats;
 
@@ -280,6 +286,10 @@ static inline double candela_stats_other_seconds(const CandelaStats *s) {
 /* The film after the render: per-pixel mean and AOVs, top row first. */
 typedef struct CandelaImage {
     int width, height;
+    /* where the image lies in the full image (--crop): its top-left pixel and the full image's
+     * size (crop_x = crop_y = 0 and full_* = width, height without a crop; full_width 0: not
+     * known, e.g. a merged image) */
+    int crop_x, crop_y, full_width, full_height;
     float *rgb;       /* 3 per pixel, mean radiance */
     float *variance;  /* 3 per pixel, variance of the pixel mean (sample variance / n) */
     float *albedo;    /* 3 per pixel, first-hit albedo */
@@ -474,7 +484,8 @@ typedef struct CandelaSessionInfo {
     double time_load;             /* seconds to load the scene */
     uint32_t num_channels;        /* animation channels (0: a still scene) */
     double anim_start, anim_end;  /* the animation's first and last key time, seconds */
-    int width, height;            /* the frames' resolution */
+    int width, height;            /* the frames' resolution (the full image's, with --crop) */
+    int image_width, image_height; /* the frames' images' size: the crop's with --crop, else width x height */
 } CandelaSessionInfo;
 typedef struct CandelaFrameInfo {
     double time_pose;             /* posing the scene and updating Embree (inside stats time_load) */

@@ -863,5 +863,57 @@ else
   echo "skipped: provenance (no oiiotool)"
 fi
 
+# --crop X0,Y0,X1,Y1: bad boxes are one line and nothing written; a crop is the full render's
+# pixels bit for bit with a sampler that learns nothing (any threads, batch), and so are its
+# sample shards' merge, its resumed checkpoint and its frames; the EXR and PNG are the crop's size
+expect_error "crop not four" "invalid value '1,2,3' for --crop" -- render "$scene" --crop 1,2,3 "${common[@]}"
+expect_error "crop words" "invalid value 'a,b,c,d' for --crop" -- render "$scene" --crop a,b,c,d "${common[@]}"
+expect_error "crop five" "for --crop" -- render "$scene" --crop 0,0,4,4,4 "${common[@]}"
+expect_error "crop negative" "for --crop" -- render "$scene" --crop=-1,0,4,4 "${common[@]}"
+expect_error "crop empty" "--crop 3,2,3,9 is an empty box" -- render "$scene" --crop 3,2,3,9 "${common[@]}"
+expect_error "crop reversed" "--crop 5,2,3,9 is an empty box" -- render "$scene" --crop 5,2,3,9 "${common[@]}"
+expect_error "crop outside res" "--crop 0,0,17,16 reaches outside the 16x16 image" -- render "$scene" --crop 0,0,17,16 "${common[@]}"
+expect_error "crop outside dry-run" "reaches outside the 16x16 image" -- render "$scene" --crop 0,9,4,17 --dry-run "${common[@]}"
+expect_error "crop outside camera" "reaches outside the 640x" -- render "$scene" --crop 0,0,641,4 -o "$tmp/out.exr" --spp 1 --quiet
+expect_error "crop in a variant" "variant 'a': --crop is the same for every variant" -- compare "$scene" --spp 1 --res 8x8 \
+  --variants "a: --crop 0,0,4,4" --out-dir "$tmp/cmpcrop" --quiet
+cfull=(--res 24x20 --spp 6 --seed 5 --light-sampler tree --no-png --quiet)
+"$bin" render "$det" "${cfull[@]}" -o "$tmp/cf.exr" --threads 2 || bad "crop: full render"
+"$bin" render "$det" "${cfull[@]}" -o "$tmp/c1.exr" --threads 1 --crop 5,3,21,17 || bad "crop: 1 thread"
+"$bin" render "$det" "${cfull[@]}" -o "$tmp/c2.exr" --threads 2 --batch 97 --crop 5,3,21,17 --stats-json "$tmp/c.json" \
+  || bad "crop: 2 threads"
+"$exr_same" --at 5,3 "$tmp/cf.exr" "$tmp/c1.exr" && ok || bad "crop pixels are not the full render's (1 thread)"
+same_exr "$tmp/c1.exr" "$tmp/c2.exr" && ok || bad "crop: threads 1 vs 2 (batch 97) differ"
+"$exr_same" --at 5,4 "$tmp/cf.exr" "$tmp/c1.exr" 2>/dev/null && bad "crop: equal to the region a row lower" || ok
+grep -q '"crop": {"x0": 5, "y0": 3, "x1": 21, "y1": 17, "width": 16, "height": 14, "image_width": 24, "image_height": 20}' \
+  "$tmp/c.json" && grep -q '"crop": \[5, 3, 21, 17\]' "$tmp/c.json" && ok || bad "crop: statistics JSON: $(grep crop "$tmp/c.json")"
+"$bin" render "$det" --res 24x20 --spp 1 --crop 2,4,9,7 -o "$tmp/cp.exr" --quiet || bad "crop: PNG render"
+[ "$(od -An -tx1 -j16 -N8 "$tmp/cp.png" | tr -d ' \n')" = "0000000700000003" ] && ok || bad "crop: the PNG is not 7x3"
+# sample shards of a crop merge into the full merge's pixels (each shard's sums are the full one's)
+for i in 0 1; do
+  "$bin" render "$det" "${cfull[@]}" --sample-shard $i/2 -o "$tmp/cfs.$i.film" || bad "crop: full shard $i"
+  "$bin" render "$det" "${cfull[@]}" --sample-shard $i/2 --crop 5,3,21,17 -o "$tmp/ccs.$i.film" || bad "crop: shard $i"
+done
+"$bin" merge -o "$tmp/cfm.exr" --no-png "$tmp"/cfs.*.film && "$bin" merge -o "$tmp/ccm.exr" --no-png "$tmp"/ccs.*.film &&
+  "$exr_same" --at 5,3 "$tmp/cfm.exr" "$tmp/ccm.exr" && ok || bad "crop: merged shards are not the full merge's pixels"
+# a crop's checkpoint resumes to its image and keeps its crop; another crop disagrees
+"$bin" render "$det" "${cfull[@]}" --spp 12 --crop 5,3,21,17 -o "$tmp/ck.exr" --checkpoint "$tmp/ck.ckpt" || bad "crop: checkpoint"
+if [ -s "$tmp/ck.ckpt" ] && "$bin" render --resume-from "$tmp/ck.ckpt" -o "$tmp/ckr.exr" --no-png --quiet &&
+   same_exr "$tmp/ck.exr" "$tmp/ckr.exr"; then ok; else bad "crop: the resumed checkpoint differs"; fi
+expect_error "crop resume disagrees" "--crop 5,3,21,18 (checkpoint 5,3,21,17)" -- render --resume-from "$tmp/ck.ckpt" \
+  --crop 5,3,21,18 -o "$tmp/out.exr" --quiet
+# frames: a cropped frame is the full frame's pixels; --resume knows its size
+"$bin" render "$root/scenes/animation.gltf" --frames 2 --res 32x24 --spp 2 --light-sampler tree -o "$tmp/fa.#.exr" --no-png \
+  --quiet && "$bin" render "$root/scenes/animation.gltf" --frames 2 --res 32x24 --spp 2 --light-sampler tree --crop 8,8,24,20 \
+  -o "$tmp/fc.#.exr" --no-png --quiet && "$exr_same" --at 8,8 "$tmp/fa.2.exr" "$tmp/fc.2.exr" && ok || bad "crop: frame 2"
+"$bin" render "$root/scenes/animation.gltf" --frames 2 --res 32x24 --spp 2 --light-sampler tree --crop 8,8,24,20 \
+  -o "$tmp/fc.#.exr" --no-png --resume --frame-stats "$tmp/fc.jsonl" 2>"$tmp/fc.err" && ! grep -q "again" "$tmp/fc.err" &&
+  grep -q '"status": "skipped"' "$tmp/fc.jsonl" && ok || bad "crop: --resume did not skip the cropped frame: $(cat "$tmp/fc.err")"
+# compare on a crop: the reference and every variant at the crop's size
+"$bin" compare "$det" --strategies power,tree --spp 1 --ref-spp 4 --res 24x20 --crop 4,4,12,10 --out-dir "$tmp/cmpc" --quiet \
+  >/dev/null && grep -q '^8x6, ' "$tmp/cmpc/table.md" && [ -s "$tmp/cmpc/index.html" ] && ok ||
+  bad "crop: compare"
+rm -rf "$tmp"/c*.exr "$tmp"/c*.film "$tmp"/ck* "$tmp"/f[ac]* "$tmp/cmpc"
+
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -522,7 +522,8 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
                 identity[0] = 0; /* too long to record: never equal to a frame's */
         }
         if (b->resume) {
-            not_done = frame_done(exr, b->png_pattern ? png : NULL, info.width, info.height, identity, &other_options, why);
+            not_done = frame_done(exr, b->png_pattern ? png : NULL, info.image_width, info.image_height, identity,
+                                  &other_options, why);
         }
         if (b->resume && other_options) /* said even with --quiet: the frame is replaced */
             fprintf(stderr, "candela: frame %lld: %s; rendering it again\n", (long long)frame, not_done);
@@ -586,7 +587,7 @@ int candela_batch_render(const CandelaOptions *o, const CandelaBatchOptions *b, 
             int prc = b->provenance ? candela_provenance_copy(&fp, b->provenance) : 0;
             if (prc == 0 && b->provenance)
                 prc = candela_provenance_render(&fp, &fo, &stats) | candela_provenance_set(&fp, "candela:frame", frame_text) |
-                      candela_provenance_identity(&fp, &fo, image.width, image.height);
+                      candela_provenance_identity(&fp, &fo, image.full_width, image.full_height);
             if (prc != 0) {
                 snprintf(ferr, CANDELA_ERR_LEN, "%.400s: out of memory", out_exr);
                 rc = -1;

@@ -974,7 +974,7 @@ static int compare_locked(const CandelaOptions *base, const CandelaCompareOption
             snprintf(path, sizeof path, "%s/reference.exr", c->out_dir);
             snprintf(png, sizeof png, "%s/reference.png", c->out_dir);
             CandelaProvenance rp;
-            int wrc = compare_provenance(c, &scene_prov, &ro, &st, img.width, img.height, "reference", &rp, err);
+            int wrc = compare_provenance(c, &scene_prov, &ro, &st, img.full_width, img.full_height, "reference", &rp, err);
             if (wrc == 0) wrc = candela_write_outputs_provenance(&img, path, png, rp.count ? &rp : NULL, err);
             candela_provenance_free(&rp);
             size_t n = (size_t)r.width * (size_t)r.height;
@@ -1075,7 +1075,7 @@ static int compare_locked(const CandelaOptions *base, const CandelaCompareOption
         snprintf(path, sizeof path, "%s/%s.exr", c->out_dir, v->name);
         snprintf(png, sizeof png, "%s/%s.png", c->out_dir, v->name);
         CandelaProvenance vp;
-        int wrc = compare_provenance(c, &scene_prov, &vo, &st, img.width, img.height, v->name, &vp, err);
+        int wrc = compare_provenance(c, &scene_prov, &vo, &st, img.full_width, img.full_height, v->name, &vp, err);
         if (wrc == 0) wrc = candela_write_outputs_provenance(&img, path, png, vp.count ? &vp : NULL, err);
         snprintf(path, sizeof path, "%s/%s_error.png", c->out_dir, v->name);
         if (wrc == 0) wrc = write_error_png(path, &img, ref, error_map, vp.count ? &vp : NULL, err);

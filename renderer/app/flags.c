@@ -27,6 +27,13 @@ int candela_options_check(const CandelaOptions *o, char err[CANDELA_ERR_LEN]) {
                  o->noise_threshold > 0.0f ? "--noise-threshold" : "--time-limit");
         return -1;
     }
+    /* --crop inside the image: here when --res is given (so --dry-run says it too), else where
+     * the scene's camera fixes the resolution (scene.c) */
+    if (o->crop[2] > 0 && o->width > 0 && o->height > 0 && (o->crop[2] > o->width || o->crop[3] > o->height)) {
+        snprintf(err, CANDELA_ERR_LEN, "--crop %d,%d,%d,%d reaches outside the %dx%d image (X1 <= %d and Y1 <= %d)",
+                 o->crop[0], o->crop[1], o->crop[2], o->crop[3], o->width, o->height, o->width, o->height);
+        return -1;
+    }
     if (o->min_spp && o->noise_threshold <= 0.0f) {
         snprintf(err, CANDELA_ERR_LEN, "--min-spp needs --noise-threshold (adaptive sampling)");
         return -1;

@@ -826,7 +826,7 @@ static int run_command(CandelaOptions *op, CandelaCompareOptions *cop, CandelaBa
         return 1;
     }
     if (candela_provenance_render(&prov, &o, &stats) != 0 ||
-        candela_provenance_identity(&prov, &o, image.width, image.height) != 0) {
+        candela_provenance_identity(&prov, &o, image.full_width, image.full_height) != 0) {
         fprintf(stderr, "candela: out of memory\n");
         candela_image_free(&image);
         candela_provenance_free(&prov);

@@ -46,6 +46,38 @@ static int set_res(void *base, const char *flag, const char *v, char err[CANDELA
     return 0;
 }
 
+/* --crop X0,Y0,X1,Y1: four base-10 integers; the box must hold a pixel. Whether it lies inside
+ * the image is checked where the resolution is known (candela_options_check with --res, the
+ * scene's camera otherwise). "none" is the identity's form of no crop. */
+static int set_crop(void *base, const char *flag, const char *v, char err[CANDELA_ERR_LEN]) {
+    (void)flag;
+    CandelaOptions *o = base;
+    if (strcmp(v, "none") == 0) {
+        memset(o->crop, 0, sizeof o->crop);
+        return 0;
+    }
+    long c[4];
+    const char *p = v;
+    for (int k = 0; k < 4; ++k) {
+        char *end = NULL;
+        errno = 0;
+        c[k] = strtol(p, &end, 10);
+        if (errno || end == p || !(*p >= '0' && *p <= '9') || (k < 3 ? *end != ',' : *end != 0) || c[k] < 0 || c[k] > MAX_RES_SIDE) {
+            snprintf(err, CANDELA_ERR_LEN,
+                     "invalid value '%.200s' for --crop (expected X0,Y0,X1,Y1: four integers in 0..%d, the pixels "
+                     "[X0, X1) x [Y0, Y1))", v, MAX_RES_SIDE);
+            return -1;
+        }
+        p = end + 1;
+    }
+    if (c[2] <= c[0] || c[3] <= c[1]) {
+        snprintf(err, CANDELA_ERR_LEN, "--crop %.200s is an empty box (X1 must be above X0 and Y1 above Y0)", v);
+        return -1;
+    }
+    for (int k = 0; k < 4; ++k) o->crop[k] = (int)c[k];
+    return 0;
+}
+
 static int set_confine(void *base, const char *flag, const char *v, char err[CANDELA_ERR_LEN]) {
     (void)flag;
     if (!*v) { /* a farm script's unset variable: never "no confinement" */
@@ -140,6 +172,14 @@ static void json_string_or_null(FILE *f, const char *s) {
 static void get_res(const CandelaOptions *o, FILE *f) {
     if (o->width > 0 && o->height > 0) fprintf(f, "\"%dx%d\"", o->width, o->height);
     else fputs("null", f); /* from the camera's aspect */
+}
+static void get_crop(const CandelaOptions *o, FILE *f) {
+    if (o->crop[2] > 0) fprintf(f, "[%d, %d, %d, %d]", o->crop[0], o->crop[1], o->crop[2], o->crop[3]);
+    else fputs("null", f);
+}
+static void show_crop(const CandelaOptions *o, char *buf, size_t size) {
+    if (o->crop[2] > 0) snprintf(buf, size, "%d,%d,%d,%d", o->crop[0], o->crop[1], o->crop[2], o->crop[3]);
+    else snprintf(buf, size, "none");
 }
 static void get_confine(const CandelaOptions *o, FILE *f) { json_string_or_null(f, o->confine_dir); }
 static void get_dump(const CandelaOptions *o, FILE *f) { json_string_or_null(f, o->cachepoint_dump_path); }
@@ -313,6 +353,14 @@ static const CandelaFlag FLAGS[] = {
     CUSTOM("--res", "WxH", 1, 1, set_res, get_res, show_res, RENDERING, 0, "32x16", "resolution (default: 640 wide, camera aspect)",
            "resolution, 1..16384 per side and at most 64 megapixels (default: 640 wide, camera aspect); the same for "
            "every compare variant"),
+    CUSTOM("--crop", "X0,Y0,X1,Y1", 1, 1, set_crop, get_crop, show_crop, RENDERING, 0, "8,4,24,12",
+           "render only pixels [X0,X1) x [Y0,Y1) of the image, at the crop's size",
+           "render only the pixels [X0, X1) x [Y0, Y1) of the full image (pbrt's --pixelbounds, Blender's border "
+           "render): the camera and every pixel's rays and random numbers are the full image's, and the EXR and PNG "
+           "are the crop's size, (X1 - X0) x (Y1 - Y0). Without a light sampler or guide that learns (uniform, power, "
+           "tree, optimal; guiding off) each pixel equals the full render's bit for bit; cache points build their "
+           "pilot paths from the crop's pixels and learn from its paths, guiding and adaptive sampling decide from the "
+           "crop's samples (the same in expectation, not bit for bit). The same for every compare variant"),
     INT("--threads", "N", 1, 1024, RO(threads), CANDELA_FIELD_INT, ALL_RENDER, 0, "2",
         "worker threads (default: all cores)", "worker threads (default: all cores); never changes the image"),
     INT("--max-depth", "N", 0, 1024, IMG(max_depth), CANDELA_FIELD_INT, ALL_RENDER, 0, "4",
@@ -935,6 +983,9 @@ int candela_options_identity(const CandelaOptions *o, char *buf, size_t size) {
     for (size_t k = 0; k < sizeof FLAGS / sizeof FLAGS[0]; ++k) {
         const CandelaFlag *f = &FLAGS[k];
         if (!f->image) continue;
+        /* no crop is no word: every identity from before --crop (checkpoints, shard films, frames,
+         * compare's cached references) stays the identity of the same render */
+        if (f->set == set_crop && o->crop[2] == 0) continue;
         candela_flag_identity_value(f, o, value, sizeof value);
         int m = snprintf(buf + n, size - n, "%s%s=%s", n ? " " : "", f->name + 2, value);
         if (m < 0 || (size_t)m >= size - n) return -1;

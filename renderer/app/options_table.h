@@ -126,7 +126,8 @@ int candela_print_flag_help(FILE *f, const char *name);
  * separated by single spaces: integers in decimal, floats in C99 hex (%a: exact), choices by
  * name (a value no name has, e.g. --cachepoint-progressive's default 0, as its number),
  * switches 0/1, strings in double quotes with bytes <= ' ', '"', '%' and >= 0x7f as %XX, an unset
- * string as -; --res is o->width x o->height (the caller puts the resolved size there). */
+ * string as -; --res is o->width x o->height (the caller puts the resolved size there); --crop is
+ * X0,Y0,X1,Y1, and no word at all without a crop (identities from before the flag stay valid). */
 
 /* s in the identity's string form ("..." with %XX escapes; NULL as -) into buf. */
 void candela_identity_quote(const char *s, char *buf, size_t size);

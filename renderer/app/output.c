@@ -106,6 +106,12 @@ static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s, 
     fprintf(f, ",\n  \"spp\": %d,\n  \"seed\": %llu,\n  \"max_depth\": %d,\n", o->spp, (unsigned long long)o->seed,
             o->max_depth);
     fprintf(f, "  \"sampler\": \"%s\",\n", candela_sampler_name(o->sampler));
+    /* --crop: the box rendered, half-open, and the full image it is part of (the resolved --res) */
+    if (o->crop[2] > 0)
+        fprintf(f, "  \"crop\": {\"x0\": %d, \"y0\": %d, \"x1\": %d, \"y1\": %d, \"width\": %d, \"height\": %d, "
+                   "\"image_width\": %d, \"image_height\": %d},\n",
+                o->crop[0], o->crop[1], o->crop[2], o->crop[3], o->crop[2] - o->crop[0], o->crop[3] - o->crop[1],
+                s->image_width, s->image_height);
     fprintf(f, "  \"spp_done\": %d,\n  \"spp_min\": %d,\n  \"spp_mean\": %.4f,\n  \"spp_histogram\": {", s->spp_done,
             s->spp_min, s->spp_mean);
     for (int k = 0, first = 1; k < 21; ++k)

@@ -277,7 +277,9 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
     stats->volume_bytes = r->media.bytes;
 
     const Camera *cam = &r->scene.camera;
-    uint32_t npixels = (uint32_t)cam->width * (uint32_t)cam->height;
+    uint32_t npixels = (uint32_t)cam->crop_width * (uint32_t)cam->crop_height; /* the film's: the crop's with --crop */
+    stats->image_width = cam->width;
+    stats->image_height = cam->height;
     if (!r->pool) r->pool = threadpool_create(o->threads);
     if (!r->pool) { snprintf(err, CANDELA_ERR_LEN, "candela: out of memory"); render_free_frame(r); return -1; }
     uint64_t batch64 = o->batch_size ? o->batch_size : (uint64_t)DEFAULT_PATHS_PER_THREAD * (uint64_t)threadpool_size(r->pool);
@@ -292,7 +294,7 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
     light_sampler_report(&r->sampler, stats);
     if (integrator_init(&r->ig, o, &r->scene, &r->lights, &r->media, &r->sampler, batch) != 0) {
         snprintf(err, CANDELA_ERR_LEN, "%s: out of memory allocating the %dx%d film and %u paths in flight",
-                 o->scene_path, cam->width, cam->height, batch);
+                 o->scene_path, cam->crop_width, cam->crop_height, batch);
         render_free_frame(r);
         return -1;
     }
@@ -384,7 +386,8 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
         report_progress(&progress, done_paths, total_paths, done_paths == total_paths);
         at = (CheckpointProgress){iteration + 1, spp_done, 0};
         if (o->on_iteration) {
-            CandelaIterationInfo info = {iteration, spp_done, clock_seconds() - t_start, cam->width, cam->height, &ig->film};
+            CandelaIterationInfo info = {iteration, spp_done, clock_seconds() - t_start, ig->film.width, ig->film.height,
+                                         &ig->film};
             if (o->on_iteration(o->on_iteration_user, &info) != 0 && spp_done < o->spp) {
                 stopped = 1;
                 break;
@@ -446,6 +449,12 @@ static int render_frame(Render *r, const CandelaOptions *o, CandelaImage *image,
     }
     int rc = film_resolve(&ig->film, image);
     if (rc != 0) snprintf(err, CANDELA_ERR_LEN, "%s: out of memory resolving the film", o->scene_path);
+    if (rc == 0) { /* where the film lies in the full image (--crop) */
+        image->crop_x = cam->crop_x;
+        image->crop_y = cam->crop_y;
+        image->full_width = cam->width;
+        image->full_height = cam->height;
+    }
     stats->peak_memory_bytes = peak_rss_bytes();
     for (int k = 0; k < CANDELA_PHASES; ++k) {
         stats->phase_seconds[k] = r->phases.seconds[k];
@@ -518,6 +527,8 @@ int candela_session_open(const CandelaOptions *o, CandelaSession **out, CandelaS
     info->anim_end = r->scene.io.anim_end;
     info->width = r->scene.camera.width;
     info->height = r->scene.camera.height;
+    info->image_width = r->scene.camera.crop_width;
+    info->image_height = r->scene.camera.crop_height;
     *out = s;
     return 0;
 }

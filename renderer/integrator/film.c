@@ -69,6 +69,7 @@ int film_resolve(const Film *f, CandelaImage *img) {
     size_t n = (size_t)f->width * (size_t)f->height;
     memset(img, 0, sizeof *img);
     img->width = f->width; img->height = f->height;
+    img->full_width = f->width; img->full_height = f->height; /* the render says where a crop lies */
     img->rgb = malloc(3 * n * sizeof(float));
     img->variance = malloc(3 * n * sizeof(float));
     img->albedo = malloc(3 * n * sizeof(float));
@@ -125,7 +126,9 @@ int film_resolve(const Film *f, CandelaImage *img) {
  *
  * with sigma_p^2 the per-sample variance (summed over channels) pooled over the pilots of the
  * pixels in a square window around p (adaptive_radius), p itself left out, and mu_p the mean
- * over channels of every other pixel's pilot mean (the image's mean without p). The pixel then
+ * over channels of every other pixel's pilot mean (the image's mean without p; with --crop the
+ * film, hence the image here, is the crop, while the window keeps the full image's scale:
+ * Film.window_side). The pixel then
  * stops at the first barrier where its count reaches n_p (the schedule's barriers: 16, 32, 64,
  * then every 64 unguided). Targets never change after the pilot: checkpoints carry them
  * (Film.target), and a resumed render stops the same pixels at the same barriers.
@@ -158,7 +161,8 @@ int film_resolve(const Film *f, CandelaImage *img) {
 /* the largest target (a count the schedule never reaches: the render's --spp caps it) */
 #define ADAPTIVE_TARGET_MAX (1u << 30)
 
-/* The pooling window's half-width: about 1/24 of the image's shorter side (8 pixels at 320x180,
+/* The pooling window's half-width: about 1/24 of the image's shorter side (the full image's with
+ * --crop: Film.window_side; 8 pixels at 320x180,
  * 15 at 640x360). A pilot of 16 samples per pixel measures a heavy-tailed pixel's variance
  * mostly by whether it met a rare path: pooled over 3 x 3 the allocation follows that noise and
  * loses to uniform sampling (measured 0.65-0.87x on guiding_interior); the wide window costs
@@ -170,7 +174,8 @@ static int adaptive_radius(int w, int h) {
 
 /* The targets of every pixel from the film as it stands (the pilot). 0 ok, -1 out of memory. */
 static int adaptive_targets(Film *f, float threshold) {
-    const int w = f->width, h = f->height, r = adaptive_radius(w, h);
+    const int w = f->width, h = f->height;
+    const int r = f->window_side > 0 ? adaptive_radius(f->window_side, f->window_side) : adaptive_radius(w, h);
     const size_t n = (size_t)w * (size_t)h, stride = (size_t)w + 1;
     /* per pixel: the per-sample variance summed over channels (v) and the mean over channels (m),
      * from the film's sums; then the summed-area table of v, (w + 1) x (h + 1) */

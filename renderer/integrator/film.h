@@ -23,6 +23,8 @@ typedef struct Film {
     uint32_t *target;        /* per pixel with adaptive sampling (else NULL): the samples it takes, fixed
                               * at the pilot barrier from its neighbours' pilots (0 before) */
     int aov_spp;             /* film_resolve writes CandelaImage.spp */
+    int window_side;         /* adaptive sampling's window scale: the full image's shorter side (a --crop
+                              * film is part of that image); 0: the film's own */
 } Film;
 
 int film_alloc(Film *f, int width, int height);

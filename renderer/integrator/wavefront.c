@@ -133,7 +133,8 @@ int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene,
     ig->media = media;
     ig->camera_medium = media_at_point(media, xform_point(scene->camera.xform, v3s(0.0f)));
     ig->light_sampler = sampler;
-    ig->npixels = (uint32_t)scene->camera.width * (uint32_t)scene->camera.height;
+    /* the film is the crop's (--crop; the whole image without one) */
+    ig->npixels = (uint32_t)scene->camera.crop_width * (uint32_t)scene->camera.crop_height;
     ig->iteration_pixels = ig->npixels;
     if (o->sampler == CANDELA_SAMPLER_SOBOL) {
         sequence_tables_init(&ig->sobol_tables);
@@ -151,9 +152,12 @@ int integrator_init(Integrator *ig, const CandelaOptions *o, const Scene *scene,
     ig->sort_items_tmp = malloc(n * sizeof(uint32_t));
     int fail = !ig->queue_rays || !ig->queue_hits || !ig->queue_escaped || !ig->queue_shadows || !ig->sort_keys ||
                !ig->sort_keys_tmp || !ig->sort_items_tmp;
-    fail = fail || path_state_alloc(&ig->ps, batch) != 0 || film_alloc(&ig->film, scene->camera.width, scene->camera.height) != 0;
+    fail = fail || path_state_alloc(&ig->ps, batch) != 0 || film_alloc(&ig->film, scene->camera.crop_width, scene->camera.crop_height) != 0;
     fail = fail || features_init(ig) != 0;
     ig->film.aov_spp = o->aov_spp;
+    /* adaptive sampling's window is scaled to the full image, so a crop pools over the same
+     * neighbourhoods as the full render would (film.c) */
+    ig->film.window_side = scene->camera.width < scene->camera.height ? scene->camera.width : scene->camera.height;
     if (!fail && o->noise_threshold > 0.0f) {
         ig->film.stopped = calloc(ig->npixels, 1);
         ig->film.target = calloc(ig->npixels, sizeof(uint32_t));

@@ -181,16 +181,17 @@ CandelaLightSampler light_sampler_auto_choice(const Lights *lights, const struct
 }
 
 /* The within-pixel variance of what the camera sees directly (emitters and the environment):
- * at AUTO_SEEN_GRID^2 pixels spread over the image, 2x2 stratified positions per pixel, the
- * unbiased sample variance of the seen radiance's luminance, averaged over the pixels. */
+ * at AUTO_SEEN_GRID^2 pixels spread over the image (the crop, with --crop: what is rendered),
+ * 2x2 stratified positions per pixel, the unbiased sample variance of the seen radiance's
+ * luminance, averaged over the pixels. */
 enum { AUTO_SEEN_GRID = 64 };
 static double seen_emission_variance(const Scene *scene) {
     const Camera *cam = &scene->camera;
     double acc = 0.0;
     for (int j = 0; j < AUTO_SEEN_GRID; ++j)
         for (int i = 0; i < AUTO_SEEN_GRID; ++i) {
-            float px = floorf(((float)i + 0.5f) / AUTO_SEEN_GRID * (float)cam->width);
-            float py = floorf(((float)j + 0.5f) / AUTO_SEEN_GRID * (float)cam->height);
+            float px = (float)cam->crop_x + floorf(((float)i + 0.5f) / AUTO_SEEN_GRID * (float)cam->crop_width);
+            float py = (float)cam->crop_y + floorf(((float)j + 0.5f) / AUTO_SEEN_GRID * (float)cam->crop_height);
             double x[4], mean = 0.0;
             for (int k = 0; k < 4; ++k) {
                 vec3 o, d;
@@ -233,8 +234,9 @@ float light_sampler_power_moment_ratio(const Lights *lights, const struct Scene 
     for (int j = 0; j < GRID; ++j)
         for (int i = 0; i < GRID; ++i) {
             vec3 o, d;
-            camera_generate_ray(cam, ((float)i + 0.5f) / GRID * (float)cam->width,
-                                ((float)j + 0.5f) / GRID * (float)cam->height, &o, &d);
+            /* over the crop with --crop (the whole image without): where the render looks */
+            camera_generate_ray(cam, (float)cam->crop_x + ((float)i + 0.5f) / GRID * (float)cam->crop_width,
+                                (float)cam->crop_y + ((float)j + 0.5f) / GRID * (float)cam->crop_height, &o, &d);
             SceneHit sh;
             if (!scene_intersect1(scene, (SceneRay){o, 0.0f, d, INFINITY}, &sh)) continue;
             SurfaceHit h;

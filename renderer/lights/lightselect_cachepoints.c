@@ -196,7 +196,9 @@ static int push(Candidates *c, vec3 p) {
     return 0;
 }
 
-/* The candidate counts for this render: the options', else scaled with the image (above). */
+/* The candidate counts for this render: the options', else scaled with the image (above): the
+ * full image with --crop too, whose pixel footprint the merge passes keep (the pilots go to the
+ * crop: pilot_candidates). */
 static void candidate_counts(const Scene *scene, const CandelaOptions *o, uint32_t *bbox, uint32_t *pilot_grid) {
     double f = (double)scene->camera.width * (double)scene->camera.height / CANDIDATE_FULL_PIXELS;
     if (!(f < 1.0)) f = 1.0;
@@ -267,7 +269,8 @@ static int bbox_candidates(const Scene *scene, const SceneMedia *media, uint64_t
     return rc;
 }
 
-/* Pilot paths (§3.1.1): a stratified grid of camera rays, their first hit and one cosine
+/* Pilot paths (§3.1.1): a stratified grid of camera rays over the image (over the crop with
+ * --crop, so the pilots' density there rises by the crop's share of the image), their first hit and one cosine
  * bounce, and where the camera ray crosses a VDB volume a point in it; each vertex kept with
  * probability 1/2 (fewer paths than §3.1.1 uses, half kept: the merge passes thin them anyway). */
 static int pilot_candidates(const Scene *scene, const SceneMedia *media, uint64_t seed, uint32_t grid, Candidates *c) {
@@ -276,8 +279,9 @@ static int pilot_candidates(const Scene *scene, const SceneMedia *media, uint64_
     for (uint32_t j = 0; j < grid; ++j) {
         for (uint32_t i = 0; i < grid; ++i) {
             uint64_t key = rng_path_key(seed ^ (CANDIDATE_SEED_SALT + 1), j * grid + i, 0);
-            float fx = ((float)i + rng_uniform(key, 0)) / (float)grid * (float)cam->width;
-            float fy = ((float)j + rng_uniform(key, 1)) / (float)grid * (float)cam->height;
+            /* over the crop with --crop: the points go where the render looks */
+            float fx = (float)cam->crop_x + ((float)i + rng_uniform(key, 0)) / (float)grid * (float)cam->crop_width;
+            float fy = (float)cam->crop_y + ((float)j + rng_uniform(key, 1)) / (float)grid * (float)cam->crop_height;
             vec3 o, d;
             camera_generate_ray(cam, fx, fy, &o, &d);
             for (int bounce = 0; bounce < 2; ++bounce) {

@@ -435,6 +435,22 @@ static int setup_camera(Scene *scene, const CandelaOptions *o, char err[CANDELA_
         int h = (int)lrintf(640.0f / aspect);
         cam->height = h < 1 ? 1 : (h > 16384 ? 16384 : h);
     }
+    cam->crop_x = cam->crop_y = 0;
+    cam->crop_width = cam->width;
+    cam->crop_height = cam->height;
+    if (o->crop[2] > 0) {
+        if (o->crop[2] > cam->width || o->crop[3] > cam->height || o->crop[0] >= o->crop[2] || o->crop[1] >= o->crop[3] ||
+            o->crop[0] < 0 || o->crop[1] < 0) {
+            snprintf(err, CANDELA_ERR_LEN, "%.300s: --crop %d,%d,%d,%d reaches outside the %dx%d image (X1 <= %d and Y1 <= %d)",
+                     o->scene_path, o->crop[0], o->crop[1], o->crop[2], o->crop[3], cam->width, cam->height, cam->width,
+                     cam->height);
+            return -1;
+        }
+        cam->crop_x = o->crop[0];
+        cam->crop_y = o->crop[1];
+        cam->crop_width = o->crop[2] - o->crop[0];
+        cam->crop_height = o->crop[3] - o->crop[1];
+    }
     return 0;
 }
 

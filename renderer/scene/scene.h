@@ -27,7 +27,10 @@ typedef struct Camera {
     float xform[16];       /* camera-to-world */
     float tan_half_fov_y;  /* perspective */
     float xmag, ymag;      /* orthographic half extents (ymag; xmag follows the image aspect) */
-    int width, height;
+    int width, height;     /* the full image */
+    /* --crop: the pixels rendered, [crop_x, crop_x + crop_width) x [crop_y, crop_y + crop_height) of
+     * the full image (the whole image without a crop); rays are always the full image's */
+    int crop_x, crop_y, crop_width, crop_height;
 } Camera;
 
 /* One glTF primitive as the renderer needs it. Embree's geometry user pointer points here
