@@ -838,6 +838,18 @@ def build(out, scale, targets=None):
     z_origin = -(nz - 1) * pitch / 2
     block_centres = []
 
+    def place_building(bx, bz, lot):
+        """One of a block's four buildings on its 20 m lot, facing a street (both kinds of
+        scene draw these numbers in this order)."""
+        cx = bx + (-10.0 if lot % 2 == 0 else 10.0)
+        cz = bz + (-10.0 if lot < 2 else 10.0)
+        bi, h, per_face = buildings[brng.randrange(len(buildings))]
+        sy = brng.uniform(0.9, 1.6)
+        a = (math.pi / 2) * brng.randrange(4)
+        q = yrot(a)
+        place(bi, (cx, 0.15, cz), (1.0, sy, 1.0), q)
+        return cx, cz, a, q, sy, h, per_face
+
     def blocks_to_targets(lights_target, triangles_target):
         """The blocks of a --lights/--triangles scene (plan_targets's rule): each block's
         ground and four buildings, then its emissive meshes, props and trees, each kind placed
@@ -866,13 +878,7 @@ def build(out, scale, targets=None):
             place(grounds[brng.randrange(len(grounds))], (bx, 0.0, bz))
             lots = []
             for lot in range(4):
-                cx = bx + (-10.0 if lot % 2 == 0 else 10.0)
-                cz = bz + (-10.0 if lot < 2 else 10.0)
-                bi, h, per_face = buildings[brng.randrange(len(buildings))]
-                sy = brng.uniform(0.9, 1.6)
-                a = (math.pi / 2) * brng.randrange(4)
-                q = yrot(a)
-                place(bi, (cx, 0.15, cz), (1.0, sy, 1.0), q)
+                cx, cz, a, q, sy, h, per_face = place_building(bx, bz, lot)
                 lots.append((cx, cz, a, q, sy, h, per_face, brng.sample(range(4), 4)))
             # emissive meshes, in the order they light up: two facades of each building (the
             # full scene's), the sign, the string of bulbs, the other two facades, more strings
@@ -976,13 +982,7 @@ def build(out, scale, targets=None):
         place(grounds[brng.randrange(len(grounds))], (bx, 0.0, bz))
         # 4 buildings on 2x2 lots of 20 m, facing the streets; windows on two facades each
         for lot in range(4):
-            cx = bx + (-10.0 if lot % 2 == 0 else 10.0)
-            cz = bz + (-10.0 if lot < 2 else 10.0)
-            bi, h, per_face = buildings[brng.randrange(len(buildings))]
-            sy = brng.uniform(0.9, 1.6)
-            a = (math.pi / 2) * brng.randrange(4)
-            q = yrot(a)
-            place(bi, (cx, 0.15, cz), (1.0, sy, 1.0), q)
+            cx, cz, a, q, sy, h, per_face = place_building(bx, bz, lot)
             faces = brng.sample(range(4), 2)
             for f in faces:
                 place(per_face[f][brng.randrange(len(per_face[f]))], (cx, 0.15, cz), (1.0, sy, 1.0), q)
