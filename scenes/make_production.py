@@ -937,26 +937,26 @@ def build(out, scale, targets=None):
                 cum.append(cum[-1] + w)
             kinds = [n * cum[i + 1] // total_w - n * cum[i] // total_w for i in range(len(weights))]
             n_lantern, n_up, n_shop, n_lamp, n_path = kinds
-            for j in range(n_lantern):
+            def before_facade(j, half, d):
+                """A point d m out from one of lot j % 4's facades, u in [-half, half] along it
+                (draws the facade, then u)."""
                 cx, cz, a, q, sy, h, per_face, faces = lots[j % 4]
                 f = brng.randrange(4)
-                u = brng.uniform(-7.5, 7.5)
+                u = brng.uniform(-half, half)
+                wx, wz = around(cx, cz, a, [(u, d), (-u, -d), (d, -u), (-d, u)][f])
+                return wx, wz, sy, h
+
+            for j in range(n_lantern):
+                wx, wz, sy, h = before_facade(j, 7.5, 8.5)
                 y = 0.15 + sy * brng.uniform(1.5, h - 1.0)
-                wx, wz = around(cx, cz, a, [(u, 8.5), (-u, -8.5), (8.5, -u), (-8.5, u)][f])
                 light_node(lantern[brng.randrange(16)], (wx, y, wz))
                 counts['point_lights'] += 1
             for j in range(n_up):
-                cx, cz, a, q, sy, h, per_face, faces = lots[j % 4]
-                f = brng.randrange(4)
-                u = brng.uniform(-7.5, 7.5)
-                wx, wz = around(cx, cz, a, [(u, 9.0), (-u, -9.0), (9.0, -u), (-9.0, u)][f])
+                wx, wz, _, _ = before_facade(j, 7.5, 9.0)
                 light_node(uplt[brng.randrange(8)], (wx, 0.4, wz), up)
                 counts['spot_lights'] += 1
             for j in range(n_shop):
-                cx, cz, a, q, sy, h, per_face, faces = lots[j % 4]
-                f = brng.randrange(4)
-                u = brng.uniform(-7.0, 7.0)
-                wx, wz = around(cx, cz, a, [(u, 8.8), (-u, -8.8), (8.8, -u), (-8.8, u)][f])
+                wx, wz, _, _ = before_facade(j, 7.0, 8.8)
                 light_node(shop[brng.randrange(8)], (wx, 3.2, wz), down)
                 counts['spot_lights'] += 1
             per_side = max(1, (n_lamp + 3) // 4)

@@ -574,11 +574,11 @@ int light_tree_refit_triangles(LightTree *t, const LightTree *topology, const fl
     if (topology->light_count != count || topology->num_infinite) return 1;
     if (count == 0) return 0;
     float scale = triangle_power_scale(luminance, two_sided);
-    /* the same triangles must emit: a leaf set that differs needs a build of its own */
+    /* the triangles the topology left out must still emit nothing (those it holds are checked
+     * as their leaves are refitted): a leaf set that differs needs a build of its own */
     for (uint32_t i = 0; i < count; ++i) {
         LB b;
-        if (triangle_bounds(world_vertices + 9 * (size_t)i, scale, two_sided, &b) !=
-            (topology->kind[i] == LIGHT_TREE_BVH))
+        if (topology->kind[i] != LIGHT_TREE_BVH && triangle_bounds(world_vertices + 9 * (size_t)i, scale, two_sided, &b))
             return 1;
     }
     size_t nn = topology->node_count;
@@ -600,7 +600,10 @@ int light_tree_refit_triangles(LightTree *t, const LightTree *topology, const fl
         LB b;
         memset(&b, 0, sizeof b);
         if (nd->light != LIGHT_TREE_INTERIOR) {
-            triangle_bounds(world_vertices + 9 * (size_t)nd->light, scale, two_sided, &b);
+            if (!triangle_bounds(world_vertices + 9 * (size_t)nd->light, scale, two_sided, &b)) {
+                light_tree_free(t); /* a leaf's triangle emits nothing here */
+                return 1;
+            }
         } else {
             LB l = node_bounds(&t->nodes[k + 1]), r = node_bounds(&t->nodes[nd->child]);
             b = lb_union(&l, &r);
