@@ -97,6 +97,12 @@ void recorder_free(Recorder *r);
  * recorder is full (counted in recorder_stats) the parent is continued and returned instead,
  * so the new ray's emission still reaches the ancestors. */
 uint32_t recorder_new_child(Recorder *r, RecorderCache *cache, uint32_t parent, const RecorderVertexInit *init);
+/* A ray whose vertex would record a sample nobody reads (an NEE ray under RECORDER_KEEP_TRAINABLE)
+ * folds into its parent instead: the parent is continued (+1, as recorder_continue) and the ray's
+ * emission is added to it directly, which is what the child would have handed up. Returned: the
+ * parent. The child counts as created (recorder_stats, the path-skipping budget: the same
+ * decisions, hence the same samples, as when it was a vertex). */
+uint32_t recorder_fold_child(Recorder *r, RecorderCache *cache, uint32_t parent);
 /* Emission (throughput-weighted, as added to the image) reaching the vertex's ray. */
 void recorder_add_emission(Recorder *r, uint32_t pv, const float e[3]);
 /* Another ray carries the same vertex on (e.g. a child too close to its parent): +1. */

@@ -182,6 +182,13 @@ uint32_t recorder_new_child(Recorder *r, RecorderCache *c, uint32_t parent, cons
     return pv;
 }
 
+uint32_t recorder_fold_child(Recorder *r, RecorderCache *c, uint32_t parent) {
+    if (parent == PV_SKIPPED) return PV_SKIPPED;
+    recorder_continue(r, parent);
+    c->created++;
+    return parent;
+}
+
 void recorder_add_emission(Recorder *r, uint32_t pv, const float e[3]) {
     if (!pv_is_vertex(pv)) return;
     RecorderVertex *v = vertex_at(r, pv);

@@ -108,6 +108,7 @@ static void guide_free(Integrator *ig) {
     probe_free(gs);
     for (int k = 0; k < GUIDE_FIELDS; ++k) guide_field_free(gs->fields[k]);
     for (int k = 0; k < GUIDE_FIELDS; ++k) free(gs->train[k]);
+    free(gs->sample_field);
     free(gs->last);
     free(gs->last_class);
     memset(gs, 0, sizeof *gs);
@@ -136,7 +137,6 @@ const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n, Guid
     return guide_field_lookup_cursor(f, x, &cursors[k]);
 }
 
-/* The samples of one field, in the batch's order. */
 /* Field k's samples of the batch, in batch order, into its own scratch, and recorded into it
  * (the fields are independent: they train on the threads, each in its deterministic order). */
 static void train_field(GuideState *gs, int k, const RecorderSamples *batch) {
@@ -149,10 +149,10 @@ static void train_field(GuideState *gs, int k, const RecorderSamples *batch) {
         gs->train_capacity[k] = batch->count;
     }
     size_t n = 0;
+    const uint8_t *field = gs->sample_field;
     for (size_t i = 0; i < batch->count; ++i) {
+        if (field[i] != k) continue; /* one byte per sample: each field's pass reads only its own 80-byte samples */
         const RecorderSample *s = &batch->items[i];
-        if (s->flags & (PV_FLAG_NEE | PV_FLAG_DELTA)) continue;
-        if (field_of_flags(s->flags) != k) continue;
         GuideTrainingSample *t = &gs->train[k][n++];
         memcpy(t->pos, s->pos, sizeof t->pos);
         memcpy(t->dir, s->dir, sizeof t->dir);
@@ -211,6 +211,17 @@ static void guide_train_batch(Integrator *ig) {
     if (!gs->on || !ig->record.active || batch->count == 0) return;
     gs->pending = 1;
     double t0 = clock_seconds();
+    if (batch->count > gs->sample_field_capacity) {
+        uint8_t *f = realloc(gs->sample_field, batch->count);
+        if (!f) { gs->dropped = 1; return; } /* training loses a batch; the image is not affected */
+        gs->sample_field = f;
+        gs->sample_field_capacity = batch->count;
+    }
+    for (size_t i = 0; i < batch->count; ++i) {
+        uint32_t flags = batch->items[i].flags;
+        int k = flags & (PV_FLAG_NEE | PV_FLAG_DELTA) ? -1 : field_of_flags(flags);
+        gs->sample_field[i] = k < 0 ? 0xFF : (uint8_t)k;
+    }
     FieldCtx c = {gs, batch, 0.0f};
     if (ig->pool) threadpool_parallel_for(ig->pool, GUIDE_FIELDS, 1, train_fields, &c);
     else train_fields(&c, 0, GUIDE_FIELDS, 0);

@@ -79,6 +79,7 @@ typedef struct RecordState {
     int active;             /* rays carry vertices in this iteration (guiding trains, or the AOV) */
     int training_spp;       /* guiding alone: recording stops once this many spp trained */
     int debug_aov;
+    int fold_nee;           /* NEE rays carry their parent's vertex, not their own (record_child) */
     uint32_t budget;        /* vertices per path before skipping; 0: no skipping */
     float path_skip;        /* this iteration's probability that a camera ray is not recorded */
     float min_distance;     /* a child closer than this to its parent continues the parent */
@@ -104,6 +105,8 @@ typedef struct GuideState {
     GuideTrainingSample *train[GUIDE_FIELDS]; /* scratch: each field's samples of the batch */
     size_t train_capacity[GUIDE_FIELDS], train_count[GUIDE_FIELDS];
     int field_failed[GUIDE_FIELDS];           /* per field (the fields train on the threads) */
+    uint8_t *sample_field;        /* scratch: each batch sample's field (0xFF: none), read by every field's pass */
+    size_t sample_field_capacity;
     GuideTrainingSample *last;    /* guide-dump: the surface samples of the iteration being trained */
     uint8_t *last_class;          /* their normal classes */
     size_t last_count, last_capacity;

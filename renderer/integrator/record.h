@@ -82,14 +82,14 @@ static inline void record_path_end(const Integrator *ig, Slice *s, uint32_t p) {
 static inline void record_prefetch_hit(const Integrator *ig, const Slice *s, uint32_t j) {
     if (ig->record.active && j < s->num_hits) recorder_prefetch(ig->record.recorder, ig->ps.pv[s->hits[j]]);
 }
-/* The NEE vertices of the shadow rays items[0..m), and then their parents (read from the
- * vertices: prefetched after them), while the rays are traced. */
+/* The NEE vertices of the shadow rays items[0..m) (folded: their parents'), and then their
+ * parents (read from the vertices: prefetched after them), while the rays are traced. */
 static inline void record_prefetch_shadows(const Integrator *ig, const uint32_t *items, uint32_t m) {
     if (ig->record.active)
         for (uint32_t k = 0; k < m; ++k) recorder_prefetch(ig->record.recorder, ig->ps.shadow_pv[items[k]]);
 }
 static inline void record_prefetch_shadow_parents(const Integrator *ig, const uint32_t *items, uint32_t m) {
-    if (ig->record.active)
+    if (ig->record.active && !ig->record.fold_nee) /* folded: shadow_pv is the parent already */
         for (uint32_t k = 0; k < m; ++k) recorder_prefetch_parent(ig->record.recorder, ig->ps.shadow_pv[items[k]]);
 }
 
