@@ -207,11 +207,6 @@ const GuideDistribution *guide_field_lookup_cursor(const GuideField *f, const fl
 /* A direction from the distribution with two uniforms; its solid-angle pdf in *pdf. */
 void guide_distribution_sample(const GuideDistribution *d, float u1, float u2, float dir[3], float *pdf);
 float guide_distribution_pdf(const GuideDistribution *d, const float dir[3]);
-/* A hint: fetch what guide_distribution_sample(d, u1, ...) reads first (its alias-table entry),
- * so the memory access overlaps other work (a guided vertex's NEE); no effect on results. */
-void guide_distribution_prefetch(const GuideDistribution *d, float u1);
-/* A hint: fetch the top of d's pdf tree (where every pdf evaluation starts). */
-void guide_distribution_prefetch_pdf(const GuideDistribution *d);
 /* The leaf's box (the spatial node's extent), and the samples its sampling tree learned from. */
 void guide_distribution_bounds(const GuideDistribution *d, float lo[3], float hi[3]);
 double guide_distribution_samples(const GuideDistribution *d);

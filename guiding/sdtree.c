@@ -945,18 +945,6 @@ static void flat_sample(const GuideDistribution *d, double u1, double u2, double
     *pdf_uv = c->pdf_uv[k];
 }
 
-void guide_distribution_prefetch(const GuideDistribution *d, float u1) {
-    if (!d || !d->cells) return;
-    double x = clamp_unit_open(u1) * d->cell_count;
-    uint32_t i = (uint32_t)x;
-    __builtin_prefetch(&d->cells[i < d->cell_count ? i : d->cell_count - 1]);
-}
-
-void guide_distribution_prefetch_pdf(const GuideDistribution *d) {
-    if (!d || d->pdf_root == NO_FLAT_TREE) return;
-    __builtin_prefetch(&d->pdf_nodes[d->pdf_root]);
-}
-
 float guide_distribution_pdf(const GuideDistribution *d, const float dir[3]) {
     double u, v, jacobian;
     if (!d || !dir || !dir_to_uv(dir, &u, &v, &jacobian)) return 0;

@@ -118,63 +118,11 @@ static int surface_continuation(const Integrator *ig, Slice *s, uint32_t p, cons
     return 1;
 }
 
-/* Guided shading looks GUIDE_AHEAD hits ahead: that hit's surface point (kept for its turn, not
- * computed twice), its guiding leaf (the lookup its vertex will make when the shading side of its
- * geometric normal is the one guessed here: an opaque surface's, towards the ray's origin) and a
- * prefetch of what its sample will read first: the alias slot of its guide sample, or the pdf
- * tree's root for a direction the function samples. Without it the slot's load was a cache miss
- * on most guided vertices, 10% of a guided render's time (perf, cornell_indirect 128x128); the
- * vertex two hits before hides it. The lookup's answer does not depend on where it is made, so
- * images are the same. */
-#define GUIDE_AHEAD 2
-#define GUIDE_AHEAD_RING 4 /* a power of two above GUIDE_AHEAD */
-typedef struct GuideAhead {
-    uint32_t path;                 /* the path whose hit this is (UINT32_MAX: none) */
-    int field;                     /* the field looked up, -1: none */
-    const GuideDistribution *dist; /* its leaf at h.p */
-    DimsGroup scatter;             /* with dist: the vertex's scatter numbers, set up (dims_lane) */
-    PathDims dims;                 /* what scatter points to */
-    SurfaceHit h;
-} GuideAhead;
-
-static void guide_look_ahead(const Integrator *ig, uint32_t p, GuideAhead *a, GuideCursor cursors[GUIDE_FIELDS]) {
-    const PathState *ps = &ig->ps;
-    const SceneHit *hit = &ps->hit[p];
-    a->path = UINT32_MAX;
-    if (scene_hit_primitive(ig->scene, hit)->medium_boundary) return;
-    scene_surface_hit(ig->scene, hit->instance, hit->local_prim, hit->triangle, hit->u, hit->v, &a->h);
-    a->path = p;
-    vec3 ng = a->h.ng;
-    if (v3_dot(ps->ray[p].dir, ng) > 0.0f) ng = v3_neg(ng); /* the side seen (scatter_init_surface_prepared) */
-    a->field = guide_field_of_normal(ng);
-    a->dist = guide_lookup(ig, a->h.p, ng, cursors);
-    if (!a->dist) return;
-    a->dims = path_dims(ig, p);
-    a->scatter = dims_group(&a->dims, ps->depth[p], DIMS_SCATTER);
-    DimsGroup *g = &a->scatter;
-    if (ig->guide.mode == SCATTER_GUIDE_RIS) { /* both candidates: the guide's from its own group (scatter_numbers) */
-        DimsGroup gg = dims_group(&a->dims, ps->depth[p], DIMS_GUIDE);
-        guide_distribution_prefetch(a->dist, dims_lane(&gg, 0));
-        guide_distribution_prefetch_pdf(a->dist);
-    } else if (dims_lane(g, 2) >= SCATTER_GUIDE_ALPHA) { /* one-sample MIS picks the guide (scatter_numbers' lanes) */
-        guide_distribution_prefetch(a->dist, dims_lane(g, 0));
-    } else {
-        guide_distribution_prefetch_pdf(a->dist);
-    }
-}
-
 void stage_surface(const Integrator *ig, Slice *s) {
     const PathState *ps = &ig->ps;
     const Scene *scene = ig->scene;
     uint32_t hint = UINT32_MAX; /* hits are sorted spatially: the last vertex's answer is near */
-    GuideCursor guide_cursors[GUIDE_FIELDS] = {{{0}, 0}}, ahead_cursors[GUIDE_FIELDS] = {{{0}, 0}};
-    GuideAhead ahead[GUIDE_AHEAD_RING];
-    int look_ahead = ig->guide.active;
-    if (look_ahead)
-        for (uint32_t j = 0; j < GUIDE_AHEAD_RING; ++j) ahead[j].path = UINT32_MAX;
-    if (look_ahead)
-        for (uint32_t j = 0; j < GUIDE_AHEAD && j < s->num_hits; ++j)
-            guide_look_ahead(ig, s->hits[j], &ahead[j % GUIDE_AHEAD_RING], ahead_cursors);
+    GuideCursor guide_cursors[GUIDE_FIELDS] = {{{0}, 0}};
     float scratch[LIGHT_SAMPLER_SCRATCH];
     s->num_shadows = 0;
     s->num_rays = 0; /* the ray queue was consumed by stage_intersect: it now collects the next wave */
@@ -185,8 +133,6 @@ void stage_surface(const Integrator *ig, Slice *s) {
         if (i + SHADE_PREFETCH / 4 < s->num_hits) scene_prefetch_hit_vertices(scene, &ps->hit[s->hits[i + SHADE_PREFETCH / 4]]);
         /* the recorder vertex the hit's ray carries (its pv was fetched a few hits earlier) */
         record_prefetch_hit(ig, s, i + SHADE_PREFETCH / 2);
-        if (look_ahead && i + GUIDE_AHEAD < s->num_hits)
-            guide_look_ahead(ig, s->hits[i + GUIDE_AHEAD], &ahead[(i + GUIDE_AHEAD) % GUIDE_AHEAD_RING], ahead_cursors);
         uint32_t p = s->hits[i];
         const SceneHit *hit = &ps->hit[p];
         vertex_shape_emission(ig, s, p, hit->t, 0);
@@ -195,10 +141,8 @@ void stage_surface(const Integrator *ig, Slice *s) {
             continue;
         }
         vec3 wo = v3_neg(ps->ray[p].dir);
-        const GuideAhead *a = look_ahead && ahead[i % GUIDE_AHEAD_RING].path == p ? &ahead[i % GUIDE_AHEAD_RING] : NULL;
         SurfaceHit h;
-        if (a) h = a->h;
-        else scene_surface_hit(scene, hit->instance, hit->local_prim, hit->triangle, hit->u, hit->v, &h);
+        scene_surface_hit(scene, hit->instance, hit->local_prim, hit->triangle, hit->u, hit->v, &h);
         MaterialSample m;
         const BsdfPrepared *prepared = scene_material_prepared(scene, &h, &m);
         float gamma = ig->opt->path_regularization;
@@ -214,8 +158,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
         Scatter sc;
         scatter_init_surface_prepared(&sc, &h, &m.bsdf, prepared, wo);
         if (ig->guide.active && scatter_guidable(&sc)) {
-            const GuideDistribution *d = a && a->field == guide_field_of_normal(sc.ng) ? a->dist : guide_lookup(ig, h.p, sc.ng, guide_cursors);
-            scatter_set_guide(&sc, d, (ScatterGuideMode)ig->guide.mode);
+            scatter_set_guide(&sc, guide_lookup(ig, h.p, sc.ng, guide_cursors), (ScatterGuideMode)ig->guide.mode);
         }
         uint32_t depth = ps->depth[p];
         if (depth == 0) path_write_aovs(ps, p, m.bsdf.base_color, sc.frame.n, hit->t);
@@ -238,10 +181,6 @@ void stage_surface(const Integrator *ig, Slice *s) {
          * independent work */
         PathDims dims = path_dims(ig, p);
         DimsGroup g = dims_group(&dims, depth, DIMS_SCATTER); /* the direction's u, v, the lobe, the roulette */
-        if (a && a->dist) { /* the look-ahead set the group up: the same numbers without hashing again */
-            g = a->scatter;
-            g.dims = &dims;
-        }
         float u[6];
         scatter_numbers(&sc, &g, u);
         ScatterSample ss;
