@@ -78,8 +78,7 @@ typedef struct RecordState {
     Recorder *recorder;
     int active;             /* rays carry vertices in this iteration (guiding trains, or the AOV) */
     int training_spp;       /* guiding alone: recording stops once this many spp trained */
-    int debug_aov;
-    int fold_nee;           /* NEE rays carry their parent's vertex, not their own (record_child) */
+    int debug_aov;          /* off: NEE rays carry their parent's vertex, not their own (record_child) */
     uint32_t budget;        /* vertices per path before skipping; 0: no skipping */
     float path_skip;        /* this iteration's probability that a camera ray is not recorded */
     float min_distance;     /* a child closer than this to its parent continues the parent */

@@ -56,12 +56,6 @@ static int record_init(Integrator *ig) {
     /* only the samples something reads: the AOV's primary ones, guiding's trainable ones */
     recorder_set_filter(rs->recorder, (rs->debug_aov ? RECORDER_KEEP_PRIMARY : 0u) |
                                           (o->guiding != CANDELA_GUIDING_OFF ? RECORDER_KEEP_TRAINABLE : 0u));
-    /* an NEE vertex's own sample is read only by the debug AOV (a primary one); without it, its
-     * ray carries its parent's vertex and adds its light there (recorder_fold_child): the same
-     * sums in the same order (the child's one addition, 0 + c, was handed up unchanged), one
-     * vertex allocation and release fewer per shadow ray (a third of a training spp's vertices
-     * on cornell_indirect) */
-    rs->fold_nee = !rs->debug_aov;
     rs->budget = o->recorder_budget >= 0 ? (uint32_t)o->recorder_budget : RECORD_BUDGET_DEFAULT;
     rs->path_skip = 0.0f;
     vec3 ext = v3_sub(ig->scene->bounds_max, ig->scene->bounds_min);
@@ -110,7 +104,12 @@ uint32_t record_child(const Integrator *ig, Slice *s, uint32_t p, uint32_t paren
             return parent;
         }
     }
-    if (rs->fold_nee && (flags & PV_FLAG_NEE)) return recorder_fold_child(rs->recorder, &s->record_cache, parent);
+    /* an NEE vertex's own sample is read only by the debug AOV (a primary one); without it, its
+     * ray carries its parent's vertex and adds its light there (recorder_fold_child): the same
+     * sums in the same order (the child's one addition, 0 + c, was handed up unchanged), one
+     * vertex allocation and release fewer per shadow ray (a third of a training spp's vertices
+     * on cornell_indirect) */
+    if (!rs->debug_aov && (flags & PV_FLAG_NEE)) return recorder_fold_child(rs->recorder, &s->record_cache, parent);
     RecorderVertexInit init = {{pos.x, pos.y, pos.z}, {dir.x, dir.y, dir.z}, {tp.x, tp.y, tp.z}, pdf, scatter_pdf, guide_pdf,
                                cosine, flags, ps->pixel[p],
                                (ig->sample_base + (ig->batch_first + p) / ig->iteration_pixels) * ig->npixels + ps->pixel[p]};

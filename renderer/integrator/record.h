@@ -89,7 +89,7 @@ static inline void record_prefetch_shadows(const Integrator *ig, const uint32_t 
         for (uint32_t k = 0; k < m; ++k) recorder_prefetch(ig->record.recorder, ig->ps.shadow_pv[items[k]]);
 }
 static inline void record_prefetch_shadow_parents(const Integrator *ig, const uint32_t *items, uint32_t m) {
-    if (ig->record.active && !ig->record.fold_nee) /* folded: shadow_pv is the parent already */
+    if (ig->record.active && ig->record.debug_aov) /* folded: shadow_pv is the parent already */
         for (uint32_t k = 0; k < m; ++k) recorder_prefetch_parent(ig->record.recorder, ig->ps.shadow_pv[items[k]]);
 }
 
