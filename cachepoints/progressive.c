@@ -313,6 +313,11 @@ int cachepoints_load_inserted(CachePoints *cp, const CachePointLights *lights, F
     if (head[2] != cp->n_build || cp->n != cp->n_build || head[3] < head[2] || head[3] - head[2] > (1u << 26))
         return -2;
     uint32_t m = head[3] - head[2];
+    /* and no more than the file still holds (a damaged count allocates nothing absurd) */
+    long at = ftell(in), end = -1;
+    if (at >= 0 && fseek(in, 0, SEEK_END) == 0) end = ftell(in);
+    if (at >= 0 && (fseek(in, at, SEEK_SET) != 0 || (end >= at && (uint64_t)m * 4 * sizeof(float) > (uint64_t)(end - at))))
+        return -1;
     float *pos = malloc(((size_t)m + 1) * 3 * sizeof(float)), *r = malloc(((size_t)m + 1) * sizeof(float));
     int rc = pos && r ? 0 : -3;
     if (rc == 0 && (get(in, pos, (size_t)m * 3 * sizeof(float)) || get(in, r, (size_t)m * sizeof(float)))) rc = -1;

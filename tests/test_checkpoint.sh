@@ -11,7 +11,8 @@
 #   finished-looking file; SIGTERM stops after the current batch (mid-iteration), writes the
 #   checkpoint and with --save-partial only NAME.partial.*; resuming that: bit-identical;
 # - bad input: a checkpoint of another scene, resolution, spp or options, a damaged or truncated
-#   one, a shard film given to --resume-from, bad shard specs and merges: one line, non-zero
+#   one (a guide field declaring 2^26 leaves: refused before it allocates), a shard film given to
+#   --resume-from, bad shard specs and merges: one line, non-zero
 #   exit, the existing output untouched;
 # - issue 27: `candela render --resume-from FILE` alone takes the scene, the options and the
 #   outputs from the checkpoint (from any folder) and gives the uninterrupted render's EXR bit for
@@ -385,6 +386,27 @@ expect_error "resume a forged checkpoint (nan)" "f_nan.ckpt: not a checkpoint ca
   "${base[@]}" --spp 64 -o "$tmp/keep.exr" --resume-from "$tmp/f_nan.ckpt" --quiet
 expect_error "resume a forged checkpoint (wrap)" "f_wrap.ckpt: not a checkpoint candela wrote: pixel (3, 0) counts 4294967295 samples, the checkpoint declares" -- \
   "${base[@]}" --spp 64 -o "$tmp/keep.exr" --resume-from "$tmp/f_wrap.ckpt" --quiet
+# a guide field declaring 2^26 - 1 leaves in a 380 KB file (fuzz_film's finding: the loader
+# allocated and freed them all, 5 GB and 9 s): refused from the bytes the file holds, and the
+# render's peak memory stays far below that (1.5 GB, room for a sanitizer build; python3 reads
+# the child's max RSS)
+python3 - "$tmp/mis.ckpt" "$tmp/f_leaves.ckpt" <<'PY'
+import struct, sys
+b = bytearray(open(sys.argv[1], 'rb').read())
+at = b.find(struct.pack('<2I', 0x44544453, 1))       # the first field: "SDTD", version 1
+struct.pack_into('<I', b, at + 12, (1 << 26) - 1)   # its leaf count
+h = 0xcbf29ce484222325
+for c in b[:-8]: h = ((h ^ c) * 0x100000001b3) & 0xFFFFFFFFFFFFFFFF
+struct.pack_into('<Q', b, len(b) - 8, h)
+open(sys.argv[2], 'wb').write(b)
+PY
+expect_error "resume a checkpoint declaring 2^26 guide leaves" "f_leaves.ckpt: the checkpoint's guiding state does not fit this render" -- \
+  "${base[@]}" --spp 64 --guiding mis -o "$tmp/keep.exr" --resume-from "$tmp/f_leaves.ckpt" --quiet
+peak=$(python3 -c 'import resource, subprocess, sys
+subprocess.run(sys.argv[1:], stderr=subprocess.DEVNULL)
+print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss // 1024)' \
+  "$bin" "${base[@]}" --spp 64 --guiding mis -o "$tmp/keep.exr" --resume-from "$tmp/f_leaves.ckpt" --quiet)
+[ "$peak" -lt 1500 ] && ok || bad "resuming a checkpoint declaring 2^26 guide leaves peaked at $peak MB"
 forge "$ck" "$tmp/f_same.ckpt" none
 "$bin" "${base[@]}" --spp 64 -o "$tmp/f_same.exr" --resume-from "$tmp/f_same.ckpt" --quiet && ok || bad "a re-checksummed checkpoint copy does not resume"
 # the forger itself is right: an unchanged copy merges to the original's image
