@@ -60,7 +60,8 @@
  *   (the same distribution: each cell with its density times its area): 150 -> 42 ns per sample
  *   on a 512-leaf field trained on a narrow cone (one run, this machine); the flat copies
  *   roughly double the field's memory, which the memory cap counts.
- * - Spatial filtering (Müller 2019) is a parameter (spatial_filter); plain splats by default. */
+ * - Spatial filtering (Müller 2019) is a parameter (spatial_filter); plain splats by default.
+ *   Directional filtering (the same paper) is on by default (directional_filter). */
 #include "guiding.h"
 
 #include <errno.h>
@@ -184,6 +185,7 @@ void guide_field_params_default(GuideFieldParams *p) {
     p->max_bytes = DEFAULT_MAX_BYTES;
     p->accumulate = 1;
     p->spatial_filter = 0;
+    p->directional_filter = 1;
 }
 
 /* Out-of-range values fall back to the defaults rather than building absurd trees (rho <= 0
@@ -199,6 +201,7 @@ static GuideFieldParams params_sanitize(const GuideFieldParams *in) {
     if (in->max_bytes > 0) p.max_bytes = in->max_bytes;
     p.accumulate = in->accumulate != 0;
     p.spatial_filter = in->spatial_filter != 0;
+    p.directional_filter = in->directional_filter != 0;
     return p;
 }
 
@@ -307,6 +310,52 @@ static void quadtree_add(QuadTree *t, double u, double v, double value) {
         v = 2 * v - qy;
         i = n->child[q];
     }
+}
+
+/* Müller et al. 2019 §4 (directional filtering): a sample's value is spread over a box of the
+ * size of the building tree's cell that holds (u, v), centred on (u, v), each node receiving
+ * the share of the box it overlaps. A sample near a cell's edge then trains both sides, so the
+ * learned distribution has neither holes nor steps where few samples landed (the box at
+ * 256x256: relMSE 1.57e-4 -> 1.38e-4, scenes/RESULTS.md). The box is clipped to the map's
+ * square and its value renormalised over what remains: the total flux is the sample's. */
+static double quadtree_cell_size(const QuadTree *t, double u, double v) {
+    uint32_t i = 0;
+    double size = 1.0;
+    for (;;) {
+        const QuadNode *n = &t->nodes[i];
+        int qx = u >= 0.5, qy = v >= 0.5, q = qx + 2 * qy;
+        size *= 0.5;
+        if (!n->child[q]) return size;
+        u = 2 * u - qx; /* exact in binary floating point */
+        v = 2 * v - qy;
+        i = n->child[q];
+    }
+}
+
+/* Node i covers [x, x + size) x [y, y + size); box = {x0, y0, x1, y1}; density per unit area. */
+static void quadtree_splat(QuadTree *t, uint32_t i, double x, double y, double size, const double box[4],
+                           double density) {
+    QuadNode *n = &t->nodes[i];
+    double h = 0.5 * size;
+    for (int q = 0; q < 4; ++q) {
+        double qx = x + (q & 1) * h, qy = y + (q >> 1) * h;
+        double ox = fmin(qx + h, box[2]) - fmax(qx, box[0]), oy = fmin(qy + h, box[3]) - fmax(qy, box[1]);
+        if (!(ox > 0) || !(oy > 0)) continue;
+        n->sum[q] += density * ox * oy;
+        if (n->child[q]) quadtree_splat(t, n->child[q], qx, qy, h, box, density);
+    }
+}
+
+static void quadtree_add_filtered(QuadTree *t, double u, double v, double value) {
+    if (t->count == 0) return;
+    double r = 0.5 * quadtree_cell_size(t, u, v);
+    double box[4] = {fmax(u - r, 0.0), fmax(v - r, 0.0), fmin(u + r, 1.0), fmin(v + r, 1.0)};
+    double area = (box[2] - box[0]) * (box[3] - box[1]);
+    if (!(area > 0)) {
+        quadtree_add(t, u, v, value);
+        return;
+    }
+    quadtree_splat(t, 0, 0.0, 0.0, 1.0, box, value / area);
 }
 
 /* ------------------------------------------------------------------ flat sampling trees */
@@ -670,7 +719,10 @@ void guide_field_record(GuideField *f, const GuideTrainingSample *s, size_t n) {
         /* The incident radiance estimate L / p over the sphere: its sum per cell estimates the
          * cell's flux (§3, "collecting estimates"). In double: finite for any float input. */
         double value = (double)x->radiance / (double)x->pdf;
-        if (value > 0) quadtree_add(&leaf->building, u, v, value);
+        if (value > 0) {
+            if (f->params.directional_filter) quadtree_add_filtered(&leaf->building, u, v, value);
+            else quadtree_add(&leaf->building, u, v, value);
+        }
     }
 }
 

@@ -136,6 +136,7 @@ typedef struct CandelaOptions {
     float guide_spatial_threshold; /* PPG's c: a leaf splits past c sqrt(spp of the iteration); 0: default */
     float path_regularization;  /* gamma of path-space regularisation (ch. 1 §7; 0: off, 0.01: the course's) */
     int guide_spatial_filter;   /* Müller 2019's stochastic spatial box filter for training (0: off) */
+    int guide_directional_filter; /* Müller 2019's directional box filter for training (1: on, the default) */
     int guide_training_spp;     /* guiding trains on this many spp, then only renders; 0: default (spp / 8, at least 22) */
     int aov_recorder_debug;     /* --aov recorder-debug: the recorder's primary samples rebuild the image */
     int aov_selection;          /* --aov cachepoint: false colours of each first hit's cache point and its top entry */

@@ -67,6 +67,7 @@ expect_error "bad training spp" "--guide-training-spp" -- render "$scene" --guid
 expect_error "bad spatial threshold" "--guide-spatial-threshold" -- render "$scene" --guide-spatial-threshold nan "${common[@]}"
 expect_error "bad regularization" "--path-regularization" -- render "$scene" --path-regularization 2 "${common[@]}"
 expect_error "bad spatial filter" "--guide-spatial-filter" -- render "$scene" --guide-spatial-filter 1 "${common[@]}"
+expect_error "bad directional filter" "--guide-directional-filter" -- render "$scene" --guide-directional-filter yes "${common[@]}"
 expect_error "dump without --at" "needs --at" -- guide-dump "$scene" "${common[@]}"
 expect_error "dump bad --at" "--at wants" -- guide-dump "$scene" --at 1,2 "${common[@]}"
 expect_error "dump nan --at" "--at wants" -- guide-dump "$scene" --at 1,nan,2 "${common[@]}"

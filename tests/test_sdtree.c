@@ -4,7 +4,8 @@
  * pointwise and in a chi-square histogram (which must reject a transposed or mirrored
  * histogram), the cone is learned and the quadtree refined; spatial splitting separates two
  * regions with different bright directions; the memory cap bounds splitting; two fields fed
- * the same samples are bit-identical; bad samples are skipped and do not count; outside
+ * the same samples are bit-identical; the directional filter spreads a sample over a cell-sized box
+ * around it (and only with it on); bad samples are skipped and do not count; outside
  * points get a valid distribution; the PLY export. Fixed seeds, no timing assertions. */
 #include "check.h"
 #include "guiding.h"
@@ -706,6 +707,58 @@ static void test_spatial_filter(void) {
     }
 }
 
+/* The direction of (u, v) near the map's centre (the upper hemisphere: |2u - 1| + |2v - 1| <= 1). */
+static void uv_dir_upper(double u, double v, float d[3]) {
+    double a = 2 * u - 1, b = 2 * v - 1, z = 1 - fabs(a) - fabs(b);
+    d[0] = (float)a;
+    d[1] = (float)b;
+    d[2] = (float)z;
+    normalize(d);
+}
+
+/* Directional filtering (Müller 2019): every sample at (u, v) = (0.5 + 1/64)^2, a quarter of a
+ * cell into the first building tree's cell [8/16, 9/16)^2, near its corner at (1/2, 1/2). The box
+ * of a cell's size around it puts 9/16 of the value into that cell, 3/16 into each side
+ * neighbour and 1/16 into the diagonal one, so the learned pdf (one density per cell of that
+ * tree) is in the ratios 9 : 3 : 1 there; unfiltered, the neighbours learn nothing. */
+static void test_directional_filter(void) {
+    for (int filter = 0; filter <= 1; ++filter) {
+        GuideFieldParams p;
+        guide_field_params_default(&p);
+        CHECK(p.directional_filter == 1, "the directional filter is on by default");
+        p.directional_filter = filter;
+        p.spatial_threshold = 1e9f; /* one leaf */
+        const float lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
+        GuideField *f = guide_field_create(lo, hi, &p);
+        enum { N = 1000 };
+        GuideTrainingSample *smp = malloc(N * sizeof *smp);
+        float d[3];
+        uv_dir_upper(0.5 + 1.0 / 64, 0.5 + 1.0 / 64, d);
+        for (int i = 0; i < N; ++i)
+            smp[i] = (GuideTrainingSample){{0.5f, 0.5f, 0.5f}, {d[0], d[1], d[2]}, 1.0f, UNIFORM_PDF};
+        guide_field_record(f, smp, N);
+        guide_field_update(f, 1.0f);
+        const GuideDistribution *g = guide_field_lookup(f, smp[0].pos);
+        float at[3], beside[3], far[3];
+        uv_dir_upper(0.5 + 1.0 / 64, 0.5 + 1.0 / 64, at);
+        uv_dir_upper(0.49, 0.49, beside);  /* the diagonal neighbour cell, inside the box */
+        uv_dir_upper(0.49, 0.52, far);     /* the side neighbour cell, inside the box */
+        float pa = guide_distribution_pdf(g, at), pb = guide_distribution_pdf(g, beside), pc = guide_distribution_pdf(g, far);
+        fprintf(stderr, "directional filter %s: pdf at the samples %.4g, in the diagonal cell %.4g, the side cell %.4g\n",
+                filter ? "on" : "off", pa, pb, pc);
+        if (filter) {
+            /* up to the map's density factor, which varies by a few % across these cells */
+            CHECK(fabsf(pc / pa - 1.0f / 3.0f) < 0.05f && fabsf(pb / pa - 1.0f / 9.0f) < 0.02f,
+                  "the filter's shares 9 : 3 : 1 (pdf %g : %g : %g)", pa, pc, pb);
+        } else {
+            CHECK(pb < 0.01f * pa && pc < 0.01f * pa, "unfiltered, the neighbouring cells learned light (pdf %g, %g against %g)",
+                  pb, pc, pa);
+        }
+        free(smp);
+        guide_field_free(f);
+    }
+}
+
 /* Accumulation across updates: light from +z in iteration 0, from -z in iteration 1 (the
  * uniform pdf is 0.08; -z lies in a cell refined for +z, so one update learns it coarsely). Kept
  * (accumulate = 1, the default), the field still sends samples up; PPG 2017's fresh start
@@ -740,6 +793,7 @@ int main(void) {
     double t0 = test_seconds();
     test_accumulate();
     test_spatial_filter();
+    test_directional_filter();
     test_uniform();
     test_trained();
     test_spatial();

@@ -20,6 +20,7 @@ void candela_options_default(CandelaOptions *o) {
     o->env_rotation_deg = NAN;        /* not given: the scene's candela_environment.rotation */
     o->guiding = CANDELA_GUIDING_OFF;
     o->recorder_budget = -1;          /* the seed's soft budget of 4 vertices per path */
+    o->guide_directional_filter = 1;  /* Müller 2019's directional box filter in guide training (README) */
     o->cachepoint_bsdf = 1;           /* BSDF-aware cache point selection at glossy vertices (README) */
 }
 

@@ -397,6 +397,10 @@ static const CandelaFlag FLAGS[] = {
            "jitter training samples within their leaf (default off)",
            "train each sample into the leaf at a point jittered within a box of its leaf's size (Mueller et al. 2019; "
            "default off)"),
+    CHOICE("--guide-directional-filter", "on|off", ON_OFF, ON_OFF_VALUES, NULL, IMG(guide_directional_filter), ALL_RENDER,
+           "off", "spread each training sample over its direction's cell (default on)",
+           "train each sample into a box of its directional cell's size around its direction, every cell the share it "
+           "overlaps (Mueller et al. 2019; default on)"),
     INT("--recorder-budget", "N", 0, 1 << 20, IMG(recorder_budget), CANDELA_FIELD_INT, ALL_RENDER, 0, "4",
         "recorded vertices per path before skipping (default 4)",
         "recorded vertices per path before path/vertex skipping (default 4; 0: record every vertex)"),

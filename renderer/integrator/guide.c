@@ -76,6 +76,7 @@ static int guide_init(Integrator *ig) {
     guide_field_params_default(&params);
     if (ig->opt->guide_spatial_threshold > 0.0f) params.spatial_threshold = ig->opt->guide_spatial_threshold;
     params.spatial_filter = ig->opt->guide_spatial_filter;
+    params.directional_filter = ig->opt->guide_directional_filter;
     const float lo[3] = {ig->scene->bounds_min.x, ig->scene->bounds_min.y, ig->scene->bounds_min.z};
     const float hi[3] = {ig->scene->bounds_max.x, ig->scene->bounds_max.y, ig->scene->bounds_max.z};
     gs->on = 1;
