@@ -4,7 +4,7 @@ the scenes guiding exists for and on scenes it should leave alone.
 
     python3 scenes/guiding_benchmark.py [--candela build/renderer/candela] [--scenes box,interior,...]
                                         [--res WxH,...] [--spp N] [--configs off,mis,ris,auto]
-                                        [--ref-spp N] [--out DIR] [--repeats N] [--threads N]
+                                        [--ref-spp N] [--out DIR] [--repeats N] [--seeds N] [--threads N]
 
 Scenes and their default resolutions and sample counts (--res and --spp override them):
   box        scenes/cornell_indirect.gltf (a Lambert Cornell box lit through the ceiling: its light
@@ -24,18 +24,25 @@ so it is subtracted from the errors below (the renders' noise is independent of 
   relMSE      mean over pixels and channels of (x - ref)^2 / (ref^2 + 0.01) of the downsampled
               render (the guiding literature's metric), less the reference's own (its variance
               layer / (ref^2 + 0.01)), and MSE beside it (less the reference's mean variance);
+              with --seeds N, the mean over N renders (seeds 0 .. N-1), its standard error (s.e.)
+              and the median: where rare paths carry much of the error (blender: caustics through
+              the glass sphere), one render's relMSE varies 60x from seed to seed, and only the
+              mean over seeds estimates the expected error; the median shows a typical render;
   rel. var.   mean over pixels and channels of the EXR's variance layer / (mean^2 + 0.01) at full
               resolution (the expected relMSE; with Sobol' samples an upper bound);
   time        the render's wall clock without the scene load (training, the recorder and the
               field updates included); the minimum over --repeats;
-  TTUV        relMSE x time, and its ratio to unguided's (lower is better);
+  TTUV        relMSE x time (time: the mean over the seeds), and its ratio to unguided's (lower is
+              better); median TTUV: the same with the median relMSE;
   path len.   bounce rays per camera ray; ns/vertex: time per traced ray (camera + bounce), guided
               over unguided.
 Timings are wall clock: run on an otherwise idle machine and compare ratios within one run.
 """
 import argparse
 import json
+import math
 import os
+import statistics
 import subprocess
 import sys
 
@@ -96,15 +103,16 @@ def main():
     ap.add_argument("--ref-spp", type=int, default=32768)
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "guiding_benchmark"))
     ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument("--seeds", type=int, default=1, help="renders per configuration, seeds 0 .. N-1 (relMSE: their mean)")
     ap.add_argument("--threads", type=int, default=0)
     ap.add_argument("--extra", default="", help="flags added to every guided render (e.g. '--guide-training-spp 64')")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     print("candela %s; reference: guided MIS, independent samples, %d spp at a quarter of the resolution\n" % (
         a.candela, a.ref_spp))
-    print("| scene | res | spp | config | relMSE | MSE | rel. var. | time (s) | TTUV vs off | rel. var. vs off | "
-          "time vs off | path len. | ns/vertex vs off |")
-    print("|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("| scene | res | spp | config | relMSE | s.e. | median relMSE | MSE | rel. var. | time (s) | TTUV vs off | "
+          "median TTUV vs off | rel. var. vs off | time vs off | path len. | ns/vertex vs off |")
+    print("|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for name in a.scenes.split(","):
         scene, extra, resolutions, spp = SCENES[name]
         scene = os.path.join(ROOT, scene)
@@ -121,24 +129,35 @@ def main():
             ref_rel, ref_mse = ref_noise(ref)
             base = None
             for config in a.configs.split(","):
-                out = os.path.join(a.out, "%s_%s_%s.exr" % (name, res, config))
                 flags = extra + ["--guiding", config] + (a.extra.split() if config != "off" and a.extra else [])
-                t = None
-                for _ in range(max(a.repeats, 1)):
-                    st = render(a, scene, out, res, spp, 0, flags)
-                    ti = st["time_seconds"]["total"] - st["time_seconds"]["load"]
-                    t = ti if t is None else min(t, ti)
-                small = out[:-4] + "_small.exr"
-                subprocess.run(["oiiotool", out, "--ch", "R,G,B", "--resize:filter=box", ref_res, "-o", small], check=True,
-                               capture_output=True)
-                rm, m, rv = rel_mse(small, ref) - ref_rel, mse(small, ref) - ref_mse, rel_var(out)
-                rays = st["rays"]["camera"] + st["rays"]["bounce"]
-                row = {"ttuv": rm * t, "rv": rv, "t": t, "ns": t / rays * 1e9}
+                runs = []
+                for seed in range(max(a.seeds, 1)):
+                    out = os.path.join(a.out, "%s_%s_%s%s.exr" % (name, res, config, "_s%d" % seed if seed else ""))
+                    t = None
+                    for _ in range(max(a.repeats, 1)):
+                        st = render(a, scene, out, res, spp, seed, flags)
+                        ti = st["time_seconds"]["total"] - st["time_seconds"]["load"]
+                        t = ti if t is None else min(t, ti)
+                    small = out[:-4] + "_small.exr"
+                    subprocess.run(["oiiotool", out, "--ch", "R,G,B", "--resize:filter=box", ref_res, "-o", small],
+                                   check=True, capture_output=True)
+                    rays = st["rays"]["camera"] + st["rays"]["bounce"]
+                    runs.append({"rm": rel_mse(small, ref) - ref_rel, "m": mse(small, ref) - ref_mse, "rv": rel_var(out),
+                                 "t": t, "rays": rays, "len": st["rays"]["bounce"] / st["rays"]["camera"]})
+                n = len(runs)
+                rm = statistics.mean(r["rm"] for r in runs)
+                se = statistics.stdev([r["rm"] for r in runs]) / math.sqrt(n) if n > 1 else float("nan")
+                t = statistics.mean(r["t"] for r in runs)
+                row = {"ttuv": rm * t, "ttuv_med": statistics.median(r["rm"] for r in runs) * t, "t": t,
+                       "rv": statistics.mean(r["rv"] for r in runs), "ns": t / statistics.mean(r["rays"] for r in runs) * 1e9}
                 if base is None:
                     base = row
-                print("| %s | %s | %d | %s | %.4g | %.4g | %.4g | %.2f | %.2fx | %.2fx | %.2fx | %.2f | %.2fx |" % (
-                    name, res, spp, config, rm, m, rv, t, row["ttuv"] / base["ttuv"], base["rv"] / rv, t / base["t"],
-                    st["rays"]["bounce"] / st["rays"]["camera"], row["ns"] / base["ns"]))
+                print("| %s | %s | %d | %s | %.4g | %s | %.4g | %.4g | %.4g | %.2f | %.2fx | %s | %.2fx | %.2fx | %.2f | %.2fx |" % (
+                    name, res, spp, config, rm, "%.2g" % se if n > 1 else "-",
+                    statistics.median(r["rm"] for r in runs) if n > 1 else rm, statistics.mean(r["m"] for r in runs),
+                    row["rv"], t, row["ttuv"] / base["ttuv"],
+                    "%.2fx" % (row["ttuv_med"] / base["ttuv_med"]) if n > 1 else "-", base["rv"] / row["rv"],
+                    t / base["t"], statistics.mean(r["len"] for r in runs), row["ns"] / base["ns"]))
                 sys.stdout.flush()
 
 
