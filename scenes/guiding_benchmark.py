@@ -26,7 +26,7 @@ so it is subtracted from the errors below (the renders' noise is independent of 
               layer / (ref^2 + 0.01)), and MSE beside it (less the reference's mean variance);
               with --seeds N, the mean over N renders (seeds 0 .. N-1), its standard error (s.e.)
               and the median: where rare paths carry much of the error (blender: caustics through
-              the glass sphere), one render's relMSE varies 60x from seed to seed, and only the
+              the glass sphere), one render's relMSE varies 36x from seed to seed, and only the
               mean over seeds estimates the expected error; the median shows a typical render;
   rel. var.   mean over pixels and channels of the EXR's variance layer / (mean^2 + 0.01) at full
               resolution (the expected relMSE; with Sobol' samples an upper bound);
