@@ -144,19 +144,17 @@ def main():
                     rays = st["rays"]["camera"] + st["rays"]["bounce"]
                     runs.append({"rm": rel_mse(small, ref) - ref_rel, "m": mse(small, ref) - ref_mse, "rv": rel_var(out),
                                  "t": t, "rays": rays, "len": st["rays"]["bounce"] / st["rays"]["camera"]})
-                n = len(runs)
-                rm = statistics.mean(r["rm"] for r in runs)
-                se = statistics.stdev([r["rm"] for r in runs]) / math.sqrt(n) if n > 1 else float("nan")
-                t = statistics.mean(r["t"] for r in runs)
-                row = {"ttuv": rm * t, "ttuv_med": statistics.median(r["rm"] for r in runs) * t, "t": t,
-                       "rv": statistics.mean(r["rv"] for r in runs), "ns": t / statistics.mean(r["rays"] for r in runs) * 1e9}
+                rms = [r["rm"] for r in runs]
+                rm, med, t = statistics.mean(rms), statistics.median(rms), statistics.mean(r["t"] for r in runs)
+                row = {"ttuv": rm * t, "ttuv_med": med * t, "t": t, "rv": statistics.mean(r["rv"] for r in runs),
+                       "ns": t / statistics.mean(r["rays"] for r in runs) * 1e9}
                 if base is None:
                     base = row
+                several = len(runs) > 1
                 print("| %s | %s | %d | %s | %.4g | %s | %.4g | %.4g | %.4g | %.2f | %.2fx | %s | %.2fx | %.2fx | %.2f | %.2fx |" % (
-                    name, res, spp, config, rm, "%.2g" % se if n > 1 else "-",
-                    statistics.median(r["rm"] for r in runs) if n > 1 else rm, statistics.mean(r["m"] for r in runs),
-                    row["rv"], t, row["ttuv"] / base["ttuv"],
-                    "%.2fx" % (row["ttuv_med"] / base["ttuv_med"]) if n > 1 else "-", base["rv"] / row["rv"],
+                    name, res, spp, config, rm, "%.2g" % (statistics.stdev(rms) / math.sqrt(len(rms))) if several else "-",
+                    med, statistics.mean(r["m"] for r in runs), row["rv"], t, row["ttuv"] / base["ttuv"],
+                    "%.2fx" % (row["ttuv_med"] / base["ttuv_med"]) if several else "-", base["rv"] / row["rv"],
                     t / base["t"], statistics.mean(r["len"] for r in runs), row["ns"] / base["ns"]))
                 sys.stdout.flush()
 
