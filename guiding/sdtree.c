@@ -164,7 +164,13 @@ struct GuideField {
     SampleCell *cells;        /* every leaf's cells with their alias tables */
     int iterations;
     uint64_t recorded_total; /* samples ever given to guide_field_record: the spatial filter's hash key */
+    struct RecordScratch {   /* guide_field_record's, kept across calls */
+        struct RecordItem *items;
+        uint32_t *order, *start;
+        size_t capacity, start_capacity;
+    } record;
 };
+typedef struct RecordScratch RecordScratch;
 
 /* Scratch arrays of a quadtree rebuild (grown as needed, reused across the leaves). */
 typedef struct RebuildScratch {
@@ -339,7 +345,10 @@ static void quadtree_splat(QuadTree *t, uint32_t i, double x, double y, double s
     double h = 0.5 * size;
     for (int q = 0; q < 4; ++q) {
         double qx = x + (q & 1) * h, qy = y + (q >> 1) * h;
-        double ox = fmin(qx + h, box[2]) - fmax(qx, box[0]), oy = fmin(qy + h, box[3]) - fmax(qy, box[1]);
+        /* the overlap; plain compares, not fmin/fmax (libm calls in this inner loop; no NaN here) */
+        double x1 = qx + h < box[2] ? qx + h : box[2], x0 = qx > box[0] ? qx : box[0];
+        double y1 = qy + h < box[3] ? qy + h : box[3], y0 = qy > box[1] ? qy : box[1];
+        double ox = x1 - x0, oy = y1 - y0;
         if (!(ox > 0) || !(oy > 0)) continue;
         n->sum[q] += density * ox * oy;
         if (n->child[q]) quadtree_splat(t, n->child[q], qx, qy, h, box, density);
@@ -666,6 +675,9 @@ static void leaves_free(GuideLeaf *leaves, uint32_t count) {
 
 void guide_field_free(GuideField *f) {
     if (!f) return;
+    free(f->record.items);
+    free(f->record.order);
+    free(f->record.start);
     leaves_free(f->leaves, f->leaf_count);
     free(f->dists);
     free(f->nodes);
@@ -688,20 +700,68 @@ static uint32_t field_find_leaf(const GuideField *f, const float pos[3]) {
     return n->leaf;
 }
 
+/* One valid sample's place in a batch: its leaf, where it lands on the square, its value. */
+typedef struct RecordItem {
+    double u, v, value; /* value: L / pdf (added only when positive) */
+    uint32_t leaf;
+} RecordItem;
+
+static int record_scratch_reserve(GuideField *f, size_t n) {
+    RecordScratch *r = &f->record;
+    if (n > r->capacity) {
+        RecordItem *items = realloc(r->items, n * sizeof *items);
+        if (!items) return -1;
+        r->items = items;
+        uint32_t *order = realloc(r->order, n * sizeof *order);
+        if (!order) return -1;
+        r->order = order;
+        r->capacity = n;
+    }
+    if ((size_t)f->leaf_count + 1 > r->start_capacity) {
+        uint32_t *start = realloc(r->start, ((size_t)f->leaf_count + 1) * sizeof *start);
+        if (!start) return -1;
+        r->start = start;
+        r->start_capacity = (size_t)f->leaf_count + 1;
+    }
+    return 0;
+}
+
+static void record_item(GuideField *f, const RecordItem *it) {
+    GuideLeaf *leaf = &f->leaves[it->leaf];
+    /* §3: the statistical weight counts every sample, zero radiance included (C1 §8.1:
+     * dropping them biases the learned distribution). */
+    leaf->recorded += 1;
+    /* The incident radiance estimate L / p over the sphere: its sum per cell estimates the
+     * cell's flux (§3, "collecting estimates"). */
+    if (it->value > 0) {
+        if (f->params.directional_filter) quadtree_add_filtered(&leaf->building, it->u, it->v, it->value);
+        else quadtree_add(&leaf->building, it->u, it->v, it->value);
+    }
+}
+
+/* Samples are located first, then added leaf by leaf, each leaf's in the order given: a leaf's
+ * sums see the same additions in the same order as one pass in sample order would make (the
+ * result is bit for bit that pass's), while a leaf's building tree stays in the cache across
+ * its samples instead of being fetched again for each (the samples come in path order, all
+ * over the scene: the descents' misses were most of the training's time). */
 void guide_field_record(GuideField *f, const GuideTrainingSample *s, size_t n) {
-    if (!f || !s) return;
+    if (!f || !s || n == 0) return;
+    int grouped = n <= UINT32_MAX && record_scratch_reserve(f, n) == 0;
+    RecordItem *items = f->record.items, one;
+    size_t m = 0;
     for (size_t i = 0; i < n; ++i) {
         const GuideTrainingSample *x = &s[i];
         if (!isfinite(x->pos[0]) || !isfinite(x->pos[1]) || !isfinite(x->pos[2])) continue;
         if (!isfinite(x->radiance) || !(x->pdf > 0) || !isfinite(x->pdf)) continue;
-        double u, v;
-        if (!dir_to_uv(x->dir, &u, &v, NULL)) continue;
+        RecordItem *it = grouped ? &items[m] : &one;
+        if (!dir_to_uv(x->dir, &it->u, &it->v, NULL)) continue;
         uint64_t index = f->recorded_total++;
-        GuideLeaf *leaf = &f->leaves[field_find_leaf(f, x->pos)];
+        uint32_t leaf = field_find_leaf(f, x->pos);
         if (f->params.spatial_filter) {
             /* Müller 2019 §4 (spatial filtering): splat into the leaf at a point drawn uniformly
              * in a box of the sample's leaf's size around it, so neighbouring leaves share
              * their data and the learned field has no seams at leaf boundaries */
+            const GuideLeaf *l = &f->leaves[leaf];
             float q[3];
             for (int k = 0; k < 3; ++k) {
                 uint64_t h = index * 0x9E3779B97F4A7C15ull + (uint64_t)(k + 1) * 0xD1B54A32D192ED03ull;
@@ -709,21 +769,23 @@ void guide_field_record(GuideField *f, const GuideTrainingSample *s, size_t n) {
                 h *= 0xBF58476D1CE4E5B9ull;
                 h ^= h >> 29;
                 float u = (float)(h >> 40) * 0x1.0p-24f - 0.5f;
-                q[k] = x->pos[k] + u * (leaf->hi[k] - leaf->lo[k]);
+                q[k] = x->pos[k] + u * (l->hi[k] - l->lo[k]);
             }
-            leaf = &f->leaves[field_find_leaf(f, q)];
+            leaf = field_find_leaf(f, q);
         }
-        /* §3: the statistical weight counts every sample, zero radiance included (C1 §8.1:
-         * dropping them biases the learned distribution). */
-        leaf->recorded += 1;
-        /* The incident radiance estimate L / p over the sphere: its sum per cell estimates the
-         * cell's flux (§3, "collecting estimates"). In double: finite for any float input. */
-        double value = (double)x->radiance / (double)x->pdf;
-        if (value > 0) {
-            if (f->params.directional_filter) quadtree_add_filtered(&leaf->building, u, v, value);
-            else quadtree_add(&leaf->building, u, v, value);
-        }
+        it->leaf = leaf;
+        it->value = (double)x->radiance / (double)x->pdf; /* in double: finite for any float input */
+        if (grouped) ++m;
+        else record_item(f, it); /* no scratch: one pass in sample order (the same result) */
     }
+    if (!grouped || m == 0) return;
+    /* a counting sort by leaf, stable */
+    uint32_t *start = f->record.start, *order = f->record.order;
+    memset(start, 0, ((size_t)f->leaf_count + 1) * sizeof *start);
+    for (size_t i = 0; i < m; ++i) start[items[i].leaf + 1]++;
+    for (uint32_t l = 0; l < f->leaf_count; ++l) start[l + 1] += start[l];
+    for (size_t i = 0; i < m; ++i) order[start[items[i].leaf]++] = (uint32_t)i;
+    for (size_t i = 0; i < m; ++i) record_item(f, &items[order[i]]);
 }
 
 /* Level `level` of the complete subtree replacing a leaf at depth `depth` splits its boxes on
