@@ -211,6 +211,10 @@ const GuideDistribution *guide_field_lookup_cursor(const GuideField *f, const fl
 /* A direction from the distribution with two uniforms; its solid-angle pdf in *pdf. */
 void guide_distribution_sample(const GuideDistribution *d, float u1, float u2, float dir[3], float *pdf);
 float guide_distribution_pdf(const GuideDistribution *d, const float dir[3]);
+/* Hints ahead of a sample with first uniform u1, and of a pdf: fetch what they will read first
+ * (the alias slot; the pdf tree's root). They change nothing. */
+void guide_distribution_prefetch_sample(const GuideDistribution *d, float u1);
+void guide_distribution_prefetch_pdf(const GuideDistribution *d);
 /* The leaf's box (the spatial node's extent), and the samples its sampling tree learned from. */
 void guide_distribution_bounds(const GuideDistribution *d, float lo[3], float hi[3]);
 double guide_distribution_samples(const GuideDistribution *d);

@@ -155,6 +155,13 @@ static float guided_rr_factor(vec3 f, float p_function, vec3 weight) {
     return p_function > 0.0f && lw > 0.0f ? (lf / p_function) / lw : 1.0f;
 }
 
+void scatter_prefetch_guided(const Scatter *s, const float u[6]) {
+    if (!s->guide) return;
+    int ris = s->guide_mode != SCATTER_GUIDE_MIS;
+    if (ris || u[0] >= SCATTER_GUIDE_ALPHA) guide_distribution_prefetch_sample(s->guide, ris ? u[3] : u[1]);
+    if (ris || u[0] < SCATTER_GUIDE_ALPHA) guide_distribution_prefetch_pdf(s->guide);
+}
+
 int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out) {
     if (!s->guide) return scatter_sample(s, u[0], u[1], u[2], out);
     const float alpha = SCATTER_GUIDE_ALPHA;

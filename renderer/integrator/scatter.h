@@ -92,6 +92,10 @@ int scatter_sample(const Scatter *s, float u_lobe, float u1, float u2, ScatterSa
  * u[2]; with RIS, u[3], u[4] are the guide candidate's direction and u[5] the choice between
  * the candidates. */
 int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out);
+/* A hint ahead of scatter_sample_guided with the same numbers: fetches the guide's table entry
+ * it will read (its alias slot when u chooses the guide, the root of its pdf tree when it
+ * chooses the function; RIS reads both). Changes nothing. */
+void scatter_prefetch_guided(const Scatter *s, const float u[6]);
 /* The six numbers of scatter_sample_guided from the vertex's scatter group (DIMS_SCATTER: u, v,
  * lobe, roulette) and, for RIS, its guide group (the guide candidate's u, v and the choice); the
  * lobe number only where there is a lobe to choose or a guided MIS choice (the others ignore

@@ -118,78 +118,116 @@ static int surface_continuation(const Integrator *ig, Slice *s, uint32_t p, cons
     return 1;
 }
 
+/* A hit between its two halves (stage_surface): what shade_front computed for shade_back. The
+ * Scatter points into the material sample and the group into the dims, so a slot is filled in
+ * place and never copied. */
+typedef struct ShadeSlot {
+    uint32_t p;
+    int boundary;              /* an invisible medium boundary: shade_back crosses it */
+    vec3 wo;
+    SurfaceHit h;
+    MaterialSample m;
+    Scatter sc;
+    PathDims dims;
+    DimsGroup g;               /* the continuation's numbers: the direction's u, v, the lobe, the roulette */
+    float u[6];
+} ShadeSlot;
+
+/* The first half of a hit: the surface point, its material and scattering function, the guide's
+ * distribution and the continuation's numbers. It changes nothing another path reads (only the
+ * path's own regularised roughness), so it may run a hit ahead of the second half: it ends with a
+ * prefetch of the guide table entry the second half will read (a cache miss per guided vertex at
+ * high resolution), which the other hit's work then hides. */
+static void shade_front(const Integrator *ig, uint32_t p, ShadeSlot *x, GuideCursor cursors[GUIDE_FIELDS]) {
+    const PathState *ps = &ig->ps;
+    const Scene *scene = ig->scene;
+    const SceneHit *hit = &ps->hit[p];
+    x->p = p;
+    x->boundary = scene_hit_primitive(scene, hit)->medium_boundary;
+    if (x->boundary) return;
+    x->wo = v3_neg(ps->ray[p].dir);
+    scene_surface_hit(scene, hit->instance, hit->local_prim, hit->triangle, hit->u, hit->v, &x->h);
+    const BsdfPrepared *prepared = scene_material_prepared(scene, &x->h, &x->m);
+    float gamma = ig->opt->path_regularization;
+    if (gamma > 0.0f) {
+        prepared = NULL; /* the roughness changes below */
+        /* path-space regularisation (ch. 1 §7, Eq. 25, OPSR with k = 1): a vertex after a rough
+         * one is roughened, alpha' = 1 - (1 - alpha)(1 - gamma alpha'_prev), so guiding can
+         * learn caustics (a biased, consistent-in-gamma trade: off unless asked) */
+        float r = fminf(fmaxf(x->m.bsdf.roughness, 0.0f), 1.0f);
+        x->m.bsdf.roughness = 1.0f - (1.0f - r) * (1.0f - gamma * ps->reg_roughness[p]);
+        ps->reg_roughness[p] = x->m.bsdf.roughness;
+    }
+    scatter_init_surface_prepared(&x->sc, &x->h, &x->m.bsdf, prepared, x->wo);
+    if (ig->guide.active && scatter_guidable(&x->sc))
+        scatter_set_guide(&x->sc, guide_lookup(ig, x->h.p, x->sc.ng, cursors), (ScatterGuideMode)ig->guide.mode);
+    x->dims = path_dims(ig, p);
+    x->g = dims_group(&x->dims, ps->depth[p], DIMS_SCATTER);
+    scatter_numbers(&x->sc, &x->g, x->u);
+    scatter_prefetch_guided(&x->sc, x->u);
+}
+
+/* The second half: every effect of the hit, in the order of one pass (emission, AOVs, the depth
+ * limit, light selection, NEE, the continuation). */
+static void shade_back(const Integrator *ig, Slice *s, ShadeSlot *x, uint32_t *hint, float *scratch) {
+    const PathState *ps = &ig->ps;
+    uint32_t p = x->p;
+    const SceneHit *hit = &ps->hit[p];
+    vertex_shape_emission(ig, s, p, hit->t, 0);
+    if (x->boundary) {
+        if (!cross_boundary(ig, s, p, hit)) path_end(ig, s, p);
+        return;
+    }
+    const SurfaceHit *h = &x->h;
+    Scatter *sc = &x->sc;
+    uint32_t depth = ps->depth[p];
+    if (depth == 0) path_write_aovs(ps, p, x->m.bsdf.base_color, sc->frame.n, hit->t);
+
+    surface_emission(ig, p, h, x->wo);
+    if ((int)(depth - ps->volume_bounces[p]) >= ig->opt->max_depth) { /* surface vertices */
+        path_end(ig, s, p);
+        return;
+    }
+    uint32_t incoming = ps->pv[p]; /* the recorder vertex of the ray that found this hit */
+
+    /* light-selection context: transmissive surfaces receive light from both sides, so they
+     * use the omnidirectional (fluence) estimates, as a point in a medium does */
+    LightSampleContext lc = light_sample_context(h->p, scatter_light_normal(sc), scratch, &s->volume,
+                                                 lights_instance_class(ig->lights, hit->instance));
+    int delta = scatter_is_delta(sc);
+    if (!delta && light_sampler_uses_lobe(ig->light_sampler)) scatter_light_lobe(sc, &lc.lobe); /* a strategy that weighs lights by the BSDF */
+    /* the continuation's direction before the light selection and NEE (it changes no state):
+     * a guided vertex's table accesses, cache misses at high resolution, then overlap that
+     * independent work */
+    ScatterSample ss;
+    int sampled = scatter_sample_guided(sc, x->u, &ss);
+    if (!delta) light_sampler_prepare(ig->light_sampler, &lc, hint); /* once per vertex */
+    if (depth == 0 && ig->film.sel_aov) /* the light sampler's AOV: what the first hit's selection uses */
+        light_sampler_aov(ig->light_sampler, &lc, &ps->aov_sel_point[p], &ps->aov_sel_light[p]);
+    if (!delta && ig->lights->count > 0) surface_direct_light(ig, s, p, h, sc, &lc);
+    int continued = surface_continuation(ig, s, p, h, sc, &lc, &x->g, sampled ? &ss : NULL);
+    record_scatter_done(ig, s, p, incoming, continued); /* the scattering event is done with the incoming vertex */
+}
+
 void stage_surface(const Integrator *ig, Slice *s) {
     const PathState *ps = &ig->ps;
     const Scene *scene = ig->scene;
     uint32_t hint = UINT32_MAX; /* hits are sorted spatially: the last vertex's answer is near */
     GuideCursor guide_cursors[GUIDE_FIELDS] = {{{0}, 0}};
     float scratch[LIGHT_SAMPLER_SCRATCH];
+    ShadeSlot slots[2]; /* hit i's second half runs after hit i + 1's first */
     s->num_shadows = 0;
     s->num_rays = 0; /* the ray queue was consumed by stage_intersect: it now collects the next wave */
-    for (uint32_t i = 0; i < s->num_hits; ++i) {
-        if (i + SHADE_PREFETCH < s->num_hits) path_state_prefetch_shade(ps, s->hits[i + SHADE_PREFETCH]);
-        /* the hit's mesh data in two steps behind the path state: its indices, then its vertices */
-        if (i + SHADE_PREFETCH / 2 < s->num_hits) scene_prefetch_hit_indices(scene, &ps->hit[s->hits[i + SHADE_PREFETCH / 2]]);
-        if (i + SHADE_PREFETCH / 4 < s->num_hits) scene_prefetch_hit_vertices(scene, &ps->hit[s->hits[i + SHADE_PREFETCH / 4]]);
-        /* the recorder vertex the hit's ray carries (its pv was fetched a few hits earlier) */
-        record_prefetch_hit(ig, s, i + SHADE_PREFETCH / 2);
-        uint32_t p = s->hits[i];
-        const SceneHit *hit = &ps->hit[p];
-        vertex_shape_emission(ig, s, p, hit->t, 0);
-        if (scene_hit_primitive(scene, hit)->medium_boundary) {
-            if (!cross_boundary(ig, s, p, hit)) path_end(ig, s, p);
-            continue;
+    for (uint32_t i = 0; i <= s->num_hits; ++i) {
+        if (i < s->num_hits) {
+            if (i + SHADE_PREFETCH < s->num_hits) path_state_prefetch_shade(ps, s->hits[i + SHADE_PREFETCH]);
+            /* the hit's mesh data in two steps behind the path state: its indices, then its vertices */
+            if (i + SHADE_PREFETCH / 2 < s->num_hits) scene_prefetch_hit_indices(scene, &ps->hit[s->hits[i + SHADE_PREFETCH / 2]]);
+            if (i + SHADE_PREFETCH / 4 < s->num_hits) scene_prefetch_hit_vertices(scene, &ps->hit[s->hits[i + SHADE_PREFETCH / 4]]);
+            /* the recorder vertex the hit's ray carries (its pv was fetched a few hits earlier) */
+            record_prefetch_hit(ig, s, i + SHADE_PREFETCH / 2);
+            shade_front(ig, s->hits[i], &slots[i & 1], guide_cursors);
         }
-        vec3 wo = v3_neg(ps->ray[p].dir);
-        SurfaceHit h;
-        scene_surface_hit(scene, hit->instance, hit->local_prim, hit->triangle, hit->u, hit->v, &h);
-        MaterialSample m;
-        const BsdfPrepared *prepared = scene_material_prepared(scene, &h, &m);
-        float gamma = ig->opt->path_regularization;
-        if (gamma > 0.0f) {
-            prepared = NULL; /* the roughness changes below */
-            /* path-space regularisation (ch. 1 §7, Eq. 25, OPSR with k = 1): a vertex after a rough
-             * one is roughened, alpha' = 1 - (1 - alpha)(1 - gamma alpha'_prev), so guiding can
-             * learn caustics (a biased, consistent-in-gamma trade: off unless asked) */
-            float r = fminf(fmaxf(m.bsdf.roughness, 0.0f), 1.0f);
-            m.bsdf.roughness = 1.0f - (1.0f - r) * (1.0f - gamma * ps->reg_roughness[p]);
-            ps->reg_roughness[p] = m.bsdf.roughness;
-        }
-        Scatter sc;
-        scatter_init_surface_prepared(&sc, &h, &m.bsdf, prepared, wo);
-        if (ig->guide.active && scatter_guidable(&sc)) {
-            scatter_set_guide(&sc, guide_lookup(ig, h.p, sc.ng, guide_cursors), (ScatterGuideMode)ig->guide.mode);
-        }
-        uint32_t depth = ps->depth[p];
-        if (depth == 0) path_write_aovs(ps, p, m.bsdf.base_color, sc.frame.n, hit->t);
-
-        surface_emission(ig, p, &h, wo);
-        if ((int)(depth - ps->volume_bounces[p]) >= ig->opt->max_depth) { /* surface vertices */
-            path_end(ig, s, p);
-            continue;
-        }
-        uint32_t incoming = ps->pv[p]; /* the recorder vertex of the ray that found this hit */
-
-        /* light-selection context: transmissive surfaces receive light from both sides, so they
-         * use the omnidirectional (fluence) estimates, as a point in a medium does */
-        LightSampleContext lc = light_sample_context(h.p, scatter_light_normal(&sc), scratch, &s->volume,
-                                                     lights_instance_class(ig->lights, hit->instance));
-        int delta = scatter_is_delta(&sc);
-        if (!delta && light_sampler_uses_lobe(ig->light_sampler)) scatter_light_lobe(&sc, &lc.lobe); /* a strategy that weighs lights by the BSDF */
-        /* the continuation's direction before the light selection and NEE (it changes no state):
-         * a guided vertex's table accesses, cache misses at high resolution, then overlap that
-         * independent work */
-        PathDims dims = path_dims(ig, p);
-        DimsGroup g = dims_group(&dims, depth, DIMS_SCATTER); /* the direction's u, v, the lobe, the roulette */
-        float u[6];
-        scatter_numbers(&sc, &g, u);
-        ScatterSample ss;
-        int sampled = scatter_sample_guided(&sc, u, &ss);
-        if (!delta) light_sampler_prepare(ig->light_sampler, &lc, &hint); /* once per vertex */
-        if (depth == 0 && ig->film.sel_aov) /* the light sampler's AOV: what the first hit's selection uses */
-            light_sampler_aov(ig->light_sampler, &lc, &ps->aov_sel_point[p], &ps->aov_sel_light[p]);
-        if (!delta && ig->lights->count > 0) surface_direct_light(ig, s, p, &h, &sc, &lc);
-        int continued = surface_continuation(ig, s, p, &h, &sc, &lc, &g, sampled ? &ss : NULL);
-        record_scatter_done(ig, s, p, incoming, continued); /* the scattering event is done with the incoming vertex */
+        if (i > 0) shade_back(ig, s, &slots[(i - 1) & 1], &hint, scratch);
     }
 }
