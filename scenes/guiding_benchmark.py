@@ -4,7 +4,8 @@ the scenes guiding exists for and on scenes it should leave alone.
 
     python3 scenes/guiding_benchmark.py [--candela build/renderer/candela] [--scenes box,interior,...]
                                         [--res WxH,...] [--spp N] [--configs off,mis,ris,auto]
-                                        [--ref-spp N] [--out DIR] [--repeats N] [--seeds N] [--threads N]
+                                        [--ref-spp N] [--ref-candela BIN] [--out DIR] [--repeats N] [--seeds N]
+                                        [--threads N]
 
 Scenes and their default resolutions and sample counts (--res and --spp override them):
   box        scenes/cornell_indirect.gltf (a Lambert Cornell box lit through the ceiling: its light
@@ -86,9 +87,9 @@ def rel_var(a):
                       "--div"])
 
 
-def render(a, scene, out, res, spp, seed, extra):
+def render(a, scene, out, res, spp, seed, extra, candela=None):
     stats = out[:-4] + ".json"
-    cmd = [a.candela, "render", scene, "--res", res, "--spp", str(spp), "--seed", str(seed), "-o", out, "--no-png",
+    cmd = [candela or a.candela, "render", scene, "--res", res, "--spp", str(spp), "--seed", str(seed), "-o", out, "--no-png",
            "--stats-json", stats, "-q"] + extra + (["--threads", str(a.threads)] if a.threads > 0 else [])
     return run_render(cmd, stats)
 
@@ -96,6 +97,9 @@ def render(a, scene, out, res, spp, seed, extra):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--candela", default=os.path.join(ROOT, "build", "renderer", "candela"))
+    ap.add_argument("--ref-candela", default="", help="the binary that renders the references (default: --candela); "
+                    "a reference is kept while its binary is unchanged, so a fixed one spares re-rendering them "
+                    "while the renders' binary changes")
     ap.add_argument("--scenes", default="box,interior,blender,default")
     ap.add_argument("--res", default="", help="resolutions (comma-separated) instead of the scenes' own")
     ap.add_argument("--spp", type=int, default=0, help="instead of the scenes' own")
@@ -121,9 +125,11 @@ def main():
             w, h = (int(x) for x in res.split("x"))
             ref_res = "%dx%d" % (max(w // 4, 1), max(h // 4, 1))
             ref = os.path.join(a.out, "%s_%s_reference.exr" % (name, ref_res))
-            key = "%s %s %d %s %s\n" % (scene, ref_res, a.ref_spp, extra, os.path.getmtime(a.candela))
+            ref_candela = a.ref_candela or a.candela
+            key = "%s %s %d %s %s %s\n" % (scene, ref_res, a.ref_spp, extra, ref_candela, os.path.getmtime(ref_candela))
             if not (os.path.exists(ref) and os.path.exists(ref[:-4] + ".key") and open(ref[:-4] + ".key").read() == key):
-                render(a, scene, ref, ref_res, a.ref_spp, 1000003, extra + ["--guiding", "mis", "--sampler", "independent"])
+                render(a, scene, ref, ref_res, a.ref_spp, 1000003, extra + ["--guiding", "mis", "--sampler", "independent"],
+                       candela=ref_candela)
                 with open(ref[:-4] + ".key", "w") as f:
                     f.write(key)
             ref_rel, ref_mse = ref_noise(ref)
