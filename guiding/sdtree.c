@@ -74,8 +74,10 @@
 
 enum {
     SPATIAL_MAX_DEPTH = 48,       /* a box 2^-16 of the cube's side per axis */
-    QUAD_MAX_DEPTH = 20,          /* cells of 2^-20: finer than float directions resolve */
-    QUAD_DEFAULT_DEPTH = 20,
+    QUAD_MAX_DEPTH = 10,          /* cells of 2^-10 of the square's side (about 0.2 degrees), as a
+                                   * sample's packed cell holds them; the trained fields of the
+                                   * benchmark scenes put under 1e-3 of their mass below 2^-9 */
+    QUAD_DEFAULT_DEPTH = 10,
 };
 #define LEAF_LIMIT (1u << 26)     /* keeps 8 * leaves (PLY vertex indices) within int */
 #define DEFAULT_MAX_BYTES ((size_t)256 << 20)
@@ -94,33 +96,37 @@ typedef struct QuadTree {
     uint32_t count;     /* 0: no tree (a sampling tree without one is uniform) */
 } QuadTree;
 
-/* What lookups read: each leaf's sampling tree flattened for speed (field_flatten).
- * - pdf: a descent over PdfNode, 32 bytes (two per cache line, where a QuadNode is 48), the
- *   per-quadrant density factors 4 s_q / total precomputed in float, so a level is a load, two
- *   compares and a multiply (no division on the dependent chain).
- * - sampling: an alias table (Walker / Vose) over the tree's leaf cells, the cell's
- *   probability its density times its area: one uniform picks the cell in O(1) and, rescaled,
- *   places the point across it; the other places it down it. The descent that divided each
- *   uniform by the quadrant shares level by level (four dependent double divisions per
- *   level) was most of guiding's per-vertex cost.
- * A cell's density is the float product of the factors along its path, formed in descent
- * order, so the density a sample reports is bit for bit what the pdf descent returns for a
- * point of that cell; the alias table picks cells with those densities times the areas,
- * normalised in double (they differ from the densities by float rounding only). A node
- * without flux has factors 1 and no children: uniform over its cell, as in the double tree. */
+/* What lookups read: each leaf's sampling tree flattened for speed (field_flatten), in 16-byte
+ * records (four to a cache line: at high resolution a guided vertex waits on these loads).
+ * - pdf: a descent over PdfNode, each quadrant either a child or the density of its cell,
+ *   stored: a level is one load and two compares, and the last one reads the answer.
+ * - sampling: an alias table (Walker / Vose) over the tree's cells: one uniform picks a slot in
+ *   O(1) and, rescaled, places the point across the cell the slot gives; the other places it
+ *   down it. (The descent that divided each uniform by the quadrant shares level by level was
+ *   most of guiding's per-vertex cost.)
+ * The table's keep thresholds are 16-bit fractions; each cell's probability is then computed
+ * from the table as built (its own slot's keep and its share of the slots it is the alias of),
+ * and that probability over the cell's area is the density both the slots and the pdf tree
+ * store: what a sample reports is what the pdf descent returns for a point of that cell, and
+ * both are the density the table samples, to float rounding. The cells' nominal probabilities
+ * (the learned flux shares) differ from those by the keeps' rounding, below 2^-16 of a slot. A
+ * node without flux is one cell of its own, uniform, as in the double tree. */
 typedef struct PdfNode {
-    float factor[4];
-    uint32_t child[4]; /* index in the field's node array; 0: the quadrant is a cell (no child is node 0) */
+    uint32_t q[4]; /* PDF_CHILD | the child's index in the field's node array, or the bits of the
+                    * quadrant's cell density over the square (a float >= 0: top bit clear) */
 } PdfNode;
-/* An alias-table slot with both of its cells, so a sample reads one 32-byte slot (the cell and
- * its alias in separate entries were two cache misses per guided sample, most of its cost). */
+#define PDF_CHILD 0x80000000u
+_Static_assert(sizeof(PdfNode) == 16, "a pdf node is a quarter of a cache line");
+/* An alias-table slot with both of its cells, so a sample reads one 16-byte slot (the cell and
+ * its alias in separate entries were two cache misses per guided sample). A cell is packed in
+ * 24 bits: its level L (side 2^-L, 1 <= L <= QUAD_MAX_DEPTH = 10) in bits 20-23 and its corner's
+ * u and v in units of 2^-L in bits 10-19 and 0-9. */
 typedef struct SampleCell {
-    _Alignas(32) float keep; /* take cell 0 when the rescaled uniform is below keep, else cell 1 */
-    float pdf_uv[2];         /* the cells' densities over the square */
-    uint32_t u0[2], v0[2];   /* their corners in units of 2^-32 (exact: cells are dyadic, 2^-20 at least) */
-    uint8_t level[2];        /* their sides, 2^-level */
+    float pdf_uv[2];  /* the two cells' densities over the square */
+    uint64_t packed;  /* bits 0-15: keep (cell 0 when the rescaled uniform is below keep / 2^16, else
+                       * cell 1); bits 16-39 cell 0, bits 40-63 cell 1 */
 } SampleCell;
-_Static_assert(sizeof(SampleCell) == 32, "an alias slot is half a cache line");
+_Static_assert(sizeof(SampleCell) == 16, "an alias slot is a quarter of a cache line");
 #define NO_FLAT_TREE 0xFFFFFFFFu
 
 /* A spatial leaf: what a lookup returns. Readers only touch the flat tree and the box. */
@@ -379,18 +385,20 @@ static size_t tree_flat_bytes(const QuadTree *t) {
 /* Scratch of the alias table builds (sized for the largest tree): each cell's probability, the
  * two work lists, and the cells before they are paired into slots. */
 typedef struct AliasCell {
-    uint32_t u0, v0;
-    float pdf_uv;
-    uint8_t level;
+    uint32_t node;   /* the PdfNode whose quadrant it is */
+    uint32_t packed; /* level, u, v (SampleCell) */
+    uint8_t quad;
 } AliasCell;
 typedef struct AliasScratch {
-    double *prob;
+    double *prob;    /* nominal, then the table's (per cell) */
     uint32_t *small, *large;
     AliasCell *cell;
+    uint16_t *keep;  /* per slot */
+    uint32_t *alias; /* per slot: cell 1 */
 } AliasScratch;
 
 static void alias_scratch_free(AliasScratch *a) {
-    free(a->prob); free(a->small); free(a->large); free(a->cell);
+    free(a->prob); free(a->small); free(a->large); free(a->cell); free(a->keep); free(a->alias);
     memset(a, 0, sizeof *a);
 }
 
@@ -400,7 +408,9 @@ static int alias_scratch_alloc(AliasScratch *a, size_t cells) {
     a->small = malloc(cells * sizeof *a->small);
     a->large = malloc(cells * sizeof *a->large);
     a->cell = malloc(cells * sizeof *a->cell);
-    if (!a->prob || !a->small || !a->large || !a->cell) { alias_scratch_free(a); return -1; }
+    a->keep = malloc(cells * sizeof *a->keep);
+    a->alias = malloc(cells * sizeof *a->alias);
+    if (!a->prob || !a->small || !a->large || !a->cell || !a->keep || !a->alias) { alias_scratch_free(a); return -1; }
     return 0;
 }
 
@@ -411,11 +421,12 @@ static void *flat_alloc(size_t bytes) { return aligned_alloc(64, ((bytes ? bytes
 
 static SampleCell *slots_alloc(size_t n) { return flat_alloc((n ? n : 1) * sizeof(SampleCell)); }
 
-static void slot_set(SampleCell *s, int k, const AliasCell *c) {
-    s->pdf_uv[k] = c->pdf_uv;
-    s->u0[k] = c->u0;
-    s->v0[k] = c->v0;
-    s->level[k] = c->level;
+static double cell_area(uint32_t packed) { return ldexp(1.0, -2 * (int)(packed >> 20)); }
+
+static uint32_t float_bits(float x) {
+    uint32_t b;
+    memcpy(&b, &x, sizeof b);
+    return b;
 }
 
 /* One leaf: its PdfNodes at nodes[base ...], its cells at cells[0 ...] with their alias table
@@ -429,68 +440,78 @@ static void flatten_leaf(const GuideLeaf *leaf, GuideDistribution *l, PdfNode *n
     l->cells = NULL;
     l->cell_count = 0;
     if (t->count == 0) return;
-    for (uint32_t k = 0; k < t->count; ++k) {
-        const QuadNode *n = &t->nodes[k];
-        PdfNode *o = &nodes[base + k];
-        double total = node_total(n);
-        for (int q = 0; q < 4; ++q) {
-            if (total > 0) {
-                o->factor[q] = (float)(4 * n->sum[q] / total);
-                o->child[q] = n->child[q] ? base + n->child[q] : 0;
-            } else { /* no flux: uniform over the cell, where the descent stops */
-                o->factor[q] = 1.0f;
-                o->child[q] = 0;
-            }
-        }
-    }
-    /* The cells, depth first; a cell's density is the float product of the factors from the
-     * root in descent order (flat_pdf_uv forms the same). */
-    typedef struct CellVisit { uint32_t node; double u0, v0, size; float pdf; int level; } CellVisit;
+    memset(&nodes[base], 0, (size_t)t->count * sizeof *nodes); /* nodes under a cell stay unread */
+    /* The cells, depth first, each with its nominal probability: the product of the flux shares
+     * down to it (double). A quadrant without flux, or at the depth a packed cell holds, is a
+     * cell even where the tree goes deeper (a tree loaded from an older checkpoint). */
+    typedef struct CellVisit { uint32_t node; uint32_t ui, vi; double prob; int level; } CellVisit;
     CellVisit stack[4 * (QUAD_MAX_DEPTH + 2)]; /* at most 3 siblings per level wait */
     int top = 0;
     uint32_t nc = 0;
     double weight = 0;
-    stack[top++] = (CellVisit){base, 0.0, 0.0, 1.0, 1.0f, 0};
+    stack[top++] = (CellVisit){0, 0, 0, 1.0, 0};
     while (top > 0) {
         CellVisit e = stack[--top];
-        const PdfNode *n = &nodes[e.node];
-        double half = 0.5 * e.size;
+        const QuadNode *n = &t->nodes[e.node];
+        double total = node_total(n);
         for (int q = 0; q < 4; ++q) {
-            double u0 = e.u0 + (q & 1) * half, v0 = e.v0 + (q >> 1) * half;
-            float pdf = e.pdf * n->factor[q];
-            if (n->child[q] && pdf > 0.0f && top < (int)(sizeof stack / sizeof stack[0])) {
-                stack[top++] = (CellVisit){n->child[q], u0, v0, half, pdf, e.level + 1};
+            uint32_t ui = 2 * e.ui + (q & 1), vi = 2 * e.vi + (q >> 1);
+            double prob = total > 0 ? e.prob * (n->sum[q] / total) : 0.25 * e.prob;
+            if (!(prob > 0) || !isfinite(prob)) prob = 0;
+            if (total > 0 && n->child[q] && prob > 0 && e.level + 1 < QUAD_MAX_DEPTH &&
+                top < (int)(sizeof stack / sizeof stack[0])) {
+                nodes[base + e.node].q[q] = PDF_CHILD | (base + n->child[q]);
+                stack[top++] = (CellVisit){n->child[q], ui, vi, prob, e.level + 1};
                 continue;
             }
             AliasCell *c = &a->cell[nc];
-            c->u0 = (uint32_t)ldexp(u0, 32); /* dyadic of at most 21 bits: exact */
-            c->v0 = (uint32_t)ldexp(v0, 32);
-            c->level = (uint8_t)(e.level + 1);
-            c->pdf_uv = pdf > 0.0f ? pdf : 0.0f;
-            a->prob[nc] = (double)c->pdf_uv * half * half;
-            weight += a->prob[nc];
+            c->node = base + e.node;
+            c->quad = (uint8_t)q;
+            c->packed = (uint32_t)(e.level + 1) << 20 | ui << 10 | vi;
+            a->prob[nc] = prob;
+            weight += prob;
             ++nc;
         }
     }
     if (!(weight > 0) || !isfinite(weight)) return; /* uniform */
+    /* Vose: slot i's own cell is cell i; keep rounded to 16 bits as it is built */
     uint32_t ns = 0, nl = 0;
     for (uint32_t i = 0; i < nc; ++i) {
         a->prob[i] *= (double)nc / weight;
+        a->keep[i] = 0xFFFF;
+        a->alias[i] = i;
         if (a->prob[i] < 1.0) a->small[ns++] = i;
         else a->large[nl++] = i;
     }
-    for (uint32_t i = 0; i < nc; ++i) slot_set(&cells[i], 0, &a->cell[i]);
     while (ns > 0 && nl > 0) {
         uint32_t sm = a->small[--ns], lg = a->large[--nl];
-        cells[sm].keep = (float)a->prob[sm];
-        slot_set(&cells[sm], 1, &a->cell[lg]);
+        double k = floor(a->prob[sm] * 65536.0 + 0.5);
+        a->keep[sm] = (uint16_t)(k > 65535.0 ? 65535.0 : k);
+        a->alias[sm] = lg;
         a->prob[lg] = (a->prob[lg] + a->prob[sm]) - 1.0;
         if (a->prob[lg] < 1.0) a->small[ns++] = lg;
         else a->large[nl++] = lg;
     }
-    /* the rest keep their own cell (the large ones, and rounding leftovers among the small) */
-    while (nl > 0) { uint32_t i = a->large[--nl]; cells[i].keep = 1.0f; slot_set(&cells[i], 1, &a->cell[i]); }
-    while (ns > 0) { uint32_t i = a->small[--ns]; cells[i].keep = 1.0f; slot_set(&cells[i], 1, &a->cell[i]); }
+    /* the rest keep their own cell (the large ones, and rounding leftovers among the small):
+     * alias = self, keep irrelevant. Each cell's probability from the table as built: */
+    for (uint32_t i = 0; i < nc; ++i) a->prob[i] = 0.0;
+    for (uint32_t i = 0; i < nc; ++i) {
+        double keep = a->alias[i] == i ? 1.0 : a->keep[i] * 0x1p-16;
+        a->prob[i] += keep;
+        a->prob[a->alias[i]] += 1.0 - keep;
+    }
+    for (uint32_t i = 0; i < nc; ++i) {
+        const AliasCell *c = &a->cell[i];
+        float pdf = (float)(a->prob[i] / ((double)nc * cell_area(c->packed)));
+        nodes[c->node].q[c->quad] = float_bits(pdf);
+        a->prob[i] = pdf; /* the slots' copy */
+    }
+    for (uint32_t i = 0; i < nc; ++i) {
+        uint32_t j = a->alias[i];
+        cells[i].pdf_uv[0] = (float)a->prob[i];
+        cells[i].pdf_uv[1] = (float)a->prob[j];
+        cells[i].packed = (uint64_t)a->keep[i] | (uint64_t)a->cell[i].packed << 16 | (uint64_t)a->cell[j].packed << 40;
+    }
     l->pdf_root = base;
     l->cells = cells;
     l->cell_count = nc;
@@ -1019,25 +1040,26 @@ const GuideDistribution *guide_field_lookup(const GuideField *f, const float pos
     return &f->dists[field_find_leaf(f, pos ? pos : origin)];
 }
 
-/* Density over the (u, v) square: the product of the factors along the descent (float, in
- * descent order: each cell's pdf_uv is the same product). */
+/* Density over the (u, v) square: the descent to the cell holding (u, v), which stores it. */
 static float flat_pdf_uv(const GuideDistribution *d, double u, double v) {
     if (d->pdf_root == NO_FLAT_TREE) return 1.0f;
     const PdfNode *nodes = d->pdf_nodes;
-    float pdf = 1.0f;
     uint32_t i = d->pdf_root;
     for (;;) {
-        const PdfNode *n = &nodes[i];
-        int qx = u >= 0.5, qy = v >= 0.5, q = qx + 2 * qy;
-        pdf *= n->factor[q];
-        if (!n->child[q] || !(pdf > 0.0f)) return pdf;
+        int qx = u >= 0.5, qy = v >= 0.5;
+        uint32_t e = nodes[i].q[qx + 2 * qy];
+        if (!(e & PDF_CHILD)) {
+            float pdf;
+            memcpy(&pdf, &e, sizeof pdf);
+            return pdf;
+        }
+        i = e & ~PDF_CHILD;
         u = 2 * u - qx; /* exact in binary floating point */
         v = 2 * v - qy;
-        i = n->child[q];
     }
 }
 
-/* A point of the (u, v) square: the cell from the alias table with u1 (the rescaled
+/* A point of the (u, v) square: the slot from the alias table with u1 (the rescaled
  * remainder of u1 places it across the cell: u1 is a float and a leaf has at most a few
  * thousand cells, so a dozen bits or more are left), u2 places it down the cell. */
 static void flat_sample(const GuideDistribution *d, double u1, double u2, double *u, double *v, float *pdf_uv) {
@@ -1052,11 +1074,16 @@ static void flat_sample(const GuideDistribution *d, double u1, double u2, double
     if (i >= d->cell_count) i = d->cell_count - 1;
     double frac = x - i;
     const SampleCell *c = &d->cells[i];
-    int k = !(frac < c->keep);
-    frac = k ? (frac - c->keep) / (1.0 - c->keep) : frac / c->keep; /* keep < 1 when k, since frac < 1 */
-    double size = 1.0 / (double)(1u << c->level[k]); /* exact: a power of two */
-    *u = clamp_unit_open((double)c->u0[k] * 0x1p-32 + size * clamp_unit_open(frac));
-    *v = clamp_unit_open((double)c->v0[k] * 0x1p-32 + size * u2);
+    uint64_t b = c->packed;
+    double keep = (double)(b & 0xFFFFu) * 0x1p-16;
+    int k = !(frac < keep);
+    frac = k ? (frac - keep) / (1.0 - keep) : frac / keep; /* keep < 1; keep > 0 when frac < keep */
+    uint32_t cell = (uint32_t)(b >> (16 + 24 * k)) & 0xFFFFFFu;
+    uint64_t size_bits = (uint64_t)(1023u - (cell >> 20)) << 52; /* 2^-level, exactly (no libm call) */
+    double size;
+    memcpy(&size, &size_bits, sizeof size);
+    *u = clamp_unit_open(size * ((double)((cell >> 10) & 1023u) + clamp_unit_open(frac)));
+    *v = clamp_unit_open(size * ((double)(cell & 1023u) + u2));
     *pdf_uv = c->pdf_uv[k];
 }
 

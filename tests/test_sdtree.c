@@ -248,12 +248,22 @@ static void test_trained(void) {
         memset(obs, 0, sizeof obs);
         const int n = 400000;
         uint64_t r = 99;
-        int mismatch = 0, nonpositive = 0, bad_len = 0;
+        int mismatch = 0, off_edge = 0, nonpositive = 0, bad_len = 0;
         for (int i = 0; i < n; ++i) {
             float dir[3], pdf;
             guide_distribution_sample(d, rnd(&r), rnd(&r), dir, &pdf);
             float q = guide_distribution_pdf(d, dir);
-            mismatch += fabsf(pdf - q) > 1e-4f * q;
+            if (fabsf(pdf - q) > 1e-4f * q) {
+                /* the one way they may differ: a point sampled a rounding error from its cell's
+                 * edge whose float direction maps back across it (edges lie on multiples of 2^-10,
+                 * the finest cells' side) */
+                double eu, ev;
+                dir_uv(dir, &eu, &ev);
+                eu *= 1024.0;
+                ev *= 1024.0;
+                off_edge += fabs(eu - floor(eu + 0.5)) > 1e-3 && fabs(ev - floor(ev + 0.5)) > 1e-3;
+                ++mismatch;
+            }
             nonpositive += !(pdf > 0);
             bad_len += fabsf(sqrtf(dot(dir, dir)) - 1) > 1e-5f;
             double u, v;
@@ -263,7 +273,9 @@ static void test_trained(void) {
             bv = bv < 0 ? 0 : bv >= BINS ? BINS - 1 : bv;
             obs[bv * BINS + bu] += 1;
         }
-        CHECK(mismatch == 0, "%d sample pdfs differ from guide_distribution_pdf", mismatch);
+        fprintf(stderr, "%d of %d sample pdfs differ from guide_distribution_pdf at a cell's edge\n", mismatch, n);
+        CHECK(off_edge == 0, "%d sample pdfs differ from guide_distribution_pdf away from a cell's edge", off_edge);
+        CHECK(mismatch <= n / 10000, "%d sample pdfs differ from guide_distribution_pdf", mismatch);
         CHECK(nonpositive == 0, "%d sampled directions with pdf <= 0", nonpositive);
         CHECK(bad_len == 0, "%d sampled directions not unit length", bad_len);
         /* Expected counts: the probabilities of each bin's image pixels (integral_image made them so). */
