@@ -268,6 +268,8 @@ typedef struct CandelaStats {
     int spp_min;
     double spp_mean;
     uint32_t spp_histogram[21];
+    int spp_dropped;                 /* samples per pixel rendered but not in the image: path guiding's
+                                      * unguided bootstrap, dropped once guided samples followed */
     uint32_t adaptive_active_pixels; /* adaptive sampling: pixels still sampling at the end (0: all stopped) */
     int image_width, image_height;   /* the resolved resolution (the full image's with --crop) */
     int time_limited;                /* --time-limit stopped the render before --spp */

@@ -6,7 +6,8 @@
 # - writing checkpoints does not change the image; resuming from one gives the uninterrupted
 #   render's EXR bit for bit (cache points, whose learned visibility the checkpoint carries,
 #   --guiding mis, adaptive sampling from before and after its pilot); an adaptive checkpoint of
-#   the rule before the pilot rule is refused;
+#   the rule before the pilot rule is refused; a guided checkpoint at the end of the guide's
+#   bootstrap (8 spp), before the film drops it, resumes to the uninterrupted image;
 # - a render killed with SIGKILL after a checkpoint and resumed: bit-identical, and it left no
 #   finished-looking file; SIGTERM stops after the current batch (mid-iteration), writes the
 #   checkpoint and with --save-partial only NAME.partial.*; resuming that: bit-identical;
@@ -143,6 +144,29 @@ same "$tmp/full-prog.exr" "$tmp/ck-prog.exr" "checkpoints changed the image (pro
 same "$tmp/full-prog.exr" "$tmp/res-prog.exr" "resumed render (progressive)"
 expect_error "progressive off" "flags disagree with the checkpoint: --cachepoint-progressive off (checkpoint on)$" -- render "$scene" --res 64x48 --no-png --light-sampler cachepoints \
   --cachepoint-progressive off --spp 64 -o "$tmp/keep.exr" --resume-from "$tmp/prog.ckpt"
+
+# a checkpoint at the end of the guide's unguided bootstrap (8 spp), taken before the film drops
+# it: resumed, the render drops it as the uninterrupted one did (a copy of the checkpoint file made
+# when the log says 8 spp; the resumed render's path count says it was that one)
+drop=(render "$root/scenes/cornell_indirect.gltf" --res 64x48 --no-png --spp 64 --guiding mis --threads 1 --batch 64)
+"$bin" "${drop[@]}" -o "$tmp/drop-full.exr" --quiet || bad "full render (bootstrap drop)"
+"$bin" "${drop[@]}" -o "$tmp/drop-ck.exr" --checkpoint "$tmp/drop.ckpt" 2>"$tmp/log-drop" &
+pid=$!
+for _ in $(seq 1 3000); do
+  if grep -q "checkpoint at 8 spp" "$tmp/log-drop" 2>/dev/null; then cp "$tmp/drop.ckpt" "$tmp/drop8.ckpt"; break; fi
+  sleep 0.01
+done
+wait $pid || bad "render with --checkpoint (bootstrap drop)"
+same "$tmp/drop-full.exr" "$tmp/drop-ck.exr" "checkpoints changed the image (bootstrap drop)"
+if [ -e "$tmp/drop8.ckpt" ]; then
+  "$bin" "${drop[@]}" -o "$tmp/drop-res.exr" --resume-from "$tmp/drop8.ckpt" --stats-json "$tmp/drop-res.json" --quiet ||
+    bad "resume (bootstrap drop)"
+  paths=$(sed -n 's/^  "paths": \([0-9]*\),$/\1/p' "$tmp/drop-res.json")
+  [ "$paths" = $((56 * 64 * 48)) ] && ok || bad "bootstrap drop: the copy was not the 8-spp checkpoint (resumed $paths paths)"
+  same "$tmp/drop-full.exr" "$tmp/drop-res.exr" "resumed render (at the bootstrap's end)"
+else
+  bad "bootstrap drop: no checkpoint at 8 spp"
+fi
 
 # the course's own example (ch. 2 §5.2.2): a guided 128-spp render, cumulative 1..8, 10, 14, 22,
 # 38, 54, 70, ..., 118, 128, checkpoints at 4, 8, 14, 22, 54 (and 128, the end: the image itself)

@@ -15,7 +15,11 @@
  *   (f) --guiding auto: on scenes/cornell_indirect.gltf (lit through the ceiling) its probe
  *       chooses guiding, converges to the unguided image, is bit-identical for 1 and 2 threads
  *       and is the `mis` render bit for bit (the probe records and trains as mis does); on scenes/default.gltf (direct light) it chooses off and the image is the
- *       unguided render's bit for bit.
+ *       unguided render's bit for bit;
+ *   (g) the guide's unguided bootstrap (the first 8 spp) is dropped from the image once guided
+ *       samples follow, in renders of 32 spp or more: every pixel of a 40-spp guided render holds
+ *       32 samples (the 96-spp renders of (c) are such images, and converge), one of 16 spp or
+ *       unguided all its samples, and `auto` drops exactly when it guides.
  * Scenes: tests/scenes/two_lights.gltf (a floor and a wall lit by an emissive quad and three
  * point lights: direct light with MIS plus diffuse interreflection, every surface guidable) and
  * scenes/default.gltf (glossy metal, glass, emission). */
@@ -211,6 +215,24 @@ static void image_agrees(const char *what, const Render *a, const Render *b, int
     CHECK(fabs(z) < 5.0, "(f) %s: differs from unguided by %.2f standard errors", what, z);
 }
 
+/* (g): the bootstrap's samples leave the film (every pixel's count, the stats) exactly when the
+ * render is long enough; with the spp AOV the per-pixel counts say the same. */
+static void test_bootstrap_drop(const char *scene) {
+    const int spp[2] = {40, 16}, held[2] = {32, 16};
+    for (int k = 0; k < 2; ++k) {
+        Render r = render(scene, 16, 12, spp[k], CANDELA_GUIDING_MIS, 0, -1, 2, 0, 7);
+        if (r.ok) {
+            fprintf(stderr, "  (g) %d spp guided: %d dropped, %d to %.1f in the image\n", spp[k], r.st.spp_dropped,
+                    r.st.spp_min, r.st.spp_mean);
+            CHECK(r.st.spp_done == spp[k] && r.st.spp_dropped == spp[k] - held[k] && r.st.spp_min == held[k] &&
+                      r.st.spp_mean == held[k],
+                  "(g) %d spp guided: %d dropped, %d to %.1f held, want %d", spp[k], r.st.spp_dropped, r.st.spp_min,
+                  r.st.spp_mean, held[k]);
+        }
+        candela_image_free(&r.img);
+    }
+}
+
 static void test_auto(const char *indirect, const char *direct) {
     const int w = 48, h = 48, spp = 64;
     Render off = render(indirect, w, h, spp, CANDELA_GUIDING_OFF, 0, -1, 2, 0, 3);
@@ -227,6 +249,9 @@ static void test_auto(const char *indirect, const char *direct) {
         CHECK(memcmp(on.img.rgb, on1.img.rgb, (size_t)w * h * 3 * sizeof(float)) == 0, "(f) auto: 1 and 2 threads differ");
         CHECK(memcmp(on.img.rgb, mis.img.rgb, (size_t)w * h * 3 * sizeof(float)) == 0,
               "(f) auto on is not the mis render bit for bit");
+        CHECK(on.st.spp_dropped == 8 && on.st.spp_min == spp - 8 && off.st.spp_dropped == 0 && off.st.spp_min == spp,
+              "(g) auto on dropped %d spp (holds %d), off %d (holds %d)", on.st.spp_dropped, on.st.spp_min,
+              off.st.spp_dropped, off.st.spp_min);
     }
     candela_image_free(&mis.img);
     candela_image_free(&off.img);
@@ -239,6 +264,7 @@ static void test_auto(const char *indirect, const char *direct) {
               (double)dauto.st.guide_auto_ratio);
         CHECK(memcmp(doff.img.rgb, dauto.img.rgb, 32 * 24 * 3 * sizeof(float)) == 0,
               "(f) auto off is not the unguided render bit for bit");
+        CHECK(dauto.st.spp_dropped == 0 && dauto.st.spp_min == 32, "(g) auto off dropped %d spp", dauto.st.spp_dropped);
     }
     candela_image_free(&doff.img);
     candela_image_free(&dauto.img);
@@ -260,6 +286,7 @@ int main(int argc, char **argv) {
     test_unbiased(def, 32, 24, 96);
     test_determinism(def);
     test_regularization(two_lights, def);
+    test_bootstrap_drop(box);
     test_auto(box, def);
     fprintf(stderr, "test_guiding: %.1f s\n", test_seconds() - t0);
     return test_exit();

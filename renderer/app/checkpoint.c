@@ -396,6 +396,7 @@ static void film_add(Film *dst, const Film *src) {
         dst->hits[i] += src->hits[i];
         dst->count[i] += src->count[i];
     }
+    dst->dropped += src->dropped;
 }
 
 static int film_alloc_like(Film *f, const Header *h, int recorder) {
@@ -529,7 +530,20 @@ int candela_merge_provenance(const char *out_exr, const char *png, const char *c
         snprintf(err, CANDELA_ERR_LEN, "merge: out of memory resolving the film");
         rc = -1;
     }
+    /* the shards' dropped samples (path guiding's bootstrap, one per shard), said beside the rest */
+    CandelaProvenance merged = {0};
+    if (rc == 0 && sum.dropped) {
+        char dropped[32];
+        snprintf(dropped, sizeof dropped, "%u", sum.dropped);
+        if ((provenance && candela_provenance_copy(&merged, provenance) != 0) ||
+            candela_provenance_set(&merged, "candela:sppDropped", dropped) != 0) {
+            snprintf(err, CANDELA_ERR_LEN, "merge: out of memory");
+            rc = -1;
+        }
+        provenance = &merged;
+    }
     if (rc == 0) rc = candela_write_outputs_provenance(&image, out_exr, png, provenance, err);
+    candela_provenance_free(&merged);
     candela_image_free(&image);
     film_free(&sum);
     film_free(&part);

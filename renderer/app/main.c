@@ -149,7 +149,10 @@ static void print_stats(const CandelaStats *s) {
                 (double)s->guide_bytes / (1024.0 * 1024.0), s->guide_train_seconds,
                 s->guide_train_seconds / s->guide_updates,
                 s->guide_dropped ? "; WARNING: out of memory, some training was lost" : "");
-    if (s->spp_min != s->spp_done)
+    if (s->spp_dropped)
+        fprintf(stderr, "  samples per pixel: %d in the image of %d rendered (the first %d, unguided, trained the guide)\n",
+                s->spp_done - s->spp_dropped, s->spp_done, s->spp_dropped);
+    else if (s->spp_min != s->spp_done)
         fprintf(stderr, "  samples per pixel: %d to %d, mean %.1f%s\n", s->spp_min, s->spp_done, s->spp_mean,
                 s->adaptive_active_pixels ? "" : " (adaptive sampling: every pixel reached its target)");
     if (s->time_limited)

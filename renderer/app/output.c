@@ -112,8 +112,8 @@ static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s, 
                    "\"image_width\": %d, \"image_height\": %d},\n",
                 o->crop[0], o->crop[1], o->crop[2], o->crop[3], o->crop[2] - o->crop[0], o->crop[3] - o->crop[1],
                 s->image_width, s->image_height);
-    fprintf(f, "  \"spp_done\": %d,\n  \"spp_min\": %d,\n  \"spp_mean\": %.4f,\n  \"spp_histogram\": {", s->spp_done,
-            s->spp_min, s->spp_mean);
+    fprintf(f, "  \"spp_done\": %d,\n  \"spp_dropped\": %d,\n  \"spp_min\": %d,\n  \"spp_mean\": %.4f,\n  \"spp_histogram\": {",
+            s->spp_done, s->spp_dropped, s->spp_min, s->spp_mean);
     for (int k = 0, first = 1; k < 21; ++k)
         if (s->spp_histogram[k]) {
             fprintf(f, "%s\"%d-%d\": %u", first ? "" : ", ", 1 << k, (2 << k) - 1, s->spp_histogram[k]);

@@ -116,6 +116,11 @@ int candela_provenance_render(CandelaProvenance *p, const CandelaOptions *o, con
              candela_provenance_set(p, "candela:sampler", candela_sampler_name(o->sampler)) |
              candela_provenance_set(p, "candela:renderSeconds", secs) |
              candela_provenance_set(p, "candela:peakMemoryBytes", mem);
+    if (rc == 0 && s->spp_dropped) { /* what the image holds is fewer: path guiding's bootstrap was dropped */
+        char dropped[32];
+        snprintf(dropped, sizeof dropped, "%d", s->spp_dropped);
+        rc = candela_provenance_set(p, "candela:sppDropped", dropped);
+    }
     free(options);
     return rc ? -1 : 0;
 }

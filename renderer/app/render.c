@@ -151,6 +151,7 @@ static void spp_statistics(const Film *f, CandelaStats *st) {
     }
     st->spp_min = n ? (int)lo : 0;
     st->spp_mean = n ? (double)total / (double)n : 0.0;
+    st->spp_dropped = (int)f->dropped;
 }
 
 /* Samples per pixel of iteration i: 1, 1, 2, 4, 8, ... capped, and never past the total. (The

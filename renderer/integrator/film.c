@@ -65,6 +65,24 @@ void film_add_paths(Film *f, const PathState *ps, uint32_t count) {
     }
 }
 
+int film_drop(Film *f) {
+    size_t n = (size_t)f->width * (size_t)f->height;
+    for (size_t i = 1; i < n; ++i)
+        if (f->count[i] != f->count[0]) return -1;
+    uint32_t held = n ? f->count[0] : 0;
+    memset(f->sum, 0, 3 * n * sizeof *f->sum);
+    memset(f->sum2, 0, 3 * n * sizeof *f->sum2);
+    memset(f->albedo, 0, 3 * n * sizeof *f->albedo);
+    memset(f->normal, 0, 3 * n * sizeof *f->normal);
+    memset(f->depth, 0, n * sizeof *f->depth);
+    memset(f->hits, 0, n * sizeof *f->hits);
+    memset(f->count, 0, n * sizeof *f->count);
+    if (f->recorder) memset(f->recorder, 0, 3 * n * sizeof *f->recorder);
+    if (f->sel_aov) memset(f->sel_aov, 0, 6 * n * sizeof *f->sel_aov);
+    f->dropped += held;
+    return 0;
+}
+
 int film_resolve(const Film *f, CandelaImage *img) {
     size_t n = (size_t)f->width * (size_t)f->height;
     memset(img, 0, sizeof *img);
@@ -269,14 +287,18 @@ void candela_image_free(CandelaImage *img) {
  * another rule, so it cannot be resumed (film_load: -3). The layout of films without adaptive
  * sampling is unchanged, hence FILM_VERSION stays 1. */
 #define FILM_ADAPTIVE_BITS (1 << 2 | 1 << 3)
+/* Bit 4: a count of dropped samples follows the head (film_drop; films without are laid out as
+ * before, and a build without it refuses a film with it). */
+#define FILM_DROPPED_BIT (1 << 4)
 static int32_t film_arrays(const Film *f) {
     return (f->recorder != NULL) | (f->sel_aov != NULL) << 1 | (f->stopped != NULL) << 2 | (f->target != NULL) << 3;
 }
 
 int film_save(const Film *f, FILE *out) {
     size_t n = (size_t)f->width * (size_t)f->height;
-    int32_t head[3] = {f->width, f->height, film_arrays(f)};
+    int32_t head[3] = {f->width, f->height, film_arrays(f) | (f->dropped ? FILM_DROPPED_BIT : 0)};
     return ckpt_put_tag(out, FILM_TAG, FILM_VERSION) | ckpt_put(out, head, sizeof head) |
+           (f->dropped ? ckpt_put(out, &f->dropped, sizeof f->dropped) : 0) |
            ckpt_put(out, f->sum, 3 * n * sizeof(double)) | ckpt_put(out, f->sum2, 3 * n * sizeof(double)) |
            ckpt_put(out, f->albedo, 3 * n * sizeof(double)) | ckpt_put(out, f->normal, 3 * n * sizeof(double)) |
            ckpt_put(out, f->depth, n * sizeof(double)) | ckpt_put(out, f->hits, n * sizeof(uint32_t)) |
@@ -292,6 +314,11 @@ int film_load(Film *f, FILE *in) {
     int32_t head[3];
     if (ckpt_get_tag(in, FILM_TAG, FILM_VERSION) || ckpt_get(in, head, sizeof head)) return -1;
     if (head[0] != f->width || head[1] != f->height) return -1;
+    f->dropped = 0;
+    if (head[2] & FILM_DROPPED_BIT) {
+        head[2] &= ~FILM_DROPPED_BIT;
+        if (ckpt_get(in, &f->dropped, sizeof f->dropped) || f->dropped == 0) return -1;
+    }
     if (head[2] != film_arrays(f))
         return (head[2] & FILM_ADAPTIVE_BITS) == 1 << 2 && (film_arrays(f) & FILM_ADAPTIVE_BITS) == FILM_ADAPTIVE_BITS
                    ? -3 : -1;
@@ -314,6 +341,13 @@ int film_load(Film *f, FILE *in) {
  * 0 ok, -1 with the first bad pixel in what. */
 int film_check_counts(const Film *f, uint64_t done, uint64_t most, const char *declares, char *what, size_t len) {
     size_t n = (size_t)f->width * (size_t)f->height;
+    if (f->dropped > done) {
+        snprintf(what, len, "it dropped %u samples per pixel of the %llu the %s declares", f->dropped,
+                 (unsigned long long)done, declares);
+        return -1;
+    }
+    done -= f->dropped; /* the sums hold the rest */
+    most -= f->dropped;
     for (size_t i = 0; i < n; ++i) {
         const int x = (int)(i % (size_t)f->width), y = (int)(i / (size_t)f->width);
         const int stopped = f->stopped && f->stopped[i];
