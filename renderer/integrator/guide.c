@@ -43,7 +43,8 @@
  * above, where guiding took off 1.5x of the indirect variance; 3.7 for light through a window or
  * off a bright patch, where it took off 4x). For a render of n spp, s of them probed, T trained
  * (U = GUIDE_TRAINING_SPP of them unguided), the prediction is
- *     variance ratio = (U + (n - U) (1 - f + f / G)) / n
+ *     variance ratio = (U + (n - U) (1 - f + f / G)) / n, or n (1 - f + f / G) / (n - U) when the
+ *                      image drops the U unguided samples (n >= GUIDE_DROP_MIN_SPP)
  *     time ratio     = (T COST_TRAIN + (n - T) COST_GUIDED) / (s COST_TRAIN + n - s)
  * (the probe's spp were recorded either way; the costs are the guiding benchmark's,
  * scenes/RESULTS.md); guiding goes on when the product is below GUIDE_AUTO_THRESHOLD and the
@@ -286,7 +287,11 @@ static void auto_decide(Integrator *ig) {
     double gain = ind_mean2 > 0.0 ? fmin(fmax(ind_var / ind_mean2, 1.0), GUIDE_AUTO_MAX_GAIN) : 1.0;
     double n = ig->opt->spp, probed = ig->spp_done;
     double unguided = fmin(GUIDE_TRAINING_SPP, n), trained = fmax(fmin((double)ig->record.training_spp, n), probed);
-    double var = (unguided + (n - unguided) * (1.0 - f + f / gain)) / n;
+    /* the unguided bootstrap stays in the image of a short render, else it is dropped
+     * (guide_drop_bootstrap): the image holds n - unguided guided samples */
+    double guided = 1.0 - f + f / gain;
+    double var = n >= GUIDE_DROP_MIN_SPP && !ig->film.stopped ? n * guided / (n - unguided)
+                                                             : (unguided + (n - unguided) * guided) / n;
     double time = (trained * GUIDE_AUTO_COST_TRAIN + (n - trained) * GUIDE_AUTO_COST_GUIDED) /
                   (probed * GUIDE_AUTO_COST_TRAIN + n - probed);
     gs->auto_ratio = (float)(var * time);
