@@ -384,8 +384,8 @@ static const CandelaFlag FLAGS[] = {
            "8, then 2, 4, 8, 16, 16, ...); auto = mis, kept after a probe over the first 4 spp only where it predicts a gain, else off"),
     INT("--guide-training-spp", "N", 1, 1 << 20, IMG(guide_training_spp), CANDELA_FIELD_INT, ALL_RENDER, 0, "8",
         "guiding learns from the first N spp",
-        "guiding learns from the first N spp, then renders with what it learned (default: an eighth of --spp, at least "
-        "22)"),
+        "guiding learns from the first N spp, then renders with what it learned (default: enough for about 2^21 "
+        "training paths, between an eighth and a fifth of --spp, at least 22)"),
     FLOAT("--guide-spatial-threshold", "C", 1.0, 1e9, IMG(guide_spatial_threshold), CANDELA_FIELD_FLOAT, ALL_RENDER, 0,
           "3000", "a guiding leaf splits past C sqrt(spp) samples (default 3000)",
           "a guiding leaf splits past C sqrt(spp of the iteration) training samples (default 3000)"),

@@ -48,11 +48,21 @@ static int record_init(Integrator *ig) {
     if (!rs->recorder) return -1;
     rs->debug_aov = o->aov_recorder_debug;
     rs->active = 1; /* auto records during its probe too: if it chooses guiding, its fields trained from the first sample, as mis's (guide.c) */
-    /* guiding trains on the first eighth of the samples (at least its 8 + 2 + 4 + 8 spp), then
-     * renders with the fields as learned: the recorder's cost is not paid on the rest. On the
-     * interior at 320x240, 256 spp, 24 spp of training had 1.06x the MSE of 64 at 0.82x the
-     * time (guided TTUV 1.77x unguided's against 1.58x) */
-    rs->training_spp = o->guide_training_spp > 0 ? o->guide_training_spp : (o->spp / 8 > 22 ? o->spp / 8 : 22);
+    /* guiding trains on the first samples (at least its 8 + 2 + 4 + 8 spp), then renders with
+     * the fields as learned: the recorder's cost is not paid on the rest. How many: about 2^21
+     * training paths, but no less than an eighth of the samples and no more than a fifth. The
+     * guide's quality follows the paths it learned from, its cost the spp it records: at 256
+     * spp, training to the 54-spp barrier instead of 38 took relMSE x time 4% lower on the box at
+     * 192x192 (relMSE 0.93x, time 1.04x alternated) and better at 128x128, but 5% higher on
+     * guiding_interior at 640x480 (relMSE 0.97x, time 1.08x), whose 38 spp are 12M paths
+     * already (scenes/RESULTS.md, "Guided time and the bootstrap") */
+    rs->training_spp = o->guide_training_spp;
+    if (rs->training_spp <= 0) {
+        uint64_t lo = (uint64_t)o->spp / 8, hi = (uint64_t)o->spp / 5;
+        uint64_t want = ig->npixels ? ((1ull << 21) + ig->npixels - 1) / ig->npixels : hi;
+        uint64_t t = want < lo ? lo : want > hi ? hi : want;
+        rs->training_spp = t > 22 ? (int)t : 22;
+    }
     /* only the samples something reads: the AOV's primary ones, guiding's trainable ones */
     recorder_set_filter(rs->recorder, (rs->debug_aov ? RECORDER_KEEP_PRIMARY : 0u) |
                                           (o->guiding != CANDELA_GUIDING_OFF ? RECORDER_KEEP_TRAINABLE : 0u));
