@@ -1064,6 +1064,14 @@ static float flat_pdf_uv(const GuideDistribution *d, double u, double v) {
 /* A point of the (u, v) square: the slot from the alias table with u1 (the rescaled
  * remainder of u1 places it across the cell: u1 is a float and a leaf has at most a few
  * thousand cells, so a dozen bits or more are left), u2 places it down the cell. */
+/* The alias slot u1 picks (of a leaf with cells) and u1 scaled to the slots in *x: what
+ * flat_sample reads and guide_distribution_prefetch_sample fetches. */
+static uint32_t slot_index(const GuideDistribution *d, double u1, double *x) {
+    *x = u1 * d->cell_count;
+    uint32_t i = (uint32_t)*x;
+    return i < d->cell_count ? i : d->cell_count - 1;
+}
+
 static void flat_sample(const GuideDistribution *d, double u1, double u2, double *u, double *v, float *pdf_uv) {
     if (!d || !d->cells) {
         *u = u1;
@@ -1071,9 +1079,8 @@ static void flat_sample(const GuideDistribution *d, double u1, double u2, double
         *pdf_uv = 1.0f;
         return;
     }
-    double x = u1 * d->cell_count;
-    uint32_t i = (uint32_t)x;
-    if (i >= d->cell_count) i = d->cell_count - 1;
+    double x;
+    uint32_t i = slot_index(d, u1, &x);
     double frac = x - i;
     const SampleCell *c = &d->cells[i];
     uint64_t b = c->packed;
@@ -1089,12 +1096,11 @@ static void flat_sample(const GuideDistribution *d, double u1, double u2, double
     *pdf_uv = c->pdf_uv[k];
 }
 
-/* The slot flat_sample reads for u1 (the same index arithmetic). */
+/* The slot flat_sample reads for u1. */
 void guide_distribution_prefetch_sample(const GuideDistribution *d, float u1) {
     if (!d || !d->cells) return;
-    uint32_t i = (uint32_t)(clamp_unit_open(u1) * d->cell_count);
-    if (i >= d->cell_count) i = d->cell_count - 1;
-    __builtin_prefetch(&d->cells[i]);
+    double x;
+    __builtin_prefetch(&d->cells[slot_index(d, clamp_unit_open(u1), &x)]);
 }
 
 void guide_distribution_prefetch_pdf(const GuideDistribution *d) {
