@@ -31,6 +31,11 @@
 /* The bootstrap's samples are dropped from the image when guided samples follow, in a render of
  * at least this many spp (guide_drop_bootstrap). */
 #define GUIDE_DROP_MIN_SPP (4 * GUIDE_TRAINING_SPP)
+/* Whether this render drops them (long enough, no adaptive sampling): the drop and auto's
+ * prediction both ask. */
+static int render_drops_bootstrap(const Integrator *ig) {
+    return ig->opt->spp >= GUIDE_DROP_MIN_SPP && !ig->film.stopped;
+}
 
 /* --guiding auto. Its probe renders the first GUIDE_AUTO_PROBE_SPP as `mis` does (unguided
  * iterations of 1 spp with the recorder training the fields: guided sampling starts only after
@@ -44,7 +49,7 @@
  * off a bright patch, where it took off 4x). For a render of n spp, s of them probed, T trained
  * (U = GUIDE_TRAINING_SPP of them unguided), the prediction is
  *     variance ratio = (U + (n - U) (1 - f + f / G)) / n, or n (1 - f + f / G) / (n - U) when the
- *                      image drops the U unguided samples (n >= GUIDE_DROP_MIN_SPP)
+ *                      image drops the U unguided samples (render_drops_bootstrap)
  *     time ratio     = (T COST_TRAIN + (n - T) COST_GUIDED) / (s COST_TRAIN + n - s)
  * (the probe's spp were recorded either way; the costs are the guiding benchmark's,
  * scenes/RESULTS.md); guiding goes on when the product is below GUIDE_AUTO_THRESHOLD and the
@@ -290,8 +295,7 @@ static void auto_decide(Integrator *ig) {
     /* the unguided bootstrap stays in the image of a short render, else it is dropped
      * (guide_drop_bootstrap): the image holds n - unguided guided samples */
     double guided = 1.0 - f + f / gain;
-    double var = n >= GUIDE_DROP_MIN_SPP && !ig->film.stopped ? n * guided / (n - unguided)
-                                                             : (unguided + (n - unguided) * guided) / n;
+    double var = render_drops_bootstrap(ig) ? n * guided / (n - unguided) : (unguided + (n - unguided) * guided) / n;
     double time = (trained * GUIDE_AUTO_COST_TRAIN + (n - trained) * GUIDE_AUTO_COST_GUIDED) /
                   (probed * GUIDE_AUTO_COST_TRAIN + n - probed);
     gs->auto_ratio = (float)(var * time);
@@ -574,7 +578,7 @@ static int guide_load(Integrator *ig, FILE *in) {
  * dropped). */
 static void guide_drop_bootstrap(Integrator *ig) {
     const GuideState *gs = &ig->guide;
-    if (!gs->on || !gs->active || ig->opt->spp < GUIDE_DROP_MIN_SPP || ig->film.stopped) return;
+    if (!gs->on || !gs->active || !render_drops_bootstrap(ig)) return;
     if (ig->spp_done != gs->train_start + GUIDE_TRAINING_SPP || ig->batch_first != 0 || ig->film.dropped) return;
     (void)film_drop(&ig->film); /* every pixel holds the bootstrap's count: it cannot refuse */
 }
