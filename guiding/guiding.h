@@ -194,20 +194,11 @@ size_t guide_field_bytes(const GuideField *f);
 uint32_t guide_field_num_leaves(const GuideField *f);
 
 /* The sampling distribution of the leaf containing pos (never NULL for a live field; a point
- * outside the bounds gets the nearest leaf). Valid until the next guide_field_update. */
+ * outside the bounds gets the nearest leaf). Valid until the next guide_field_update. The
+ * descent starts at the tree's depth-12 node, found per axis from cached midpoints (a few
+ * independent compares and one load of a 16 KiB grid), then walks 8-byte nodes. */
 typedef struct GuideDistribution GuideDistribution;
 const GuideDistribution *guide_field_lookup(const GuideField *f, const float pos[3]);
-/* The same, resuming from `cursor` (the spatial nodes of the previous lookup of this field, or a
- * zeroed cursor): the descent restarts from the deepest of them whose box holds pos (the box
- * test follows the descent's >= split rule), so spatially sorted queries read a few hot nodes
- * rather than the whole path from the root; exactly the leaf guide_field_lookup returns. A
- * cursor is valid until the field's next update. */
-#define GUIDE_CURSOR_DEPTH 49
-typedef struct GuideCursor {
-    uint32_t node[GUIDE_CURSOR_DEPTH]; /* node[0] the root, node[depth] the last leaf's node */
-    int depth;                         /* -1 (or a zeroed cursor's 0 with node[0] the root): start at the root */
-} GuideCursor;
-const GuideDistribution *guide_field_lookup_cursor(const GuideField *f, const float pos[3], GuideCursor *cursor);
 /* A direction from the distribution with two uniforms; its solid-angle pdf in *pdf. */
 void guide_distribution_sample(const GuideDistribution *d, float u1, float u2, float dir[3], float *pdf);
 float guide_distribution_pdf(const GuideDistribution *d, const float dir[3]);

@@ -161,9 +161,31 @@ typedef struct SpatialNode {
     uint8_t axis, depth;
 } SpatialNode;
 
+/* The descent's copy of a spatial node, 8 bytes: the split, and the first child with the axis in
+ * the low two bits, or the leaf index with DESCENT_LEAF there. The lookups walk these (a
+ * field's few thousand nodes fit the L1/L2 cache, where the 40-byte SpatialNodes, boxes
+ * included, missed: the loads of the descent were a tenth of a guided render's time). */
+typedef struct DescentNode {
+    float split;
+    uint32_t code;
+} DescentNode;
+#define DESCENT_LEAF 3u
+
+/* The top of the spatial tree as a grid: splits are at midpoints on axis depth % 3 (§3), so the
+ * nodes at depth 3 GRID_LEVELS tile the root box as a GRID_SIDE^3 grid, and a point's cell is
+ * found per axis from the GRID_LEVELS midpoints above it (independent, cache-resident) instead
+ * of 3 GRID_LEVELS dependent node loads. Each cell holds the deepest node at most that deep
+ * holding it (a leaf, or where the descent continues). */
+#define GRID_LEVELS 4
+#define GRID_SIDE (1u << GRID_LEVELS)
+#define GRID_CELLS (GRID_SIDE * GRID_SIDE * GRID_SIDE)
+
 struct GuideField {
     GuideFieldParams params; /* sanitised */
     SpatialNode *nodes;
+    DescentNode *descent; /* per node, what the lookups read */
+    uint32_t *grid;       /* GRID_CELLS nodes, x major */
+    float grid_split[3][GRID_SIDE]; /* per axis, the midpoints of the top GRID_LEVELS splits in heap order (from 1) */
     uint32_t node_count;
     GuideLeaf *leaves;
     GuideDistribution *dists; /* per leaf, what lookups return (filled by field_flatten) */
@@ -634,6 +656,83 @@ size_t guide_field_bytes(const GuideField *f) {
 uint32_t guide_field_num_leaves(const GuideField *f) { return f ? f->leaf_count : 0; }
 int guide_field_iterations(const GuideField *f) { return f ? f->iterations : 0; }
 
+/* A spatial split's position: the midpoint of [lo, hi), one expression for the splits and the
+ * lookup grid's copies of them. */
+static inline float split_mid(float lo, float hi) { return lo + 0.5f * (hi - lo); }
+
+/* pos clamped into the root box (NaN coordinates go to its low corner). */
+static void field_clamp(const GuideField *f, const float pos[3], float p[3]) {
+    const SpatialNode *root = &f->nodes[0];
+    for (int k = 0; k < 3; ++k) {
+        float x = pos[k];
+        p[k] = x > root->lo[k] ? (x < root->hi[k] ? x : root->hi[k]) : root->lo[k];
+    }
+}
+
+/* The leaf holding the clamped point p: a node's points >= split go to its second child. */
+static uint32_t field_descend(const GuideField *f, const float p[3]) {
+    uint32_t c[3];
+    for (int k = 0; k < 3; ++k) {
+        const float *m = f->grid_split[k];
+        uint32_t i = 1;
+        for (int j = 0; j < GRID_LEVELS; ++j) i = 2 * i + (p[k] >= m[i]);
+        c[k] = i - GRID_SIDE;
+    }
+    const DescentNode *d = f->descent, *n = &d[f->grid[(c[0] * GRID_SIDE + c[1]) * GRID_SIDE + c[2]]];
+    while ((n->code & 3u) != DESCENT_LEAF) n = &d[(n->code >> 2) + (p[n->code & 3u] >= n->split)];
+    return n->code >> 2;
+}
+
+/* The leaf containing pos, clamped into the root box. */
+static uint32_t field_find_leaf(const GuideField *f, const float pos[3]) {
+    float p[3];
+    field_clamp(f, pos, p);
+    return field_descend(f, p);
+}
+
+/* Cells [c0, c1) per axis of the grid take node i, or its children's halves above depth
+ * 3 GRID_LEVELS. */
+static void grid_fill_node(uint32_t *grid, const SpatialNode *nodes, uint32_t i, const uint32_t c0[3], const uint32_t c1[3]) {
+    const SpatialNode *n = &nodes[i];
+    if (n->child && n->depth < 3 * GRID_LEVELS) {
+        int a = n->axis;
+        uint32_t mid = (c0[a] + c1[a]) / 2, lo[3] = {c0[0], c0[1], c0[2]}, hi[3] = {c1[0], c1[1], c1[2]};
+        hi[a] = mid;
+        grid_fill_node(grid, nodes, n->child, lo, hi);
+        lo[a] = mid;
+        hi[a] = c1[a];
+        grid_fill_node(grid, nodes, n->child + 1, lo, hi);
+        return;
+    }
+    for (uint32_t x = c0[0]; x < c1[0]; ++x)
+        for (uint32_t y = c0[1]; y < c1[1]; ++y)
+            for (uint32_t z = c0[2]; z < c1[2]; ++z) grid[(x * GRID_SIDE + y) * GRID_SIDE + z] = i;
+}
+
+/* The descent's nodes and grid from the spatial nodes. The grid's midpoints are the splits'
+ * own (split_mid from the root box, as spatial_split computes them level by level). */
+static void descent_fill(DescentNode *d, uint32_t *grid, float split[3][GRID_SIDE], const SpatialNode *n, uint32_t count) {
+    for (uint32_t i = 0; i < count; ++i)
+        d[i] = n[i].child ? (DescentNode){n[i].split, n[i].child << 2 | n[i].axis} : (DescentNode){0.0f, n[i].leaf << 2 | DESCENT_LEAF};
+    for (int k = 0; k < 3; ++k) {
+        float lo[GRID_SIDE], hi[GRID_SIDE]; /* heap order: node j's interval */
+        lo[1] = n[0].lo[k];
+        hi[1] = n[0].hi[k];
+        for (uint32_t j = 1; j < GRID_SIDE; ++j) {
+            split[k][j] = split_mid(lo[j], hi[j]);
+            if (2 * j + 1 < GRID_SIDE) {
+                lo[2 * j] = lo[j];
+                hi[2 * j] = split[k][j];
+                lo[2 * j + 1] = split[k][j];
+                hi[2 * j + 1] = hi[j];
+            }
+        }
+        split[k][0] = 0.0f;
+    }
+    const uint32_t c0[3] = {0, 0, 0}, c1[3] = {GRID_SIDE, GRID_SIDE, GRID_SIDE};
+    grid_fill_node(grid, n, 0, c0, c1);
+}
+
 GuideField *guide_field_create(const float lo[3], const float hi[3], const GuideFieldParams *p) {
     GuideField *f = calloc(1, sizeof *f);
     if (!f) return NULL;
@@ -659,9 +758,11 @@ GuideField *guide_field_create(const float lo[3], const float hi[3], const Guide
     }
     side = fmax(side * (1 + 1e-3), fmax(mag, 1.0) * 1e-3); /* never a point-sized cube */
     f->nodes = calloc(1, sizeof *f->nodes);
+    f->descent = calloc(1, sizeof *f->descent);
+    f->grid = malloc(GRID_CELLS * sizeof *f->grid);
     f->leaves = calloc(1, sizeof *f->leaves);
     f->dists = calloc(1, sizeof *f->dists);
-    if (!f->nodes || !f->leaves || !f->dists) {
+    if (!f->nodes || !f->descent || !f->grid || !f->leaves || !f->dists) {
         guide_field_free(f);
         return NULL;
     }
@@ -672,6 +773,7 @@ GuideField *guide_field_create(const float lo[3], const float hi[3], const Guide
         root->hi[k] = (float)(c + 0.5 * side);
     }
     f->node_count = 1;
+    descent_fill(f->descent, f->grid, f->grid_split, f->nodes, 1); /* the root is leaf 0 */
     f->leaf_count = 1;
     GuideLeaf *leaf = &f->leaves[0];
     memcpy(leaf->lo, root->lo, sizeof leaf->lo);
@@ -705,23 +807,11 @@ void guide_field_free(GuideField *f) {
     leaves_free(f->leaves, f->leaf_count);
     free(f->dists);
     free(f->nodes);
+    free(f->descent);
+    free(f->grid);
     free(f->pdf_nodes);
     free(f->cells);
     free(f);
-}
-
-/* The leaf containing pos, clamped into the root box (NaN coordinates clamp to the low
- * side: fmaxf returns the number). */
-static uint32_t field_find_leaf(const GuideField *f, const float pos[3]) {
-    const SpatialNode *root = &f->nodes[0];
-    float p[3];
-    for (int k = 0; k < 3; ++k) { /* clamped into the root box; NaN goes to its low corner */
-        float x = pos[k];
-        p[k] = x > root->lo[k] ? (x < root->hi[k] ? x : root->hi[k]) : root->lo[k];
-    }
-    const SpatialNode *n = root;
-    while (n->child) n = &f->nodes[n->child + (p[n->axis] >= n->split)];
-    return n->leaf;
 }
 
 /* One valid sample's place in a batch: its leaf, where it lands on the square, its value. */
@@ -827,7 +917,7 @@ static int split_is_sound(const float lo[3], const float hi[3], int depth, int l
 static void spatial_split(SpatialNode *nodes, uint32_t idx, uint32_t *count) {
     SpatialNode *n = &nodes[idx];
     int axis = n->depth % 3;
-    float mid = n->lo[axis] + 0.5f * (n->hi[axis] - n->lo[axis]);
+    float mid = split_mid(n->lo[axis], n->hi[axis]);
     uint32_t c = *count;
     *count += 2;
     SpatialNode child = *n;
@@ -863,6 +953,7 @@ int guide_field_update(GuideField *f, float iteration_spp) {
     uint8_t *levels = calloc(old_leaves, 1);
     RebuildScratch scratch = {0};
     SpatialNode *new_nodes = NULL;
+    DescentNode *new_descent = NULL;
     GuideLeaf *new_leaves = NULL;
     GuideDistribution *new_dists = NULL;
     PdfNode *flat_nodes = NULL;
@@ -915,9 +1006,10 @@ int guide_field_update(GuideField *f, float iteration_spp) {
      * split follow in leaf order, each with its own copies. */
     new_leaf_count = (uint32_t)total_leaves;
     new_nodes = malloc((size_t)total_nodes * sizeof *new_nodes);
+    new_descent = malloc((size_t)total_nodes * sizeof *new_descent);
     new_leaves = calloc(new_leaf_count, sizeof *new_leaves);
     new_dists = malloc(new_leaf_count * sizeof *new_dists);
-    if (!new_nodes || !new_leaves || !new_dists) goto fail;
+    if (!new_nodes || !new_descent || !new_leaves || !new_dists) goto fail;
     uint32_t extra = old_leaves;
     for (uint32_t i = 0; i < old_leaves; ++i) {
         const GuideLeaf *l = &f->leaves[i];
@@ -1001,10 +1093,13 @@ int guide_field_update(GuideField *f, float iteration_spp) {
         memcpy(new_leaves[i].hi, n->hi, sizeof n->hi);
     }
     free(f->nodes);
+    free(f->descent);
     free(f->leaves);
     free(f->dists);
     f->nodes = new_nodes;
     f->node_count = node_count;
+    descent_fill(new_descent, f->grid, f->grid_split, new_nodes, node_count);
+    f->descent = new_descent;
     f->leaves = new_leaves;
     f->dists = new_dists;
     f->leaf_count = new_leaf_count;
@@ -1028,6 +1123,7 @@ fail:
     free(rebuilt);
     free(levels);
     free(new_nodes);
+    free(new_descent);
     free(flat_nodes);
     free(flat_cells);
     alias_scratch_free(&alias);
@@ -1123,38 +1219,6 @@ void guide_distribution_sample(const GuideDistribution *d, float u1, float u2, f
      * across a cell boundary, a measure-zero set; evaluating the pdf again was a third of
      * guiding's cost). */
     if (pdf) *pdf = pdf_uv * (float)jacobian;
-}
-
-const GuideDistribution *guide_field_lookup_cursor(const GuideField *f, const float pos[3], GuideCursor *c) {
-    if (!f) return NULL;
-    static const float origin[3] = {0, 0, 0};
-    if (!pos) pos = origin;
-    const SpatialNode *root = &f->nodes[0];
-    float p[3];
-    for (int k = 0; k < 3; ++k) { /* clamped into the root box, as field_find_leaf does */
-        float x = pos[k];
-        p[k] = x > root->lo[k] ? (x < root->hi[k] ? x : root->hi[k]) : root->lo[k];
-    }
-    int d = c->depth < 0 || c->depth >= GUIDE_CURSOR_DEPTH ? 0 : c->depth;
-    if (c->node[0] != 0 || c->node[d] >= f->node_count) d = 0; /* not a cursor of this field's tree */
-    c->node[0] = 0;
-    /* the deepest node of the last path holding p: a node's box is [lo, hi) on every axis, the
-     * split rule's >=, but for the root's upper faces, where the clamped point lies */
-    for (; d > 0; --d) {
-        const SpatialNode *n = &f->nodes[c->node[d]];
-        int inside = 1;
-        for (int k = 0; k < 3 && inside; ++k) inside = p[k] >= n->lo[k] && (p[k] < n->hi[k] || n->hi[k] >= root->hi[k]);
-        if (inside) break;
-    }
-    const SpatialNode *n = &f->nodes[c->node[d]];
-    while (n->child && d + 1 < GUIDE_CURSOR_DEPTH) {
-        uint32_t k = n->child + (p[n->axis] >= n->split);
-        c->node[++d] = k;
-        n = &f->nodes[k];
-    }
-    while (n->child) n = &f->nodes[n->child + (p[n->axis] >= n->split)]; /* deeper than a cursor holds */
-    c->depth = d;
-    return &f->dists[n->leaf];
 }
 
 int guide_direction_uv(const float dir[3], float *u, float *v) {
@@ -1332,11 +1396,12 @@ int guide_field_load(GuideField *f, FILE *file) {
         return -1;
     GuideField g = *f; /* the loaded state, committed only when complete */
     g.nodes = calloc(node_count, sizeof *g.nodes);
+    g.descent = malloc(node_count * sizeof *g.descent);
     g.leaves = calloc(leaf_count, sizeof *g.leaves);
     g.dists = malloc(leaf_count * sizeof *g.dists);
     g.node_count = node_count;
     g.leaf_count = leaf_count;
-    int rc = g.nodes && g.leaves && g.dists ? 0 : -1;
+    int rc = g.nodes && g.descent && g.leaves && g.dists ? 0 : -1;
     for (uint32_t i = 0; i < node_count && rc == 0; ++i) {
         SpatialNode *n = &g.nodes[i];
         rc = get(in, n->lo, sizeof n->lo) | get(in, n->hi, sizeof n->hi) | get(in, &n->split, sizeof n->split) |
@@ -1359,6 +1424,7 @@ int guide_field_load(GuideField *f, FILE *file) {
         leaves_free(g.leaves, leaf_count);
         free(g.dists);
         free(g.nodes);
+        free(g.descent);
         return -1;
     }
     /* the lookups' flat trees and alias tables, built from the sampling trees as an update does */
@@ -1377,13 +1443,16 @@ int guide_field_load(GuideField *f, FILE *file) {
         leaves_free(g.leaves, leaf_count);
         free(g.dists);
         free(g.nodes);
+        free(g.descent);
         return -1;
     }
+    descent_fill(g.descent, g.grid, g.grid_split, g.nodes, node_count);
     field_flatten(g.leaves, g.dists, leaf_count, flat_nodes, flat_cells, &alias);
     alias_scratch_free(&alias);
     leaves_free(f->leaves, f->leaf_count);
     free(f->dists);
     free(f->nodes);
+    free(f->descent);
     free(f->pdf_nodes);
     free(f->cells);
     g.pdf_nodes = flat_nodes;

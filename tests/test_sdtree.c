@@ -374,25 +374,26 @@ static void test_spatial(void) {
         outside += !box_contains(guide_field_lookup(f, p), p);
     }
     CHECK(outside == 0, "%d lookups outside their leaf's box", outside);
-    /* A cursor gives exactly the plain lookup's leaf: points in random order, along a walk of
-     * small steps (the sorted case it is for), on split planes, on and outside the bounds */
-    GuideCursor cur = {{0}, 0};
-    int differ = 0;
-    float walk[3] = {0.5f, 0.5f, 0.5f};
-    for (int i = 0; i < 20000; ++i) {
-        float p[3];
+    /* The descent (its depth-12 grid, then the nodes) follows the >= split rule exactly: a leaf's
+     * low corner, on split planes on every axis, finds the leaf; the float just below its high
+     * corner finds it; its high face, where that is inside the field, finds a neighbour. */
+    int wrong = 0, corners = 0;
+    for (int i = 0; i < 4000; ++i) {
+        float p[3] = {rnd(&rng), rnd(&rng), rnd(&rng)}, lo[3], hi[3];
+        const GuideDistribution *d = guide_field_lookup(f, p);
+        guide_distribution_bounds(d, lo, hi);
+        float below[3] = {nextafterf(hi[0], lo[0]), nextafterf(hi[1], lo[1]), nextafterf(hi[2], lo[2])};
+        wrong += guide_field_lookup(f, lo) != d;
+        wrong += guide_field_lookup(f, below) != d;
         for (int k = 0; k < 3; ++k) {
-            if (i % 2) {
-                walk[k] += 0.02f * (rnd(&rng) - 0.5f);
-                p[k] = walk[k];
-            } else {
-                p[k] = 1.4f * rnd(&rng) - 0.2f; /* some outside the bounds */
-            }
-            if (i % 7 == 0) p[k] = (float)(int)(p[k] * 8.0f) / 8.0f; /* on the split planes */
+            if (!(hi[k] < 1.0f)) continue; /* the field's bounds are [0, 1]: hi[k] is a split */
+            float q[3] = {lo[0], lo[1], lo[2]};
+            q[k] = hi[k];
+            wrong += guide_field_lookup(f, q) == d;
+            ++corners;
         }
-        differ += guide_field_lookup_cursor(f, p, &cur) != guide_field_lookup(f, p);
     }
-    CHECK(differ == 0, "%d cursor lookups differ from the plain lookup", differ);
+    CHECK(wrong == 0 && corners > 1000, "%d lookups on split planes miss the >= rule (%d faces)", wrong, corners);
     guide_field_free(f);
 
     /* The memory cap bounds splitting: many zero-radiance samples (no flux, so the quadtrees

@@ -135,16 +135,14 @@ static int field_of_flags(uint32_t flags) {
     return c >= 1 && c <= GUIDE_SURFACE_CLASSES ? (int)c - 1 : -1;
 }
 
-const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n, GuideCursor cursors[GUIDE_FIELDS]) {
+const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n) {
     const GuideState *gs = &ig->guide;
     if (!gs->active) return NULL;
     int k = guide_field_of_normal(n);
     const GuideField *f = gs->fields[k];
     if (!f) return NULL;
     const float x[3] = {p.x, p.y, p.z};
-    /* hits come sorted spatially: the descent resumes from the last one's deepest node holding
-     * the point (the answer is the same either way, so the cursors never change an image) */
-    return guide_field_lookup_cursor(f, x, &cursors[k]);
+    return guide_field_lookup(f, x);
 }
 
 /* Field k's samples of the batch, in batch order, into its own scratch, and recorded into it

@@ -11,9 +11,8 @@
  * checkpoints are its entry in the feature table, feature.h). */
 #define GUIDE_MAX_VOLUME_VERTICES 8 /* medium vertices of a path that are guided (stage_medium.c) */
 /* The learned distribution at p: a surface's with normal n (its orientation class), or the
- * medium field's (n zero); NULL while guiding is not active. cursors: one per field, zeroed at
- * the start of a stage (guiding.h: a spatially sorted sequence of lookups stays cheap). */
-const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n, GuideCursor cursors[GUIDE_FIELDS]);
+ * medium field's (n zero); NULL while guiding is not active. */
+const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n);
 /* The field guide_lookup reads for normal n: surfaces by the orientation class of n (2 x the axis
  * of its largest component + (that component < 0)), media (n zero) the last. */
 static inline int guide_field_of_normal(vec3 n) {

@@ -111,7 +111,6 @@ static void add_volume_emission(const Integrator *ig, Slice *s, uint32_t p, cons
 static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t *hint, float *scratch) {
     const PathState *ps = &ig->ps;
     LightVertex walk_previous = {0, 0.0f}; /* the light sampler's token of this walk's last vertex */
-    GuideCursor guide_cursors[GUIDE_FIELDS] = {0};
     for (;;) {
         SceneRay ray = ps->ray[p];
         float tmax = ps->hit[p].t;
@@ -171,7 +170,7 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
          * came out 9% dark at 64 spp, 21 paths overflowing to inf); deep in such media the
          * incident light is diffuse, and guiding has nothing to find there */
         if (ig->guide.active && ps->volume_bounces[p] <= GUIDE_MAX_VOLUME_VERTICES && scatter_guidable(&sc))
-            scatter_set_guide(&sc, guide_lookup(ig, x, v3s(0.0f), guide_cursors), (ScatterGuideMode)ig->guide.mode);
+            scatter_set_guide(&sc, guide_lookup(ig, x, v3s(0.0f)), (ScatterGuideMode)ig->guide.mode);
         LightSampleContext lc = {x, v3s(0.0f), {0, 0.0f}, scratch, &s->volume, walk_previous};
         lc.link_class = lights_media_class(ig->lights); /* a medium vertex belongs to no object */
         light_sampler_prepare(ig->light_sampler, &lc, hint);

@@ -138,7 +138,7 @@ typedef struct ShadeSlot {
  * path's own regularised roughness), so it may run a hit ahead of the second half: it ends with a
  * prefetch of the guide table entry the second half will read (a cache miss per guided vertex at
  * high resolution), which the other hit's work then hides. */
-static void shade_front(const Integrator *ig, uint32_t p, ShadeSlot *x, GuideCursor cursors[GUIDE_FIELDS]) {
+static void shade_front(const Integrator *ig, uint32_t p, ShadeSlot *x) {
     const PathState *ps = &ig->ps;
     const Scene *scene = ig->scene;
     const SceneHit *hit = &ps->hit[p];
@@ -160,7 +160,7 @@ static void shade_front(const Integrator *ig, uint32_t p, ShadeSlot *x, GuideCur
     }
     scatter_init_surface_prepared(&x->sc, &x->h, &x->m.bsdf, prepared, x->wo);
     if (ig->guide.active && scatter_guidable(&x->sc))
-        scatter_set_guide(&x->sc, guide_lookup(ig, x->h.p, x->sc.ng, cursors), (ScatterGuideMode)ig->guide.mode);
+        scatter_set_guide(&x->sc, guide_lookup(ig, x->h.p, x->sc.ng), (ScatterGuideMode)ig->guide.mode);
     x->dims = path_dims(ig, p);
     x->g = dims_group(&x->dims, ps->depth[p], DIMS_SCATTER);
     scatter_numbers(&x->sc, &x->g, x->u);
@@ -213,7 +213,6 @@ void stage_surface(const Integrator *ig, Slice *s) {
     const PathState *ps = &ig->ps;
     const Scene *scene = ig->scene;
     uint32_t hint = UINT32_MAX; /* hits are sorted spatially: the last vertex's answer is near */
-    GuideCursor guide_cursors[GUIDE_FIELDS] = {{{0}, 0}};
     float scratch[LIGHT_SAMPLER_SCRATCH];
     ShadeSlot slots[2]; /* hit i's second half runs after hit i + 1's first */
     s->num_shadows = 0;
@@ -226,7 +225,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
             if (i + SHADE_PREFETCH / 4 < s->num_hits) scene_prefetch_hit_vertices(scene, &ps->hit[s->hits[i + SHADE_PREFETCH / 4]]);
             /* the recorder vertex the hit's ray carries (its pv was fetched a few hits earlier) */
             record_prefetch_hit(ig, s, i + SHADE_PREFETCH / 2);
-            shade_front(ig, s->hits[i], &slots[i & 1], guide_cursors);
+            shade_front(ig, s->hits[i], &slots[i & 1]);
         }
         if (i > 0) shade_back(ig, s, &slots[(i - 1) & 1], &hint, scratch);
     }
