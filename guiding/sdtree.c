@@ -646,9 +646,13 @@ static size_t leaf_tree_bytes(const GuideLeaf *l) {
 /* A leaf whose trees are a rebuilt tree: it as the sampling and the building tree, and flat. */
 static size_t rebuilt_tree_bytes(const QuadTree *t) { return 2 * quadtree_bytes(t) + tree_flat_bytes(t); }
 
+/* A spatial node with its descent copy; the field's struct with its lookup grid. */
+#define NODE_BYTES (sizeof(SpatialNode) + sizeof(DescentNode))
+#define FIELD_FIXED_BYTES (sizeof(GuideField) + GRID_CELLS * sizeof(uint32_t))
+
 size_t guide_field_bytes(const GuideField *f) {
     if (!f) return 0;
-    size_t b = sizeof *f + (size_t)f->node_count * sizeof(SpatialNode) + (size_t)f->leaf_count * sizeof(GuideLeaf);
+    size_t b = FIELD_FIXED_BYTES + (size_t)f->node_count * NODE_BYTES + (size_t)f->leaf_count * sizeof(GuideLeaf);
     for (uint32_t i = 0; i < f->leaf_count; ++i) b += leaf_tree_bytes(&f->leaves[i]);
     return b;
 }
@@ -976,7 +980,7 @@ int guide_field_update(GuideField *f, float iteration_spp) {
     /* 2. The spatial splits, within the memory cap: each extra leaf costs its two D-trees,
      * its leaf record and two spatial nodes. Leaves are visited in index order, so the cap
      * cuts deterministically. */
-    size_t projected = sizeof *f + (size_t)f->node_count * sizeof(SpatialNode) + (size_t)old_leaves * sizeof(GuideLeaf);
+    size_t projected = FIELD_FIXED_BYTES + (size_t)f->node_count * NODE_BYTES + (size_t)old_leaves * sizeof(GuideLeaf);
     for (uint32_t i = 0; i < old_leaves; ++i)
         projected += rebuilt[i].count ? rebuilt_tree_bytes(&rebuilt[i]) : leaf_tree_bytes(&f->leaves[i]);
     uint64_t total_leaves = old_leaves, total_nodes = f->node_count;
@@ -984,7 +988,7 @@ int guide_field_update(GuideField *f, float iteration_spp) {
         const GuideLeaf *l = &f->leaves[i];
         const SpatialNode *node = &f->nodes[l->node];
         size_t trees = rebuilt[i].count ? rebuilt_tree_bytes(&rebuilt[i]) : leaf_tree_bytes(l);
-        size_t per_leaf = trees + sizeof(GuideLeaf) + 2 * sizeof(SpatialNode);
+        size_t per_leaf = trees + sizeof(GuideLeaf) + 2 * NODE_BYTES;
         double count = l->recorded;
         int s = 0;
         while (count > threshold && node->depth + s < SPATIAL_MAX_DEPTH &&
