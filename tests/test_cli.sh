@@ -750,29 +750,33 @@ expect_error "reference is a report file" "a report file would replace the refer
 rm -f "$tmp/keep.gltf" "$tmp/sky.exr"
 
 # two writers of one output: the second is refused while the first holds OUTPUT.lock (they
-# could leave an EXR from one and a PNG from the other); a lock a SIGKILL left blocks nothing
+# could leave an EXR from one and a PNG from the other); a lock a SIGKILL left blocks nothing.
+# The first holds the lock once its pid is in the file (written after the flock): the file alone
+# exists a moment before, and a second writer starting then found it empty or unlocked (a flake)
 "$bin" render "$scene" -o "$tmp/both.exr" --res 32x32 --spp 1000000 --quiet & pid=$!
-for _ in $(seq 400); do [ -e "$tmp/both.exr.lock" ] && break; sleep 0.05; done
+for _ in $(seq 400); do [ -s "$tmp/both.exr.lock" ] && break; sleep 0.05; done
 "$bin" render "$scene" -o "$tmp/both.exr" --png "$tmp/other.png" --res 8x8 --spp 1 --quiet 2>"$tmp/lock.err"; rc=$?
 [ $rc -ne 0 ] && [ "$(grep -c . "$tmp/lock.err")" = 1 ] && grep -q "both.exr: another candela (pid $pid) is writing it" "$tmp/lock.err" &&
   [ ! -e "$tmp/other.png" ] && ok || bad "a second writer of one -o: exit $rc, $(cat "$tmp/lock.err")"
 kill -INT $pid; wait $pid
 [ ! -e "$tmp/both.exr" ] && [ ! -e "$tmp/both.exr.lock" ] && ok || bad "the interrupted writer left $(ls "$tmp" | grep both)"
 "$bin" render "$scene" -o "$tmp/both.exr" --res 32x32 --spp 1000000 --quiet & pid=$!
-for _ in $(seq 400); do [ -e "$tmp/both.exr.lock" ] && break; sleep 0.05; done
+for _ in $(seq 400); do [ -s "$tmp/both.exr.lock" ] && break; sleep 0.05; done
 kill -KILL $pid; wait $pid 2>/dev/null
 [ -e "$tmp/both.exr.lock" ] && ok || bad "no lock file left by a SIGKILL (the next check proves less)"
 "$bin" render "$scene" -o "$tmp/both.exr" --res 8x8 --spp 1 --quiet && [ -s "$tmp/both.exr" ] && [ ! -e "$tmp/both.exr.lock" ] && ok \
   || bad "a stale lock blocked the next render or stayed: $(ls "$tmp" | grep both)"
 rm -f "$tmp"/both.* "$tmp/lock.err"
-# ... the statistics and a comparison's report folder likewise (another holder: flock(1))
+# ... the statistics and a comparison's report folder likewise (another holder: flock(1); held
+# once a non-blocking flock of the file fails, which creating the file does not yet say)
+held() { [ -e "$1" ] && ! flock -n "$1" true; }
 flock "$tmp/st.json.lock" sleep 30 & holder=$!
-for _ in $(seq 100); do [ -e "$tmp/st.json.lock" ] && break; sleep 0.05; done
+for _ in $(seq 100); do held "$tmp/st.json.lock" && break; sleep 0.05; done
 expect_error "statistics locked" "st.json: another candela is writing it" -- render "$scene" "${common[@]}" --stats-json "$tmp/st.json"
 kill $holder 2>/dev/null; wait $holder 2>/dev/null; rm -f "$tmp/st.json.lock"
 mkdir -p "$tmp/c29l"
 flock "$tmp/c29l/index.html.lock" sleep 30 & holder=$!
-for _ in $(seq 100); do [ -e "$tmp/c29l/index.html.lock" ] && break; sleep 0.05; done
+for _ in $(seq 100); do held "$tmp/c29l/index.html.lock" && break; sleep 0.05; done
 expect_error "report folder locked" "index.html: another candela is writing it" -- compare "$det" --spp 1 --res 8x8 --ref-spp 1 \
   --out-dir "$tmp/c29l" --quiet --strategies power
 [ "$(ls "$tmp/c29l")" = "index.html.lock" ] && ok || bad "a locked report folder got files: $(ls "$tmp/c29l")"
