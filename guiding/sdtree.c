@@ -698,7 +698,7 @@ static uint32_t field_find_leaf(const GuideField *f, const float pos[3]) {
  * 3 GRID_LEVELS. */
 static void grid_fill_node(uint32_t *grid, const SpatialNode *nodes, uint32_t i, const uint32_t c0[3], const uint32_t c1[3]) {
     const SpatialNode *n = &nodes[i];
-    if (n->child && n->depth < 3 * GRID_LEVELS) {
+    if (n->child && n->depth < 3 * GRID_LEVELS && c1[n->axis] - c0[n->axis] >= 2) { /* always, for a sound tree */
         int a = n->axis;
         uint32_t mid = (c0[a] + c1[a]) / 2, lo[3] = {c0[0], c0[1], c0[2]}, hi[3] = {c1[0], c1[1], c1[2]};
         hi[a] = mid;
@@ -1413,6 +1413,15 @@ int guide_field_load(GuideField *f, FILE *file) {
              get(in, &n->depth, 1);
         if (rc == 0 && (n->child != 0 ? (n->child <= i || n->child >= node_count - 1 || n->axis > 2)
                                       : n->leaf >= leaf_count))
+            rc = -1;
+    }
+    /* the tree the splits make: the root at depth 0, children one deeper, each node split on
+     * axis depth % 3 (the lookup grid takes the top levels' cells from that rule) */
+    if (rc == 0 && g.nodes[0].depth != 0) rc = -1;
+    for (uint32_t i = 0; i < node_count && rc == 0; ++i) {
+        const SpatialNode *n = &g.nodes[i];
+        if (n->child != 0 && (n->axis != n->depth % 3 || g.nodes[n->child].depth != n->depth + 1 ||
+                              g.nodes[n->child + 1].depth != n->depth + 1))
             rc = -1;
     }
     uint32_t max_nodes = quadtree_node_limit(&f->params);

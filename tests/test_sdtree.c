@@ -511,6 +511,22 @@ static void test_checkpoint(void) {
             accepted += guide_field_load(g, t) == 0;
             fclose(t);
         }
+        /* a tree the splits cannot make (the lookup grid relies on axis = depth % 3, children
+         * one deeper): the root's axis, then its first child's depth, changed. Records: a 28-byte
+         * head, then 38 bytes a node (box, split, child, leaf, axis at 36, depth at 37) */
+        const long node0 = 28, node_bytes = 38;
+        for (int which = 0; which < 2 && size > node0 + 2 * node_bytes; ++which) {
+            long at = which == 0 ? node0 + 36 : node0 + node_bytes + 37;
+            buf[at] ^= 0x01;
+            FILE *t = tmpfile();
+            if (t) {
+                fwrite(buf, 1, (size_t)size, t);
+                rewind(t);
+                accepted += guide_field_load(g, t) == 0;
+                fclose(t);
+            }
+            buf[at] ^= 0x01;
+        }
         buf[0] ^= 0x55; /* a foreign magic */
         FILE *t = tmpfile();
         if (t) {
