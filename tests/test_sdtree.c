@@ -471,6 +471,17 @@ static int fields_equal(const GuideField *f, const GuideField *g, uint64_t seed)
     return differ == 0;
 }
 
+/* Whether guide_field_load accepts the first `bytes` of buf (0 when no temporary file). */
+static int loads_from(GuideField *g, const char *buf, long bytes) {
+    FILE *t = tmpfile();
+    if (!t) return 0;
+    fwrite(buf, 1, (size_t)bytes, t);
+    rewind(t);
+    int ok = guide_field_load(g, t) == 0;
+    fclose(t);
+    return ok;
+}
+
 static void test_checkpoint(void) {
     GuideField *f = two_regions(31, 3);
     float lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
@@ -503,14 +514,7 @@ static void test_checkpoint(void) {
     char *buf = malloc((size_t)size);
     rewind(tmp);
     if (buf && fread(buf, 1, (size_t)size, tmp) == (size_t)size) {
-        for (long cut = 0; cut < size; cut += size / 64 + 1) {
-            FILE *t = tmpfile();
-            if (!t) break;
-            fwrite(buf, 1, (size_t)cut, t);
-            rewind(t);
-            accepted += guide_field_load(g, t) == 0;
-            fclose(t);
-        }
+        for (long cut = 0; cut < size; cut += size / 64 + 1) accepted += loads_from(g, buf, cut);
         /* a tree the splits cannot make (the lookup grid relies on axis = depth % 3, children
          * one deeper): the root's axis, then its first child's depth, changed. Records: a 28-byte
          * head, then 38 bytes a node (box, split, child, leaf, axis at 36, depth at 37) */
@@ -518,23 +522,11 @@ static void test_checkpoint(void) {
         for (int which = 0; which < 2 && size > node0 + 2 * node_bytes; ++which) {
             long at = which == 0 ? node0 + 36 : node0 + node_bytes + 37;
             buf[at] ^= 0x01;
-            FILE *t = tmpfile();
-            if (t) {
-                fwrite(buf, 1, (size_t)size, t);
-                rewind(t);
-                accepted += guide_field_load(g, t) == 0;
-                fclose(t);
-            }
+            accepted += loads_from(g, buf, size);
             buf[at] ^= 0x01;
         }
         buf[0] ^= 0x55; /* a foreign magic */
-        FILE *t = tmpfile();
-        if (t) {
-            fwrite(buf, 1, (size_t)size, t);
-            rewind(t);
-            accepted += guide_field_load(g, t) == 0;
-            fclose(t);
-        }
+        accepted += loads_from(g, buf, size);
     }
     CHECK(accepted == 0, "%d damaged records loaded", accepted);
     CHECK(guide_field_num_leaves(g) == leaves && fields_equal(f, g, 8), "a refused load changed the field");
