@@ -50,7 +50,8 @@ typedef struct RecorderVertexInit {
     float cosine;     /* |cos| between the direction and the surface's normal (1 in media): the
                        * factor guiding learns the radiance times (product guiding, renderer/integrator/guide.c) */
     uint32_t flags;   /* PV_FLAG_* */
-    uint32_t pixel;
+    uint32_t user;    /* the caller's word, handed back in the vertex's sample (the renderer: the
+                       * guide leaf its lookup found, guide_field_leaf_of) */
     uint64_t path;    /* the path's index in the render: the sort key of its samples */
 } RecorderVertexInit;
 
@@ -62,7 +63,7 @@ typedef struct RecorderSample {
     float pdf, bsdf_pdf, guide_pdf;
     float cosine;        /* RecorderVertexInit.cosine */
     uint32_t flags;      /* PV_FLAG_*, plus RECORDER_SAMPLE_PRIMARY */
-    uint32_t pixel;
+    uint32_t user;       /* RecorderVertexInit.user */
     uint64_t path;
 } RecorderSample;
 #define RECORDER_SAMPLE_PRIMARY 0x100u /* the vertex's parent is the camera */
@@ -175,7 +176,11 @@ typedef struct GuideTrainingSample {
     float pos[3], dir[3];
     float radiance;
     float pdf;
+    uint32_t leaf; /* a hint: the leaf guide_field_leaf_of named for a lookup at pos since the last
+                    * update (GUIDE_NO_LEAF: none). Taken when pos lies in that leaf's box, where
+                    * the descent would end too; else the sample's leaf is looked up. */
 } GuideTrainingSample;
+#define GUIDE_NO_LEAF 0xFFFFFFFFu
 
 typedef struct GuideField GuideField;
 /* The spatial tree spans the cube around [lo, hi] (enlarged slightly). NULL: out of memory. */
@@ -199,6 +204,10 @@ uint32_t guide_field_num_leaves(const GuideField *f);
  * independent compares and one load of a 16 KiB grid), then walks 8-byte nodes. */
 typedef struct GuideDistribution GuideDistribution;
 const GuideDistribution *guide_field_lookup(const GuideField *f, const float pos[3]);
+/* The index of d, a lookup's answer since the last update, among f's leaves (GUIDE_NO_LEAF: d
+ * is NULL or not f's): what a training sample of that lookup's point carries to spare the
+ * descent (GuideTrainingSample.leaf). */
+uint32_t guide_field_leaf_of(const GuideField *f, const GuideDistribution *d);
 /* A direction from the distribution with two uniforms; its solid-angle pdf in *pdf. */
 void guide_distribution_sample(const GuideDistribution *d, float u1, float u2, float dir[3], float *pdf);
 float guide_distribution_pdf(const GuideDistribution *d, const float dir[3]);

@@ -24,7 +24,7 @@ typedef struct RecorderVertex {
     uint32_t parent;
     uint32_t refcount;  /* 0: free */
     uint32_t flags;
-    uint32_t pixel;
+    uint32_t user;
     uint64_t path;
 } RecorderVertex;
 _Static_assert(sizeof(RecorderVertex) == 128, "a vertex is two cache lines");
@@ -162,6 +162,9 @@ uint32_t recorder_new_child(Recorder *r, RecorderCache *c, uint32_t parent, cons
         return parent;
     }
     uint32_t pv = c->free[--c->count];
+    /* the thread's next new vertex, for writing: a slot freed a wave or more ago, out of the
+     * cache by then (the stores into it were recorder_new_child's stall) */
+    if (c->count) recorder_prefetch(r, c->free[c->count - 1]);
     RecorderVertex *v = vertex_at(r, pv);
     memcpy(v->pos, init->pos, sizeof v->pos);
     memcpy(v->dir, init->dir, sizeof v->dir);
@@ -174,7 +177,7 @@ uint32_t recorder_new_child(Recorder *r, RecorderCache *c, uint32_t parent, cons
     v->parent = parent;
     v->refcount = 1;
     v->flags = init->flags;
-    v->pixel = init->pixel;
+    v->user = init->user;
     v->path = init->path;
     if (pv_is_vertex(parent)) vertex_at(r, parent)->refcount++;
     c->created++;
@@ -217,7 +220,7 @@ static void samples_append(RecorderSamples *s, const RecorderVertex *v) {
     o->guide_pdf = v->guide_pdf;
     o->cosine = v->cosine;
     o->flags = v->flags | (v->parent == PV_CAMERA ? RECORDER_SAMPLE_PRIMARY : 0u);
-    o->pixel = v->pixel;
+    o->user = v->user;
     o->path = v->path;
 }
 

@@ -818,6 +818,10 @@ void guide_field_free(GuideField *f) {
     free(f);
 }
 
+static int point_in_leaf(const GuideLeaf *l, const float p[3]) {
+    return p[0] >= l->lo[0] && p[0] < l->hi[0] && p[1] >= l->lo[1] && p[1] < l->hi[1] && p[2] >= l->lo[2] && p[2] < l->hi[2];
+}
+
 /* One valid sample's place in a batch: its leaf, where it lands on the square, its value. */
 typedef struct RecordItem {
     double u, v, value; /* value: L / pdf (added only when positive) */
@@ -874,7 +878,11 @@ void guide_field_record(GuideField *f, const GuideTrainingSample *s, size_t n) {
         RecordItem *it = grouped ? &items[m] : &one;
         if (!dir_to_uv(x->dir, &it->u, &it->v, NULL)) continue;
         uint64_t index = f->recorded_total++;
-        uint32_t leaf = field_find_leaf(f, x->pos);
+        uint32_t leaf = x->leaf;
+        /* the hint holds where pos is in its leaf's box [lo, hi), the cells the descent's >= rule
+         * gives the leaf; else (a stale or foreign hint, a point on the root's far faces or
+         * outside, which the descent clamps) the descent decides */
+        if (leaf >= f->leaf_count || !point_in_leaf(&f->leaves[leaf], x->pos)) leaf = field_find_leaf(f, x->pos);
         if (f->params.spatial_filter) {
             /* Müller 2019 §4 (spatial filtering): splat into the leaf at a point drawn uniformly
              * in a box of the sample's leaf's size around it, so neighbouring leaves share
@@ -1140,6 +1148,11 @@ const GuideDistribution *guide_field_lookup(const GuideField *f, const float pos
     if (!f) return NULL;
     static const float origin[3] = {0, 0, 0};
     return &f->dists[field_find_leaf(f, pos ? pos : origin)];
+}
+
+uint32_t guide_field_leaf_of(const GuideField *f, const GuideDistribution *d) {
+    if (!f || !d || d < f->dists || d >= f->dists + f->leaf_count) return GUIDE_NO_LEAF;
+    return (uint32_t)(d - f->dists);
 }
 
 /* Density over the (u, v) square: the descent to the cell holding (u, v), which stores it. */

@@ -255,14 +255,14 @@ static void check_stable_sort(uint64_t stride) {
     for (size_t i = 0; i < n; ++i) {
         x = x * 6364136223846793005ull + 1442695040888963407ull;
         s.items[i].path = 1000 + ((x >> 33) % 300) * stride; /* many samples per path, out of order */
-        s.items[i].pixel = (uint32_t)i;                       /* the original position */
+        s.items[i].user = (uint32_t)i;                       /* the original position */
     }
     s.count = n;
     CHECK(recorder_samples_sort(&s) == 0, "sort");
     int ok = s.count == n;
     for (size_t i = 1; i < s.count && ok; ++i) {
         const RecorderSample *a = &s.items[i - 1], *b = &s.items[i];
-        ok = a->path < b->path || (a->path == b->path && a->pixel < b->pixel);
+        ok = a->path < b->path || (a->path == b->path && a->user < b->user);
     }
     CHECK(ok, "sorted by path, a path's samples in their order (stride %llu)", (unsigned long long)stride);
     recorder_samples_free(&s);

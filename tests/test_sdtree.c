@@ -77,7 +77,12 @@ typedef struct {
     float lo[3], hi[3];
 } Light;
 
-static void train(GuideField *f, uint64_t *rng, const Light *L, int n) {
+/* What a training sample's leaf hint says: nothing, the leaf a lookup at its point finds, or a
+ * wrong leaf (another one, drawn; or, for a point moved onto its leaf's high face, which the >=
+ * rule gives the neighbour, that leaf). Every mode must train the same field. */
+enum { HINT_NONE, HINT_RIGHT, HINT_WRONG };
+
+static void train_hinted(GuideField *f, uint64_t *rng, const Light *L, int n, int hints) {
     GuideTrainingSample batch[512];
     int m = 0;
     for (int i = 0; i < n; ++i) {
@@ -86,12 +91,25 @@ static void train(GuideField *f, uint64_t *rng, const Light *L, int n) {
         uniform_dir(rng, s->dir);
         s->radiance = dot(s->dir, L->axis) > L->cos_cone ? L->bright : L->dim;
         s->pdf = UNIFORM_PDF;
+        const GuideDistribution *d = guide_field_lookup(f, s->pos);
+        uint32_t leaf = guide_field_leaf_of(f, d), leaves = guide_field_num_leaves(f);
+        if (i % 3 == 0) { /* every mode: the point moved onto its leaf's high face on one axis */
+            float lo[3], hi[3];
+            guide_distribution_bounds(d, lo, hi);
+            if (hi[i % 7 % 3] < 1.0f) s->pos[i % 7 % 3] = hi[i % 7 % 3]; /* an inner face */
+        }
+        s->leaf = hints == HINT_NONE ? GUIDE_NO_LEAF
+                  : hints == HINT_RIGHT ? guide_field_leaf_of(f, guide_field_lookup(f, s->pos))
+                  : i % 3 == 0 ? leaf
+                               : (leaf + 1 + (uint32_t)i * 2654435761u % leaves) % (leaves + 1); /* never leaf; may be out of range */
         if (m == 512 || i == n - 1) {
             guide_field_record(f, batch, (size_t)m);
             m = 0;
         }
     }
 }
+
+static void train(GuideField *f, uint64_t *rng, const Light *L, int n) { train_hinted(f, rng, L, n, HINT_NONE); }
 
 /* The integral of the pdf over the sphere from the (u, v) image (midpoint rule: the pixels'
  * solid angles from the map's density) and from an equal-area grid of directions. The image
@@ -306,7 +324,7 @@ static void test_trained(void) {
 }
 
 /* ---------------------------------------------------------------- 5. spatial splitting */
-static GuideField *two_regions(uint64_t seed, int updates) {
+static GuideField *two_regions_hinted(uint64_t seed, int updates, int hints) {
     float lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
     GuideFieldParams p;
     guide_field_params_default(&p);
@@ -318,8 +336,8 @@ static GuideField *two_regions(uint64_t seed, int updates) {
     a.cos_cone = b.cos_cone = cosf(20.0f * (float)PI / 180.0f);
     uint64_t rng = seed;
     for (int it = 0; it < updates; ++it) {
-        train(f, &rng, &a, 3000 << it);
-        train(f, &rng, &b, 3000 << it);
+        train_hinted(f, &rng, &a, 3000 << it, hints);
+        train_hinted(f, &rng, &b, 3000 << it, hints);
         if (guide_field_update(f, 1.0f)) {
             guide_field_free(f);
             return NULL;
@@ -327,6 +345,8 @@ static GuideField *two_regions(uint64_t seed, int updates) {
     }
     return f;
 }
+
+static GuideField *two_regions(uint64_t seed, int updates) { return two_regions_hinted(seed, updates, HINT_NONE); }
 
 static int box_contains(const GuideDistribution *d, const float p[3]) {
     float lo[3], hi[3];
@@ -536,9 +556,37 @@ static void test_checkpoint(void) {
     guide_field_free(g);
 }
 
+/* ---------------------------------------------------------------- 6c. leaf hints */
+/* A training sample's leaf hint spares the descent but never changes what is learned: right
+ * hints, none, and wrong ones (other leaves, out of range, a leaf whose high face the point lies
+ * on) train bit for bit the same field; guide_field_leaf_of names only the field's own leaves. */
+static void test_leaf_hints(void) {
+    GuideField *f = two_regions_hinted(29, 3, HINT_NONE), *g = two_regions_hinted(29, 3, HINT_RIGHT),
+               *h = two_regions_hinted(29, 3, HINT_WRONG);
+    CHECK(f && g && h, "two_regions_hinted");
+    if (f && g && h) {
+        CHECK(guide_field_num_leaves(f) > 8, "a tree to hint into: %u leaves", guide_field_num_leaves(f));
+        CHECK(fields_equal(f, g, 31), "right hints change the field");
+        CHECK(fields_equal(f, h, 31), "wrong hints change the field");
+        uint64_t rng = 37;
+        int bad = 0;
+        for (int i = 0; i < 2000; ++i) {
+            float pos[3] = {rnd(&rng), rnd(&rng), rnd(&rng)};
+            const GuideDistribution *d = guide_field_lookup(f, pos);
+            uint32_t leaf = guide_field_leaf_of(f, d);
+            bad += leaf >= guide_field_num_leaves(f) || !box_contains(d, pos) || guide_field_leaf_of(g, d) != GUIDE_NO_LEAF;
+        }
+        CHECK(bad == 0, "%d lookups named a wrong leaf index", bad);
+        CHECK(guide_field_leaf_of(f, NULL) == GUIDE_NO_LEAF, "leaf_of(NULL)");
+    }
+    guide_field_free(f);
+    guide_field_free(g);
+    guide_field_free(h);
+}
+
 /* ---------------------------------------------------------------- 7. bad input */
 static GuideTrainingSample sample_at(float x, float y, float z, float radiance, float pdf) {
-    GuideTrainingSample s = {{x, y, z}, {0, 0, 1}, radiance, pdf};
+    GuideTrainingSample s = {{x, y, z}, {0, 0, 1}, radiance, pdf, GUIDE_NO_LEAF};
     return s;
 }
 
@@ -820,6 +868,7 @@ int main(void) {
     test_spatial();
     test_determinism();
     test_checkpoint();
+    test_leaf_hints();
     test_bad_input();
     test_ply();
     fprintf(stderr, "test_sdtree: %.2f s\n", test_seconds() - t0);

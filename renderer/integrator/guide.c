@@ -135,6 +135,11 @@ static int field_of_flags(uint32_t flags) {
     return c >= 1 && c <= GUIDE_SURFACE_CLASSES ? (int)c - 1 : -1;
 }
 
+uint32_t guide_leaf_hint(const Integrator *ig, uint32_t flags, const GuideDistribution *d) {
+    int k = d ? field_of_flags(flags) : -1;
+    return k >= 0 ? guide_field_leaf_of(ig->guide.fields[k], d) : GUIDE_NO_LEAF;
+}
+
 const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n) {
     const GuideState *gs = &ig->guide;
     if (!gs->active) return NULL;
@@ -169,6 +174,7 @@ static void train_field(GuideState *gs, int k, const RecorderSamples *batch) {
          * nearly one normal); media learn L (cosine 1) */
         t->radiance = (0.2126f * s->radiance[0] + 0.7152f * s->radiance[1] + 0.0722f * s->radiance[2]) * s->cosine;
         t->pdf = s->pdf;
+        t->leaf = s->user; /* the rendering lookup's leaf (record_child): training needs no descent */
     }
     guide_field_record(gs->fields[k], gs->train[k], n);
     gs->train_count[k] = n;

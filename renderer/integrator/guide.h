@@ -24,5 +24,8 @@ static inline int guide_field_of_normal(vec3 n) {
 }
 /* The recorder flags that carry a surface vertex's orientation class. */
 uint32_t guide_surface_flags(vec3 n);
+/* The leaf index in the field of a vertex's flags (guide_surface_flags, PV_FLAG_VOLUME) of d, the
+ * guide_lookup answer at its point (GUIDE_NO_LEAF: d NULL): its training sample's hint. */
+uint32_t guide_leaf_hint(const Integrator *ig, uint32_t flags, const GuideDistribution *d);
 
 #endif

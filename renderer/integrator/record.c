@@ -97,7 +97,8 @@ void record_camera(const Integrator *ig, uint32_t p, uint64_t path) {
 }
 
 uint32_t record_child(const Integrator *ig, Slice *s, uint32_t p, uint32_t parent, vec3 pos, vec3 dir, vec3 tp,
-                      float pdf, float scatter_pdf, float guide_pdf, float cosine, uint32_t flags, float segment) {
+                      float pdf, float scatter_pdf, float guide_pdf, float cosine, uint32_t flags, float segment,
+                      const GuideDistribution *guide) {
     const RecordState *rs = &ig->record;
     const PathState *ps = &ig->ps;
     if (parent == PV_SKIPPED || (parent == PV_CAMERA && ps->record_skip[p])) return PV_SKIPPED;
@@ -121,7 +122,7 @@ uint32_t record_child(const Integrator *ig, Slice *s, uint32_t p, uint32_t paren
      * on cornell_indirect) */
     if (!rs->debug_aov && (flags & PV_FLAG_NEE)) return recorder_fold_child(rs->recorder, &s->record_cache, parent);
     RecorderVertexInit init = {{pos.x, pos.y, pos.z}, {dir.x, dir.y, dir.z}, {tp.x, tp.y, tp.z}, pdf, scatter_pdf, guide_pdf,
-                               cosine, flags, ps->pixel[p],
+                               cosine, flags, guide_leaf_hint(ig, flags, guide),
                                (ig->sample_base + (ig->batch_first + p) / ig->iteration_pixels) * ig->npixels + ps->pixel[p]};
     return recorder_new_child(rs->recorder, &s->record_cache, parent, &init);
 }

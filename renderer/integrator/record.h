@@ -13,9 +13,11 @@ void record_camera(const Integrator *ig, uint32_t p, uint64_t path);
 /* A child vertex of `parent` for a ray leaving pos in dir with throughput tp, or the parent
  * continued (too close: `segment` is the distance from the parent's origin; past the budget).
  * cosine: |cos| of dir to the surface's shading normal (1 in media, and for NEE rays, which
- * guiding does not learn from). */
+ * guiding does not learn from). guide: the guide's answer at pos (NULL: none), whose leaf the
+ * vertex's sample carries to training (guide_field_leaf_of). */
 uint32_t record_child(const Integrator *ig, Slice *s, uint32_t p, uint32_t parent, vec3 pos, vec3 dir, vec3 tp,
-                      float pdf, float scatter_pdf, float guide_pdf, float cosine, uint32_t flags, float segment);
+                      float pdf, float scatter_pdf, float guide_pdf, float cosine, uint32_t flags, float segment,
+                      const GuideDistribution *guide);
 /* The holder of vertex pv in path p lets go (records and backpropagates at zero). */
 void record_done(const Integrator *ig, Slice *s, uint32_t p, uint32_t pv);
 void record_radiance(const Integrator *ig, uint32_t p, vec3 c, RadianceSource source);
@@ -33,10 +35,10 @@ static inline void record_vertex_radiance(const Integrator *ig, uint32_t p, cons
  * carried (vertex_continue). */
 static inline void record_vertex_child(const Integrator *ig, Slice *s, uint32_t p, const vec3 *pos, const vec3 *dir,
                                        const vec3 *tp, float pdf, float scatter_pdf, float guide_pdf, float cosine,
-                                       uint32_t flags, float segment) {
+                                       uint32_t flags, float segment, const GuideDistribution *guide) {
     if (ig->record.active)
-        ig->ps.pv[p] =
-            record_child(ig, s, p, ig->ps.pv[p], *pos, *dir, *tp, pdf, scatter_pdf, guide_pdf, cosine, flags, segment);
+        ig->ps.pv[p] = record_child(ig, s, p, ig->ps.pv[p], *pos, *dir, *tp, pdf, scatter_pdf, guide_pdf, cosine, flags,
+                                    segment, guide);
 }
 /* The throughput of an NEE ray, for its recorder vertex: the contribution per unit of the
  * light's radiance (so its sample is the radiance that arrived). */
@@ -53,7 +55,7 @@ static inline void record_nee_vertex(const Integrator *ig, Slice *s, uint32_t p,
                                      float segment) {
     if (ig->record.active)
         ig->ps.shadow_pv[p] = record_child(ig, s, p, ig->ps.pv[p], *pos, *dir, nee_throughput(v3_scale(*contrib, weight), *radiance),
-                                           pdf, pdf, 0.0f, 1.0f, flags, segment);
+                                           pdf, pdf, 0.0f, 1.0f, flags, segment, NULL);
 }
 /* The NEE ray of path p is done (its contribution added): its vertex is released. */
 static inline void record_nee_done(const Integrator *ig, Slice *s, uint32_t p) {
@@ -81,6 +83,18 @@ static inline void record_path_end(const Integrator *ig, Slice *s, uint32_t p) {
  * prefetched a few hits before its shading. */
 static inline void record_prefetch_hit(const Integrator *ig, const Slice *s, uint32_t j) {
     if (ig->record.active && j < s->num_hits) recorder_prefetch(ig->record.recorder, ig->ps.pv[s->hits[j]]);
+}
+/* The vertex's parent, read from the vertex once that has arrived (a path that ends there
+ * releases its chain, the parent first, and it was last touched a wave ago). */
+static inline void record_prefetch_hit_parent(const Integrator *ig, const Slice *s, uint32_t j) {
+    if (ig->record.active && j < s->num_hits) recorder_prefetch_parent(ig->record.recorder, ig->ps.pv[s->hits[j]]);
+}
+/* The same two for the paths items[j] of a list of n that all end (escaped rays). */
+static inline void record_prefetch_ending(const Integrator *ig, const uint32_t *items, uint32_t n, uint32_t j) {
+    if (ig->record.active && j < n) recorder_prefetch(ig->record.recorder, ig->ps.pv[items[j]]);
+}
+static inline void record_prefetch_ending_parent(const Integrator *ig, const uint32_t *items, uint32_t n, uint32_t j) {
+    if (ig->record.active && j < n) recorder_prefetch_parent(ig->record.recorder, ig->ps.pv[items[j]]);
 }
 /* The NEE vertices of the shadow rays items[0..m) (folded: their parents'), and then their
  * parents (read from the vertices: prefetched after them), while the rays are traced. */

@@ -1,13 +1,18 @@
 /* renderer/integrator/stage_escaped.c: rays that left the scene see the environment. Its radiance is
  * MIS-weighted against the light sampler, evaluated with the context the previous vertex used
  * for NEE (kept in the path state). */
+#include "record.h"
 #include "vertex.h"
+
+#define ESCAPED_PREFETCH 8 /* escaped rays ahead whose recorder vertices are fetched (then their parents) */
 
 void stage_escaped(const Integrator *ig, Slice *s) {
     const PathState *ps = &ig->ps;
     const Lights *lights = ig->lights;
     for (uint32_t i = 0; i < s->num_escaped; ++i) {
         uint32_t p = s->escaped[i];
+        record_prefetch_ending(ig, s->escaped, s->num_escaped, i + ESCAPED_PREFETCH);
+        record_prefetch_ending_parent(ig, s->escaped, s->num_escaped, i + ESCAPED_PREFETCH / 2);
         vertex_shape_emission(ig, s, p, INFINITY, 0);
         if (lights->environment < 0) { path_end(ig, s, p); continue; }
         vec3 d = ps->ray[p].dir;

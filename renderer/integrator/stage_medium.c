@@ -188,7 +188,7 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
         scatter_numbers(&sc, &g, u);
         if (!scatter_sample_guided(&sc, u, &ss)) return WALK_ENDED;
         uint32_t incoming = ps->pv[p];
-        if (!vertex_continue(ig, s, p, x, &ss, &g, &lc, 1.0f, PV_FLAG_VOLUME, ev.t)) return WALK_ENDED;
+        if (!vertex_continue(ig, s, p, x, &ss, sc.guide, &g, &lc, 1.0f, PV_FLAG_VOLUME, ev.t)) return WALK_ENDED;
         record_scatter_done(ig, s, p, incoming, 1); /* the scattering event is done with the incoming vertex */
         /* the next segment: its closest hit now (depth-first), then walk it */
         SceneRay next = {x, 0.0f, ss.wi, INFINITY};

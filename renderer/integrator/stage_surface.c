@@ -110,7 +110,7 @@ static int surface_continuation(const Integrator *ig, Slice *s, uint32_t p, cons
     const PathState *ps = &ig->ps;
     if (!ss) return 0;
     uint32_t flags = record_surface_flags(ig, ss->delta, &sc->ng);
-    if (!vertex_continue(ig, s, p, h->p, ss, g, lc, fabsf(v3_dot(ss->wi, sc->frame.n)), flags, ps->hit[p].t)) return 0;
+    if (!vertex_continue(ig, s, p, h->p, ss, sc->guide, g, lc, fabsf(v3_dot(ss->wi, sc->frame.n)), flags, ps->hit[p].t)) return 0;
     if (ss->transmitted) ps->medium[p] = side_medium(ig, p, h, ss->wi);
     ps->ray[p] = (SceneRay){offset_ray_origin(h->p, scatter_side_normal(sc, ss->wi)), 0.0f, ss->wi, INFINITY};
     s->keys[s->num_rays] = sort_key_ray(ig, &ps->ray[p]);
@@ -225,6 +225,7 @@ void stage_surface(const Integrator *ig, Slice *s) {
             if (i + SHADE_PREFETCH / 4 < s->num_hits) scene_prefetch_hit_vertices(scene, &ps->hit[s->hits[i + SHADE_PREFETCH / 4]]);
             /* the recorder vertex the hit's ray carries (its pv was fetched a few hits earlier) */
             record_prefetch_hit(ig, s, i + SHADE_PREFETCH / 2);
+            record_prefetch_hit_parent(ig, s, i + SHADE_PREFETCH / 4);
             shade_front(ig, s->hits[i], &slots[i & 1]);
         }
         if (i > 0) shade_back(ig, s, &slots[(i - 1) & 1], &hint, scratch);

@@ -124,15 +124,15 @@ static inline void path_scattered(const PathState *ps, uint32_t p, vec3 pos, con
 }
 
 static inline int vertex_continue(const Integrator *ig, Slice *s, uint32_t p, vec3 x, const ScatterSample *ss,
-                                  DimsGroup *g, const LightSampleContext *lc, float cos_term, uint32_t flags,
-                                  float segment) {
+                                  const GuideDistribution *guide, DimsGroup *g, const LightSampleContext *lc,
+                                  float cos_term, uint32_t flags, float segment) {
     const PathState *ps = &ig->ps;
     vec3 beta = v3_mul(ps->throughput[p], ss->weight);
     ps->rr_scale[p] *= ss->rr_factor;
     if (!v3_is_finite(beta) || v3_is_black(beta)) return 0;
     if (ps->depth[p] + 1 >= RR_START_DEPTH && !russian_roulette(&beta, ps->rr_scale[p], dims_lane(g, 3))) return 0;
     ps->throughput[p] = beta;
-    record_vertex_child(ig, s, p, &x, &ss->wi, &beta, ss->pdf, ss->scatter_pdf, ss->guide_pdf, cos_term, flags, segment);
+    record_vertex_child(ig, s, p, &x, &ss->wi, &beta, ss->pdf, ss->scatter_pdf, ss->guide_pdf, cos_term, flags, segment, guide);
     path_scattered(ps, p, x, lc, ss->scatter_pdf, ss->delta); /* MIS against NEE: the function's pdf (scatter.h) */
     return 1;
 }
