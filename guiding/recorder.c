@@ -1,7 +1,7 @@
 /* guiding/recorder.c: the radiance recorder (path-guiding-in-production.txt ch. 2 §3.4).
  *
  * Vertices live in blocks of RECORDER_BLOCK_SIZE allocated on first need, up to a bound;
- * free indices circulate through one FIFO queue under a mutex, which threads reach through a
+ * free indices circulate through one stack under a mutex, which threads reach through a
  * small per-thread cache so that most allocations and frees touch no lock. A vertex's fields
  * are only touched by the thread that owns its path (the caller's contract), so they need no
  * atomics; the mutex hand-over of indices orders the reuse of a slot by another thread. */
@@ -89,15 +89,17 @@ static int grow_locked(Recorder *r) {
     return 0;
 }
 
-/* Refills half of a thread's cache from the queue (growing by a block if it is empty). */
+/* Refills half of a thread's cache from the queue (growing by a block if it is empty), taking
+ * the indices spilled last: the free indices are used as a stack, so the slots in use stay the
+ * few thousand of the peak (about 1 MiB) instead of cycling through every slot ever allocated
+ * (a first-in first-out queue walked guiding_interior's 76,000 slots, 9.7 MiB, past the L2). */
 static void cache_refill(Recorder *r, RecorderCache *c) {
     pthread_mutex_lock(&r->lock);
     if (r->queue_count == 0) grow_locked(r);
     uint32_t capacity = r->max_blocks * BLOCK;
     while (c->count < RECORDER_CACHE_SIZE / 2 && r->queue_count > 0) {
-        c->free[c->count++] = r->queue[r->queue_head];
-        r->queue_head = (r->queue_head + 1) % capacity;
         r->queue_count--;
+        c->free[c->count++] = r->queue[(r->queue_head + r->queue_count) % capacity];
     }
     pthread_mutex_unlock(&r->lock);
 }

@@ -24,6 +24,7 @@
 #include "io.h"
 #include "ckpt_io.h"
 #include "feature.h"
+#include "record.h"
 #include "scatter.h"
 #include "guide.h"
 
@@ -117,8 +118,7 @@ static void guide_free(Integrator *ig) {
     GuideState *gs = &ig->guide;
     probe_free(gs);
     for (int k = 0; k < GUIDE_FIELDS; ++k) guide_field_free(gs->fields[k]);
-    for (int k = 0; k < GUIDE_FIELDS; ++k) free(gs->train[k]);
-    free(gs->sample_field);
+    for (int k = 0; k < MAX_SLICES; ++k) free(gs->train[k]);
     free(gs->last);
     free(gs->last_class);
     memset(gs, 0, sizeof *gs);
@@ -150,23 +150,36 @@ const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n) {
     return guide_field_lookup(f, x);
 }
 
-/* Field k's samples of the batch, in batch order, into its own scratch, and recorded into it
- * (the fields are independent: they train on the threads, each in its deterministic order). */
-static void train_field(GuideState *gs, int k, const RecorderSamples *batch) {
-    gs->train_count[k] = 0;
-    gs->field_failed[k] = 0;
-    if (batch->count > gs->train_capacity[k]) {
-        GuideTrainingSample *t = realloc(gs->train[k], batch->count * sizeof *t);
-        if (!t) { gs->field_failed[k] = 1; return; } /* training loses a batch; the image is not affected */
-        gs->train[k] = t;
-        gs->train_capacity[k] = batch->count;
-    }
-    size_t n = 0;
-    const uint8_t *field = gs->sample_field;
+/* Slice k's samples of the batch as training samples, grouped by field (a stable counting sort:
+ * each field's in path order), into the slice's scratch (the slices convert on the threads). */
+static void convert_slice(GuideState *gs, int k, const RecorderSamples *batch) {
+    size_t *start = gs->train_split[k];
+    memset(start, 0, (GUIDE_FIELDS + 1) * sizeof *start);
+    gs->slice_failed[k] = 0;
     for (size_t i = 0; i < batch->count; ++i) {
-        if (field[i] != k) continue; /* one byte per sample: each field's pass reads only its own 80-byte samples */
+        uint32_t flags = batch->items[i].flags;
+        int f = flags & (PV_FLAG_NEE | PV_FLAG_DELTA) ? -1 : field_of_flags(flags);
+        if (f >= 0 && gs->fields[f]) start[f + 1]++;
+    }
+    for (int f = 0; f < GUIDE_FIELDS; ++f) start[f + 1] += start[f];
+    size_t n = start[GUIDE_FIELDS];
+    if (n > gs->train_capacity[k]) {
+        GuideTrainingSample *t = realloc(gs->train[k], n * sizeof *t);
+        if (!t) { /* training loses the slice's samples of this batch; the image is not affected */
+            gs->slice_failed[k] = 1;
+            memset(start, 0, (GUIDE_FIELDS + 1) * sizeof *start);
+            return;
+        }
+        gs->train[k] = t;
+        gs->train_capacity[k] = n;
+    }
+    size_t next[GUIDE_FIELDS];
+    memcpy(next, start, sizeof next);
+    for (size_t i = 0; i < batch->count; ++i) {
         const RecorderSample *s = &batch->items[i];
-        GuideTrainingSample *t = &gs->train[k][n++];
+        int f = s->flags & (PV_FLAG_NEE | PV_FLAG_DELTA) ? -1 : field_of_flags(s->flags);
+        if (f < 0 || !gs->fields[f]) continue;
+        GuideTrainingSample *t = &gs->train[k][next[f]++];
         memcpy(t->pos, s->pos, sizeof t->pos);
         memcpy(t->dir, s->dir, sizeof t->dir);
         /* surfaces learn L |cos theta| (the product the function's f |cos| multiplies, exact for a
@@ -176,21 +189,35 @@ static void train_field(GuideState *gs, int k, const RecorderSamples *batch) {
         t->pdf = s->pdf;
         t->leaf = s->user; /* the rendering lookup's leaf (record_child): training needs no descent */
     }
-    guide_field_record(gs->fields[k], gs->train[k], n);
-    gs->train_count[k] = n;
 }
 
 typedef struct FieldCtx {
     GuideState *gs;
-    const RecorderSamples *batch;
+    const RecordState *rs;
     float iteration_spp;
 } FieldCtx;
 
+static void convert_slices(void *ctx, size_t begin, size_t end, int thread_index) {
+    (void)thread_index;
+    FieldCtx *c = ctx;
+    for (size_t k = begin; k < end; ++k) convert_slice(c->gs, (int)k, &c->rs->samples[k].s);
+}
+
+/* Field k trains on its samples of every slice in slice order: the batch's in path order (the
+ * field's sums are the same as from one call over them all: guide_field_record adds in order). */
 static void train_fields(void *ctx, size_t begin, size_t end, int thread_index) {
     (void)thread_index;
     FieldCtx *c = ctx;
-    for (size_t k = begin; k < end; ++k)
-        if (c->gs->fields[k]) train_field(c->gs, (int)k, c->batch);
+    GuideState *gs = c->gs;
+    for (size_t k = begin; k < end; ++k) {
+        gs->train_count[k] = 0;
+        if (!gs->fields[k]) continue;
+        for (uint32_t j = 0; j < c->rs->batch_slices; ++j) {
+            size_t b = gs->train_split[j][k], e = gs->train_split[j][k + 1];
+            guide_field_record(gs->fields[k], gs->train[j] + b, e - b);
+            gs->train_count[k] += e - b;
+        }
+    }
 }
 
 static void update_fields(void *ctx, size_t begin, size_t end, int thread_index) {
@@ -201,7 +228,7 @@ static void update_fields(void *ctx, size_t begin, size_t end, int thread_index)
 }
 
 /* guide-dump's histogram: the surface fields' samples of the batch, appended in field order. */
-static void keep_last_samples(GuideState *gs, int k) {
+static void keep_last_samples(GuideState *gs, int k, uint32_t slices) {
     size_t n = gs->train_count[k];
     if (k < GUIDE_SURFACE_CLASSES && gs->keep_last && n > 0) {
         if (gs->last_count + n > gs->last_capacity) {
@@ -213,37 +240,37 @@ static void keep_last_samples(GuideState *gs, int k) {
             if (!l || !c) { gs->dropped = 1; return; }
             gs->last_capacity = cap;
         }
-        memcpy(gs->last + gs->last_count, gs->train[k], n * sizeof *gs->train[k]);
-        memset(gs->last_class + gs->last_count, k, n);
-        gs->last_count += n;
+        for (uint32_t j = 0; j < slices; ++j) {
+            size_t b = gs->train_split[j][k], e = gs->train_split[j][k + 1];
+            if (e > b) memcpy(gs->last + gs->last_count, gs->train[j] + b, (e - b) * sizeof *gs->train[j]);
+            memset(gs->last_class + gs->last_count, k, e - b);
+            gs->last_count += e - b;
+        }
     }
 }
 
 static void guide_train_batch(Integrator *ig) {
     GuideState *gs = &ig->guide;
-    const RecorderSamples *batch = &ig->record.batch;
-    if (!gs->on || !ig->record.active || batch->count == 0) return;
+    const RecordState *rs = &ig->record;
+    uint32_t slices = rs->batch_slices;
+    size_t total = 0;
+    for (uint32_t j = 0; j < slices; ++j) total += rs->samples[j].s.count;
+    if (!gs->on || !rs->active || total == 0) return;
     gs->pending = 1;
     double t0 = clock_seconds();
-    if (batch->count > gs->sample_field_capacity) {
-        uint8_t *f = realloc(gs->sample_field, batch->count);
-        if (!f) { gs->dropped = 1; return; } /* training loses a batch; the image is not affected */
-        gs->sample_field = f;
-        gs->sample_field_capacity = batch->count;
-    }
-    for (size_t i = 0; i < batch->count; ++i) {
-        uint32_t flags = batch->items[i].flags;
-        int k = flags & (PV_FLAG_NEE | PV_FLAG_DELTA) ? -1 : field_of_flags(flags);
-        gs->sample_field[i] = k < 0 ? 0xFF : (uint8_t)k;
-    }
-    FieldCtx c = {gs, batch, 0.0f};
+    /* the slices' samples to training samples by field on the threads, then the fields train on
+     * the threads, each over the slices in order (no copy of the whole batch in between) */
+    FieldCtx c = {gs, rs, 0.0f};
+    if (ig->pool && slices > 1) threadpool_parallel_for(ig->pool, slices, 1, convert_slices, &c);
+    else convert_slices(&c, 0, slices, 0);
+    for (uint32_t j = 0; j < slices; ++j)
+        if (gs->slice_failed[j]) gs->dropped = 1;
     if (ig->pool) threadpool_parallel_for(ig->pool, GUIDE_FIELDS, 1, train_fields, &c);
     else train_fields(&c, 0, GUIDE_FIELDS, 0);
     for (int k = 0; k < GUIDE_FIELDS; ++k) {
         if (!gs->fields[k]) continue;
-        if (gs->field_failed[k]) gs->dropped = 1;
         gs->samples_trained += gs->train_count[k];
-        keep_last_samples(gs, k);
+        keep_last_samples(gs, k, slices);
     }
     gs->train_seconds += clock_seconds() - t0;
 }
@@ -311,7 +338,7 @@ static void auto_decide(Integrator *ig) {
     if (!on) { /* the unguided schedule from here on; nothing more is recorded */
         gs->guided_from = -1;
         ig->record.active = ig->record.debug_aov;
-        if (!ig->record.active) recorder_samples_clear(&ig->record.batch);
+        if (!ig->record.active) record_drop_batch(ig);
     }
     if (!ig->opt->quiet)
         fprintf(stderr, "candela: --guiding auto: %s (indirect light %.0f%% of the relative variance, its relative variance "

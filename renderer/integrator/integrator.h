@@ -83,7 +83,8 @@ typedef struct RecordState {
     float path_skip;        /* this iteration's probability that a camera ray is not recorded */
     float min_distance;     /* a child closer than this to its parent continues the parent */
     struct { _Alignas(64) RecorderSamples s; } samples[MAX_SLICES]; /* per slice, during a batch (one cache line each) */
-    RecorderSamples batch;  /* the batch's samples, sorted by path */
+    uint32_t batch_slices;  /* the batch's samples: samples[0 .. batch_slices), each sorted by path
+                             * (in slice order they are the batch's in path order) */
     uint64_t iteration_paths, iteration_samples;
     uint64_t total_vertices, total_paths, total_samples, refused;
     int dropped;            /* a sample buffer ran out of memory (samples lost; the image is not affected) */
@@ -101,11 +102,12 @@ typedef struct GuideState {
     int updates;
     double train_seconds;         /* recording into and updating the fields */
     uint64_t samples_trained;
-    GuideTrainingSample *train[GUIDE_FIELDS]; /* scratch: each field's samples of the batch */
-    size_t train_capacity[GUIDE_FIELDS], train_count[GUIDE_FIELDS];
+    GuideTrainingSample *train[MAX_SLICES];   /* scratch: each slice's samples of the batch, by field */
+    size_t train_capacity[MAX_SLICES];
+    size_t train_split[MAX_SLICES][GUIDE_FIELDS + 1]; /* field k's in train[slice][split[k] .. split[k + 1]) */
+    size_t train_count[GUIDE_FIELDS];         /* each field's samples of the batch */
+    int slice_failed[MAX_SLICES];
     int field_failed[GUIDE_FIELDS];           /* per field (the fields train on the threads) */
-    uint8_t *sample_field;        /* scratch: each batch sample's field (0xFF: none), read by every field's pass */
-    size_t sample_field_capacity;
     GuideTrainingSample *last;    /* guide-dump: the surface samples of the iteration being trained */
     uint8_t *last_class;          /* their normal classes */
     size_t last_count, last_capacity;

@@ -81,7 +81,6 @@ static int record_init(Integrator *ig) {
 static void record_free(Integrator *ig) {
     RecordState *rs = &ig->record;
     for (int k = 0; k < MAX_SLICES; ++k) recorder_samples_free(&rs->samples[k].s);
-    recorder_samples_free(&rs->batch);
     recorder_free(rs->recorder);
     rs->recorder = NULL;
 }
@@ -172,39 +171,35 @@ static void sort_slices(void *ctx, size_t begin, size_t end, int thread_index) {
 static void record_batch_end(Integrator *ig, Slice *slices, uint32_t n) {
     RecordState *rs = &ig->record;
     if (!rs->active) return;
-    RecorderSamples *all = &rs->batch;
-    recorder_samples_clear(all);
-    size_t total = 0;
     for (uint32_t k = 0; k < n; ++k) recorder_flush_cache(rs->recorder, &slices[k].record_cache);
     recorder_end_batch(rs->recorder);
-    /* Slice k holds the paths [begin_k, end_k), contiguous and in slice order: sorting every
-     * slice's samples by path (stable, on the threads) and concatenating them in slice order is
-     * the stable sort of them all, without a serial sort of the whole batch. */
+    /* Slice k holds the paths [begin_k, end_k), contiguous and in slice order: every slice's
+     * samples sorted by path (stable, on the threads) are, in slice order, the stable sort of
+     * the batch's; guiding reads them so (guide.c), with no serial sort or copy of them all. */
     SortCtx sc = {rs, {0}};
     if (ig->pool && n > 1) threadpool_parallel_for(ig->pool, n, 1, sort_slices, &sc);
     else sort_slices(&sc, 0, n, 0);
-    for (uint32_t k = 0; k < n; ++k)
-        if (sc.failed[k]) rs->dropped = 1;
+    size_t total = 0;
     for (uint32_t k = 0; k < n; ++k) {
+        /* a slice whose buffer or sort ran out of memory: its samples are dropped, not trained out of order */
+        if (sc.failed[k] || rs->samples[k].s.failed) {
+            rs->dropped = 1;
+            recorder_samples_clear(&rs->samples[k].s);
+        }
         total += rs->samples[k].s.count;
-        if (rs->samples[k].s.failed) rs->dropped = 1;
     }
-    if (total > all->capacity) {
-        RecorderSample *items = realloc(all->items, total * sizeof *items);
-        if (!items) { rs->dropped = 1; total = 0; }
-        else { all->items = items; all->capacity = total; }
-    }
-    for (uint32_t k = 0; k < n && total; ++k) {
-        if (rs->samples[k].s.count == 0) continue; /* its items may be NULL: no memcpy from NULL */
-        memcpy(all->items + all->count, rs->samples[k].s.items, rs->samples[k].s.count * sizeof *all->items);
-        all->count += rs->samples[k].s.count;
-    }
-    for (uint32_t k = 0; k < n; ++k) recorder_samples_clear(&rs->samples[k].s);
+    rs->batch_slices = n;
     /* recorded paths of the batch, for the next iteration's path skipping */
     uint32_t recorded = 0;
     for (uint32_t p = 0; p < ig->batch_count; ++p) recorded += !ig->ps.record_skip[p];
     rs->iteration_paths += recorded;
-    rs->iteration_samples += all->count;
+    rs->iteration_samples += total;
+}
+
+void record_drop_batch(Integrator *ig) {
+    RecordState *rs = &ig->record;
+    for (uint32_t k = 0; k < rs->batch_slices; ++k) recorder_samples_clear(&rs->samples[k].s);
+    rs->batch_slices = 0;
 }
 
 static void record_barrier(Integrator *ig) {
@@ -225,7 +220,7 @@ static void record_barrier(Integrator *ig) {
     rs->iteration_paths = rs->iteration_samples = 0;
     if (rs->active && !rs->debug_aov && ig->spp_done >= ig->guide.train_start + rs->training_spp) {
         rs->active = 0; /* no ray carries a vertex from here on */
-        recorder_samples_clear(&rs->batch);
+        record_drop_batch(ig);
     }
 }
 
@@ -286,7 +281,12 @@ static int record_load(Integrator *ig, FILE *in) {
     return 0;
 }
 
-static void record_slice_begin(Integrator *ig, Slice *s, uint32_t k) { s->record_samples = &ig->record.samples[k].s; }
+static void record_slice_begin(Integrator *ig, Slice *s, uint32_t k) {
+    RecordState *rs = &ig->record;
+    if (k == 0) record_drop_batch(ig); /* the last batch's samples were trained on */
+    recorder_samples_clear(&rs->samples[k].s);
+    s->record_samples = &rs->samples[k].s;
+}
 
 const IntegratorFeature feature_recorder = {
     .name = "radiance recorder",

@@ -21,6 +21,8 @@ uint32_t record_child(const Integrator *ig, Slice *s, uint32_t p, uint32_t paren
 /* The holder of vertex pv in path p lets go (records and backpropagates at zero). */
 void record_done(const Integrator *ig, Slice *s, uint32_t p, uint32_t pv);
 void record_radiance(const Integrator *ig, uint32_t p, vec3 c, RadianceSource source);
+/* The batch's samples are no longer needed (recording stopped): the slices' buffers emptied. */
+void record_drop_batch(Integrator *ig);
 
 /* The recorder's hooks as the stages call them, unconditionally: each tests whether the recorder
  * is on (record.active, set by guiding at the barrier) itself, so no stage does (as Cycles'
