@@ -283,8 +283,7 @@ static int record_load(Integrator *ig, FILE *in) {
 
 static void record_slice_begin(Integrator *ig, Slice *s, uint32_t k) {
     RecordState *rs = &ig->record;
-    if (k == 0) record_drop_batch(ig); /* the last batch's samples were trained on */
-    recorder_samples_clear(&rs->samples[k].s);
+    recorder_samples_clear(&rs->samples[k].s); /* the last batch's were trained on */
     s->record_samples = &rs->samples[k].s;
 }
 
