@@ -116,7 +116,7 @@ void recorder_done(Recorder *r, RecorderCache *cache, uint32_t pv, RecorderSampl
 void recorder_prefetch(const Recorder *r, uint32_t pv);
 /* The same for the vertex's parent (read from the vertex: prefetch that first). */
 void recorder_prefetch_parent(const Recorder *r, uint32_t pv);
-/* Returns a thread's cached free indices to the shared queue (call at the end of a batch, for
+/* Returns a thread's cached free indices to the shared stack (call at the end of a batch, for
  * every thread's cache, then recorder_end_batch). */
 void recorder_flush_cache(Recorder *r, RecorderCache *cache);
 /* The batch's peak of live vertices (the sum of the threads' peaks: a bound) joins the stats. */
@@ -141,7 +141,7 @@ void recorder_reset_counts(Recorder *r);
 /* A resumed render (checkpoints): the counts since the last recorder_reset_counts as saved
  * (they decide the next iteration's path skipping). */
 void recorder_restore_counts(Recorder *r, uint64_t vertices_created, uint64_t vertices_refused);
-/* Every vertex freed and every index back in the free queue exactly once (a test's check). */
+/* Every vertex freed and every index back in the free stack exactly once (a test's check). */
 int recorder_consistent(const Recorder *r);
 
 /* ------------------------------------------------------------------ guiding field (PPG) */
