@@ -150,6 +150,12 @@ const GuideDistribution *guide_lookup(const Integrator *ig, vec3 p, vec3 n) {
     return guide_field_lookup(f, x);
 }
 
+/* The field a recorder sample trains (-1: none: an NEE or delta sample, or no such field). */
+static int training_field(const GuideState *gs, uint32_t flags) {
+    int f = flags & (PV_FLAG_NEE | PV_FLAG_DELTA) ? -1 : field_of_flags(flags);
+    return f >= 0 && gs->fields[f] ? f : -1;
+}
+
 /* Slice k's samples of the batch as training samples, grouped by field (a stable counting sort:
  * each field's in path order), into the slice's scratch (the slices convert on the threads). */
 static void convert_slice(GuideState *gs, int k, const RecorderSamples *batch) {
@@ -157,9 +163,8 @@ static void convert_slice(GuideState *gs, int k, const RecorderSamples *batch) {
     memset(start, 0, (GUIDE_FIELDS + 1) * sizeof *start);
     gs->slice_failed[k] = 0;
     for (size_t i = 0; i < batch->count; ++i) {
-        uint32_t flags = batch->items[i].flags;
-        int f = flags & (PV_FLAG_NEE | PV_FLAG_DELTA) ? -1 : field_of_flags(flags);
-        if (f >= 0 && gs->fields[f]) start[f + 1]++;
+        int f = training_field(gs, batch->items[i].flags);
+        if (f >= 0) start[f + 1]++;
     }
     for (int f = 0; f < GUIDE_FIELDS; ++f) start[f + 1] += start[f];
     size_t n = start[GUIDE_FIELDS];
@@ -177,8 +182,8 @@ static void convert_slice(GuideState *gs, int k, const RecorderSamples *batch) {
     memcpy(next, start, sizeof next);
     for (size_t i = 0; i < batch->count; ++i) {
         const RecorderSample *s = &batch->items[i];
-        int f = s->flags & (PV_FLAG_NEE | PV_FLAG_DELTA) ? -1 : field_of_flags(s->flags);
-        if (f < 0 || !gs->fields[f]) continue;
+        int f = training_field(gs, s->flags);
+        if (f < 0) continue;
         GuideTrainingSample *t = &gs->train[k][next[f]++];
         memcpy(t->pos, s->pos, sizeof t->pos);
         memcpy(t->dir, s->dir, sizeof t->dir);

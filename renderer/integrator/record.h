@@ -81,21 +81,14 @@ static inline void record_path_end(const Integrator *ig, Slice *s, uint32_t p) {
         ig->ps.pv[p] = PV_CAMERA;
     }
 }
-/* The recorder vertex the ray of hit j of the slice carries (when there is such a hit),
- * prefetched a few hits before its shading. */
-static inline void record_prefetch_hit(const Integrator *ig, const Slice *s, uint32_t j) {
-    if (ig->record.active && j < s->num_hits) recorder_prefetch(ig->record.recorder, ig->ps.pv[s->hits[j]]);
-}
-/* The vertex's parent, read from the vertex once that has arrived (a path that ends there
- * releases its chain, the parent first, and it was last touched a wave ago). */
-static inline void record_prefetch_hit_parent(const Integrator *ig, const Slice *s, uint32_t j) {
-    if (ig->record.active && j < s->num_hits) recorder_prefetch_parent(ig->record.recorder, ig->ps.pv[s->hits[j]]);
-}
-/* The same two for the paths items[j] of a list of n that all end (escaped rays). */
-static inline void record_prefetch_ending(const Integrator *ig, const uint32_t *items, uint32_t n, uint32_t j) {
+/* The recorder vertex of the ray of path items[j] of a list of n (when j < n), prefetched a few
+ * paths before its use: the hits before their shading, escaped rays before their path ends. */
+static inline void record_prefetch_ray(const Integrator *ig, const uint32_t *items, uint32_t n, uint32_t j) {
     if (ig->record.active && j < n) recorder_prefetch(ig->record.recorder, ig->ps.pv[items[j]]);
 }
-static inline void record_prefetch_ending_parent(const Integrator *ig, const uint32_t *items, uint32_t n, uint32_t j) {
+/* Its parent, read from the vertex once that has arrived (a path that ends there releases its
+ * chain, the parent first, and it was last touched a wave ago). */
+static inline void record_prefetch_ray_parent(const Integrator *ig, const uint32_t *items, uint32_t n, uint32_t j) {
     if (ig->record.active && j < n) recorder_prefetch_parent(ig->record.recorder, ig->ps.pv[items[j]]);
 }
 /* The NEE vertices of the shadow rays items[0..m) (folded: their parents'), and then their

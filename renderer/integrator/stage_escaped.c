@@ -11,8 +11,8 @@ void stage_escaped(const Integrator *ig, Slice *s) {
     const Lights *lights = ig->lights;
     for (uint32_t i = 0; i < s->num_escaped; ++i) {
         uint32_t p = s->escaped[i];
-        record_prefetch_ending(ig, s->escaped, s->num_escaped, i + ESCAPED_PREFETCH);
-        record_prefetch_ending_parent(ig, s->escaped, s->num_escaped, i + ESCAPED_PREFETCH / 2);
+        record_prefetch_ray(ig, s->escaped, s->num_escaped, i + ESCAPED_PREFETCH);
+        record_prefetch_ray_parent(ig, s->escaped, s->num_escaped, i + ESCAPED_PREFETCH / 2);
         vertex_shape_emission(ig, s, p, INFINITY, 0);
         if (lights->environment < 0) { path_end(ig, s, p); continue; }
         vec3 d = ps->ray[p].dir;

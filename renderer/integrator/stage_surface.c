@@ -224,8 +224,8 @@ void stage_surface(const Integrator *ig, Slice *s) {
             if (i + SHADE_PREFETCH / 2 < s->num_hits) scene_prefetch_hit_indices(scene, &ps->hit[s->hits[i + SHADE_PREFETCH / 2]]);
             if (i + SHADE_PREFETCH / 4 < s->num_hits) scene_prefetch_hit_vertices(scene, &ps->hit[s->hits[i + SHADE_PREFETCH / 4]]);
             /* the recorder vertex the hit's ray carries (its pv was fetched a few hits earlier) */
-            record_prefetch_hit(ig, s, i + SHADE_PREFETCH / 2);
-            record_prefetch_hit_parent(ig, s, i + SHADE_PREFETCH / 4);
+            record_prefetch_ray(ig, s->hits, s->num_hits, i + SHADE_PREFETCH / 2);
+            record_prefetch_ray_parent(ig, s->hits, s->num_hits, i + SHADE_PREFETCH / 4);
             shade_front(ig, s->hits[i], &slots[i & 1]);
         }
         if (i > 0) shade_back(ig, s, &slots[(i - 1) & 1], &hint, scratch);
