@@ -166,7 +166,16 @@ typedef struct GuideFieldParams {
     int accumulate;            /* 1 (default): the building trees keep their statistics across
                                 * updates (re-binned into the rebuilt structure, halved per
                                 * split); 0: PPG 2017's fresh start each iteration */
+    int learn_bsdf_share;      /* 1: each leaf learns the scattering function's share of guided
+                                * one-sample MIS (ch. 1 §3.2.1) from its guided training samples'
+                                * second moments; 0 (default): bsdf_share everywhere (no gain
+                                * measured on the benchmark scenes: guiding/README.md) */
+    float min_bsdf_share;      /* the smallest share a leaf may learn (GUIDE_DEFAULT_MIN_BSDF_SHARE) */
+    float bsdf_share;          /* every leaf's share before it learns one, and always without
+                                * learning (GUIDE_DEFAULT_BSDF_SHARE); in (0, 1] */
 } GuideFieldParams;
+#define GUIDE_DEFAULT_BSDF_SHARE 0.5f
+#define GUIDE_DEFAULT_MIN_BSDF_SHARE 0.5f
 void guide_field_params_default(GuideFieldParams *p);
 
 /* A training sample of the field: incident radiance (a scalar: luminance) at pos from the unit
@@ -179,6 +188,11 @@ typedef struct GuideTrainingSample {
     uint32_t leaf; /* a hint: the leaf guide_field_leaf_of named for a lookup at pos since the last
                     * update (GUIDE_NO_LEAF: none). Taken when pos lies in that leaf's box, where
                     * the descent would end too; else the sample's leaf is looked up. */
+    /* What the learned BSDF share needs of a sample drawn by guided one-sample MIS (bsdf_pdf 0,
+     * as zero-initialised: the sample says nothing of it): share_value = F^2 / pdf >= 0 with F
+     * the estimator's numerator (a scalar, up to a factor constant over the leaf), and the
+     * function's (> 0) and the guide's pdfs of dir. */
+    float share_value, bsdf_pdf, guide_pdf;
 } GuideTrainingSample;
 #define GUIDE_NO_LEAF 0xFFFFFFFFu
 
@@ -218,6 +232,13 @@ void guide_distribution_prefetch_pdf(const GuideDistribution *d);
 /* The leaf's box (the spatial node's extent), and the samples its sampling tree learned from. */
 void guide_distribution_bounds(const GuideDistribution *d, float lo[3], float hi[3]);
 double guide_distribution_samples(const GuideDistribution *d);
+/* The scattering function's share of guided one-sample MIS the leaf learned (in (0, 1]; 1: the
+ * function alone; GUIDE_DEFAULT_BSDF_SHARE before it learned one, or for NULL). */
+float guide_distribution_bsdf_share(const GuideDistribution *d);
+/* The shares a leaf can learn, ascending, and how many of f's leaves hold each now. */
+#define GUIDE_SHARE_CANDIDATES 7
+extern const float guide_share_candidates[GUIDE_SHARE_CANDIDATES];
+void guide_field_share_leaves(const GuideField *f, uint32_t counts[GUIDE_SHARE_CANDIDATES]);
 /* A direction's point of the (u, v) octahedral square (the map the distributions live on); 0
  * for a zero or non-finite direction. */
 int guide_direction_uv(const float dir[3], float *u, float *v);

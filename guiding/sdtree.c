@@ -86,6 +86,14 @@ enum {
 #define DEFAULT_SPATIAL_THRESHOLD 3000.0f
 #define DEFAULT_FLUX_THRESHOLD 0.01f
 
+/* The learned BSDF share (guiding.h, GuideFieldParams.learn_bsdf_share): the candidates, and the
+ * guided samples a leaf needs before it chooses among them. */
+#define SHARE_CANDIDATES GUIDE_SHARE_CANDIDATES
+const float guide_share_candidates[SHARE_CANDIDATES] = {0.25f, 0.375f, 0.5f, 0.625f, 0.75f, 0.875f, 1.0f};
+#define share_candidate guide_share_candidates
+#define SHARE_MIN_SAMPLES 64.0
+#define SHARE_Z 2.0
+
 /* ------------------------------------------------------------------ types */
 
 typedef struct QuadNode {
@@ -141,6 +149,7 @@ struct GuideDistribution {
     uint32_t pdf_root;          /* this leaf's root in pdf_nodes; NO_FLAT_TREE: uniform */
     uint32_t cell_count;
     const struct GuideLeaf *leaf; /* its record (bounds, sample counts) */
+    float bsdf_share;             /* the leaf's learned BSDF share (GuideLeaf.bsdf_share) */
 };
 
 /* A spatial leaf's record: its quadtrees, counts and box. */
@@ -151,6 +160,12 @@ typedef struct GuideLeaf {
     double learned;     /* samples `sampling` was learned from (statistical weight) */
     float lo[3], hi[3]; /* the leaf's box */
     uint32_t node;      /* its spatial node */
+    float bsdf_share;   /* the scattering function's share of guided MIS here (ch. 1 §3.2.1) */
+    double share_count; /* guided samples in share_moment since the share was last chosen */
+    double share_moment[SHARE_CANDIDATES]; /* per candidate share a, sum of F^2 / (p q_a): the
+                                            * estimator's second moment had q_a sampled */
+    double share_diff2[SHARE_CANDIDATES];  /* sum of the squared per-sample differences of those
+                                            * terms from the floor candidate's (their spread) */
 } GuideLeaf;
 
 typedef struct SpatialNode {
@@ -194,6 +209,7 @@ struct GuideField {
     SampleCell *cells;        /* every leaf's cells with their alias tables */
     int iterations;
     uint64_t recorded_total; /* samples ever given to guide_field_record: the spatial filter's hash key */
+    int share_floor;         /* the smallest candidate BSDF share at or above params.min_bsdf_share */
     struct RecordScratch {   /* guide_field_record's, kept across calls */
         struct RecordItem *items;
         uint32_t *order, *start;
@@ -222,6 +238,9 @@ void guide_field_params_default(GuideFieldParams *p) {
     p->accumulate = 1;
     p->spatial_filter = 0;
     p->directional_filter = 1;
+    p->learn_bsdf_share = 0;
+    p->min_bsdf_share = GUIDE_DEFAULT_MIN_BSDF_SHARE;
+    p->bsdf_share = GUIDE_DEFAULT_BSDF_SHARE;
 }
 
 /* Out-of-range values fall back to the defaults rather than building absurd trees (rho <= 0
@@ -238,6 +257,9 @@ static GuideFieldParams params_sanitize(const GuideFieldParams *in) {
     p.accumulate = in->accumulate != 0;
     p.spatial_filter = in->spatial_filter != 0;
     p.directional_filter = in->directional_filter != 0;
+    p.learn_bsdf_share = in->learn_bsdf_share != 0;
+    if (in->min_bsdf_share >= 0 && in->min_bsdf_share <= 1) p.min_bsdf_share = in->min_bsdf_share;
+    if (in->bsdf_share > 0 && in->bsdf_share <= 1) p.bsdf_share = in->bsdf_share;
     return p;
 }
 
@@ -459,6 +481,7 @@ static void flatten_leaf(const GuideLeaf *leaf, GuideDistribution *l, PdfNode *n
                          AliasScratch *a) {
     const QuadTree *t = &leaf->sampling;
     l->leaf = leaf;
+    l->bsdf_share = leaf->bsdf_share;
     l->pdf_nodes = nodes;
     l->pdf_root = NO_FLAT_TREE;
     l->cells = NULL;
@@ -741,6 +764,9 @@ GuideField *guide_field_create(const float lo[3], const float hi[3], const Guide
     GuideField *f = calloc(1, sizeof *f);
     if (!f) return NULL;
     f->params = params_sanitize(p);
+    f->share_floor = SHARE_CANDIDATES - 1;
+    for (int k = SHARE_CANDIDATES - 1; k >= 0; --k)
+        if (share_candidate[k] >= f->params.min_bsdf_share) f->share_floor = k;
     /* The cube around the bounds (§3: the S-tree partitions a cube), enlarged by 1e-3 of its
      * side so points on the bounds are strictly inside after float rounding. Bounds that are
      * not finite or empty fall back to [-1, 1] on that axis rather than poisoning the tree. */
@@ -783,7 +809,8 @@ GuideField *guide_field_create(const float lo[3], const float hi[3], const Guide
     memcpy(leaf->lo, root->lo, sizeof leaf->lo);
     memcpy(leaf->hi, root->hi, sizeof leaf->hi);
     RebuildScratch s = {0};
-    f->dists[0] = (GuideDistribution){NULL, NULL, NO_FLAT_TREE, 0, leaf}; /* nothing learned: uniform */
+    leaf->bsdf_share = f->params.bsdf_share;
+    f->dists[0] = (GuideDistribution){NULL, NULL, NO_FLAT_TREE, 0, leaf, leaf->bsdf_share}; /* nothing learned: uniform */
     int rc = quadtree_initial(&f->params, quadtree_node_limit(&f->params), &s, &leaf->building);
     scratch_free(&s);
     if (rc) {
@@ -826,6 +853,7 @@ static int point_in_leaf(const GuideLeaf *l, const float p[3]) {
 typedef struct RecordItem {
     double u, v, value; /* value: L / pdf (added only when positive) */
     uint32_t leaf;
+    float share_value, bsdf_pdf, guide_pdf; /* GuideTrainingSample's (share_value < 0: none) */
 } RecordItem;
 
 static int record_scratch_reserve(GuideField *f, size_t n) {
@@ -859,6 +887,45 @@ static void record_item(GuideField *f, const RecordItem *it) {
         if (f->params.directional_filter) quadtree_add_filtered(&leaf->building, it->u, it->v, it->value);
         else quadtree_add(&leaf->building, it->u, it->v, it->value);
     }
+    /* ch. 1 §3.2.1: the second moment of the one-sample estimator F / q_a for each candidate share
+     * a, from this sample drawn with pdf p: E_p[F^2 / (p q_a)] = integral of F^2 / q_a */
+    if (it->share_value >= 0) {
+        leaf->share_count += 1;
+        double term[SHARE_CANDIDATES];
+        for (int k = 0; k < SHARE_CANDIDATES; ++k) {
+            double a = share_candidate[k];
+            double q = a * (double)it->bsdf_pdf + (1 - a) * (double)it->guide_pdf;
+            term[k] = q > 0 ? (double)it->share_value / q : HUGE_VAL;
+            leaf->share_moment[k] += term[k];
+        }
+        int r = f->share_floor;
+        for (int k = 0; k < SHARE_CANDIDATES; ++k) {
+            double d = term[k] - term[r];
+            leaf->share_diff2[k] += isfinite(d) ? d * d : HUGE_VAL;
+        }
+    }
+}
+
+/* The share that minimises the leaf's second moment among the candidates at or above the
+ * floor; past SHARE_MIN_SAMPLES guided samples, else the leaf keeps its share (and its sums). */
+static void leaf_choose_share(const GuideField *f, GuideLeaf *l) {
+    if (!f->params.learn_bsdf_share || !(l->share_count >= SHARE_MIN_SAMPLES)) return;
+    int r = f->share_floor, best = r;
+    double n = l->share_count;
+    for (int k = r + 1; k < SHARE_CANDIDATES; ++k) {
+        /* a share above the floor only where its second moment is lower by more than
+         * SHARE_Z standard errors of the paired difference: the sums are heavy-tailed, and a
+         * noisy choice above the floor costs where the guide is good */
+        double diff = l->share_moment[k] - l->share_moment[r];
+        double var = l->share_diff2[k] - diff * diff / n; /* n - 1 times the differences' variance */
+        double se = sqrt(fmax(var, 0.0) / (n - 1)) * sqrt(n); /* of the sum */
+        if (!isfinite(diff) || !isfinite(se) || !(diff < -SHARE_Z * se)) continue;
+        if (l->share_moment[k] < l->share_moment[best]) best = k;
+    }
+    l->bsdf_share = share_candidate[best];
+    l->share_count = 0;
+    memset(l->share_moment, 0, sizeof l->share_moment);
+    memset(l->share_diff2, 0, sizeof l->share_diff2);
 }
 
 /* Samples are located first, then added leaf by leaf, each leaf's in the order given: a leaf's
@@ -901,6 +968,11 @@ void guide_field_record(GuideField *f, const GuideTrainingSample *s, size_t n) {
         }
         it->leaf = leaf;
         it->value = (double)x->radiance / (double)x->pdf; /* in double: finite for any float input */
+        int share = x->share_value >= 0 && isfinite(x->share_value) && x->bsdf_pdf > 0 && isfinite(x->bsdf_pdf) &&
+                    x->guide_pdf >= 0 && isfinite(x->guide_pdf);
+        it->share_value = share ? x->share_value : -1.0f;
+        it->bsdf_pdf = x->bsdf_pdf;
+        it->guide_pdf = x->guide_pdf;
         if (grouped) ++m;
         else record_item(f, it); /* no scratch: one pass in sample order (the same result) */
     }
@@ -1077,6 +1149,13 @@ int guide_field_update(GuideField *f, float iteration_spp) {
         }
         nl->recorded = p->accumulate ? ldexp(old->recorded, -s) : 0;
         nl->node = old->node;
+        leaf_choose_share(f, old);
+        nl->bsdf_share = old->bsdf_share;
+        if (s == 0) { /* an unsplit leaf keeps sums too few to choose from; split ones start again */
+            nl->share_count = old->share_count;
+            memcpy(nl->share_moment, old->share_moment, sizeof nl->share_moment);
+            memcpy(nl->share_diff2, old->share_diff2, sizeof nl->share_diff2);
+        }
         if (s > 0) {
             /* The complete subtree, level by level; each level's nodes are contiguous. */
             spatial_split(new_nodes, old->node, &node_count);
@@ -1092,6 +1171,7 @@ int guide_field_update(GuideField *f, float iteration_spp) {
                 if (li != i) {
                     dst->learned = nl->learned;
                     dst->recorded = nl->recorded;
+                    dst->bsdf_share = nl->bsdf_share;
                 }
                 dst->node = j;
                 new_nodes[j].leaf = li;
@@ -1248,6 +1328,15 @@ int guide_direction_uv(const float dir[3], float *u, float *v) {
 
 double guide_distribution_samples(const GuideDistribution *d) { return d ? d->leaf->learned : 0.0; }
 
+float guide_distribution_bsdf_share(const GuideDistribution *d) { return d ? d->bsdf_share : GUIDE_DEFAULT_BSDF_SHARE; }
+
+void guide_field_share_leaves(const GuideField *f, uint32_t counts[GUIDE_SHARE_CANDIDATES]) {
+    for (int k = 0; k < SHARE_CANDIDATES; ++k) counts[k] = 0;
+    if (!f) return;
+    for (uint32_t i = 0; i < f->leaf_count; ++i)
+        for (int k = 0; k < SHARE_CANDIDATES; ++k) counts[k] += f->leaves[i].bsdf_share == share_candidate[k];
+}
+
 void guide_distribution_bounds(const GuideDistribution *dist, float lo[3], float hi[3]) {
     const GuideLeaf *d = dist ? dist->leaf : NULL;
     if (!d) return;
@@ -1319,7 +1408,7 @@ int guide_field_write_ply(const GuideField *f, FILE *fp) {
  * resumed render trains and samples bit-identically. Structs are written member by member:
  * their padding never reaches the file. */
 #define FIELD_MAGIC 0x44544453u /* "SDTD" */
-#define FIELD_VERSION 1u
+#define FIELD_VERSION 2u /* 2: each leaf's BSDF share and its sums */
 
 static int put(FILE *out, const void *p, size_t n) { return fwrite(p, 1, n, out) == n ? 0 : -1; }
 /* A load reads through this: `left` is what the file still holds, so that no count it declares
@@ -1349,7 +1438,7 @@ static uint64_t bytes_left(FILE *in) {
 #define SPATIAL_NODE_BYTES (6 * sizeof(float) + sizeof(((SpatialNode *)0)->split) + sizeof(((SpatialNode *)0)->child) + \
                             sizeof(((SpatialNode *)0)->leaf) + 2)
 #define LEAF_MIN_BYTES (sizeof(((GuideLeaf *)0)->recorded) + sizeof(((GuideLeaf *)0)->learned) + 6 * sizeof(float) + \
-                        sizeof(uint32_t) + 2 * sizeof(uint32_t))
+                        sizeof(uint32_t) + 2 * sizeof(uint32_t) + sizeof(float) + (2 * SHARE_CANDIDATES + 1) * sizeof(double))
 
 static int quadtree_save(const QuadTree *t, FILE *out) {
     int rc = put(out, &t->count, sizeof t->count);
@@ -1391,6 +1480,9 @@ int guide_field_save(const GuideField *f, FILE *out) {
         const GuideLeaf *l = &f->leaves[i];
         rc = put(out, &l->recorded, sizeof l->recorded) | put(out, &l->learned, sizeof l->learned) |
              put(out, l->lo, sizeof l->lo) | put(out, l->hi, sizeof l->hi) | put(out, &l->node, sizeof l->node);
+        if (rc == 0)
+            rc = put(out, &l->bsdf_share, sizeof l->bsdf_share) | put(out, &l->share_count, sizeof l->share_count) |
+                 put(out, l->share_moment, sizeof l->share_moment) | put(out, l->share_diff2, sizeof l->share_diff2);
         if (rc == 0) rc = quadtree_save(&l->sampling, out);
         if (rc == 0) rc = quadtree_save(&l->building, out);
     }
@@ -1443,6 +1535,10 @@ int guide_field_load(GuideField *f, FILE *file) {
         rc = get(in, &l->recorded, sizeof l->recorded) | get(in, &l->learned, sizeof l->learned) |
              get(in, l->lo, sizeof l->lo) | get(in, l->hi, sizeof l->hi) | get(in, &l->node, sizeof l->node);
         if (rc == 0 && l->node >= node_count) rc = -1;
+        if (rc == 0)
+            rc = get(in, &l->bsdf_share, sizeof l->bsdf_share) | get(in, &l->share_count, sizeof l->share_count) |
+                 get(in, l->share_moment, sizeof l->share_moment) | get(in, l->share_diff2, sizeof l->share_diff2);
+        if (rc == 0 && !(l->bsdf_share > 0 && l->bsdf_share <= 1)) rc = -1; /* a share the sampling can use */
         if (rc == 0) rc = quadtree_load(&l->sampling, max_nodes, in);
         if (rc == 0) rc = quadtree_load(&l->building, max_nodes, in);
     }

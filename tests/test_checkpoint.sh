@@ -5,7 +5,8 @@
 #   the course's example at 128 guided spp: 4, 8, 14, 22, 54;
 # - writing checkpoints does not change the image; resuming from one gives the uninterrupted
 #   render's EXR bit for bit (cache points, whose learned visibility the checkpoint carries,
-#   --guiding mis, adaptive sampling from before and after its pilot); an adaptive checkpoint of
+#   --guiding mis, also with learned BSDF shares, adaptive sampling from before and after its
+#   pilot); an adaptive checkpoint of
 #   the rule before the pilot rule is refused; a guided checkpoint at the end of the guide's
 #   bootstrap (8 spp), before the film drops it, resumes to the uninterrupted image;
 # - a render killed with SIGKILL after a checkpoint and resumed: bit-identical, and it left no
@@ -61,15 +62,17 @@ expect_error() {
 # (adaptive: the film's stopped pixels and the targets fixed at the pilot (4 spp) are saved, and
 # the pixels a resumed iteration renders are exactly those the checkpoint's film still samples)
 adaptive=(--noise-threshold 0.25 --min-spp 4 --aov spp)
-for mode in default mis cpaov adaptive; do
+# (misshare: the guiding leaves' learned BSDF shares and their sums are saved and resumed too)
+for mode in default mis misshare cpaov adaptive; do
   extra=(); [ $mode = mis ] && extra=(--guiding mis)
+  [ $mode = misshare ] && extra=(--guiding mis --guide-bsdf-share 0)
   [ $mode = cpaov ] && extra=(--light-sampler cachepoints --aov cachepoint)
   [ $mode = adaptive ] && extra=("${adaptive[@]}")
   "$bin" "${base[@]}" --spp 64 "${extra[@]}" -o "$tmp/full-$mode.exr" --quiet || bad "full render ($mode)"
   "$bin" "${base[@]}" --spp 64 "${extra[@]}" -o "$tmp/ck-$mode.exr" --checkpoint "$tmp/$mode.ckpt" 2>"$tmp/log-$mode" ||
     bad "render with --checkpoint ($mode)"
   got=$(sed -n 's/^candela: checkpoint at \([0-9]*\) spp.*/\1/p' "$tmp/log-$mode" | tr '\n' ' ')
-  want="4 8 16 32 "; [ $mode = mis ] && want="4 8 14 22 "
+  want="4 8 16 32 "; [ $mode = mis ] || [ $mode = misshare ] && want="4 8 14 22 "
   [ "$got" = "$want" ] && ok || bad "checkpoint schedule ($mode): got '$got', want '$want'"
   same "$tmp/full-$mode.exr" "$tmp/ck-$mode.exr" "checkpoints changed the image ($mode)"
   # the file left is the last checkpoint (32 or 22 spp): as if killed right after it
@@ -417,7 +420,7 @@ expect_error "resume a forged checkpoint (wrap)" "f_wrap.ckpt: not a checkpoint 
 python3 - "$tmp/mis.ckpt" "$tmp/f_leaves.ckpt" <<'PY'
 import struct, sys
 b = bytearray(open(sys.argv[1], 'rb').read())
-at = b.find(struct.pack('<2I', 0x44544453, 1))       # the first field: "SDTD", version 1
+at = b.find(struct.pack('<2I', 0x44544453, 2))       # the first field: "SDTD", version 2
 struct.pack_into('<I', b, at + 12, (1 << 26) - 1)   # its leaf count
 h = 0xcbf29ce484222325
 for c in b[:-8]: h = ((h ^ c) * 0x100000001b3) & 0xFFFFFFFFFFFFFFFF

@@ -38,6 +38,15 @@ typedef struct Render {
 } Render;
 
 static float g_regularization = 0.0f;
+static float g_bsdf_share = 0.5f; /* --guide-bsdf-share: 0 learns it per leaf */
+
+/* The guided variants the tests run: MIS, RIS, and MIS with learned BSDF shares. */
+#define VARIANTS 3
+static CandelaGuiding variant(int v) {
+    g_bsdf_share = v == 2 ? 0.0f : 0.5f;
+    return v == 1 ? CANDELA_GUIDING_RIS : CANDELA_GUIDING_MIS;
+}
+static const char *const variant_name[VARIANTS] = {"MIS", "RIS", "MIS, learned BSDF share"};
 
 static Render render(const char *scene, int w, int h, int spp, CandelaGuiding guiding, int aov, int budget, int threads,
                      uint32_t batch, uint64_t seed) {
@@ -55,6 +64,7 @@ static Render render(const char *scene, int w, int h, int spp, CandelaGuiding gu
     o.recorder_budget = budget;
     o.batch_size = batch;
     o.path_regularization = g_regularization;
+    o.guide_bsdf_share = g_bsdf_share;
     Render r = {0};
     char err[CANDELA_ERR_LEN];
     r.ok = candela_render(&o, &r.img, &r.st, NULL, err) == 0;
@@ -112,8 +122,9 @@ static void test_debug_aov(const char *scene) {
 
 static void test_unbiased(const char *scene, int w, int h, int spp) {
     Render off = render(scene, w, h, spp, CANDELA_GUIDING_OFF, 0, -1, 2, 0, 3);
-    for (int g = CANDELA_GUIDING_MIS; g <= CANDELA_GUIDING_RIS; ++g) {
-        Render on = render(scene, w, h, spp, (CandelaGuiding)g, 0, -1, 2, 0, 4);
+    for (int g = 0; g < VARIANTS; ++g) {
+        Render on = render(scene, w, h, spp, variant(g), 0, -1, 2, 0, 4);
+        g_bsdf_share = 0.5f;
         if (off.ok && on.ok) {
             size_t n = (size_t)w * h;
             double sd = 0.0, sv = 0.0, var_on = 0.0, var_off = 0.0;
@@ -143,11 +154,20 @@ static void test_unbiased(const char *scene, int w, int h, int spp) {
                 }
             fprintf(stderr, "  (c) %s %s: image mean difference %.2f standard errors; largest of 16 blocks %.2f; "
                             "variance guided/unguided %.3f; %d guiding updates\n",
-                    scene, g == CANDELA_GUIDING_MIS ? "MIS" : "RIS", z, zmax, var_on / var_off, on.st.guide_updates);
+                    scene, variant_name[g], z, zmax, var_on / var_off, on.st.guide_updates);
             CHECK(fabs(z) < 5.0, "(c) %s: guided (%d) differs from unguided by %.2f standard errors", scene, g, z);
             CHECK(zmax < 5.0, "(c) %s: guided (%d) differs in a block by %.2f standard errors", scene, g, zmax);
             CHECK(on.st.guide_updates > 8 && on.st.guide_samples > 0, "(c) the field trained (%d updates)",
                   on.st.guide_updates);
+            uint32_t learned = 0, held = 0;
+            for (int k = 0; k < CANDELA_GUIDE_SHARES; ++k) {
+                held += on.st.guide_share_leaves[k];
+                if (on.st.guide_share_value[k] != 0.5f) learned += on.st.guide_share_leaves[k];
+            }
+            fprintf(stderr, "      %u of %u leaves hold a BSDF share other than 1/2\n", learned, held);
+            CHECK(on.st.guide_share_learned == (g == 2) && held == on.st.guide_leaves && (g == 2 || learned == 0),
+                  "(c) %s: shares learned %d, %u of %u leaves away from 1/2", variant_name[g], on.st.guide_share_learned,
+                  learned, held);
         }
         candela_image_free(&on.img);
     }
@@ -155,14 +175,15 @@ static void test_unbiased(const char *scene, int w, int h, int spp) {
 }
 
 static void test_determinism(const char *scene) {
-    for (int g = CANDELA_GUIDING_MIS; g <= CANDELA_GUIDING_RIS; ++g) {
-        Render a = render(scene, 40, 30, 12, (CandelaGuiding)g, 1, -1, 1, 0, 5);
-        Render b = render(scene, 40, 30, 12, (CandelaGuiding)g, 1, -1, 2, 0, 5);
-        Render c = render(scene, 40, 30, 12, (CandelaGuiding)g, 1, -1, 2, 333, 5);
+    for (int g = 0; g < VARIANTS; ++g) {
+        Render a = render(scene, 40, 30, 12, variant(g), 1, -1, 1, 0, 5);
+        Render b = render(scene, 40, 30, 12, variant(g), 1, -1, 2, 0, 5);
+        Render c = render(scene, 40, 30, 12, variant(g), 1, -1, 2, 333, 5);
         /* without the AOV an NEE ray adds its light to its parent's vertex instead of a vertex of
          * its own (recorder_fold_child): the same training sums in the same order, so, within
          * the training spp (the AOV keeps recording after them), the same image bit for bit */
-        Render e = render(scene, 40, 30, 12, (CandelaGuiding)g, 0, -1, 2, 0, 5);
+        Render e = render(scene, 40, 30, 12, variant(g), 0, -1, 2, 0, 5);
+        g_bsdf_share = 0.5f;
         size_t bytes = 40 * 30 * 3 * sizeof(float);
         if (a.ok && b.ok && c.ok && e.ok) {
             CHECK(memcmp(a.img.rgb, b.img.rgb, bytes) == 0, "(d) guiding %d: 1 and 2 threads differ", g);

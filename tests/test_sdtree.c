@@ -6,7 +6,9 @@
  * regions with different bright directions; the memory cap bounds splitting; two fields fed
  * the same samples are bit-identical; the directional filter spreads a sample over a cell-sized box
  * around it (and only with it on); bad samples are skipped and do not count; outside
- * points get a valid distribution; the PLY export. Fixed seeds, no timing assertions. */
+ * points get a valid distribution; the PLY export; each leaf learns the BSDF share of guided MIS
+ * that minimises its estimator's second moment, within the floor. Fixed seeds, no timing
+ * assertions. */
 #include "check.h"
 #include "guiding.h"
 #include "stats.h"
@@ -87,6 +89,7 @@ static void train_hinted(GuideField *f, uint64_t *rng, const Light *L, int n, in
     int m = 0;
     for (int i = 0; i < n; ++i) {
         GuideTrainingSample *s = &batch[m++];
+        memset(s, 0, sizeof *s); /* no BSDF-share statistic */
         for (int k = 0; k < 3; ++k) s->pos[k] = L->lo[k] + (L->hi[k] - L->lo[k]) * rnd(rng);
         uniform_dir(rng, s->dir);
         s->radiance = dot(s->dir, L->axis) > L->cos_cone ? L->bright : L->dim;
@@ -488,6 +491,11 @@ static int fields_equal(const GuideField *f, const GuideField *g, uint64_t seed)
         guide_distribution_sample(b, u1, u2, db, &pb);
         differ += memcmp(da, db, sizeof da) != 0 || !bits_equal(pa, pb);
     }
+    for (int i = 0; i < 300; ++i) { /* the learned BSDF shares too */
+        float pos[3] = {rnd(&rng), rnd(&rng), rnd(&rng)};
+        differ += !bits_equal(guide_distribution_bsdf_share(guide_field_lookup(f, pos)),
+                              guide_distribution_bsdf_share(guide_field_lookup(g, pos)));
+    }
     return differ == 0;
 }
 
@@ -582,6 +590,132 @@ static void test_leaf_hints(void) {
     guide_field_free(f);
     guide_field_free(g);
     guide_field_free(h);
+}
+
+/* ---------------------------------------------------------------- 6d. the learned BSDF share */
+/* Guided MIS samples of an integrand F = 1 inside a cone of 30 degrees around +z, 0 elsewhere,
+ * drawn uniformly over the sphere (p = 1/4pi; the statistic is an importance-weighted estimate, so
+ * any p it is told will do), in the box [x0, x1] x [0, 1]^2. The function's pdf is uniform; the
+ * guide's is 1/Omega inside the cone (proportional to F: it pays to trust the guide) or, "wrong",
+ * 0 inside and uniform over the rest (it pays to ignore it). n_with of the samples carry the
+ * statistic; the others are zero-initialised there, as unguided ones are. */
+static void train_share(GuideField *f, uint64_t *rng, float x0, float x1, int wrong, int n, int n_with) {
+    const double cos_cone = cos(30.0 * PI / 180.0), omega = 2 * PI * (1 - cos_cone);
+    GuideTrainingSample batch[256];
+    int m = 0;
+    for (int i = 0; i < n; ++i) {
+        GuideTrainingSample *s = &batch[m++];
+        memset(s, 0, sizeof *s);
+        s->pos[0] = x0 + (x1 - x0) * rnd(rng);
+        s->pos[1] = rnd(rng);
+        s->pos[2] = rnd(rng);
+        uniform_dir(rng, s->dir);
+        int inside = s->dir[2] > cos_cone;
+        s->radiance = inside ? 1.0f : 0.0f;
+        s->pdf = UNIFORM_PDF;
+        s->leaf = GUIDE_NO_LEAF;
+        if (i < n_with) {
+            s->share_value = (inside ? 1.0f : 0.0f) / UNIFORM_PDF;
+            s->bsdf_pdf = UNIFORM_PDF;
+            s->guide_pdf = wrong ? (inside ? 0.0f : (float)(1.0 / (4 * PI - omega))) : (inside ? (float)(1.0 / omega) : 0.0f);
+        }
+        if (m == 256 || i == n - 1) {
+            guide_field_record(f, batch, (size_t)m);
+            m = 0;
+        }
+    }
+}
+
+static float share_at(const GuideField *f, float x) {
+    const float pos[3] = {x, 0.5f, 0.5f};
+    return guide_distribution_bsdf_share(guide_field_lookup(f, pos));
+}
+
+static void test_bsdf_share(void) {
+    float lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
+    GuideFieldParams p;
+    guide_field_params_default(&p);
+    CHECK(p.learn_bsdf_share == 0 && p.min_bsdf_share == GUIDE_DEFAULT_MIN_BSDF_SHARE &&
+              p.bsdf_share == GUIDE_DEFAULT_BSDF_SHARE, "defaults");
+    p.learn_bsdf_share = 1;
+    p.spatial_threshold = 1e9f; /* one leaf unless a case asks for splits */
+    uint64_t rng = 41;
+    /* 1. a guide proportional to F: the floor (0.5 by default, 0.25 when allowed); one that
+     * misses F: the function alone (1) */
+    for (int c = 0; c < 4; ++c) {
+        int wrong = c & 1;
+        GuideFieldParams q = p;
+        q.min_bsdf_share = c < 2 ? GUIDE_DEFAULT_MIN_BSDF_SHARE : 0.25f;
+        GuideField *f = guide_field_create(lo, hi, &q);
+        CHECK(f != NULL, "create");
+        if (!f) return;
+        CHECK(share_at(f, 0.5f) == GUIDE_DEFAULT_BSDF_SHARE, "untrained share %g", share_at(f, 0.5f));
+        train_share(f, &rng, 0, 1, wrong, 4000, 4000);
+        CHECK(share_at(f, 0.5f) == GUIDE_DEFAULT_BSDF_SHARE, "the share changed before an update");
+        CHECK(guide_field_update(f, 1.0f) == 0, "update");
+        float want = wrong ? 1.0f : q.min_bsdf_share;
+        CHECK(share_at(f, 0.5f) == want, "case %d: learned share %g, want %g", c, share_at(f, 0.5f), want);
+        guide_field_free(f);
+    }
+    /* 2. too few samples with the statistic (63 of 4000) keep the share, and their sums wait for
+     * the next update: 1 more makes 64 */
+    GuideField *f = guide_field_create(lo, hi, &p);
+    CHECK(f != NULL, "create");
+    if (!f) return;
+    train_share(f, &rng, 0, 1, 1, 4000, 63);
+    CHECK(guide_field_update(f, 1.0f) == 0 && share_at(f, 0.5f) == GUIDE_DEFAULT_BSDF_SHARE, "63 samples chose %g",
+          share_at(f, 0.5f));
+    train_share(f, &rng, 0, 1, 1, 1, 1);
+    CHECK(guide_field_update(f, 1.0f) == 0 && share_at(f, 0.5f) == 1.0f, "64 samples over two updates chose %g",
+          share_at(f, 0.5f));
+    /* the choice stays until enough new samples ask otherwise */
+    train_share(f, &rng, 0, 1, 0, 1000, 0);
+    CHECK(guide_field_update(f, 1.0f) == 0 && share_at(f, 0.5f) == 1.0f, "unguided samples changed the share");
+    train_share(f, &rng, 0, 1, 0, 4000, 4000);
+    CHECK(guide_field_update(f, 1.0f) == 0 && share_at(f, 0.5f) == 0.5f, "the share did not follow new samples: %g",
+          share_at(f, 0.5f));
+    guide_field_free(f);
+    /* 3. off: the given share everywhere */
+    GuideFieldParams off = p;
+    off.learn_bsdf_share = 0;
+    off.bsdf_share = 0.75f;
+    f = guide_field_create(lo, hi, &off);
+    CHECK(f != NULL, "create");
+    if (!f) return;
+    train_share(f, &rng, 0, 1, 1, 4000, 4000);
+    CHECK(guide_field_update(f, 1.0f) == 0 && share_at(f, 0.5f) == 0.75f, "off learned %g", share_at(f, 0.5f));
+    guide_field_free(f);
+    /* 4. per leaf: two halves of the box, the guide right in one and wrong in the other; the
+     * first update splits (children inherit the parent's share and start their sums again), the
+     * second chooses per leaf. A save and load keeps the shares. */
+    GuideFieldParams split = p;
+    split.spatial_threshold = 1000;
+    f = guide_field_create(lo, hi, &split);
+    GuideField *g = guide_field_create(lo, hi, &split);
+    FILE *tmp = tmpfile();
+    CHECK(f && g && tmp, "create");
+    if (!f || !g || !tmp) return;
+    for (int u = 0; u < 3; ++u) {
+        train_share(f, &rng, 0, 0.5f, 0, 8000, 8000);
+        train_share(f, &rng, 0.5f, 1, 1, 8000, 8000);
+        CHECK(guide_field_update(f, 1.0f) == 0, "update %d", u);
+    }
+    CHECK(guide_field_num_leaves(f) > 2, "leaves %u", guide_field_num_leaves(f));
+    CHECK(share_at(f, 0.2f) == 0.5f && share_at(f, 0.8f) == 1.0f, "per-leaf shares %g and %g", share_at(f, 0.2f),
+          share_at(f, 0.8f));
+    CHECK(guide_field_save(f, tmp) == 0, "save");
+    rewind(tmp);
+    CHECK(guide_field_load(g, tmp) == 0 && share_at(g, 0.2f) == 0.5f && share_at(g, 0.8f) == 1.0f,
+          "loaded shares %g and %g", share_at(g, 0.2f), share_at(g, 0.8f));
+    /* and the sums a checkpoint holds continue as they would have */
+    uint64_t r1 = 5, r2 = 5;
+    train_share(f, &r1, 0, 1, 0, 3000, 3000);
+    train_share(g, &r2, 0, 1, 0, 3000, 3000);
+    CHECK(guide_field_update(f, 1.0f) == 0 && guide_field_update(g, 1.0f) == 0, "update");
+    CHECK(fields_equal(f, g, 12), "the loaded field's shares train differently");
+    fclose(tmp);
+    guide_field_free(f);
+    guide_field_free(g);
 }
 
 /* ---------------------------------------------------------------- 7. bad input */
@@ -869,6 +1003,7 @@ int main(void) {
     test_determinism();
     test_checkpoint();
     test_leaf_hints();
+    test_bsdf_share();
     test_bad_input();
     test_ply();
     fprintf(stderr, "test_sdtree: %.2f s\n", test_seconds() - t0);

@@ -149,6 +149,12 @@ static void print_stats(const CandelaStats *s) {
                 (double)s->guide_bytes / (1024.0 * 1024.0), s->guide_train_seconds,
                 s->guide_train_seconds / s->guide_updates,
                 s->guide_dropped ? "; WARNING: out of memory, some training was lost" : "");
+    if (s->guide_updates && s->guide_share_learned) {
+        fprintf(stderr, "  guiding's BSDF share, leaves at each:");
+        for (int j = 0; j < CANDELA_GUIDE_SHARES; ++j)
+            if (s->guide_share_leaves[j]) fprintf(stderr, " %g: %u", (double)s->guide_share_value[j], s->guide_share_leaves[j]);
+        fprintf(stderr, "\n");
+    }
     if (s->spp_dropped)
         fprintf(stderr, "  samples per pixel: %d in the image of %d rendered (the first %d, unguided, trained the guide)\n",
                 s->spp_done - s->spp_dropped, s->spp_done, s->spp_dropped);

@@ -379,8 +379,8 @@ static const CandelaFlag FLAGS[] = {
            "per medium, kept where it measurably lowers the time to unit variance in the first 4 spp (default auto)"),
     CHOICE("--guiding", "off|mis|ris|auto", GUIDING, GUIDING_VALUES, NULL, IMG(guiding), ALL_RENDER, "mis",
            "path guiding (default off)",
-           "path guiding (default off): mis = one-sample MIS of the BSDF or phase function and the learned guide (alpha "
-           "0.5); ris = resampling of one candidate of each. Trains during the first 8 spp, then guides (iterations 1 x "
+           "path guiding (default off): mis = one-sample MIS of the BSDF or phase function and the learned guide (the "
+           "BSDF's share 1/2, --guide-bsdf-share); ris = resampling of one candidate of each. Trains during the first 8 spp, then guides (iterations 1 x "
            "8, then 2, 4, 8, 16, 16, ...); auto = mis, kept after a probe over the first 4 spp only where it predicts a gain, else off"),
     INT("--guide-training-spp", "N", 1, 1 << 20, IMG(guide_training_spp), CANDELA_FIELD_INT, ALL_RENDER, 0, "8",
         "guiding learns from the first N spp",
@@ -401,6 +401,15 @@ static const CandelaFlag FLAGS[] = {
            "off", "spread each training sample over its direction's cell (default on)",
            "train each sample into a box of its directional cell's size around its direction, every cell the share it "
            "overlaps (Mueller et al. 2019; default on)"),
+    FLOAT("--guide-bsdf-share", "F", 0.0, 1.0, IMG(guide_bsdf_share), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "0",
+          "the BSDF's share of guided MIS (default 0.5; 0: learned per leaf)",
+          "the probability that guided MIS samples the BSDF or phase function rather than the guide, everywhere "
+          "(default 0.5); 0 learns it per guiding leaf, at or above --guide-min-bsdf-share, from the training samples' "
+          "second moments (ch. 1 3.2.1; no gain measured on the benchmark scenes, guiding/README.md)"),
+    FLOAT("--guide-min-bsdf-share", "F", 0.0, 1.0, IMG(guide_min_bsdf_share), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "0.25",
+          "the smallest BSDF share a guiding leaf learns (default 0.5)",
+          "the smallest BSDF share a guiding leaf learns, of 0.25, 0.375, ..., 1 (default 0.5: below it a caustic the "
+          "guide has not learned, which only the BSDF finds, is weighted by more than 2)"),
     INT("--recorder-budget", "N", 0, 1 << 20, IMG(recorder_budget), CANDELA_FIELD_INT, ALL_RENDER, 0, "4",
         "recorded vertices per path before skipping (default 4)",
         "recorded vertices per path before path/vertex skipping (default 4; 0: record every vertex)"),

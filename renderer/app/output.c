@@ -180,6 +180,12 @@ static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s, 
             "\"train_seconds\": %.6f",
             candela_guiding_name(o->guiding), s->guide_updates,
             (unsigned long long)s->guide_samples, s->guide_leaves, s->guide_bytes, s->guide_train_seconds);
+    if (s->guide_updates && s->guide_share_learned) {
+        fprintf(f, ", \"bsdf_share_leaves\": {");
+        for (int j = 0; j < CANDELA_GUIDE_SHARES; ++j)
+            fprintf(f, "%s\"%g\": %u", j ? ", " : "", (double)s->guide_share_value[j], s->guide_share_leaves[j]);
+        fprintf(f, "}");
+    }
     if (o->guiding == CANDELA_GUIDING_AUTO)
         fprintf(f, ", \"auto\": \"%s\", \"auto_predicted_ttuv_ratio\": %.4f, \"auto_indirect_share\": %.4f",
                 s->guide_auto == 1 ? "on" : s->guide_auto == 0 ? "off" : "undecided", (double)s->guide_auto_ratio,

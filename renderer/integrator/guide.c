@@ -87,6 +87,9 @@ static int guide_init(Integrator *ig) {
     if (ig->opt->guide_spatial_threshold > 0.0f) params.spatial_threshold = ig->opt->guide_spatial_threshold;
     params.spatial_filter = ig->opt->guide_spatial_filter;
     params.directional_filter = ig->opt->guide_directional_filter;
+    params.min_bsdf_share = ig->opt->guide_min_bsdf_share;
+    params.learn_bsdf_share = !(ig->opt->guide_bsdf_share > 0.0f);
+    if (!params.learn_bsdf_share) params.bsdf_share = ig->opt->guide_bsdf_share;
     const float lo[3] = {ig->scene->bounds_min.x, ig->scene->bounds_min.y, ig->scene->bounds_min.z};
     const float hi[3] = {ig->scene->bounds_max.x, ig->scene->bounds_max.y, ig->scene->bounds_max.z};
     gs->on = 1;
@@ -100,6 +103,7 @@ static int guide_init(Integrator *ig) {
     }
     gs->keep_last = ig->opt->guide_dump_prefix != NULL;
     gs->mode = ig->opt->guiding == CANDELA_GUIDING_RIS ? SCATTER_GUIDE_RIS : SCATTER_GUIDE_MIS;
+    gs->learn_share = gs->mode == SCATTER_GUIDE_MIS && params.learn_bsdf_share;
     return 0;
 }
 
@@ -193,6 +197,18 @@ static void convert_slice(GuideState *gs, int k, const RecorderSamples *batch) {
         t->radiance = (0.2126f * s->radiance[0] + 0.7152f * s->radiance[1] + 0.0722f * s->radiance[2]) * s->cosine;
         t->pdf = s->pdf;
         t->leaf = s->user; /* the rendering lookup's leaf (record_child): training needs no descent */
+        /* the learned BSDF share's statistic (ch. 1 §3.2.1), from a guided MIS vertex (it had a
+         * leaf): F = luminance(L) p_f stands for f |cos| L (exact for a function sampled in
+         * proportion to f |cos|, up to its albedo, which a leaf's vertices share nearly) */
+        t->share_value = 0.0f;
+        t->bsdf_pdf = 0.0f; /* none */
+        t->guide_pdf = 0.0f;
+        if (gs->learn_share && s->user != GUIDE_NO_LEAF && s->bsdf_pdf > 0.0f) {
+            double F = (0.2126 * s->radiance[0] + 0.7152 * s->radiance[1] + 0.0722 * s->radiance[2]) * s->bsdf_pdf;
+            t->share_value = (float)(F * F / s->pdf);
+            t->bsdf_pdf = s->bsdf_pdf;
+            t->guide_pdf = s->guide_pdf;
+        }
     }
 }
 
@@ -384,10 +400,19 @@ static void guide_report(const Integrator *ig, CandelaStats *st) {
     st->guide_samples = gs->samples_trained;
     st->guide_leaves = 0;
     st->guide_bytes = 0;
+    st->guide_share_learned = gs->learn_share;
+    _Static_assert(CANDELA_GUIDE_SHARES == GUIDE_SHARE_CANDIDATES, "the stats' share bins are the field's candidates");
+    for (int j = 0; j < CANDELA_GUIDE_SHARES; ++j) {
+        st->guide_share_value[j] = guide_share_candidates[j];
+        st->guide_share_leaves[j] = 0;
+    }
     for (int k = 0; k < GUIDE_FIELDS; ++k)
         if (gs->fields[k]) {
             st->guide_leaves += guide_field_num_leaves(gs->fields[k]);
             st->guide_bytes += guide_field_bytes(gs->fields[k]);
+            uint32_t counts[GUIDE_SHARE_CANDIDATES];
+            guide_field_share_leaves(gs->fields[k], counts);
+            for (int j = 0; j < CANDELA_GUIDE_SHARES; ++j) st->guide_share_leaves[j] += counts[j];
         }
     st->guide_dropped = gs->dropped;
 }

@@ -130,12 +130,14 @@ int scatter_guidable(const Scatter *s) {
     return s->kind == SCATTER_PHASE ? fabsf(s->g) < SCATTER_PHASE_GUIDE_MAX_G : bsdf_prepared_guidable(s->prep);
 }
 
-void scatter_set_guide(Scatter *s, const GuideDistribution *d, ScatterGuideMode mode) {
+void scatter_set_guide(Scatter *s, const GuideDistribution *d, ScatterGuideMode mode, int training) {
     s->guide = NULL;
     s->guide_mode = SCATTER_GUIDE_NONE;
     if (!d || mode == SCATTER_GUIDE_NONE) return; /* the caller asked scatter_guidable (a BSDF preparation) */
     s->guide = d;
     s->guide_mode = mode;
+    s->guide_share = guide_distribution_bsdf_share(d);
+    s->guide_pdf_wanted = training;
 }
 
 static float guide_pdf_of(const Scatter *s, vec3 wi) {
@@ -158,13 +160,14 @@ static float guided_rr_factor(vec3 f, float p_function, vec3 weight) {
 void scatter_prefetch_guided(const Scatter *s, const float u[6]) {
     if (!s->guide) return;
     int ris = s->guide_mode != SCATTER_GUIDE_MIS;
-    if (ris || u[0] >= SCATTER_GUIDE_ALPHA) guide_distribution_prefetch_sample(s->guide, ris ? u[3] : u[1]);
-    if (ris || u[0] < SCATTER_GUIDE_ALPHA) guide_distribution_prefetch_pdf(s->guide);
+    if (ris || u[0] >= s->guide_share) guide_distribution_prefetch_sample(s->guide, ris ? u[3] : u[1]);
+    if (ris || (u[0] < s->guide_share && (s->guide_share < 1.0f || s->guide_pdf_wanted)))
+        guide_distribution_prefetch_pdf(s->guide);
 }
 
 int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out) {
     if (!s->guide) return scatter_sample(s, u[0], u[1], u[2], out);
-    const float alpha = SCATTER_GUIDE_ALPHA;
+    const float alpha = s->guide_share;
     vec3 fsel; /* f |cos| of the chosen direction */
     if (s->guide_mode == SCATTER_GUIDE_MIS) {
         /* one-sample MIS (Eq. 4-6): the function's sample with probability alpha, else the guide's.
@@ -178,7 +181,9 @@ int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out
             wi = fs.wi;
             p_f = fs.scatter_pdf;
             f = v3_scale(fs.weight, p_f); /* f |cos| */
-            p_g = guide_pdf_of(s, wi);
+            /* where the share is 1 the mixture is the function alone: no guide pdf (but the
+             * share's training statistics read it) */
+            p_g = alpha < 1.0f || s->guide_pdf_wanted ? guide_pdf_of(s, wi) : 0.0f;
         } else {
             float d[3];
             guide_distribution_sample(s->guide, u[1], u[2], d, &p_g);
@@ -186,7 +191,7 @@ int scatter_sample_guided(const Scatter *s, const float u[6], ScatterSample *out
             f = function_eval(s, wi, &p_f);
             if (v3_is_black(f)) return 0; /* the guide proposed a direction the function rejects */
         }
-        float pdf = alpha * p_f + (1.0f - alpha) * p_g;
+        float pdf = alpha < 1.0f ? alpha * p_f + (1.0f - alpha) * p_g : p_f;
         if (!(pdf > 0.0f)) return 0;
         fsel = f;
         out->wi = wi;

@@ -31,7 +31,6 @@ typedef enum { SCATTER_BSDF = 0, SCATTER_PHASE = 1 } ScatterKind;
  * per NEE sample, and had higher variance (cornell_indirect 192x192, 256 spp, MIS: relative
  * variance 3.16e-3 against 2.99e-3; time 1.62x against 1.55x unguided's). */
 typedef enum { SCATTER_GUIDE_NONE = 0, SCATTER_GUIDE_MIS = 1, SCATTER_GUIDE_RIS = 2 } ScatterGuideMode;
-#define SCATTER_GUIDE_ALPHA 0.5f      /* the scattering function's share (defensive, §3.2) */
 /* RIS's target t = f|cos| (beta / 4 pi + (1 - beta) g) (§3.3, Eq. 10, where beta = 1/2): the
  * uniform share keeps the target positive where the guide learned nothing. A guide learned from
  * few samples misses real light, and a candidate picked there carries the weight (1/N) sum w / t:
@@ -60,6 +59,10 @@ typedef struct Scatter {
     int wo_outside;    /* wo is on the geometric normal's side (refraction enters the surface) */
     const GuideDistribution *guide; /* the learned incident radiance here (NULL: not guided) */
     ScatterGuideMode guide_mode;
+    float guide_share;  /* MIS: the scattering function's share, the guide leaf's learned one
+                         * (ch. 1 §3.2.1; 1: the function alone); RIS: unused */
+    int guide_pdf_wanted; /* where the share is 1, still evaluate the guide's pdf of the direction
+                           * (training: the share's statistics need it) */
 } Scatter;
 
 typedef struct ScatterSample {
@@ -118,7 +121,7 @@ static inline void scatter_numbers(const Scatter *s, DimsGroup *scatter, float u
 int scatter_guidable(const Scatter *s);
 /* Guides the scatter with d (NULL: not guided). Only for a scatter scatter_guidable accepted
  * (the callers ask first, to skip the lookup; asking again here was 1.5% of a guided render). */
-void scatter_set_guide(Scatter *s, const GuideDistribution *d, ScatterGuideMode mode);
+void scatter_set_guide(Scatter *s, const GuideDistribution *d, ScatterGuideMode mode, int training);
 /* f |cos| for direction wi (world), and the pdf the scattering function's own sampling has for it
  * (a guided Scatter's too: the MIS weight against NEE, above); zero when the direction is not
  * reachable (delta lobes, the geometry guard). pdf may be NULL. */
