@@ -36,7 +36,9 @@ static inline int pv_is_vertex(uint32_t pv) { return pv < PV_SKIPPED; }
 enum {
     PV_FLAG_NEE = 1,         /* the vertex's ray is a next-event (shadow) ray */
     PV_FLAG_VOLUME = 2,      /* its origin is a scattering point in a medium */
-    PV_FLAG_DELTA = 4        /* its direction came from a delta lobe (not trainable) */
+    PV_FLAG_DELTA = 4,       /* its direction came from a delta lobe (not trainable) */
+    PV_FLAG_DELTA_CHILD = 8  /* set by the recorder: the vertex's ray reached a delta scatterer (a
+                              * child of it took a delta direction; its sample carries the flag) */
 };                           /* bits 16 and up are the caller's (the renderer: a normal class) */
 
 /* What a new vertex knows: its ray and the throughput of that ray (camera to the vertex, times
@@ -173,9 +175,19 @@ typedef struct GuideFieldParams {
     float min_bsdf_share;      /* the smallest share a leaf may learn (GUIDE_DEFAULT_MIN_BSDF_SHARE) */
     float bsdf_share;          /* every leaf's share before it learns one, and always without
                                 * learning (GUIDE_DEFAULT_BSDF_SHARE); in (0, 1] */
+    float caustic_threshold;   /* the caustic guard (0: off; GUIDE_DEFAULT_CAUSTIC_THRESHOLD): a leaf
+                                * whose guided samples show the function's sampling reaching delta
+                                * scatterers with a probability above it, and the light beyond them
+                                * dimmer than the leaf's average, samples the function more (share
+                                * caustic_share): caustics the guide has not learned get 1 / share
+                                * of their unguided weight instead of 2 */
+    float caustic_share;       /* the share such a leaf takes (GUIDE_DEFAULT_CAUSTIC_SHARE), at least
+                                * what it would take otherwise */
 } GuideFieldParams;
 #define GUIDE_DEFAULT_BSDF_SHARE 0.5f
 #define GUIDE_DEFAULT_MIN_BSDF_SHARE 0.5f
+#define GUIDE_DEFAULT_CAUSTIC_THRESHOLD 0.002f
+#define GUIDE_DEFAULT_CAUSTIC_SHARE 0.75f
 void guide_field_params_default(GuideFieldParams *p);
 
 /* A training sample of the field: incident radiance (a scalar: luminance) at pos from the unit
@@ -188,11 +200,13 @@ typedef struct GuideTrainingSample {
     uint32_t leaf; /* a hint: the leaf guide_field_leaf_of named for a lookup at pos since the last
                     * update (GUIDE_NO_LEAF: none). Taken when pos lies in that leaf's box, where
                     * the descent would end too; else the sample's leaf is looked up. */
-    /* What the learned BSDF share needs of a sample drawn by guided one-sample MIS (bsdf_pdf 0,
-     * as zero-initialised: the sample says nothing of it): share_value = F^2 / pdf >= 0 with F
-     * the estimator's numerator (a scalar, up to a factor constant over the leaf), and the
-     * function's (> 0) and the guide's pdfs of dir. */
+    /* What the leaf's BSDF share (learned, and the caustic guard) needs of a sample drawn by guided
+     * one-sample MIS (bsdf_pdf 0, as zero-initialised: the sample says nothing of it): share_value
+     * = F^2 / pdf >= 0 with F the estimator's numerator (a scalar, up to a factor constant over
+     * the leaf), and the function's (> 0) and the guide's pdfs of dir. */
     float share_value, bsdf_pdf, guide_pdf;
+    int delta_child; /* the sample's ray reached a delta scatterer (PV_FLAG_DELTA_CHILD): light
+                      * beyond it is what guides rarely learn (caustics) */
 } GuideTrainingSample;
 #define GUIDE_NO_LEAF 0xFFFFFFFFu
 

@@ -181,7 +181,11 @@ uint32_t recorder_new_child(Recorder *r, RecorderCache *c, uint32_t parent, cons
     v->flags = init->flags;
     v->user = init->user;
     v->path = init->path;
-    if (pv_is_vertex(parent)) vertex_at(r, parent)->refcount++;
+    if (pv_is_vertex(parent)) {
+        RecorderVertex *pa = vertex_at(r, parent);
+        pa->refcount++;
+        if (init->flags & PV_FLAG_DELTA) pa->flags |= PV_FLAG_DELTA_CHILD;
+    }
     c->created++;
     if (++c->live > c->peak) c->peak = c->live;
     return pv;

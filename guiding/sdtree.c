@@ -166,6 +166,9 @@ typedef struct GuideLeaf {
                                             * estimator's second moment had q_a sampled */
     double share_diff2[SHARE_CANDIDATES];  /* sum of the squared per-sample differences of those
                                             * terms from the floor candidate's (their spread) */
+    double share_bsdf_mass, share_delta_mass; /* sums of p_f / p over the guided samples, and over
+                                               * those whose ray reached a delta scatterer */
+    double share_flux, share_delta_flux;      /* sums of L / p over the same */
 } GuideLeaf;
 
 typedef struct SpatialNode {
@@ -241,6 +244,8 @@ void guide_field_params_default(GuideFieldParams *p) {
     p->learn_bsdf_share = 0;
     p->min_bsdf_share = GUIDE_DEFAULT_MIN_BSDF_SHARE;
     p->bsdf_share = GUIDE_DEFAULT_BSDF_SHARE;
+    p->caustic_threshold = GUIDE_DEFAULT_CAUSTIC_THRESHOLD;
+    p->caustic_share = GUIDE_DEFAULT_CAUSTIC_SHARE;
 }
 
 /* Out-of-range values fall back to the defaults rather than building absurd trees (rho <= 0
@@ -260,6 +265,8 @@ static GuideFieldParams params_sanitize(const GuideFieldParams *in) {
     p.learn_bsdf_share = in->learn_bsdf_share != 0;
     if (in->min_bsdf_share >= 0 && in->min_bsdf_share <= 1) p.min_bsdf_share = in->min_bsdf_share;
     if (in->bsdf_share > 0 && in->bsdf_share <= 1) p.bsdf_share = in->bsdf_share;
+    if (in->caustic_threshold >= 0 && in->caustic_threshold <= 1) p.caustic_threshold = in->caustic_threshold;
+    if (in->caustic_share > 0 && in->caustic_share <= 1) p.caustic_share = in->caustic_share;
     return p;
 }
 
@@ -854,6 +861,8 @@ typedef struct RecordItem {
     double u, v, value; /* value: L / pdf (added only when positive) */
     uint32_t leaf;
     float share_value, bsdf_pdf, guide_pdf; /* GuideTrainingSample's (share_value < 0: none) */
+    float pdf;
+    int delta_child;
 } RecordItem;
 
 static int record_scratch_reserve(GuideField *f, size_t n) {
@@ -887,42 +896,69 @@ static void record_item(GuideField *f, const RecordItem *it) {
         if (f->params.directional_filter) quadtree_add_filtered(&leaf->building, it->u, it->v, it->value);
         else quadtree_add(&leaf->building, it->u, it->v, it->value);
     }
+    if (it->share_value < 0) return;
+    leaf->share_count += 1;
+    /* the caustic guard's sums (leaf_choose_share): E_p[p_f / p] over the directions that reach a
+     * delta scatterer is the probability that the function's sampling goes there, E_p[L / p]
+     * their flux */
+    double w = (double)it->bsdf_pdf / (double)it->pdf, v = it->value > 0 ? it->value : 0;
+    leaf->share_bsdf_mass += w;
+    leaf->share_flux += v;
+    if (it->delta_child) {
+        leaf->share_delta_mass += w;
+        leaf->share_delta_flux += v;
+    }
+    if (!f->params.learn_bsdf_share) return;
     /* ch. 1 §3.2.1: the second moment of the one-sample estimator F / q_a for each candidate share
      * a, from this sample drawn with pdf p: E_p[F^2 / (p q_a)] = integral of F^2 / q_a */
-    if (it->share_value >= 0) {
-        leaf->share_count += 1;
-        double term[SHARE_CANDIDATES];
-        for (int k = 0; k < SHARE_CANDIDATES; ++k) {
-            double a = share_candidate[k];
-            double q = a * (double)it->bsdf_pdf + (1 - a) * (double)it->guide_pdf;
-            term[k] = q > 0 ? (double)it->share_value / q : HUGE_VAL;
-            leaf->share_moment[k] += term[k];
-        }
-        int r = f->share_floor;
-        for (int k = 0; k < SHARE_CANDIDATES; ++k) {
-            double d = term[k] - term[r];
-            leaf->share_diff2[k] += isfinite(d) ? d * d : HUGE_VAL;
-        }
+    double term[SHARE_CANDIDATES];
+    for (int k = 0; k < SHARE_CANDIDATES; ++k) {
+        double a = share_candidate[k];
+        double q = a * (double)it->bsdf_pdf + (1 - a) * (double)it->guide_pdf;
+        term[k] = q > 0 ? (double)it->share_value / q : HUGE_VAL;
+        leaf->share_moment[k] += term[k];
+    }
+    int r = f->share_floor;
+    for (int k = 0; k < SHARE_CANDIDATES; ++k) {
+        double d = term[k] - term[r];
+        leaf->share_diff2[k] += isfinite(d) ? d * d : HUGE_VAL;
     }
 }
 
-/* The share that minimises the leaf's second moment among the candidates at or above the
- * floor; past SHARE_MIN_SAMPLES guided samples, else the leaf keeps its share (and its sums). */
-static void leaf_choose_share(const GuideField *f, GuideLeaf *l) {
-    if (!f->params.learn_bsdf_share || !(l->share_count >= SHARE_MIN_SAMPLES)) return;
+/* The candidate share with the least second moment at or above the floor; a share above the
+ * floor only where its second moment is lower by more than SHARE_Z standard errors of the paired
+ * difference: the sums are heavy-tailed, and a noisy choice above the floor costs where the guide
+ * is good. */
+static float leaf_learned_share(const GuideField *f, const GuideLeaf *l) {
     int r = f->share_floor, best = r;
     double n = l->share_count;
     for (int k = r + 1; k < SHARE_CANDIDATES; ++k) {
-        /* a share above the floor only where its second moment is lower by more than
-         * SHARE_Z standard errors of the paired difference: the sums are heavy-tailed, and a
-         * noisy choice above the floor costs where the guide is good */
         double diff = l->share_moment[k] - l->share_moment[r];
         double var = l->share_diff2[k] - diff * diff / n; /* n - 1 times the differences' variance */
         double se = sqrt(fmax(var, 0.0) / (n - 1)) * sqrt(n); /* of the sum */
         if (!isfinite(diff) || !isfinite(se) || !(diff < -SHARE_Z * se)) continue;
         if (l->share_moment[k] < l->share_moment[best]) best = k;
     }
-    l->bsdf_share = share_candidate[best];
+    return share_candidate[best];
+}
+
+/* The leaf's share from SHARE_MIN_SAMPLES guided samples or more (fewer: it keeps its share and
+ * its sums): learning, the candidate with the least second moment at or above the floor; else
+ * params.bsdf_share. Then the caustic guard: 1 where the function's sampling reaches delta
+ * scatterers with probability above params.caustic_threshold while the light found beyond them is
+ * a smaller share of the leaf's flux than that probability (dimmer than the leaf's average: the
+ * guide has not learned what lies there, and one-sample MIS would weight what the function alone
+ * finds there, caustics, by 1 / share). Light through glass that training did find bright (a
+ * window) keeps the guide. */
+static void leaf_choose_share(const GuideField *f, GuideLeaf *l) {
+    if (!(l->share_count >= SHARE_MIN_SAMPLES)) return;
+    l->bsdf_share = f->params.learn_bsdf_share ? leaf_learned_share(f, l) : f->params.bsdf_share;
+    double mass = l->share_bsdf_mass > 0 ? l->share_delta_mass / l->share_bsdf_mass : 0;
+    double flux = l->share_flux > 0 ? l->share_delta_flux / l->share_flux : 0;
+    if (f->params.caustic_threshold > 0 && mass > f->params.caustic_threshold && flux < mass)
+        l->bsdf_share = fmaxf(l->bsdf_share, f->params.caustic_share);
+    l->share_bsdf_mass = l->share_delta_mass = 0;
+    l->share_flux = l->share_delta_flux = 0;
     l->share_count = 0;
     memset(l->share_moment, 0, sizeof l->share_moment);
     memset(l->share_diff2, 0, sizeof l->share_diff2);
@@ -973,6 +1009,8 @@ void guide_field_record(GuideField *f, const GuideTrainingSample *s, size_t n) {
         it->share_value = share ? x->share_value : -1.0f;
         it->bsdf_pdf = x->bsdf_pdf;
         it->guide_pdf = x->guide_pdf;
+        it->pdf = x->pdf;
+        it->delta_child = x->delta_child;
         if (grouped) ++m;
         else record_item(f, it); /* no scratch: one pass in sample order (the same result) */
     }
@@ -1155,6 +1193,10 @@ int guide_field_update(GuideField *f, float iteration_spp) {
             nl->share_count = old->share_count;
             memcpy(nl->share_moment, old->share_moment, sizeof nl->share_moment);
             memcpy(nl->share_diff2, old->share_diff2, sizeof nl->share_diff2);
+            nl->share_bsdf_mass = old->share_bsdf_mass;
+            nl->share_delta_mass = old->share_delta_mass;
+            nl->share_flux = old->share_flux;
+            nl->share_delta_flux = old->share_delta_flux;
         }
         if (s > 0) {
             /* The complete subtree, level by level; each level's nodes are contiguous. */
@@ -1408,7 +1450,7 @@ int guide_field_write_ply(const GuideField *f, FILE *fp) {
  * resumed render trains and samples bit-identically. Structs are written member by member:
  * their padding never reaches the file. */
 #define FIELD_MAGIC 0x44544453u /* "SDTD" */
-#define FIELD_VERSION 2u /* 2: each leaf's BSDF share and its sums */
+#define FIELD_VERSION 2u /* 2: each leaf's BSDF share and its sums (learned, caustic guard) */
 
 static int put(FILE *out, const void *p, size_t n) { return fwrite(p, 1, n, out) == n ? 0 : -1; }
 /* A load reads through this: `left` is what the file still holds, so that no count it declares
@@ -1438,7 +1480,7 @@ static uint64_t bytes_left(FILE *in) {
 #define SPATIAL_NODE_BYTES (6 * sizeof(float) + sizeof(((SpatialNode *)0)->split) + sizeof(((SpatialNode *)0)->child) + \
                             sizeof(((SpatialNode *)0)->leaf) + 2)
 #define LEAF_MIN_BYTES (sizeof(((GuideLeaf *)0)->recorded) + sizeof(((GuideLeaf *)0)->learned) + 6 * sizeof(float) + \
-                        sizeof(uint32_t) + 2 * sizeof(uint32_t) + sizeof(float) + (2 * SHARE_CANDIDATES + 1) * sizeof(double))
+                        sizeof(uint32_t) + 2 * sizeof(uint32_t) + sizeof(float) + (2 * SHARE_CANDIDATES + 5) * sizeof(double))
 
 static int quadtree_save(const QuadTree *t, FILE *out) {
     int rc = put(out, &t->count, sizeof t->count);
@@ -1482,7 +1524,10 @@ int guide_field_save(const GuideField *f, FILE *out) {
              put(out, l->lo, sizeof l->lo) | put(out, l->hi, sizeof l->hi) | put(out, &l->node, sizeof l->node);
         if (rc == 0)
             rc = put(out, &l->bsdf_share, sizeof l->bsdf_share) | put(out, &l->share_count, sizeof l->share_count) |
-                 put(out, l->share_moment, sizeof l->share_moment) | put(out, l->share_diff2, sizeof l->share_diff2);
+                 put(out, l->share_moment, sizeof l->share_moment) | put(out, l->share_diff2, sizeof l->share_diff2) |
+                 put(out, &l->share_bsdf_mass, sizeof l->share_bsdf_mass) |
+                 put(out, &l->share_delta_mass, sizeof l->share_delta_mass) |
+                 put(out, &l->share_flux, sizeof l->share_flux) | put(out, &l->share_delta_flux, sizeof l->share_delta_flux);
         if (rc == 0) rc = quadtree_save(&l->sampling, out);
         if (rc == 0) rc = quadtree_save(&l->building, out);
     }
@@ -1537,7 +1582,10 @@ int guide_field_load(GuideField *f, FILE *file) {
         if (rc == 0 && l->node >= node_count) rc = -1;
         if (rc == 0)
             rc = get(in, &l->bsdf_share, sizeof l->bsdf_share) | get(in, &l->share_count, sizeof l->share_count) |
-                 get(in, l->share_moment, sizeof l->share_moment) | get(in, l->share_diff2, sizeof l->share_diff2);
+                 get(in, l->share_moment, sizeof l->share_moment) | get(in, l->share_diff2, sizeof l->share_diff2) |
+                 get(in, &l->share_bsdf_mass, sizeof l->share_bsdf_mass) |
+                 get(in, &l->share_delta_mass, sizeof l->share_delta_mass) |
+                 get(in, &l->share_flux, sizeof l->share_flux) | get(in, &l->share_delta_flux, sizeof l->share_delta_flux);
         if (rc == 0 && !(l->bsdf_share > 0 && l->bsdf_share <= 1)) rc = -1; /* a share the sampling can use */
         if (rc == 0) rc = quadtree_load(&l->sampling, max_nodes, in);
         if (rc == 0) rc = quadtree_load(&l->building, max_nodes, in);

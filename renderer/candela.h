@@ -139,6 +139,8 @@ typedef struct CandelaOptions {
     int guide_directional_filter; /* Müller 2019's directional box filter for training (1: on, the default) */
     float guide_bsdf_share;     /* the BSDF's share of guided MIS (default 0.5); 0: learned per leaf */
     float guide_min_bsdf_share; /* the smallest share a leaf learns (default 0.5) */
+    float guide_caustic_threshold; /* the caustic guard's threshold (default 0.002; 0: off; guiding/README.md) */
+    float guide_caustic_share;  /* the BSDF share of a leaf the guard acts on (default 0.75) */
     int guide_training_spp;     /* guiding trains on this many spp, then only renders; 0: default (spp / 8, at least 22) */
     int aov_recorder_debug;     /* --aov recorder-debug: the recorder's primary samples rebuild the image */
     int aov_selection;          /* --aov cachepoint: false colours of each first hit's cache point and its top entry */
@@ -264,7 +266,7 @@ typedef struct CandelaStats {
 #define CANDELA_GUIDE_SHARES 7
     float guide_share_value[CANDELA_GUIDE_SHARES]; /* the BSDF shares a guiding leaf can hold, and */
     uint32_t guide_share_leaves[CANDELA_GUIDE_SHARES]; /* how many hold each at the end (--guide-bsdf-share) */
-    int guide_share_learned;     /* 1: guided MIS with learned shares (else the shares are unused or fixed) */
+    int guide_share_learned;     /* 1: guided MIS chose shares per leaf (learned, or the caustic guard) */
     int guide_auto;              /* --guiding auto: 1 chose guiding, 0 chose off, -1 not auto or undecided */
     float guide_auto_ratio;      /* its predicted time-to-unit-variance ratio, guided / unguided */
     float guide_auto_indirect;   /* the probe's share of the relative variance in light of two or more bounces */

@@ -13,6 +13,9 @@ Scenes and their default resolutions and sample counts (--res and --spp override
   interior   scenes/guiding_interior.gltf (a room lit through a small window), 640x480, 256 spp
   blender    scenes/blender_interior/interior.gltf (--material-model blender3 --light-model blender3;
              lit mostly by the lamp's bulb inside its shade), 640x360, 128 spp
+  pane       the box above with a glass pane between its light and the ceiling (written to --out by
+             make_pane): the ceiling is lit only through the glass, a caustic the guide learns, where
+             the caustic guard must keep guiding; 128x128, 256 spp
   default    scenes/default.gltf (direct light dominates), 320x240, 64 spp
   bench      scenes/bench.gltf (direct light), 320x240, 16 spp
 
@@ -55,9 +58,35 @@ SCENES = {
     "interior": ("scenes/guiding_interior.gltf", [], ["640x480"], 256),
     "blender": ("scenes/blender_interior/interior.gltf", ["--material-model", "blender3", "--light-model", "blender3"],
                 ["640x360"], 128),
+    "pane": ("PANE", ["--max-depth", "64"], ["128x128"], 256),
     "default": ("scenes/default.gltf", [], ["320x240"], 64),
     "bench": ("scenes/bench.gltf", [], ["320x240"], 16),
 }
+
+
+def make_pane(out_dir):
+    """scenes/cornell_indirect.gltf with a 1.9 x 0.04 x 1.6 glass slab (the short box's mesh, scaled) at
+    y = 5.1, between the light (y = 4.75, facing up) and the ceiling (5.5); written as out_dir/pane.gltf."""
+    g = json.load(open(os.path.join(ROOT, "scenes", "cornell_indirect.gltf")))
+    box = next(m for m in g["meshes"] if m.get("name") == "short_box")
+    acc = g["accessors"][box["primitives"][0]["attributes"]["POSITION"]]
+    lo, hi = acc["min"], acc["max"]
+    g["materials"].append({"name": "glass", "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1], "metallicFactor": 0.0,
+                           "roughnessFactor": 0.0}, "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                                                                   "KHR_materials_ior": {"ior": 1.45}}})
+    prim = dict(box["primitives"][0], material=len(g["materials"]) - 1)
+    g["meshes"].append({"name": "pane", "primitives": [prim]})
+    scale = [1.9 / (hi[0] - lo[0]), 0.04 / (hi[1] - lo[1]), 1.6 / (hi[2] - lo[2])]
+    g["nodes"].append({"name": "glass_pane", "mesh": len(g["meshes"]) - 1, "translation": [0.0, 5.1, 0.0], "scale": scale})
+    g["scenes"][g.get("scene", 0)]["nodes"].append(len(g["nodes"]) - 1)
+    for ext in ("KHR_materials_transmission", "KHR_materials_ior"):
+        if ext not in g.setdefault("extensionsUsed", []):
+            g["extensionsUsed"].append(ext)
+    path = os.path.join(out_dir, "pane.gltf")
+    with open(path + ".tmp", "w") as f:
+        json.dump(g, f)
+    os.replace(path + ".tmp", path)
+    return path
 
 
 def oiio_stat(args):
@@ -119,7 +148,7 @@ def main():
     print("|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for name in a.scenes.split(","):
         scene, extra, resolutions, spp = SCENES[name]
-        scene = os.path.join(ROOT, scene)
+        scene = make_pane(a.out) if scene == "PANE" else os.path.join(ROOT, scene)
         spp = a.spp or spp
         for res in (a.res.split(",") if a.res else resolutions):
             w, h = (int(x) for x in res.split("x"))

@@ -636,7 +636,8 @@ static void test_bsdf_share(void) {
     GuideFieldParams p;
     guide_field_params_default(&p);
     CHECK(p.learn_bsdf_share == 0 && p.min_bsdf_share == GUIDE_DEFAULT_MIN_BSDF_SHARE &&
-              p.bsdf_share == GUIDE_DEFAULT_BSDF_SHARE, "defaults");
+              p.bsdf_share == GUIDE_DEFAULT_BSDF_SHARE && p.caustic_threshold == GUIDE_DEFAULT_CAUSTIC_THRESHOLD,
+          "defaults");
     p.learn_bsdf_share = 1;
     p.spatial_threshold = 1e9f; /* one leaf unless a case asks for splits */
     uint64_t rng = 41;
@@ -716,6 +717,62 @@ static void test_bsdf_share(void) {
     fclose(tmp);
     guide_field_free(f);
     guide_field_free(g);
+}
+
+/* The caustic guard: guided samples of a leaf, uniform over the sphere, 1 in `every` of which
+ * reached a delta scatterer, carrying radiance `beyond` there and 1 elsewhere. */
+static void train_caustic(GuideField *f, uint64_t *rng, int n, int every, float beyond) {
+    GuideTrainingSample batch[256];
+    int m = 0;
+    for (int i = 0; i < n; ++i) {
+        GuideTrainingSample *s = &batch[m++];
+        memset(s, 0, sizeof *s);
+        for (int k = 0; k < 3; ++k) s->pos[k] = rnd(rng);
+        uniform_dir(rng, s->dir);
+        s->delta_child = i % every == 0;
+        s->radiance = s->delta_child ? beyond : 1.0f;
+        s->pdf = s->bsdf_pdf = s->guide_pdf = UNIFORM_PDF;
+        s->share_value = s->radiance * s->radiance * UNIFORM_PDF;
+        s->leaf = GUIDE_NO_LEAF;
+        if (m == 256 || i == n - 1) {
+            guide_field_record(f, batch, (size_t)m);
+            m = 0;
+        }
+    }
+}
+
+static void test_caustic_guard(void) {
+    float lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
+    GuideFieldParams p;
+    guide_field_params_default(&p);
+    p.spatial_threshold = 1e9f;
+    uint64_t rng = 77;
+    /* 1 sample in 100 (1% > 0.2%) reaches glass; dim beyond it (no caustic learned): the guard's
+     * share;
+     * as bright there as elsewhere or brighter (a window): the guide stays; 1 in 1000 (0.1%
+     * < 0.2%): the guide stays; threshold 0: off */
+    struct { int every; float beyond, threshold, want; } c[] = {
+        {100, 0.0f, GUIDE_DEFAULT_CAUSTIC_THRESHOLD, GUIDE_DEFAULT_CAUSTIC_SHARE},
+        {100, 0.5f, GUIDE_DEFAULT_CAUSTIC_THRESHOLD, GUIDE_DEFAULT_CAUSTIC_SHARE},
+        {100, 1.0f, GUIDE_DEFAULT_CAUSTIC_THRESHOLD, 0.5f}, {100, 20.0f, GUIDE_DEFAULT_CAUSTIC_THRESHOLD, 0.5f},
+        {1000, 0.0f, GUIDE_DEFAULT_CAUSTIC_THRESHOLD, 0.5f}, {100, 0.0f, 0.0f, 0.5f}};
+    for (size_t k = 0; k < sizeof c / sizeof c[0]; ++k) {
+        GuideFieldParams q = p;
+        q.caustic_threshold = c[k].threshold;
+        GuideField *f = guide_field_create(lo, hi, &q);
+        CHECK(f != NULL, "create");
+        if (!f) return;
+        train_caustic(f, &rng, 20000, c[k].every, c[k].beyond);
+        CHECK(guide_field_update(f, 1.0f) == 0, "update");
+        CHECK(share_at(f, 0.5f) == c[k].want, "case %zu: share %g, want %g", k, share_at(f, 0.5f), c[k].want);
+        /* a guarded leaf that then finds the light beyond the glass bright goes back to the guide */
+        if (c[k].want != 0.5f) {
+            train_caustic(f, &rng, 20000, c[k].every, 50.0f);
+            CHECK(guide_field_update(f, 1.0f) == 0 && share_at(f, 0.5f) == 0.5f, "case %zu: bright caustic kept %g", k,
+                  share_at(f, 0.5f));
+        }
+        guide_field_free(f);
+    }
 }
 
 /* ---------------------------------------------------------------- 7. bad input */
@@ -1004,6 +1061,7 @@ int main(void) {
     test_checkpoint();
     test_leaf_hints();
     test_bsdf_share();
+    test_caustic_guard();
     test_bad_input();
     test_ply();
     fprintf(stderr, "test_sdtree: %.2f s\n", test_seconds() - t0);

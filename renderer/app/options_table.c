@@ -410,6 +410,16 @@ static const CandelaFlag FLAGS[] = {
           "the smallest BSDF share a guiding leaf learns (default 0.5)",
           "the smallest BSDF share a guiding leaf learns, of 0.25, 0.375, ..., 1 (default 0.5: below it a caustic the "
           "guide has not learned, which only the BSDF finds, is weighted by more than 2)"),
+    FLOAT("--guide-caustic-threshold", "T", 0.0, 1.0, IMG(guide_caustic_threshold), CANDELA_FIELD_FLOAT, ALL_RENDER, 0,
+          "0.01", "more BSDF samples where it sees glass, the guide no caustic (default 0.002)",
+          "the caustic guard of guided MIS: a guiding leaf whose BSDF sampling reaches delta scatterers (glass, mirrors) "
+          "with probability above T while the light training found beyond them is dimmer than the leaf's average "
+          "samples the BSDF with probability --guide-caustic-share, so caustics the guide has not learned get 1/0.75 "
+          "of their unguided weight instead of twice it (default 0.002; 0: off; guiding/README.md)"),
+    FLOAT("--guide-caustic-share", "F", 0.5, 1.0, IMG(guide_caustic_share), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "1",
+          "the BSDF share where the caustic guard acts (default 0.75)",
+          "the probability of sampling the BSDF in the guiding leaves the caustic guard acts on (at least the share the "
+          "leaf has otherwise; default 0.75: 1 also removed what guiding gained there, on scenes/default.gltf)"),
     INT("--recorder-budget", "N", 0, 1 << 20, IMG(recorder_budget), CANDELA_FIELD_INT, ALL_RENDER, 0, "4",
         "recorded vertices per path before skipping (default 4)",
         "recorded vertices per path before path/vertex skipping (default 4; 0: record every vertex)"),

@@ -89,6 +89,8 @@ static int guide_init(Integrator *ig) {
     params.directional_filter = ig->opt->guide_directional_filter;
     params.min_bsdf_share = ig->opt->guide_min_bsdf_share;
     params.learn_bsdf_share = !(ig->opt->guide_bsdf_share > 0.0f);
+    params.caustic_threshold = ig->opt->guide_caustic_threshold;
+    params.caustic_share = ig->opt->guide_caustic_share;
     if (!params.learn_bsdf_share) params.bsdf_share = ig->opt->guide_bsdf_share;
     const float lo[3] = {ig->scene->bounds_min.x, ig->scene->bounds_min.y, ig->scene->bounds_min.z};
     const float hi[3] = {ig->scene->bounds_max.x, ig->scene->bounds_max.y, ig->scene->bounds_max.z};
@@ -104,6 +106,7 @@ static int guide_init(Integrator *ig) {
     gs->keep_last = ig->opt->guide_dump_prefix != NULL;
     gs->mode = ig->opt->guiding == CANDELA_GUIDING_RIS ? SCATTER_GUIDE_RIS : SCATTER_GUIDE_MIS;
     gs->learn_share = gs->mode == SCATTER_GUIDE_MIS && params.learn_bsdf_share;
+    gs->share_stats = gs->mode == SCATTER_GUIDE_MIS && (params.learn_bsdf_share || params.caustic_threshold > 0.0f);
     return 0;
 }
 
@@ -203,7 +206,8 @@ static void convert_slice(GuideState *gs, int k, const RecorderSamples *batch) {
         t->share_value = 0.0f;
         t->bsdf_pdf = 0.0f; /* none */
         t->guide_pdf = 0.0f;
-        if (gs->learn_share && s->user != GUIDE_NO_LEAF && s->bsdf_pdf > 0.0f) {
+        t->delta_child = (s->flags & PV_FLAG_DELTA_CHILD) != 0;
+        if (gs->share_stats && s->user != GUIDE_NO_LEAF && s->bsdf_pdf > 0.0f) {
             double F = (0.2126 * s->radiance[0] + 0.7152 * s->radiance[1] + 0.0722 * s->radiance[2]) * s->bsdf_pdf;
             t->share_value = (float)(F * F / s->pdf);
             t->bsdf_pdf = s->bsdf_pdf;
@@ -400,7 +404,7 @@ static void guide_report(const Integrator *ig, CandelaStats *st) {
     st->guide_samples = gs->samples_trained;
     st->guide_leaves = 0;
     st->guide_bytes = 0;
-    st->guide_share_learned = gs->learn_share;
+    st->guide_share_learned = gs->share_stats;
     _Static_assert(CANDELA_GUIDE_SHARES == GUIDE_SHARE_CANDIDATES, "the stats' share bins are the field's candidates");
     for (int j = 0; j < CANDELA_GUIDE_SHARES; ++j) {
         st->guide_share_value[j] = guide_share_candidates[j];

@@ -98,8 +98,9 @@ typedef struct GuideState {
     GuideField *fields[GUIDE_FIELDS]; /* [class]: surfaces; [GUIDE_SURFACE_CLASSES]: media (NULL without) */
     int on;                       /* guiding is on (the fields exist) */
     int mode;                     /* ScatterGuideMode (scatter.h) */
-    int learn_share;              /* MIS with --guide-bsdf-share 0: training samples carry the
-                                   * statistics of each leaf's learned BSDF share */
+    int learn_share;              /* MIS with --guide-bsdf-share 0: leaves learn their BSDF share */
+    int share_stats;              /* training samples carry the statistics of the leaves' BSDF
+                                   * shares (learned, or the caustic guard's) */
     int active;                   /* guided sampling in this iteration (after the training spp) */
     int updates;
     double train_seconds;         /* recording into and updating the fields */
