@@ -200,9 +200,10 @@ static void convert_slice(GuideState *gs, int k, const RecorderSamples *batch) {
         t->radiance = (0.2126f * s->radiance[0] + 0.7152f * s->radiance[1] + 0.0722f * s->radiance[2]) * s->cosine;
         t->pdf = s->pdf;
         t->leaf = s->user; /* the rendering lookup's leaf (record_child): training needs no descent */
-        /* the learned BSDF share's statistic (ch. 1 §3.2.1), from a guided MIS vertex (it had a
-         * leaf): F = luminance(L) p_f stands for f |cos| L (exact for a function sampled in
-         * proportion to f |cos|, up to its albedo, which a leaf's vertices share nearly) */
+        /* the statistics of the leaf's BSDF share (the learned one, ch. 1 §3.2.1, and the caustic
+         * guard's), from a guided MIS vertex (it had a leaf): F = luminance(L) p_f stands for
+         * f |cos| L (exact for a function sampled in proportion to f |cos|, up to its albedo,
+         * which a leaf's vertices share nearly) */
         t->share_value = 0.0f;
         t->bsdf_pdf = 0.0f; /* none */
         t->guide_pdf = 0.0f;
