@@ -29,6 +29,9 @@ void record_drop_batch(Integrator *ig);
  * guiding_record_* hooks do). Inline, so a stage compiles to the branch it had when it tested the
  * flag at the call site; vectors are passed by pointer because a vec3 passed by value is copied
  * before the test (measured with callgrind: +1.3% in stage_surface with the recorder off). */
+/* Whether the recorder is on (training): a guided vertex then reads the guide's pdf even where its
+ * leaf's BSDF share is 1, for the share's statistics (scatter_set_guide). */
+static inline int record_training(const Integrator *ig) { return ig->record.active; }
 /* Radiance added to path p (path_add_radiance). */
 static inline void record_vertex_radiance(const Integrator *ig, uint32_t p, const vec3 *c, RadianceSource source) {
     if (ig->record.active) record_radiance(ig, p, *c, source);

@@ -170,7 +170,7 @@ static WalkEnd medium_walk(const Integrator *ig, Slice *s, uint32_t p, uint32_t 
          * came out 9% dark at 64 spp, 21 paths overflowing to inf); deep in such media the
          * incident light is diffuse, and guiding has nothing to find there */
         if (ig->guide.active && ps->volume_bounces[p] <= GUIDE_MAX_VOLUME_VERTICES && scatter_guidable(&sc))
-            scatter_set_guide(&sc, guide_lookup(ig, x, v3s(0.0f)), (ScatterGuideMode)ig->guide.mode, ig->record.active);
+            scatter_set_guide(&sc, guide_lookup(ig, x, v3s(0.0f)), (ScatterGuideMode)ig->guide.mode, record_training(ig));
         LightSampleContext lc = {x, v3s(0.0f), {0, 0.0f}, scratch, &s->volume, walk_previous};
         lc.link_class = lights_media_class(ig->lights); /* a medium vertex belongs to no object */
         light_sampler_prepare(ig->light_sampler, &lc, hint);

@@ -161,7 +161,7 @@ static void shade_front(const Integrator *ig, uint32_t p, ShadeSlot *x) {
     scatter_init_surface_prepared(&x->sc, &x->h, &x->m.bsdf, prepared, x->wo);
     if (ig->guide.active && scatter_guidable(&x->sc))
         scatter_set_guide(&x->sc, guide_lookup(ig, x->h.p, x->sc.ng), (ScatterGuideMode)ig->guide.mode,
-                          ig->record.active);
+                          record_training(ig));
     x->dims = path_dims(ig, p);
     x->g = dims_group(&x->dims, ps->depth[p], DIMS_SCATTER);
     scatter_numbers(&x->sc, &x->g, x->u);
