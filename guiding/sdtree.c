@@ -90,7 +90,6 @@ enum {
  * guided samples a leaf needs before it chooses among them. */
 #define SHARE_CANDIDATES GUIDE_SHARE_CANDIDATES
 const float guide_share_candidates[SHARE_CANDIDATES] = {0.25f, 0.375f, 0.5f, 0.625f, 0.75f, 0.875f, 1.0f};
-#define share_candidate guide_share_candidates
 #define SHARE_MIN_SAMPLES 64.0
 #define SHARE_Z 2.0
 
@@ -773,7 +772,7 @@ GuideField *guide_field_create(const float lo[3], const float hi[3], const Guide
     f->params = params_sanitize(p);
     f->share_floor = SHARE_CANDIDATES - 1;
     for (int k = SHARE_CANDIDATES - 1; k >= 0; --k)
-        if (share_candidate[k] >= f->params.min_bsdf_share) f->share_floor = k;
+        if (guide_share_candidates[k] >= f->params.min_bsdf_share) f->share_floor = k;
     /* The cube around the bounds (§3: the S-tree partitions a cube), enlarged by 1e-3 of its
      * side so points on the bounds are strictly inside after float rounding. Bounds that are
      * not finite or empty fall back to [-1, 1] on that axis rather than poisoning the tree. */
@@ -913,7 +912,7 @@ static void record_item(GuideField *f, const RecordItem *it) {
      * a, from this sample drawn with pdf p: E_p[F^2 / (p q_a)] = integral of F^2 / q_a */
     double term[SHARE_CANDIDATES];
     for (int k = 0; k < SHARE_CANDIDATES; ++k) {
-        double a = share_candidate[k];
+        double a = guide_share_candidates[k];
         double q = a * (double)it->bsdf_pdf + (1 - a) * (double)it->guide_pdf;
         term[k] = q > 0 ? (double)it->share_value / q : HUGE_VAL;
         leaf->share_moment[k] += term[k];
@@ -939,7 +938,7 @@ static float leaf_learned_share(const GuideField *f, const GuideLeaf *l) {
         if (!isfinite(diff) || !isfinite(se) || !(diff < -SHARE_Z * se)) continue;
         if (l->share_moment[k] < l->share_moment[best]) best = k;
     }
-    return share_candidate[best];
+    return guide_share_candidates[best];
 }
 
 /* The leaf's share from SHARE_MIN_SAMPLES guided samples or more (fewer: it keeps its share and
@@ -1376,7 +1375,7 @@ void guide_field_share_leaves(const GuideField *f, uint32_t counts[GUIDE_SHARE_C
     for (int k = 0; k < SHARE_CANDIDATES; ++k) counts[k] = 0;
     if (!f) return;
     for (uint32_t i = 0; i < f->leaf_count; ++i)
-        for (int k = 0; k < SHARE_CANDIDATES; ++k) counts[k] += f->leaves[i].bsdf_share == share_candidate[k];
+        for (int k = 0; k < SHARE_CANDIDATES; ++k) counts[k] += f->leaves[i].bsdf_share == guide_share_candidates[k];
 }
 
 void guide_distribution_bounds(const GuideDistribution *dist, float lo[3], float hi[3]) {

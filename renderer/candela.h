@@ -266,7 +266,7 @@ typedef struct CandelaStats {
 #define CANDELA_GUIDE_SHARES 7
     float guide_share_value[CANDELA_GUIDE_SHARES]; /* the BSDF shares a guiding leaf can hold, and */
     uint32_t guide_share_leaves[CANDELA_GUIDE_SHARES]; /* how many hold each at the end (--guide-bsdf-share) */
-    int guide_share_learned;     /* 1: guided MIS chose shares per leaf (learned, or the caustic guard) */
+    int guide_share_per_leaf;     /* 1: guided MIS chose shares per leaf (learned, or the caustic guard) */
     int guide_auto;              /* --guiding auto: 1 chose guiding, 0 chose off, -1 not auto or undecided */
     float guide_auto_ratio;      /* its predicted time-to-unit-variance ratio, guided / unguided */
     float guide_auto_indirect;   /* the probe's share of the relative variance in light of two or more bounces */

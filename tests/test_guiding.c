@@ -166,8 +166,8 @@ static void test_unbiased(const char *scene, int w, int h, int spp) {
             }
             fprintf(stderr, "      %u of %u leaves hold a BSDF share other than 1/2\n", learned, held);
             /* MIS chooses shares per leaf (the caustic guard; learning in variant 2); RIS has none */
-            CHECK(on.st.guide_share_learned == (g != 1) && held == on.st.guide_leaves && (g != 1 || learned == 0),
-                  "(c) %s: shares learned %d, %u of %u leaves away from 1/2", variant_name[g], on.st.guide_share_learned,
+            CHECK(on.st.guide_share_per_leaf == (g != 1) && held == on.st.guide_leaves && (g != 1 || learned == 0),
+                  "(c) %s: shares per leaf %d, %u of %u leaves away from 1/2", variant_name[g], on.st.guide_share_per_leaf,
                   learned, held);
         }
         candela_image_free(&on.img);

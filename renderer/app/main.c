@@ -149,7 +149,7 @@ static void print_stats(const CandelaStats *s) {
                 (double)s->guide_bytes / (1024.0 * 1024.0), s->guide_train_seconds,
                 s->guide_train_seconds / s->guide_updates,
                 s->guide_dropped ? "; WARNING: out of memory, some training was lost" : "");
-    if (s->guide_updates && s->guide_share_learned) {
+    if (s->guide_updates && s->guide_share_per_leaf) {
         fprintf(stderr, "  guiding's BSDF share, leaves at each:");
         for (int j = 0; j < CANDELA_GUIDE_SHARES; ++j)
             if (s->guide_share_leaves[j]) fprintf(stderr, " %g: %u", (double)s->guide_share_value[j], s->guide_share_leaves[j]);

@@ -180,7 +180,7 @@ static void stats_json(FILE *f, const CandelaOptions *o, const CandelaStats *s, 
             "\"train_seconds\": %.6f",
             candela_guiding_name(o->guiding), s->guide_updates,
             (unsigned long long)s->guide_samples, s->guide_leaves, s->guide_bytes, s->guide_train_seconds);
-    if (s->guide_updates && s->guide_share_learned) {
+    if (s->guide_updates && s->guide_share_per_leaf) {
         fprintf(f, ", \"bsdf_share_leaves\": {");
         for (int j = 0; j < CANDELA_GUIDE_SHARES; ++j)
             fprintf(f, "%s\"%g\": %u", j ? ", " : "", (double)s->guide_share_value[j], s->guide_share_leaves[j]);

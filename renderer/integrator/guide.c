@@ -405,7 +405,7 @@ static void guide_report(const Integrator *ig, CandelaStats *st) {
     st->guide_samples = gs->samples_trained;
     st->guide_leaves = 0;
     st->guide_bytes = 0;
-    st->guide_share_learned = gs->share_stats;
+    st->guide_share_per_leaf = gs->share_stats;
     _Static_assert(CANDELA_GUIDE_SHARES == GUIDE_SHARE_CANDIDATES, "the stats' share bins are the field's candidates");
     for (int j = 0; j < CANDELA_GUIDE_SHARES; ++j) {
         st->guide_share_value[j] = guide_share_candidates[j];
