@@ -183,11 +183,19 @@ typedef struct GuideFieldParams {
                                 * of their unguided weight instead of 2 */
     float caustic_share;       /* the share such a leaf takes (GUIDE_DEFAULT_CAUSTIC_SHARE), at least
                                 * what it would take otherwise */
+    float caustic_defense;     /* the guide's defensive density toward delta scatterers (0: none;
+                                * GUIDE_DEFAULT_CAUSTIC_DEFENSE): a training sample whose ray reached
+                                * one also trains its direction with this times the leaf's mean
+                                * flux per sample times p_f / p, so the guide learns to send about
+                                * this times the function's own density there and a caustic it has
+                                * not learned keeps about its unguided weight */
 } GuideFieldParams;
 #define GUIDE_DEFAULT_BSDF_SHARE 0.5f
 #define GUIDE_DEFAULT_MIN_BSDF_SHARE 0.5f
-#define GUIDE_DEFAULT_CAUSTIC_THRESHOLD 0.002f
+#define GUIDE_DEFAULT_CAUSTIC_THRESHOLD 0.0f /* off: the caustic defense does its work for less */
+#define GUIDE_CAUSTIC_GUARD_THRESHOLD 0.002f  /* the threshold the guard was measured at */
 #define GUIDE_DEFAULT_CAUSTIC_SHARE 0.75f
+#define GUIDE_DEFAULT_CAUSTIC_DEFENSE 1.0f
 void guide_field_params_default(GuideFieldParams *p);
 
 /* A training sample of the field: incident radiance (a scalar: luminance) at pos from the unit
@@ -207,6 +215,8 @@ typedef struct GuideTrainingSample {
     float share_value, bsdf_pdf, guide_pdf;
     int delta_child; /* the sample's ray reached a delta scatterer (PV_FLAG_DELTA_CHILD): light
                       * beyond it is what guides rarely learn (caustics) */
+    float defense;   /* a delta_child sample's p_f / pdf, the function's pdf of dir over the
+                      * sample's (caustic_defense; 0: none) */
 } GuideTrainingSample;
 #define GUIDE_NO_LEAF 0xFFFFFFFFu
 

@@ -245,6 +245,7 @@ void guide_field_params_default(GuideFieldParams *p) {
     p->bsdf_share = GUIDE_DEFAULT_BSDF_SHARE;
     p->caustic_threshold = GUIDE_DEFAULT_CAUSTIC_THRESHOLD;
     p->caustic_share = GUIDE_DEFAULT_CAUSTIC_SHARE;
+    p->caustic_defense = GUIDE_DEFAULT_CAUSTIC_DEFENSE;
 }
 
 /* Out-of-range values fall back to the defaults rather than building absurd trees (rho <= 0
@@ -266,6 +267,7 @@ static GuideFieldParams params_sanitize(const GuideFieldParams *in) {
     if (in->bsdf_share > 0 && in->bsdf_share <= 1) p.bsdf_share = in->bsdf_share;
     if (in->caustic_threshold >= 0 && in->caustic_threshold <= 1) p.caustic_threshold = in->caustic_threshold;
     if (in->caustic_share > 0 && in->caustic_share <= 1) p.caustic_share = in->caustic_share;
+    if (in->caustic_defense >= 0 && in->caustic_defense <= 16) p.caustic_defense = in->caustic_defense;
     return p;
 }
 
@@ -862,6 +864,7 @@ typedef struct RecordItem {
     float share_value, bsdf_pdf, guide_pdf; /* GuideTrainingSample's (share_value < 0: none) */
     float pdf;
     int delta_child;
+    float defense; /* GuideTrainingSample's */
 } RecordItem;
 
 static int record_scratch_reserve(GuideField *f, size_t n) {
@@ -886,14 +889,27 @@ static int record_scratch_reserve(GuideField *f, size_t n) {
 
 static void record_item(GuideField *f, const RecordItem *it) {
     GuideLeaf *leaf = &f->leaves[it->leaf];
+    /* The caustic defense: a sample whose ray reached a delta scatterer also trains its direction
+     * with c F p_f / p, F the leaf's mean flux per sample so far. Over the samples these add up to
+     * c F N P_f(R) in a region R, P_f(R) the probability that the function's sampling goes there:
+     * the guide's density toward glass and mirrors becomes about c p_f wherever training found
+     * no light beyond them, so the mixture's pdf there is about the function's own and a caustic
+     * only the function finds keeps about its unguided weight (not 1 / share of it), while the
+     * guide loses only about P_f of the delta scatterers to this. */
+    double defense = 0;
+    if (it->defense > 0 && f->params.caustic_defense > 0 && leaf->recorded > 0 && leaf->building.count > 0) {
+        double mean = node_total(&leaf->building.nodes[0]) / leaf->recorded;
+        if (mean > 0 && isfinite(mean)) defense = f->params.caustic_defense * mean * (double)it->defense;
+    }
     /* §3: the statistical weight counts every sample, zero radiance included (C1 §8.1:
      * dropping them biases the learned distribution). */
     leaf->recorded += 1;
     /* The incident radiance estimate L / p over the sphere: its sum per cell estimates the
      * cell's flux (§3, "collecting estimates"). */
-    if (it->value > 0) {
-        if (f->params.directional_filter) quadtree_add_filtered(&leaf->building, it->u, it->v, it->value);
-        else quadtree_add(&leaf->building, it->u, it->v, it->value);
+    double added = (it->value > 0 ? it->value : 0) + (isfinite(defense) ? defense : 0);
+    if (added > 0) {
+        if (f->params.directional_filter) quadtree_add_filtered(&leaf->building, it->u, it->v, added);
+        else quadtree_add(&leaf->building, it->u, it->v, added);
     }
     if (it->share_value < 0) return;
     leaf->share_count += 1;
@@ -1010,6 +1026,7 @@ void guide_field_record(GuideField *f, const GuideTrainingSample *s, size_t n) {
         it->guide_pdf = x->guide_pdf;
         it->pdf = x->pdf;
         it->delta_child = x->delta_child;
+        it->defense = x->delta_child && x->defense > 0 && isfinite(x->defense) ? x->defense : 0.0f;
         if (grouped) ++m;
         else record_item(f, it); /* no scratch: one pass in sample order (the same result) */
     }

@@ -139,8 +139,9 @@ typedef struct CandelaOptions {
     int guide_directional_filter; /* Müller 2019's directional box filter for training (1: on, the default) */
     float guide_bsdf_share;     /* the BSDF's share of guided MIS (default 0.5); 0: learned per leaf */
     float guide_min_bsdf_share; /* the smallest share a leaf learns (default 0.5) */
-    float guide_caustic_threshold; /* the caustic guard's threshold (default 0.002; 0: off; guiding/README.md) */
+    float guide_caustic_threshold; /* the caustic guard's threshold (default 0: off; guiding/README.md) */
     float guide_caustic_share;  /* the BSDF share of a leaf the guard acts on (default 0.75) */
+    float guide_caustic_defense; /* the guide's density toward delta scatterers over the BSDF's (default 1; 0: off) */
     int guide_training_spp;     /* guiding trains on this many spp, then only renders; 0: default (spp / 8, at least 22) */
     int aov_recorder_debug;     /* --aov recorder-debug: the recorder's primary samples rebuild the image */
     int aov_selection;          /* --aov cachepoint: false colours of each first hit's cache point and its top entry */

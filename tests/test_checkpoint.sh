@@ -65,7 +65,7 @@ adaptive=(--noise-threshold 0.25 --min-spp 4 --aov spp)
 # (misshare: the guiding leaves' learned BSDF shares and their sums are saved and resumed too)
 for mode in default mis misshare cpaov adaptive; do
   extra=(); [ $mode = mis ] && extra=(--guiding mis)
-  [ $mode = misshare ] && extra=(--guiding mis --guide-bsdf-share 0)
+  [ $mode = misshare ] && extra=(--guiding mis --guide-bsdf-share 0 --guide-caustic-threshold 0.002)
   [ $mode = cpaov ] && extra=(--light-sampler cachepoints --aov cachepoint)
   [ $mode = adaptive ] && extra=("${adaptive[@]}")
   "$bin" "${base[@]}" --spp 64 "${extra[@]}" -o "$tmp/full-$mode.exr" --quiet || bad "full render ($mode)"

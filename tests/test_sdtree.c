@@ -752,10 +752,10 @@ static void test_caustic_guard(void) {
      * as bright there as elsewhere or brighter (a window): the guide stays; 1 in 1000 (0.1%
      * < 0.2%): the guide stays; threshold 0: off */
     struct { int every; float beyond, threshold, want; } c[] = {
-        {100, 0.0f, GUIDE_DEFAULT_CAUSTIC_THRESHOLD, GUIDE_DEFAULT_CAUSTIC_SHARE},
-        {100, 0.5f, GUIDE_DEFAULT_CAUSTIC_THRESHOLD, GUIDE_DEFAULT_CAUSTIC_SHARE},
-        {100, 1.0f, GUIDE_DEFAULT_CAUSTIC_THRESHOLD, 0.5f}, {100, 20.0f, GUIDE_DEFAULT_CAUSTIC_THRESHOLD, 0.5f},
-        {1000, 0.0f, GUIDE_DEFAULT_CAUSTIC_THRESHOLD, 0.5f}, {100, 0.0f, 0.0f, 0.5f}};
+        {100, 0.0f, GUIDE_CAUSTIC_GUARD_THRESHOLD, GUIDE_DEFAULT_CAUSTIC_SHARE},
+        {100, 0.5f, GUIDE_CAUSTIC_GUARD_THRESHOLD, GUIDE_DEFAULT_CAUSTIC_SHARE},
+        {100, 1.0f, GUIDE_CAUSTIC_GUARD_THRESHOLD, 0.5f}, {100, 20.0f, GUIDE_CAUSTIC_GUARD_THRESHOLD, 0.5f},
+        {1000, 0.0f, GUIDE_CAUSTIC_GUARD_THRESHOLD, 0.5f}, {100, 0.0f, 0.0f, 0.5f}};
     for (size_t k = 0; k < sizeof c / sizeof c[0]; ++k) {
         GuideFieldParams q = p;
         q.caustic_threshold = c[k].threshold;
@@ -770,6 +770,82 @@ static void test_caustic_guard(void) {
             train_caustic(f, &rng, 20000, c[k].every, 50.0f);
             CHECK(guide_field_update(f, 1.0f) == 0 && share_at(f, 0.5f) == 0.5f, "case %zu: bright caustic kept %g", k,
                   share_at(f, 0.5f));
+        }
+        guide_field_free(f);
+    }
+}
+
+/* The caustic defense: samples uniform over the sphere (the function's pdf is the sample's), radiance
+ * 1 except in a cap around +x (cos > 0.9: 5% of the sphere) where every ray reached glass and found
+ * nothing beyond it. Without the defense the guide learns to send almost nothing into the cap; with
+ * it, about c times the function's probability (5%), so a caustic there would keep its weight. */
+static double cap_probability(const GuideField *f, uint64_t *rng, double *mean_ratio) {
+    const float at[3] = {0.5f, 0.5f, 0.5f};
+    const GuideDistribution *d = guide_field_lookup(f, at);
+    int in = 0, n = 20000, inner = 0;
+    for (int i = 0; i < n; ++i) {
+        float dir[3], pdf;
+        guide_distribution_sample(d, rnd(rng), rnd(rng), dir, &pdf);
+        in += dir[0] > 0.9f;
+    }
+    /* the guide's density over the function's deep inside the cap, where no cell straddles its rim */
+    double ratio = 0;
+    for (int i = 0; i < n; ++i) {
+        float dir[3];
+        uniform_dir(rng, dir);
+        if (!(dir[0] > 0.97f)) continue;
+        ratio += guide_distribution_pdf(d, dir) / UNIFORM_PDF;
+        inner++;
+    }
+    *mean_ratio = inner ? ratio / inner : 0;
+    return (double)in / n;
+}
+
+static void test_caustic_defense(void) {
+    float lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
+    GuideFieldParams p;
+    guide_field_params_default(&p);
+    p.spatial_threshold = 1e9f;
+    p.caustic_threshold = 0; /* the guard's share is not what is tested here */
+    const float defense[] = {0.0f, 1.0f, 2.0f};
+    for (int k = 0; k < 3; ++k) {
+        GuideFieldParams q = p;
+        q.caustic_defense = defense[k];
+        GuideField *f = guide_field_create(lo, hi, &q);
+        CHECK(f != NULL, "create");
+        if (!f) return;
+        uint64_t rng = 91;
+        for (int u = 0; u < 3; ++u) {
+            GuideTrainingSample batch[256];
+            for (int i = 0; i < 40000; i += 256) {
+                for (int j = 0; j < 256; ++j) {
+                    GuideTrainingSample *s = &batch[j];
+                    memset(s, 0, sizeof *s);
+                    for (int c = 0; c < 3; ++c) s->pos[c] = rnd(&rng);
+                    uniform_dir(&rng, s->dir);
+                    s->delta_child = s->dir[0] > 0.9f;
+                    s->radiance = s->delta_child ? 0.0f : 1.0f;
+                    s->pdf = UNIFORM_PDF;
+                    s->defense = s->delta_child ? 1.0f : 0.0f; /* p_f / p */
+                    s->leaf = GUIDE_NO_LEAF;
+                }
+                guide_field_record(f, batch, 256);
+            }
+            CHECK(guide_field_update(f, 1.0f) == 0, "update");
+        }
+        double ratio, prob = cap_probability(f, &rng, &ratio);
+        /* the cap's share of the learned flux: c P / (1 - P + c P) with P = 0.05 (the leaf's mean
+         * flux per sample counts the cap's zeros: (1 - P) 4 pi), give or take the cells on its rim */
+        double want = defense[k] * 0.05 / (0.95 + defense[k] * 0.05);
+        if (defense[k] == 0) {
+            /* only what the cells on the cap's rim spill (about 2%), and nothing deep inside it */
+            CHECK(prob < 0.03 && ratio < 0.1, "no defense: the guide sends %.3f into the dark cap (density %.3f x the "
+                  "function's deep inside it)", prob, ratio);
+        } else {
+            CHECK(fabs(prob - want) < 0.3 * want, "defense %g: the guide sends %.4f into the cap, want about %.4f",
+                  defense[k], prob, want);
+            CHECK(fabs(ratio - want / 0.05) < 0.3 * want / 0.05, "defense %g: density %.3f x the function's, want about %.3f",
+                  defense[k], ratio, want / 0.05);
         }
         guide_field_free(f);
     }
@@ -1062,6 +1138,7 @@ int main(void) {
     test_leaf_hints();
     test_bsdf_share();
     test_caustic_guard();
+    test_caustic_defense();
     test_bad_input();
     test_ply();
     fprintf(stderr, "test_sdtree: %.2f s\n", test_seconds() - t0);

@@ -23,8 +23,9 @@ void candela_options_default(CandelaOptions *o) {
     o->guide_directional_filter = 1;  /* Müller 2019's directional box filter in guide training (README) */
     o->guide_bsdf_share = 0.5f;       /* defensive one-sample MIS; 0 learns it per leaf (guiding/README.md) */
     o->guide_min_bsdf_share = 0.5f;   /* learned BSDF shares stay at or above 1/2 (guiding/README.md) */
-    o->guide_caustic_threshold = 0.002f; /* the caustic guard (guiding/README.md) */
+    o->guide_caustic_threshold = 0.0f; /* the caustic guard, off (guiding/README.md) */
     o->guide_caustic_share = 0.75f;
+    o->guide_caustic_defense = 1.0f; /* the caustic defense (guiding/README.md) */
     o->cachepoint_bsdf = 1;           /* BSDF-aware cache point selection at glossy vertices (README) */
 }
 

@@ -411,15 +411,21 @@ static const CandelaFlag FLAGS[] = {
           "the smallest BSDF share a guiding leaf learns, of 0.25, 0.375, ..., 1 (default 0.5: below it a caustic the "
           "guide has not learned, which only the BSDF finds, is weighted by more than 2)"),
     FLOAT("--guide-caustic-threshold", "T", 0.0, 1.0, IMG(guide_caustic_threshold), CANDELA_FIELD_FLOAT, ALL_RENDER, 0,
-          "0.01", "more BSDF samples where it sees glass, the guide no caustic (default 0.002)",
+          "0.002", "more BSDF samples where it sees glass, the guide no caustic (default 0: off)",
           "the caustic guard of guided MIS: a guiding leaf whose BSDF sampling reaches delta scatterers (glass, mirrors) "
           "with probability above T while the light training found beyond them is dimmer than the leaf's average "
           "samples the BSDF with probability --guide-caustic-share, so caustics the guide has not learned get 1/0.75 "
-          "of their unguided weight instead of twice it (default 0.002; 0: off; guiding/README.md)"),
+          "of their unguided weight instead of twice it (default 0: off, since the caustic defense keeps their weight for "
+          "less; 0.002 is what it was measured at; guiding/README.md)"),
     FLOAT("--guide-caustic-share", "F", 0.5, 1.0, IMG(guide_caustic_share), CANDELA_FIELD_FLOAT, ALL_RENDER, 0, "1",
           "the BSDF share where the caustic guard acts (default 0.75)",
           "the probability of sampling the BSDF in the guiding leaves the caustic guard acts on (at least the share the "
           "leaf has otherwise; default 0.75: 1 also removed what guiding gained there, on scenes/default.gltf)"),
+    FLOAT("--guide-caustic-defense", "F", 0.0, 16.0, IMG(guide_caustic_defense), CANDELA_FIELD_FLOAT, ALL_RENDER, 0,
+          "0", "the guide's density toward glass and mirrors over the BSDF's (default 1; 0: off)",
+          "the caustic defense of path guiding: training samples whose rays reached delta scatterers (glass, mirrors) "
+          "teach the guide to send about F times the BSDF's own density there, so a caustic the guide has not learned "
+          "keeps about its unguided weight in guided MIS (default 1; 0: off; guiding/README.md)"),
     INT("--recorder-budget", "N", 0, 1 << 20, IMG(recorder_budget), CANDELA_FIELD_INT, ALL_RENDER, 0, "4",
         "recorded vertices per path before skipping (default 4)",
         "recorded vertices per path before path/vertex skipping (default 4; 0: record every vertex)"),

@@ -91,6 +91,7 @@ static int guide_init(Integrator *ig) {
     params.learn_bsdf_share = !(ig->opt->guide_bsdf_share > 0.0f);
     params.caustic_threshold = ig->opt->guide_caustic_threshold;
     params.caustic_share = ig->opt->guide_caustic_share;
+    params.caustic_defense = ig->opt->guide_caustic_defense;
     if (!params.learn_bsdf_share) params.bsdf_share = ig->opt->guide_bsdf_share;
     const float lo[3] = {ig->scene->bounds_min.x, ig->scene->bounds_min.y, ig->scene->bounds_min.z};
     const float hi[3] = {ig->scene->bounds_max.x, ig->scene->bounds_max.y, ig->scene->bounds_max.z};
@@ -208,6 +209,7 @@ static void convert_slice(GuideState *gs, int k, const RecorderSamples *batch) {
         t->bsdf_pdf = 0.0f; /* none */
         t->guide_pdf = 0.0f;
         t->delta_child = (s->flags & PV_FLAG_DELTA_CHILD) != 0;
+        t->defense = t->delta_child && s->pdf > 0.0f && s->bsdf_pdf > 0.0f ? s->bsdf_pdf / s->pdf : 0.0f;
         if (gs->share_stats && s->user != GUIDE_NO_LEAF && s->bsdf_pdf > 0.0f) {
             double F = (0.2126 * s->radiance[0] + 0.7152 * s->radiance[1] + 0.0722 * s->radiance[2]) * s->bsdf_pdf;
             t->share_value = (float)(F * F / s->pdf);

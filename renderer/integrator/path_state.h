@@ -32,7 +32,7 @@
     F(vec3, throughput, W)          /* beta: the path's weight so far */                         \
     F(double, rr_scale, W)          /* throughput factor for the Russian roulette decision only \
                                      * (removes refraction's eta^2 radiance scaling and guided   \
-                                     * sampling's p_guide / p_bsdf: double, ch. 1 §4.1.1) */     \
+                                     * sampling's max(1, p / p_bsdf): double, ch. 1 §4.1.1) */   \
     F(uint32_t, pv, W)              /* the radiance recorder's vertex of the ray (PVIndex) */    \
     F(uint8_t, record_skip, N)      /* the recorder skips this path (path skipping) */          \
     F(float, reg_roughness, N)      /* path-space regularisation: the last vertex's roughness   \

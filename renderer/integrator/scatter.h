@@ -73,7 +73,8 @@ typedef struct ScatterSample {
     int transmitted;  /* it crossed the surface (refraction) */
     float rr_factor;  /* factor for the Russian roulette throughput: 1/eta^2 refraction
                        * scaling removed, and a guided sample's weight brought back to what
-                       * sampling the function alone gives (p_guide / p_bsdf, ch. 1 §4.1.1) */
+                       * sampling the function alone gives where that is larger (max(1, p /
+                       * p_bsdf), ch. 1 §4.1.1; scatter.c guided_rr_factor) */
     float scatter_pdf; /* the scattering function's own pdf of wi (= pdf unguided) */
     float guide_pdf;   /* the guide's pdf of wi (0: unguided) */
 } ScatterSample;
