@@ -256,6 +256,11 @@ void guide_distribution_prefetch_pdf(const GuideDistribution *d);
 /* The leaf's box (the spatial node's extent), and the samples its sampling tree learned from. */
 void guide_distribution_bounds(const GuideDistribution *d, float lo[3], float hi[3]);
 double guide_distribution_samples(const GuideDistribution *d);
+/* The leaf's estimate of the integral over the sphere of what it learned (the training samples'
+ * mean radiance / pdf: the incident radiance times |cos| on surfaces, the radiance in media), so
+ * that flux x guide_distribution_pdf(d, w) estimates what arrives from w; 0 before the leaf learned
+ * from any sample, or for NULL. */
+float guide_distribution_flux(const GuideDistribution *d);
 /* The scattering function's share of guided one-sample MIS the leaf learned (in (0, 1]; 1: the
  * function alone; GUIDE_DEFAULT_BSDF_SHARE before it learned one, or for NULL). */
 float guide_distribution_bsdf_share(const GuideDistribution *d);

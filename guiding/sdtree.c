@@ -149,6 +149,8 @@ struct GuideDistribution {
     uint32_t cell_count;
     const struct GuideLeaf *leaf; /* its record (bounds, sample counts) */
     float bsdf_share;             /* the leaf's learned BSDF share (GuideLeaf.bsdf_share) */
+    float flux;                   /* the sampling tree's flux per sample learned: its estimate of the
+                                   * incident radiance's integral (guide_distribution_flux) */
 };
 
 /* A spatial leaf's record: its quadtrees, counts and box. */
@@ -494,7 +496,10 @@ static void flatten_leaf(const GuideLeaf *leaf, GuideDistribution *l, PdfNode *n
     l->pdf_root = NO_FLAT_TREE;
     l->cells = NULL;
     l->cell_count = 0;
+    l->flux = 0.0f;
     if (t->count == 0) return;
+    double flux = leaf->learned > 0 ? node_total(&t->nodes[0]) / leaf->learned : 0.0;
+    if (flux > 0 && flux < 1e30) l->flux = (float)flux;
     memset(&nodes[base], 0, (size_t)t->count * sizeof *nodes); /* nodes under a cell stay unread */
     /* The cells, depth first, each with its nominal probability: the product of the flux shares
      * down to it (double). A quadrant without flux, or at the depth a packed cell holds, is a
@@ -818,7 +823,7 @@ GuideField *guide_field_create(const float lo[3], const float hi[3], const Guide
     memcpy(leaf->hi, root->hi, sizeof leaf->hi);
     RebuildScratch s = {0};
     leaf->bsdf_share = f->params.bsdf_share;
-    f->dists[0] = (GuideDistribution){NULL, NULL, NO_FLAT_TREE, 0, leaf, leaf->bsdf_share}; /* nothing learned: uniform */
+    f->dists[0] = (GuideDistribution){NULL, NULL, NO_FLAT_TREE, 0, leaf, leaf->bsdf_share, 0.0f}; /* nothing learned: uniform */
     int rc = quadtree_initial(&f->params, quadtree_node_limit(&f->params), &s, &leaf->building);
     scratch_free(&s);
     if (rc) {
@@ -1385,6 +1390,8 @@ int guide_direction_uv(const float dir[3], float *u, float *v) {
 }
 
 double guide_distribution_samples(const GuideDistribution *d) { return d ? d->leaf->learned : 0.0; }
+
+float guide_distribution_flux(const GuideDistribution *d) { return d ? d->flux : 0.0f; }
 
 float guide_distribution_bsdf_share(const GuideDistribution *d) { return d ? d->bsdf_share : GUIDE_DEFAULT_BSDF_SHARE; }
 

@@ -31,6 +31,12 @@ typedef enum {
 } CandelaGuiding;
 const char *candela_guiding_name(CandelaGuiding g); /* "off", "mis", "ris", "auto" */
 
+/* --guide-roulette: Russian roulette at guided vertices (renderer/integrator/vertex.h) */
+typedef enum CandelaGuideRoulette {
+    CANDELA_GUIDE_ROULETTE_CORRECTED = 0, /* the throughput's, corrected by max(1, p / p_bsdf) (ch. 1 §4.1.1), the default */
+    CANDELA_GUIDE_ROULETTE_ADJOINT = 1    /* adjoint-driven from the guide's radiance estimate (ch. 1 §4.2.1) */
+} CandelaGuideRoulette;
+
 /* --sampler: where the numbers of a path's fixed dimensions come from (renderer/util/sequence.h). */
 typedef enum CandelaSampler {
     CANDELA_SAMPLER_SOBOL = 0,       /* Owen-scrambled Sobol' (Burley 2020), the default */
@@ -142,6 +148,7 @@ typedef struct CandelaOptions {
     float guide_caustic_threshold; /* the caustic guard's threshold (default 0: off; guiding/README.md) */
     float guide_caustic_share;  /* the BSDF share of a leaf the guard acts on (default 0.75) */
     float guide_caustic_defense; /* the guide's density toward delta scatterers over the BSDF's (default 1; 0: off) */
+    CandelaGuideRoulette guide_roulette; /* --guide-roulette: the corrected throughput's (the default) or adjoint-driven */
     int guide_training_spp;     /* guiding trains on this many spp, then only renders; 0: default (spp / 8, at least 22) */
     int aov_recorder_debug;     /* --aov recorder-debug: the recorder's primary samples rebuild the image */
     int aov_selection;          /* --aov cachepoint: false colours of each first hit's cache point and its top entry */

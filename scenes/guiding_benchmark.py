@@ -18,6 +18,9 @@ Scenes and their default resolutions and sample counts (--res and --spp override
              the caustic guard must keep guiding; 128x128, 256 spp
   default    scenes/default.gltf (direct light dominates), 320x240, 64 spp
   bench      scenes/bench.gltf (direct light), 320x240, 16 spp
+  city, windows, emissive_mesh, spotlights, street, glossy
+             the many-light scenes of scenes/make_manylights.py (written to build/scenes when absent;
+             direct light through cache points), 160x120, 64 spp
 
 Per scene and resolution: a reference (guided MIS with independent samples, a seed no render
 uses, --ref-spp, at a quarter of the resolution per side, compared with 4x4 box-downsampled
@@ -62,6 +65,10 @@ SCENES = {
     "default": ("scenes/default.gltf", [], ["320x240"], 64),
     "bench": ("scenes/bench.gltf", [], ["320x240"], 16),
 }
+# the many-light scenes (direct light through cache points), generated on demand into build/scenes
+MANYLIGHTS = ("city", "windows", "emissive_mesh", "spotlights", "street", "glossy")
+for _name in MANYLIGHTS:
+    SCENES[_name] = ("build/scenes/%s.gltf" % _name, [], ["160x120"], 64)
 
 
 def make_pane(out_dir):
@@ -149,6 +156,9 @@ def main():
     for name in a.scenes.split(","):
         scene, extra, resolutions, spp = SCENES[name]
         scene = make_pane(a.out) if scene == "PANE" else os.path.join(ROOT, scene)
+        if name in MANYLIGHTS and not os.path.exists(scene):
+            subprocess.run([sys.executable, os.path.join(ROOT, "scenes", "make_manylights.py"), os.path.dirname(scene),
+                            "--only", name], check=True, capture_output=True)
         spp = a.spp or spp
         for res in (a.res.split(",") if a.res else resolutions):
             w, h = (int(x) for x in res.split("x"))

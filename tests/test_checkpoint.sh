@@ -62,17 +62,19 @@ expect_error() {
 # (adaptive: the film's stopped pixels and the targets fixed at the pilot (4 spp) are saved, and
 # the pixels a resumed iteration renders are exactly those the checkpoint's film still samples)
 adaptive=(--noise-threshold 0.25 --min-spp 4 --aov spp)
-# (misshare: the guiding leaves' learned BSDF shares and their sums are saved and resumed too)
-for mode in default mis misshare cpaov adaptive; do
+# (misshare: the guiding leaves' learned BSDF shares and their sums are saved and resumed too;
+# misadjoint: the adjoint-driven roulette's pixel estimates)
+for mode in default mis misshare misadjoint cpaov adaptive; do
   extra=(); [ $mode = mis ] && extra=(--guiding mis)
   [ $mode = misshare ] && extra=(--guiding mis --guide-bsdf-share 0 --guide-caustic-threshold 0.002)
+  [ $mode = misadjoint ] && extra=(--guiding mis --guide-roulette adjoint)
   [ $mode = cpaov ] && extra=(--light-sampler cachepoints --aov cachepoint)
   [ $mode = adaptive ] && extra=("${adaptive[@]}")
   "$bin" "${base[@]}" --spp 64 "${extra[@]}" -o "$tmp/full-$mode.exr" --quiet || bad "full render ($mode)"
   "$bin" "${base[@]}" --spp 64 "${extra[@]}" -o "$tmp/ck-$mode.exr" --checkpoint "$tmp/$mode.ckpt" 2>"$tmp/log-$mode" ||
     bad "render with --checkpoint ($mode)"
   got=$(sed -n 's/^candela: checkpoint at \([0-9]*\) spp.*/\1/p' "$tmp/log-$mode" | tr '\n' ' ')
-  want="4 8 16 32 "; [ $mode = mis ] || [ $mode = misshare ] && want="4 8 14 22 "
+  want="4 8 16 32 "; case $mode in mis*) want="4 8 14 22 " ;; esac
   [ "$got" = "$want" ] && ok || bad "checkpoint schedule ($mode): got '$got', want '$want'"
   same "$tmp/full-$mode.exr" "$tmp/ck-$mode.exr" "checkpoints changed the image ($mode)"
   # the file left is the last checkpoint (32 or 22 spp): as if killed right after it
@@ -211,6 +213,23 @@ if [ $rc -eq 130 ]; then
   same "$tmp/kfull-default.exr" "$tmp/term.exr" "resumed after SIGTERM"
 else
   bad "SIGTERM: exit $rc (want 130; finished before the signal?)"
+fi
+# ... and guided with the adjoint-driven roulette, stopped within a guided iteration: the pixel
+# estimates it decides by are the last barrier's, which the film of a checkpoint taken within an
+# iteration no longer holds (the checkpoint keeps them)
+gterm=("${base[@]}" "${slow[@]}" --guiding mis --guide-roulette adjoint)
+"$bin" "${gterm[@]}" -o "$tmp/gfull.exr" --quiet || bad "full render (adjoint roulette, SIGTERM)"
+rm -f "$tmp/gterm.ckpt"; : > "$tmp/gterm.log"
+"$bin" "${gterm[@]}" -o "$tmp/gterm.exr" --checkpoint "$tmp/gterm.ckpt" 2>"$tmp/gterm.log" &
+pid=$!
+for _ in $(seq 1 600); do grep -q "checkpoint at 14 spp" "$tmp/gterm.log" && break; sleep 0.05; done
+kill -TERM $pid; wait $pid; rc=$?
+if [ $rc -eq 130 ]; then
+  "$bin" "${gterm[@]}" -o "$tmp/gterm.exr" --resume-from "$tmp/gterm.ckpt" --quiet ||
+    bad "resume after SIGTERM (adjoint roulette)"
+  same "$tmp/gfull.exr" "$tmp/gterm.exr" "resumed after SIGTERM (adjoint roulette)"
+else
+  bad "SIGTERM (adjoint roulette): exit $rc (want 130; finished before the signal?)"
 fi
 # ... and with adaptive sampling, stopped within an iteration after some pixels stopped. A render
 # with most of its work after the 16-spp checkpoint (64x48, threshold 0.05: pixels stop from 4 to

@@ -40,13 +40,18 @@ typedef struct Render {
 static float g_regularization = 0.0f;
 static float g_bsdf_share = 0.5f; /* --guide-bsdf-share: 0 learns it per leaf */
 
-/* The guided variants the tests run: MIS, RIS, and MIS with learned BSDF shares and the caustic guard. */
-#define VARIANTS 3
+static CandelaGuideRoulette g_roulette = CANDELA_GUIDE_ROULETTE_CORRECTED; /* --guide-roulette */
+
+/* The guided variants the tests run: MIS, RIS, MIS with learned BSDF shares and the caustic guard,
+ * and MIS with the adjoint-driven roulette. */
+#define VARIANTS 4
 static CandelaGuiding variant(int v) {
     g_bsdf_share = v == 2 ? 0.0f : 0.5f;
+    g_roulette = v == 3 ? CANDELA_GUIDE_ROULETTE_ADJOINT : CANDELA_GUIDE_ROULETTE_CORRECTED;
     return v == 1 ? CANDELA_GUIDING_RIS : CANDELA_GUIDING_MIS;
 }
-static const char *const variant_name[VARIANTS] = {"MIS", "RIS", "MIS, learned BSDF share and the caustic guard"};
+static const char *const variant_name[VARIANTS] = {"MIS", "RIS", "MIS, learned BSDF share and the caustic guard",
+                                                   "MIS, adjoint-driven roulette"};
 
 static Render render(const char *scene, int w, int h, int spp, CandelaGuiding guiding, int aov, int budget, int threads,
                      uint32_t batch, uint64_t seed) {
@@ -65,6 +70,7 @@ static Render render(const char *scene, int w, int h, int spp, CandelaGuiding gu
     o.batch_size = batch;
     o.path_regularization = g_regularization;
     o.guide_bsdf_share = g_bsdf_share;
+    o.guide_roulette = g_roulette;
     /* the learned share's variant also runs the caustic guard (off by default) */
     if (g_bsdf_share == 0.0f) o.guide_caustic_threshold = 0.002f;
     Render r = {0};
@@ -127,6 +133,7 @@ static void test_unbiased(const char *scene, int w, int h, int spp) {
     for (int g = 0; g < VARIANTS; ++g) {
         Render on = render(scene, w, h, spp, variant(g), 0, -1, 2, 0, 4);
         g_bsdf_share = 0.5f;
+        g_roulette = CANDELA_GUIDE_ROULETTE_CORRECTED;
         if (off.ok && on.ok) {
             size_t n = (size_t)w * h;
             double sd = 0.0, sv = 0.0, var_on = 0.0, var_off = 0.0;
@@ -188,6 +195,7 @@ static void test_determinism(const char *scene) {
          * the training spp (the AOV keeps recording after them), the same image bit for bit */
         Render e = render(scene, 40, 30, 12, variant(g), 0, -1, 2, 0, 5);
         g_bsdf_share = 0.5f;
+        g_roulette = CANDELA_GUIDE_ROULETTE_CORRECTED;
         size_t bytes = 40 * 30 * 3 * sizeof(float);
         if (a.ok && b.ok && c.ok && e.ok) {
             CHECK(memcmp(a.img.rgb, b.img.rgb, bytes) == 0, "(d) guiding %d: 1 and 2 threads differ", g);

@@ -227,6 +227,8 @@ static const char *const SAMPLER[] = {"sobol", "independent", NULL};
 static const int SAMPLER_VALUES[] = {CANDELA_SAMPLER_SOBOL, CANDELA_SAMPLER_INDEPENDENT};
 static const char *const GUIDING[] = {"off", "mis", "ris", "auto", NULL};
 static const int GUIDING_VALUES[] = {CANDELA_GUIDING_OFF, CANDELA_GUIDING_MIS, CANDELA_GUIDING_RIS, CANDELA_GUIDING_AUTO};
+static const char *const GUIDE_ROULETTE[] = {"corrected", "adjoint", NULL};
+static const int GUIDE_ROULETTE_VALUES[] = {CANDELA_GUIDE_ROULETTE_CORRECTED, CANDELA_GUIDE_ROULETTE_ADJOINT};
 static const char *const LIGHT_SAMPLER[] = {"auto", "uniform", "power", "tree", "optimal", "cachepoints", NULL};
 static const int LIGHT_SAMPLER_VALUES[] = {CANDELA_LIGHT_SAMPLER_AUTO, CANDELA_LIGHT_SAMPLER_UNIFORM,
                                            CANDELA_LIGHT_SAMPLER_POWER, CANDELA_LIGHT_SAMPLER_TREE,
@@ -426,6 +428,11 @@ static const CandelaFlag FLAGS[] = {
           "the caustic defense of path guiding: training samples whose rays reached delta scatterers (glass, mirrors) "
           "teach the guide to send about F times the BSDF's own density there, so a caustic the guide has not learned "
           "keeps about its unguided weight in guided MIS (default 1; 0: off; guiding/README.md)"),
+    CHOICE("--guide-roulette", "corrected|adjoint", GUIDE_ROULETTE, GUIDE_ROULETTE_VALUES, NULL, IMG(guide_roulette),
+           ALL_RENDER, "adjoint", "Russian roulette at guided vertices (default corrected)",
+           "Russian roulette at guided vertices: corrected (the default) decides by the throughput, corrected for guided "
+           "sampling (ch. 1 4.1.1); adjoint keeps a path by the guide's estimate of what it brings to its pixel (ch. 1 "
+           "4.2.1: longer paths where they matter; guiding/README.md)"),
     INT("--recorder-budget", "N", 0, 1 << 20, IMG(recorder_budget), CANDELA_FIELD_INT, ALL_RENDER, 0, "4",
         "recorded vertices per path before skipping (default 4)",
         "recorded vertices per path before path/vertex skipping (default 4; 0: record every vertex)"),

@@ -43,11 +43,15 @@ static int render_drops_bootstrap(const Integrator *ig) {
  * GUIDE_TRAINING_SPP), measuring per pixel the variance of the paths' radiance and of its part
  * through two or more scattering vertices (what guiding can improve: direct light is NEE's, with
  * MIS), from consecutive samples' squared differences. f is that indirect share of the variance,
- * each pixel weighted by 1 / (mean^2 + 0.01) as relMSE weighs it; the gain G that guiding may
- * bring on the indirect part is how badly the function's own sampling finds it, the indirect
- * samples' variance over their mean squared over the image (about 1.6 for a Cornell box lit from
- * above, where guiding took off 1.5x of the indirect variance; 3.7 for light through a window or
- * off a bright patch, where it took off 4x). For a render of n spp, s of them probed, T trained
+ * each pixel weighted by 1 / (mean^2 + 0.01) as relMSE weighs it. How badly the function's own
+ * sampling finds the indirect light is its spread S, the indirect samples' variance over their
+ * mean squared over the image, and the gain G that guiding brings on the indirect part is S^2
+ * (at most GUIDE_AUTO_MAX_GAIN). That fits what guided MIS removed since its roulette and caustic
+ * defense (96af807; scenes/RESULTS.md, "`--guiding auto` after the guided roulette"):
+ * scenes/default.gltf S 1.55, indirect variance 2.3x lower; the box lit through the ceiling S 3.5,
+ * 8x; guiding_interior S 3.8, 5x (capped at 8); where S was taken as the gain itself, as before
+ * that commit, auto left guiding off on default.gltf, where it takes the time to unit variance
+ * to 0.79x. For a render of n spp, s of them probed, T trained
  * (U = GUIDE_TRAINING_SPP of them unguided), the prediction is
  *     variance ratio = (U + (n - U) (1 - f + f / G)) / n, or n (1 - f + f / G) / (n - U) when the
  *                      image drops the U unguided samples (render_drops_bootstrap)
@@ -82,6 +86,13 @@ static int guide_init(Integrator *ig) {
         }
     }
     gs->guided_from = 0; /* auto probes with mis's schedule (guide_schedule_start) */
+    if (ig->opt->guide_roulette == CANDELA_GUIDE_ROULETTE_ADJOINT) {
+        gs->pixel_estimate = calloc(ig->npixels, sizeof *gs->pixel_estimate);
+        if (!gs->pixel_estimate) {
+            guide_free(ig);
+            return -1;
+        }
+    }
     GuideFieldParams params;
     guide_field_params_default(&params);
     if (ig->opt->guide_spatial_threshold > 0.0f) params.spatial_threshold = ig->opt->guide_spatial_threshold;
@@ -125,6 +136,8 @@ static void probe_free(GuideState *gs) {
 static void guide_free(Integrator *ig) {
     GuideState *gs = &ig->guide;
     probe_free(gs);
+    free(gs->pixel_estimate);
+    gs->pixel_estimate = NULL;
     for (int k = 0; k < GUIDE_FIELDS; ++k) guide_field_free(gs->fields[k]);
     for (int k = 0; k < MAX_SLICES; ++k) free(gs->train[k]);
     free(gs->last);
@@ -348,7 +361,8 @@ static void auto_decide(Integrator *ig) {
         ind_var += gs->probe_d2[i][1] / (2.0 * (n - 1));
         ind_mean2 += mi * mi;
     }
-    double gain = ind_mean2 > 0.0 ? fmin(fmax(ind_var / ind_mean2, 1.0), GUIDE_AUTO_MAX_GAIN) : 1.0;
+    double spread = ind_mean2 > 0.0 ? fmax(ind_var / ind_mean2, 1.0) : 1.0;
+    double gain = fmin(spread * spread, GUIDE_AUTO_MAX_GAIN);
     double n = ig->opt->spp, probed = ig->spp_done;
     double unguided = fmin(GUIDE_TRAINING_SPP, n), trained = fmax(fmin((double)ig->record.training_spp, n), probed);
     /* the unguided bootstrap stays in the image of a short render, else it is dropped
@@ -369,18 +383,35 @@ static void auto_decide(Integrator *ig) {
         if (!ig->record.active) record_drop_batch(ig);
     }
     if (!ig->opt->quiet)
-        fprintf(stderr, "candela: --guiding auto: %s (indirect light %.0f%% of the relative variance, its relative variance "
+        fprintf(stderr, "candela: --guiding auto: %s (indirect light %.0f%% of the relative variance, predicted gain on it "
                         "%.2f; estimated time to unit variance x%.2f with guiding)\n", on ? "on" : "off", 100.0 * f, gain,
                 var * time);
 }
 
 static int guide_schedule_start(const Integrator *ig) { return ig->guide.guided_from; }
 
+/* The adjoint-driven roulette's estimate of each pixel (vertex.h adjoint_survival): the luminance
+ * of the film's mean at this barrier, fixed for the iteration that follows (so it does not depend
+ * on batches or threads) and kept in checkpoints (one taken within an iteration cannot rebuild
+ * it from its film). A pixel without samples (the bootstrap just dropped) estimates 0: the
+ * throughput's roulette there. */
+static void update_pixel_estimate(Integrator *ig) {
+    float *est = ig->guide.pixel_estimate;
+    if (!est) return;
+    const Film *film = &ig->film;
+    for (uint32_t i = 0; i < ig->npixels; ++i) {
+        const double *s = &film->sum[3 * (size_t)i];
+        double mean = film->count[i] ? (0.2126 * s[0] + 0.7152 * s[1] + 0.0722 * s[2]) / film->count[i] : 0.0;
+        est[i] = mean > 0.0 && mean < 1e30 ? (float)mean : 0.0f;
+    }
+}
+
 static void guide_barrier(Integrator *ig) {
     GuideState *gs = &ig->guide;
     if (!gs->on) return;
     if (gs->auto_state == GUIDE_AUTO_PROBING && ig->spp_done >= GUIDE_AUTO_PROBE_SPP) auto_decide(ig);
     if (gs->auto_state == GUIDE_AUTO_OFF) return;
+    update_pixel_estimate(ig);
     /* ch. 2 §5.3.3: guided sampling only after the first 8 spp trained the fields */
     gs->active = ig->spp_done >= gs->train_start + GUIDE_TRAINING_SPP;
     if (!gs->pending) return; /* nothing new was recorded: the fields stay as they are */
@@ -570,11 +601,12 @@ static int guide_dump(const Integrator *ig, const float at[3], const char *prefi
 /* ---------------------------------------------------------------- checkpoints */
 
 #define GUIDE_TAG CKPT_TAG('G', 'U', 'I', 'D')
-#define GUIDE_VERSION 2u
+#define GUIDE_VERSION 3u
 
 /* The fields (guiding/sdtree.c saves each whole: sampling and building trees), whether guided
  * sampling is on, whether samples wait for the next update, the statistics' counts, and --guiding
- * auto's state (while probing, its per-pixel sums). guide-dump's `last` samples are not kept: a
+ * auto's state (while probing, its per-pixel sums), the adjoint-driven roulette's pixel estimates.
+ * guide-dump's `last` samples are not kept: a
  * dump is a render of its own. */
 static int guide_save(const Integrator *ig, FILE *out) {
     const GuideState *gs = &ig->guide;
@@ -590,6 +622,7 @@ static int guide_save(const Integrator *ig, FILE *out) {
              ckpt_put(out, gs->probe_d2, ig->npixels * sizeof *gs->probe_d2) |
              ckpt_put(out, gs->probe_samples, ig->npixels * sizeof *gs->probe_samples) |
              ckpt_put(out, gs->probe_sum, ig->npixels * sizeof *gs->probe_sum);
+    if (rc == 0 && gs->pixel_estimate) rc = ckpt_put(out, gs->pixel_estimate, ig->npixels * sizeof *gs->pixel_estimate);
     for (int k = 0; k < GUIDE_FIELDS && rc == 0; ++k)
         if (gs->fields[k]) rc = guide_field_save(gs->fields[k], out);
     return rc;
@@ -617,6 +650,9 @@ static int guide_load(Integrator *ig, FILE *in) {
          ckpt_get(in, gs->probe_samples, ig->npixels * sizeof *gs->probe_samples) ||
          ckpt_get(in, gs->probe_sum, ig->npixels * sizeof *gs->probe_sum)))
         return -1;
+    if (gs->pixel_estimate && ckpt_get(in, gs->pixel_estimate, ig->npixels * sizeof *gs->pixel_estimate)) return -1;
+    for (uint32_t i = 0; gs->pixel_estimate && i < ig->npixels; ++i)
+        if (!(gs->pixel_estimate[i] >= 0.0f && gs->pixel_estimate[i] < 1e30f)) return -1;
     gs->auto_state = flags[4];
     gs->train_start = flags[5];
     gs->guided_from = flags[6];

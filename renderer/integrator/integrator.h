@@ -126,6 +126,9 @@ typedef struct GuideState {
     double (*probe_d2)[2];        /* and the sums of their squared differences to the one before */
     uint32_t *probe_samples;      /* and its probe samples */
     double *probe_sum;            /* and the sum of their indirect L */
+    /* the adjoint-driven roulette's per-pixel estimate (luminance of the film's mean at the last
+     * barrier; NULL: --guide-roulette corrected or no guiding) */
+    float *pixel_estimate;
 } GuideState;
 enum { GUIDE_AUTO_NONE = 0, GUIDE_AUTO_PROBING, GUIDE_AUTO_ON, GUIDE_AUTO_OFF };
 

@@ -43,6 +43,7 @@ void stage_generate(const Integrator *ig, Slice *s) {
         ps->radiance[p] = v3s(0.0f);
         ps->throughput[p] = v3s(1.0f);
         ps->rr_scale[p] = 1.0f;
+        ps->pixel_estimate[p] = ig->guide.pixel_estimate ? ig->guide.pixel_estimate[pixel] : 0.0f;
         ps->reg_roughness[p] = 0.0f;
         ps->prev_delta[p] = 1; /* the camera: emission seen directly takes no MIS weight */
         ps->prev_scatter_pdf[p] = 0.0f;
