@@ -44,16 +44,16 @@ static int render_drops_bootstrap(const Integrator *ig) {
  * through two or more scattering vertices, none of them in a medium (what guiding can improve:
  * direct light is NEE's, with MIS; in media, guided phase sampling removed only 1.07-1.22x of
  * the relative variance of make_volumes.py's cornell_cloud, fig9_thick and camera_in_fog, where
- * the probe's spread promised 2-3x), from consecutive samples' squared differences. f is that indirect share of the variance,
- * each pixel weighted by 1 / (mean^2 + 0.01) as relMSE weighs it. How badly the function's own
- * sampling finds the indirect light is its spread S, the indirect samples' variance over their
- * mean squared over the image, and the gain G that guiding brings on the indirect part is S^2
- * (at most GUIDE_AUTO_MAX_GAIN). That fits what guided MIS removed since its roulette and caustic
- * defense (96af807; scenes/RESULTS.md, "`--guiding auto` after the guided roulette"):
- * scenes/default.gltf S 1.55, indirect variance 2.3x lower; the box lit through the ceiling S 3.5,
- * 8x; guiding_interior S 3.8, 5x (capped at 8); where S was taken as the gain itself, as before
- * that commit, auto left guiding off on default.gltf, where it takes the time to unit variance
- * to 0.79x. For a render of n spp, s of them probed, T trained
+ * the probe's spread promised 2-3x), from consecutive samples' squared differences. f is that
+ * indirect share of the variance, each pixel weighted by 1 / (mean^2 + 0.01) as relMSE weighs
+ * it. How badly the function's own sampling finds the indirect light is its spread S, the
+ * indirect samples' variance over their mean squared over the image, and the gain G that guiding
+ * brings on the indirect part is S^2 (at most GUIDE_AUTO_MAX_GAIN). That fits what guided MIS
+ * removed since its roulette and caustic defense (96af807; scenes/RESULTS.md, "The
+ * adjoint-driven roulette and `auto`'s gain"): scenes/default.gltf S 1.55, indirect variance
+ * 2.3x lower; the box lit through the ceiling S 3.5, 8x; guiding_interior S 3.8, 5x (capped at
+ * 8). With G = S, as before, auto left guiding off on default.gltf, where it takes the time to
+ * unit variance to 0.79x. For a render of n spp, s of them probed, T trained
  * (U = GUIDE_TRAINING_SPP of them unguided), the prediction is
  *     variance ratio = (U + (n - U) (1 - f + f / G)) / n, or n (1 - f + f / G) / (n - U) when the
  *                      image drops the U unguided samples (render_drops_bootstrap)
