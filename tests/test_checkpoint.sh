@@ -214,42 +214,34 @@ if [ $rc -eq 130 ]; then
 else
   bad "SIGTERM: exit $rc (want 130; finished before the signal?)"
 fi
-# ... and guided with the adjoint-driven roulette, stopped within a guided iteration: the pixel
+# A render stopped by SIGTERM once its log says it checkpointed AT spp, then resumed: the resumed
+# EXR equals the uninterrupted render's (NAME: its files, WHAT: its messages; then the render's args)
+term_and_resume() {
+  local name=$1 at=$2 what=$3 pid rc
+  shift 3
+  "$bin" "$@" -o "$tmp/$name-full.exr" --quiet || bad "full render ($what, SIGTERM)"
+  rm -f "$tmp/$name.ckpt"; : > "$tmp/$name.log"
+  "$bin" "$@" -o "$tmp/$name.exr" --checkpoint "$tmp/$name.ckpt" 2>"$tmp/$name.log" &
+  pid=$!
+  for _ in $(seq 1 600); do grep -q "checkpoint at $at spp" "$tmp/$name.log" && break; sleep 0.05; done
+  kill -TERM $pid; wait $pid; rc=$?
+  if [ $rc -eq 130 ]; then
+    "$bin" "$@" -o "$tmp/$name.exr" --resume-from "$tmp/$name.ckpt" --quiet || bad "resume after SIGTERM ($what)"
+    same "$tmp/$name-full.exr" "$tmp/$name.exr" "resumed after SIGTERM ($what)"
+  else
+    bad "SIGTERM ($what): exit $rc (want 130; finished before the signal?)"
+  fi
+}
+# ... guided with the adjoint-driven roulette, stopped within a guided iteration: the pixel
 # estimates it decides by are the last barrier's, which the film of a checkpoint taken within an
 # iteration no longer holds (the checkpoint keeps them)
-gterm=("${base[@]}" "${slow[@]}" --guiding mis --guide-roulette adjoint)
-"$bin" "${gterm[@]}" -o "$tmp/gfull.exr" --quiet || bad "full render (adjoint roulette, SIGTERM)"
-rm -f "$tmp/gterm.ckpt"; : > "$tmp/gterm.log"
-"$bin" "${gterm[@]}" -o "$tmp/gterm.exr" --checkpoint "$tmp/gterm.ckpt" 2>"$tmp/gterm.log" &
-pid=$!
-for _ in $(seq 1 600); do grep -q "checkpoint at 14 spp" "$tmp/gterm.log" && break; sleep 0.05; done
-kill -TERM $pid; wait $pid; rc=$?
-if [ $rc -eq 130 ]; then
-  "$bin" "${gterm[@]}" -o "$tmp/gterm.exr" --resume-from "$tmp/gterm.ckpt" --quiet ||
-    bad "resume after SIGTERM (adjoint roulette)"
-  same "$tmp/gfull.exr" "$tmp/gterm.exr" "resumed after SIGTERM (adjoint roulette)"
-else
-  bad "SIGTERM (adjoint roulette): exit $rc (want 130; finished before the signal?)"
-fi
+term_and_resume gterm 14 "adjoint roulette" "${base[@]}" "${slow[@]}" --guiding mis --guide-roulette adjoint
 # ... and with adaptive sampling, stopped within an iteration after some pixels stopped. A render
 # with most of its work after the 16-spp checkpoint (64x48, threshold 0.05: pixels stop from 4 to
 # ~400 spp, ~2.5 s on one thread, ~90% of it after 16 spp): the 32x24 adaptive render above
 # finishes ~10 ms after its 32-spp checkpoint, which a fast machine beat the signal to
-aterm=(render "$scene" --res 64x48 --no-png --light-sampler cachepoints --spp 512 --threads 1 --batch 64
-       --noise-threshold 0.05 --min-spp 4 --aov spp)
-"$bin" "${aterm[@]}" -o "$tmp/afull.exr" --quiet || bad "full render (adaptive, SIGTERM)"
-rm -f "$tmp/aterm.ckpt"; : > "$tmp/aterm.log"
-"$bin" "${aterm[@]}" -o "$tmp/aterm.exr" --checkpoint "$tmp/aterm.ckpt" 2>"$tmp/aterm.log" &
-pid=$!
-for _ in $(seq 1 600); do grep -q "checkpoint at 16 spp" "$tmp/aterm.log" && break; sleep 0.05; done
-kill -TERM $pid; wait $pid; rc=$?
-if [ $rc -eq 130 ]; then
-  "$bin" "${aterm[@]}" -o "$tmp/aterm.exr" --resume-from "$tmp/aterm.ckpt" --quiet ||
-    bad "resume after SIGTERM (adaptive)"
-  same "$tmp/afull.exr" "$tmp/aterm.exr" "resumed after SIGTERM (adaptive)"
-else
-  bad "SIGTERM (adaptive): exit $rc (want 130; finished before the signal?)"
-fi
+term_and_resume aterm 16 adaptive render "$scene" --res 64x48 --no-png --light-sampler cachepoints --spp 512 --threads 1 \
+  --batch 64 --noise-threshold 0.05 --min-spp 4 --aov spp
 
 # --- bad input: one line, nothing overwritten
 ck=$tmp/default.ckpt
