@@ -156,7 +156,7 @@ static inline int vertex_continue(const Integrator *ig, Slice *s, uint32_t p, ve
     vec3 beta = v3_mul(ps->throughput[p], ss->weight);
     ps->rr_scale[p] *= ss->rr_factor;
     if (!v3_is_finite(beta) || v3_is_black(beta)) return 0;
-    float survival = adjoint_survival(ps->pixel_estimate[p], beta, ss, guide, cos_term);
+    float survival = ig->guide.pixel_estimate ? adjoint_survival(ps->pixel_estimate[p], beta, ss, guide, cos_term) : -1.0f;
     if (survival >= 0.0f) { /* ch. 1 §4.2.1 */
         if (survival < 1.0f) {
             if (dims_lane(g, 3) >= survival) return 0;
