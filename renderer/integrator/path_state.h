@@ -30,7 +30,7 @@
     F(uint32_t, crossings, N)       /* invisible medium boundaries crossed (bounded) */          \
     F(vec3, radiance, W)            /* accumulated L; written only through path_add_radiance */  \
     F(vec3, throughput, W)          /* beta: the path's weight so far */                         \
-    F(float, pixel_estimate, R)     /* its pixel's estimate for the adjoint-driven roulette (0: none) */ \
+    F(float, pixel_estimate, N)     /* its pixel's estimate for the adjoint-driven roulette (0: none) */ \
     F(double, rr_scale, W)          /* throughput factor for the Russian roulette decision only \
                                      * (removes refraction's eta^2 radiance scaling and guided   \
                                      * sampling's max(1, p / p_bsdf): double, ch. 1 §4.1.1) */   \
