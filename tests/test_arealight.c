@@ -14,7 +14,11 @@
  *   (g) the refit of another instance (light_tree_refit_triangles): over the same vertices it
  *       equals the build bit for bit; over a rotated, non-uniformly scaled, mirrored and moved
  *       copy it passes (a)-(c); a copy with another triangle count, or with a triangle that no
- *       longer emits, is refused (the caller builds). */
+ *       longer emits, is refused (the caller builds);
+ *   (h) a tree shared in object space (LightSharedTree): copies rotated and scaled 2.5x, and
+ *       stretched 1.6x, that read the object-space tree pass (a)-(c); under the uniform scale
+ *       its variance is at most 1.5x a world-space refit's at three contexts (both printed); a
+ *       mirror, a 3x stretch and a shear are refused. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -109,7 +113,7 @@ static vec3 tri_normal(const Light *l, uint32_t t) {
 static void check_pmf(const char *name, const Light *l, vec3 lo, vec3 hi) {
     Fake f;
     fake_scene(&f, l);
-    CHECK(l->tri_tree.node_count > 0, "%s: no inner tree", name);
+    CHECK(l->tri_tree.node_count > 0 || l->shared_tree, "%s: no inner tree", name);
     uint32_t nt = l->triangles.n;
     int mismatch = 0, pdf_bad = 0, samples = 0, tree_contexts = 0;
     double worst_sum = 0.0;
@@ -119,16 +123,18 @@ static void check_pmf(const char *name, const Light *l, vec3 lo, vec3 hi) {
         double sum = 0.0;
         for (uint32_t t = 0; t < nt; ++t) sum += light_area_triangle_pmf(l, &ctx, t);
         if (fabs(sum - 1.0) > worst_sum) worst_sum = fabs(sum - 1.0);
-        if (light_tree_node_importance(&l->tri_tree.nodes[0], ctx.p, ctx.n) > 0.0f) {
+        LightSampleContext local; /* ctx in the tree's frame (object space for a shared tree) */
+        const LightTree *tree = light_area_tree(l, &ctx, &local);
+        if (tree) {
             ++tree_contexts;
             double tsum = 0.0;
-            for (uint32_t t = 0; t < nt; ++t) tsum += light_tree_pmf(&l->tri_tree, &ctx, t);
+            for (uint32_t t = 0; t < nt; ++t) tsum += light_tree_pmf(tree, &local, t);
             CHECK(fabs(tsum - 1.0) < 1e-4, "%s: tree pmf sums to %.7f", name, tsum);
-        }
-        for (int s = 0; s < 2000; ++s) {
-            float pmf;
-            uint32_t t = light_tree_select(&l->tri_tree, &ctx, (float)rnd(), &pmf);
-            if (t >= nt || !(pmf > 0.0f) || pmf != light_tree_pmf(&l->tri_tree, &ctx, t)) ++mismatch;
+            for (int s = 0; s < 2000; ++s) {
+                float pmf;
+                uint32_t t = light_tree_select(tree, &local, (float)rnd(), &pmf);
+                if (t >= nt || !(pmf > 0.0f) || pmf != light_tree_pmf(tree, &local, t)) ++mismatch;
+            }
         }
         for (int s = 0; s < 200; ++s) {
             LightLiSample smp;
@@ -142,7 +148,8 @@ static void check_pmf(const char *name, const Light *l, vec3 lo, vec3 hi) {
         }
     }
     fprintf(stderr, "  (a,b) %s: %u triangles, %u nodes, %d/40 contexts on the tree, worst |sum-1| %.2e, %d samples\n",
-            name, nt, l->tri_tree.node_count, tree_contexts, worst_sum, samples);
+            name, nt, l->shared_tree ? l->shared_tree->tree->node_count : l->tri_tree.node_count, tree_contexts, worst_sum,
+            samples);
     CHECK(worst_sum < 1e-4, "%s: triangle pmf sum off by %g", name, worst_sum);
     CHECK(tree_contexts > 20, "%s: only %d contexts used the tree", name, tree_contexts);
     CHECK(mismatch == 0, "%s: %d selections disagree with light_tree_pmf", name, mismatch);
@@ -172,6 +179,7 @@ static void irradiance(const Light *l, const LightSampleContext *ctx, int n, dou
 static void check_unbiased(const char *name, const Light *l, LightSampleContext ctx) {
     Light flat = *l;
     flat.tri_tree.node_count = 0; /* same light, area CDF */
+    flat.shared_tree = NULL;
     const int N = 200000;
     double mt, vt, mc, vc;
     irradiance(l, &ctx, N, &mt, &vt);
@@ -317,11 +325,71 @@ static void test_refit(void) {
     free_light(&l);
 }
 
+/* (h) a tree shared in object space (LightSharedTree): `obj`'s tree read by a copy placed by
+ * x -> M x + o, M a rotation times a scale (column-major 4x4 as the scene's instances) */
+static Light shared_copy(const Light *obj, const float M[9], vec3 o, LightSharedTree *frame) {
+    float x[16] = {M[0], M[3], M[6], 0, M[1], M[4], M[7], 0, M[2], M[5], M[8], 0, o.x, o.y, o.z, 1};
+    CHECK(light_shared_tree_frame(x, frame), "a rotation times a scale refused as a shared tree's frame");
+    frame->tree = &obj->tri_tree;
+    Light l = moved_copy(obj, M, o);
+    l.shared_tree = frame;
+    return l;
+}
+
+static void test_shared(void) {
+    Light l = grid_light(sheet, 32, 32, 5.0f, 0); /* object space: the sheet facing +y */
+    float c = cosf(0.8727f), s = sinf(0.8727f), ca = cosf(0.3f), sa = sinf(0.3f);
+    /* uniform: R_x(0.3) R_y(50 deg) x 2.5; the probabilities are a world-space tree's */
+    float Ry[9] = {c, 0, s, 0, 1, 0, -s, 0, c}, Rx[9] = {1, 0, 0, 0, ca, -sa, 0, sa, ca}, U[9];
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            U[3 * i + j] = 2.5f * (Rx[3 * i] * Ry[j] + Rx[3 * i + 1] * Ry[3 + j] + Rx[3 * i + 2] * Ry[6 + j]);
+    LightSharedTree fu, fs;
+    Light u = shared_copy(&l, U, v3(3.0f, 1.0f, -2.0f), &fu);
+    check_pmf("sheet, shared, rotated and scaled 2.5x", &u, v3(-4, -2, -8), v3(10, 8, 4));
+    check_unbiased("sheet, shared, rotated and scaled 2.5x", &u, (LightSampleContext){v3(3.5f, 2.4f, -1.5f), v3(0, -1, 0)});
+    /* against the same splits refitted in world space (world boxes around the rotated
+     * triangles, where the shared tree's are the object-space boxes rotated): as good */
+    Light w = moved_copy(&l, U, v3(3.0f, 1.0f, -2.0f));
+    CHECK(light_tree_refit_triangles(&w.tri_tree, &l.tri_tree, w.world_vertices, w.triangles.n, v3_luminance(w.emission),
+                                     0) == 0,
+          "refit of the uniformly scaled copy failed");
+    LightSampleContext at[3] = {{v3(3.5f, 2.4f, -1.5f), v3(0, -1, 0)},
+                                {v3(6.0f, 3.0f, 1.0f), v3_normalize(v3(-1, -1, 0))},
+                                {v3(2.0f, 1.5f, -3.0f), v3s(0.0f)}};
+    for (int k = 0; k < 3; ++k) {
+        double ms, vs, mw, vw;
+        irradiance(&u, &at[k], 100000, &ms, &vs);
+        irradiance(&w, &at[k], 100000, &mw, &vw);
+        fprintf(stderr, "  (h) context %d: variance shared %.4g, world-space refit %.4g (E %.5f, %.5f)\n", k, vs, vw, ms, mw);
+        CHECK(vs <= 1.5 * vw, "context %d: the shared tree's variance %g above 1.5x the world refit's %g", k, vs, vw);
+    }
+    free_light(&w);
+    /* stretched 1.6x along y after the rotation (the street's facades): still exact */
+    float S[9] = {c, 0, s, 0, 1.6f, 0, -s, 0, c};
+    Light st = shared_copy(&l, S, v3(-1.0f, 0.5f, 2.0f), &fs);
+    check_pmf("sheet, shared, stretched 1.6x", &st, v3(-4, -2, -2), v3(2, 3, 6));
+    check_unbiased("sheet, shared, stretched 1.6x", &st, (LightSampleContext){v3(-0.5f, 1.1f, 2.3f), v3(0, -1, 0)});
+    check_unbiased("sheet, shared, stretched 1.6x, medium", &st, (LightSampleContext){v3(0.5f, 0.3f, 1.5f), v3s(0.0f)});
+    /* refused: a mirror, a 3x stretch, a shear */
+    float mir[16] = {-1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+    float str[16] = {1, 0, 0, 0, 0, 3, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+    float shr[16] = {1, 0, 0, 0, 0.3f, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+    LightSharedTree no;
+    CHECK(!light_shared_tree_frame(mir, &no) && !light_shared_tree_frame(str, &no) && !light_shared_tree_frame(shr, &no),
+          "a mirror, a 3x stretch or a shear accepted as a shared tree's frame");
+    u.shared_tree = st.shared_tree = NULL;
+    free_light(&u);
+    free_light(&st);
+    free_light(&l);
+}
+
 int main(void) {
     test_bumpy_sheet();
     test_sphere();
     test_variance();
     test_small_and_million();
     test_refit();
+    test_shared();
     return test_exit();
 }

@@ -27,9 +27,11 @@ static int push_light(Lights *ls, uint32_t *cap, const Light *l) {
     return 0;
 }
 
-/* topology: another instance's inner tree of the same primitive to refit (NULL: build one). */
+/* topology: another instance's inner tree of the same primitive to refit (NULL: build one);
+ * shared: the primitive's object-space tree in this instance's frame (NULL: none; then the
+ * light gets no tree of its own). */
 static int build_area_light(const Scene *scene, uint32_t instance, uint32_t local, const LightTree *topology,
-                            Light *l) {
+                            const LightSharedTree *shared, Light *l) {
     const SceneInstance *inst = &scene->instances[instance];
     const IoMesh *mesh = &scene->io.meshes[inst->mesh];
     uint32_t global = mesh->first_primitive + local;
@@ -65,6 +67,10 @@ static int build_area_light(const Scene *scene, uint32_t instance, uint32_t loca
     l->emission = v3_max(e, v3s(0.0f));
     l->two_sided = mat->double_sided ? 1 : 0;
     l->power = PI_F * l->area * fmaxf(v3_luminance(e), 0.0f) * (mat->double_sided ? 2.0f : 1.0f);
+    if (shared) {
+        l->shared_tree = shared;
+        return 0;
+    }
     int tr = 1;
     if (topology && l->triangles.n > LIGHT_AREA_TREE_MAX_CDF)
         tr = light_tree_refit_triangles(&l->tri_tree, topology, l->world_vertices, l->triangles.n,
@@ -301,6 +307,46 @@ void lights_shape_crossings(const Lights *ls, vec3 o, vec3 d, float tmin, float 
         if (light_shape_hit(&ls->lights[ls->shapes[k]], o, d, tmin, tmax, receiver, &t, &le)) fn(user, ls->shapes[k], t, le);
 }
 
+int light_shared_tree_frame(const float m[16], LightSharedTree *f) {
+    vec3 c[3] = {v3(m[0], m[1], m[2]), v3(m[4], m[5], m[6]), v3(m[8], m[9], m[10])};
+    float l2[3] = {v3_dot(c[0], c[0]), v3_dot(c[1], c[1]), v3_dot(c[2], c[2])};
+    float lo = minf(l2[0], minf(l2[1], l2[2])), hi = maxf(l2[0], maxf(l2[1], l2[2]));
+    /* a rotation times a scale: orthogonal columns (to rounding: a glTF TRS in floats), a
+     * positive determinant, and lengths within LIGHT_SHARED_TREE_MAX_STRETCH of each other */
+    const float tol = 1e-5f;
+    if (!(lo > 0.0f) || !isfinite(hi) || hi > LIGHT_SHARED_TREE_MAX_STRETCH * LIGHT_SHARED_TREE_MAX_STRETCH * lo ||
+        fabsf(v3_dot(c[0], c[1])) > tol * sqrtf(l2[0] * l2[1]) || fabsf(v3_dot(c[0], c[2])) > tol * sqrtf(l2[0] * l2[2]) ||
+        fabsf(v3_dot(c[1], c[2])) > tol * sqrtf(l2[1] * l2[2]) || !(v3_dot(c[0], v3_cross(c[1], c[2])) > 0.0f))
+        return 0;
+    f->tree = NULL;
+    f->origin = v3(m[12], m[13], m[14]);
+    for (int k = 0; k < 3; ++k) {
+        f->row[k] = v3_scale(c[k], 1.0f / l2[k]); /* M^-1 = diag(1 / s) R^T */
+        f->col[k] = c[k];                         /* M^T takes the normals */
+    }
+    return v3_is_finite(f->origin) && v3_is_finite(f->row[0]) && v3_is_finite(f->row[1]) && v3_is_finite(f->row[2]);
+}
+
+/* The object-space inner tree of an emissive primitive, built on its first instance that may
+ * share it (light_shared_tree_frame).
+ * 0 ok (also when it already exists, or when no triangle emits: node_count 0), -1 out of
+ * memory. */
+static int object_tree_build(LightTree *t, const ScenePrimitive *sp) {
+    if (t->node_count || t->light_count) return 0; /* built (light_count: tried, nothing emits) */
+    const IoPrimitive *p = sp->io;
+    float *v = malloc((size_t)p->num_triangles * 9 * sizeof(float));
+    if (!v) return -1;
+    for (uint32_t k = 0; k < 3 * p->num_triangles; ++k)
+        memcpy(v + 3 * (size_t)k, p->positions + 3 * (size_t)p->indices[k], 3 * sizeof(float));
+    const IoMaterial *mat = sp->material;
+    vec3 e = v3_scale(v3(mat->emissive[0], mat->emissive[1], mat->emissive[2]), mat->emissive_strength);
+    int rc = light_tree_build_triangles(t, v, p->num_triangles, v3_luminance(v3_max(e, v3s(0.0f))),
+                                        mat->double_sided ? 1 : 0);
+    free(v);
+    if (rc == 0 && !t->node_count) t->light_count = p->num_triangles;
+    return rc;
+}
+
 int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, CandelaLightUnits units, char *err,
                  size_t err_len) {
     memset(ls, 0, sizeof *ls);
@@ -413,11 +459,15 @@ int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, Candel
         if (push_light(ls, &cap, &l) != 0) goto oom;
     }
     /* Per primitive: the light whose inner tree later instances of it refit (UINT32_MAX: none
-     * yet). The split search runs once per distinct emissive primitive, not once per instance. */
+     * yet). The split search runs once per distinct emissive primitive, not once per instance:
+     * in object space, for the instances placed by a rotation and a mild scale, which share
+     * that tree (LightSharedTree); the others refit its splits, or the first of them builds. */
     uint32_t *tree_of_prim = NULL;
     if (scene->io.num_primitives) {
         tree_of_prim = malloc(scene->io.num_primitives * sizeof *tree_of_prim);
-        if (!tree_of_prim) goto oom;
+        ls->object_trees = calloc(scene->io.num_primitives, sizeof *ls->object_trees);
+        ls->shared_trees = calloc((size_t)scene->num_instance_primitives + 1, sizeof *ls->shared_trees);
+        if (!tree_of_prim || !ls->object_trees || !ls->shared_trees) { free(tree_of_prim); goto oom; }
         for (uint32_t k = 0; k < scene->io.num_primitives; ++k) tree_of_prim[k] = UINT32_MAX;
     }
     for (uint32_t i = 0; i < scene->io.num_instances; ++i) {
@@ -432,8 +482,18 @@ int lights_build(Lights *ls, const Scene *scene, const SceneMedia *media, Candel
                 continue;
             Light l;
             uint32_t g = mesh->first_primitive + k, from = tree_of_prim[g];
-            const LightTree *topology = from != UINT32_MAX ? &ls->lights[from].tri_tree : NULL;
-            if (build_area_light(scene, i, k, topology, &l) != 0) { free(tree_of_prim); goto oom; }
+            LightSharedTree *shared = &ls->shared_trees[inst->primitive_base + k];
+            if (sp->io->num_triangles > LIGHT_AREA_TREE_MAX_CDF && light_shared_tree_frame(inst->xform, shared)) {
+                if (object_tree_build(&ls->object_trees[g], sp) != 0) { free(tree_of_prim); goto oom; }
+                shared->tree = ls->object_trees[g].node_count ? &ls->object_trees[g] : NULL;
+            }
+            const LightTree *topology = ls->object_trees[g].node_count ? &ls->object_trees[g]
+                                        : from != UINT32_MAX       ? &ls->lights[from].tri_tree
+                                                                   : NULL;
+            if (build_area_light(scene, i, k, topology, shared->tree ? shared : NULL, &l) != 0) {
+                free(tree_of_prim);
+                goto oom;
+            }
             if (!(l.area > 0.0f)) { light_area_free(&l); continue; }
             if (from == UINT32_MAX && l.tri_tree.node_count) tree_of_prim[g] = ls->count;
             l.link = link_of_node && scene->io.instances[i].node >= 0 ? link_of_node[scene->io.instances[i].node] : -1;
@@ -526,6 +586,10 @@ void lights_free(Lights *ls) {
     if (ls->environment >= 0) dist2d_free(&ls->env_distribution);
     free(ls->of_primitive);
     free(ls->of_medium);
+    if (ls->object_trees && ls->scene)
+        for (uint32_t k = 0; k < ls->scene->io.num_primitives; ++k) light_tree_free(&ls->object_trees[k]);
+    free(ls->object_trees);
+    free(ls->shared_trees);
     lights_free_linking(ls);
     memset(ls, 0, sizeof *ls);
     ls->environment = -1;
@@ -557,10 +621,24 @@ float light_spot_falloff(const Light *l, vec3 w) {
 
 /* ---------------------------------------------------------------- sampling */
 
-/* Whether the inner tree picks the triangle for ctx (else the area CDF does). Not inlined:
- * sampling and the pdf must take the same branch for the same context. */
-__attribute__((noinline)) static int area_uses_tree(const Light *l, const LightSampleContext *ctx) {
-    return l->tri_tree.node_count > 0 && light_tree_node_importance(&l->tri_tree.nodes[0], ctx->p, ctx->n) > 0.0f;
+/* Not inlined: sampling and the pdfs must take the same branch, with the same frame, for the
+ * same context. */
+__attribute__((noinline)) const LightTree *light_area_tree(const Light *l, const LightSampleContext *ctx,
+                                                           LightSampleContext *local) {
+    const LightTree *t = &l->tri_tree;
+    const LightSharedTree *f = l->shared_tree;
+    if (f) { /* into the shared tree's object space */
+        vec3 d = v3_sub(ctx->p, f->origin), n = ctx->n;
+        vec3 po = v3(v3_dot(f->row[0], d), v3_dot(f->row[1], d), v3_dot(f->row[2], d));
+        vec3 no = v3(v3_dot(f->col[0], n), v3_dot(f->col[1], n), v3_dot(f->col[2], n));
+        float nl = v3_length(no);
+        no = nl > 0.0f ? v3_scale(no, 1.0f / nl) : v3s(0.0f); /* (a medium point keeps n = 0) */
+        *local = light_sample_context(po, no, NULL, NULL, 0u);
+        t = f->tree;
+    } else {
+        *local = light_sample_context(ctx->p, ctx->n, NULL, NULL, 0u);
+    }
+    return t->node_count > 0 && light_tree_node_importance(&t->nodes[0], local->p, local->n) > 0.0f ? t : NULL;
 }
 
 /* Area density of a point on triangle t picked with probability tri_pmf (tree) or by area. */
@@ -581,14 +659,17 @@ static inline float area_to_solid_angle(float pdf_area, vec3 p, vec3 y, vec3 ny)
 
 float light_area_triangle_pmf(const Light *l, const LightSampleContext *ctx, uint32_t triangle) {
     if (l->type != LIGHT_AREA || triangle >= l->triangles.n || !(l->area > 0.0f)) return 0.0f;
-    return area_uses_tree(l, ctx) ? light_tree_pmf(&l->tri_tree, ctx, triangle) : dist1d_pmf(&l->triangles, triangle);
+    LightSampleContext local;
+    const LightTree *tree = light_area_tree(l, ctx, &local);
+    return tree ? light_tree_pmf(tree, &local, triangle) : dist1d_pmf(&l->triangles, triangle);
 }
 
 float light_area_pdf_li(const Light *l, const LightSampleContext *ctx, uint32_t triangle, vec3 y, vec3 ny) {
     if (l->type != LIGHT_AREA || triangle >= l->triangles.n || !(l->area > 0.0f)) return 0.0f;
-    int tree = area_uses_tree(l, ctx);
-    float tri_pmf = tree ? light_tree_pmf(&l->tri_tree, ctx, triangle) : 0.0f;
-    return area_to_solid_angle(area_density(l, tree, triangle, tri_pmf), ctx->p, y, ny);
+    LightSampleContext local;
+    const LightTree *tree = light_area_tree(l, ctx, &local);
+    float tri_pmf = tree ? light_tree_pmf(tree, &local, triangle) : 0.0f;
+    return area_to_solid_angle(area_density(l, tree != NULL, triangle, tri_pmf), ctx->p, y, ny);
 }
 
 float light_volume_pdf_li(const Lights *ls, const Light *l, vec3 p, vec3 d) {
@@ -993,11 +1074,12 @@ int light_sample_li(const Lights *ls, const Light *l, const LightSampleContext *
     case LIGHT_AREA: {
         if (!(l->area > 0.0f)) return 0;
         float tri_pmf;
-        int tree = area_uses_tree(l, ctx);
-        uint32_t t = tree ? light_tree_select(&l->tri_tree, ctx, u0, &tri_pmf)
+        LightSampleContext local;
+        const LightTree *tree = light_area_tree(l, ctx, &local);
+        uint32_t t = tree ? light_tree_select(tree, &local, u0, &tri_pmf)
                           : dist1d_sample_discrete(&l->triangles, u0, &tri_pmf, NULL);
         if (!(tri_pmf > 0.0f)) return 0;
-        float pdf_area = area_density(l, tree, t, tri_pmf);
+        float pdf_area = area_density(l, tree != NULL, t, tri_pmf);
         s->triangle = t;
         const float *w = l->world_vertices + 9 * (size_t)t;
         vec3 a = v3(w[0], w[1], w[2]), b = v3(w[3], w[4], w[5]), c = v3(w[6], w[7], w[8]);

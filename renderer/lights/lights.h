@@ -27,6 +27,27 @@ struct Scene;
 typedef enum { LIGHT_POINT, LIGHT_SPOT, LIGHT_DIRECTIONAL, LIGHT_AREA, LIGHT_ENVIRONMENT, LIGHT_VOLUME,
                LIGHT_RECT, LIGHT_DISK } LightType;
 
+/* An inner tree shared by the instances of an emissive primitive (lights_build): built once
+ * over the primitive's object-space triangles and read, for an instance placed by
+ * x -> M x + origin with M a rotation times a scale (orthogonal columns, det M > 0), with the
+ * shading point taken into object space by M^-1 and the receiver's normal by M^T
+ * (normalised). Both sidedness tests that make an importance zero (in front of an emitter,
+ * above the receiver's horizon) are then the world-space ones, so no triangle that can
+ * contribute loses its probability: selection stays exact and unbiased. Under a uniform scale
+ * every branch probability is the world-space tree's up to rounding (distances scale, angles
+ * stay); a stretch (the street's buildings scale their facades 0.9-1.6x in height) tilts
+ * them, so only stretches up to LIGHT_SHARED_TREE_MAX_STRETCH share. The production street
+ * places each window mesh about six times: one tree instead of six keeps the descents' nodes
+ * in cache. Other placements (mirrors, shears, larger stretches) refit a tree of their own
+ * (Light.tri_tree). */
+#define LIGHT_SHARED_TREE_MAX_STRETCH 2.0f
+typedef struct LightSharedTree {
+    const LightTree *tree; /* the primitive's object-space tree (Lights.object_trees) */
+    vec3 origin;           /* the instance's translation */
+    vec3 row[3];           /* the rows of M^-1: object point = row . (p - origin) */
+    vec3 col[3];           /* the columns of M: object normal ~ (col . n) */
+} LightSharedTree;
+
 typedef struct Light {
     LightType type;
     vec3 position;        /* point, spot */
@@ -44,6 +65,8 @@ typedef struct Light {
     int two_sided;            /* the material is double-sided: emits from both faces */
     float power;              /* estimate for the power sampler (luminance, W) */
     LightTree tri_tree;       /* inner tree over the triangles (node_count 0: area CDF only) */
+    const LightSharedTree *shared_tree; /* instead of tri_tree: the primitive's object-space
+                                         * tree, in this instance's frame (NULL: tri_tree) */
     /* volume (an emissive VDB medium, the cache points paper's §4.3 emission sampling):
      * position = its emission centroid, intensity = its integral of sigma_a L_e (W/sr) */
     uint32_t medium;          /* index into SceneMedia.vdb */
@@ -189,6 +212,11 @@ typedef struct Lights {
     uint32_t num_suns;
     void *shape_bvh;            /* lights.c ShapeBvh: an Embree BVH over the finite shapes, or NULL
                                  * (few shapes: the list is tested linearly) */
+    /* inner trees shared in object space (LightSharedTree): per scene primitive, the tree its
+     * similarly placed instances read (node_count 0: none); per instance primitive, the frame
+     * its area light reads it in */
+    LightTree *object_trees;
+    LightSharedTree *shared_trees;
 } Lights;
 
 /* Whether `light` may illuminate a vertex of link class cls (LightLinking). */
@@ -289,6 +317,14 @@ float light_volume_pdf_li(const Lights *ls, const Light *light, vec3 p, vec3 d);
 float light_area_pdf_li(const Light *light, const LightSampleContext *ctx, uint32_t triangle, vec3 y, vec3 ny);
 /* Probability that light_sample_li picks `triangle` of an area light from ctx. */
 float light_area_triangle_pmf(const Light *light, const LightSampleContext *ctx, uint32_t triangle);
+/* The inner tree that picks an area light's triangle for ctx, with ctx's point and normal in
+ * that tree's frame in *local (its other members zero), or NULL when the area CDF picks it (no
+ * tree, or the tree's root has importance 0 there). Sampling and the pdfs decide through it. */
+const LightTree *light_area_tree(const Light *light, const LightSampleContext *ctx, LightSampleContext *local);
+/* Whether an instance transform (column-major 4x4, xform_point's) may read a shared tree
+ * (LightSharedTree: a rotation times a scale of stretch <= LIGHT_SHARED_TREE_MAX_STRETCH, to
+ * within rounding); if so fills *f's frame (f->tree is left NULL). */
+int light_shared_tree_frame(const float xform[16], LightSharedTree *f);
 /* Builds l->tri_tree from world_vertices, emission and two_sided when the light has more than
  * LIGHT_AREA_TREE_MAX_CDF triangles (else leaves it empty). 0 ok, -1 out of memory. */
 int light_area_tree_build(Light *l);
