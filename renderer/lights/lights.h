@@ -34,9 +34,11 @@ typedef enum { LIGHT_POINT, LIGHT_SPOT, LIGHT_DIRECTIONAL, LIGHT_AREA, LIGHT_ENV
  * (normalised). Both sidedness tests that make an importance zero (in front of an emitter,
  * above the receiver's horizon) are then the world-space ones, so no triangle that can
  * contribute loses its probability: selection stays exact and unbiased. Under a uniform scale
- * every branch probability is the world-space tree's up to rounding (distances scale, angles
- * stay); a stretch (the street's buildings scale their facades 0.9-1.6x in height) tilts
- * them, so only stretches up to LIGHT_SHARED_TREE_MAX_STRETCH share. The production street
+ * distances scale and angles stay, so the branch probabilities are those of a world-space tree
+ * over the same splits but with the object-space boxes (turned with the instance; for a mesh
+ * modelled along its axes these are the tighter ones: test_arealight (h)); a stretch (the
+ * street's buildings scale their facades 0.9-1.6x in height) also tilts the angles, so only
+ * stretches up to LIGHT_SHARED_TREE_MAX_STRETCH share. The production street
  * places each window mesh about six times: one tree instead of six keeps the descents' nodes
  * in cache. Other placements (mirrors, shears, larger stretches) refit a tree of their own
  * (Light.tri_tree). */
@@ -213,8 +215,8 @@ typedef struct Lights {
     void *shape_bvh;            /* lights.c ShapeBvh: an Embree BVH over the finite shapes, or NULL
                                  * (few shapes: the list is tested linearly) */
     /* inner trees shared in object space (LightSharedTree): per scene primitive, the tree its
-     * similarly placed instances read (node_count 0: none); per instance primitive, the frame
-     * its area light reads it in */
+     * instances read when their placement allows (node_count 0: none); per instance primitive,
+     * the frame its area light reads it in */
     LightTree *object_trees;
     LightSharedTree *shared_trees;
 } Lights;
