@@ -231,6 +231,16 @@ float light_tree_node_importance(const LightTreeNode *nd, vec3 p, vec3 n) {
     return imp > 0.0f ? minf(imp, IMPORTANCE_MAX) : 0.0f; /* NaN -> 0 */
 }
 
+/* Starts the loads of an interior node's two children (a node spans at most two lines). */
+static inline void prefetch_children(const LightTree *t, const LightTreeNode *nd) {
+    if (nd->light != LIGHT_TREE_INTERIOR) return;
+    const LightTreeNode *first = nd + 1, *second = &t->nodes[nd->child];
+    __builtin_prefetch(first);
+    __builtin_prefetch((const char *)(first + 1) - 1);
+    __builtin_prefetch(second);
+    __builtin_prefetch((const char *)(second + 1) - 1);
+}
+
 /* Branch probabilities at interior node `node`. Not inlined: select and pmf must run the
  * very same instructions so that their products agree bit for bit. */
 __attribute__((noinline)) static void child_probs(const LightTree *t, uint32_t node, vec3 p, vec3 n,
@@ -238,21 +248,9 @@ __attribute__((noinline)) static void child_probs(const LightTree *t, uint32_t n
     const LightTreeNode *c0 = &t->nodes[node + 1], *c1 = &t->nodes[t->nodes[node].child];
     /* The descent is a chain of dependent loads (each level's nodes miss the cache on large
      * trees): start the next level's loads, both children's children, before this level's
-     * arithmetic. A node spans at most two lines. */
-    if (c0->light == LIGHT_TREE_INTERIOR) {
-        const LightTreeNode *g = &t->nodes[c0->child];
-        __builtin_prefetch(c0 + 1);
-        __builtin_prefetch((const char *)(c0 + 2) - 1);
-        __builtin_prefetch(g);
-        __builtin_prefetch((const char *)(g + 1) - 1);
-    }
-    if (c1->light == LIGHT_TREE_INTERIOR) {
-        const LightTreeNode *g = &t->nodes[c1->child];
-        __builtin_prefetch(c1 + 1);
-        __builtin_prefetch((const char *)(c1 + 2) - 1);
-        __builtin_prefetch(g);
-        __builtin_prefetch((const char *)(g + 1) - 1);
-    }
+     * arithmetic. */
+    prefetch_children(t, c0);
+    prefetch_children(t, c1);
     float i0 = light_tree_node_importance(c0, p, n);
     float i1 = light_tree_node_importance(c1, p, n);
     if (!(i0 + i1 > 0.0f)) { /* neither child visible by its bounds: split by power */
