@@ -418,6 +418,32 @@ static void check_equal_time(const char *bin, const char *scene, const char *dir
     csv_free(&conv);
 }
 
+/* A --reference rendered with the compared renders' seed gets a warning naming it (their
+ * errors are correlated); one rendered with another seed does not. */
+static void check_reference_seed(const char *bin, const char *scene, const char *dir) {
+    char cmd[8192], ref[1024], log[1024];
+    for (int seed = 0; seed <= 7; seed += 7) {
+        snprintf(ref, sizeof ref, "%s/ref%d.exr", dir, seed);
+        snprintf(log, sizeof log, "%s/log%d.txt", dir, seed);
+        snprintf(cmd, sizeof cmd, "mkdir -p '%s' && '%s' render '%s' --res 32x24 --spp 8 --seed %d -o '%s' --no-png 2> /dev/null",
+                 dir, bin, scene, seed, ref);
+        CHECK(run(cmd) == 0, "rendering the seed-%d reference failed", seed);
+        snprintf(cmd, sizeof cmd,
+                 "'%s' compare '%s' --spp 4 --res 32x24 --reference '%s' --strategies tree --out-dir '%s/cmp%d' "
+                 "> /dev/null 2> '%s'",
+                 bin, scene, ref, dir, seed, log);
+        CHECK(run(cmd) == 0, "compare --reference (seed %d) failed", seed);
+        FILE *f = fopen(log, "r");
+        static char text[65536];
+        size_t n = f ? fread(text, 1, sizeof text - 1, f) : 0;
+        if (f) fclose(f);
+        text[n] = 0;
+        int warned = strstr(text, "warning: ") && strstr(text, ref) && strstr(text, "seed 0");
+        CHECK(warned == (seed == 0), "reference of seed %d: %s (stderr: %.300s)", seed,
+              seed == 0 ? "no warning about the shared seed" : "a warning, though the seeds differ", text);
+    }
+}
+
 int main(int argc, char **argv) {
     if (argc < 3) { fprintf(stderr, "usage: test_compare CANDELA SCENE\n"); return 2; }
     char dir[] = "/tmp/candela-test-compare-XXXXXX";
@@ -427,6 +453,9 @@ int main(int argc, char **argv) {
     snprintf(b, sizeof b, "%s/time", dir);
     check_equal_spp(argv[1], argv[2], a);
     check_equal_time(argv[1], argv[2], b);
+    char c[256];
+    snprintf(c, sizeof c, "%s/seed", dir);
+    check_reference_seed(argv[1], argv[2], c);
     char cmd[4300];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
     if (!check_failures) run(cmd); /* kept for a look when something failed */

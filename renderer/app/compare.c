@@ -396,6 +396,27 @@ static int load_reference(const char *path, int w, int h, float **out, char err[
     return 0;
 }
 
+/* Warns when a --reference EXR was rendered with the compared renders' seed (its
+ * candela:identity says so): then a variant with the reference's sampler and light sampler
+ * draws the reference's first samples, its error against the reference is correlated with the
+ * reference's own, and its MSE reads low (on the production crop, half). compare's own
+ * reference takes seed + 0x5eed for that reason. A reference from elsewhere records no
+ * identity and is taken as it is. */
+static void warn_reference_seed(const char *path, unsigned long long seed) {
+    char identity[CANDELA_IDENTITY_LEN], ioerr[IO_ERR_LEN];
+    int w, h;
+    if (io_exr_complete_attribute(path, &w, &h, "candela:identity", identity, sizeof identity, ioerr) != 0) return;
+    const char *at = strstr(identity, " seed="); /* (the identity starts with scene=) */
+    if (!at) return;
+    char *end;
+    unsigned long long ref_seed = strtoull(at + 6, &end, 10);
+    if (end == at + 6 || ref_seed != seed) return;
+    fprintf(stderr,
+            "candela compare: warning: %s was rendered with seed %llu, the compared renders' seed: their errors "
+            "against it are correlated and read low; render it with another --seed\n",
+            path, seed);
+}
+
 /* The reference's variance layer (variance.R, .G, .B: the variance of each pixel's mean),
  * interleaved; *out = NULL when the EXR has none (a reference from elsewhere): the errors are then
  * not corrected for the reference's noise. -1 only on a size mismatch or out of memory. */
@@ -942,6 +963,7 @@ static int compare_locked(const CandelaOptions *base, const CandelaCompareOption
         r.width = img.width; r.height = img.height;
         candela_image_free(&img);
         if (load_reference(c->reference_path, r.width, r.height, &ref, err) != 0) goto done;
+        if (!base->quiet) warn_reference_seed(c->reference_path, (unsigned long long)base->seed);
         snprintf(path, sizeof path, "%s/reference.png", c->out_dir);
         if (write_srgb_png(path, ref, r.width, r.height, err) != 0) goto done;
     } else {

@@ -562,7 +562,10 @@ static const CandelaFlag FLAGS[] = {
         "reference spp (default 16 x --spp)",
         "reference spp (default 16 x --spp; 256 with --time-budget), tree sampler"),
     STRING_F(IN, "--reference", NULL, "FILE.exr", CL(co.reference_path), CANDELA_CMD_COMPARE, 0, "ref.exr",
-           "reuse a reference instead of rendering one", "reuse a reference instead of rendering one"),
+           "reuse a reference instead of rendering one",
+           "reuse a reference instead of rendering one; render it with another --seed than the variants' (a "
+           "warning says so otherwise: with the same seed a variant draws the reference's own first samples, and its "
+           "error against it reads low)"),
     STRING_F(OUT, "--out-dir", NULL, "DIR", CL(co.out_dir), CANDELA_CMD_COMPARE, 0, "report",
            "report folder (default out/compare-<scene name>)", "the report folder (default out/compare-<scene name>)"),
     INT("--optimal-max-lights", "N", 0, 1 << 30, CL(co.optimal_max_lights), CANDELA_FIELD_INT, CANDELA_CMD_COMPARE, 0,
