@@ -123,8 +123,8 @@ static inline int russian_roulette(vec3 *beta, double rr_scale, float u) {
  * that probability, or -1 where there is no estimate (an unguided or delta vertex, a leaf that
  * learned nothing, a black pixel so far): the throughput's roulette decides there. Measured
  * (scenes/RESULTS.md, "The adjoint-driven roulette and `auto`'s gain"): against the corrected
- * throughput roulette, paths the guide expects to matter live longer and the rest die sooner; KEEP 10 had the lowest
- * relMSE x time of 1, 3, 5, 10 and 30 on the indirect-lit box. */
+ * throughput roulette, paths the guide expects to matter live longer and the rest die sooner;
+ * KEEP 10 had the lowest relMSE x time of 1, 3, 5, 10 and 30 on the indirect-lit box. */
 #define ADJOINT_RR_KEEP 10.0f
 #define ADJOINT_RR_MIN_SURVIVAL 0.05f
 static inline float adjoint_survival(float pixel_estimate, vec3 beta, const ScatterSample *ss,
