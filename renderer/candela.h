@@ -101,6 +101,7 @@ typedef struct CandelaOptions {
     int cachepoint_build_linear;  /* 1: the paper's build (every light at every point); 0: a cut
                                    * through the light tree (the default) */
     uint32_t cachepoint_cut_size; /* cut build: far entries per point; 0: default */
+    uint32_t cachepoint_max_near; /* near lights per point at most (CACHEPOINTS_MAX_NEAR); 0: default */
     int cachepoint_pooling;       /* 1: slots with too few attempts pool their neighbours' visibility counters;
                                    * 2: and then (cut build) their point's counters of nearby lights */
     uint32_t cachepoint_candidates; /* candidates in object boxes (§3.1.1); 0: scaled with the image */

@@ -28,6 +28,7 @@ typedef struct Strategy {
     int progressive; /* --cachepoint-progressive: 0 default, 1 on, 2 off */
     int size;        /* image width and height; 0: 24 */
     int bsdf_off; /* --cachepoint-bsdf off */
+    uint32_t max_near; /* --cachepoint-max-near; 0: default */
 } Strategy;
 
 /* the light units of every render: raw, except where the auto cases set what users get */
@@ -52,6 +53,7 @@ static int render(const char *dir, const char *scene, const Strategy *k, int spp
     o.cachepoint_retruncate = k->retrunc;
     o.cachepoint_build_linear = k->linear;
     o.cachepoint_cut_size = k->cut_size;
+    o.cachepoint_max_near = k->max_near;
     o.cachepoint_pooling = k->pooling;
     o.cachepoint_progressive = k->progressive;
     o.cachepoint_bsdf = !k->bsdf_off;
@@ -92,6 +94,9 @@ int main(int argc, char **argv) {
         {"cachepoints", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 0, 0},
         {"cachepoints-novis", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 1, 0, 0, 0},
         {"cachepoints-cut4", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 0, 4},
+        /* a near list of one light: the other goes far (both builds) */
+        {"cachepoints-near1", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 0, 0, .max_near = 1},
+        {"cachepoints-lin-near1", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 1, 0, .max_near = 1},
         {"cachepoints-linear", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 1, 0},
         {"cachepoints-pooled", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 0, 0, 0, 0, 1},
         {"cachepoints-lin-novis", CANDELA_LIGHT_SAMPLER_CACHEPOINTS, 0, 1, 0, 1, 0},
@@ -109,6 +114,9 @@ int main(int argc, char **argv) {
                 continue;
             if (strategies[k].s == CANDELA_LIGHT_SAMPLER_CACHEPOINTS)
                 CHECK(st.num_cachepoints >= 10, "%s: only %u cache points", scenes[sc], st.num_cachepoints);
+            if (strategies[k].max_near)
+                CHECK(st.cachepoint_mean_near <= strategies[k].max_near, "%s %s: %.2f near lights per point",
+                      scenes[sc], strategies[k].name, st.cachepoint_mean_near);
             agree(scenes[sc], strategies[k].name, &ref, &img);
             candela_image_free(&img);
         }

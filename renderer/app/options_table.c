@@ -449,6 +449,10 @@ static const CandelaFlag FLAGS[] = {
            "cut (default: far entries are light-tree clusters) | linear (the paper: every light estimated at every point)"),
     INT("--cachepoint-cut-size", "N", 1, 1 << 20, IMG(cachepoint_cut_size), CANDELA_FIELD_U32, ALL_RENDER, 0, "64",
         "cut build: far entries per cache point (default 128)", "cut build: far entries per cache point (default 128)"),
+    INT("--cachepoint-max-near", "N", 1, 256, IMG(cachepoint_max_near), CANDELA_FIELD_U32, ALL_RENDER, 0, "16",
+        "near lights per cache point at most (default 256)",
+        "near lights per cache point at most, evaluated exactly at every vertex that uses the point; the "
+        "strongest by fluence stay near, the rest go to the far entries (default 256, at most 256)"),
     INT("--cachepoint-candidates", "N", 0, 10000000, IMG(cachepoint_candidates), CANDELA_FIELD_U32, ALL_RENDER, 0,
         "25000", "cache point candidates in object boxes",
         "cache point candidates in object boxes (default: 100000 at 1280x720 pixels or more, in proportion below, at "

@@ -812,6 +812,7 @@ static int build(CachePointSampler *s, const Scene *scene, const SceneMedia *med
     params.pool_visibility = o->cachepoint_pooling;
     params.build_cut = !o->cachepoint_build_linear;
     if (o->cachepoint_cut_size) params.cut_size = o->cachepoint_cut_size;
+    if (o->cachepoint_max_near) params.max_near = o->cachepoint_max_near;
     /* progressive insertion: one round, after the third iteration (4 spp of counters: the
      * visibility rates are reliable enough, most of the render is still to come). Two rounds,
      * after 2 and 4 spp with half the budget each, gave the same MSE on windows at 16 spp
